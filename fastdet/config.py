@@ -1,0 +1,182 @@
+"""Frozen configuration dataclasses: what features a model uses, where to search, how heat works.
+
+All three are plain values (hashable, comparable, JSON-round-trippable with
+:func:`to_dict` / ``from_dict``), so a model file can record its :class:`FeatureConfig`
+and loading can check it.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any
+
+COLOR_SPACES = ("RGB", "HSV", "HLS", "LUV", "YCrCb", "YUV")
+
+
+@dataclass(frozen=True)
+class FeatureConfig:
+    """Features of one 64x64 window.
+
+    color_space: colour space the features are computed in (input is BGR uint8).
+    hog_channels: channels of that colour space to take HOG of, e.g. ``(0, 1, 2)``.
+    orientations, pixels_per_cell, cells_per_block: HOG parameters (square cells/blocks,
+        L2-Hys block norm, as ``skimage.feature.hog``).
+    spatial_size: side of the spatial-bin image (window resized to it with
+        ``cv2.INTER_LINEAR``), 0 to leave the spatial features out.
+    hist_bins: bins per channel of the colour histogram over [0, 256), 0 to leave it out.
+    window: side of the square window in pixels.
+    """
+
+    color_space: str = "YCrCb"
+    hog_channels: tuple[int, ...] = (0, 1, 2)
+    orientations: int = 9
+    pixels_per_cell: int = 8
+    cells_per_block: int = 2
+    spatial_size: int = 32
+    hist_bins: int = 32
+    window: int = 64
+
+    def __post_init__(self) -> None:
+        if self.color_space not in COLOR_SPACES:
+            raise ValueError(f"color_space must be one of {COLOR_SPACES}, got {self.color_space!r}")
+        chans = self.hog_channels
+        if isinstance(chans, str):
+            if chans.upper() != "ALL":
+                raise ValueError(f"hog_channels must be a list of 0..2 or 'ALL', got {chans!r}")
+            chans = (0, 1, 2)
+        chans = tuple(int(c) for c in chans)
+        if not chans or any(c not in (0, 1, 2) for c in chans) or len(set(chans)) != len(chans):
+            raise ValueError(f"hog_channels must be distinct channels in 0..2, got {self.hog_channels!r}")
+        object.__setattr__(self, "hog_channels", chans)
+        if self.orientations < 1:
+            raise ValueError("orientations must be >= 1")
+        if self.pixels_per_cell < 1 or self.cells_per_block < 1:
+            raise ValueError("pixels_per_cell and cells_per_block must be >= 1")
+        if self.window % self.pixels_per_cell:
+            raise ValueError("window must be a multiple of pixels_per_cell")
+        if self.cells_per_window < self.cells_per_block:
+            raise ValueError("a window must hold at least one block")
+        if self.spatial_size < 0 or self.hist_bins < 0:
+            raise ValueError("spatial_size and hist_bins must be >= 0")
+        if self.spatial_size and self.window % self.spatial_size:
+            raise ValueError("window must be a multiple of spatial_size")
+        if self.hist_bins and 256 % self.hist_bins:
+            raise ValueError("hist_bins must divide 256")
+
+    @property
+    def cells_per_window(self) -> int:
+        return self.window // self.pixels_per_cell
+
+    @property
+    def blocks_per_window(self) -> int:
+        return self.cells_per_window - self.cells_per_block + 1
+
+    @property
+    def block_len(self) -> int:
+        """Values in one block of one channel: ``cells_per_block**2 * orientations``."""
+        return self.cells_per_block ** 2 * self.orientations
+
+    @property
+    def n_hog(self) -> int:
+        return len(self.hog_channels) * self.blocks_per_window ** 2 * self.block_len
+
+    @property
+    def n_spatial(self) -> int:
+        return 3 * self.spatial_size ** 2
+
+    @property
+    def n_hist(self) -> int:
+        return 3 * self.hist_bins
+
+    @property
+    def n_features(self) -> int:
+        return self.n_hog + self.n_spatial + self.n_hist
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["hog_channels"] = list(self.hog_channels)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> "FeatureConfig":
+        known = {f.name for f in fields(cls)}
+        unknown = set(d) - known
+        if unknown:
+            raise ValueError(f"unknown FeatureConfig fields: {sorted(unknown)}")
+        return cls(**d)
+
+
+@dataclass(frozen=True)
+class SearchBand:
+    """One search band: windows of ``scale * 64`` px in frame rows [y_start, y_stop)
+    and columns [x_start, x_stop) (``None`` = frame edge)."""
+
+    scale: float
+    y_start: int
+    y_stop: int
+    x_start: int | None = None
+    x_stop: int | None = None
+
+    def __post_init__(self) -> None:
+        if not self.scale > 0:
+            raise ValueError(f"scale must be > 0, got {self.scale}")
+        if self.y_stop <= self.y_start:
+            raise ValueError(f"y_stop must exceed y_start, got {self.y_start}..{self.y_stop}")
+        if self.x_start is not None and self.x_stop is not None and self.x_stop <= self.x_start:
+            raise ValueError(f"x_stop must exceed x_start, got {self.x_start}..{self.x_stop}")
+
+
+def _default_bands() -> tuple[SearchBand, ...]:
+    return (
+        SearchBand(1.0, 400, 496),
+        SearchBand(1.25, 400, 528),
+        SearchBand(1.5, 400, 560),
+        SearchBand(2.0, 400, 592),
+        SearchBand(2.5, 400, 656),
+        SearchBand(3.0, 400, 656),
+    )
+
+
+@dataclass(frozen=True)
+class SearchConfig:
+    """Where and how densely to search.
+
+    bands: the search bands.
+    cells_per_step: window stride in HOG cells (of the scaled band).
+    threshold: a window is positive when its decision value exceeds this.
+    """
+
+    bands: tuple[SearchBand, ...] = field(default_factory=_default_bands)
+    cells_per_step: int = 2
+    threshold: float = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "bands", tuple(self.bands))
+        if not self.bands:
+            raise ValueError("a SearchConfig needs at least one band")
+        if self.cells_per_step < 1:
+            raise ValueError("cells_per_step must be >= 1")
+
+
+@dataclass(frozen=True)
+class HeatConfig:
+    """Heat map over recent frames (see :mod:`fastdet.heatmap`).
+
+    n_frames: frames remembered (ring buffer length).
+    decay: weight of a frame ``k`` frames old is ``decay**k``.
+    threshold: heat a pixel needs to belong to a vehicle blob.
+    min_width, min_height: smallest box kept (px).
+    max_aspect: boxes taller than ``max_aspect * width`` are dropped.
+    """
+
+    n_frames: int = 8
+    decay: float = 1.0
+    threshold: float = 6.0
+    min_width: int = 40
+    min_height: int = 20
+    max_aspect: float = 1.5
+
+    def __post_init__(self) -> None:
+        if self.n_frames < 1:
+            raise ValueError("n_frames must be >= 1")
+        if not 0 < self.decay <= 1:
+            raise ValueError("decay must be in (0, 1]")
