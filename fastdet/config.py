@@ -6,7 +6,7 @@ and loading can check it.
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any
 
 COLOR_SPACES = ("RGB", "HSV", "HLS", "LUV", "YCrCb", "YUV")
@@ -161,22 +161,91 @@ class SearchConfig:
 class HeatConfig:
     """Heat map over recent frames (see :mod:`fastdet.heatmap`).
 
-    n_frames: frames remembered (ring buffer length).
-    decay: weight of a frame ``k`` frames old is ``decay**k``.
-    threshold: heat a pixel needs to belong to a vehicle blob.
+    Each positive window adds heat to the pixels it covers; the heat of a frame is the
+    age-weighted **mean** of the last ``n_frames`` per-frame maps (weights ``decay**age``,
+    normalised by the weights of the frames seen so far), so ``threshold`` and the box
+    scores are in "heat of one frame" units whatever ``n_frames`` and ``decay`` are.
+
+    n_frames: frames remembered (ring buffer length); 1 = single frame.
+    decay: weight of a frame ``k`` frames old is ``decay**k`` (1 = equal weights).
+        Default 0.8: a car moving across the image leaves a short trail, not a long smear.
+    threshold: a pixel belongs to a vehicle blob when its heat is strictly greater than this.
+        Default 2.0: more than two barely-positive windows overlapping in every recent
+        frame, or one confident window (heat ``w_max``) in most of them.
+    single_frame_threshold: ``threshold`` used by :meth:`single_frame` (one image, no
+        temporal averaging to suppress false alarms, hence a stricter default).
+    score_lo, score_hi: a window's heat is linear in its score, from 1 at ``score_lo`` to
+        ``w_max`` at ``score_hi``, clipped to [1, w_max] outside. ``None`` = the default of
+        the detector's score kind (:meth:`score_range`): decision values (LinearSVC)
+        ``(0.0, 2.0)``, probabilities (logistic regression) ``(0.5, 1.0)``.
+    w_max: heat of a window scoring ``score_hi`` or more; one confident window outweighs
+        ``w_max - 1`` barely-positive ones at the same place.
+    cell: heat-map resolution in pixels; boxes are snapped to this grid (rounded to the
+        nearest multiple). Windows start on an 8-px grid at scale 1, so 4 loses nothing
+        visible and is 16x cheaper than full resolution.
     min_width, min_height: smallest box kept (px).
-    max_aspect: boxes taller than ``max_aspect * width`` are dropped.
+    max_aspect: boxes taller than ``max_aspect * width`` are dropped (no vehicle seen from
+        behind or the side is much taller than wide).
     """
 
     n_frames: int = 8
-    decay: float = 1.0
-    threshold: float = 6.0
+    decay: float = 0.8
+    threshold: float = 2.0
+    single_frame_threshold: float = 2.0
+    score_lo: float | None = None
+    score_hi: float | None = None
+    w_max: float = 4.0
+    cell: int = 4
     min_width: int = 40
     min_height: int = 20
     max_aspect: float = 1.5
 
+    #: default ``(score_lo, score_hi)`` by ``Detector.score_kind``
+    SCORE_RANGES = {"decision": (0.0, 2.0), "probability": (0.5, 1.0)}
+
     def __post_init__(self) -> None:
-        if self.n_frames < 1:
-            raise ValueError("n_frames must be >= 1")
+        if int(self.n_frames) != self.n_frames or self.n_frames < 1:
+            raise ValueError("n_frames must be an integer >= 1")
         if not 0 < self.decay <= 1:
             raise ValueError("decay must be in (0, 1]")
+        for name in ("threshold", "single_frame_threshold"):
+            v = getattr(self, name)
+            if not v >= 0 or v == float("inf"):
+                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+        if (self.score_lo is None) != (self.score_hi is None):
+            raise ValueError("give both score_lo and score_hi, or neither")
+        if self.score_lo is not None and not self.score_hi > self.score_lo:
+            raise ValueError(f"score_hi must exceed score_lo, got {self.score_lo}..{self.score_hi}")
+        if not 1 <= self.w_max < float("inf"):
+            raise ValueError(f"w_max must be a finite number >= 1, got {self.w_max!r}")
+        if int(self.cell) != self.cell or self.cell < 1:
+            raise ValueError("cell must be an integer >= 1")
+        if self.min_width < 0 or self.min_height < 0:
+            raise ValueError("min_width and min_height must be >= 0")
+        if not self.max_aspect > 0:
+            raise ValueError("max_aspect must be > 0")
+
+    def score_range(self, score_kind: str = "decision") -> tuple[float, float]:
+        """``(score_lo, score_hi)``: the configured values, or the default for ``score_kind``."""
+        if self.score_lo is not None and self.score_hi is not None:
+            return float(self.score_lo), float(self.score_hi)
+        try:
+            return self.SCORE_RANGES[score_kind]
+        except KeyError:
+            raise ValueError(f"score_kind must be one of {sorted(self.SCORE_RANGES)}, got {score_kind!r}") from None
+
+    def single_frame(self, threshold: float | None = None) -> "HeatConfig":
+        """This config for one image: ``n_frames=1`` and ``single_frame_threshold`` (or ``threshold``)."""
+        t = self.single_frame_threshold if threshold is None else threshold
+        return replace(self, n_frames=1, threshold=t)
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> "HeatConfig":
+        known = {f.name for f in fields(cls)}
+        unknown = set(d) - known
+        if unknown:
+            raise ValueError(f"unknown HeatConfig fields: {sorted(unknown)}")
+        return cls(**d)
