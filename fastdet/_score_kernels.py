@@ -1,0 +1,78 @@
+"""Numba kernels: the decision value of every window position of a band, at once.
+
+A window's score is a sum of three correlations with the folded linear weights (see
+DESIGN.md, "score all windows at once"): its 7x7 blocks of the band's HOG block map, its
+crop of the band's spatial-bin map, and the window sum of the per-pixel histogram-weight
+map (four look-ups in an integral image). The innermost loops run over contiguous rows.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def dense_scores(block_rows, w_hog, nbw, k, spat_rows, w_sp, sp_off, integ, win, cell, step, bias, out):
+    """Scores of every window of one band.
+
+    block_rows: (R, Cb*k) float64, the HOG block map with one row of blocks contiguous
+        (k = values per block position, all channels).
+    w_hog: (nbw, nbw*k) float64, HOG weights laid out like nbw consecutive block rows.
+    spat_rows: (Hs, Ws*3) float64 spatial-bin map (Hs = 0 when unused); w_sp: (S, S*3).
+    sp_off: pixels per spatial-map pixel (the spatial factor).
+    integ: (H+1, W+1) float64 integral image of the histogram-weight map ((1, 1) when unused).
+    win, cell, step: window side and cell size in pixels, stride in cells.
+    out: (ny, nx) float64, overwritten: out[i, j] is the window at block (i*step, j*step).
+    """
+    ny, nx = out.shape
+    s = w_sp.shape[0]
+    s3 = w_sp.shape[1]
+    use_sp = spat_rows.shape[0] > 0
+    use_hist = integ.shape[0] > 1
+    row_len = nbw * k
+    for ij in prange(ny * nx):
+        i = ij // nx
+        j = ij - i * nx
+        yb = i * step
+        xb = j * step
+        if True:
+            acc = 0.0
+            c0 = xb * k
+            for dr in range(nbw):
+                r = block_rows[yb + dr]
+                wr = w_hog[dr]
+                for t in range(row_len):
+                    acc += r[c0 + t] * wr[t]
+            if use_sp:
+                ys = (yb * cell) // sp_off
+                xs3 = ((xb * cell) // sp_off) * 3
+                for dy in range(s):
+                    r = spat_rows[ys + dy]
+                    wr = w_sp[dy]
+                    for t in range(s3):
+                        acc += r[xs3 + t] * wr[t]
+            if use_hist:
+                y0 = yb * cell
+                x0 = xb * cell
+                acc += integ[y0 + win, x0 + win] - integ[y0, x0 + win] - integ[y0 + win, x0] + integ[y0, x0]
+            out[i, j] = acc + bias
+
+
+@njit(cache=True, nogil=True)
+def hist_weight_integral(image, w_hist, shift, out):
+    """Integral image of the per-pixel histogram weight ``sum_c w_hist[c, image[y, x, c] >> shift]``.
+
+    image: (H, W, 3) uint8; w_hist: (3, bins) float64; out: (H+1, W+1) float64, overwritten.
+    """
+    h, w, c = image.shape
+    for x in range(w + 1):
+        out[0, x] = 0.0
+    for y in range(h):
+        out[y + 1, 0] = 0.0
+        run = 0.0
+        for x in range(w):
+            v = 0.0
+            for ch in range(c):
+                v += w_hist[ch, image[y, x, ch] >> shift]
+            run += v
+            out[y + 1, x + 1] = out[y, x + 1] + run

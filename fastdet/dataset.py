@@ -1,0 +1,125 @@
+"""Training crops: loading folders of 64x64 PNGs and splitting them without leaks.
+
+Layout (``../shared/data``): ``vehicles/<folder>/...png`` are positives,
+``non-vehicles/<folder>/...png`` negatives, at any depth. Within a folder, files sorted by
+the number in their name are in time order (GTI images are consecutive video frames), so
+the *sequence* split cuts every folder into contiguous blocks instead of shuffling frames
+of the same car to both sides.
+"""
+from __future__ import annotations
+
+import re
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from .errors import DataError
+
+_NUM = re.compile(r"(\d+)")
+
+
+def _sort_key(path: Path) -> tuple:
+    nums = _NUM.findall(path.stem)
+    return (int(nums[-1]) if nums else -1, path.name)
+
+
+@dataclass(frozen=True)
+class CropSet:
+    """images: ``(N, 64, 64, 3) uint8`` BGR; labels: ``(N,) int64`` (1 vehicle, 0 not);
+    groups: ``(N,)`` folder of each crop (relative to the data folder); order: ``(N,)``
+    position of the crop in its folder's time order."""
+
+    images: np.ndarray
+    labels: np.ndarray
+    groups: np.ndarray
+    order: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.labels)
+
+    def subset(self, idx: np.ndarray) -> "CropSet":
+        return CropSet(self.images[idx], self.labels[idx], self.groups[idx], self.order[idx])
+
+    @staticmethod
+    def concat(a: "CropSet", b: "CropSet") -> "CropSet":
+        return CropSet(np.concatenate([a.images, b.images]), np.concatenate([a.labels, b.labels]),
+                       np.concatenate([a.groups, b.groups]), np.concatenate([a.order, b.order]))
+
+
+def find_pngs(folder: Path) -> dict[Path, list[Path]]:
+    """PNG files under ``folder`` (any depth), grouped by their parent folder, each group in
+    time order (by the last number in the file name)."""
+    groups: dict[Path, list[Path]] = {}
+    for p in folder.rglob("*.png"):
+        groups.setdefault(p.parent, []).append(p)
+    return {k: sorted(v, key=_sort_key) for k, v in sorted(groups.items())}
+
+
+def _read(path: Path, size: int) -> np.ndarray:
+    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if img is None:
+        raise DataError(f"{path}: not a readable image")
+    if img.shape[:2] != (size, size):
+        img = cv2.resize(img, (size, size), interpolation=cv2.INTER_AREA)
+    return img
+
+
+def load_folder(folder: Path, label: int, root: Path | None = None, size: int = 64,
+                progress: bool = False) -> CropSet:
+    """All PNGs under ``folder`` with one label; crops not ``size``x``size`` are resized."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise DataError(f"folder {folder} not found")
+    groups = find_pngs(folder)
+    paths = [p for ps in groups.values() for p in ps]
+    if not paths:
+        raise DataError(f"no .png files under {folder}")
+    names, order = [], []
+    for g, ps in groups.items():
+        rel = str(g.relative_to(root)) if root is not None else str(g)
+        names += [rel] * len(ps)
+        order += list(range(len(ps)))
+    with ThreadPoolExecutor(max_workers=4) as pool:
+        it = pool.map(lambda p: _read(p, size), paths, chunksize=64)
+        if progress:
+            from tqdm import tqdm
+
+            it = tqdm(it, total=len(paths), desc=f"reading {folder.name}", unit="img", leave=False)
+        images = np.stack(list(it))
+    return CropSet(images, np.full(len(paths), label, np.int64), np.array(names), np.array(order, np.int64))
+
+
+def load_crops(data: Path, size: int = 64, progress: bool = False) -> CropSet:
+    """``data/vehicles`` (label 1) and ``data/non-vehicles`` (label 0)."""
+    data = Path(data)
+    for sub in ("vehicles", "non-vehicles"):
+        if not (data / sub).is_dir():
+            raise DataError(f"{data} has no '{sub}' folder (expected {data}/vehicles and {data}/non-vehicles)")
+    pos = load_folder(data / "vehicles", 1, data, size, progress)
+    neg = load_folder(data / "non-vehicles", 0, data, size, progress)
+    return CropSet.concat(pos, neg)
+
+
+def random_split(labels: np.ndarray, seed: int, test_size: float = 0.2) -> tuple[np.ndarray, np.ndarray]:
+    """Stratified random split: ``(train_idx, test_idx)``."""
+    from sklearn.model_selection import train_test_split
+
+    idx = np.arange(len(labels))
+    tr, te = train_test_split(idx, test_size=test_size, random_state=seed, stratify=labels)
+    return np.sort(tr), np.sort(te)
+
+
+def sequence_split(groups: np.ndarray, order: np.ndarray, seed: int, n_blocks: int = 5) -> tuple[np.ndarray, np.ndarray]:
+    """Leak-free split: each folder, in time order, is cut into ``n_blocks`` contiguous
+    blocks and block ``seed % n_blocks`` of every folder is the test part."""
+    test = np.zeros(len(groups), bool)
+    k = seed % n_blocks
+    for g in np.unique(groups):
+        members = np.flatnonzero(groups == g)
+        members = members[np.argsort(order[members], kind="stable")]
+        blocks = np.array_split(members, n_blocks)
+        test[blocks[k]] = True
+    return np.flatnonzero(~test), np.flatnonzero(test)

@@ -1,0 +1,145 @@
+"""``Detector``: the positive windows of one frame, every window of every band scored at once.
+
+Per band: crop, resize by ``1/scale``, colour-convert once; HOG block map, spatial-bin
+map and histogram-weight integral image once; then one numba kernel gives the decision
+value of every window position (``fastdet._score_kernels.dense_scores``). The result equals
+the classic per-window pipeline (skimage HOG of the scaled band, the window's blocks sliced
+out, the window's own spatial and histogram features, ``scaler.transform``,
+``decision_function``) to floating-point rounding; ``tests/test_detector.py`` checks every
+window of every default band.
+
+Training crops are 64x64 images whose HOG has zeroed gradients on the crop's border; in
+the band, a window's edge pixels see their real neighbours. So search features differ from
+training features in the outermost pixel ring: the classic pipeline has the same mismatch,
+and the small loss it causes is what HOG sub-sampling buys its speed with.
+"""
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ._hog import hog_channels
+from ._score_kernels import dense_scores, hist_weight_integral
+from .config import SearchConfig
+from .detections import Detections
+from .features import convert_color, hist_bin_shift, spatial_factor, spatial_map
+from .model import Model, load_model
+from .search import BandGeometry, band_geometry, scaled_band, window_boxes
+
+
+class Detector:
+    """Finds vehicle windows in frames.
+
+    model: a :class:`~fastdet.model.Model`, a path to a model file, or ``None`` for the
+        bundled default model.
+    search: where and how densely to search (default :class:`~fastdet.config.SearchConfig`).
+
+    ``detect(frame)`` returns the positive windows; :class:`fastdet.VideoDetector` turns
+    them into one box per vehicle with a heat map over recent frames.
+    """
+
+    def __init__(self, model: Model | str | os.PathLike | None = None, search: SearchConfig | None = None):
+        self.model = model if isinstance(model, Model) else load_model(model)
+        self.search = search if search is not None else SearchConfig()
+        cfg = self.config = self.model.config
+        if cfg.spatial_size and cfg.pixels_per_cell % spatial_factor(cfg):
+            raise ValueError(f"spatial_size {cfg.spatial_size} needs windows on a grid of "
+                             f"{spatial_factor(cfg)} px; cells are {cfg.pixels_per_cell} px")
+        w, b = self.model.folded()
+        nch, nbw, cpb, o = len(cfg.hog_channels), cfg.blocks_per_window, cfg.cells_per_block, cfg.orientations
+        self._k = nch * cpb * cpb * o
+        self._w_hog = np.ascontiguousarray(
+            w[: cfg.n_hog].reshape(nch, nbw, nbw, cpb, cpb, o).transpose(1, 2, 0, 3, 4, 5).reshape(nbw, nbw * self._k))
+        pos = cfg.n_hog
+        s = cfg.spatial_size
+        self._w_sp = np.ascontiguousarray(w[pos: pos + cfg.n_spatial].reshape(s, 3 * s)) if s else np.zeros((0, 0))
+        pos += cfg.n_spatial
+        self._w_hist = np.ascontiguousarray(w[pos:].reshape(3, cfg.hist_bins)) if cfg.hist_bins else None
+        self._bias = b
+        self.score_kind = self.model.score_kind
+        self.timings: dict[str, float] = {}
+        self.last_scales = np.zeros(0, np.float32)
+        self.last_band_scores: list[tuple[BandGeometry, np.ndarray]] = []
+
+    def warmup(self) -> None:
+        """Load (or compile) the numba kernels now rather than on the first frame."""
+        tiny = np.zeros((self.config.window * 2, self.config.window * 2, 3), np.uint8)
+        cfg = self.config
+        from .config import SearchBand
+
+        geo = band_geometry(SearchBand(1.0, 0, tiny.shape[0]), tiny.shape[:2], cfg, self.search.cells_per_step)
+        self.band_scores(tiny, geo)
+
+    def band_scores(self, frame: np.ndarray, geo: BandGeometry, timings: dict[str, float] | None = None) -> np.ndarray:
+        """Decision values of every window position of one band: ``(geo.ny, geo.nx) float64``."""
+        cfg = self.config
+        t0 = time.perf_counter()
+        img = convert_color(scaled_band(frame, geo), cfg.color_space)
+        t1 = time.perf_counter()
+        blocks = hog_channels(img, cfg.orientations, cfg.pixels_per_cell, cfg.cells_per_block,
+                              channels=list(cfg.hog_channels))
+        t2 = time.perf_counter()
+        out = np.empty((geo.ny, geo.nx), np.float64)
+        if geo.n_windows:
+            rows = blocks.reshape(blocks.shape[0], -1)
+            if cfg.spatial_size:
+                f = spatial_factor(cfg)
+                sp = spatial_map(img, f).astype(np.float64)
+                sp = sp.reshape(sp.shape[0], -1)
+            else:
+                f, sp = 1, np.zeros((0, 0))
+            if self._w_hist is not None:
+                integ = np.empty((img.shape[0] + 1, img.shape[1] + 1), np.float64)
+                hist_weight_integral(img, self._w_hist, hist_bin_shift(cfg), integ)
+            else:
+                integ = np.zeros((1, 1))
+            dense_scores(rows, self._w_hog, cfg.blocks_per_window, self._k, sp, self._w_sp, f, integ,
+                         cfg.window, cfg.pixels_per_cell, geo.step, self._bias, out)
+        t3 = time.perf_counter()
+        if timings is not None:
+            timings["resize_colour"] = timings.get("resize_colour", 0.0) + (t1 - t0)
+            timings["hog"] = timings.get("hog", 0.0) + (t2 - t1)
+            timings["score"] = timings.get("score", 0.0) + (t3 - t2)
+        return out
+
+    def geometries(self, frame_shape: tuple[int, int]) -> list[BandGeometry]:
+        """Geometry of every search band on a frame of ``(H, W)``."""
+        return [band_geometry(b, frame_shape, self.config, self.search.cells_per_step) for b in self.search.bands]
+
+    def detect(self, frame: np.ndarray, rgb: bool = False) -> Detections:
+        """Positive windows of one frame.
+
+        frame: ``(H, W, 3) uint8``, BGR (OpenCV's order) or RGB with ``rgb=True``.
+        Returns :class:`~fastdet.detections.Detections`: ``boxes (N, 4) int32`` x1, y1, x2, y2
+        (exclusive) in frame pixels and ``scores (N,) float32``: the probability of "vehicle"
+        for a logistic-regression model, the SVM decision value otherwise. A window is positive
+        when its decision value exceeds ``search.threshold``.
+        """
+        frame = np.asarray(frame)
+        if frame.dtype != np.uint8 or frame.ndim != 3 or frame.shape[2] != 3:
+            raise ValueError(f"frame must be an (H, W, 3) uint8 array, got {frame.dtype} {frame.shape}")
+        if rgb:
+            frame = frame[:, :, ::-1]
+        timings: dict[str, float] = {}
+        boxes, scores, scales = [], [], []
+        self.last_band_scores = []
+        for geo in self.geometries(frame.shape[:2]):
+            dec = self.band_scores(frame, geo, timings)
+            self.last_band_scores.append((geo, dec))
+            r, c = np.nonzero(dec > self.search.threshold)
+            if len(r):
+                boxes.append(window_boxes(geo, r, c, self.config))
+                scores.append(dec[r, c])
+                scales.append(np.full(len(r), geo.band.scale, np.float32))
+        self.timings = timings
+        if not boxes:
+            self.last_scales = np.zeros(0, np.float32)
+            return Detections.empty()
+        dec = np.concatenate(scores)
+        if self.score_kind == "probability":
+            dec = 1.0 / (1.0 + np.exp(-dec))
+        self.last_scales = np.concatenate(scales)
+        return Detections(np.concatenate(boxes), dec.astype(np.float32))

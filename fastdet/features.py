@@ -1,0 +1,116 @@
+"""Window features: HOG of each selected channel + spatial bins + colour histogram.
+
+The feature vector of one ``window x window`` crop (default 64x64) in the colour space of a
+:class:`~fastdet.config.FeatureConfig`, concatenated in this order:
+
+1. HOG, channel after channel, each as ``skimage.feature.hog(crop[..., c], orientations,
+   (ppc, ppc), (cpb, cpb), 'L2-Hys', feature_vector=True)``;
+2. spatial bins: ``cv2.resize(crop, (s, s), interpolation=cv2.INTER_LINEAR).ravel()``
+   (row, column, channel order), as float;
+3. colour histogram: ``np.histogram(crop[..., c], bins, range=(0, 256))[0]`` for c = 0, 1, 2.
+
+:func:`extract_features` computes all of it for a stack of crops at once; the spatial bins
+come from :func:`spatial_map` (which the detector also uses on whole bands), and the tests
+check every part against the plain reference above.
+"""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from .config import FeatureConfig
+
+_CONVERSIONS = {
+    "RGB": cv2.COLOR_BGR2RGB,
+    "HSV": cv2.COLOR_BGR2HSV,
+    "HLS": cv2.COLOR_BGR2HLS,
+    "LUV": cv2.COLOR_BGR2LUV,
+    "YCrCb": cv2.COLOR_BGR2YCrCb,
+    "YUV": cv2.COLOR_BGR2YUV,
+}
+
+
+def convert_color(image_bgr: np.ndarray, color_space: str) -> np.ndarray:
+    """``(H, W, 3) uint8`` BGR → ``(H, W, 3) uint8`` in ``color_space`` (OpenCV's 8-bit ranges)."""
+    if image_bgr.dtype != np.uint8 or image_bgr.ndim != 3 or image_bgr.shape[2] != 3:
+        raise ValueError(f"expected an (H, W, 3) uint8 BGR image, got {image_bgr.dtype} {image_bgr.shape}")
+    try:
+        code = _CONVERSIONS[color_space]
+    except KeyError:
+        raise ValueError(f"unknown color_space {color_space!r}; expected one of {sorted(_CONVERSIONS)}") from None
+    return cv2.cvtColor(image_bgr, code)
+
+
+def spatial_factor(config: FeatureConfig) -> int:
+    """Downscale factor of the spatial bins (``window // spatial_size``)."""
+    return config.window // config.spatial_size
+
+
+def spatial_map(image: np.ndarray, factor: int) -> np.ndarray:
+    """What ``cv2.resize(.., INTER_LINEAR)`` by an integer ``factor`` makes of every
+    ``factor``-aligned tile: ``(H // factor, W // factor, C) uint8``.
+
+    For an integer shrink, OpenCV's bilinear sample of output pixel ``i`` sits at input
+    ``factor*i + factor/2 - 0.5``: the rounded mean of the 2x2 pixels at offsets
+    ``factor/2 - 1`` and ``factor/2`` (factor 1: the pixel itself). Because windows start on
+    the 8-px cell grid (a multiple of ``factor``), a window's spatial bins are a crop of
+    this map, so the detector computes it once per band.
+    """
+    if factor == 1:
+        return np.ascontiguousarray(image)
+    if factor % 2:
+        raise ValueError(f"spatial factor must be 1 or even, got {factor}")
+    h, w = image.shape[0] // factor, image.shape[1] // factor
+    o = factor // 2 - 1
+    im = image[: h * factor, : w * factor].astype(np.uint16)
+    s = (im[o::factor, o::factor] + im[o + 1::factor, o::factor]
+         + im[o::factor, o + 1::factor] + im[o + 1::factor, o + 1::factor])
+    return ((s + 2) >> 2).astype(np.uint8)
+
+
+def hist_bin_shift(config: FeatureConfig) -> int:
+    """Colour-histogram bin of a uint8 value v is ``v >> shift`` (bins divide 256)."""
+    return int(np.log2(256 // config.hist_bins))
+
+
+def extract_features(crops: np.ndarray, config: FeatureConfig | None = None) -> np.ndarray:
+    """Feature vectors of a stack of crops.
+
+    crops: ``(N, window, window, 3) uint8`` BGR (or a single ``(window, window, 3)`` crop).
+    Returns ``(N, config.n_features) float64`` (``(n_features,)`` for a single crop), in the
+    order documented in this module. HOG and histograms run in parallel numba kernels.
+    """
+    from ._feature_kernels import color_hist_batch
+    from ._hog import hog_channels_batch
+
+    config = config or FeatureConfig()
+    crops = np.asarray(crops)
+    single = crops.ndim == 3
+    if single:
+        crops = crops[None]
+    win = config.window
+    if crops.dtype != np.uint8 or crops.ndim != 4 or crops.shape[1:] != (win, win, 3):
+        raise ValueError(f"crops must be (N, {win}, {win}, 3) uint8 BGR, got {crops.dtype} {crops.shape}")
+    n = crops.shape[0]
+    out = np.empty((n, config.n_features), np.float64)
+    if n == 0:
+        return out[0] if single else out
+    # colour conversion of the whole stack at once: (N*win, win, 3) is one image to OpenCV
+    conv = convert_color(np.ascontiguousarray(crops).reshape(n * win, win, 3), config.color_space)
+    conv = conv.reshape(n, win, win, 3)
+    # 1. HOG: (N, br, bc, nch, cpb, cpb, o) → channel-major feature order
+    hog = hog_channels_batch(conv, config.orientations, config.pixels_per_cell,
+                             config.cells_per_block, channels=list(config.hog_channels))
+    out[:, : config.n_hog] = np.moveaxis(hog, 3, 1).reshape(n, -1)
+    pos = config.n_hog
+    # 2. spatial bins (tiles never straddle two crops: win is a multiple of the factor)
+    if config.spatial_size:
+        sp = spatial_map(conv.reshape(n * win, win, 3), spatial_factor(config))
+        out[:, pos: pos + config.n_spatial] = sp.reshape(n, -1)
+        pos += config.n_spatial
+    # 3. colour histograms
+    if config.hist_bins:
+        hist = np.empty((n, config.n_hist), np.float64)
+        color_hist_batch(conv, hist_bin_shift(config), config.hist_bins, hist)
+        out[:, pos: pos + config.n_hist] = hist
+    return out[0] if single else out

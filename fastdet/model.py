@@ -1,0 +1,182 @@
+"""The linear model: weights, bias, scaler, feature config; a safe file format.
+
+A model file is an ``.npz`` archive of plain arrays, read with ``allow_pickle=False`` so
+it can never run code:
+
+===============  ============================  =========================================
+array            shape, dtype                  meaning
+===============  ============================  =========================================
+``coef``         ``(F,) float64``              classifier weights on scaled features
+``intercept``    ``() float64``                classifier bias
+``mean``         ``(F,) float64``              StandardScaler ``mean_``
+``scale``        ``(F,) float64``              StandardScaler ``scale_``
+``metadata``     ``(n,) uint8``                UTF-8 JSON: format version, FeatureConfig,
+                                               classifier, metrics, data counts, version
+===============  ============================  =========================================
+
+``score(x) = coef · (x - mean) / scale + intercept``; > 0 means vehicle. The detector folds
+the scaler into the weights once (:meth:`Model.folded`).
+"""
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ._version import __version__
+from .config import FeatureConfig
+from .errors import ModelError
+
+FORMAT_VERSION = 1
+CLASSIFIERS = ("linearsvc", "logreg")
+DEFAULT_MODEL_PATH = Path(__file__).resolve().parent / "models" / "default.npz"
+_ARRAYS = ("coef", "intercept", "mean", "scale", "metadata")
+
+
+@dataclass(frozen=True, eq=False)
+class Model:
+    """A trained linear window classifier.
+
+    config: the features it expects (64x64 BGR crops → ``config.n_features`` values).
+    coef, mean, scale: ``(F,) float64``; intercept: float.
+    classifier: ``'linearsvc'`` (score = decision value) or ``'logreg'`` (also probabilities).
+    metadata: everything else recorded at training time (metrics, data counts, ...).
+    """
+
+    config: FeatureConfig
+    coef: np.ndarray
+    intercept: float
+    mean: np.ndarray
+    scale: np.ndarray
+    classifier: str = "linearsvc"
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        n = self.config.n_features
+        for name in ("coef", "mean", "scale"):
+            arr = np.ascontiguousarray(getattr(self, name), dtype=np.float64)
+            if arr.shape != (n,):
+                raise ModelError(
+                    f"feature config mismatch: '{name}' has shape {arr.shape}, the feature config "
+                    f"{self.config} implies ({n},)")
+            if not np.all(np.isfinite(arr)):
+                raise ModelError(f"'{name}' holds non-finite values")
+            object.__setattr__(self, name, arr)
+        if np.any(self.scale == 0):
+            raise ModelError("'scale' holds zeros")
+        object.__setattr__(self, "intercept", float(self.intercept))
+        if self.classifier not in CLASSIFIERS:
+            raise ModelError(f"unknown classifier {self.classifier!r}; expected one of {CLASSIFIERS}")
+
+    # ---- scoring -----------------------------------------------------------------------
+    @property
+    def score_kind(self) -> str:
+        """``'probability'`` for logistic regression, ``'decision'`` for the SVM."""
+        return "probability" if self.classifier == "logreg" else "decision"
+
+    def folded(self) -> tuple[np.ndarray, float]:
+        """The scaler folded into the weights: ``(w', b')`` with ``score = w'·x + b'``."""
+        w = self.coef / self.scale
+        b = self.intercept - float(np.dot(self.coef, self.mean / self.scale))
+        return w, b
+
+    def decision_from_features(self, features: np.ndarray) -> np.ndarray:
+        """Decision values of ``(N, F)`` raw feature vectors: ``(N,) float64``."""
+        x = (np.asarray(features, np.float64) - self.mean) / self.scale
+        return x @ self.coef + self.intercept
+
+    def decision_function(self, crops: np.ndarray) -> np.ndarray:
+        """Decision values of ``(N, 64, 64, 3) uint8`` BGR crops: ``(N,) float64``, > 0 is vehicle."""
+        from .features import extract_features
+
+        crops = np.asarray(crops)
+        single = crops.ndim == 3
+        scores = self.decision_from_features(extract_features(crops[None] if single else crops, self.config))
+        return scores[0] if single else scores
+
+    def predict(self, crops: np.ndarray) -> np.ndarray:
+        """``1`` (vehicle) where the decision value is > 0, else ``0``; ``(N,) int64``."""
+        return (self.decision_function(crops) > 0).astype(np.int64)
+
+    def predict_proba(self, crops: np.ndarray) -> np.ndarray:
+        """``(N, 2)`` probabilities ``[non-vehicle, vehicle]`` (logistic regression only)."""
+        if self.classifier != "logreg":
+            raise AttributeError("predict_proba needs a logistic-regression model (this one is a LinearSVC)")
+        p = 1.0 / (1.0 + np.exp(-self.decision_function(crops)))
+        return np.stack([1 - p, p], axis=-1)
+
+    # ---- files -------------------------------------------------------------------------
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the model to ``path`` (``.npz``), via a temporary file and a rename."""
+        path = Path(path)
+        meta = dict(self.metadata)
+        meta.update(format_version=FORMAT_VERSION, feature_config=self.config.to_dict(),
+                    classifier=self.classifier, fastdet_version=__version__)
+        blob = np.frombuffer(json.dumps(meta, sort_keys=True).encode("utf-8"), dtype=np.uint8)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                np.savez_compressed(fh, coef=self.coef, intercept=np.float64(self.intercept),
+                                    mean=self.mean, scale=self.scale, metadata=blob)
+            os.replace(tmp, path)
+        except BaseException:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+            raise
+        return path
+
+
+def load_model(path: str | os.PathLike | None = None, expected_config: FeatureConfig | None = None) -> Model:
+    """Load a model file (``None``: the bundled default model).
+
+    Raises :class:`~fastdet.errors.ModelError` naming the problem when the file is missing,
+    truncated, not an ``.npz``, of another format version, or its weights do not fit its
+    feature configuration (or ``expected_config`` when given).
+    """
+    path = Path(path) if path is not None else DEFAULT_MODEL_PATH
+    if not path.exists():
+        raise ModelError(f"model file {path} not found")
+    if path.is_dir():
+        raise ModelError(f"model path {path} is a folder, not an .npz file")
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            if not isinstance(npz, np.lib.npyio.NpzFile):
+                raise ModelError(f"{path} is a single .npy array, not a fastdet model (.npz)")
+            missing = [k for k in _ARRAYS if k not in npz.files]
+            if missing:
+                raise ModelError(f"{path} is not a fastdet model: missing array(s) {', '.join(missing)}")
+            arrays = {k: npz[k] for k in _ARRAYS}
+    except ModelError:
+        raise
+    except (zipfile.BadZipFile, EOFError, OSError, ValueError, KeyError) as exc:
+        raise ModelError(f"{path} is not a readable .npz model file (truncated or another format): {exc}") from None
+    try:
+        meta = json.loads(arrays["metadata"].astype(np.uint8).tobytes().decode("utf-8"))
+        if not isinstance(meta, dict):
+            raise ValueError("not a JSON object")
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise ModelError(f"{path}: metadata is not valid JSON: {exc}") from None
+    version = meta.get("format_version")
+    if version != FORMAT_VERSION:
+        raise ModelError(f"{path}: model format version {version!r}, this fastdet reads version {FORMAT_VERSION}")
+    try:
+        config = FeatureConfig.from_dict(meta["feature_config"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ModelError(f"{path}: bad feature configuration in metadata: {exc}") from None
+    if expected_config is not None and config != expected_config:
+        raise ModelError(f"{path}: feature config mismatch: the model uses {config}, expected {expected_config}")
+    if arrays["intercept"].shape != ():
+        raise ModelError(f"{path}: 'intercept' must be a scalar, got shape {arrays['intercept'].shape}")
+    try:
+        return Model(config=config, coef=arrays["coef"], intercept=float(arrays["intercept"]),
+                     mean=arrays["mean"], scale=arrays["scale"],
+                     classifier=meta.get("classifier", "linearsvc"), metadata=meta)
+    except ModelError as exc:
+        raise ModelError(f"{path}: {exc}") from None

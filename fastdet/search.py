@@ -1,0 +1,78 @@
+"""Search bands: cropping and scaling a band, window positions, windows → frame boxes.
+
+A band (:class:`~fastdet.config.SearchBand`) is the frame region ``[y_start, y_stop) x
+[x_start, x_stop)``, resized by ``1/scale`` with ``cv2.resize(.., INTER_LINEAR)`` to
+``(int(w / scale), int(h / scale))``; a 64-px window in the scaled band is a
+``64 * scale``-px box in the frame. Windows sit on the HOG cell grid of the scaled band,
+``cells_per_step`` cells apart.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from .config import FeatureConfig, SearchBand
+
+
+@dataclass(frozen=True)
+class BandGeometry:
+    """Where a band is and how many windows it holds (all in pixels / windows)."""
+
+    band: SearchBand
+    x0: int
+    y0: int
+    x1: int
+    y1: int
+    scaled_w: int
+    scaled_h: int
+    nx: int  # window positions across
+    ny: int  # window positions down
+    step: int  # cells between positions
+
+    @property
+    def n_windows(self) -> int:
+        return self.nx * self.ny
+
+
+def band_geometry(band: SearchBand, frame_shape: tuple[int, int], config: FeatureConfig,
+                  cells_per_step: int) -> BandGeometry:
+    """Geometry of ``band`` on a frame of ``frame_shape = (H, W)``; ``ValueError`` if the band
+    does not fit the frame."""
+    h, w = frame_shape
+    x0 = 0 if band.x_start is None else band.x_start
+    x1 = w if band.x_stop is None else band.x_stop
+    y0, y1 = band.y_start, band.y_stop
+    if y0 < 0 or x0 < 0 or y1 > h or x1 > w:
+        raise ValueError(f"search band {band} does not fit a {w}x{h} frame "
+                         f"(needs at least {x1}x{y1}); pass a larger frame or another SearchConfig")
+    sw, sh = int((x1 - x0) / band.scale), int((y1 - y0) / band.scale)
+    ppc, cpb, nbw = config.pixels_per_cell, config.cells_per_block, config.blocks_per_window
+    nbx, nby = sw // ppc - cpb + 1, sh // ppc - cpb + 1
+    nx = (nbx - nbw) // cells_per_step + 1 if nbx >= nbw else 0
+    ny = (nby - nbw) // cells_per_step + 1 if nby >= nbw else 0
+    return BandGeometry(band, x0, y0, x1, y1, sw, sh, nx, ny, cells_per_step)
+
+
+def scaled_band(frame: np.ndarray, geo: BandGeometry) -> np.ndarray:
+    """The band's pixels resized by ``1/scale``: ``(scaled_h, scaled_w, 3) uint8``."""
+    roi = frame[geo.y0: geo.y1, geo.x0: geo.x1]
+    if geo.scaled_w == roi.shape[1] and geo.scaled_h == roi.shape[0]:
+        return np.ascontiguousarray(roi)
+    return cv2.resize(roi, (geo.scaled_w, geo.scaled_h), interpolation=cv2.INTER_LINEAR)
+
+
+def window_boxes(geo: BandGeometry, rows: np.ndarray, cols: np.ndarray, config: FeatureConfig) -> np.ndarray:
+    """Frame boxes ``(N, 4) int32 x1, y1, x2, y2`` of the windows at positions (rows, cols)."""
+    s = geo.band.scale
+    cell = config.pixels_per_cell
+    left = (cols * geo.step * cell * s).astype(np.int64)
+    top = (rows * geo.step * cell * s).astype(np.int64)
+    size = int(config.window * s)
+    boxes = np.empty((len(rows), 4), np.int32)
+    boxes[:, 0] = geo.x0 + left
+    boxes[:, 1] = geo.y0 + top
+    boxes[:, 2] = boxes[:, 0] + size
+    boxes[:, 3] = boxes[:, 1] + size
+    return boxes

@@ -1,0 +1,210 @@
+"""``python -m fastdet train``: features → StandardScaler → LinearSVC / LogisticRegression.
+
+Reports accuracy, precision, recall, F1 and the confusion matrix on a random 80/20 split
+and on a leak-free *sequence* split (every folder cut into contiguous time blocks, see
+:mod:`fastdet.dataset`), then refits on all the data and writes the model. Hard negatives
+(``--negatives``) and flip augmentation only ever join the *training* part of a split, so
+the test figures stay comparable. Deterministic for a given ``--seed``.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .config import COLOR_SPACES, FeatureConfig
+from .data import data_dir
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--data", type=Path, default=None,
+                   help="folder with vehicles/ and non-vehicles/ PNG crops (default: $FASTDET_DATA)")
+    p.add_argument("--out", type=Path, required=True, help="model file to write (.npz)")
+    p.add_argument("--classifier", choices=("linearsvc", "logreg"), default="logreg",
+                   help="linear classifier (default: logreg, which gives calibrated probabilities)")
+    p.add_argument("--C", type=float, default=None, help="inverse regularisation strength (default: per classifier)")
+    p.add_argument("--split", choices=("both", "random", "sequence"), default="both",
+                   help="which held-out evaluations to run before the final fit (default: both)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (split, classifier)")
+    p.add_argument("--negatives", type=Path, action="append", default=[],
+                   help="folder of extra non-vehicle crops (hard negatives), any depth; repeatable")
+    p.add_argument("--no-flip", action="store_true", help="do not add mirrored copies of the training crops")
+    p.add_argument("--color-space", choices=COLOR_SPACES, default=None)
+    p.add_argument("--orientations", type=int, default=None)
+    p.add_argument("--spatial-size", type=int, default=None)
+    p.add_argument("--hist-bins", type=int, default=None)
+    p.add_argument("--hog-channels", default=None, help="e.g. 0,1,2 or ALL")
+    p.add_argument("--max-per-folder", type=int, default=None,
+                   help="use at most this many crops of each folder (evenly spaced; for quick runs)")
+    p.add_argument("--no-refit", action="store_true", help="skip the final fit on all data (no model written)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+
+DEFAULT_C = {"linearsvc": 1e-3, "logreg": 1e-3}
+
+
+def feature_config_from_args(args: argparse.Namespace) -> FeatureConfig:
+    cfg = FeatureConfig()
+    changes: dict[str, Any] = {}
+    if args.color_space:
+        changes["color_space"] = args.color_space
+    if args.orientations:
+        changes["orientations"] = args.orientations
+    if args.spatial_size is not None:
+        changes["spatial_size"] = args.spatial_size
+    if args.hist_bins is not None:
+        changes["hist_bins"] = args.hist_bins
+    if args.hog_channels:
+        hc = args.hog_channels
+        changes["hog_channels"] = "ALL" if hc.upper() == "ALL" else tuple(int(c) for c in hc.split(","))
+    return replace(cfg, **changes) if changes else cfg
+
+
+def features_in_chunks(images: np.ndarray, config: FeatureConfig, progress: bool, desc: str = "features",
+                       chunk: int = 2048) -> np.ndarray:
+    from .features import extract_features
+
+    out = np.empty((len(images), config.n_features), np.float64)
+    starts = range(0, len(images), chunk)
+    if progress:
+        from tqdm import tqdm
+
+        starts = tqdm(starts, desc=desc, unit="chunk", leave=False)
+    for s in starts:
+        out[s: s + chunk] = extract_features(images[s: s + chunk], config)
+    return out
+
+
+def fit_classifier(x: np.ndarray, y: np.ndarray, classifier: str, C: float, seed: int):
+    """StandardScaler + classifier; returns ``(scaler, clf)``."""
+    from sklearn.preprocessing import StandardScaler
+
+    scaler = StandardScaler().fit(x)
+    xs = scaler.transform(x)
+    if classifier == "linearsvc":
+        from sklearn.svm import LinearSVC
+
+        clf = LinearSVC(C=C, dual=False, random_state=seed, max_iter=5000)
+    else:
+        from sklearn.linear_model import LogisticRegression
+
+        clf = LogisticRegression(C=C, max_iter=2000, random_state=seed)
+    clf.fit(xs, y)
+    return scaler, clf
+
+
+def metrics(y_true: np.ndarray, y_pred: np.ndarray) -> dict[str, Any]:
+    from sklearn.metrics import accuracy_score, confusion_matrix, f1_score, precision_score, recall_score
+
+    return {
+        "accuracy": float(accuracy_score(y_true, y_pred)),
+        "precision": float(precision_score(y_true, y_pred, zero_division=0)),
+        "recall": float(recall_score(y_true, y_pred, zero_division=0)),
+        "f1": float(f1_score(y_true, y_pred, zero_division=0)),
+        # rows: true non-vehicle, vehicle; columns: predicted non-vehicle, vehicle
+        "confusion": confusion_matrix(y_true, y_pred, labels=[0, 1]).tolist(),
+        "n_test": int(len(y_true)),
+    }
+
+
+def format_metrics(name: str, m: dict[str, Any]) -> str:
+    (tn, fp), (fn, tp) = m["confusion"]
+    return (f"{name:>9} split: accuracy {m['accuracy']:.4f}  precision {m['precision']:.4f}  "
+            f"recall {m['recall']:.4f}  F1 {m['f1']:.4f}  (test n={m['n_test']})\n"
+            f"{'':>17}confusion [[TN {tn:5d}  FP {fp:5d}]  [FN {fn:5d}  TP {tp:5d}]]")
+
+
+def _flip(images: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(images[:, :, ::-1])
+
+
+def _thin(crops, n: int):
+    keep = []
+    for g in np.unique(crops.groups):
+        m = np.flatnonzero(crops.groups == g)
+        m = m[np.argsort(crops.order[m], kind="stable")]
+        keep.append(m[np.linspace(0, len(m) - 1, min(n, len(m))).astype(int)])
+    return crops.subset(np.sort(np.concatenate(keep)))
+
+
+def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: float | None = None,
+          split: str = "both", seed: int = 0, negatives: list[Path] | None = None, flip: bool = True,
+          max_per_folder: int | None = None, refit: bool = True, progress: bool = True,
+          log=print):
+    """Train and evaluate; returns ``(model or None, report dict)``."""
+    from .dataset import CropSet, load_crops, load_folder, random_split, sequence_split
+    from .model import Model
+
+    C = DEFAULT_C[classifier] if C is None else C
+    t0 = time.perf_counter()
+    crops = load_crops(data, progress=progress)
+    if max_per_folder:
+        crops = _thin(crops, max_per_folder)
+    negs = None
+    for nd in negatives or []:
+        part = load_folder(nd, 0, None, progress=progress)
+        negs = part if negs is None else CropSet.concat(negs, part)
+    n_pos, n_neg = int(crops.labels.sum()), int((crops.labels == 0).sum())
+    log(f"data: {n_pos} vehicles, {n_neg} non-vehicles"
+        + (f", {len(negs)} hard negatives" if negs is not None else "") + f" ({time.perf_counter() - t0:.1f} s)")
+    x = features_in_chunks(crops.images, config, progress)
+    x_flip = features_in_chunks(_flip(crops.images), config, progress, "flipped") if flip else None
+    x_neg = features_in_chunks(negs.images, config, progress, "negatives") if negs is not None else None
+    log(f"features: {config.n_features} per crop ({time.perf_counter() - t0:.1f} s)")
+
+    def training_part(idx):
+        xs, ys = [x[idx]], [crops.labels[idx]]
+        if x_flip is not None:
+            xs.append(x_flip[idx]); ys.append(crops.labels[idx])
+        if x_neg is not None:
+            xs.append(x_neg); ys.append(np.zeros(len(x_neg), np.int64))
+        return np.concatenate(xs), np.concatenate(ys)
+
+    report: dict[str, Any] = {"C": C, "classifier": classifier, "seed": seed, "flip": flip,
+                              "data": {"vehicles": n_pos, "non_vehicles": n_neg,
+                                       "hard_negatives": 0 if negs is None else len(negs)}}
+    splits = {"random": lambda: random_split(crops.labels, seed),
+              "sequence": lambda: sequence_split(crops.groups, crops.order, seed)}
+    for name in (("random", "sequence") if split == "both" else (split,)):
+        tr, te = splits[name]()
+        xt, yt = training_part(tr)
+        scaler, clf = fit_classifier(xt, yt, classifier, C, seed)
+        m = metrics(crops.labels[te], clf.predict(scaler.transform(x[te])))
+        report[f"{name}_split"] = m
+        log(format_metrics(name, m) + f"  ({time.perf_counter() - t0:.1f} s)")
+    if not refit:
+        return None, report
+    xt, yt = training_part(np.arange(len(crops)))
+    scaler, clf = fit_classifier(xt, yt, classifier, C, seed)
+    report["train_accuracy"] = float((clf.predict(scaler.transform(xt)) == yt).mean())
+    model = Model(config=config, coef=clf.coef_.ravel(), intercept=float(clf.intercept_[0]),
+                  mean=scaler.mean_, scale=scaler.scale_, classifier=classifier,
+                  metadata={"training": report})
+    log(f"final fit on {len(yt)} crops: training accuracy {report['train_accuracy']:.4f} "
+        f"({time.perf_counter() - t0:.1f} s)")
+    return model, report
+
+
+def run(args: argparse.Namespace) -> int:
+    from .errors import FastdetError
+
+    data = args.data or data_dir()
+    out: Path = args.out
+    if out.suffix != ".npz":
+        raise FastdetError(f"--out must end in .npz, got {out}")
+    if not out.parent.exists() if str(out.parent) else False:
+        raise FastdetError(f"output folder {out.parent} does not exist")
+    config = feature_config_from_args(args)
+    progress = not args.no_progress and sys.stderr.isatty()
+    model, report = train(data, config, args.classifier, args.C, args.split, args.seed, args.negatives,
+                          not args.no_flip, args.max_per_folder, not args.no_refit, progress)
+    if model is not None:
+        model.metadata["training"]["command"] = "python -m fastdet train " + " ".join(sys.argv[2:])
+        model.save(out)
+        print(f"wrote {out}")
+    return 0
