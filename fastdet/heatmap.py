@@ -1,0 +1,199 @@
+"""Heat map over recent frames: positive windows → vehicle boxes.
+
+How one frame goes (``HeatMap.update``)
+--------------------------------------
+1. **Heat of a window.** Each positive window adds, to every pixel it covers, an amount
+   linear in its score: 1 at ``score_lo``, ``w_max`` at ``score_hi``, clipped to
+   ``[1, w_max]`` (:meth:`HeatMap.window_heat`). So one confident window outweighs several
+   barely-positive ones (defaults in :class:`~fastdet.config.HeatConfig`).
+2. **Grid.** Heat lives on a grid of ``cell x cell`` pixels (default 4). A box edge is
+   snapped to the nearest grid line (``round(x / cell)``, halves up; a non-empty box
+   keeps at least one cell) and clipped to the frame.
+3. **Memory of N frames.** The heat of frame ``t`` is the age-weighted mean::
+
+       heat_t = sum_k decay**k * H_{t-k}  /  sum_k decay**k,   k = 0 .. min(seen, N) - 1
+
+   where ``H_j`` is the rasterised heat of frame ``j`` alone. The numerator ``S`` is kept
+   as a running sum, so a frame costs the same whatever N is::
+
+       S <- decay * (S - decay**(N-1) * H_{t-N}) + H_t
+
+   Only the box lists of the last N frames are stored; leaving frames are re-rasterised
+   with a negative weight. Float rounding of this recurrence is bounded by recomputing
+   ``S`` from the stored box lists every ``max(64, N)`` frames (amortised cost: at most one
+   extra rasterisation per frame). Normalising by the weights of the frames seen so far
+   makes the threshold mean "heat of one frame" for any N / decay, and lets the first
+   frames of a video produce boxes.
+4. **Threshold, labels, boxes.** ``mask = heat > threshold``; connected blobs of the mask
+   (``scipy.ndimage.label``, 4-connectivity) each give one box: the blob's bounding box
+   in pixels (cells scaled by ``cell``, clipped to the frame). A box's **score is the
+   blob's peak heat** (same units as the threshold, so every kept box scores above it).
+5. **Shape filter.** Boxes narrower than ``min_width``, lower than ``min_height`` or taller
+   than ``max_aspect * width`` are dropped: no vehicle looks like that, heat blobs that
+   do are fragments or poles.
+"""
+from __future__ import annotations
+
+import time
+from collections import deque
+from typing import NamedTuple
+
+import numpy as np
+from scipy import ndimage
+
+from ._heat_kernels import add_rects
+from .config import HeatConfig
+from .detections import Detections
+
+_REANCHOR_EVERY = 64
+
+
+class _Frame(NamedTuple):
+    rects: np.ndarray  # (M, 4) int32, grid coordinates, clipped, non-empty
+    weights: np.ndarray  # (M,) float64 heat of each rect
+
+
+class HeatMap:
+    """Heat over the last ``config.n_frames`` frames of one video (module docstring).
+
+    shape: frame shape ``(H, W)`` or ``(H, W, C)``.
+    config: :class:`~fastdet.config.HeatConfig` (default ``HeatConfig()``).
+    score_kind: ``'decision'`` or ``'probability'``, picks the default score range.
+
+    After each :meth:`update`: ``heat`` (grid, float64, normalised), ``mask`` (bool grid),
+    ``labels`` (int32 grid, 0 = background), ``blobs`` (every blob's box before the shape
+    filter) and ``timings`` (``{'heat': s, 'label': s}``).
+    """
+
+    def __init__(self, shape: tuple[int, ...], config: HeatConfig | None = None,
+                 score_kind: str = "decision") -> None:
+        self.config = config if config is not None else HeatConfig()
+        if not isinstance(self.config, HeatConfig):
+            raise TypeError(f"config must be a HeatConfig, got {type(self.config).__name__}")
+        if len(shape) < 2 or int(shape[0]) < 1 or int(shape[1]) < 1:
+            raise ValueError(f"shape must be (H, W[, C]) with H, W >= 1, got {shape!r}")
+        self.frame_shape = (int(shape[0]), int(shape[1]))
+        c = int(self.config.cell)
+        self.grid_shape = (-(-self.frame_shape[0] // c), -(-self.frame_shape[1] // c))
+        self.score_kind = score_kind
+        self.score_lo, self.score_hi = self.config.score_range(score_kind)
+        self.timings: dict[str, float] = {"heat": 0.0, "label": 0.0}
+        d = float(self.config.decay)
+        # _wsum[m] = sum_{k<m} decay**k, summed in ascending k
+        self._wsum = [0.0]
+        for k in range(int(self.config.n_frames)):
+            self._wsum.append(self._wsum[-1] + d ** k)
+        self.reset()
+
+    # ------------------------------------------------------------------ state
+    def reset(self) -> None:
+        """Forget every frame (start of a new video or a cut)."""
+        self._sum = np.zeros(self.grid_shape, np.float64)
+        self._ring: deque[_Frame] = deque()
+        self._since_anchor = 0
+        self.heat = np.zeros(self.grid_shape, np.float64)
+        self.mask = np.zeros(self.grid_shape, bool)
+        self.labels = np.zeros(self.grid_shape, np.int32)
+        self.blobs = Detections.empty()
+
+    @property
+    def n_seen(self) -> int:
+        """Frames currently in the ring buffer (at most ``n_frames``)."""
+        return len(self._ring)
+
+    @property
+    def weight_sum(self) -> float:
+        """``sum_k decay**k`` over the frames in the ring (the normaliser)."""
+        return self._wsum[len(self._ring)]
+
+    # ------------------------------------------------------------ conversion
+    def window_heat(self, scores: np.ndarray) -> np.ndarray:
+        """Heat each window adds, from its score: ``(N,) float64`` in ``[1, w_max]``."""
+        s = np.asarray(scores, np.float64).reshape(-1)
+        t = (s - self.score_lo) / (self.score_hi - self.score_lo)
+        return 1.0 + (float(self.config.w_max) - 1.0) * np.clip(t, 0.0, 1.0)
+
+    def to_grid(self, boxes: np.ndarray) -> np.ndarray:
+        """Frame boxes ``(N, 4) x1, y1, x2, y2`` → grid rectangles (snapped, clipped).
+
+        Returns ``(N, 4) int32``; a rectangle that ends up empty (degenerate box, or off
+        the frame) has ``x2 <= x1`` or ``y2 <= y1``."""
+        b = np.asarray(boxes, np.int64).reshape(-1, 4)
+        c = int(self.config.cell)
+        g = (2 * b + c) // (2 * c)  # round(x / c), halves up, exact in integers
+        nonempty = (b[:, 2] > b[:, 0]) & (b[:, 3] > b[:, 1])
+        g[:, 2] = np.where(nonempty, np.maximum(g[:, 2], g[:, 0] + 1), g[:, 2])
+        g[:, 3] = np.where(nonempty, np.maximum(g[:, 3], g[:, 1] + 1), g[:, 3])
+        hg, wg = self.grid_shape
+        g[:, 0::2] = np.clip(g[:, 0::2], 0, wg)
+        g[:, 1::2] = np.clip(g[:, 1::2], 0, hg)
+        return g.astype(np.int32)
+
+    def _frame(self, boxes: np.ndarray, scores: np.ndarray) -> _Frame:
+        rects = self.to_grid(boxes)
+        weights = self.window_heat(scores)
+        if len(weights) != len(rects):
+            raise ValueError(f"{len(rects)} boxes but {len(weights)} scores")
+        keep = (rects[:, 2] > rects[:, 0]) & (rects[:, 3] > rects[:, 1])
+        return _Frame(np.ascontiguousarray(rects[keep]), np.ascontiguousarray(weights[keep]))
+
+    # --------------------------------------------------------------- update
+    def add(self, boxes: np.ndarray, scores: np.ndarray) -> None:
+        """Push one frame's positive windows (frame pixels) and their scores."""
+        t0 = time.perf_counter()
+        fr = self._frame(boxes, scores)
+        n, d = int(self.config.n_frames), float(self.config.decay)
+        s = self._sum  # updated in place
+        if len(self._ring) == n:
+            old = self._ring.popleft()
+            add_rects(s, old.rects, old.weights, -(d ** (n - 1)))
+        if d != 1.0:
+            s *= d
+        add_rects(s, fr.rects, fr.weights, 1.0)
+        self._ring.append(fr)
+        self._since_anchor += 1
+        if self._since_anchor >= max(_REANCHOR_EVERY, n):
+            self._reanchor()
+        self.heat = self._sum / self.weight_sum
+        self.timings["heat"] = time.perf_counter() - t0
+
+    def _reanchor(self) -> None:
+        """Recompute the running sum from the stored box lists (drops float drift)."""
+        d = float(self.config.decay)
+        s = np.zeros(self.grid_shape, np.float64)
+        for age, fr in enumerate(reversed(self._ring)):
+            add_rects(s, fr.rects, fr.weights, d ** age)
+        self._sum = s
+        self._since_anchor = 0
+
+    def boxes(self) -> Detections:
+        """Threshold the current heat, label blobs, one box per blob, shape filter."""
+        t0 = time.perf_counter()
+        cfg = self.config
+        self.mask = self.heat > cfg.threshold
+        labels, n = ndimage.label(self.mask)
+        self.labels = labels.astype(np.int32, copy=False)
+        c = int(cfg.cell)
+        h, w = self.frame_shape
+        out = np.zeros((n, 4), np.int32)
+        peak = np.zeros(n, np.float32)
+        for i, sl in enumerate(ndimage.find_objects(labels)):
+            ys, xs = sl
+            out[i] = (xs.start * c, ys.start * c, min(xs.stop * c, w), min(ys.stop * c, h))
+            peak[i] = self.heat[sl][labels[sl] == i + 1].max()
+        self.blobs = Detections(out, peak)
+        bw = out[:, 2] - out[:, 0]
+        bh = out[:, 3] - out[:, 1]
+        keep = (bw >= cfg.min_width) & (bh >= cfg.min_height) & (bh <= cfg.max_aspect * bw)
+        self.timings["label"] = time.perf_counter() - t0
+        return Detections(out[keep], peak[keep])
+
+    def update(self, windows: Detections) -> Detections:
+        """:meth:`add` this frame's positive windows, then :meth:`boxes`."""
+        self.add(windows.boxes, windows.scores)
+        return self.boxes()
+
+    def warmup(self) -> None:
+        """Compile (or load from cache) the numba kernel."""
+        g = np.zeros((2, 2), np.float64)
+        add_rects(g, np.zeros((1, 4), np.int32), np.ones(1, np.float64), 1.0)
