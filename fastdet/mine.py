@@ -1,0 +1,120 @@
+"""``python -m fastdet mine-negatives``: save the windows the detector wrongly fires on.
+
+Classic hard-negative mining. A positive window is a *false* alarm when it lies where no
+vehicle is: inside ``--x-range``/``--y-range`` (a region you know to be empty), and, with
+``--gt``, touching no annotated box at all (targets and ignore regions alike, so a
+partially visible or far-away car is never saved as a negative). Each such window is cut
+from the frame, resized to 64x64 and written as a PNG; ``fastdet train --negatives DIR``
+then adds them to the training negatives.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("video", type=Path, help="video (or image) to mine")
+    p.add_argument("--out", type=Path, required=True, help="folder for the 64x64 PNG crops (created)")
+    p.add_argument("--x-range", type=int, nargs=2, metavar=("A", "B"), default=None,
+                   help="only windows entirely within columns [A, B)")
+    p.add_argument("--y-range", type=int, nargs=2, metavar=("A", "B"), default=None,
+                   help="only windows entirely within rows [A, B)")
+    p.add_argument("--gt", type=Path, default=None,
+                   help="MOTChallenge ground truth: windows touching any annotated box are not negatives")
+    p.add_argument("--margin", type=int, default=8, help="px added around each annotated box (default 8)")
+    p.add_argument("--model", type=Path, default=None, help="model file (default: the bundled model)")
+    p.add_argument("--start", type=int, default=0, help="first frame (0-based)")
+    p.add_argument("--frames", type=int, default=None, help="number of frames to mine")
+    p.add_argument("--every", type=int, default=1, help="mine every k-th frame")
+    p.add_argument("--prefix", default=None, help="file name prefix (default: the video's name)")
+    p.add_argument("--no-progress", action="store_true")
+
+
+def _overlaps(boxes: np.ndarray, regions: np.ndarray) -> np.ndarray:
+    """``(N,)`` bool: box i intersects any region (both x1, y1, x2, y2)."""
+    if len(regions) == 0 or len(boxes) == 0:
+        return np.zeros(len(boxes), bool)
+    b, r = boxes[:, None, :], regions[None, :, :]
+    ix = np.minimum(b[..., 2], r[..., 2]) - np.maximum(b[..., 0], r[..., 0])
+    iy = np.minimum(b[..., 3], r[..., 3]) - np.maximum(b[..., 1], r[..., 1])
+    return np.any((ix > 0) & (iy > 0), axis=1)
+
+
+def false_windows(boxes: np.ndarray, x_range=None, y_range=None, gt_boxes: np.ndarray | None = None) -> np.ndarray:
+    """Indices of windows that are certainly not vehicles by the rules above."""
+    keep = np.ones(len(boxes), bool)
+    if x_range is not None:
+        keep &= (boxes[:, 0] >= x_range[0]) & (boxes[:, 2] <= x_range[1])
+    if y_range is not None:
+        keep &= (boxes[:, 1] >= y_range[0]) & (boxes[:, 3] <= y_range[1])
+    if gt_boxes is not None:
+        keep &= ~_overlaps(boxes, gt_boxes)
+    return np.flatnonzero(keep)
+
+
+def run(args: argparse.Namespace) -> int:
+    import cv2
+
+    from .detector import Detector
+    from .errors import DataError, FastdetError
+
+    if args.x_range is None and args.y_range is None and args.gt is None:
+        raise FastdetError("say where there are no vehicles: --x-range/--y-range and/or --gt")
+    if not args.video.exists():
+        raise DataError(f"{args.video} not found")
+    gt = None
+    if args.gt is not None:
+        from .motio import read_gt
+
+        gt = read_gt(args.gt)
+    det = Detector(args.model)
+    args.out.mkdir(parents=True, exist_ok=True)
+    prefix = args.prefix or args.video.stem
+    cap = cv2.VideoCapture(str(args.video))
+    if not cap.isOpened():
+        raise DataError(f"{args.video}: not a video OpenCV can read")
+    if args.start:
+        cap.set(cv2.CAP_PROP_POS_FRAMES, args.start)
+    total = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) or None
+    limit = args.frames if args.frames is not None else (total - args.start if total else None)
+    bar = None
+    if not args.no_progress and sys.stderr.isatty():
+        from tqdm import tqdm
+
+        bar = tqdm(total=limit, desc="mining", unit="frame")
+    saved = done = 0
+    frame_no = args.start
+    while limit is None or done < limit:
+        ok, frame = cap.read()
+        if not ok:
+            break
+        frame_no += 1  # 1-based, as in MOTChallenge files
+        done += 1
+        if bar:
+            bar.update()
+        if (done - 1) % args.every:
+            continue
+        d = det.detect(frame)
+        gt_boxes = None
+        if gt is not None:
+            gb = gt.boxes[gt.frames == frame_no]
+            gt_boxes = gb + np.array([-args.margin, -args.margin, args.margin, args.margin])
+        for i in false_windows(d.boxes, args.x_range, args.y_range, gt_boxes):
+            x1, y1, x2, y2 = d.boxes[i]
+            crop = frame[max(y1, 0): y2, max(x1, 0): x2]
+            if crop.shape[0] < 8 or crop.shape[1] < 8:
+                continue
+            crop = cv2.resize(crop, (64, 64), interpolation=cv2.INTER_AREA)
+            cv2.imwrite(str(args.out / f"{prefix}_f{frame_no:05d}_{x1}_{y1}_{x2 - x1}.png"), crop)
+            saved += 1
+    cap.release()
+    if bar:
+        bar.close()
+    if done == 0:
+        raise DataError(f"{args.video}: no frames could be read")
+    print(f"mined {saved} false-positive windows from {done} frames into {args.out}")
+    return 0

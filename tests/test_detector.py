@@ -1,0 +1,88 @@
+"""The dense scores of every window equal the classic per-window pipeline; boxes land on cars."""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from benchmarks.classic import classic_band_scores, sklearn_pair
+from fastdet.config import FeatureConfig, SearchBand, SearchConfig
+from fastdet.detector import Detector
+from fastdet.model import Model, load_model
+
+
+@pytest.fixture(scope="module")
+def frames(test_images):
+    return [cv2.imread(str(p)) for p in test_images]
+
+
+def _random_model(config: FeatureConfig, seed=0) -> Model:
+    rng = np.random.default_rng(seed)
+    n = config.n_features
+    return Model(config, rng.normal(size=n) * 0.01, -0.2, rng.normal(size=n), rng.uniform(0.5, 2.0, n))
+
+
+def _compare_all_windows(det: Detector, frame: np.ndarray) -> int:
+    pair = sklearn_pair(det.model)
+    n = 0
+    for geo in det.geometries(frame.shape[:2]):
+        fast = det.band_scores(frame, geo)
+        ref = classic_band_scores(frame, geo, det.model, pair)
+        assert fast.shape == ref.shape == (geo.ny, geo.nx)
+        np.testing.assert_allclose(fast, ref, rtol=0, atol=1e-6, err_msg=f"band {geo.band}")
+        n += geo.n_windows
+    return n
+
+
+def test_every_window_of_every_default_band_matches_classic(frames):
+    det = Detector()  # bundled model, default search
+    n = sum(_compare_all_windows(det, f) for f in frames)
+    assert n > 1000
+
+
+def test_one_cell_step_and_other_feature_configs(frames):
+    cfg = FeatureConfig(color_space="LUV", orientations=12, spatial_size=16, hist_bins=16, hog_channels=(0, 2))
+    search = SearchConfig(bands=(SearchBand(1.0, 400, 500, 100, 400), SearchBand(1.7, 380, 600)), cells_per_step=1)
+    det = Detector(_random_model(cfg), search)
+    assert _compare_all_windows(det, frames[0]) > 500
+    cfg = FeatureConfig(color_space="HSV", spatial_size=0, hist_bins=0, cells_per_block=3)
+    det = Detector(_random_model(cfg, 1), SearchConfig(bands=(SearchBand(1.3, 390, 610),), cells_per_step=3))
+    _compare_all_windows(det, frames[1])
+
+
+def test_detect_boxes_and_scores(frames):
+    det = Detector()
+    d = det.detect(frames[0])
+    assert d.boxes.dtype == np.int32 and d.boxes.shape[1] == 4 and d.scores.dtype == np.float32
+    assert len(d.boxes) == len(d.scores) == len(det.last_scales)
+    if det.score_kind == "probability":
+        assert np.all((d.scores > 0.5) & (d.scores <= 1))
+    assert np.all(d.boxes[:, 2] > d.boxes[:, 0]) and np.all(d.boxes[:, 3] > d.boxes[:, 1])
+    assert set(det.timings) == {"resize_colour", "hog", "score"}
+    rgb = det.detect(np.ascontiguousarray(frames[0][:, :, ::-1]), rgb=True)
+    np.testing.assert_array_equal(rgb.boxes, d.boxes)
+
+
+def test_boxes_land_on_the_cars(frames, data):
+    """test1.jpg has two cars on the right (black ~x 816-944, white ~x 1052-1270, y 400-510)."""
+    det = Detector()
+    d = det.detect(frames[0])
+    cars = [(810, 400, 950, 510), (1050, 400, 1270, 520)]
+    for x1, y1, x2, y2 in cars:
+        cx = (d.boxes[:, 0] + d.boxes[:, 2]) / 2
+        cy = (d.boxes[:, 1] + d.boxes[:, 3]) / 2
+        assert np.any((cx > x1) & (cx < x2) & (cy > y1 - 20) & (cy < y2 + 20)), (x1, x2)
+    # and not on the empty road in front (lower left quarter of the search region)
+    cx = (d.boxes[:, 0] + d.boxes[:, 2]) / 2
+    cy = (d.boxes[:, 1] + d.boxes[:, 3]) / 2
+    assert not np.any((cx > 300) & (cx < 700) & (cy > 560))
+
+
+@pytest.mark.parametrize("frame, msg", [
+    (np.zeros((720, 1280, 3), np.float32), "uint8"),
+    (np.zeros((720, 1280), np.uint8), r"\(H, W, 3\)"),
+    (np.zeros((300, 400, 3), np.uint8), "does not fit"),
+])
+def test_bad_frames(frame, msg):
+    with pytest.raises(ValueError, match=msg):
+        Detector().detect(frame)

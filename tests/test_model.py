@@ -1,0 +1,124 @@
+"""Model files: round trip, and every way a file can be wrong gives a clear ModelError."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from benchmarks.classic import sklearn_pair
+from fastdet.config import FeatureConfig
+from fastdet.errors import ModelError
+from fastdet.model import FORMAT_VERSION, Model, load_model
+
+CFG = FeatureConfig(color_space="LUV", hog_channels=(0,), orientations=6, spatial_size=8, hist_bins=8)
+
+
+def _model(seed=0, classifier="linearsvc"):
+    rng = np.random.default_rng(seed)
+    n = CFG.n_features
+    return Model(CFG, rng.normal(size=n), 0.3, rng.normal(size=n) * 10, rng.uniform(0.5, 3, n),
+                 classifier=classifier, metadata={"training": {"note": "test"}})
+
+
+def _crops(n=5, seed=0):
+    return np.random.default_rng(seed).integers(0, 256, (n, 64, 64, 3), dtype=np.uint8)
+
+
+def test_round_trip(tmp_path):
+    m = _model()
+    path = m.save(tmp_path / "m.npz")
+    back = load_model(path)
+    assert back.config == CFG and back.classifier == "linearsvc"
+    np.testing.assert_array_equal(back.coef, m.coef)
+    assert back.metadata["format_version"] == FORMAT_VERSION
+    assert back.metadata["training"]["note"] == "test"
+    np.testing.assert_array_equal(back.decision_function(_crops()), m.decision_function(_crops()))
+
+
+def test_decision_function_matches_sklearn_and_folding():
+    from fastdet.features import extract_features
+
+    m = _model()
+    x = extract_features(_crops(), CFG)
+    scaler, clf = sklearn_pair(m)
+    ref = clf.decision_function(scaler.transform(x))
+    np.testing.assert_allclose(m.decision_function(_crops()), ref, rtol=0, atol=1e-9)
+    w, b = m.folded()
+    np.testing.assert_allclose(x @ w + b, ref, rtol=1e-9, atol=1e-8)
+    assert set(np.unique(m.predict(_crops()))) <= {0, 1}
+    with pytest.raises(AttributeError, match="logistic"):
+        m.predict_proba(_crops())
+    p = _model(classifier="logreg").predict_proba(_crops())
+    assert p.shape == (5, 2) and np.allclose(p.sum(1), 1)
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(ModelError, match="not found"):
+        load_model(tmp_path / "nope.npz")
+
+
+def test_not_npz(tmp_path):
+    p = tmp_path / "m.npz"
+    p.write_text("hello")
+    with pytest.raises(ModelError, match="not a readable .npz"):
+        load_model(p)
+
+
+def test_truncated(tmp_path):
+    p = _model().save(tmp_path / "m.npz")
+    data = p.read_bytes()
+    p.write_bytes(data[: len(data) // 2])
+    with pytest.raises(ModelError, match="npz"):
+        load_model(p)
+
+
+def _rewrite(tmp_path, **override):
+    m = _model()
+    meta = {"format_version": FORMAT_VERSION, "feature_config": CFG.to_dict(), "classifier": "linearsvc"}
+    arrays = dict(coef=m.coef, intercept=np.float64(0.1), mean=m.mean, scale=m.scale)
+    meta.update(override.pop("meta", {}))
+    arrays.update(override)
+    arrays.setdefault("metadata", np.frombuffer(json.dumps(meta).encode(), np.uint8))
+    p = tmp_path / "m.npz"
+    np.savez(p, **{k: v for k, v in arrays.items() if v is not None})
+    return p
+
+
+def test_wrong_version(tmp_path):
+    with pytest.raises(ModelError, match="format version 99"):
+        load_model(_rewrite(tmp_path, meta={"format_version": 99}))
+
+
+def test_missing_array(tmp_path):
+    with pytest.raises(ModelError, match="missing array.*scale"):
+        load_model(_rewrite(tmp_path, scale=None))
+
+
+def test_config_mismatch_with_weights(tmp_path):
+    cfg = FeatureConfig(color_space="LUV", hog_channels=(0, 1), orientations=6, spatial_size=8, hist_bins=8)
+    with pytest.raises(ModelError, match="feature config mismatch"):
+        load_model(_rewrite(tmp_path, meta={"feature_config": cfg.to_dict()}))
+
+
+def test_config_mismatch_with_expected(tmp_path):
+    p = _model().save(tmp_path / "m.npz")
+    with pytest.raises(ModelError, match="feature config mismatch"):
+        load_model(p, expected_config=FeatureConfig())
+
+
+def test_bad_feature_config(tmp_path):
+    with pytest.raises(ModelError, match="bad feature configuration"):
+        load_model(_rewrite(tmp_path, meta={"feature_config": {"color_space": "XYZ"}}))
+
+
+def test_pickled_object_array_is_refused(tmp_path):
+    p = _rewrite(tmp_path, metadata=np.array([{"evil": 1}], dtype=object))
+    with pytest.raises(ModelError):
+        load_model(p)
+
+
+def test_bundled_default_model_loads():
+    m = load_model()
+    assert m.config == FeatureConfig()
+    assert m.metadata["training"]["sequence_split"]["accuracy"] > 0.98
