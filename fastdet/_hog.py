@@ -1,0 +1,463 @@
+"""Histogram of Oriented Gradients, compatible with scikit-image, on Numba kernels.
+
+Public functions (exported as ``fastdet.hog`` and ``fastdet.hog_channels``):
+
+* :func:`hog` -- drop-in replacement for ``skimage.feature.hog``: same arguments, same
+  output shape, dtype and values (to floating-point rounding; in practice bit-identical).
+* :func:`hog_channels` -- the per-channel HOG the vehicle pipeline uses: the HOG of each
+  channel computed separately, as one contiguous block map.
+* :func:`hog_channels_batch` -- :func:`hog_channels` of a stack of equally sized crops,
+  threaded over the stack.
+
+The kernels live in :mod:`fastdet._hog_kernels`; this module validates, allocates and
+prepares look-up tables.
+"""
+from __future__ import annotations
+
+import operator
+import threading
+from collections.abc import Sequence
+
+import numba
+import numpy as np
+
+from . import _hog_kernels as _k
+
+__all__ = ["hog", "hog_channels", "hog_channels_batch"]
+
+BLOCK_NORMS = {
+    "L1": _k.NORM_L1,
+    "L1-sqrt": _k.NORM_L1_SQRT,
+    "L2": _k.NORM_L2,
+    "L2-Hys": _k.NORM_L2_HYS,
+}
+
+# Below this many pixel-channels per image the uint8 kernel runs on one thread: waking the
+# thread pool costs more than it saves on a small image.
+_PARALLEL_MIN_SAMPLES = 32_768
+
+_lut_lock = threading.Lock()
+_mag_lut: np.ndarray | None = None
+_bin_luts: dict[int, np.ndarray] = {}
+
+
+# --------------------------------------------------------------------------------------
+# look-up tables for uint8 images
+# --------------------------------------------------------------------------------------
+def _integer_gradients() -> tuple[np.ndarray, np.ndarray]:
+    g = np.arange(-_k.LUT_OFFSET, _k.LUT_OFFSET + 1, dtype=np.float64)
+    g_row, g_col = np.meshgrid(g, g, indexing="ij")
+    return g_row, g_col
+
+
+def _luts(orientations: int) -> tuple[np.ndarray, np.ndarray]:
+    """(bin_lut, mag_lut) over every uint8 gradient pair ``(g_row, g_col)`` in
+    [-255, 255]², flattened with index ``(g_row + 255) * 511 + (g_col + 255)``.
+
+    Both are computed with the very NumPy calls skimage makes (``np.hypot(g_col, g_row)``
+    and ``np.rad2deg(np.arctan2(g_row, g_col)) % 180`` with its bin tests), so a table
+    look-up returns exactly the value skimage computes for that pixel.
+    """
+    global _mag_lut
+    bins = _bin_luts.get(orientations)
+    if bins is not None and _mag_lut is not None:
+        return bins, _mag_lut
+    with _lut_lock:
+        g_row, g_col = _integer_gradients()
+        if _mag_lut is None:
+            _mag_lut = np.ascontiguousarray(np.hypot(g_col, g_row).ravel())
+        if orientations not in _bin_luts:
+            orient = np.rad2deg(np.arctan2(g_row, g_col)) % 180
+            per180 = 180.0 / orientations
+            lut = np.full(orient.shape, -1, dtype=np.int16)
+            for i in range(orientations):
+                inside = (orient < per180 * (i + 1)) & (orient >= per180 * i)
+                lut[inside] = i
+            dtype = np.int8 if orientations <= 127 else np.int16
+            _bin_luts[orientations] = np.ascontiguousarray(lut.ravel().astype(dtype))
+        return _bin_luts[orientations], _mag_lut
+
+
+# --------------------------------------------------------------------------------------
+# argument checks
+# --------------------------------------------------------------------------------------
+def _positive_int(value, name: str) -> int:
+    try:
+        v = operator.index(value)
+    except TypeError:
+        raise ValueError(f"{name} must be a positive integer, got {value!r}") from None
+    if v < 1:
+        raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    return v
+
+
+def _pair(value, name: str) -> tuple[int, int]:
+    """An int or a 2-sequence of ints, each >= 1."""
+    if isinstance(value, (Sequence, np.ndarray)) and not isinstance(value, str):
+        if len(value) != 2:
+            raise ValueError(f"{name} must be an int or a pair of ints, got {value!r}")
+        return _positive_int(value[0], name), _positive_int(value[1], name)
+    v = _positive_int(value, name)
+    return v, v
+
+
+def _block_norm_code(block_norm) -> int:
+    try:
+        return BLOCK_NORMS[block_norm]
+    except (KeyError, TypeError):
+        raise ValueError(
+            f"block_norm must be one of {sorted(BLOCK_NORMS)}, got {block_norm!r}"
+        ) from None
+
+
+def _float_dtype(dtype: np.dtype) -> type:
+    """skimage's working float type: float16/float32 -> float32, everything else -> float64."""
+    if dtype.kind not in "biuf":
+        raise ValueError(f"image must have a real numeric dtype, got {dtype}")
+    return np.float32 if dtype in (np.float16, np.float32) else np.float64
+
+
+def _as_array(image, name: str = "image") -> np.ndarray:
+    try:
+        arr = np.asarray(image)
+    except Exception as exc:  # noqa: BLE001 - any conversion failure is a bad argument
+        raise ValueError(f"{name} must be array-like: {exc}") from None
+    if arr.size == 0:
+        raise ValueError(f"{name} is empty (shape {arr.shape})")
+    return arr
+
+
+def _geometry(shape, ppc, cpb, name="image"):
+    """Cells and blocks that fit in an image of spatial ``shape`` (skimage's rules)."""
+    n_cells = (shape[0] // ppc[0], shape[1] // ppc[1])
+    n_blocks = (n_cells[0] - cpb[0] + 1, n_cells[1] - cpb[1] + 1)
+    if n_blocks[0] <= 0 or n_blocks[1] <= 0:
+        raise ValueError(
+            f"{name} of shape {tuple(shape)} is too small for pixels_per_cell={ppc} and "
+            f"cells_per_block={cpb}: it needs at least {cpb[0] * ppc[0]} rows and "
+            f"{cpb[1] * ppc[1]} columns"
+        )
+    return n_cells, n_blocks
+
+
+# --------------------------------------------------------------------------------------
+# the two computation paths
+# --------------------------------------------------------------------------------------
+def _blocks_u8(img, chans, max_channel, ppc, cpb, orientations, method, n_cells, n_blocks):
+    """uint8 ``(rows, cols, C)`` C-contiguous image -> (hist, blocks) via the LUT kernel."""
+    bin_lut, mag_lut = _luts(orientations)
+    n_out_ch = 1 if max_channel else len(chans)
+    hist = np.empty((n_cells[0], n_cells[1], n_out_ch, orientations))
+    out = np.empty((n_blocks[0], n_blocks[1], n_out_ch, cpb[0] * cpb[1] * orientations))
+    samples = img.shape[0] * img.shape[1] * len(chans)
+    kernel = _k.hog_u8
+    if samples >= _PARALLEL_MIN_SAMPLES and n_cells[0] > 1 and numba.get_num_threads() > 1:
+        kernel = _k.hog_u8_parallel
+    kernel(img, chans, max_channel, ppc[0], ppc[1], cpb[0], cpb[1], bin_lut, mag_lut,
+           method, hist, out)
+    return hist, out
+
+
+def _gradients(channel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Central differences without the 1/2, zero on the outer rows / columns, in the
+    channel's dtype (skimage's ``_hog_channel_gradient``)."""
+    g_row = np.zeros(channel.shape, dtype=channel.dtype)
+    g_row[1:-1, :] = channel[2:, :] - channel[:-2, :]
+    g_col = np.zeros(channel.shape, dtype=channel.dtype)
+    g_col[:, 1:-1] = channel[:, 2:] - channel[:, :-2]
+    return g_row, g_col
+
+
+def _blocks_float(img, chans, max_channel, ppc, cpb, orientations, method, n_cells,
+                  n_blocks):
+    """Float ``(rows, cols, C)`` image (already in skimage's working dtype, already
+    square-rooted if asked) -> (hist, blocks).
+
+    Gradient magnitude and orientation use NumPy's ``hypot``/``arctan2`` exactly as
+    skimage does (NumPy's SIMD versions differ from libm's by an ulp now and then, which
+    could flip a bin), then the kernels bin, accumulate and normalise.
+    """
+    n_out_ch = 1 if max_channel else len(chans)
+    hist = np.empty((n_cells[0], n_cells[1], n_out_ch, orientations))
+    if max_channel:
+        grads = [_gradients(img[:, :, ch]) for ch in chans]
+        g_row_all = np.stack([g[0] for g in grads], axis=2)
+        g_col_all = np.stack([g[1] for g in grads], axis=2)
+        pick = np.hypot(g_row_all, g_col_all).argmax(axis=2)[:, :, None]
+        pairs = [(np.take_along_axis(g_row_all, pick, axis=2)[:, :, 0],
+                  np.take_along_axis(g_col_all, pick, axis=2)[:, :, 0])]
+    else:
+        pairs = (_gradients(img[:, :, ch]) for ch in chans)
+    for k, (g_row, g_col) in enumerate(pairs):
+        g_row = np.ascontiguousarray(g_row, dtype=np.float64)
+        g_col = np.ascontiguousarray(g_col, dtype=np.float64)
+        magnitude = np.hypot(g_col, g_row)
+        orientation = np.rad2deg(np.arctan2(g_row, g_col)) % 180
+        _k.cell_hist_float(magnitude, orientation, ppc[0], ppc[1], k, hist)
+    out = np.empty((n_blocks[0], n_blocks[1], n_out_ch, cpb[0] * cpb[1] * orientations))
+    _k.normalize_blocks(hist, cpb[0], cpb[1], method, out)
+    return hist, out
+
+
+def _compute(img3, chans, max_channel, ppc, cpb, orientations, method, transform_sqrt):
+    """Dispatch on dtype. ``img3`` is ``(rows, cols, C)``; returns (hist, blocks, dtype)."""
+    float_dtype = _float_dtype(img3.dtype)
+    n_cells, n_blocks = _geometry(img3.shape[:2], ppc, cpb)
+    if transform_sqrt:
+        if img3.dtype.kind != "u" and bool(np.any(img3 < 0)):
+            raise ValueError("transform_sqrt=True needs a non-negative image: "
+                             "image has negative values")
+    chans = np.asarray(chans, dtype=np.int64)
+    if img3.dtype == np.uint8 and not transform_sqrt:
+        hist, out = _blocks_u8(np.ascontiguousarray(img3), chans, max_channel, ppc, cpb,
+                               orientations, method, n_cells, n_blocks)
+    else:
+        work = img3.astype(float_dtype, copy=False)
+        if transform_sqrt:
+            work = np.sqrt(work)
+        hist, out = _blocks_float(work, chans, max_channel, ppc, cpb, orientations, method,
+                                  n_cells, n_blocks)
+    return hist, out, float_dtype
+
+
+def _hog_image(hist, ppc, orientations, shape, float_dtype):
+    radius = min(ppc) // 2 - 1
+    midpoints = np.pi * (np.arange(orientations) + 0.5) / orientations
+    dr_arr = np.ascontiguousarray(radius * np.sin(midpoints), dtype=np.float64)
+    dc_arr = np.ascontiguousarray(radius * np.cos(midpoints), dtype=np.float64)
+    image = np.zeros(shape, dtype=float_dtype)
+    _k.draw_hog_image(hist, ppc[0], ppc[1], dr_arr, dc_arr, image)
+    return image
+
+
+# --------------------------------------------------------------------------------------
+# public API
+# --------------------------------------------------------------------------------------
+def hog(image, orientations=9, pixels_per_cell=(8, 8), cells_per_block=(3, 3),
+        block_norm="L2-Hys", visualize=False, transform_sqrt=False, feature_vector=True,
+        *, channel_axis=None):
+    """Histogram of Oriented Gradients (HOG) of an image, as ``skimage.feature.hog``.
+
+    Same arguments, defaults, output shape, dtype and values as scikit-image's ``hog``
+    (Dalal & Triggs 2005, scikit-image variant), computed by Numba kernels:
+
+    1. optional power-law compression: ``image = sqrt(image)`` (``transform_sqrt``);
+    2. gradients by central differences **without** the 1/2 factor,
+       ``g_row[r, c] = I[r+1, c] - I[r-1, c]`` and ``g_col[r, c] = I[r, c+1] - I[r, c-1]``,
+       zero on the image's first/last rows (``g_row``) and columns (``g_col``); for a
+       multichannel image each pixel keeps the gradient of the channel with the largest
+       magnitude (the first such channel on ties);
+    3. magnitude ``hypot(g_col, g_row)`` and unsigned orientation
+       ``rad2deg(arctan2(g_row, g_col)) % 180`` in degrees; hard binning (no interpolation):
+       bin ``i`` holds ``180/n*i <= theta < 180/n*(i+1)``;
+    4. cell histograms: magnitudes summed per cell and bin (in float32, as skimage does),
+       divided by the cell area in pixels; pixels beyond the last whole cell are dropped
+       (they still enter the gradients of their neighbours);
+    5. blocks of ``cells_per_block`` cells at a one-cell stride, each normalised with
+       ``block_norm`` (``eps = 1e-5``): ``'L1'`` ``v / (sum|v| + eps)``; ``'L1-sqrt'``
+       ``sqrt(v / (sum|v| + eps))``; ``'L2'`` ``v / sqrt(sum v² + eps²)``; ``'L2-Hys'`` L2,
+       clipped at 0.2, then L2 again.
+
+    For ``uint8`` input (without ``transform_sqrt``) the gradients are integers in
+    [-255, 255], so bin and magnitude come from exact look-up tables built with the
+    same NumPy calls skimage uses (no ``atan2``/``sqrt`` per pixel).
+
+    Parameters
+    ----------
+    image : (M, N) or (M, N, C) array_like
+        Image; real numeric dtype. Must hold at least one block of cells.
+    orientations : int
+        Number of orientation bins over [0, 180) degrees.
+    pixels_per_cell : (int, int) or int
+        Cell size in pixels (rows, cols).
+    cells_per_block : (int, int) or int
+        Block size in cells (rows, cols).
+    block_norm : {'L1', 'L1-sqrt', 'L2', 'L2-Hys'}
+        Block normalisation (see above).
+    visualize : bool
+        Also return skimage's HOG picture: per cell and bin, a line segment through the
+        cell centre perpendicular to the bin's mid angle, of intensity the cell's
+        histogram value.
+    transform_sqrt : bool
+        Square-root the image first (needs non-negative values).
+    feature_vector : bool
+        Return ``out.ravel()`` instead of the 5-D block array.
+    channel_axis : int or None
+        ``None`` for a 2-D (grey) image, else the axis of the channels of a 3-D image.
+
+    Returns
+    -------
+    out : (n_blocks_row, n_blocks_col, b_row, b_col, orientations) ndarray, or its ravel
+        Normalised blocks, ``n_blocks_row = M // p_row - b_row + 1`` (and likewise for
+        columns). dtype float32 for float16/float32 input, else float64.
+    hog_image : (M, N) ndarray
+        Only if ``visualize``.
+
+    Raises
+    ------
+    ValueError
+        Wrong ``image`` ndim, empty or too small ``image``, negative values with
+        ``transform_sqrt``, unknown ``block_norm``, bad ``channel_axis``,
+        ``orientations``, ``pixels_per_cell`` or ``cells_per_block``; the message names
+        the argument.
+
+    References
+    ----------
+    .. [1] N. Dalal and B. Triggs, "Histograms of Oriented Gradients for Human
+           Detection", CVPR 2005, :DOI:`10.1109/CVPR.2005.177`.
+    .. [2] scikit-image, ``skimage/feature/_hog.py`` and ``_hoghistogram.pyx``.
+    """
+    arr = _as_array(image)
+    orientations = _positive_int(orientations, "orientations")
+    ppc = _pair(pixels_per_cell, "pixels_per_cell")
+    cpb = _pair(cells_per_block, "cells_per_block")
+    method = _block_norm_code(block_norm)
+    if channel_axis is None:
+        if arr.ndim != 2:
+            raise ValueError(
+                f"image must be 2-D when channel_axis is None, got shape {arr.shape}; "
+                "for a multichannel image pass channel_axis")
+        img3 = arr[:, :, None]
+        chans = [0]
+        max_channel = False
+    else:
+        if arr.ndim != 3:
+            raise ValueError(
+                f"image must be 3-D (two spatial axes and channel_axis), got shape {arr.shape}")
+        try:
+            axis = operator.index(channel_axis)
+        except TypeError:
+            raise ValueError(f"channel_axis must be an int or None, got {channel_axis!r}") from None
+        if not -arr.ndim <= axis < arr.ndim:
+            raise ValueError(f"channel_axis={channel_axis} is out of range for a 3-D image")
+        img3 = np.moveaxis(arr, axis, -1)
+        chans = list(range(img3.shape[2]))
+        max_channel = True
+    hist, out, float_dtype = _compute(img3, chans, max_channel, ppc, cpb, orientations,
+                                      method, bool(transform_sqrt))
+    blocks = out.reshape(out.shape[0], out.shape[1], cpb[0], cpb[1], orientations)
+    if float_dtype is not np.float64:
+        blocks = blocks.astype(float_dtype)
+    if feature_vector:
+        blocks = blocks.ravel()
+    if visualize:
+        return blocks, _hog_image(hist, ppc, orientations, img3.shape[:2], float_dtype)
+    return blocks
+
+
+def _channel_list(channels, n_channels: int) -> list[int]:
+    if channels is None:
+        return list(range(n_channels))
+    if isinstance(channels, (int, np.integer)):
+        channels = [channels]
+    try:
+        chans = [operator.index(c) for c in channels]
+    except TypeError:
+        raise ValueError(f"channels must be None or a sequence of ints, got {channels!r}") from None
+    if not chans:
+        raise ValueError("channels must not be empty")
+    for c in chans:
+        if not -n_channels <= c < n_channels:
+            raise ValueError(f"channels: index {c} is out of range for {n_channels} channels")
+    return [c % n_channels for c in chans]
+
+
+def hog_channels(image, orientations=9, pixels_per_cell=8, cells_per_block=2,
+                 block_norm="L2-Hys", transform_sqrt=False, channels=None):
+    """Per-channel HOG block map of an ``(H, W, C)`` (or ``(H, W)``) image.
+
+    Each selected channel gets its own HOG, exactly
+    ``skimage.feature.hog(image[..., ch], orientations, pixels_per_cell, cells_per_block,
+    block_norm, transform_sqrt=transform_sqrt, feature_vector=False)`` (see :func:`hog`
+    for the algorithm), and the results are interleaved into one block map::
+
+        out[r, c, k] == skimage.feature.hog(image[..., channels[k]], ...,
+                                            feature_vector=False)[r, c]
+
+    so that a row of blocks (all channels) is contiguous in memory. This is the hot path
+    of the detector: for uint8 input the gradients, look-up-table binning and float32 cell
+    sums are fused in one pass, threaded over cell rows (NUMBA_NUM_THREADS /
+    ``numba.set_num_threads``), and the GIL is released.
+
+    Parameters
+    ----------
+    image : (H, W, C) or (H, W) array_like
+        Channels last; a 2-D image is one channel.
+    orientations : int
+        Orientation bins over [0, 180) degrees.
+    pixels_per_cell, cells_per_block : int or (int, int)
+        Cell size in pixels, block size in cells.
+    block_norm : {'L1', 'L1-sqrt', 'L2', 'L2-Hys'}
+    transform_sqrt : bool
+        Square-root the image first (non-negative values only).
+    channels : sequence of int or None
+        Channels to use, in output order (``None``: all).
+
+    Returns
+    -------
+    out : (n_blocks_row, n_blocks_col, n_channels, b_row, b_col, orientations) ndarray
+        C-contiguous float64 (values of float32 input are rounded to float32, as
+        skimage returns them).
+    """
+    arr = _as_array(image)
+    if arr.ndim == 2:
+        arr = arr[:, :, None]
+    elif arr.ndim != 3:
+        raise ValueError(f"image must be (H, W) or (H, W, C), got shape {arr.shape}")
+    orientations = _positive_int(orientations, "orientations")
+    ppc = _pair(pixels_per_cell, "pixels_per_cell")
+    cpb = _pair(cells_per_block, "cells_per_block")
+    method = _block_norm_code(block_norm)
+    chans = _channel_list(channels, arr.shape[2])
+    _, out, float_dtype = _compute(arr, chans, False, ppc, cpb, orientations, method,
+                                   bool(transform_sqrt))
+    if float_dtype is not np.float64:
+        out[...] = out.astype(float_dtype)
+    return out.reshape(out.shape[0], out.shape[1], out.shape[2], cpb[0], cpb[1], orientations)
+
+
+def hog_channels_batch(images, orientations=9, pixels_per_cell=8, cells_per_block=2,
+                       block_norm="L2-Hys", channels=None):
+    """:func:`hog_channels` of every image of an ``(N, H, W, C)`` stack (or ``(N, H, W)``).
+
+    For a uint8 stack (e.g. 64x64 training crops) one kernel runs the whole stack,
+    threaded over images; other dtypes fall back to one :func:`hog_channels` call per
+    image.
+
+    Returns
+    -------
+    out : (N, n_blocks_row, n_blocks_col, n_channels, b_row, b_col, orientations) ndarray
+        C-contiguous float64; ``out[i] == hog_channels(images[i], ...)``.
+    """
+    try:
+        arr = np.asarray(images)
+    except Exception as exc:  # noqa: BLE001
+        raise ValueError(f"images must be array-like: {exc}") from None
+    if arr.ndim == 3:
+        arr = arr[..., None]
+    elif arr.ndim != 4:
+        raise ValueError(f"images must be (N, H, W, C) or (N, H, W), got shape {arr.shape}")
+    if arr.shape[1] == 0 or arr.shape[2] == 0 or arr.shape[3] == 0:
+        raise ValueError(f"images are empty (shape {arr.shape})")
+    orientations = _positive_int(orientations, "orientations")
+    ppc = _pair(pixels_per_cell, "pixels_per_cell")
+    cpb = _pair(cells_per_block, "cells_per_block")
+    method = _block_norm_code(block_norm)
+    chans = _channel_list(channels, arr.shape[3])
+    _float_dtype(arr.dtype)
+    n_cells, n_blocks = _geometry(arr.shape[1:3], ppc, cpb, name="images")
+    shape = (arr.shape[0], n_blocks[0], n_blocks[1], len(chans), cpb[0], cpb[1],
+             orientations)
+    if arr.dtype != np.uint8:
+        out = np.empty(shape)
+        for i in range(arr.shape[0]):
+            out[i] = hog_channels(arr[i], orientations, ppc, cpb, block_norm, False, chans)
+        return out
+    bin_lut, mag_lut = _luts(orientations)
+    out = np.empty((shape[0], n_blocks[0], n_blocks[1], len(chans),
+                    cpb[0] * cpb[1] * orientations))
+    if arr.shape[0]:
+        _k.hog_u8_batch(np.ascontiguousarray(arr), np.asarray(chans, dtype=np.int64),
+                        ppc[0], ppc[1], cpb[0], cpb[1], n_cells[0], n_cells[1],
+                        bin_lut, mag_lut, method, out)
+    return out.reshape(shape)
