@@ -84,6 +84,14 @@ def heat_image(heat: np.ndarray, vmax: float | None = None) -> np.ndarray:
     return cv2.applyColorMap(u8, cv2.COLORMAP_INFERNO)
 
 
+def grid_to_frame(img: np.ndarray, cell: int, shape: tuple[int, ...]) -> np.ndarray:
+    """A heat-grid image (one pixel per ``cell x cell`` frame pixels) at frame size
+    ``shape[:2]``: each grid pixel repeated ``cell`` times, cropped to the frame."""
+    h, w = int(shape[0]), int(shape[1])
+    big = cv2.resize(img, (img.shape[1] * cell, img.shape[0] * cell), interpolation=cv2.INTER_NEAREST)
+    return np.ascontiguousarray(big[:h, :w])
+
+
 def label_image(labels: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
     """Blob labels as a BGR image: each label in its :func:`label_color`, background black;
     mask pixels without a label (if ``mask`` is given) grey."""

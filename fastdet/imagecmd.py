@@ -1,0 +1,134 @@
+"""``python -m fastdet image INPUT.jpg -o OUT.jpg [--windows] [--heat] [--model M.npz] [--threshold T]``
+
+Detects vehicles in one image: the positive windows of the Detector, then a single-frame
+heat map (:class:`~fastdet.heatmap.HeatMap` with ``n_frames=1``) thresholded at
+``HeatConfig.single_frame_threshold`` (or ``--threshold``), one box per blob, shape filter.
+Draws the final boxes with their scores (peak heat); ``--windows`` also draws the positive
+windows, coloured by search scale; ``--heat`` also writes the heat map as ``OUT.heat.jpg``
+(same extension as OUT).
+
+Outputs are written under a temporary name in the output folder (``.OUT.partial.jpg``)
+and renamed when complete, so a reader never sees half an image. Bad input (missing or
+unreadable image, missing output folder, an output extension OpenCV cannot write, a model
+that does not load) raises :class:`~fastdet.errors.FastdetError`: one line, exit status 2.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+from typing import Any
+
+from .config import HeatConfig
+from .errors import DataError, FastdetError
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("input", metavar="INPUT.jpg", help="image file (anything cv2.imread reads)")
+    parser.add_argument("-o", "--output", metavar="OUT.jpg", required=True, help="annotated image")
+    parser.add_argument("--windows", action="store_true",
+                        help="also draw the positive windows, coloured by search scale")
+    parser.add_argument("--heat", action="store_true", help="also write the heat map as OUT.heat.jpg")
+    parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
+    d = HeatConfig()
+    parser.add_argument("--threshold", type=float, default=None, metavar="T",
+                        help=f"heat a pixel needs to be part of a vehicle (default "
+                             f"HeatConfig.single_frame_threshold = {d.single_frame_threshold})")
+
+
+def heat_path(output: str | os.PathLike) -> Path:
+    """Where ``--heat`` writes: ``OUT.heat.EXT`` beside ``OUT.EXT``."""
+    p = Path(output)
+    return p.with_name(f"{p.stem}.heat{p.suffix}")
+
+
+def _check_output(path: Path, inp: str) -> None:
+    parent = path.resolve().parent
+    if not parent.is_dir():
+        raise DataError(f"{path}: output folder {parent} does not exist")
+    if not os.access(parent, os.W_OK):
+        raise DataError(f"{path}: output folder {parent} is not writable")
+    if path.is_dir():
+        raise DataError(f"{path}: is a folder, expected an image file name")
+    if path.exists() and os.path.samefile(path, inp):
+        raise DataError(f"{path}: the output would overwrite the input")
+
+
+def _write_image(path: Path, img) -> None:
+    """cv2.imwrite to ``.NAME.partial.EXT`` then rename to ``path``."""
+    import cv2
+
+    from .video import partial_name
+
+    tmp = partial_name(path)
+    try:
+        ok = cv2.imwrite(str(tmp), img)
+    except cv2.error:
+        ok = False
+    if not ok:
+        tmp.unlink(missing_ok=True)
+        raise DataError(f"{path}: cannot write an image there (extension {path.suffix or '(none)'!r} "
+                        f"not supported? use .jpg or .png)")
+    os.replace(tmp, path)
+
+
+def detect_image(frame, detector: Any, heat: HeatConfig):
+    """Positive windows, their scales, the single-frame heat map and its final boxes:
+    ``(windows, scales, heatmap, boxes)``."""
+    import numpy as np
+
+    from .heatmap import HeatMap
+
+    windows = detector.detect(frame)
+    scales = np.asarray(getattr(detector, "last_scales", np.ones(len(windows.boxes))), np.float32)
+    hm = HeatMap(frame.shape, heat, score_kind=getattr(detector, "score_kind", "decision"))
+    boxes = hm.update(windows)
+    return windows, scales, hm, boxes
+
+
+def run(args: argparse.Namespace, detector: Any = None) -> int:
+    """The ``image`` subcommand. ``detector`` replaces the model's Detector (tests)."""
+    import cv2
+
+    from . import draw
+
+    inp = args.input
+    if not os.path.exists(inp):
+        raise DataError(f"{inp}: file not found")
+    if os.path.isdir(inp):
+        raise DataError(f"{inp}: is a folder, not an image")
+    out = Path(args.output)
+    _check_output(out, inp)
+    hout = heat_path(out) if args.heat else None
+    if hout is not None:
+        _check_output(hout, inp)
+    try:
+        heat = HeatConfig().single_frame(args.threshold)
+    except ValueError as exc:
+        raise FastdetError(f"--threshold: {exc}") from None
+    frame = cv2.imread(inp, cv2.IMREAD_COLOR)
+    if frame is None:
+        raise DataError(f"{inp}: not an image OpenCV can read")
+    if detector is None:
+        from .video import make_detector
+
+        detector = make_detector(args.model)
+    elif args.model is not None:
+        raise FastdetError("--model cannot be used with an injected detector")
+
+    windows, scales, hm, boxes = detect_image(frame, detector, heat)
+    img = frame.copy()
+    if args.windows:
+        draw.draw_windows(img, windows.boxes, scales, 1)
+    draw.draw_boxes(img, boxes.boxes, boxes.scores, thickness=3)
+    _write_image(out, img)
+    written = [str(out)]
+    if hout is not None:
+        himg = draw.grid_to_frame(draw.heat_image(hm.heat, vmax=max(2.0 * heat.threshold, float(hm.heat.max()))),
+                                  heat.cell, frame.shape)
+        draw.draw_boxes(himg, boxes.boxes, None, thickness=2)
+        _write_image(hout, himg)
+        written.append(str(hout))
+    print(f"fastdet image: {len(boxes.boxes)} vehicle(s) from {len(windows.boxes)} positive window(s); "
+          f"wrote {', '.join(written)}")
+    return 0
