@@ -1,0 +1,324 @@
+"""HeatMap against a plain, slow reference: a list of the last N full-frame float arrays,
+one per frame, summed with their age weights; labels against a naive flood fill."""
+from __future__ import annotations
+
+import math
+from collections import deque
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import fastdet.heatmap as heatmap_mod
+from fastdet.config import HeatConfig
+from fastdet.detections import Detections
+from fastdet.heatmap import HeatMap
+
+# ------------------------------------------------------------------------- reference
+
+
+def ref_window_heat(score: float, cfg: HeatConfig, kind: str = "decision") -> float:
+    lo, hi = cfg.score_range(kind)
+    t = min(max((score - lo) / (hi - lo), 0.0), 1.0)
+    return 1.0 + (cfg.w_max - 1.0) * t
+
+
+def ref_snap(v: int, c: int) -> int:
+    return math.floor(v / c + 0.5)
+
+
+def ref_frame_map(boxes, scores, shape, cfg, kind="decision") -> np.ndarray:
+    """One frame's heat at full resolution (frame padded to whole cells)."""
+    c = cfg.cell
+    hg, wg = -(-shape[0] // c), -(-shape[1] // c)
+    m = np.zeros((hg * c, wg * c), np.float64)
+    for (x1, y1, x2, y2), s in zip(boxes, scores):
+        if x2 <= x1 or y2 <= y1:
+            continue
+        gx1, gy1 = ref_snap(x1, c), ref_snap(y1, c)
+        gx2, gy2 = max(ref_snap(x2, c), gx1 + 1), max(ref_snap(y2, c), gy1 + 1)
+        gx1, gx2 = min(max(gx1, 0), wg), min(max(gx2, 0), wg)
+        gy1, gy2 = min(max(gy1, 0), hg), min(max(gy2, 0), hg)
+        if gx2 > gx1 and gy2 > gy1:
+            m[gy1 * c:gy2 * c, gx1 * c:gx2 * c] += ref_window_heat(float(s), cfg, kind)
+    return m
+
+
+def ref_heat(frames, shape, cfg, kind="decision") -> np.ndarray:
+    """Heat after the last of ``frames`` (list of (boxes, scores)), on the heat grid."""
+    recent = frames[-cfg.n_frames:]
+    maps = [ref_frame_map(b, s, shape, cfg, kind) for b, s in recent]
+    num = np.zeros_like(maps[0])
+    den = 0.0
+    for k in range(len(maps)):  # k = age
+        num = num + cfg.decay ** k * maps[-1 - k]
+        den += cfg.decay ** k
+    return (num / den)[::cfg.cell, ::cfg.cell]
+
+
+def flood_components(mask: np.ndarray) -> list[list[tuple[int, int]]]:
+    """4-connected components of a boolean grid, by breadth-first search."""
+    seen = np.zeros_like(mask, bool)
+    comps = []
+    h, w = mask.shape
+    for y in range(h):
+        for x in range(w):
+            if mask[y, x] and not seen[y, x]:
+                comp, todo = [], deque([(y, x)])
+                seen[y, x] = True
+                while todo:
+                    cy, cx = todo.popleft()
+                    comp.append((cy, cx))
+                    for ny, nx in ((cy - 1, cx), (cy + 1, cx), (cy, cx - 1), (cy, cx + 1)):
+                        if 0 <= ny < h and 0 <= nx < w and mask[ny, nx] and not seen[ny, nx]:
+                            seen[ny, nx] = True
+                            todo.append((ny, nx))
+                comps.append(comp)
+    return comps
+
+
+def ref_blobs(heat: np.ndarray, shape, cfg) -> list[tuple[tuple[int, int, int, int], float]]:
+    c = cfg.cell
+    out = []
+    for comp in flood_components(heat > cfg.threshold):
+        ys = [p[0] for p in comp]
+        xs = [p[1] for p in comp]
+        box = (min(xs) * c, min(ys) * c, min((max(xs) + 1) * c, shape[1]), min((max(ys) + 1) * c, shape[0]))
+        out.append((box, float(np.float32(max(heat[p] for p in comp)))))
+    return sorted(out)
+
+
+def as_sorted(d: Detections):
+    return sorted((tuple(int(v) for v in b), float(s)) for b, s in zip(d.boxes, d.scores))
+
+
+# ------------------------------------------------------------------------- strategies
+
+
+@st.composite
+def box_sequences(draw, dyadic: bool):
+    h = draw(st.integers(6, 40))
+    w = draw(st.integers(6, 40))
+    n_frames = draw(st.integers(1, 6))
+    cell = draw(st.sampled_from([1, 2, 3, 4]))
+    if dyadic:  # every value a short binary fraction: the running sum is exact
+        decay = draw(st.sampled_from([1.0, 0.5, 0.25]))
+        cfg = HeatConfig(n_frames=n_frames, decay=decay, cell=cell, score_lo=0.0, score_hi=4.0, w_max=5.0,
+                         threshold=draw(st.sampled_from([0.0, 1.0, 2.5, 4.0])), min_width=0, min_height=0,
+                         max_aspect=100.0)
+        score = st.integers(-1, 6).map(float)
+    else:
+        decay = draw(st.floats(0.05, 1.0))
+        cfg = HeatConfig(n_frames=n_frames, decay=decay, cell=cell, threshold=draw(st.floats(0, 5)),
+                         w_max=draw(st.floats(1, 8)), min_width=0, min_height=0, max_aspect=100.0)
+        score = st.floats(-3, 5, allow_nan=False)
+    coord_x = st.integers(-8, w + 8)
+    coord_y = st.integers(-8, h + 8)
+    box = st.tuples(coord_x, coord_y, coord_x, coord_y)
+    frame = st.lists(st.tuples(box, score), max_size=6)
+    frames = draw(st.lists(frame, min_size=1, max_size=14))
+    seq = []
+    for fr in frames:
+        b = np.array([x for x, _ in fr], np.int32).reshape(-1, 4)
+        s = np.array([y for _, y in fr], np.float32)
+        seq.append((b, s))
+    return (h, w), cfg, seq
+
+
+SETTINGS = settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+
+@SETTINGS
+@given(box_sequences(dyadic=True))
+def test_running_sum_equals_reference_exactly(case):
+    shape, cfg, seq = case
+    hm = HeatMap(shape, cfg)
+    for i in range(len(seq)):
+        out = hm.update(Detections(*seq[i]))
+        ref = ref_heat(seq[: i + 1], shape, cfg)
+        assert hm.heat.shape == ref.shape
+        np.testing.assert_array_equal(hm.heat, ref)
+        np.testing.assert_array_equal(hm.mask, ref > cfg.threshold)
+        assert as_sorted(out) == ref_blobs(ref, shape, cfg)
+
+
+@SETTINGS
+@given(box_sequences(dyadic=False))
+def test_running_sum_matches_reference_float(case):
+    shape, cfg, seq = case
+    hm = HeatMap(shape, cfg)
+    for i in range(len(seq)):
+        hm.update(Detections(*seq[i]))
+        np.testing.assert_allclose(hm.heat, ref_heat(seq[: i + 1], shape, cfg), rtol=1e-12, atol=1e-12)
+
+
+def test_no_drift_over_a_long_run():
+    rng = np.random.default_rng(1)
+    shape = (48, 64)
+    for decay in (1.0, 0.9):
+        cfg = HeatConfig(n_frames=5, decay=decay, cell=4)
+        hm = HeatMap(shape, cfg)
+        seq = []
+        for _ in range(700):
+            n = rng.integers(0, 6)
+            xy = rng.integers(-10, 60, (n, 2))
+            wh = rng.integers(1, 40, (n, 2))
+            b = np.concatenate([xy, xy + wh], 1).astype(np.int32)
+            s = rng.normal(1, 1.5, n).astype(np.float32)
+            seq.append((b, s))
+            hm.add(b, s)
+        np.testing.assert_allclose(hm.heat, ref_heat(seq, shape, cfg), rtol=1e-12, atol=1e-12)
+
+
+def test_cost_per_frame_does_not_grow_with_n(monkeypatch):
+    """One update rasterises the new frame and (once full) the leaving one: two calls of the
+    kernel whatever N is; recomputing the sum from scratch happens every max(64, N) frames."""
+    calls = []
+    real = heatmap_mod.add_rects
+    monkeypatch.setattr(heatmap_mod, "add_rects", lambda *a: (calls.append(len(a[1])), real(*a)))
+    box = Detections(np.array([[0, 0, 16, 16]], np.int32), np.ones(1, np.float32))
+    for n in (2, 50):
+        hm = HeatMap((32, 32), HeatConfig(n_frames=n, decay=0.9))
+        per_frame = []
+        for _ in range(200):
+            calls.clear()
+            hm.add(box.boxes, box.scores)
+            per_frame.append(len(calls))
+        spikes = [i for i, k in enumerate(per_frame) if k > 2]
+        assert max(k for k in per_frame if k <= 2) == 2
+        assert spikes == [i for i in range(200) if (i + 1) % max(64, n) == 0]
+
+
+# ------------------------------------------------------------------------- score → heat
+
+
+def test_window_heat_mapping_and_strong_beats_weak():
+    cfg = HeatConfig()
+    hm = HeatMap((64, 64), cfg)
+    lo, hi = cfg.score_range("decision")
+    assert (lo, hi) == HeatConfig.SCORE_RANGES["decision"]
+    h = hm.window_heat(np.array([lo - 5, lo, (lo + hi) / 2, hi, hi + 10]))
+    np.testing.assert_allclose(h, [1, 1, (1 + cfg.w_max) / 2, cfg.w_max, cfg.w_max])
+    # one window at score_hi outweighs three barely-positive ones at the same place
+    strong = HeatMap((64, 64), cfg)
+    strong.add(np.array([[0, 0, 32, 32]]), np.array([hi]))
+    weak = HeatMap((64, 64), cfg)
+    weak.add(np.array([[0, 0, 32, 32]] * 3), np.array([lo + 0.01] * 3))
+    assert strong.heat.max() > weak.heat.max()
+    prob = HeatMap((64, 64), cfg, score_kind="probability")
+    np.testing.assert_allclose(prob.window_heat([0.5, 0.75, 1.0]), [1, (1 + cfg.w_max) / 2, cfg.w_max])
+    custom = HeatMap((64, 64), HeatConfig(score_lo=1.0, score_hi=3.0, w_max=2.0))
+    np.testing.assert_allclose(custom.window_heat([0, 2, 5]), [1, 1.5, 2])
+
+
+def test_grid_snapping():
+    hm = HeatMap((30, 41), HeatConfig(cell=4))
+    assert hm.grid_shape == (8, 11)
+    g = hm.to_grid(np.array([
+        [0, 0, 64, 64],      # whole cells, clipped to the grid
+        [2, 2, 5, 5],        # halves round up; a non-empty box keeps one cell
+        [1, 1, 2, 2],        # rounds to (0, 0, 0, 0) then keeps one cell
+        [-30, -30, -20, -20],  # off the frame: empty after clipping
+        [10, 10, 10, 20],    # degenerate: stays empty
+        [38, 26, 41, 30],    # last partial cell
+    ]))
+    assert g.tolist() == [[0, 0, 11, 8], [1, 1, 2, 2], [0, 0, 1, 1], [0, 0, 0, 0],
+                          [3, 3, 3, 5], [10, 7, 11, 8]]
+
+
+# ------------------------------------------------------------------------- labels, boxes, filter
+
+
+def _one_frame(boxes, scores=None, shape=(200, 300), **kw):
+    kw.setdefault("cell", 1)
+    cfg = HeatConfig(n_frames=1, **kw)
+    hm = HeatMap(shape, cfg)
+    boxes = np.array(boxes, np.int32).reshape(-1, 4)
+    scores = np.full(len(boxes), 10.0, np.float32) if scores is None else np.asarray(scores, np.float32)
+    return hm, hm.update(Detections(boxes, scores))
+
+
+def test_separate_and_merged_blobs():
+    # two separate vehicles, each seen by two overlapping windows
+    hm, out = _one_frame([[10, 10, 74, 74], [18, 10, 82, 74], [150, 20, 214, 84], [158, 28, 222, 92]],
+                         threshold=4.0)  # each window 4.0: only overlaps pass
+    assert as_sorted(out) == [((18, 10, 74, 74), 8.0), ((158, 28, 214, 84), 8.0)]
+    assert hm.labels.max() == 2
+    # the same windows at threshold 0: overlapping windows merge into one blob each
+    _, out = _one_frame([[10, 10, 74, 74], [18, 10, 82, 74], [150, 20, 214, 84], [158, 28, 222, 92]],
+                        threshold=0.0)
+    assert [b for b, _ in as_sorted(out)] == [(10, 10, 82, 74), (150, 20, 222, 92)]
+    # diagonal touching is not connected (4-connectivity)
+    _, out = _one_frame([[0, 0, 50, 50], [50, 50, 100, 100]], threshold=0.0, min_width=0, min_height=0)
+    assert len(out.boxes) == 2
+
+
+def test_box_score_is_peak_heat():
+    _, out = _one_frame([[0, 0, 64, 64], [32, 0, 96, 64]], scores=[0.0, 2.0], threshold=0.5)
+    assert as_sorted(out) == [((0, 0, 96, 64), 5.0)]  # 1 + 4 where they overlap
+
+
+def test_shape_filter():
+    cases = {
+        (0, 0, 30, 60): False,    # too narrow (< 40)
+        (0, 0, 60, 15): False,    # too low (< 20)
+        (0, 0, 40, 61): False,    # taller than 1.5 x width
+        (0, 0, 40, 60): True,     # exactly 1.5 x width
+        (0, 0, 40, 20): True,     # the smallest kept
+        (0, 0, 200, 30): True,    # wide and low (two cars side by side)
+    }
+    for box, kept in cases.items():
+        hm, out = _one_frame([box], threshold=0.0, min_width=40, min_height=20, max_aspect=1.5)
+        assert len(hm.blobs.boxes) == 1
+        assert (len(out.boxes) == 1) == kept, box
+
+
+def test_boxes_clipped_to_frame_and_cells():
+    hm, out = _one_frame([[250, 150, 400, 260]], shape=(203, 301), cell=4, threshold=0.0)
+    assert as_sorted(out) == [((252, 152, 301, 203), 4.0)]
+
+
+def test_first_frames_normalised_and_reset():
+    cfg = HeatConfig(n_frames=4, decay=0.5, cell=1, threshold=0.0)
+    hm = HeatMap((50, 50), cfg)
+    b = np.array([[0, 0, 10, 10]], np.int32)
+    hm.add(b, np.array([10.0]))
+    assert hm.heat.max() == cfg.w_max  # one frame seen: its own heat, not diluted by empty frames
+    hm.add(np.zeros((0, 4), np.int32), np.zeros(0))
+    assert hm.heat.max() == pytest.approx(cfg.w_max * 0.5 / 1.5)
+    hm.reset()
+    assert hm.n_seen == 0 and hm.heat.max() == 0
+    assert len(hm.boxes().boxes) == 0
+
+
+def test_empty_input_and_bad_arguments():
+    hm = HeatMap((10, 10, 3))
+    out = hm.update(Detections.empty())
+    assert out.boxes.shape == (0, 4) and out.boxes.dtype == np.int32 and out.scores.dtype == np.float32
+    with pytest.raises(ValueError):
+        hm.add(np.zeros((2, 4)), np.zeros(3))
+    with pytest.raises(ValueError):
+        HeatMap((0, 10))
+    with pytest.raises(ValueError):
+        HeatMap((10, 10), score_kind="votes")
+
+
+@pytest.mark.parametrize("kw", [
+    dict(n_frames=0), dict(decay=0.0), dict(decay=1.5), dict(threshold=-1), dict(threshold=float("nan")),
+    dict(score_lo=1.0), dict(score_lo=2.0, score_hi=1.0), dict(w_max=0.5), dict(cell=0), dict(min_width=-1),
+    dict(max_aspect=0), dict(single_frame_threshold=-0.5),
+])
+def test_heatconfig_validation(kw):
+    with pytest.raises(ValueError):
+        HeatConfig(**kw)
+
+
+def test_heatconfig_single_frame_and_round_trip():
+    cfg = HeatConfig(n_frames=6, threshold=1.0, single_frame_threshold=3.0)
+    sf = cfg.single_frame()
+    assert sf.n_frames == 1 and sf.threshold == 3.0 and sf.cell == cfg.cell
+    assert cfg.single_frame(5.0).threshold == 5.0
+    assert HeatConfig.from_dict(cfg.to_dict()) == cfg
+    with pytest.raises(ValueError):
+        HeatConfig.from_dict({"bogus": 1})
