@@ -1,0 +1,137 @@
+"""``python -m fastdet image`` with a fake detector (windows around bright regions), and its
+bad-input errors; plus the drawing helpers it uses."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from fastdet import cli, draw, imagecmd
+from fastdet.config import HeatConfig
+from fastdet.detections import Detections
+from fastdet.errors import DataError
+
+
+class FakeDetector:
+    """Detector interface: windows around each bright rectangle (itself and shifted 4 px)."""
+
+    score_kind = "decision"
+
+    def __init__(self):
+        self.timings: dict[str, float] = {}
+        self.last_scales = np.zeros(0, np.float32)
+
+    def detect(self, frame, rgb=False):
+        n, labels, stats, _ = cv2.connectedComponentsWithStats((frame.max(axis=2) > 200).astype(np.uint8))
+        boxes, scales = [], []
+        for x, y, w, h, _ in stats[1:]:
+            for i, (dx, dy) in enumerate([(0, 0), (4, 0), (-4, 0), (0, 4), (0, -4)]):
+                boxes.append([x + dx, y + dy, x + w + dx, y + h + dy])
+                scales.append(1.0 + 0.5 * i)
+        self.last_scales = np.array(scales, np.float32)
+        self.timings = {"resize_colour": 0.0, "hog": 0.0, "score": 0.0}
+        if not boxes:
+            return Detections.empty()
+        return Detections(np.array(boxes, np.int32), np.full(len(boxes), 2.0, np.float32))
+
+
+@pytest.fixture
+def image(tmp_path) -> Path:
+    img = np.full((240, 320, 3), 30, np.uint8)
+    img[100:160, 40:120] = 255   # a "vehicle"
+    img[20:90, 200:215] = 255    # a pole: too narrow and too tall, dropped by the shape filter
+    path = tmp_path / "in.png"
+    cv2.imwrite(str(path), img)
+    return path
+
+
+def parse(*argv):
+    return cli.build_parser().parse_args(["image", *map(str, argv)])
+
+
+def test_image_boxes_windows_heat(image, tmp_path, capsys):
+    out = tmp_path / "out.jpg"
+    assert imagecmd.run(parse(image, "-o", out, "--windows", "--heat"), detector=FakeDetector()) == 0
+    assert "1 vehicle(s) from 10 positive window(s)" in capsys.readouterr().out
+    res = cv2.imread(str(out))
+    heat = cv2.imread(str(tmp_path / "out.heat.jpg"))
+    assert res.shape == heat.shape == (240, 320, 3)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.png", "out.heat.jpg", "out.jpg"]  # no partials
+    # the final box is drawn in green around the vehicle
+    green = (res[:, :, 1] > 200) & (res[:, :, 0] < 80) & (res[:, :, 2] < 80)
+    ys, xs = np.nonzero(green)
+    assert abs(xs.min() - 40) <= 6 and abs(xs.max() - 119) <= 6 and abs(ys.max() - 159) <= 6
+
+
+def test_detect_image_single_frame_threshold(image):
+    frame = cv2.imread(str(image))
+    cfg = HeatConfig().single_frame()
+    windows, scales, hm, boxes = imagecmd.detect_image(frame, FakeDetector(), cfg)
+    assert hm.config.n_frames == 1 and hm.config.threshold == cfg.single_frame_threshold
+    assert len(windows.boxes) == 10 and len(scales) == 10
+    assert len(hm.blobs.boxes) == 2 and len(boxes.boxes) == 1  # the pole is filtered out
+    x1, y1, x2, y2 = boxes.boxes[0]
+    assert abs(x1 - 40) <= 4 and abs(x2 - 120) <= 4 and abs(y1 - 100) <= 4 and abs(y2 - 160) <= 4
+    # a threshold above every heat value leaves nothing
+    _, _, _, none = imagecmd.detect_image(frame, FakeDetector(), HeatConfig().single_frame(1e6))
+    assert len(none.boxes) == 0
+
+
+def test_threshold_option(image, tmp_path, capsys):
+    out = tmp_path / "o.png"
+    assert imagecmd.run(parse(image, "-o", out, "--threshold", "1000"), detector=FakeDetector()) == 0
+    assert "0 vehicle(s)" in capsys.readouterr().out
+    assert cv2.imread(str(out)).shape == (240, 320, 3)
+
+
+def _main_fails(argv, capsys, match):
+    rc = cli.main(["image", *map(str, argv)])
+    err = capsys.readouterr().err
+    assert rc == 2, err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err and match in err, err
+
+
+def test_bad_inputs(image, tmp_path, capsys):
+    notimg = tmp_path / "x.jpg"
+    notimg.write_text("not an image")
+    _main_fails([tmp_path / "missing.jpg", "-o", tmp_path / "o.jpg"], capsys, "file not found")
+    _main_fails([notimg, "-o", tmp_path / "o.jpg"], capsys, "not an image")
+    _main_fails([image, "-o", tmp_path / "nowhere" / "o.jpg"], capsys, "does not exist")
+    _main_fails([image, "-o", image], capsys, "overwrite the input")
+    _main_fails([image, "-o", tmp_path / "o.jpg", "--threshold", "-1"], capsys, "threshold")
+    bad_model = tmp_path / "m.npz"
+    bad_model.write_bytes(b"garbage")
+    _main_fails([image, "-o", tmp_path / "o.jpg", "--model", bad_model], capsys, "m.npz")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.png", "m.npz", "x.jpg"]
+
+
+def test_unwritable_extension(image, tmp_path):
+    with pytest.raises(DataError, match="cannot write an image"):
+        imagecmd.run(parse(image, "-o", tmp_path / "o.unknownext"), detector=FakeDetector())
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.png"]
+
+
+def test_draw_helpers():
+    img = np.zeros((100, 200, 3), np.uint8)
+    draw.draw_boxes(img, np.array([[10, 20, 60, 80]]), np.array([3.25]))
+    assert (img[20:80, 10] == draw.BOX_COLOR).all()
+    assert draw.scale_color(1.0) != draw.scale_color(3.0)
+    assert draw.scale_color(0.5) == draw.scale_color(1.0) and draw.scale_color(5) == draw.scale_color(3.0)
+    heat = np.zeros((25, 50))
+    heat[5:10, 5:20] = 3.0
+    hi = draw.heat_image(heat)
+    assert hi.shape == (25, 50, 3) and hi.dtype == np.uint8 and hi[0, 0].sum() < hi[7, 7].sum()
+    big = draw.grid_to_frame(hi, 4, (98, 199))
+    assert big.shape == (98, 199, 3) and (big[28, 28] == hi[7, 7]).all()
+    labels = np.zeros((25, 50), np.int32)
+    labels[5:10, 5:20] = 1
+    li = draw.label_image(labels, mask=heat > 0)
+    assert (li[7, 7] == draw.label_color(1)).all() and li[0, 0].sum() == 0
+    frame = np.zeros((240, 320, 3), np.uint8)
+    panels = draw.debug_panels(frame, np.array([[0, 0, 64, 64]]), np.array([1.0]), heat, labels, heat > 0,
+                               threshold=2.0)
+    assert [p.shape for p in panels] == [(60, 80, 3)] * 3
+    draw.paste_panels(frame, panels)
+    assert frame[8:68, 8:88].any()
