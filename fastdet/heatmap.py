@@ -25,9 +25,11 @@ How one frame goes (``HeatMap.update``)
    makes the threshold mean "heat of one frame" for any N / decay, and lets the first
    frames of a video produce boxes.
 4. **Threshold, labels, boxes.** ``mask = heat > threshold``; connected blobs of the mask
-   (``scipy.ndimage.label``, 4-connectivity) each give one box: the blob's bounding box
-   in pixels (cells scaled by ``cell``, clipped to the frame). A box's **score is the
-   blob's peak heat** (same units as the threshold, so every kept box scores above it).
+   (``scipy.ndimage.label``, 4-connectivity) each give one box: the bounding box of the
+   blob's cells whose heat is at least ``extent`` x the blob's peak (``extent = 0``: the
+   whole blob), in pixels (cells scaled by ``cell``, clipped to the frame). A box's
+   **score is the blob's peak heat** (same units as the threshold, so every kept box
+   scores above it). ``blobs`` keeps every blob's box before the shape filter.
 5. **Shape filter.** Boxes narrower than ``min_width``, lower than ``min_height`` or taller
    than ``max_aspect * width`` are dropped: no vehicle looks like that, heat blobs that
    do are fragments or poles.
@@ -177,10 +179,19 @@ class HeatMap:
         h, w = self.frame_shape
         out = np.zeros((n, 4), np.int32)
         peak = np.zeros(n, np.float32)
+        ext = float(cfg.extent)
         for i, sl in enumerate(ndimage.find_objects(labels)):
-            ys, xs = sl
-            out[i] = (xs.start * c, ys.start * c, min(xs.stop * c, w), min(ys.stop * c, h))
-            peak[i] = self.heat[sl][labels[sl] == i + 1].max()
+            blob = labels[sl] == i + 1
+            hv = self.heat[sl]
+            pk = hv[blob].max()
+            y0, x0 = sl[0].start, sl[1].start
+            if ext > 0:
+                ys, xs = np.nonzero(blob & (hv >= ext * pk))  # never empty: the peak is in it
+                y1, y2, x1, x2 = y0 + ys.min(), y0 + ys.max() + 1, x0 + xs.min(), x0 + xs.max() + 1
+            else:
+                y1, y2, x1, x2 = y0, sl[0].stop, x0, sl[1].stop
+            out[i] = (x1 * c, y1 * c, min(x2 * c, w), min(y2 * c, h))
+            peak[i] = pk
         self.blobs = Detections(out, peak)
         bw = out[:, 2] - out[:, 0]
         bh = out[:, 3] - out[:, 1]

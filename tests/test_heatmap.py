@@ -82,10 +82,12 @@ def ref_blobs(heat: np.ndarray, shape, cfg) -> list[tuple[tuple[int, int, int, i
     c = cfg.cell
     out = []
     for comp in flood_components(heat > cfg.threshold):
-        ys = [p[0] for p in comp]
-        xs = [p[1] for p in comp]
+        peak = max(heat[p] for p in comp)
+        core = [p for p in comp if heat[p] >= cfg.extent * peak]
+        ys = [p[0] for p in core]
+        xs = [p[1] for p in core]
         box = (min(xs) * c, min(ys) * c, min((max(xs) + 1) * c, shape[1]), min((max(ys) + 1) * c, shape[0]))
-        out.append((box, float(np.float32(max(heat[p] for p in comp)))))
+        out.append((box, float(np.float32(peak))))
     return sorted(out)
 
 
@@ -106,7 +108,7 @@ def box_sequences(draw, dyadic: bool):
         decay = draw(st.sampled_from([1.0, 0.5, 0.25]))
         cfg = HeatConfig(n_frames=n_frames, decay=decay, cell=cell, score_lo=0.0, score_hi=4.0, w_max=5.0,
                          threshold=draw(st.sampled_from([0.0, 1.0, 2.5, 4.0])), min_width=0, min_height=0,
-                         max_aspect=100.0)
+                         max_aspect=100.0, extent=draw(st.sampled_from([0.0, 0.25, 0.5, 1.0])))
         score = st.integers(-1, 6).map(float)
     else:
         decay = draw(st.floats(0.05, 1.0))
@@ -232,6 +234,7 @@ def test_grid_snapping():
 
 def _one_frame(boxes, scores=None, shape=(200, 300), **kw):
     kw.setdefault("cell", 1)
+    kw.setdefault("extent", 0.0)
     cfg = HeatConfig(n_frames=1, **kw)
     hm = HeatMap(shape, cfg)
     boxes = np.array(boxes, np.int32).reshape(-1, 4)
@@ -257,6 +260,18 @@ def test_separate_and_merged_blobs():
 def test_box_score_is_peak_heat():
     _, out = _one_frame([[0, 0, 64, 64], [32, 0, 96, 64]], scores=[0.0, 2.0], threshold=0.5)
     assert as_sorted(out) == [((0, 0, 96, 64), 5.0)]  # 1 + 4 where they overlap
+
+
+def test_extent_box_is_the_core_of_the_blob():
+    # heat 4 on x 0..32, 5 on 32..64 (overlap), 1 on 64..96
+    boxes = [[0, 0, 64, 64], [32, 0, 96, 64]]
+    kw = dict(scores=[2.0, 0.0], threshold=0.5, min_width=0, min_height=0, max_aspect=10.0)
+    assert as_sorted(_one_frame(boxes, extent=0.0, **kw)[1]) == [((0, 0, 96, 64), 5.0)]
+    assert as_sorted(_one_frame(boxes, extent=0.2, **kw)[1]) == [((0, 0, 96, 64), 5.0)]
+    assert as_sorted(_one_frame(boxes, extent=0.5, **kw)[1]) == [((0, 0, 64, 64), 5.0)]
+    assert as_sorted(_one_frame(boxes, extent=1.0, **kw)[1]) == [((32, 0, 64, 64), 5.0)]
+    # the shape filter sees the core box: 32 px wide is too narrow for min_width 40
+    assert len(_one_frame(boxes, extent=1.0, **{**kw, "min_width": 40})[1].boxes) == 0
 
 
 def test_shape_filter():
@@ -307,7 +322,7 @@ def test_empty_input_and_bad_arguments():
 @pytest.mark.parametrize("kw", [
     dict(n_frames=0), dict(decay=0.0), dict(decay=1.5), dict(threshold=-1), dict(threshold=float("nan")),
     dict(score_lo=1.0), dict(score_lo=2.0, score_hi=1.0), dict(w_max=0.5), dict(cell=0), dict(min_width=-1),
-    dict(max_aspect=0), dict(single_frame_threshold=-0.5),
+    dict(max_aspect=0), dict(single_frame_threshold=-0.5), dict(extent=-0.1), dict(extent=1.5),
 ])
 def test_heatconfig_validation(kw):
     with pytest.raises(ValueError):
