@@ -22,7 +22,7 @@ def test_train_cli_small_subset(data, tmp_path, capsys):
     assert rep["sequence_split"]["accuracy"] > 0.85  # 420 crops still learn something real
     # deterministic for a seed
     out2 = tmp_path / "small2.npz"
-    assert main([*args[:3], str(out2), *args[5:]]) == 0
+    assert main([*args[:4], str(out2), *args[5:]]) == 0
     np.testing.assert_array_equal(load_model(out2).coef, model.coef)
 
 
