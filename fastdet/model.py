@@ -125,6 +125,7 @@ class Model:
             with os.fdopen(fd, "wb") as fh:
                 np.savez_compressed(fh, coef=self.coef, intercept=np.float64(self.intercept),
                                     mean=self.mean, scale=self.scale, metadata=blob)
+            os.chmod(tmp, 0o644)  # mkstemp makes 0600; a model is an ordinary file
             os.replace(tmp, path)
         except BaseException:
             if os.path.exists(tmp):
