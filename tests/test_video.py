@@ -292,3 +292,27 @@ def test_bad_model_exits_2_without_traceback(clip, tmp_path):
     assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert "model" in r.stderr
     assert not (tmp_path / "b.txt").exists()
+
+
+# ------------------------------------------------------------------------- the real detector
+
+
+def test_real_detector_on_the_test_video(data, tmp_path):
+    """The real Detector (bundled model) through the whole CLI on 6 frames of the test clip:
+    the interface VideoDetector relies on (timings, last_scales, score_kind) still holds."""
+    from fastdet.model import DEFAULT_MODEL_PATH
+
+    if not DEFAULT_MODEL_PATH.exists():
+        pytest.skip("no bundled model")
+    clip = data / "videos" / "test_video.mp4"
+    boxes, out = tmp_path / "b.txt", tmp_path / "o.mp4"
+    assert video.run(parse(clip, "-o", out, "--boxes", boxes, "--debug", "--no-progress", "--start", 20,
+                           "--frames", 6)) == 0
+    assert count_frames(out) == 6
+    rows = read_mot(boxes)
+    assert rows and {int(r[0]) for r in rows} <= set(range(21, 27))
+    vd = VideoDetector()
+    frame = cv2.VideoCapture(str(clip)).read()[1]
+    vd.update(frame)
+    assert set(vd.timings) >= {"resize_colour", "hog", "score", "heat", "label"}
+    assert len(vd.last_scales) == len(vd.last_windows.boxes) > 0
