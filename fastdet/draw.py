@@ -127,14 +127,16 @@ def paste_panels(img: np.ndarray, panels: Sequence[np.ndarray], margin: int = 8)
 
 def debug_panels(frame: np.ndarray, windows_boxes: np.ndarray, windows_scales: np.ndarray,
                  heat: np.ndarray, labels: np.ndarray, mask: np.ndarray | None = None,
-                 threshold: float | None = None, width: int | None = None) -> list[np.ndarray]:
+                 threshold: float | None = None, width: int | None = None,
+                 boxes: np.ndarray | None = None) -> list[np.ndarray]:
     """Three picture-in-picture panels for a debug video, each ``width`` px wide (default a
     quarter of the frame width):
 
     1. the frame with the raw positive windows coloured by scale,
-    2. the heat map (colour scale fixed at 2x ``threshold`` when given, so colours are
-       comparable across frames),
-    3. the thresholded heat map: each blob (label) in its own colour.
+    2. the heat map (colour scale fixed at 6x ``threshold`` when given, so colours are
+       comparable across frames and the threshold shows as dark red),
+    3. the thresholded heat map: each blob (label) in its own colour, and the final
+       ``boxes`` (frame pixels) when given.
     """
     H, W = frame.shape[:2]
     pw = int(width or max(W // 4, 1))
@@ -143,9 +145,11 @@ def debug_panels(frame: np.ndarray, windows_boxes: np.ndarray, windows_scales: n
     p1 = cv2.resize(frame, (pw, ph), interpolation=cv2.INTER_AREA)
     draw_windows(p1, windows_boxes, windows_scales, 1, scale=f)
     _caption(p1, f"windows: {len(np.asarray(windows_boxes).reshape(-1, 4))}")
-    vmax = 2.0 * threshold if threshold else None
+    vmax = 6.0 * threshold if threshold else None
     p2 = cv2.resize(heat_image(heat, vmax), (pw, ph), interpolation=cv2.INTER_NEAREST)
     _caption(p2, f"heat (max {float(np.max(heat, initial=0)):.1f})")
     p3 = cv2.resize(label_image(labels, mask), (pw, ph), interpolation=cv2.INTER_NEAREST)
+    if boxes is not None:
+        draw_boxes(p3, boxes, None, thickness=1, scale=f)
     _caption(p3, f"blobs: {int(np.max(labels, initial=0))}")
     return [p1, p2, p3]

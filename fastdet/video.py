@@ -382,7 +382,8 @@ class _VideoSink:
                 frame, boxes, dbg = item
                 t0 = time.perf_counter()
                 if dbg is not None:
-                    draw.paste_panels(frame, draw.debug_panels(frame, *dbg, threshold=self.threshold))
+                    draw.paste_panels(frame, draw.debug_panels(frame, *dbg, threshold=self.threshold,
+                                                               boxes=boxes.boxes))
                 draw.draw_boxes(frame, boxes.boxes, boxes.scores)
                 t1 = time.perf_counter()
                 self._writer.write(frame)
