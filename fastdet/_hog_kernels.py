@@ -168,8 +168,10 @@ def _lane_sums(x, size, r, res):
 
 
 @njit(**_JIT)
-def _normalize_block_row(hist, bi, b_row, b_col, method, out):
-    """Normalise every block of block row ``bi`` of every channel into ``out[bi]``.
+def _normalize_range(hist, g_start, g_stop, b_row, b_col, method, out):
+    """Normalise blocks ``g_start <= g < g_stop`` into ``out``, where block
+    ``g = (bi * n_blocks_col + bj) * n_channels + k`` is block ``(bi, bj)`` of channel
+    ``k``, i.e. ``out.reshape(-1)[g * size:(g + 1) * size]``.
 
     Blocks are processed in groups of ``L``, transposed so that block ``b`` of the group
     is lane ``b``: every step (squares, NumPy-order pairwise sums, divisions, clipping)
@@ -179,6 +181,7 @@ def _normalize_block_row(hist, bi, b_row, b_col, method, out):
     n_blocks_col = out.shape[1]
     n_ch = out.shape[2]
     size = out.shape[3]
+    n_cells_col = hist.shape[1]
     n_or = hist.shape[3]
     n = size * L
     v = np.zeros(n)
@@ -186,20 +189,26 @@ def _normalize_block_row(hist, bi, b_row, b_col, method, out):
     s = np.empty(n)
     r = np.empty(8 * L)
     den = np.empty(L)
-    n_blk_row = n_blocks_col * n_ch
-    row = out[bi].reshape(n_blk_row * size)
-    for g0 in range(0, n_blk_row, L):
-        g1 = min(g0 + L, n_blk_row)
-        # gather: lane b <- block (bj, k), where g0 + b = bj * n_ch + k
+    flat = out.reshape(out.size)
+    src = hist.reshape(hist.size)
+    cell_step = n_ch * n_or  # next cell along a row
+    row_step = n_cells_col * cell_step  # next cell row
+    for g0 in range(g_start, g_stop, L):
+        g1 = min(g0 + L, g_stop)
+        # gather: lane b <- block g0 + b
         for g in range(g0, g1):
-            bj = g // n_ch
-            k = g - bj * n_ch
-            q = g - g0
+            bk = g // n_ch
+            k = g - bk * n_ch
+            bi = bk // n_blocks_col
+            bj = bk - bi * n_blocks_col
+            q = np.uint64(g - g0)
+            base = bi * row_step + bj * cell_step + k * n_or
             for i in range(b_row):
                 for j in range(b_col):
+                    c0 = base + i * row_step + j * cell_step
                     for o in range(n_or):
-                        v[q] = hist[bi + i, bj + j, k, o]
-                        q += L
+                        v[q] = src[np.uint64(c0 + o)]
+                        q += np.uint64(L)
         # every step writes a different array than it reads: in-place lane loops do
         # not vectorise well
         if method == NORM_L1 or method == NORM_L1_SQRT:
@@ -235,20 +244,20 @@ def _normalize_block_row(hist, bi, b_row, b_col, method, out):
                 for p in range(size):
                     for b in range(L):
                         w[p * L + b] = v[p * L + b] / den[b]
-        # scatter back: block g is contiguous in the output row
+        # scatter back: block g is contiguous in the output
         for g in range(g0, g1):
-            q = g - g0
+            q = np.uint64(g - g0)
             base = g * size
             for p in range(size):
-                row[base + p] = w[q]
-                q += L
+                flat[np.uint64(base + p)] = w[q]
+                q += np.uint64(L)
 
 
 @njit(**_JIT)
 def normalize_blocks(hist, b_row, b_col, method, out):
     """Serial block normalisation of a whole cell-histogram map into ``out``."""
-    for bi in range(out.shape[0]):
-        _normalize_block_row(hist, bi, b_row, b_col, method, out)
+    _normalize_range(hist, 0, out.shape[0] * out.shape[1] * out.shape[2], b_row, b_col,
+                     method, out)
 
 
 # --------------------------------------------------------------------------------------
@@ -359,8 +368,7 @@ def hog_u8(img, chans, max_channel, c_row, c_col, b_row, b_col, bin_lut, mag_lut
     """Whole uint8 HOG, single thread: cell histograms into ``hist``, blocks into ``out``."""
     for ci in range(hist.shape[0]):
         _cell_row_u8(img, chans, max_channel, ci, c_row, c_col, bin_lut, mag_lut, hist)
-    for bi in range(out.shape[0]):
-        _normalize_block_row(hist, bi, b_row, b_col, method, out)
+    normalize_blocks(hist, b_row, b_col, method, out)
 
 
 @njit(**_PJIT)
@@ -369,8 +377,9 @@ def hog_u8_parallel(img, chans, max_channel, c_row, c_col, b_row, b_col, bin_lut
     """As :func:`hog_u8`, threads over cell rows, then over block rows."""
     for ci in prange(hist.shape[0]):
         _cell_row_u8(img, chans, max_channel, ci, c_row, c_col, bin_lut, mag_lut, hist)
+    per_row = out.shape[1] * out.shape[2]
     for bi in prange(out.shape[0]):
-        _normalize_block_row(hist, bi, b_row, b_col, method, out)
+        _normalize_range(hist, bi * per_row, (bi + 1) * per_row, b_row, b_col, method, out)
 
 
 @njit(**_PJIT)
