@@ -67,9 +67,7 @@ def _passive_omp() -> None:
     The numba kernels run parallel regions on numba's OpenMP layer, many per frame. With
     GNU OpenMP's default spin-waiting, a thread waiting at a region's barrier burns the core
     its partner needs whenever the reader / writer threads (or any other program) also want
-    the CPU: on 2 cores with other load, 10 fps instead of 65 with ``--boxes`` (see the
-    2-core test machine while other jobs ran). Passive waiting costs nothing measurable
-    when the cores are free.
+    the CPU: 10 fps instead of 65 with ``--boxes`` on 2 cores while other jobs ran.
     """
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
