@@ -180,12 +180,18 @@ def _blocks_float(img, chans, max_channel, ppc, cpb, orientations, method, n_cel
     n_out_ch = 1 if max_channel else len(chans)
     hist = np.empty((n_cells[0], n_cells[1], n_out_ch, orientations))
     if max_channel:
-        grads = [_gradients(img[:, :, ch]) for ch in chans]
-        g_row_all = np.stack([g[0] for g in grads], axis=2)
-        g_col_all = np.stack([g[1] for g in grads], axis=2)
-        pick = np.hypot(g_row_all, g_col_all).argmax(axis=2)[:, :, None]
-        pairs = [(np.take_along_axis(g_row_all, pick, axis=2)[:, :, 0],
-                  np.take_along_axis(g_col_all, pick, axis=2)[:, :, 0])]
+        # skimage's steps verbatim: per-channel gradients and magnitudes in an
+        # (rows, cols, C) array, argmax over channels (first on ties), then gather
+        shape = img.shape[:2] + (len(chans),)
+        g_row_by_ch = np.empty(shape, dtype=img.dtype)
+        g_col_by_ch = np.empty(shape, dtype=img.dtype)
+        g_magn = np.empty(shape, dtype=img.dtype)
+        for i, ch in enumerate(chans):
+            g_row_by_ch[:, :, i], g_col_by_ch[:, :, i] = _gradients(img[:, :, ch])
+            g_magn[:, :, i] = np.hypot(g_row_by_ch[:, :, i], g_col_by_ch[:, :, i])
+        pick = g_magn.argmax(axis=2)[:, :, None]
+        pairs = [(np.take_along_axis(g_row_by_ch, pick, axis=2)[:, :, 0],
+                  np.take_along_axis(g_col_by_ch, pick, axis=2)[:, :, 0])]
     else:
         pairs = (_gradients(img[:, :, ch]) for ch in chans)
     for k, (g_row, g_col) in enumerate(pairs):
