@@ -65,7 +65,12 @@ def _luts(orientations: int) -> tuple[np.ndarray, np.ndarray]:
     with _lut_lock:
         g_row, g_col = _integer_gradients()
         if _mag_lut is None:
-            _mag_lut = np.ascontiguousarray(np.hypot(g_col, g_row).ravel())
+            mag = np.hypot(g_col, g_row)
+            # skimage's multichannel selection uses np.hypot(g_row, g_col); the kernel
+            # compares these table values, so the two must agree bit for bit
+            if not np.array_equal(mag, np.hypot(g_row, g_col)):
+                raise RuntimeError("np.hypot is not symmetric on this platform")
+            _mag_lut = np.ascontiguousarray(mag.ravel())
         if orientations not in _bin_luts:
             orient = np.rad2deg(np.arctan2(g_row, g_col)) % 180
             per180 = 180.0 / orientations
@@ -73,6 +78,8 @@ def _luts(orientations: int) -> tuple[np.ndarray, np.ndarray]:
             for i in range(orientations):
                 inside = (orient < per180 * (i + 1)) & (orient >= per180 * i)
                 lut[inside] = i
+            if (lut < 0).any():  # an integer gradient always falls in a bin
+                raise RuntimeError(f"orientation LUT has unbinned entries for {orientations}")
             dtype = np.int8 if orientations <= 127 else np.int16
             _bin_luts[orientations] = np.ascontiguousarray(lut.ravel().astype(dtype))
         return _bin_luts[orientations], _mag_lut

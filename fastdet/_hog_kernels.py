@@ -326,18 +326,17 @@ def _cell_row_u8(img, chans, max_channel, ci, c_row, c_col, bin_lut, mag_lut, hi
             for xo in range(c_col):
                 for cx in range(n_cells_col):
                     j = (cx * c_col + xo) * n_img_ch
-                    best = -1
-                    t = 0
-                    for k in range(n_sel):
+                    # compare skimage's float magnitudes, not g_row² + g_col²: equal
+                    # integer sums can differ by an ulp after np.hypot
+                    t = idx[j + chans[0]]
+                    best = mag_lut[t]
+                    for k in range(1, n_sel):
                         tk = idx[j + chans[k]]
-                        gr = tk // LUT_SIDE - LUT_OFFSET
-                        gc = tk % LUT_SIDE - LUT_OFFSET
-                        m2 = gr * gr + gc * gc
-                        if m2 > best:
-                            best = m2
+                        if mag_lut[tk] > best:
+                            best = mag_lut[tk]
                             t = tk
                     a = cx * stride + bin_lut[t]
-                    acc[a] = np.float32(acc[a] + mag_lut[t])
+                    acc[a] = np.float32(acc[a] + best)
         else:
             # channel, then column offset, then cell: consecutive updates hit different
             # cells (independent float32 chains); unsigned indices skip wraparound checks

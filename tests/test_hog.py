@@ -235,6 +235,18 @@ def test_dtypes(dtype):
                                rtol=0, atol=TOL)
 
 
+def test_multichannel_pick_uses_float_magnitudes():
+    """g = (1, 189) and (99, 161) have the same g_row² + g_col² but np.hypot rounds the
+    second one ulp higher: skimage picks channel 1, so must we."""
+    image = np.zeros((16, 16, 3), dtype=np.uint8)
+    image[2, 1, 0], image[1, 2, 0] = 1, 189
+    image[2, 1, 1], image[1, 2, 1] = 99, 161
+    assert np.hypot(99.0, 161.0) > np.hypot(1.0, 189.0)
+    kw = dict(pixels_per_cell=(8, 8), cells_per_block=(1, 1), block_norm="L1", channel_axis=-1)
+    assert_same(fastdet.hog(image, **kw), sk_hog(image, **kw))
+    assert_same(fastdet.hog(image.astype(np.float64), **kw), sk_hog(image.astype(np.float64), **kw))
+
+
 @pytest.mark.parametrize("axis", [0, 1, 2, -3])
 def test_channel_axis(axis):
     image = np.random.default_rng(4).integers(0, 256, (30, 30, 30), dtype=np.uint8)
