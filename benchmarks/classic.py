@@ -53,8 +53,8 @@ def _hog(channel: np.ndarray, config: FeatureConfig, vector: bool) -> np.ndarray
 def _color_features(window: np.ndarray, config: FeatureConfig) -> np.ndarray:
     parts = []
     if config.spatial_size:
-        s = config.spatial_size
-        parts.append(cv2.resize(window, (s, s), interpolation=cv2.INTER_LINEAR).ravel().astype(np.float64))
+        sh, sw = config.spatial_shape
+        parts.append(cv2.resize(window, (sw, sh), interpolation=cv2.INTER_LINEAR).ravel().astype(np.float64))
     if config.hist_bins:
         parts += [np.histogram(window[:, :, c], bins=config.hist_bins, range=(0, 256))[0].astype(np.float64)
                   for c in range(3)]
@@ -65,13 +65,14 @@ def band_window_features(frame: np.ndarray, geo: BandGeometry, config: FeatureCo
     """Yield ``(row, col, features)`` for every window of the band, one window at a time."""
     img = convert_color(scaled_band(frame, geo), config.color_space)
     hogs = [_hog(img[:, :, c], config, False) for c in config.hog_channels]
-    nbw, cell, win = config.blocks_per_window, config.pixels_per_cell, config.window
+    bx, by, cell = config.blocks_x, config.blocks_y, config.pixels_per_cell
     for i in range(geo.ny):
         for j in range(geo.nx):
             yb, xb = i * geo.step, j * geo.step
-            hog = np.concatenate([h[yb: yb + nbw, xb: xb + nbw].ravel() for h in hogs])
+            hog = np.concatenate([h[yb: yb + by, xb: xb + bx].ravel() for h in hogs])
             y, x = yb * cell, xb * cell
-            yield i, j, np.concatenate([hog, _color_features(img[y: y + win, x: x + win], config)])
+            window = img[y: y + config.win_h, x: x + config.win_w]
+            yield i, j, np.concatenate([hog, _color_features(window, config)])
 
 
 def classic_band_scores(frame: np.ndarray, geo: BandGeometry, model: Model, pair=None) -> np.ndarray:

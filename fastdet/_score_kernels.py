@@ -12,24 +12,25 @@ from numba import njit, prange
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def dense_scores(block_rows, w_hog, nbw, k, spat_rows, w_sp, sp_off, integ, win, cell, step, bias, out):
+def dense_scores(block_rows, w_hog, nbx, k, spat_rows, w_sp, sp_off, integ, win_h, win_w, cell, step, bias, out):
     """Scores of every window of one band.
 
     block_rows: (R, Cb*k) float64, the HOG block map with one row of blocks contiguous
         (k = values per block position, all channels).
-    w_hog: (nbw, nbw*k) float64, HOG weights laid out like nbw consecutive block rows.
-    spat_rows: (Hs, Ws*3) float64 spatial-bin map (Hs = 0 when unused); w_sp: (S, S*3).
+    w_hog: (nby, nbx*k) float64, HOG weights laid out like nby consecutive rows of nbx blocks.
+    spat_rows: (Hs, Ws*3) float64 spatial-bin map (Hs = 0 when unused); w_sp: (Sh, Sw*3).
     sp_off: pixels per spatial-map pixel (the spatial factor).
     integ: (H+1, W+1) float64 integral image of the histogram-weight map ((1, 1) when unused).
-    win, cell, step: window side and cell size in pixels, stride in cells.
+    win_h, win_w, cell, step: window and cell size in pixels, stride in cells.
     out: (ny, nx) float64, overwritten: out[i, j] is the window at block (i*step, j*step).
     """
     ny, nx = out.shape
+    nby = w_hog.shape[0]
     s = w_sp.shape[0]
     s3 = w_sp.shape[1]
     use_sp = spat_rows.shape[0] > 0
     use_hist = integ.shape[0] > 1
-    row_len = nbw * k
+    row_len = nbx * k
     for ij in prange(ny * nx):
         i = ij // nx
         j = ij - i * nx
@@ -38,7 +39,7 @@ def dense_scores(block_rows, w_hog, nbw, k, spat_rows, w_sp, sp_off, integ, win,
         if True:
             acc = 0.0
             c0 = xb * k
-            for dr in range(nbw):
+            for dr in range(nby):
                 r = block_rows[yb + dr]
                 wr = w_hog[dr]
                 for t in range(row_len):
@@ -54,7 +55,7 @@ def dense_scores(block_rows, w_hog, nbw, k, spat_rows, w_sp, sp_off, integ, win,
             if use_hist:
                 y0 = yb * cell
                 x0 = xb * cell
-                acc += integ[y0 + win, x0 + win] - integ[y0, x0 + win] - integ[y0 + win, x0] + integ[y0, x0]
+                acc += integ[y0 + win_h, x0 + win_w] - integ[y0, x0 + win_w] - integ[y0 + win_h, x0] + integ[y0, x0]
             out[i, j] = acc + bias
 
 

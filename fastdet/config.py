@@ -23,7 +23,10 @@ class FeatureConfig:
     spatial_size: side of the spatial-bin image (window resized to it with
         ``cv2.INTER_LINEAR``), 0 to leave the spatial features out.
     hist_bins: bins per channel of the colour histogram over [0, 256), 0 to leave it out.
-    window: side of the square window in pixels.
+    window: width of the window in pixels (and its height, unless ``window_height`` is set).
+    window_height: height of the window in pixels for a window wider than tall (a model of
+        the middle rows of vehicles, for cars half hidden behind a barrier); ``None`` =
+        square. Spatial bins shrink both sides by the same factor ``window // spatial_size``.
     """
 
     color_space: str = "YCrCb"
@@ -34,6 +37,7 @@ class FeatureConfig:
     spatial_size: int = 32
     hist_bins: int = 32
     window: int = 64
+    window_height: int | None = None
 
     def __post_init__(self) -> None:
         if self.color_space not in COLOR_SPACES:
@@ -51,24 +55,55 @@ class FeatureConfig:
             raise ValueError("orientations must be >= 1")
         if self.pixels_per_cell < 1 or self.cells_per_block < 1:
             raise ValueError("pixels_per_cell and cells_per_block must be >= 1")
-        if self.window % self.pixels_per_cell:
-            raise ValueError("window must be a multiple of pixels_per_cell")
-        if self.cells_per_window < self.cells_per_block:
+        if self.window_height is not None and self.window_height == self.window:
+            object.__setattr__(self, "window_height", None)
+        if self.win_w % self.pixels_per_cell or self.win_h % self.pixels_per_cell:
+            raise ValueError("window and window_height must be multiples of pixels_per_cell")
+        if min(self.cells_x, self.cells_y) < self.cells_per_block:
             raise ValueError("a window must hold at least one block")
         if self.spatial_size < 0 or self.hist_bins < 0:
             raise ValueError("spatial_size and hist_bins must be >= 0")
-        if self.spatial_size and self.window % self.spatial_size:
-            raise ValueError("window must be a multiple of spatial_size")
+        if self.spatial_size and (self.window % self.spatial_size
+                                  or self.win_h % (self.window // self.spatial_size)):
+            raise ValueError("window (and window_height) must be multiples of window // spatial_size")
         if self.hist_bins and 256 % self.hist_bins:
             raise ValueError("hist_bins must divide 256")
 
     @property
-    def cells_per_window(self) -> int:
-        return self.window // self.pixels_per_cell
+    def win_w(self) -> int:
+        """Window width in pixels."""
+        return self.window
 
     @property
-    def blocks_per_window(self) -> int:
-        return self.cells_per_window - self.cells_per_block + 1
+    def win_h(self) -> int:
+        """Window height in pixels."""
+        return self.window if self.window_height is None else self.window_height
+
+    @property
+    def cells_x(self) -> int:
+        return self.win_w // self.pixels_per_cell
+
+    @property
+    def cells_y(self) -> int:
+        return self.win_h // self.pixels_per_cell
+
+    @property
+    def blocks_x(self) -> int:
+        """HOG block positions across a window."""
+        return self.cells_x - self.cells_per_block + 1
+
+    @property
+    def blocks_y(self) -> int:
+        """HOG block positions down a window."""
+        return self.cells_y - self.cells_per_block + 1
+
+    @property
+    def spatial_shape(self) -> tuple[int, int]:
+        """``(rows, cols)`` of the spatial-bin image (0, 0 when unused)."""
+        if not self.spatial_size:
+            return (0, 0)
+        f = self.window // self.spatial_size
+        return (self.win_h // f, self.win_w // f)
 
     @property
     def block_len(self) -> int:
@@ -77,11 +112,12 @@ class FeatureConfig:
 
     @property
     def n_hog(self) -> int:
-        return len(self.hog_channels) * self.blocks_per_window ** 2 * self.block_len
+        return len(self.hog_channels) * self.blocks_x * self.blocks_y * self.block_len
 
     @property
     def n_spatial(self) -> int:
-        return 3 * self.spatial_size ** 2
+        h, w = self.spatial_shape
+        return 3 * h * w
 
     @property
     def n_hist(self) -> int:
@@ -94,6 +130,8 @@ class FeatureConfig:
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
         d["hog_channels"] = list(self.hog_channels)
+        if d["window_height"] is None:
+            del d["window_height"]  # square windows: same dict as before the field existed
         return d
 
     @classmethod

@@ -49,13 +49,15 @@ class Detector:
             raise ValueError(f"spatial_size {cfg.spatial_size} needs windows on a grid of "
                              f"{spatial_factor(cfg)} px; cells are {cfg.pixels_per_cell} px")
         w, b = self.model.folded()
-        nch, nbw, cpb, o = len(cfg.hog_channels), cfg.blocks_per_window, cfg.cells_per_block, cfg.orientations
+        nch, bx, by = len(cfg.hog_channels), cfg.blocks_x, cfg.blocks_y
+        cpb, o = cfg.cells_per_block, cfg.orientations
         self._k = nch * cpb * cpb * o
+        # feature order (channel, block row, block col, ...) → rows of blocks, all channels
         self._w_hog = np.ascontiguousarray(
-            w[: cfg.n_hog].reshape(nch, nbw, nbw, cpb, cpb, o).transpose(1, 2, 0, 3, 4, 5).reshape(nbw, nbw * self._k))
+            w[: cfg.n_hog].reshape(nch, by, bx, cpb, cpb, o).transpose(1, 2, 0, 3, 4, 5).reshape(by, bx * self._k))
         pos = cfg.n_hog
-        s = cfg.spatial_size
-        self._w_sp = np.ascontiguousarray(w[pos: pos + cfg.n_spatial].reshape(s, 3 * s)) if s else np.zeros((0, 0))
+        sh, sw = cfg.spatial_shape
+        self._w_sp = np.ascontiguousarray(w[pos: pos + cfg.n_spatial].reshape(sh, 3 * sw)) if sh else np.zeros((0, 0))
         pos += cfg.n_spatial
         self._w_hist = np.ascontiguousarray(w[pos:].reshape(3, cfg.hist_bins)) if cfg.hist_bins else None
         self._bias = b
@@ -66,7 +68,7 @@ class Detector:
 
     def warmup(self) -> None:
         """Load (or compile) the numba kernels now rather than on the first frame."""
-        tiny = np.zeros((self.config.window * 2, self.config.window * 2, 3), np.uint8)
+        tiny = np.zeros((self.config.win_h * 2, self.config.win_w * 2, 3), np.uint8)
         cfg = self.config
         from .config import SearchBand
 
@@ -96,8 +98,8 @@ class Detector:
                 hist_weight_integral(img, self._w_hist, hist_bin_shift(cfg), integ)
             else:
                 integ = np.zeros((1, 1))
-            dense_scores(rows, self._w_hog, cfg.blocks_per_window, self._k, sp, self._w_sp, f, integ,
-                         cfg.window, cfg.pixels_per_cell, geo.step, self._bias, out)
+            dense_scores(rows, self._w_hog, cfg.blocks_x, self._k, sp, self._w_sp, f, integ,
+                         cfg.win_h, cfg.win_w, cfg.pixels_per_cell, geo.step, self._bias, out)
         t3 = time.perf_counter()
         if timings is not None:
             timings["resize_colour"] = timings.get("resize_colour", 0.0) + (t1 - t0)

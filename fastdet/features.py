@@ -1,12 +1,12 @@
 """Window features: HOG of each selected channel + spatial bins + colour histogram.
 
-The feature vector of one ``window x window`` crop (default 64x64) in the colour space of a
+The feature vector of one ``win_h x win_w`` crop (default 64x64) in the colour space of a
 :class:`~fastdet.config.FeatureConfig`, concatenated in this order:
 
 1. HOG, channel after channel, each as ``skimage.feature.hog(crop[..., c], orientations,
    (ppc, ppc), (cpb, cpb), 'L2-Hys', feature_vector=True)``;
-2. spatial bins: ``cv2.resize(crop, (s, s), interpolation=cv2.INTER_LINEAR).ravel()``
-   (row, column, channel order), as float;
+2. spatial bins: ``cv2.resize(crop, (w, h), interpolation=cv2.INTER_LINEAR).ravel()`` with
+   ``(h, w) = config.spatial_shape`` (row, column, channel order), as float;
 3. colour histogram: ``np.histogram(crop[..., c], bins, range=(0, 256))[0]`` for c = 0, 1, 2.
 
 :func:`extract_features` computes all of it for a stack of crops at once; the spatial bins
@@ -76,7 +76,7 @@ def hist_bin_shift(config: FeatureConfig) -> int:
 def extract_features(crops: np.ndarray, config: FeatureConfig | None = None) -> np.ndarray:
     """Feature vectors of a stack of crops.
 
-    crops: ``(N, window, window, 3) uint8`` BGR (or a single ``(window, window, 3)`` crop).
+    crops: ``(N, win_h, win_w, 3) uint8`` BGR (or a single ``(win_h, win_w, 3)`` crop).
     Returns ``(N, config.n_features) float64`` (``(n_features,)`` for a single crop), in the
     order documented in this module. HOG and histograms run in parallel numba kernels.
     """
@@ -88,24 +88,24 @@ def extract_features(crops: np.ndarray, config: FeatureConfig | None = None) -> 
     single = crops.ndim == 3
     if single:
         crops = crops[None]
-    win = config.window
-    if crops.dtype != np.uint8 or crops.ndim != 4 or crops.shape[1:] != (win, win, 3):
-        raise ValueError(f"crops must be (N, {win}, {win}, 3) uint8 BGR, got {crops.dtype} {crops.shape}")
+    wh, ww = config.win_h, config.win_w
+    if crops.dtype != np.uint8 or crops.ndim != 4 or crops.shape[1:] != (wh, ww, 3):
+        raise ValueError(f"crops must be (N, {wh}, {ww}, 3) uint8 BGR, got {crops.dtype} {crops.shape}")
     n = crops.shape[0]
     out = np.empty((n, config.n_features), np.float64)
     if n == 0:
         return out[0] if single else out
-    # colour conversion of the whole stack at once: (N*win, win, 3) is one image to OpenCV
-    conv = convert_color(np.ascontiguousarray(crops).reshape(n * win, win, 3), config.color_space)
-    conv = conv.reshape(n, win, win, 3)
+    # colour conversion of the whole stack at once: (N*wh, ww, 3) is one image to OpenCV
+    conv = convert_color(np.ascontiguousarray(crops).reshape(n * wh, ww, 3), config.color_space)
+    conv = conv.reshape(n, wh, ww, 3)
     # 1. HOG: (N, br, bc, nch, cpb, cpb, o) → channel-major feature order
     hog = hog_channels_batch(conv, config.orientations, config.pixels_per_cell,
                              config.cells_per_block, channels=list(config.hog_channels))
     out[:, : config.n_hog] = np.moveaxis(hog, 3, 1).reshape(n, -1)
     pos = config.n_hog
-    # 2. spatial bins (tiles never straddle two crops: win is a multiple of the factor)
+    # 2. spatial bins (tiles never straddle two crops: wh is a multiple of the factor)
     if config.spatial_size:
-        sp = spatial_map(conv.reshape(n * win, win, 3), spatial_factor(config))
+        sp = spatial_map(conv.reshape(n * wh, ww, 3), spatial_factor(config))
         out[:, pos: pos + config.n_spatial] = sp.reshape(n, -1)
         pos += config.n_spatial
     # 3. colour histograms

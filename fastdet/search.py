@@ -3,7 +3,7 @@
 A band (:class:`~fastdet.config.SearchBand`) is the frame region ``[y_start, y_stop) x
 [x_start, x_stop)``, resized by ``1/scale`` with ``cv2.resize(.., INTER_LINEAR)`` to
 ``(int(w / scale), int(h / scale))``; a 64-px window in the scaled band is a
-``64 * scale``-px box in the frame. Windows sit on the HOG cell grid of the scaled band,
+``64 * scale``-px box in the frame (``win_w * scale`` by ``win_h * scale`` in general). Windows sit on the HOG cell grid of the scaled band,
 ``cells_per_step`` cells apart.
 """
 from __future__ import annotations
@@ -48,10 +48,10 @@ def band_geometry(band: SearchBand, frame_shape: tuple[int, int], config: Featur
         raise ValueError(f"search band {band} does not fit a {w}x{h} frame "
                          f"(needs at least {x1}x{y1}); pass a larger frame or another SearchConfig")
     sw, sh = int((x1 - x0) / band.scale), int((y1 - y0) / band.scale)
-    ppc, cpb, nbw = config.pixels_per_cell, config.cells_per_block, config.blocks_per_window
+    ppc, cpb = config.pixels_per_cell, config.cells_per_block
     nbx, nby = sw // ppc - cpb + 1, sh // ppc - cpb + 1
-    nx = (nbx - nbw) // cells_per_step + 1 if nbx >= nbw else 0
-    ny = (nby - nbw) // cells_per_step + 1 if nby >= nbw else 0
+    nx = (nbx - config.blocks_x) // cells_per_step + 1 if nbx >= config.blocks_x else 0
+    ny = (nby - config.blocks_y) // cells_per_step + 1 if nby >= config.blocks_y else 0
     return BandGeometry(band, x0, y0, x1, y1, sw, sh, nx, ny, cells_per_step)
 
 
@@ -69,10 +69,9 @@ def window_boxes(geo: BandGeometry, rows: np.ndarray, cols: np.ndarray, config: 
     cell = config.pixels_per_cell
     left = (cols * geo.step * cell * s).astype(np.int64)
     top = (rows * geo.step * cell * s).astype(np.int64)
-    size = int(config.window * s)
     boxes = np.empty((len(rows), 4), np.int32)
     boxes[:, 0] = geo.x0 + left
     boxes[:, 1] = geo.y0 + top
-    boxes[:, 2] = boxes[:, 0] + size
-    boxes[:, 3] = boxes[:, 1] + size
+    boxes[:, 2] = boxes[:, 0] + int(config.win_w * s)
+    boxes[:, 3] = boxes[:, 1] + int(config.win_h * s)
     return boxes

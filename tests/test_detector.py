@@ -45,6 +45,10 @@ def test_one_cell_step_and_other_feature_configs(frames):
     search = SearchConfig(bands=(SearchBand(1.0, 400, 500, 100, 400), SearchBand(1.7, 380, 600)), cells_per_step=1)
     det = Detector(_random_model(cfg), search)
     assert _compare_all_windows(det, frames[0]) > 500
+    cfg = FeatureConfig(window_height=32, orientations=11, spatial_size=16)  # wide windows
+    search = SearchConfig(bands=(SearchBand(0.75, 400, 480, 0, 640), SearchBand(1.0, 390, 470)), cells_per_step=1)
+    det = Detector(_random_model(cfg, 2), search)
+    assert _compare_all_windows(det, frames[2]) > 500
     cfg = FeatureConfig(color_space="HSV", spatial_size=0, hist_bins=0, cells_per_block=3)
     det = Detector(_random_model(cfg, 1), SearchConfig(bands=(SearchBand(1.3, 390, 610),), cells_per_step=3))
     _compare_all_windows(det, frames[1])

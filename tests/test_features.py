@@ -25,12 +25,20 @@ CONFIGS = [
     FeatureConfig(color_space="LUV", orientations=12, spatial_size=16, hist_bins=16),
     FeatureConfig(color_space="HLS", hog_channels=(1,), spatial_size=0, hist_bins=0),
     FeatureConfig(color_space="RGB", hog_channels=(2, 0), spatial_size=8, hist_bins=64, cells_per_block=3),
+    FeatureConfig(window_height=32),  # wide windows: the middle rows of the crops
+    FeatureConfig(color_space="LUV", window_height=40, spatial_size=16, orientations=11),
 ]
+
+
+def _rows(crops, config):
+    """The crops cut to the config's window height (middle rows)."""
+    top = (64 - config.win_h) // 2
+    return np.ascontiguousarray(crops[:, top: top + config.win_h])
 
 
 @pytest.mark.parametrize("config", CONFIGS, ids=lambda c: f"{c.color_space}-{c.orientations}-{c.spatial_size}")
 def test_features_match_reference_on_training_crops(data, config):
-    crops = _crops(data)
+    crops = _rows(_crops(data), config)
     fast = extract_features(crops, config)
     ref = np.stack([crop_features(c, config) for c in crops])
     assert fast.shape == (len(crops), config.n_features)
@@ -41,6 +49,7 @@ def test_features_match_reference_on_training_crops(data, config):
 @given(arrays(np.uint8, st.tuples(st.integers(1, 4), st.just(64), st.just(64), st.just(3))),
        st.sampled_from(CONFIGS))
 def test_features_match_reference_on_random_crops(crops, config):
+    crops = _rows(crops, config)
     fast = extract_features(crops, config)
     ref = np.stack([crop_features(c, config) for c in crops])
     np.testing.assert_allclose(fast, ref, rtol=0, atol=1e-6)
@@ -78,3 +87,9 @@ def test_feature_config_validation():
         FeatureConfig(hist_bins=30)
     cfg = FeatureConfig(color_space="LUV", hog_channels=(0,))
     assert FeatureConfig.from_dict(cfg.to_dict()) == cfg
+    assert "window_height" not in cfg.to_dict()  # square configs keep their old dict
+    wide = FeatureConfig(window_height=32)
+    assert FeatureConfig.from_dict(wide.to_dict()) == wide and wide.blocks_y == 3 and wide.blocks_x == 7
+    assert FeatureConfig(window_height=64) == FeatureConfig()
+    with pytest.raises(ValueError, match="multiples"):
+        FeatureConfig(window_height=36)

@@ -34,6 +34,11 @@ def main() -> None:
         "ycrcb11_16": FeatureConfig(orientations=11, spatial_size=16),
         "yuv": FeatureConfig(color_space="YUV"),
         "hls": FeatureConfig(color_space="HLS"),
+        "ycrcb12_16": FeatureConfig(orientations=12, spatial_size=16),
+        "ycrcb12_h64": FeatureConfig(orientations=12, hist_bins=64),
+        "ycrcb16": FeatureConfig(orientations=16),
+        "ycrcb12_b3": FeatureConfig(orientations=12, cells_per_block=3),
+        "luv12": FeatureConfig(color_space="LUV", orientations=12),
     }
     crops = load_crops(data_dir())
     print("| config | classifier | C | seed | sequence acc | P | R | random acc | P | R |")

@@ -1,0 +1,102 @@
+"""Sweep detector threshold and heat-map settings on the annotated clips (run by hand).
+
+Runs the Detector once per frame of every clip in ``$FASTDET_DATA/annotations`` with a low
+window threshold, caches the windows, then replays the heat map for each setting and
+evaluates like ``python -m fastdet eval`` (IoU 0.5). Prints one markdown row per setting.
+
+    python tools/tune_video.py [--model M.npz] [--grid small|wide] [--frames-from K]
+"""
+from __future__ import annotations
+
+import argparse
+import itertools
+from dataclasses import replace
+
+import cv2
+import numpy as np
+
+from fastdet.config import HeatConfig, SearchConfig
+from fastdet.data import data_dir
+from fastdet.detections import Detections
+from fastdet.detector import Detector
+from fastdet.eval import evaluate
+from fastdet.heatmap import HeatMap
+from fastdet.motio import Predictions, read_gt
+
+
+def cache_windows(det: Detector, video, low: float):
+    cap = cv2.VideoCapture(str(video))
+    out = []
+    shape = (720, 1280)
+    while True:
+        ok, frame = cap.read()
+        if not ok:
+            break
+        det.detect(frame)
+        shape = frame.shape[:2]
+        boxes, decs = [], []
+        from fastdet.search import window_boxes
+
+        for geo, dec in det.last_band_scores:
+            r, c = np.nonzero(dec > low)
+            boxes.append(window_boxes(geo, r, c, det.config))
+            decs.append(dec[r, c])
+        out.append((np.concatenate(boxes), np.concatenate(decs)))
+    return out, shape
+
+
+def replay(cache, shape, thr: float, heat: HeatConfig, kind: str, first: int = 1):
+    hm = HeatMap(shape, heat, score_kind=kind)
+    frames = []
+    for i, (boxes, dec) in enumerate(cache, start=1):
+        keep = dec > thr
+        s = dec[keep]
+        if kind == "probability":
+            s = 1 / (1 + np.exp(-s))
+        d = hm.update(Detections(boxes[keep], s.astype(np.float32)))
+        if i >= first:
+            frames.append((i, d))
+    return Predictions.from_frames(frames)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--model", default=None)
+    ap.add_argument("--low", type=float, default=-1.0)
+    ap.add_argument("--thr", default="0,0.5,1")
+    ap.add_argument("--heat-thr", default="1,2,3,4,6")
+    ap.add_argument("--n-frames", default="8")
+    ap.add_argument("--decay", default="0.8")
+    ap.add_argument("--extent", default="0.4")
+    ap.add_argument("--w-max", default="4")
+    ap.add_argument("--step", type=int, default=None)
+    args = ap.parse_args()
+    fl = lambda s: [float(v) for v in s.split(",")]
+    search = SearchConfig() if args.step is None else replace(SearchConfig(), cells_per_step=args.step)
+    det = Detector(args.model, search)
+    kind = det.score_kind
+    clips = sorted((data_dir() / "annotations").glob("*.gt.txt"))
+    caches = {}
+    for gt_path in clips:
+        name = gt_path.name[: -len(".gt.txt")]
+        caches[name] = (read_gt(gt_path), *cache_windows(det, data_dir() / "videos" / f"{name}.mp4", args.low))
+    print("| thr | heat thr | n | decay | extent | w_max | " + " | ".join(f"{n} P R F1 AP FP/f" for n in caches) + " | min F1 |")
+    rows = []
+    for thr, ht, n, dc, ex, wm in itertools.product(fl(args.thr), fl(args.heat_thr), fl(args.n_frames),
+                                                    fl(args.decay), fl(args.extent), fl(args.w_max)):
+        heat = replace(HeatConfig(), threshold=ht, n_frames=int(n), decay=dc, extent=ex, w_max=wm)
+        cells, f1s = [], []
+        for name, (gt, cache, shape) in caches.items():
+            r = evaluate(gt, replay(cache, shape, thr, heat, kind), iou=0.5)
+            cells.append(f"{r.precision:.2f} {r.recall:.2f} **{r.f1:.2f}** {r.ap:.2f} {r.fp_per_frame:.2f}")
+            f1s.append(r.f1)
+        line = f"| {thr:g} | {ht:g} | {int(n)} | {dc:g} | {ex:g} | {wm:g} | " + " | ".join(cells) + f" | {min(f1s):.3f} |"
+        rows.append((min(f1s), line))
+        print(line, flush=True)
+    print("\nbest:")
+    for _, line in sorted(rows, reverse=True)[:5]:
+        print(line)
+
+
+if __name__ == "__main__":
+    main()
