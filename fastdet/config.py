@@ -31,7 +31,7 @@ class FeatureConfig:
 
     color_space: str = "YCrCb"
     hog_channels: tuple[int, ...] = (0, 1, 2)
-    orientations: int = 9
+    orientations: int = 16
     pixels_per_cell: int = 8
     cells_per_block: int = 2
     spatial_size: int = 32
@@ -193,6 +193,19 @@ class SearchConfig:
             raise ValueError("a SearchConfig needs at least one band")
         if self.cells_per_step < 1:
             raise ValueError("cells_per_step must be >= 1")
+
+
+def _wide_bands() -> tuple[SearchBand, ...]:
+    return (
+        SearchBand(0.75, 400, 472),
+        SearchBand(1.0, 400, 480),
+        SearchBand(1.25, 396, 496),
+    )
+
+
+#: default search of the wide-window model: small scales near the horizon, where cars
+#: half hidden behind the median barrier are seen
+WIDE_SEARCH = SearchConfig(bands=_wide_bands(), cells_per_step=1, threshold=0.0)
 
 
 @dataclass(frozen=True)

@@ -58,18 +58,19 @@ def find_pngs(folder: Path) -> dict[Path, list[Path]]:
     return {k: sorted(v, key=_sort_key) for k, v in sorted(groups.items())}
 
 
-def _read(path: Path, size: int) -> np.ndarray:
+def _read(path: Path, size: int | None) -> np.ndarray:
     img = cv2.imread(str(path), cv2.IMREAD_COLOR)
     if img is None:
         raise DataError(f"{path}: not a readable image")
-    if img.shape[:2] != (size, size):
+    if size is not None and img.shape[:2] != (size, size):
         img = cv2.resize(img, (size, size), interpolation=cv2.INTER_AREA)
     return img
 
 
-def load_folder(folder: Path, label: int, root: Path | None = None, size: int = 64,
+def load_folder(folder: Path, label: int, root: Path | None = None, size: int | None = 64,
                 progress: bool = False) -> CropSet:
-    """All PNGs under ``folder`` with one label; crops not ``size``x``size`` are resized."""
+    """All PNGs under ``folder`` with one label; crops not ``size``x``size`` are resized
+    (``size=None``: kept as they are, and they must then all have the same shape)."""
     folder = Path(folder)
     if not folder.is_dir():
         raise DataError(f"folder {folder} not found")
@@ -88,7 +89,11 @@ def load_folder(folder: Path, label: int, root: Path | None = None, size: int = 
             from tqdm import tqdm
 
             it = tqdm(it, total=len(paths), desc=f"reading {folder.name}", unit="img", leave=False)
-        images = np.stack(list(it))
+        imgs = list(it)
+    shapes = {im.shape for im in imgs}
+    if len(shapes) > 1:
+        raise DataError(f"images under {folder} have different sizes {sorted(shapes)}")
+    images = np.stack(imgs)
     return CropSet(images, np.full(len(paths), label, np.int64), np.array(names), np.array(order, np.int64))
 
 

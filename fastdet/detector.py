@@ -30,53 +30,33 @@ from .model import Model, load_model
 from .search import BandGeometry, band_geometry, scaled_band, window_boxes
 
 
-class Detector:
-    """Finds vehicle windows in frames.
+class _Scorer:
+    """One linear model's weights laid out for :func:`dense_scores`, with its search bands."""
 
-    model: a :class:`~fastdet.model.Model`, a path to a model file, or ``None`` for the
-        bundled default model.
-    search: where and how densely to search (default :class:`~fastdet.config.SearchConfig`).
-
-    ``detect(frame)`` returns the positive windows; :class:`fastdet.VideoDetector` turns
-    them into one box per vehicle with a heat map over recent frames.
-    """
-
-    def __init__(self, model: Model | str | os.PathLike | None = None, search: SearchConfig | None = None):
-        self.model = model if isinstance(model, Model) else load_model(model)
-        self.search = search if search is not None else SearchConfig()
-        cfg = self.config = self.model.config
+    def __init__(self, model: Model, search: SearchConfig):
+        self.model, self.search = model, search
+        cfg = self.config = model.config
         if cfg.spatial_size and cfg.pixels_per_cell % spatial_factor(cfg):
             raise ValueError(f"spatial_size {cfg.spatial_size} needs windows on a grid of "
                              f"{spatial_factor(cfg)} px; cells are {cfg.pixels_per_cell} px")
-        w, b = self.model.folded()
+        w, b = model.folded()
         nch, bx, by = len(cfg.hog_channels), cfg.blocks_x, cfg.blocks_y
         cpb, o = cfg.cells_per_block, cfg.orientations
-        self._k = nch * cpb * cpb * o
+        self.k = nch * cpb * cpb * o
         # feature order (channel, block row, block col, ...) → rows of blocks, all channels
-        self._w_hog = np.ascontiguousarray(
-            w[: cfg.n_hog].reshape(nch, by, bx, cpb, cpb, o).transpose(1, 2, 0, 3, 4, 5).reshape(by, bx * self._k))
+        self.w_hog = np.ascontiguousarray(
+            w[: cfg.n_hog].reshape(nch, by, bx, cpb, cpb, o).transpose(1, 2, 0, 3, 4, 5).reshape(by, bx * self.k))
         pos = cfg.n_hog
         sh, sw = cfg.spatial_shape
-        self._w_sp = np.ascontiguousarray(w[pos: pos + cfg.n_spatial].reshape(sh, 3 * sw)) if sh else np.zeros((0, 0))
+        self.w_sp = np.ascontiguousarray(w[pos: pos + cfg.n_spatial].reshape(sh, 3 * sw)) if sh else np.zeros((0, 0))
         pos += cfg.n_spatial
-        self._w_hist = np.ascontiguousarray(w[pos:].reshape(3, cfg.hist_bins)) if cfg.hist_bins else None
-        self._bias = b
-        self.score_kind = self.model.score_kind
-        self.timings: dict[str, float] = {}
-        self.last_scales = np.zeros(0, np.float32)
-        self.last_band_scores: list[tuple[BandGeometry, np.ndarray]] = []
+        self.w_hist = np.ascontiguousarray(w[pos:].reshape(3, cfg.hist_bins)) if cfg.hist_bins else None
+        self.bias = b
 
-    def warmup(self) -> None:
-        """Load (or compile) the numba kernels now rather than on the first frame."""
-        tiny = np.zeros((self.config.win_h * 2, self.config.win_w * 2, 3), np.uint8)
-        cfg = self.config
-        from .config import SearchBand
+    def geometries(self, frame_shape: tuple[int, int]) -> list[BandGeometry]:
+        return [band_geometry(b, frame_shape, self.config, self.search.cells_per_step) for b in self.search.bands]
 
-        geo = band_geometry(SearchBand(1.0, 0, tiny.shape[0]), tiny.shape[:2], cfg, self.search.cells_per_step)
-        self.band_scores(tiny, geo)
-
-    def band_scores(self, frame: np.ndarray, geo: BandGeometry, timings: dict[str, float] | None = None) -> np.ndarray:
-        """Decision values of every window position of one band: ``(geo.ny, geo.nx) float64``."""
+    def band_scores(self, frame: np.ndarray, geo: BandGeometry, timings: dict[str, float] | None) -> np.ndarray:
         cfg = self.config
         t0 = time.perf_counter()
         img = convert_color(scaled_band(frame, geo), cfg.color_space)
@@ -93,13 +73,13 @@ class Detector:
                 sp = sp.reshape(sp.shape[0], -1)
             else:
                 f, sp = 1, np.zeros((0, 0))
-            if self._w_hist is not None:
+            if self.w_hist is not None:
                 integ = np.empty((img.shape[0] + 1, img.shape[1] + 1), np.float64)
-                hist_weight_integral(img, self._w_hist, hist_bin_shift(cfg), integ)
+                hist_weight_integral(img, self.w_hist, hist_bin_shift(cfg), integ)
             else:
                 integ = np.zeros((1, 1))
-            dense_scores(rows, self._w_hog, cfg.blocks_x, self._k, sp, self._w_sp, f, integ,
-                         cfg.win_h, cfg.win_w, cfg.pixels_per_cell, geo.step, self._bias, out)
+            dense_scores(rows, self.w_hog, cfg.blocks_x, self.k, sp, self.w_sp, f, integ,
+                         cfg.win_h, cfg.win_w, cfg.pixels_per_cell, geo.step, self.bias, out)
         t3 = time.perf_counter()
         if timings is not None:
             timings["resize_colour"] = timings.get("resize_colour", 0.0) + (t1 - t0)
@@ -107,9 +87,65 @@ class Detector:
             timings["score"] = timings.get("score", 0.0) + (t3 - t2)
         return out
 
-    def geometries(self, frame_shape: tuple[int, int]) -> list[BandGeometry]:
-        """Geometry of every search band on a frame of ``(H, W)``."""
-        return [band_geometry(b, frame_shape, self.config, self.search.cells_per_step) for b in self.search.bands]
+
+_BUNDLED = object()
+
+
+class Detector:
+    """Finds vehicle windows in frames.
+
+    model: a :class:`~fastdet.model.Model`, a path to a model file, or ``None`` for the
+        bundled default model (64x64 windows).
+    search: where and how densely to search with it (default :class:`~fastdet.config.SearchConfig`).
+    wide: a second model with wide windows (``FeatureConfig.window_height`` < ``window``)
+        for vehicles half hidden behind a barrier, e.g. oncoming traffic above the median;
+        default: the bundled wide model (:data:`fastdet.model.WIDE_MODEL_PATH`); ``None`` = off.
+    wide_search: its search bands (default :data:`fastdet.config.WIDE_SEARCH`).
+
+    ``detect(frame)`` returns the positive windows of both models; :class:`fastdet.VideoDetector`
+    turns them into one box per vehicle with a heat map over recent frames.
+    """
+
+    def __init__(self, model: Model | str | os.PathLike | None = None, search: SearchConfig | None = None,
+                 wide: Model | str | os.PathLike | None | object = _BUNDLED, wide_search: SearchConfig | None = None):
+        from .config import WIDE_SEARCH
+        from .model import WIDE_MODEL_PATH
+
+        self.model = model if isinstance(model, Model) else load_model(model)
+        self.search = search if search is not None else SearchConfig()
+        self.config = self.model.config
+        self.scorers = [_Scorer(self.model, self.search)]
+        if wide is _BUNDLED:
+            wide = WIDE_MODEL_PATH if WIDE_MODEL_PATH.exists() else None
+        self.wide_model = None
+        if wide is not None:
+            self.wide_model = wide if isinstance(wide, Model) else load_model(wide)
+            self.scorers.append(_Scorer(self.wide_model, wide_search if wide_search is not None else WIDE_SEARCH))
+        self.score_kind = self.model.score_kind
+        self.timings: dict[str, float] = {}
+        self.last_scales = np.zeros(0, np.float32)
+        self.last_band_scores: list[tuple[BandGeometry, np.ndarray]] = []
+        self.last_band_parts: list[int] = []
+
+    def warmup(self) -> None:
+        """Load (or compile) the numba kernels now rather than on the first frame."""
+        from .config import SearchBand
+
+        for sc in self.scorers:
+            cfg = sc.config
+            tiny = np.zeros((cfg.win_h * 2, cfg.win_w * 2, 3), np.uint8)
+            geo = band_geometry(SearchBand(1.0, 0, tiny.shape[0]), tiny.shape[:2], cfg, sc.search.cells_per_step)
+            sc.band_scores(tiny, geo, None)
+
+    def band_scores(self, frame: np.ndarray, geo: BandGeometry, timings: dict[str, float] | None = None,
+                    part: int = 0) -> np.ndarray:
+        """Decision values of every window position of one band: ``(geo.ny, geo.nx) float64``
+        (``part`` 0: the main model, 1: the wide model)."""
+        return self.scorers[part].band_scores(frame, geo, timings)
+
+    def geometries(self, frame_shape: tuple[int, int], part: int = 0) -> list[BandGeometry]:
+        """Geometry of every search band of model ``part`` on a frame of ``(H, W)``."""
+        return self.scorers[part].geometries(frame_shape)
 
     def detect(self, frame: np.ndarray, rgb: bool = False) -> Detections:
         """Positive windows of one frame.
@@ -117,8 +153,10 @@ class Detector:
         frame: ``(H, W, 3) uint8``, BGR (OpenCV's order) or RGB with ``rgb=True``.
         Returns :class:`~fastdet.detections.Detections`: ``boxes (N, 4) int32`` x1, y1, x2, y2
         (exclusive) in frame pixels and ``scores (N,) float32``: the probability of "vehicle"
-        for a logistic-regression model, the SVM decision value otherwise. A window is positive
-        when its decision value exceeds ``search.threshold``.
+        for a logistic-regression main model, the decision value otherwise (the wide model's
+        decision values go through the same transform). A window is positive when its decision
+        value exceeds its model's ``search.threshold``. ``last_scales`` holds each window's
+        band scale (negated for wide windows, so a drawing can tell them apart).
         """
         frame = np.asarray(frame)
         if frame.dtype != np.uint8 or frame.ndim != 3 or frame.shape[2] != 3:
@@ -127,15 +165,18 @@ class Detector:
             frame = frame[:, :, ::-1]
         timings: dict[str, float] = {}
         boxes, scores, scales = [], [], []
-        self.last_band_scores = []
-        for geo in self.geometries(frame.shape[:2]):
-            dec = self.band_scores(frame, geo, timings)
+        self.last_band_scores, self.last_band_parts = [], []
+        geos = [(p, g) for p, sc in enumerate(self.scorers) for g in sc.geometries(frame.shape[:2])]
+        for part, geo in geos:
+            sc = self.scorers[part]
+            dec = sc.band_scores(frame, geo, timings)
             self.last_band_scores.append((geo, dec))
-            r, c = np.nonzero(dec > self.search.threshold)
+            self.last_band_parts.append(part)
+            r, c = np.nonzero(dec > sc.search.threshold)
             if len(r):
-                boxes.append(window_boxes(geo, r, c, self.config))
+                boxes.append(window_boxes(geo, r, c, sc.config))
                 scores.append(dec[r, c])
-                scales.append(np.full(len(r), geo.band.scale, np.float32))
+                scales.append(np.full(len(r), geo.band.scale if part == 0 else -geo.band.scale, np.float32))
         self.timings = timings
         if not boxes:
             self.last_scales = np.zeros(0, np.float32)

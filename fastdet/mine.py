@@ -4,8 +4,9 @@ Classic hard-negative mining. A positive window is a *false* alarm when it lies 
 vehicle is: inside ``--x-range``/``--y-range`` (a region you know to be empty), and, with
 ``--gt``, touching no annotated box at all (targets and ignore regions alike, so a
 partially visible or far-away car is never saved as a negative). Each such window is cut
-from the frame, resized to 64x64 and written as a PNG; ``fastdet train --negatives DIR``
-then adds them to the training negatives.
+from the frame, resized to its model's window size (64x64 for the main model, e.g. 64x32
+for the wide one, chosen with ``--part``) and written as a PNG; ``fastdet train
+--negatives DIR`` then adds them to the training negatives of that kind of model.
 """
 from __future__ import annotations
 
@@ -26,7 +27,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--gt", type=Path, default=None,
                    help="MOTChallenge ground truth: windows touching any annotated box are not negatives")
     p.add_argument("--margin", type=int, default=8, help="px added around each annotated box (default 8)")
-    p.add_argument("--model", type=Path, default=None, help="model file (default: the bundled model)")
+    p.add_argument("--model", type=Path, default=None, help="main model file (default: the bundled model)")
+    p.add_argument("--wide-model", type=Path, default=None, help="wide-window model file (default: the bundled one)")
+    p.add_argument("--part", choices=("main", "wide"), default="main",
+                   help="mine the windows of the main (square) model or of the wide-window model")
     p.add_argument("--start", type=int, default=0, help="first frame (0-based)")
     p.add_argument("--frames", type=int, default=None, help="number of frames to mine")
     p.add_argument("--every", type=int, default=1, help="mine every k-th frame")
@@ -71,7 +75,12 @@ def run(args: argparse.Namespace) -> int:
         from .motio import read_gt
 
         gt = read_gt(args.gt)
-    det = Detector(args.model)
+    from .detector import _BUNDLED
+
+    det = Detector(args.model, wide=args.wide_model if args.wide_model is not None else _BUNDLED)
+    if args.part == "wide" and det.wide_model is None:
+        raise FastdetError("--part wide: no wide-window model")
+    win_cfg = det.config if args.part == "main" else det.wide_model.config
     args.out.mkdir(parents=True, exist_ok=True)
     prefix = args.prefix or args.video.stem
     cap = cv2.VideoCapture(str(args.video))
@@ -99,6 +108,8 @@ def run(args: argparse.Namespace) -> int:
         if (done - 1) % args.every:
             continue
         d = det.detect(frame)
+        part = det.last_scales > 0 if args.part == "main" else det.last_scales < 0
+        d = type(d)(d.boxes[part], d.scores[part])
         gt_boxes = None
         if gt is not None:
             gb = gt.boxes[gt.frames == frame_no]
@@ -108,7 +119,7 @@ def run(args: argparse.Namespace) -> int:
             crop = frame[max(y1, 0): y2, max(x1, 0): x2]
             if crop.shape[0] < 8 or crop.shape[1] < 8:
                 continue
-            crop = cv2.resize(crop, (64, 64), interpolation=cv2.INTER_AREA)
+            crop = cv2.resize(crop, (win_cfg.win_w, win_cfg.win_h), interpolation=cv2.INTER_AREA)
             cv2.imwrite(str(args.out / f"{prefix}_f{frame_no:05d}_{x1}_{y1}_{x2 - x1}.png"), crop)
             saved += 1
     cap.release()

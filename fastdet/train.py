@@ -39,13 +39,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--spatial-size", type=int, default=None)
     p.add_argument("--hist-bins", type=int, default=None)
     p.add_argument("--hog-channels", default=None, help="e.g. 0,1,2 or ALL")
+    p.add_argument("--window-rows", type=int, nargs=2, metavar=("A", "B"), default=None,
+                   help="train a wide-window model on rows [A, B) of the 64x64 crops (e.g. 16 48: "
+                        "the middle rows of the vehicles; non-vehicle crops give their top, middle and "
+                        "bottom row bands as negatives)")
     p.add_argument("--max-per-folder", type=int, default=None,
                    help="use at most this many crops of each folder (evenly spaced; for quick runs)")
     p.add_argument("--no-refit", action="store_true", help="skip the final fit on all data (no model written)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
-DEFAULT_C = {"linearsvc": 1e-3, "logreg": 1e-3}
+DEFAULT_C = {"linearsvc": 1e-3, "logreg": 3e-2}
 
 
 def feature_config_from_args(args: argparse.Namespace) -> FeatureConfig:
@@ -59,6 +63,13 @@ def feature_config_from_args(args: argparse.Namespace) -> FeatureConfig:
         changes["spatial_size"] = args.spatial_size
     if args.hist_bins is not None:
         changes["hist_bins"] = args.hist_bins
+    if args.window_rows:
+        a, b = args.window_rows
+        if not 0 <= a < b <= cfg.window:
+            from .errors import FastdetError
+
+            raise FastdetError(f"--window-rows must satisfy 0 <= A < B <= {cfg.window}, got {a} {b}")
+        changes["window_height"] = b - a
     if args.hog_channels:
         hc = args.hog_channels
         changes["hog_channels"] = "ALL" if hc.upper() == "ALL" else tuple(int(c) for c in hc.split(","))
@@ -132,11 +143,51 @@ def _thin(crops, n: int):
     return crops.subset(np.sort(np.concatenate(keep)))
 
 
+def row_bands(crops, top: int, height: int):
+    """Wide-window training set: vehicles' rows ``[top, top + height)``; every non-vehicle
+    crop gives its top, middle-window and bottom row bands (three negatives, same group and
+    time position, so the sequence split keeps them together)."""
+    from .dataset import CropSet
+
+    pos = np.flatnonzero(crops.labels == 1)
+    neg = np.flatnonzero(crops.labels == 0)
+    parts = [CropSet(np.ascontiguousarray(crops.images[pos, top: top + height]), crops.labels[pos],
+                     crops.groups[pos], crops.order[pos])]
+    for off in sorted({0, top, crops.images.shape[1] - height}):
+        parts.append(CropSet(np.ascontiguousarray(crops.images[neg, off: off + height]), crops.labels[neg],
+                             crops.groups[neg], crops.order[neg]))
+    out = parts[0]
+    for p in parts[1:]:
+        out = CropSet.concat(out, p)
+    return out
+
+
+def fit_to_window(crops, config: FeatureConfig, top: int):
+    """Extra negatives to the config's window: a crop of the window's own size is kept, a
+    64x64 crop gives its rows ``[top, top + win_h)``, anything else is resized."""
+    import cv2
+
+    from .dataset import CropSet
+
+    h, w = crops.images.shape[1:3]
+    if (h, w) == (config.win_h, config.win_w):
+        return crops
+    if w == config.win_w and h >= top + config.win_h:
+        return CropSet(np.ascontiguousarray(crops.images[:, top: top + config.win_h]), crops.labels,
+                       crops.groups, crops.order)
+    imgs = np.stack([cv2.resize(im, (config.win_w, config.win_h), interpolation=cv2.INTER_AREA)
+                     for im in crops.images])
+    return CropSet(imgs, crops.labels, crops.groups, crops.order)
+
+
 def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: float | None = None,
           split: str = "both", seed: int = 0, negatives: list[Path] | None = None, flip: bool = True,
           max_per_folder: int | None = None, refit: bool = True, progress: bool = True,
-          log=print):
-    """Train and evaluate; returns ``(model or None, report dict)``."""
+          window_top: int | None = None, log=print):
+    """Train and evaluate; returns ``(model or None, report dict)``.
+
+    For a wide-window ``config`` (``window_height`` set), ``window_top`` is the first row of
+    the 64x64 crops that the window covers (default: centred)."""
     from .dataset import CropSet, load_crops, load_folder, random_split, sequence_split
     from .model import Model
 
@@ -145,9 +196,12 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
     crops = load_crops(data, progress=progress)
     if max_per_folder:
         crops = _thin(crops, max_per_folder)
+    top = (crops.images.shape[1] - config.win_h) // 2 if window_top is None else window_top
+    if config.win_h != crops.images.shape[1]:
+        crops = row_bands(crops, top, config.win_h)
     negs = None
     for nd in negatives or []:
-        part = load_folder(nd, 0, None, progress=progress)
+        part = fit_to_window(load_folder(nd, 0, None, size=None, progress=progress), config, top)
         negs = part if negs is None else CropSet.concat(negs, part)
     n_pos, n_neg = int(crops.labels.sum()), int((crops.labels == 0).sum())
     log(f"data: {n_pos} vehicles, {n_neg} non-vehicles"
@@ -165,7 +219,7 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
             xs.append(x_neg); ys.append(np.zeros(len(x_neg), np.int64))
         return np.concatenate(xs), np.concatenate(ys)
 
-    report: dict[str, Any] = {"C": C, "classifier": classifier, "seed": seed, "flip": flip,
+    report: dict[str, Any] = {"C": C, "classifier": classifier, "seed": seed, "flip": flip, "window_top": top,
                               "data": {"vehicles": n_pos, "non_vehicles": n_neg,
                                        "hard_negatives": 0 if negs is None else len(negs)}}
     splits = {"random": lambda: random_split(crops.labels, seed),
@@ -197,12 +251,13 @@ def run(args: argparse.Namespace) -> int:
     out: Path = args.out
     if out.suffix != ".npz":
         raise FastdetError(f"--out must end in .npz, got {out}")
-    if not out.parent.exists() if str(out.parent) else False:
+    if not out.parent.is_dir():
         raise FastdetError(f"output folder {out.parent} does not exist")
     config = feature_config_from_args(args)
     progress = not args.no_progress and sys.stderr.isatty()
     model, report = train(data, config, args.classifier, args.C, args.split, args.seed, args.negatives,
-                          not args.no_flip, args.max_per_folder, not args.no_refit, progress)
+                          not args.no_flip, args.max_per_folder, not args.no_refit, progress,
+                          window_top=args.window_rows[0] if args.window_rows else None)
     if model is not None:
         model.metadata["training"]["command"] = "python -m fastdet train " + " ".join(sys.argv[2:])
         model.save(out)
