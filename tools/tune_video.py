@@ -46,16 +46,24 @@ def cache_windows(det: Detector, video, low: float):
     return out, shape
 
 
-def replay(cache, shape, thr: float, heat: HeatConfig, kind: str, first: int = 1, thr_wide: float | None = None):
+def replay(cache, shape, thr: float, heat: HeatConfig, kind: str, first: int = 1, thr_wide: float | None = None,
+           wide_heat: HeatConfig | None = None):
+    from fastdet.fusion import merge_wide
+
     hm = HeatMap(shape, heat, score_kind=kind)
+    hw = HeatMap(shape, wide_heat, score_kind=kind) if wide_heat is not None else None
     frames = []
     thr_wide = thr if thr_wide is None else thr_wide
+    sig = (lambda v: 1 / (1 + np.exp(-v))) if kind == "probability" else (lambda v: v)
     for i, (boxes, dec, parts) in enumerate(cache, start=1):
-        keep = np.where(parts == 0, dec > thr, dec > thr_wide)
-        s = dec[keep]
-        if kind == "probability":
-            s = 1 / (1 + np.exp(-s))
-        d = hm.update(Detections(boxes[keep], s.astype(np.float32)))
+        if hw is None:
+            keep = np.where(parts == 0, dec > thr, dec > thr_wide)
+            d = hm.update(Detections(boxes[keep], sig(dec[keep]).astype(np.float32)))
+        else:
+            km = (parts == 0) & (dec > thr)
+            kw = (parts == 1) & (dec > thr_wide)
+            d = merge_wide(hm.update(Detections(boxes[km], sig(dec[km]).astype(np.float32))),
+                           hw.update(Detections(boxes[kw], sig(dec[kw]).astype(np.float32))))
         if i >= first:
             frames.append((i, d))
     return Predictions.from_frames(frames)
@@ -75,6 +83,12 @@ def main() -> None:
     ap.add_argument("--extent", default="0.4")
     ap.add_argument("--w-max", default="4")
     ap.add_argument("--step", type=int, default=None)
+    ap.add_argument("--separate", action="store_true", help="wide windows in their own heat map")
+    ap.add_argument("--wide-heat-thr", default="4")
+    ap.add_argument("--wide-n", default="4")
+    ap.add_argument("--wide-extent", default="0.4")
+    ap.add_argument("--wide-max-aspect", default="0.8")
+    ap.add_argument("--first", type=int, default=1, help="evaluate frames >= this only")
     args = ap.parse_args()
     fl = lambda s: [float(v) for v in s.split(",")]
     search = SearchConfig() if args.step is None else replace(SearchConfig(), cells_per_step=args.step)
@@ -89,16 +103,21 @@ def main() -> None:
         caches[name] = (read_gt(gt_path), *cache_windows(det, data_dir() / "videos" / f"{name}.mp4", args.low))
     print("| thr | wide thr | heat thr | n | decay | extent | w_max | " + " | ".join(f"{n} P R F1 AP FP/f" for n in caches) + " | min F1 |")
     rows = []
-    for thr, tw, ht, n, dc, ex, wm in itertools.product(fl(args.thr), fl(args.thr_wide), fl(args.heat_thr),
-                                                        fl(args.n_frames), fl(args.decay), fl(args.extent),
-                                                        fl(args.w_max)):
+    grid = itertools.product(fl(args.thr), fl(args.thr_wide), fl(args.heat_thr), fl(args.n_frames), fl(args.decay),
+                             fl(args.extent), fl(args.w_max), fl(args.wide_heat_thr), fl(args.wide_n),
+                             fl(args.wide_extent), fl(args.wide_max_aspect))
+    for thr, tw, ht, n, dc, ex, wm, wht, wn, wex, wma in grid:
         heat = replace(HeatConfig(), threshold=ht, n_frames=int(n), decay=dc, extent=ex, w_max=wm)
+        wheat = (replace(heat, threshold=wht, n_frames=int(wn), extent=wex, max_aspect=wma, min_height=10)
+                 if args.separate else None)
         cells, f1s = [], []
         for name, (gt, cache, shape) in caches.items():
-            r = evaluate(gt, replay(cache, shape, thr, heat, kind, thr_wide=tw), iou=0.5)
+            r = evaluate(gt, replay(cache, shape, thr, heat, kind, args.first, tw, wheat), iou=0.5)
             cells.append(f"{r.precision:.2f} {r.recall:.2f} **{r.f1:.2f}** {r.ap:.2f} {r.fp_per_frame:.2f}")
             f1s.append(r.f1)
-        line = f"| {thr:g} | {tw:g} | {ht:g} | {int(n)} | {dc:g} | {ex:g} | {wm:g} | " + " | ".join(cells) + f" | {min(f1s):.3f} |"
+        if args.separate:
+            tw = f"{tw:g} w{wht:g}/{int(wn)}/{wex:g}/{wma:g}"
+        line = f"| {thr:g} | {tw} | {ht:g} | {int(n)} | {dc:g} | {ex:g} | {wm:g} | " + " | ".join(cells) + f" | {min(f1s):.3f} |"
         rows.append((min(f1s), line))
         print(line, flush=True)
     print("\nbest:")

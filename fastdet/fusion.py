@@ -1,0 +1,38 @@
+"""Combining the boxes of the main (square-window) and the wide-window heat maps.
+
+The wide-window model also fires on the cars that the main model finds (the middle rows
+of a car seen from behind are its "wide window"), and its windows spread sideways beyond
+them. So the two kinds of windows go into separate heat maps, and a wide box is kept only
+where the main heat map has found no vehicle: it adds the cars half hidden behind a barrier
+(oncoming traffic above the median) without disturbing the boxes of the cars ahead.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .detections import Detections
+
+
+def overlap_fraction(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``(N, M)``: the fraction of box ``a[i]``'s area that lies inside box ``b[j]``."""
+    a = np.asarray(a, np.float64).reshape(-1, 4)
+    b = np.asarray(b, np.float64).reshape(-1, 4)
+    iw = np.clip(np.minimum(a[:, None, 2], b[None, :, 2]) - np.maximum(a[:, None, 0], b[None, :, 0]), 0, None)
+    ih = np.clip(np.minimum(a[:, None, 3], b[None, :, 3]) - np.maximum(a[:, None, 1], b[None, :, 1]), 0, None)
+    area = np.maximum((a[:, 2] - a[:, 0]) * (a[:, 3] - a[:, 1]), 1e-9)
+    return iw * ih / area[:, None]
+
+
+def merge_wide(main: Detections, wide: Detections, max_overlap: float = 0.2) -> Detections:
+    """``main`` plus the boxes of ``wide`` that overlap no main box by more than
+    ``max_overlap`` of their own area."""
+    if len(wide.boxes) == 0:
+        return main
+    if len(main.boxes):
+        keep = overlap_fraction(wide.boxes, main.boxes).max(axis=1) <= max_overlap
+    else:
+        keep = np.ones(len(wide.boxes), bool)
+    if not keep.any():
+        return main
+    return Detections(np.concatenate([main.boxes, wide.boxes[keep]]).astype(np.int32),
+                      np.concatenate([main.scores, wide.scores[keep]]).astype(np.float32))
