@@ -1,0 +1,210 @@
+"""``python -m fastdet bench [INPUT] [--frames N] [--threads T] [--repeat R] [--model M.npz] [--no-wide]``
+
+Times the stages of :class:`~fastdet.video.VideoDetector` (what ``python -m fastdet video``
+runs on its main thread for every frame) on a video or an image, and prints ms per frame
+per stage and the frames per second they allow.
+
+- INPUT: a video (its first N frames) or an image (the same frame N times); default
+  ``test_images/test1.jpg`` in the data folder (:func:`fastdet.data.data_dir`). Frames are
+  decoded into memory before timing, so decoding is not in the figures (it runs in a
+  reader thread in ``video``; it is printed on its own line for a video).
+- Stages: ``resize/colour`` (crop, resize, colour conversion of every band), ``HOG``
+  (block maps), ``scoring`` (spatial map, histogram integral image, dense window scores),
+  ``heat`` and ``label`` (heat map, blobs, boxes) — :attr:`Detector.timings` and
+  :attr:`VideoDetector.timings` — and ``other``: the rest of ``update`` (band geometry,
+  thresholding, window boxes, Python glue).
+- One repeat = N frames through one ``VideoDetector`` whose heat map was reset first;
+  the kernels are loaded and two frames processed before the first repeat (warm-up). The
+  table gives, per stage, the best and the median over the ``R`` repeats of the mean ms
+  per frame; ``fps`` is ``1000 / total`` of the best repeat (the median in brackets).
+- ``--threads T`` sets Numba's and OpenCV's thread count (at most ``NUMBA_NUM_THREADS``);
+  like ``video``, idle OpenMP workers sleep (``OMP_WAIT_POLICY=PASSIVE``) unless the
+  environment says otherwise.
+
+Bad input (missing file, a folder, a file that is neither an image nor a video OpenCV can
+read, a model that does not load) raises :class:`~fastdet.errors.FastdetError`: one line,
+exit status 2.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import time
+from pathlib import Path
+from typing import Any
+
+from .errors import DataError, FastdetError
+
+DEFAULT_IMAGE = Path("test_images") / "test1.jpg"
+
+#: (label, key in VideoDetector.timings)
+STAGES = (
+    ("resize/colour", "resize_colour"),
+    ("HOG", "hog"),
+    ("scoring", "score"),
+    ("heat", "heat"),
+    ("label", "label"),
+)
+
+
+def _positive_int(s: str) -> int:
+    v = int(s)
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {v}")
+    return v
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("input", metavar="INPUT", nargs="?", default=None,
+                        help=f"video or image file (default: {DEFAULT_IMAGE} in the data folder)")
+    parser.add_argument("--frames", type=_positive_int, default=30, metavar="N",
+                        help="frames per repeat: a video's first N frames, or the image N times (default 30)")
+    parser.add_argument("--threads", type=_positive_int, default=None, metavar="T",
+                        help="Numba and OpenCV threads (default: NUMBA_NUM_THREADS)")
+    parser.add_argument("--repeat", type=_positive_int, default=3, metavar="R",
+                        help="timed repeats of the N frames; the table shows the best and the median (default 3)")
+    parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
+    parser.add_argument("--no-wide", action="store_true",
+                        help="main model only (no second, wide-window model)")
+
+
+def load_frames(path: str | os.PathLike, n: int) -> tuple[list, str, float | None]:
+    """``(frames, kind, decode ms per frame)``: an image repeated ``n`` times (``kind``
+    ``'image'``, no decode time) or the first ``n`` frames of a video (``'video'``; fewer
+    when it is shorter). Raises :class:`DataError` for anything unreadable."""
+    import cv2
+    import numpy as np
+
+    name = os.fspath(path)
+    if not os.path.exists(name):
+        raise DataError(f"{name}: file not found")
+    if os.path.isdir(name):
+        raise DataError(f"{name}: is a folder, not an image or a video")
+    if cv2.haveImageReader(name):
+        frame = cv2.imread(name, cv2.IMREAD_COLOR)
+        if frame is None:
+            raise DataError(f"{name}: not an image OpenCV can read (damaged?)")
+        return [frame] * n, "image", None
+
+    from .video import _Reader
+
+    try:
+        reader = _Reader(name, 0, n)
+    except DataError as exc:
+        msg = str(exc)
+        if "not a video OpenCV can read" in msg or msg.endswith("the video has no frames"):
+            msg = f"{name}: neither an image nor a video OpenCV can read (damaged, empty or another format)"
+        raise DataError(msg) from None
+    frames, decode = [], 0.0
+    try:
+        for _, frame, dt in reader:
+            frames.append(frame)
+            decode += dt
+    finally:
+        reader.close()
+    frames = [np.ascontiguousarray(f) for f in frames]
+    return frames, "video", 1e3 * decode / len(frames)
+
+
+def _detector(args: argparse.Namespace) -> Any:
+    from .detector import Detector
+
+    try:
+        return Detector(model=args.model, wide=None) if args.no_wide else Detector(model=args.model)
+    except FastdetError:
+        raise
+    except (OSError, ValueError) as exc:
+        raise FastdetError(f"model: {exc}") from None
+
+
+def time_stages(vd: Any, frames: list, repeat: int) -> list[dict[str, float]]:
+    """Run ``frames`` through ``vd`` (a warmed-up VideoDetector) ``repeat`` times, resetting
+    its heat map before each; returns per repeat the mean seconds per frame of each stage,
+    ``other`` (rest of ``update``) and ``total``."""
+    runs = []
+    for _ in range(repeat):
+        vd.reset()
+        sums = {key: 0.0 for _, key in STAGES}
+        wall = 0.0
+        for frame in frames:
+            t0 = time.perf_counter()
+            vd.update(frame)
+            wall += time.perf_counter() - t0
+            for _, key in STAGES:
+                sums[key] += vd.timings.get(key, 0.0)
+        n = len(frames)
+        run = {k: v / n for k, v in sums.items()}
+        run["other"] = max(wall / n - sum(run.values()), 0.0)
+        run["total"] = wall / n
+        runs.append(run)
+    return runs
+
+
+def format_table(runs: list[dict[str, float]]) -> str:
+    best = min(runs, key=lambda r: r["total"])
+    rows = [(label, key) for label, key in STAGES] + [("other", "other")]
+    lines = [f"{'stage':<15}{'best ms':>9}{'median ms':>11}{'share':>8}"]
+    for label, key in rows:
+        b = min(r[key] for r in runs)
+        med = statistics.median(r[key] for r in runs)
+        share = best[key] / best["total"] if best["total"] else 0.0
+        lines.append(f"{label:<15}{1e3 * b:>9.2f}{1e3 * med:>11.2f}{100 * share:>7.0f}%")
+    med_total = statistics.median(r["total"] for r in runs)
+    lines.append(f"{'total':<15}{1e3 * best['total']:>9.2f}{1e3 * med_total:>11.2f}{100:>7.0f}%")
+    lines.append(f"{'fps':<15}{1 / best['total']:>9.1f}{1 / med_total:>11.1f}")
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    """The ``bench`` subcommand."""
+    from .video import _passive_omp
+
+    _passive_omp()
+    if args.input is None:
+        from .data import data_dir
+
+        args.input = str(data_dir() / DEFAULT_IMAGE)
+    frames, kind, decode_ms = load_frames(args.input, args.frames)
+
+    import cv2
+    import numba
+
+    max_threads = numba.config.NUMBA_NUM_THREADS
+    threads = args.threads if args.threads is not None else max_threads
+    if threads > max_threads:
+        raise FastdetError(f"--threads {threads}: at most NUMBA_NUM_THREADS={max_threads} "
+                           f"(set the environment variable to allow more)")
+    before = numba.get_num_threads(), cv2.getNumThreads()
+    numba.set_num_threads(threads)
+    cv2.setNumThreads(threads)
+    try:
+        from .video import VideoDetector
+
+        det = _detector(args)
+        vd = VideoDetector(det)
+        t0 = time.perf_counter()
+        vd.warmup()
+        for frame in frames[:2]:
+            vd.update(frame)
+        warm_s = time.perf_counter() - t0
+
+        runs = time_stages(vd, frames, args.repeat)
+
+        h, w = frames[0].shape[:2]
+        n_bands = sum(len(sc.search.bands) for sc in getattr(det, "scorers", []))
+        models = "main model only" if det.wide_model is None else "main + wide model"
+        try:
+            layer = numba.threading_layer()
+        except ValueError:
+            layer = "none"
+        print(f"fastdet bench: {os.path.basename(args.input)} ({kind}, {w}x{h}), {len(frames)} frames "
+              f"x {args.repeat} repeats, {threads} thread(s) (numba {layer}), {models}, {n_bands} bands")
+        print(f"warm-up (load kernels, 2 frames): {warm_s:.2f} s")
+        if decode_ms is not None:
+            print(f"decode (not in the total; a reader thread in `video`): {decode_ms:.2f} ms/frame")
+        print(format_table(runs), flush=True)
+    finally:
+        numba.set_num_threads(before[0])
+        cv2.setNumThreads(before[1])
+    return 0
