@@ -1,0 +1,232 @@
+"""Print the detector, video and start-up benchmarks as markdown tables (the README figures).
+
+    python tools/bench_report.py [--quick] [--only detector|video|start-up ...]
+
+All figures are measured in this one run (setups as in ``benchmarks/bench_detector.py`` and
+``benchmarks/bench_video.py``):
+
+(a) detector: ms per 1280x720 frame of the classic per-window pipeline
+    (``benchmarks.classic.ClassicDetector``, test1.jpg) and of fastdet's ``Detector.detect``
+    (cycling through test_images/*.jpg) at 1 and 2 Numba threads, with the main model only
+    (the same model and bands as the classic one) and as ``Detector()`` builds it by default
+    (plus the wide model when one is bundled); speed-up = classic best / fastdet best.
+    The fastdet configurations are timed in interleaved rounds, so a burst of load from
+    another program hits all of them alike.
+(b) video: fps of ``python -m fastdet video`` (its summary line) per clip, 1 and 2 threads,
+    boxes only and writing the annotated video; each case is a fresh process.
+(c) start-up: a fresh process importing fastdet, building ``Detector()`` and calling
+    ``detect`` twice, with an empty ``NUMBA_CACHE_DIR`` (cold: compiles) and with the
+    folder that run filled (warm: loads from disk).
+
+"best" is the fastest of the repeats (the least disturbed by other programs), "median" the
+typical one; a wide gap between them means the machine was busy. ``--quick``: fewer repeats.
+"""
+from __future__ import annotations
+
+import argparse
+import itertools
+import os
+import platform
+import shlex
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # as `python -m fastdet video`; before Numba starts OpenMP
+
+import cv2  # noqa: E402
+import numba  # noqa: E402
+
+from benchmarks.bench_detector import (  # noqa: E402
+    CLASSIC_FRAME, load_frames, make_classic, make_fastdet, models_label, same_windows, start_up_times,
+)
+from benchmarks.bench_video import CLIPS, MODE_LABELS, MODES, command_line, run_video, warm_cache  # noqa: E402
+from fastdet.data import data_dir  # noqa: E402
+
+SECTIONS = ("detector", "video", "start-up")
+NOISY = 1.25  # median / best above this: flagged as noisy
+
+
+def set_threads(n: int) -> None:
+    numba.set_num_threads(n)
+    cv2.setNumThreads(n)
+
+
+def this_command(args: argparse.Namespace, section: str) -> str:
+    cmd = ["python", "tools/bench_report.py", "--only", section]
+    if args.quick:
+        cmd.append("--quick")
+    return shlex.join(cmd)
+
+
+def _flag(best: float, med: float) -> str:
+    return " (noisy)" if med > NOISY * best else ""
+
+
+# --------------------------------------------------------------------------------------
+# (a) detector
+# --------------------------------------------------------------------------------------
+def detector_section(args: argparse.Namespace, thread_counts: list[int]) -> None:
+    frames = load_frames()
+    calls, rounds = (30, 3) if args.quick else (120, 6)
+    classic_rounds = 1 if args.quick else 2
+
+    dets = {kind: make_fastdet(kind) for kind in ("main", "default")}
+    configs = [(kind, n) for kind in dets for n in thread_counts]
+    times = {c: [] for c in configs}
+    stages = {c: {} for c in configs}
+    cycle = itertools.cycle(list(frames.values()))
+    for kind, n in configs:  # warm: thread pool, first frame of this size
+        set_threads(n)
+        for f in frames.values():
+            dets[kind].detect(f)
+    for _ in range(rounds):
+        for kind, n in configs:
+            set_threads(n)
+            det = dets[kind]
+            for _ in range(calls // rounds):
+                f = next(cycle)
+                t0 = time.perf_counter()
+                det.detect(f)
+                times[(kind, n)].append(time.perf_counter() - t0)
+                for k, v in det.timings.items():
+                    stages[(kind, n)].setdefault(k, []).append(v)
+
+    set_threads(1)
+    classic = make_classic()
+    frame = frames[CLASSIC_FRAME]
+    ctimes = []
+    for _ in range(classic_rounds):
+        t0 = time.perf_counter()
+        cres = classic.detect(frame)
+        ctimes.append(time.perf_counter() - t0)
+    set_threads(max(thread_counts))
+    agree = same_windows(cres, dets["main"].detect(frame))
+    c_best, c_med = 1e3 * min(ctimes), 1e3 * statistics.median(ctimes)
+
+    print(f"### Detector: ms per 1280x720 frame\n\n`{this_command(args, 'detector')}`  \n"
+          "(pytest-benchmark: `python -m pytest benchmarks/bench_detector.py --benchmark-only -k 'classic or fastdet'`)\n")
+    print("| pipeline | models | threads | best ms | median ms | resize/colour ms | HOG ms | scoring ms "
+          "| speed-up vs classic |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|")
+    print(f"| classic (skimage HOG per band, per-window features + sklearn), {CLASSIC_FRAME} | main | 1 "
+          f"| {c_best:,.0f} | {c_med:,.0f} | | | | 1x |")
+    best2 = {}
+    for kind, n in configs:
+        ts = times[(kind, n)]
+        best, med = 1e3 * min(ts), 1e3 * statistics.median(ts)
+        st = {k: 1e3 * statistics.median(v) for k, v in stages[(kind, n)].items()}
+        if n == max(thread_counts):
+            best2[kind] = best
+        name = "fastdet `Detector(wide=None)`" if kind == "main" else "fastdet `Detector()` (default)"
+        print(f"| {name} | {models_label(dets[kind])} | {n} | {best:.2f} | {med:.2f}{_flag(best, med)} "
+              f"| {st.get('resize_colour', 0):.2f} | {st.get('hog', 0):.2f} | {st.get('score', 0):.2f} "
+              f"| {c_best / best:,.0f}x |")
+    n_frames = len(frames)
+    print(f"\nfastdet: {calls} calls per row over {rounds} interleaved rounds, cycling through the "
+          f"{n_frames} test images; stage columns are medians. Classic: {classic_rounds} run(s) on "
+          f"{CLASSIC_FRAME}. Same positive windows from classic and fastdet (main): "
+          f"{'yes' if agree else 'NO'}.")
+    if dets["default"].wide_model is None:
+        print("No wide model is bundled (fastdet/models/wide.npz), so `Detector()` = `Detector(wide=None)`.")
+    nt = max(thread_counts)
+    b = best2["default"]
+    print(f"Goal (>= 100x classic, < 10 ms per frame at 2 threads): default detector {b:.2f} ms at "
+          f"{nt} thread(s), {c_best / b:,.0f}x: {'met' if b < 10 and c_best / b >= 100 else 'NOT met'}.\n")
+
+
+# --------------------------------------------------------------------------------------
+# (b) video
+# --------------------------------------------------------------------------------------
+def video_section(args: argparse.Namespace, thread_counts: list[int]) -> None:
+    data = data_dir()
+    repeat = 1 if args.quick else 3
+    clips = [c for c in CLIPS if (data / "videos" / c).exists()]
+    results: dict[tuple, list[dict]] = {}
+    with tempfile.TemporaryDirectory(prefix="fastdet-bench-") as tmp:
+        tmp = Path(tmp)
+        warm_cache(data / "videos" / clips[0], tmp)
+        for _ in range(repeat):  # interleaved, as above
+            for clip in clips:
+                for mode in MODES:
+                    for n in thread_counts:
+                        results.setdefault((clip, mode, n), []).append(
+                            run_video(data / "videos" / clip, mode, n, tmp))
+
+    print(f"### Video: `python -m fastdet video` frames per second\n\n`{this_command(args, 'video')}`  \n"
+          f"each cell: `{command_line('CLIP', 'boxes')}` (or `-o /tmp/out.mp4` instead of `--boxes`); "
+          "fps from its summary line, best of "
+          f"{repeat} (median in brackets)\n")
+    head = " | ".join(f"fps, {n} thread{'s' if n > 1 else ''}" for n in thread_counts)
+    nt = max(thread_counts)
+    print(f"| clip | frames | output | {head} | HOG ms ({nt}T) | scoring ms ({nt}T) | encode ms ({nt}T) |")
+    print("|---|---:|---|" + "---:|" * len(thread_counts) + "---:|---:|---:|")
+    for clip in clips:
+        for mode in MODES:
+            cells = []
+            for n in thread_counts:
+                fps = [r["fps"] for r in results[(clip, mode, n)]]
+                best, med = max(fps), statistics.median(fps)
+                cells.append(f"{best:.1f} ({med:.1f}){_flag(1 / best, 1 / med)}")
+            top = max(results[(clip, mode, nt)], key=lambda r: r["fps"])
+            st = top["stages_ms"]
+            enc = f"{st['encode']:.2f}" if "encode" in st else ""
+            print(f"| {clip} | {top['frames']} | {MODE_LABELS[mode]} | {' | '.join(cells)} "
+                  f"| {st.get('HOG', 0):.2f} | {st.get('scoring', 0):.2f} | {enc} |")
+    print("\nDecoding (reader thread) and drawing + encoding (writer thread) overlap with detection; "
+          "stage columns are from `--profile` of the best run.\n")
+
+
+# --------------------------------------------------------------------------------------
+# (c) start-up
+# --------------------------------------------------------------------------------------
+def start_up_section(args: argparse.Namespace, thread_counts: list[int]) -> None:
+    repeat = 1 if args.quick else 2
+    nt = max(thread_counts)
+    runs = [start_up_times(n_threads=nt) for _ in range(repeat)]
+    best = {k: min(r[k] for r in runs) for k in runs[0] if isinstance(runs[0][k], float)}
+    print(f"### Start-up: fresh process, `Detector().detect` on {CLASSIC_FRAME}\n\n"
+          f"`{this_command(args, 'start-up')}`  \n"
+          "(pytest-benchmark: `python -m pytest benchmarks/bench_detector.py --benchmark-only -k start_up -s`; "
+          f"by hand: `D=$(mktemp -d); for i in 1 2; do NUMBA_CACHE_DIR=$D NUMBA_NUM_THREADS={nt} python -m fastdet "
+          "bench --frames 1 --repeat 1 | grep warm-up; done`)\n")
+    print("| Numba cache | whole process s | import s | Detector() s | first detect s | second detect ms |")
+    print("|---|---:|---:|---:|---:|---:|")
+    for kind, label in (("cold", "empty (compiles)"), ("warm", "filled (loads)")):
+        print(f"| {label} | {best[f'{kind}_process_s']:.2f} | {best[f'{kind}_import_s']:.2f} "
+              f"| {best[f'{kind}_construct_s']:.3f} | {best[f'{kind}_first_detect_s']:.2f} "
+              f"| {1e3 * best[f'{kind}_second_detect_s']:.1f} |")
+    print(f"\n{nt} Numba thread(s), models: {runs[0]['cold_models']}; best of {repeat} cold/warm pair(s).\n")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="fewer repeats (a rough picture in about a minute)")
+    ap.add_argument("--only", nargs="+", choices=SECTIONS, default=list(SECTIONS), metavar="SECTION",
+                    help=f"tables to print: {', '.join(SECTIONS)} (default: all)")
+    args = ap.parse_args(argv)
+
+    thread_counts = [n for n in (1, 2) if n <= numba.config.NUMBA_NUM_THREADS]
+    load0 = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    for section in SECTIONS:
+        if section in args.only:
+            {"detector": detector_section, "video": video_section, "start-up": start_up_section}[section](
+                args, thread_counts)
+            sys.stdout.flush()
+    load1 = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    try:
+        layer = numba.threading_layer()
+    except ValueError:
+        layer = "not started"
+    print(f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, Python "
+          f"{platform.python_version()}, numba {numba.__version__} ({layer} threading layer, "
+          f"OMP_WAIT_POLICY={os.environ.get('OMP_WAIT_POLICY')}), OpenCV {cv2.__version__}; "
+          f"1-min load average {load0:.2f} before, {load1:.2f} after")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
