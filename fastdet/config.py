@@ -196,11 +196,8 @@ class SearchConfig:
 
 
 def _wide_bands() -> tuple[SearchBand, ...]:
-    return (
-        SearchBand(0.75, 400, 472),
-        SearchBand(1.0, 400, 480),
-        SearchBand(1.25, 396, 496),
-    )
+    # 64-px-wide windows at 40..80 px: the 40-80 px wide cars seen just above the median
+    return tuple(SearchBand(s, 400, 400 + int(64 * s) + 24) for s in (0.625, 0.75, 0.875, 1.0, 1.25))
 
 
 #: default search of the wide-window model: small scales near the horizon, where cars
@@ -234,6 +231,10 @@ class HeatConfig:
         ``(0.0, 2.0)``, probabilities (logistic regression) ``(0.5, 1.0)``.
     w_max: heat of a window scoring ``score_hi`` or more; one confident window outweighs
         ``w_max - 1`` barely-positive ones at the same place.
+    box_mode: how a blob becomes a box. ``'extent'``: as below. ``'mean'``: the
+        heat-weighted mean of the boxes of this frame's windows whose centre lies in the blob
+        (a box of the windows' own shape, placed where they agree; falls back to
+        ``'extent'`` for a blob with no window of this frame).
     extent: a blob's box is the bounding box of its cells with heat >= ``extent`` x the
         blob's peak heat (0 = the whole blob). Square windows that fire a little above,
         below and beside a car make a blob wider and much taller than the car; its
@@ -255,6 +256,7 @@ class HeatConfig:
     score_hi: float | None = None
     w_max: float = 4.0
     extent: float = 0.4
+    box_mode: str = "extent"
     cell: int = 4
     min_width: int = 40
     min_height: int = 20
@@ -280,6 +282,8 @@ class HeatConfig:
             raise ValueError(f"w_max must be a finite number >= 1, got {self.w_max!r}")
         if not 0 <= self.extent <= 1:
             raise ValueError(f"extent must be in [0, 1], got {self.extent!r}")
+        if self.box_mode not in ("extent", "mean"):
+            raise ValueError(f"box_mode must be 'extent' or 'mean', got {self.box_mode!r}")
         if int(self.cell) != self.cell or self.cell < 1:
             raise ValueError("cell must be an integer >= 1")
         if self.min_width < 0 or self.min_height < 0:

@@ -97,6 +97,7 @@ class HeatMap:
         self.mask = np.zeros(self.grid_shape, bool)
         self.labels = np.zeros(self.grid_shape, np.int32)
         self.blobs = Detections.empty()
+        self._cur = (np.zeros((0, 4)), np.zeros(0))
 
     @property
     def n_seen(self) -> int:
@@ -144,6 +145,8 @@ class HeatMap:
         """Push one frame's positive windows (frame pixels) and their scores."""
         t0 = time.perf_counter()
         fr = self._frame(boxes, scores)
+        b = np.asarray(boxes, np.float64).reshape(-1, 4)
+        self._cur = (b, self.window_heat(scores))
         n, d = int(self.config.n_frames), float(self.config.decay)
         s = self._sum  # updated in place
         if len(self._ring) == n:
@@ -180,6 +183,12 @@ class HeatMap:
         out = np.zeros((n, 4), np.int32)
         peak = np.zeros(n, np.float32)
         ext = float(cfg.extent)
+        owner = np.zeros(0, np.int64)
+        if cfg.box_mode == "mean" and len(self._cur[0]):
+            cb = self._cur[0]
+            cy = np.clip(((cb[:, 1] + cb[:, 3]) / 2 / c).astype(np.int64), 0, labels.shape[0] - 1)
+            cx = np.clip(((cb[:, 0] + cb[:, 2]) / 2 / c).astype(np.int64), 0, labels.shape[1] - 1)
+            owner = labels[cy, cx]
         for i, sl in enumerate(ndimage.find_objects(labels)):
             blob = labels[sl] == i + 1
             hv = self.heat[sl]
@@ -191,6 +200,11 @@ class HeatMap:
             else:
                 y1, y2, x1, x2 = y0, sl[0].stop, x0, sl[1].stop
             out[i] = (x1 * c, y1 * c, min(x2 * c, w), min(y2 * c, h))
+            mine = owner == i + 1
+            if mine.any():
+                wts = self._cur[1][mine]
+                mb = (self._cur[0][mine] * wts[:, None]).sum(0) / wts.sum()
+                out[i] = np.clip(np.round(mb), 0, [w, h, w, h]).astype(np.int32)
             peak[i] = pk
         self.blobs = Detections(out, peak)
         bw = out[:, 2] - out[:, 0]

@@ -88,7 +88,9 @@ def main() -> None:
     ap.add_argument("--wide-n", default="4")
     ap.add_argument("--wide-extent", default="0.4")
     ap.add_argument("--wide-max-aspect", default="0.8")
-    ap.add_argument("--first", type=int, default=1, help="evaluate frames >= this only")
+    ap.add_argument("--wide-box", default="extent")
+    ap.add_argument("--box", default="extent")
+    ap.add_argument("--first", type=int, default=1, help="evaluate frames >= this only (0: the second half)")
     args = ap.parse_args()
     fl = lambda s: [float(v) for v in s.split(",")]
     search = SearchConfig() if args.step is None else replace(SearchConfig(), cells_per_step=args.step)
@@ -107,12 +109,23 @@ def main() -> None:
                              fl(args.extent), fl(args.w_max), fl(args.wide_heat_thr), fl(args.wide_n),
                              fl(args.wide_extent), fl(args.wide_max_aspect))
     for thr, tw, ht, n, dc, ex, wm, wht, wn, wex, wma in grid:
-        heat = replace(HeatConfig(), threshold=ht, n_frames=int(n), decay=dc, extent=ex, w_max=wm)
-        wheat = (replace(heat, threshold=wht, n_frames=int(wn), extent=wex, max_aspect=wma, min_height=10)
+        heat = replace(HeatConfig(), threshold=ht, n_frames=int(n), decay=dc, extent=ex, w_max=wm, box_mode=args.box)
+        wheat = (replace(heat, threshold=wht, n_frames=int(wn), extent=wex, max_aspect=wma, min_height=10,
+                         box_mode=args.wide_box)
                  if args.separate else None)
         cells, f1s = [], []
         for name, (gt, cache, shape) in caches.items():
-            r = evaluate(gt, replay(cache, shape, thr, heat, kind, args.first, tw, wheat), iou=0.5)
+            first = args.first or len(cache) // 2 + 1
+            r = evaluate(gt, replay(cache, shape, thr, heat, kind, first, tw, wheat), iou=0.5,
+                         num_frames=len(cache))
+            if first > 1:  # frames before `first` have no predictions: count only the rest
+                from fastdet.motio import GroundTruth
+
+                sel = gt.frames >= first
+                sub = GroundTruth(gt.frames[sel] - first + 1, gt.ids[sel], gt.boxes[sel], gt.consider[sel])
+                preds = replay(cache, shape, thr, heat, kind, first, tw, wheat)
+                preds = type(preds)(preds.frames - first + 1, preds.ids, preds.boxes, preds.scores)
+                r = evaluate(sub, preds, iou=0.5, num_frames=len(cache) - first + 1)
             cells.append(f"{r.precision:.2f} {r.recall:.2f} **{r.f1:.2f}** {r.ap:.2f} {r.fp_per_frame:.2f}")
             f1s.append(r.f1)
         if args.separate:
