@@ -19,7 +19,8 @@ per stage and the frames per second they allow.
   per frame; ``fps`` is ``1000 / total`` of the best repeat (the median in brackets).
 - ``--threads T`` sets Numba's and OpenCV's thread count (at most ``NUMBA_NUM_THREADS``);
   like ``video``, idle OpenMP workers sleep (``OMP_WAIT_POLICY=PASSIVE``) unless the
-  environment says otherwise.
+  environment says otherwise (the header line shows the setting: with ``ACTIVE`` two
+  threads are faster on an idle machine and many times slower on a busy one).
 
 Bad input (missing file, a folder, a file that is neither an image nor a video OpenCV can
 read, a model that does not load) raises :class:`~fastdet.errors.FastdetError`: one line,
@@ -198,8 +199,9 @@ def run(args: argparse.Namespace) -> int:
             layer = numba.threading_layer()
         except ValueError:
             layer = "none"
+        omp = "".join(f", {k}={os.environ[k]}" for k in ("OMP_WAIT_POLICY", "GOMP_SPINCOUNT") if k in os.environ)
         print(f"fastdet bench: {os.path.basename(args.input)} ({kind}, {w}x{h}), {len(frames)} frames "
-              f"x {args.repeat} repeats, {threads} thread(s) (numba {layer}), {models}, {n_bands} bands")
+              f"x {args.repeat} repeats, {threads} thread(s) (numba {layer}{omp}), {models}, {n_bands} bands")
         print(f"warm-up (load kernels, 2 frames): {warm_s:.2f} s")
         if decode_ms is not None:
             print(f"decode (not in the total; a reader thread in `video`): {decode_ms:.2f} ms/frame")

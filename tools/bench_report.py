@@ -12,6 +12,9 @@ All figures are measured in this one run (setups as in ``benchmarks/bench_detect
     (plus the wide model when one is bundled); speed-up = classic best / fastdet best.
     The fastdet configurations are timed in interleaved rounds, so a burst of load from
     another program hits all of them alike.
+(a') wait policy: ``python -m fastdet bench --no-wide`` at 2 threads in fresh processes with
+    ``OMP_WAIT_POLICY=PASSIVE`` (fastdet's default for ``video`` and ``bench``) and ``ACTIVE``
+    (spinning idle OpenMP workers: faster on an idle machine, far slower on a busy one).
 (b) video: fps of ``python -m fastdet video`` (its summary line) per clip, 1 and 2 threads,
     boxes only and writing the annotated video; each case is a fresh process.
 (c) start-up: a fresh process importing fastdet, building ``Detector()`` and calling
@@ -27,8 +30,10 @@ import argparse
 import itertools
 import os
 import platform
+import re
 import shlex
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -46,7 +51,7 @@ from benchmarks.bench_detector import (  # noqa: E402
 from benchmarks.bench_video import CLIPS, MODE_LABELS, MODES, command_line, run_video, warm_cache  # noqa: E402
 from fastdet.data import data_dir  # noqa: E402
 
-SECTIONS = ("detector", "video", "start-up")
+SECTIONS = ("detector", "wait-policy", "video", "start-up")
 NOISY = 1.25  # median / best above this: flagged as noisy
 
 
@@ -139,6 +144,41 @@ def detector_section(args: argparse.Namespace, thread_counts: list[int]) -> None
 
 
 # --------------------------------------------------------------------------------------
+# (a') OpenMP wait policy
+# --------------------------------------------------------------------------------------
+_TOTAL = re.compile(r"^total\s+([\d.]+)\s+([\d.]+)", re.M)
+
+
+def wait_policy_section(args: argparse.Namespace, thread_counts: list[int]) -> None:
+    nt = max(thread_counts)
+    repeat = 1 if args.quick else 3
+    bench_args = ["--no-wide", "--threads", str(nt), "--frames", "30", "--repeat", "5"]
+    repo = Path(__file__).resolve().parent.parent
+    res: dict[str, list[tuple[float, float]]] = {}
+    for _ in range(repeat):
+        for policy in ("PASSIVE", "ACTIVE"):
+            env = dict(os.environ, OMP_WAIT_POLICY=policy)
+            env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(repo), env.get("PYTHONPATH")]))
+            out = subprocess.run([sys.executable, "-m", "fastdet", "bench", *bench_args], env=env, cwd=repo,
+                                 capture_output=True, text=True, check=True).stdout
+            m = _TOTAL.search(out)
+            res.setdefault(policy, []).append((float(m.group(1)), float(m.group(2))))
+    print(f"### OpenMP wait policy, {nt} threads, ms per frame (detect + heat map)\n\n"
+          f"`{this_command(args, 'wait-policy')}`  \n"
+          f"each row: `OMP_WAIT_POLICY=P python -m fastdet bench {shlex.join(bench_args)}`, "
+          f"{repeat} fresh process(es), interleaved\n")
+    print("| OMP_WAIT_POLICY | best ms | median ms |")
+    print("|---|---:|---:|")
+    for policy, runs in res.items():
+        best, med = min(b for b, _ in runs), statistics.median(m for _, m in runs)
+        print(f"| {policy}{' (fastdet default)' if policy == 'PASSIVE' else ''} | {best:.2f} "
+              f"| {med:.2f}{_flag(best, med)} |")
+    print("\nACTIVE keeps idle OpenMP workers spinning: no wake-up latency at the many small parallel "
+          "regions of a frame when both cores are free, but a spinning worker takes the core its "
+          "partner (or the video reader / writer thread, or another program) needs.\n")
+
+
+# --------------------------------------------------------------------------------------
 # (b) video
 # --------------------------------------------------------------------------------------
 def video_section(args: argparse.Namespace, thread_counts: list[int]) -> None:
@@ -213,14 +253,15 @@ def main(argv=None) -> int:
     load0 = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     for section in SECTIONS:
         if section in args.only:
-            {"detector": detector_section, "video": video_section, "start-up": start_up_section}[section](
+            {"detector": detector_section, "wait-policy": wait_policy_section, "video": video_section,
+             "start-up": start_up_section}[section](
                 args, thread_counts)
             sys.stdout.flush()
     load1 = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     try:
         layer = numba.threading_layer()
     except ValueError:
-        layer = "not started"
+        layer = "no"  # nothing parallel ran in this process
     print(f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, Python "
           f"{platform.python_version()}, numba {numba.__version__} ({layer} threading layer, "
           f"OMP_WAIT_POLICY={os.environ.get('OMP_WAIT_POLICY')}), OpenCV {cv2.__version__}; "
