@@ -202,7 +202,7 @@ def _wide_bands() -> tuple[SearchBand, ...]:
 
 #: default search of the wide-window model: small scales near the horizon, where cars
 #: half hidden behind the median barrier are seen
-WIDE_SEARCH = SearchConfig(bands=_wide_bands(), cells_per_step=1, threshold=0.0)
+WIDE_SEARCH = SearchConfig(bands=_wide_bands(), cells_per_step=1, threshold=4.0)
 
 
 @dataclass(frozen=True)
@@ -315,3 +315,8 @@ class HeatConfig:
         if unknown:
             raise ValueError(f"unknown HeatConfig fields: {sorted(unknown)}")
         return cls(**d)
+
+
+#: heat map of a wide-window model's windows (VideoDetector): one frame of memory (the cars
+#: it is for pass quickly), a box placed where its windows agree, wider than tall
+WIDE_HEAT = HeatConfig(n_frames=1, threshold=4.0, extent=0.5, box_mode="mean", min_height=10, max_aspect=0.8)

@@ -88,18 +88,16 @@ class _Scorer:
         return out
 
 
-_BUNDLED = object()
-
-
 class Detector:
     """Finds vehicle windows in frames.
 
     model: a :class:`~fastdet.model.Model`, a path to a model file, or ``None`` for the
         bundled default model (64x64 windows).
     search: where and how densely to search with it (default :class:`~fastdet.config.SearchConfig`).
-    wide: a second model with wide windows (``FeatureConfig.window_height`` < ``window``)
-        for vehicles half hidden behind a barrier, e.g. oncoming traffic above the median;
-        default: the bundled wide model (:data:`fastdet.model.WIDE_MODEL_PATH`); ``None`` = off.
+    wide: an optional second model with wide windows (``FeatureConfig.window_height`` <
+        ``window``, trained with ``fastdet train --window-rows``) for vehicles half hidden
+        behind a barrier, e.g. oncoming traffic above the median; ``None`` (default) = off.
+        No wide model ships: the one we could train did not help on held-out frames (README).
     wide_search: its search bands (default :data:`fastdet.config.WIDE_SEARCH`).
 
     ``detect(frame)`` returns the positive windows of both models; :class:`fastdet.VideoDetector`
@@ -107,16 +105,13 @@ class Detector:
     """
 
     def __init__(self, model: Model | str | os.PathLike | None = None, search: SearchConfig | None = None,
-                 wide: Model | str | os.PathLike | None | object = _BUNDLED, wide_search: SearchConfig | None = None):
+                 wide: Model | str | os.PathLike | None = None, wide_search: SearchConfig | None = None):
         from .config import WIDE_SEARCH
-        from .model import WIDE_MODEL_PATH
 
         self.model = model if isinstance(model, Model) else load_model(model)
         self.search = search if search is not None else SearchConfig()
         self.config = self.model.config
         self.scorers = [_Scorer(self.model, self.search)]
-        if wide is _BUNDLED:
-            wide = WIDE_MODEL_PATH if WIDE_MODEL_PATH.exists() else None
         self.wide_model = None
         if wide is not None:
             self.wide_model = wide if isinstance(wide, Model) else load_model(wide)

@@ -28,7 +28,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="MOTChallenge ground truth: windows touching any annotated box are not negatives")
     p.add_argument("--margin", type=int, default=8, help="px added around each annotated box (default 8)")
     p.add_argument("--model", type=Path, default=None, help="main model file (default: the bundled model)")
-    p.add_argument("--wide-model", type=Path, default=None, help="wide-window model file (default: the bundled one)")
+    p.add_argument("--wide-model", type=Path, default=None, help="wide-window model file (for --part wide)")
     p.add_argument("--part", choices=("main", "wide"), default="main",
                    help="mine the windows of the main (square) model or of the wide-window model")
     p.add_argument("--start", type=int, default=0, help="first frame (0-based)")
@@ -75,11 +75,9 @@ def run(args: argparse.Namespace) -> int:
         from .motio import read_gt
 
         gt = read_gt(args.gt)
-    from .detector import _BUNDLED
-
-    det = Detector(args.model, wide=args.wide_model if args.wide_model is not None else _BUNDLED)
-    if args.part == "wide" and det.wide_model is None:
-        raise FastdetError("--part wide: no wide-window model")
+    if args.part == "wide" and args.wide_model is None:
+        raise FastdetError("--part wide needs --wide-model")
+    det = Detector(args.model, wide=args.wide_model)
     win_cfg = det.config if args.part == "main" else det.wide_model.config
     args.out.mkdir(parents=True, exist_ok=True)
     prefix = args.prefix or args.video.stem

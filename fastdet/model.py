@@ -36,8 +36,6 @@ from .errors import ModelError
 FORMAT_VERSION = 1
 CLASSIFIERS = ("linearsvc", "logreg")
 DEFAULT_MODEL_PATH = Path(__file__).resolve().parent / "models" / "default.npz"
-#: the bundled wide-window model (middle rows of vehicles), used by default beside the main one
-WIDE_MODEL_PATH = Path(__file__).resolve().parent / "models" / "wide.npz"
 _ARRAYS = ("coef", "intercept", "mean", "scale", "metadata")
 
 

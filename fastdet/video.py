@@ -91,6 +91,9 @@ class VideoDetector:
         ``timings`` and ``last_scales`` (as :class:`~fastdet.detector.Detector`); default the
         Detector with the bundled model, created on first use.
     heat: :class:`~fastdet.config.HeatConfig` (default ``HeatConfig()``).
+    wide_heat: heat map of the wide-window model's windows, when the detector has one
+        (default :data:`fastdet.config.WIDE_HEAT`); its boxes are added where the main heat
+        map found nothing (:func:`fastdet.fusion.merge_wide`).
 
     After :meth:`update`, for debugging the last frame: ``last_windows`` (the positive
     windows, :class:`Detections`), ``last_scales`` (scale of each window), ``last_heat``
@@ -104,8 +107,11 @@ class VideoDetector:
     (as :meth:`reset`).
     """
 
-    def __init__(self, detector: Any = None, heat: HeatConfig | None = None) -> None:
+    def __init__(self, detector: Any = None, heat: HeatConfig | None = None,
+                 wide_heat: HeatConfig | None = None) -> None:
         self._detector = detector
+        self.wide_heat_config = wide_heat
+        self.wide_heatmap = None
         self.heat_config = heat if heat is not None else HeatConfig()
         if not isinstance(self.heat_config, HeatConfig):
             raise TypeError(f"heat must be a HeatConfig, got {type(self.heat_config).__name__}")
@@ -131,6 +137,8 @@ class VideoDetector:
         """Forget the previous frames (a new video, or a cut)."""
         if self.heatmap is not None:
             self.heatmap.reset()
+        if self.wide_heatmap is not None:
+            self.wide_heatmap.reset()
         self._clear()
 
     def warmup(self) -> None:
@@ -151,6 +159,16 @@ class VideoDetector:
             self.heatmap = HeatMap(hw, self.heat_config, score_kind=kind)
         return self.heatmap
 
+    def _wide_heatmap_for(self, shape: tuple[int, ...]):
+        from .config import WIDE_HEAT
+        from .heatmap import HeatMap
+
+        hw = (int(shape[0]), int(shape[1]))
+        if getattr(self, "wide_heatmap", None) is None or self.wide_heatmap.frame_shape != hw:
+            self.wide_heatmap = HeatMap(hw, self.wide_heat_config or WIDE_HEAT,
+                                        score_kind=getattr(self.detector, "score_kind", "decision"))
+        return self.wide_heatmap
+
     def update(self, frame: np.ndarray, rgb: bool = False) -> Detections:
         """Boxes of the vehicles in ``frame`` (``(H, W, 3) uint8``, BGR or RGB with ``rgb=True``).
 
@@ -161,10 +179,19 @@ class VideoDetector:
         det = self.detector
         windows = det.detect(frame, rgb=rgb)
         hm = self._heatmap_for(frame.shape)
-        boxes = hm.update(windows)
-        self.last_windows = windows
         scales = np.asarray(getattr(det, "last_scales", np.zeros(0)), np.float32).reshape(-1)
-        self.last_scales = scales.copy() if len(scales) == len(windows.boxes) else np.ones(len(windows.boxes), np.float32)
+        scales = scales.copy() if len(scales) == len(windows.boxes) else np.ones(len(windows.boxes), np.float32)
+        wide = scales < 0  # windows of a wide-window model (Detector(wide=...)): own heat map
+        if getattr(det, "wide_model", None) is not None:
+            from .fusion import merge_wide
+
+            main_boxes = hm.update(Detections(windows.boxes[~wide], windows.scores[~wide]))
+            hw = self._wide_heatmap_for(frame.shape)
+            boxes = merge_wide(main_boxes, hw.update(Detections(windows.boxes[wide], windows.scores[wide])))
+        else:
+            boxes = hm.update(windows)
+        self.last_windows = windows
+        self.last_scales = scales
         self.last_heat = hm.heat
         self.last_mask = hm.mask
         self.last_labels = hm.labels

@@ -90,13 +90,12 @@ def main() -> None:
     ap.add_argument("--wide-max-aspect", default="0.8")
     ap.add_argument("--wide-box", default="extent")
     ap.add_argument("--box", default="extent")
+    ap.add_argument("--first-per-clip", default="", help="e.g. test_small1=67,test_video=20")
     ap.add_argument("--first", type=int, default=1, help="evaluate frames >= this only (0: the second half)")
     args = ap.parse_args()
     fl = lambda s: [float(v) for v in s.split(",")]
     search = SearchConfig() if args.step is None else replace(SearchConfig(), cells_per_step=args.step)
-    from fastdet.detector import _BUNDLED
-
-    det = Detector(args.model, search, wide=None if args.no_wide else (args.wide or _BUNDLED))
+    det = Detector(args.model, search, wide=None if args.no_wide else args.wide)
     kind = det.score_kind
     clips = sorted((data_dir() / "annotations").glob("*.gt.txt"))
     caches = {}
@@ -115,7 +114,8 @@ def main() -> None:
                  if args.separate else None)
         cells, f1s = [], []
         for name, (gt, cache, shape) in caches.items():
-            first = args.first or len(cache) // 2 + 1
+            per_clip = dict(kv.split("=") for kv in args.first_per_clip.split(",")) if args.first_per_clip else {}
+            first = int(per_clip.get(name, args.first)) or len(cache) // 2 + 1
             r = evaluate(gt, replay(cache, shape, thr, heat, kind, first, tw, wheat), iou=0.5,
                          num_frames=len(cache))
             if first > 1:  # frames before `first` have no predictions: count only the rest
