@@ -10,7 +10,13 @@ Public API (imported lazily, so ``import fastdet`` is cheap)::
 from __future__ import annotations
 
 import importlib
+import os
 from typing import Any
+
+# numba's OpenMP workers busy-wait between parallel regions by default; on 2 cores shared with
+# the video reader/writer threads (or anything else) that spinning cost 5-8x in throughput.
+# Sleeping workers fix it. Set before numba loads OpenMP; a user's own setting wins.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 from ._version import __version__
 from .config import FeatureConfig, HeatConfig, SearchBand, SearchConfig
