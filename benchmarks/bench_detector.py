@@ -16,10 +16,12 @@ for both pipelines: the bundled main model (``fastdet.model.load_model()``) and 
   frame, so 2 rounds on test1.jpg (``pedantic``);
 * ``fastdet main``: ``Detector(wide=None).detect`` — the same model and bands, every
   window of a band scored at once by the Numba kernels; at 1 and 2 Numba threads;
-* ``fastdet default``: ``Detector().detect`` — what ``python -m fastdet video`` runs: the
-  main model plus the bundled wide-window model when there is one
-  (``fastdet/models/wide.npz``; without it this is the same as ``fastdet main``, and
-  ``extra_info["models"]`` says which).
+* ``fastdet default``: ``Detector().detect`` — what ``python -m fastdet video`` runs. No
+  wide-window model ships, so today this is the same as ``fastdet main`` (a separate row so
+  the figure stays right if the default changes; ``extra_info["models"]`` says which);
+* ``fastdet main + wide``: ``Detector(wide=PATH)`` with the wide-window model in
+  ``$FASTDET_BENCH_WIDE`` (one trained with ``python -m fastdet train --window-rows``) and
+  its default search (``fastdet.config.WIDE_SEARCH``); skipped when the variable is unset.
 
 fastdet cases cycle through the six frames, one frame per call. Both pipelines give the
 same positive windows on test1.jpg (checked after the classic run). Like the ``video``
@@ -81,12 +83,21 @@ def make_classic():
     return ClassicDetector(load_model(), SearchConfig())
 
 
-def make_fastdet(kind: str):
+def make_fastdet(kind: str, wide: str | os.PathLike | None = None):
     """``'main'``: ``Detector(wide=None)`` (same model and bands as the classic one);
-    ``'default'``: ``Detector()`` (plus the bundled wide model, if any)."""
+    ``'default'``: ``Detector()``; ``'wide'``: ``Detector(wide=wide)``."""
     from fastdet.detector import Detector
 
-    det = Detector(wide=None) if kind == "main" else Detector()
+    if kind == "main":
+        det = Detector(wide=None)
+    elif kind == "default":
+        det = Detector()
+    elif kind == "wide":
+        if wide is None:
+            raise ValueError("kind 'wide' needs a wide-window model")
+        det = Detector(wide=wide)
+    else:
+        raise ValueError(f"unknown detector kind {kind!r}")
     det.warmup()
     return det
 
@@ -169,16 +180,20 @@ def test_classic(benchmark, frames):
     assert same_windows(result, fast), "classic and fastdet disagree on the positive windows"
 
 
-@pytest.mark.parametrize("kind", ["main", "default"])
+@pytest.mark.parametrize("kind", ["main", "default", "wide"])
 @pytest.mark.parametrize("n_threads", [1, 2])
 def test_fastdet(benchmark, frames, kind, n_threads):
-    det = make_fastdet(kind)
+    wide = os.environ.get("FASTDET_BENCH_WIDE") or None
+    if kind == "wide" and wide is None:
+        pytest.skip("set FASTDET_BENCH_WIDE=WIDE.npz (a model trained with --window-rows) to time it")
+    det = make_fastdet(kind, wide)
     cycle = itertools.cycle(list(frames.values()))
     with threads(n_threads):
         for f in frames.values():  # first frame of this size, caches, thread pool
             det.detect(f)
         benchmark.group = GROUP
         benchmark.extra_info.update(pipeline=f"fastdet {kind}", models=models_label(det), threads=n_threads,
+                                    bands=sum(len(sc.search.bands) for sc in det.scorers),
                                     frame="test_images/*.jpg (cycled)",
                                     omp_wait_policy=os.environ.get("OMP_WAIT_POLICY"),
                                     threading_layer=numba.threading_layer())

@@ -1,4 +1,4 @@
-"""``python -m fastdet bench [INPUT] [--frames N] [--threads T] [--repeat R] [--model M.npz] [--no-wide]``
+"""``python -m fastdet bench [INPUT] [--frames N] [--threads T] [--repeat R] [--model M.npz] [--wide W.npz]``
 
 Times the stages of :class:`~fastdet.video.VideoDetector` (what ``python -m fastdet video``
 runs on its main thread for every frame) on a video or an image, and prints ms per frame
@@ -12,7 +12,8 @@ per stage and the frames per second they allow.
   (block maps), ``scoring`` (spatial map, histogram integral image, dense window scores),
   ``heat`` and ``label`` (heat map, blobs, boxes) — :attr:`Detector.timings` and
   :attr:`VideoDetector.timings` — and ``other``: the rest of ``update`` (band geometry,
-  thresholding, window boxes, Python glue).
+  thresholding, window boxes, Python glue; with ``--wide``, also the wide model's own heat
+  map and the merge of its boxes).
 - One repeat = N frames through one ``VideoDetector`` whose heat map was reset first;
   the kernels are loaded and two frames processed before the first repeat (warm-up). The
   table gives, per stage, the best and the median over the ``R`` repeats of the mean ms
@@ -66,8 +67,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--repeat", type=_positive_int, default=3, metavar="R",
                         help="timed repeats of the N frames; the table shows the best and the median (default 3)")
     parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
-    parser.add_argument("--no-wide", action="store_true",
-                        help="main model only (no second, wide-window model)")
+    parser.add_argument("--wide", metavar="WIDE.npz",
+                        help="also run a wide-window model (trained with `train --window-rows`) beside the "
+                             "main one, as Detector(wide=...) (default: none, as `video`)")
 
 
 def load_frames(path: str | os.PathLike, n: int) -> tuple[list, str, float | None]:
@@ -112,7 +114,7 @@ def _detector(args: argparse.Namespace) -> Any:
     from .detector import Detector
 
     try:
-        return Detector(model=args.model, wide=None) if args.no_wide else Detector(model=args.model)
+        return Detector(model=args.model, wide=args.wide)
     except FastdetError:
         raise
     except (OSError, ValueError) as exc:
@@ -194,7 +196,7 @@ def run(args: argparse.Namespace) -> int:
 
         h, w = frames[0].shape[:2]
         n_bands = sum(len(sc.search.bands) for sc in getattr(det, "scorers", []))
-        models = "main model only" if det.wide_model is None else "main + wide model"
+        models = "main model" if det.wide_model is None else "main + wide model"
         try:
             layer = numba.threading_layer()
         except ValueError:

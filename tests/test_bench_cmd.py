@@ -66,3 +66,9 @@ def test_bench_bad_frames_is_a_usage_error(capsys):
 def test_load_frames_video_is_shorter_than_asked(data):
     frames, kind, decode_ms = bench.load_frames(Path(data) / "videos" / "test_small1.mp4", 1000)
     assert kind == "video" and 80 <= len(frames) <= 91 and decode_ms > 0
+
+
+def test_bench_missing_wide_model(test_images, capsys):
+    rc = cli.main(["bench", str(test_images[0]), "--frames", "1", "--wide", "/nonexistent/wide.npz"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "wide.npz" in err[0]

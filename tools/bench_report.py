@@ -1,6 +1,6 @@
 """Print the detector, video and start-up benchmarks as markdown tables (the README figures).
 
-    python tools/bench_report.py [--quick] [--only detector|video|start-up ...]
+    python tools/bench_report.py [--quick] [--only detector|wait-policy|video|start-up ...] [--wide W.npz]
 
 All figures are measured in this one run (setups as in ``benchmarks/bench_detector.py`` and
 ``benchmarks/bench_video.py``):
@@ -9,10 +9,11 @@ All figures are measured in this one run (setups as in ``benchmarks/bench_detect
     (``benchmarks.classic.ClassicDetector``, test1.jpg) and of fastdet's ``Detector.detect``
     (cycling through test_images/*.jpg) at 1 and 2 Numba threads, with the main model only
     (the same model and bands as the classic one) and as ``Detector()`` builds it by default
-    (plus the wide model when one is bundled); speed-up = classic best / fastdet best.
+    (today the same: no wide model ships), and with ``--wide W.npz`` also with that
+    wide-window model beside the main one; speed-up = classic best / fastdet best.
     The fastdet configurations are timed in interleaved rounds, so a burst of load from
     another program hits all of them alike.
-(a') wait policy: ``python -m fastdet bench --no-wide`` at 2 threads in fresh processes with
+(a') wait policy: ``python -m fastdet bench`` at 2 threads in fresh processes with
     ``OMP_WAIT_POLICY=PASSIVE`` (fastdet's default for ``video`` and ``bench``) and ``ACTIVE``
     (spinning idle OpenMP workers: faster on an idle machine, far slower on a busy one).
 (b) video: fps of ``python -m fastdet video`` (its summary line) per clip, 1 and 2 threads,
@@ -64,6 +65,8 @@ def this_command(args: argparse.Namespace, section: str) -> str:
     cmd = ["python", "tools/bench_report.py", "--only", section]
     if args.quick:
         cmd.append("--quick")
+    if args.wide and section == "detector":
+        cmd += ["--wide", str(args.wide)]
     return shlex.join(cmd)
 
 
@@ -79,7 +82,8 @@ def detector_section(args: argparse.Namespace, thread_counts: list[int]) -> None
     calls, rounds = (30, 3) if args.quick else (120, 6)
     classic_rounds = 1 if args.quick else 2
 
-    dets = {kind: make_fastdet(kind) for kind in ("main", "default")}
+    kinds = ("main", "default", "wide") if args.wide else ("main", "default")
+    dets = {kind: make_fastdet(kind, args.wide) for kind in kinds}
     configs = [(kind, n) for kind in dets for n in thread_counts]
     times = {c: [] for c in configs}
     stages = {c: {} for c in configs}
@@ -126,7 +130,8 @@ def detector_section(args: argparse.Namespace, thread_counts: list[int]) -> None
         st = {k: 1e3 * statistics.median(v) for k, v in stages[(kind, n)].items()}
         if n == max(thread_counts):
             best2[kind] = best
-        name = "fastdet `Detector(wide=None)`" if kind == "main" else "fastdet `Detector()` (default)"
+        name = {"main": "fastdet `Detector(wide=None)`", "default": "fastdet `Detector()` (default)",
+                "wide": f"fastdet `Detector(wide={os.path.basename(str(args.wide))!r})`"}[kind]
         print(f"| {name} | {models_label(dets[kind])} | {n} | {best:.2f} | {med:.2f}{_flag(best, med)} "
               f"| {st.get('resize_colour', 0):.2f} | {st.get('hog', 0):.2f} | {st.get('score', 0):.2f} "
               f"| {c_best / best:,.0f}x |")
@@ -136,7 +141,10 @@ def detector_section(args: argparse.Namespace, thread_counts: list[int]) -> None
           f"{CLASSIC_FRAME}. Same positive windows from classic and fastdet (main): "
           f"{'yes' if agree else 'NO'}.")
     if dets["default"].wide_model is None:
-        print("No wide model is bundled (fastdet/models/wide.npz), so `Detector()` = `Detector(wide=None)`.")
+        print("`Detector()` runs no wide-window model by default (none ships), so it is `Detector(wide=None)`.")
+    if args.wide:
+        n_wide = sum(len(sc.search.bands) for sc in dets["wide"].scorers[1:])
+        print(f"Wide model {args.wide}: {n_wide} more bands (`fastdet.config.WIDE_SEARCH`).")
     nt = max(thread_counts)
     b = best2["default"]
     print(f"Goal (>= 100x classic, < 10 ms per frame at 2 threads): default detector {b:.2f} ms at "
@@ -152,7 +160,7 @@ _TOTAL = re.compile(r"^total\s+([\d.]+)\s+([\d.]+)", re.M)
 def wait_policy_section(args: argparse.Namespace, thread_counts: list[int]) -> None:
     nt = max(thread_counts)
     repeat = 1 if args.quick else 3
-    bench_args = ["--no-wide", "--threads", str(nt), "--frames", "30", "--repeat", "5"]
+    bench_args = ["--threads", str(nt), "--frames", "30", "--repeat", "5"]
     repo = Path(__file__).resolve().parent.parent
     res: dict[str, list[tuple[float, float]]] = {}
     for _ in range(repeat):
@@ -247,7 +255,11 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="fewer repeats (a rough picture in about a minute)")
     ap.add_argument("--only", nargs="+", choices=SECTIONS, default=list(SECTIONS), metavar="SECTION",
                     help=f"tables to print: {', '.join(SECTIONS)} (default: all)")
+    ap.add_argument("--wide", metavar="WIDE.npz",
+                    help="detector table: also time Detector(wide=WIDE.npz), a wide-window model beside the main one")
     args = ap.parse_args(argv)
+    if args.wide and not os.path.exists(args.wide):
+        ap.error(f"--wide {args.wide}: file not found")
 
     thread_counts = [n for n in (1, 2) if n <= numba.config.NUMBA_NUM_THREADS]
     load0 = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
