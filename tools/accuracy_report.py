@@ -71,7 +71,7 @@ def main() -> None:
                  c_classic, classic.score_kind, CLASSIC_HEAT, None))
     rows.append(("fastdet model (16 orientations, flips, logistic regression C=0.03), classic heat map",
                  c_fast, fast.score_kind, CLASSIC_HEAT, None))
-    rows.append(("+ confidence-weighted heat (1..4 per window), decay 0.8, threshold 6, whole blob",
+    rows.append((f"+ confidence-weighted heat (1..4 per window), decay {d.decay:g}, threshold {d.threshold:g}, whole blob",
                  c_fast, fast.score_kind, replace(d, extent=0.0), None))
     rows.append(("**fastdet defaults** (+ box = blob cells >= 0.4 x peak)", c_fast, fast.score_kind, d, None))
     rows.append(("defaults, but windows at a 1-cell step", c_one, one_cell.score_kind, d, None))
