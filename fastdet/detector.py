@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ._hog import hog_channels
-from ._score_kernels import dense_scores, hist_weight_integral
+from ._score_kernels import dense_scores, dense_scores_serial, hist_weight_integral
 from .config import SearchConfig
 from .detections import Detections
 from .features import convert_color, hist_bin_shift, spatial_factor, spatial_map
@@ -56,7 +56,8 @@ class _Scorer:
     def geometries(self, frame_shape: tuple[int, int]) -> list[BandGeometry]:
         return [band_geometry(b, frame_shape, self.config, self.search.cells_per_step) for b in self.search.bands]
 
-    def band_scores(self, frame: np.ndarray, geo: BandGeometry, timings: dict[str, float] | None) -> np.ndarray:
+    def band_scores(self, frame: np.ndarray, geo: BandGeometry, timings: dict[str, float] | None,
+                    serial: bool = False) -> np.ndarray:
         cfg = self.config
         t0 = time.perf_counter()
         img = convert_color(scaled_band(frame, geo), cfg.color_space)
@@ -78,8 +79,9 @@ class _Scorer:
                 hist_weight_integral(img, self.w_hist, hist_bin_shift(cfg), integ)
             else:
                 integ = np.zeros((1, 1))
-            dense_scores(rows, self.w_hog, cfg.blocks_x, self.k, sp, self.w_sp, f, integ,
-                         cfg.win_h, cfg.win_w, cfg.pixels_per_cell, geo.step, self.bias, out)
+            kernel = dense_scores_serial if serial else dense_scores
+            kernel(rows, self.w_hog, cfg.blocks_x, self.k, sp, self.w_sp, f, integ,
+                   cfg.win_h, cfg.win_w, cfg.pixels_per_cell, geo.step, self.bias, out)
         t3 = time.perf_counter()
         if timings is not None:
             timings["resize_colour"] = timings.get("resize_colour", 0.0) + (t1 - t0)
@@ -117,6 +119,7 @@ class Detector:
             self.wide_model = wide if isinstance(wide, Model) else load_model(wide)
             self.scorers.append(_Scorer(self.wide_model, wide_search if wide_search is not None else WIDE_SEARCH))
         self.score_kind = self.model.score_kind
+        self._pool = None
         self.timings: dict[str, float] = {}
         self.last_scales = np.zeros(0, np.float32)
         self.last_band_scores: list[tuple[BandGeometry, np.ndarray]] = []
@@ -137,6 +140,52 @@ class Detector:
         """Decision values of every window position of one band: ``(geo.ny, geo.nx) float64``
         (``part`` 0: the main model, 1: the wide model)."""
         return self.scorers[part].band_scores(frame, geo, timings)
+
+    def _all_band_scores(self, frame: np.ndarray, geos: list, timings: dict[str, float]) -> list[np.ndarray]:
+        """Scores of every band. With more than one Numba thread, the bands are shared
+        between that many Python threads, each running the kernels single-threaded (all of
+        them release the GIL): a frame is a dozen small bands, and one band per core costs
+        far less than waking a team of OpenMP workers for every kernel. ``timings`` then
+        adds up the work of all threads (it can exceed the wall time)."""
+        import numba
+
+        n_threads = numba.get_num_threads()
+        if n_threads < 2 or len(geos) < 2:
+            return [self.scorers[p].band_scores(frame, g, timings) for p, g in geos]
+        if self._pool is None or self._pool_size != n_threads:
+            from concurrent.futures import ThreadPoolExecutor
+
+            if self._pool is not None:
+                self._pool.shutdown(wait=False)
+            self._pool = ThreadPoolExecutor(max_workers=n_threads, thread_name_prefix="fastdet-band")
+            self._pool_size = n_threads
+
+        def job(pg):
+            numba.set_num_threads(1)  # thread-local: this worker runs the serial kernels
+            t: dict[str, float] = {}
+            return self.scorers[pg[0]].band_scores(frame, pg[1], t, serial=True), t
+
+        # biggest bands first, so the last band to finish is a small one
+        order = sorted(range(len(geos)), key=lambda i: -geos[i][1].scaled_w * geos[i][1].scaled_h)
+        futures = {i: self._pool.submit(job, geos[i]) for i in order}
+        out = []
+        for i in range(len(geos)):
+            dec, t = futures[i].result()
+            for k, v in t.items():
+                timings[k] = timings.get(k, 0.0) + v
+            out.append(dec)
+        return out
+
+    def close(self) -> None:
+        """Stop the band threads (also done when the Detector is garbage-collected)."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+            self._pool = None
+
+    def __del__(self) -> None:
+        pool = getattr(self, "_pool", None)
+        if pool is not None:
+            pool.shutdown(wait=False)
 
     def geometries(self, frame_shape: tuple[int, int], part: int = 0) -> list[BandGeometry]:
         """Geometry of every search band of model ``part`` on a frame of ``(H, W)``."""
@@ -162,9 +211,8 @@ class Detector:
         boxes, scores, scales = [], [], []
         self.last_band_scores, self.last_band_parts = [], []
         geos = [(p, g) for p, sc in enumerate(self.scorers) for g in sc.geometries(frame.shape[:2])]
-        for part, geo in geos:
+        for (part, geo), dec in zip(geos, self._all_band_scores(frame, geos, timings)):
             sc = self.scorers[part]
-            dec = sc.band_scores(frame, geo, timings)
             self.last_band_scores.append((geo, dec))
             self.last_band_parts.append(part)
             r, c = np.nonzero(dec > sc.search.threshold)

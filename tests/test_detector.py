@@ -90,3 +90,25 @@ def test_boxes_land_on_the_cars(frames, data):
 def test_bad_frames(frame, msg):
     with pytest.raises(ValueError, match=msg):
         Detector().detect(frame)
+
+
+def test_band_threads_give_the_same_windows(frames):
+    """With 2 Numba threads the bands run in 2 Python threads on the serial kernels; the
+    positive windows must be those of the single-threaded run."""
+    import numba
+
+    det = Detector()
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = det.detect(frames[3])
+        one_bands = [d.copy() for _, d in det.last_band_scores]
+        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+        two = det.detect(frames[3])
+    finally:
+        numba.set_num_threads(before)
+    np.testing.assert_array_equal(one.boxes, two.boxes)
+    np.testing.assert_allclose(one.scores, two.scores, rtol=0, atol=1e-6)
+    for a, (_, b) in zip(one_bands, det.last_band_scores):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-9)
+    det.close()
