@@ -83,6 +83,7 @@ def main() -> None:
     ap.add_argument("--extent", default="0.4")
     ap.add_argument("--w-max", default="4")
     ap.add_argument("--step", type=int, default=None)
+    ap.add_argument("--bands", default=None, help="scale:y0:y1,... instead of the default bands")
     ap.add_argument("--separate", action="store_true", help="wide windows in their own heat map")
     ap.add_argument("--wide-heat-thr", default="4")
     ap.add_argument("--wide-n", default="4")
@@ -95,6 +96,11 @@ def main() -> None:
     args = ap.parse_args()
     fl = lambda s: [float(v) for v in s.split(",")]
     search = SearchConfig() if args.step is None else replace(SearchConfig(), cells_per_step=args.step)
+    if args.bands:
+        from fastdet.config import SearchBand
+
+        bands = [b.split(":") for b in args.bands.split(",")]
+        search = replace(search, bands=tuple(SearchBand(float(a), int(b), int(c)) for a, b, c in bands))
     det = Detector(args.model, search, wide=None if args.no_wide else args.wide)
     kind = det.score_kind
     clips = sorted((data_dir() / "annotations").glob("*.gt.txt"))
