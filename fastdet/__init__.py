@@ -3,6 +3,7 @@
 Public API (imported lazily, so ``import fastdet`` is cheap)::
 
     from fastdet import hog, hog_channels            # skimage-compatible HOG, per-channel HOG
+    from fastdet import hog_channels_batch           # per-channel HOG of a stack of crops
     from fastdet import Detector, VideoDetector      # one frame / a stream of frames
     from fastdet import load_model, Model            # the bundled or a trained model
     from fastdet import FeatureConfig, SearchConfig, SearchBand, HeatConfig, Detections
@@ -26,6 +27,7 @@ from .errors import DataError, FastdetError, ModelError
 _LAZY = {
     "hog": "fastdet._hog",
     "hog_channels": "fastdet._hog",
+    "hog_channels_batch": "fastdet._hog",
     "Detector": "fastdet.detector",
     "VideoDetector": "fastdet.video",
     "HeatMap": "fastdet.heatmap",

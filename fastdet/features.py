@@ -73,6 +73,9 @@ def hist_bin_shift(config: FeatureConfig) -> int:
     return int(np.log2(256 // config.hist_bins))
 
 
+_CHUNK = 64  # crops per HOG call in extract_features (a few MB of block maps)
+
+
 def extract_features(crops: np.ndarray, config: FeatureConfig | None = None) -> np.ndarray:
     """Feature vectors of a stack of crops.
 
@@ -98,10 +101,12 @@ def extract_features(crops: np.ndarray, config: FeatureConfig | None = None) -> 
     # colour conversion of the whole stack at once: (N*wh, ww, 3) is one image to OpenCV
     conv = convert_color(np.ascontiguousarray(crops).reshape(n * wh, ww, 3), config.color_space)
     conv = conv.reshape(n, wh, ww, 3)
-    # 1. HOG: (N, br, bc, nch, cpb, cpb, o) → channel-major feature order
-    hog = hog_channels_batch(conv, config.orientations, config.pixels_per_cell,
-                             config.cells_per_block, channels=list(config.hog_channels))
-    out[:, : config.n_hog] = np.moveaxis(hog, 3, 1).reshape(n, -1)
+    # 1. HOG: (n, br, bc, nch, cpb, cpb, o) → channel-major feature order, in chunks small
+    #    enough that the kernel's output is still in cache when it is reordered into `out`
+    for s in range(0, n, _CHUNK):
+        hog = hog_channels_batch(conv[s: s + _CHUNK], config.orientations, config.pixels_per_cell,
+                                 config.cells_per_block, channels=list(config.hog_channels))
+        out[s: s + _CHUNK, : config.n_hog] = np.moveaxis(hog, 3, 1).reshape(len(hog), -1)
     pos = config.n_hog
     # 2. spatial bins (tiles never straddle two crops: wh is a multiple of the factor)
     if config.spatial_size:
