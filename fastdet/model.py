@@ -146,6 +146,11 @@ def load_model(path: str | os.PathLike | None = None, expected_config: FeatureCo
         raise ModelError(f"model file {path} not found")
     if path.is_dir():
         raise ModelError(f"model path {path} is a folder, not an .npz file")
+    with open(path, "rb") as fh:
+        magic = fh.read(4)
+    if magic != b"PK\x03\x04":
+        raise ModelError(f"{path} is not a fastdet model: not an .npz (zip) archive"
+                         + (" (empty file)" if not magic else ""))
     try:
         with np.load(path, allow_pickle=False) as npz:
             if not isinstance(npz, np.lib.npyio.NpzFile):
@@ -156,7 +161,12 @@ def load_model(path: str | os.PathLike | None = None, expected_config: FeatureCo
             arrays = {k: npz[k] for k in _ARRAYS}
     except ModelError:
         raise
-    except (zipfile.BadZipFile, EOFError, OSError, ValueError, KeyError) as exc:
+    except ValueError as exc:
+        if "pickle" in str(exc):
+            raise ModelError(f"{path} holds a pickled object array; fastdet models hold plain numeric "
+                             "arrays only and are never unpickled") from None
+        raise ModelError(f"{path} is not a readable .npz model file (truncated or another format): {exc}") from None
+    except (zipfile.BadZipFile, EOFError, OSError, KeyError) as exc:
         raise ModelError(f"{path} is not a readable .npz model file (truncated or another format): {exc}") from None
     try:
         meta = json.loads(arrays["metadata"].astype(np.uint8).tobytes().decode("utf-8"))

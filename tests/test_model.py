@@ -53,6 +53,13 @@ def test_decision_function_matches_sklearn_and_folding():
     assert p.shape == (5, 2) and np.allclose(p.sum(1), 1)
 
 
+def test_empty_file(tmp_path):
+    p = tmp_path / "m.npz"
+    p.write_bytes(b"")
+    with pytest.raises(ModelError, match="empty file"):
+        load_model(p)
+
+
 def test_missing_file(tmp_path):
     with pytest.raises(ModelError, match="not found"):
         load_model(tmp_path / "nope.npz")
@@ -61,7 +68,7 @@ def test_missing_file(tmp_path):
 def test_not_npz(tmp_path):
     p = tmp_path / "m.npz"
     p.write_text("hello")
-    with pytest.raises(ModelError, match="not a readable .npz"):
+    with pytest.raises(ModelError, match="not an .npz"):
         load_model(p)
 
 
@@ -114,7 +121,7 @@ def test_bad_feature_config(tmp_path):
 
 def test_pickled_object_array_is_refused(tmp_path):
     p = _rewrite(tmp_path, metadata=np.array([{"evil": 1}], dtype=object))
-    with pytest.raises(ModelError):
+    with pytest.raises(ModelError, match="pickled object array"):
         load_model(p)
 
 
