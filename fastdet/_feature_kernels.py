@@ -20,3 +20,48 @@ def color_hist_batch(images, shift, nbins, out):
             for x in range(w):
                 for ch in range(c):
                     out[i, ch * nbins + (images[i, y, x, ch] >> shift)] += 1.0
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def hog_to_features(hog, out):
+    """Copy per-crop block maps into feature rows, channel-major.
+
+    hog: (N, br, bc, nch, blk) float64, blk = cells_per_block**2 * orientations;
+    out: (N, >= nch*br*bc*blk) float64: out[i, ((c*br + r)*bc + q)*blk + t] = hog[i, r, q, c, t].
+    """
+    n, br, bc, nch, blk = hog.shape
+    for i in prange(n):
+        for c in range(nch):
+            for r in range(br):
+                for q in range(bc):
+                    base = ((c * br + r) * bc + q) * blk
+                    for t in range(blk):
+                        out[i, base + t] = hog[i, r, q, c, t]
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def spatial_batch(images, factor, out, col0):
+    """Spatial bins of a stack of crops into ``out[:, col0:]`` (row, column, channel order):
+    the rounded mean of the 2x2 pixels at offsets ``factor/2 - 1`` and ``factor/2`` of every
+    ``factor`` x ``factor`` tile (:func:`fastdet.features.spatial_map`), or the pixel itself
+    for factor 1.
+
+    images: (N, H, W, C) uint8; out: (N, F) float64.
+    """
+    n, h, w, c = images.shape
+    sh, sw = h // factor, w // factor
+    o = factor // 2 - 1
+    for i in prange(n):
+        k = col0
+        for y in range(sh):
+            for x in range(sw):
+                for ch in range(c):
+                    if factor == 1:
+                        out[i, k] = images[i, y, x, ch]
+                    else:
+                        y0 = y * factor + o
+                        x0 = x * factor + o
+                        s = (np.int32(images[i, y0, x0, ch]) + np.int32(images[i, y0 + 1, x0, ch])
+                             + np.int32(images[i, y0, x0 + 1, ch]) + np.int32(images[i, y0 + 1, x0 + 1, ch]))
+                        out[i, k] = (s + 2) >> 2
+                    k += 1

@@ -83,7 +83,7 @@ def extract_features(crops: np.ndarray, config: FeatureConfig | None = None) -> 
     Returns ``(N, config.n_features) float64`` (``(n_features,)`` for a single crop), in the
     order documented in this module. HOG and histograms run in parallel numba kernels.
     """
-    from ._feature_kernels import color_hist_batch
+    from ._feature_kernels import color_hist_batch, hog_to_features, spatial_batch
     from ._hog import hog_channels_batch
 
     config = config or FeatureConfig()
@@ -106,12 +106,11 @@ def extract_features(crops: np.ndarray, config: FeatureConfig | None = None) -> 
     for s in range(0, n, _CHUNK):
         hog = hog_channels_batch(conv[s: s + _CHUNK], config.orientations, config.pixels_per_cell,
                                  config.cells_per_block, channels=list(config.hog_channels))
-        out[s: s + _CHUNK, : config.n_hog] = np.moveaxis(hog, 3, 1).reshape(len(hog), -1)
+        hog_to_features(hog.reshape(hog.shape[:4] + (-1,)), out[s: s + _CHUNK])
     pos = config.n_hog
-    # 2. spatial bins (tiles never straddle two crops: wh is a multiple of the factor)
+    # 2. spatial bins (the same pixels as spatial_map / cv2.resize; tested)
     if config.spatial_size:
-        sp = spatial_map(conv.reshape(n * wh, ww, 3), spatial_factor(config))
-        out[:, pos: pos + config.n_spatial] = sp.reshape(n, -1)
+        spatial_batch(conv, spatial_factor(config), out, pos)
         pos += config.n_spatial
     # 3. colour histograms
     if config.hist_bins:
