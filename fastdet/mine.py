@@ -68,6 +68,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.x_range is None and args.y_range is None and args.gt is None:
         raise FastdetError("say where there are no vehicles: --x-range/--y-range and/or --gt")
+    if args.part == "wide" and args.wide_model is None:
+        raise FastdetError("--part wide needs --wide-model")
     if not args.video.exists():
         raise DataError(f"{args.video} not found")
     gt = None
@@ -75,8 +77,6 @@ def run(args: argparse.Namespace) -> int:
         from .motio import read_gt
 
         gt = read_gt(args.gt)
-    if args.part == "wide" and args.wide_model is None:
-        raise FastdetError("--part wide needs --wide-model")
     det = Detector(args.model, wide=args.wide_model)
     win_cfg = det.config if args.part == "main" else det.wide_model.config
     args.out.mkdir(parents=True, exist_ok=True)

@@ -38,3 +38,31 @@ def test_sequence_split_is_contiguous_per_folder():
     tr, te = sequence_split(groups, order, seed=1)
     assert sorted(order[te[groups[te] == "a"]]) == [2, 3]
     assert len(set(tr) & set(te)) == 0 and len(tr) + len(te) == 15
+
+
+def test_train_wide_window_model(data, tmp_path, capsys):
+    """--window-rows trains on the middle rows; hard negatives of any size are fitted to the window."""
+    import cv2
+
+    neg = tmp_path / "neg"
+    neg.mkdir()
+    rng = np.random.default_rng(0)
+    for i in range(4):  # one of the window's own size, others 64x64 (rows are cut) and odd (resized)
+        shape = [(24, 64, 3), (64, 64, 3), (30, 50, 3), (24, 64, 3)][i]
+        cv2.imwrite(str(neg / f"n{i}.png"), rng.integers(0, 256, shape, dtype=np.uint8))
+    out = tmp_path / "wide.npz"
+    assert main(["train", "--data", str(data), "--out", str(out), "--window-rows", "20", "44",
+                 "--max-per-folder", "30", "--split", "sequence", "--no-progress", "--orientations", "9",
+                 "--negatives", str(neg)]) == 2  # mixed sizes: refused
+    assert "different sizes" in capsys.readouterr().err
+    for f in neg.glob("*.png"):
+        if cv2.imread(str(f)).shape[:2] != (24, 64):
+            f.unlink()
+    assert main(["train", "--data", str(data), "--out", str(out), "--window-rows", "20", "44",
+                 "--max-per-folder", "30", "--split", "sequence", "--no-progress", "--orientations", "9",
+                 "--negatives", str(neg)]) == 0
+    m = load_model(out)
+    assert (m.config.win_h, m.config.win_w) == (24, 64)
+    rep = m.metadata["training"]
+    assert rep["window_top"] == 20 and rep["data"]["hard_negatives"] == 2
+    assert main(["train", "--data", str(data), "--out", str(out), "--window-rows", "40", "30"]) == 2
