@@ -202,7 +202,7 @@ def _wide_bands() -> tuple[SearchBand, ...]:
 
 #: default search of the wide-window model: small scales near the horizon, where cars
 #: half hidden behind the median barrier are seen
-WIDE_SEARCH = SearchConfig(bands=_wide_bands(), cells_per_step=1, threshold=4.0)
+WIDE_SEARCH = SearchConfig(bands=_wide_bands(), cells_per_step=1, threshold=3.0)
 
 
 @dataclass(frozen=True)
@@ -318,6 +318,6 @@ class HeatConfig:
         return cls(**d)
 
 
-#: heat map of a wide-window model's windows (VideoDetector): one frame of memory (the cars
+#: heat map of a wide-window model's windows (VideoDetector): two frames of memory (the cars
 #: it is for pass quickly), a box placed where its windows agree, wider than tall
-WIDE_HEAT = HeatConfig(n_frames=1, threshold=4.0, extent=0.5, box_mode="mean", min_height=10, max_aspect=0.8)
+WIDE_HEAT = HeatConfig(n_frames=2, threshold=4.0, extent=0.5, box_mode="mean", min_height=10, max_aspect=0.8)

@@ -31,6 +31,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--wide-model", type=Path, default=None, help="wide-window model file (for --part wide)")
     p.add_argument("--part", choices=("main", "wide"), default="main",
                    help="mine the windows of the main (square) model or of the wide-window model")
+    p.add_argument("--threshold", type=float, default=None,
+                   help="decision value a window needs to count as positive (default: the search's own); "
+                        "lower it to mine near misses too")
     p.add_argument("--start", type=int, default=0, help="first frame (0-based)")
     p.add_argument("--frames", type=int, default=None, help="number of frames to mine")
     p.add_argument("--every", type=int, default=1, help="mine every k-th frame")
@@ -78,6 +81,11 @@ def run(args: argparse.Namespace) -> int:
 
         gt = read_gt(args.gt)
     det = Detector(args.model, wide=args.wide_model)
+    if args.threshold is not None:
+        from dataclasses import replace
+
+        for sc in det.scorers:
+            sc.search = replace(sc.search, threshold=args.threshold)
     win_cfg = det.config if args.part == "main" else det.wide_model.config
     args.out.mkdir(parents=True, exist_ok=True)
     prefix = args.prefix or args.video.stem

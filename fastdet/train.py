@@ -33,6 +33,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed (split, classifier)")
     p.add_argument("--negatives", type=Path, action="append", default=[],
                    help="folder of extra non-vehicle crops (hard negatives), any depth; repeatable")
+    p.add_argument("--positives", type=Path, action="append", default=[],
+                   help="folder of extra vehicle crops, any depth; repeatable (joins the training parts only)")
     p.add_argument("--no-flip", action="store_true", help="do not add mirrored copies of the training crops")
     p.add_argument("--color-space", choices=COLOR_SPACES, default=None)
     p.add_argument("--orientations", type=int, default=None)
@@ -183,7 +185,7 @@ def fit_to_window(crops, config: FeatureConfig, top: int):
 def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: float | None = None,
           split: str = "both", seed: int = 0, negatives: list[Path] | None = None, flip: bool = True,
           max_per_folder: int | None = None, refit: bool = True, progress: bool = True,
-          window_top: int | None = None, log=print):
+          window_top: int | None = None, positives: list[Path] | None = None, log=print):
     """Train and evaluate; returns ``(model or None, report dict)``.
 
     For a wide-window ``config`` (``window_height`` set), ``window_top`` is the first row of
@@ -199,29 +201,38 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
     top = (crops.images.shape[1] - config.win_h) // 2 if window_top is None else window_top
     if config.win_h != crops.images.shape[1]:
         crops = row_bands(crops, top, config.win_h)
-    negs = None
-    for nd in negatives or []:
-        part = fit_to_window(load_folder(nd, 0, None, size=None, progress=progress), config, top)
-        negs = part if negs is None else CropSet.concat(negs, part)
+    extra = None  # extra crops: hard negatives (label 0) and extra positives (label 1)
+    for folder, label in [(nd, 0) for nd in negatives or []] + [(pd, 1) for pd in positives or []]:
+        part = fit_to_window(load_folder(folder, label, None, size=None, progress=progress), config, top)
+        extra = part if extra is None else CropSet.concat(extra, part)
     n_pos, n_neg = int(crops.labels.sum()), int((crops.labels == 0).sum())
+    n_hard = 0 if extra is None else int((extra.labels == 0).sum())
+    n_extra = 0 if extra is None else int((extra.labels == 1).sum())
     log(f"data: {n_pos} vehicles, {n_neg} non-vehicles"
-        + (f", {len(negs)} hard negatives" if negs is not None else "") + f" ({time.perf_counter() - t0:.1f} s)")
+        + (f", {n_hard} hard negatives" if n_hard else "") + (f", {n_extra} extra positives" if n_extra else "")
+        + f" ({time.perf_counter() - t0:.1f} s)")
     x = features_in_chunks(crops.images, config, progress)
     x_flip = features_in_chunks(_flip(crops.images), config, progress, "flipped") if flip else None
-    x_neg = features_in_chunks(negs.images, config, progress, "negatives") if negs is not None else None
+    x_extra = features_in_chunks(extra.images, config, progress, "extra crops") if extra is not None else None
+    # extra positives are mirrored like the data set's crops; hard negatives are kept as mined
+    x_extra_flip = None
+    if extra is not None and flip and n_extra:
+        x_extra_flip = features_in_chunks(_flip(extra.images[extra.labels == 1]), config, progress, "flipped")
     log(f"features: {config.n_features} per crop ({time.perf_counter() - t0:.1f} s)")
 
     def training_part(idx):
         xs, ys = [x[idx]], [crops.labels[idx]]
         if x_flip is not None:
             xs.append(x_flip[idx]); ys.append(crops.labels[idx])
-        if x_neg is not None:
-            xs.append(x_neg); ys.append(np.zeros(len(x_neg), np.int64))
+        if x_extra is not None:
+            xs.append(x_extra); ys.append(extra.labels)
+            if flip and x_extra_flip is not None:
+                xs.append(x_extra_flip); ys.append(extra.labels[extra.labels == 1])
         return np.concatenate(xs), np.concatenate(ys)
 
     report: dict[str, Any] = {"C": C, "classifier": classifier, "seed": seed, "flip": flip, "window_top": top,
                               "data": {"vehicles": n_pos, "non_vehicles": n_neg,
-                                       "hard_negatives": 0 if negs is None else len(negs)}}
+                                       "hard_negatives": n_hard, "extra_positives": n_extra}}
     splits = {"random": lambda: random_split(crops.labels, seed),
               "sequence": lambda: sequence_split(crops.groups, crops.order, seed)}
     for name in (("random", "sequence") if split == "both" else (split,)):
@@ -257,7 +268,8 @@ def run(args: argparse.Namespace) -> int:
     progress = not args.no_progress and sys.stderr.isatty()
     model, report = train(data, config, args.classifier, args.C, args.split, args.seed, args.negatives,
                           not args.no_flip, args.max_per_folder, not args.no_refit, progress,
-                          window_top=args.window_rows[0] if args.window_rows else None)
+                          window_top=args.window_rows[0] if args.window_rows else None,
+                          positives=args.positives)
     if model is not None:
         model.metadata["training"]["command"] = "python -m fastdet train " + " ".join(sys.argv[2:])
         model.save(out)

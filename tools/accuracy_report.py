@@ -81,7 +81,9 @@ def main() -> None:
         wide = Detector(wide=args.wide_model)
         rows.append(("defaults + wide-window model (own heat map), see README", caches(wide), wide.score_kind, d,
                      WIDE_HEAT))
-    wide_thr = 4.0
+    from fastdet.config import WIDE_SEARCH
+
+    wide_thr = WIDE_SEARCH.threshold
     head = " | ".join(f"{n} P / R / F1 / AP / FP per frame" for n in names)
     print(f"| setting | {head} | held-out frames ({', '.join(f'{n} >= {held[n]}' for n in names)}) F1 |")
     print("|---|" + "---|" * len(names) + "---|")
