@@ -29,7 +29,6 @@ from pathlib import Path
 
 import pytest
 
-from fastdet.data import data_dir
 
 REPO = Path(__file__).resolve().parent.parent
 CLIPS = ("test_video.mp4", "test_small1.mp4")

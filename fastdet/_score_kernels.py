@@ -7,7 +7,6 @@ map (four look-ups in an integral image). The innermost loops run over contiguou
 """
 from __future__ import annotations
 
-import numpy as np
 from numba import njit, prange
 
 

@@ -3,8 +3,8 @@
 A band (:class:`~fastdet.config.SearchBand`) is the frame region ``[y_start, y_stop) x
 [x_start, x_stop)``, resized by ``1/scale`` with ``cv2.resize(.., INTER_LINEAR)`` to
 ``(int(w / scale), int(h / scale))``; a 64-px window in the scaled band is a
-``64 * scale``-px box in the frame (``win_w * scale`` by ``win_h * scale`` in general). Windows sit on the HOG cell grid of the scaled band,
-``cells_per_step`` cells apart.
+``64 * scale``-px box in the frame (``win_w * scale`` by ``win_h * scale`` in general).
+Windows sit on the HOG cell grid of the scaled band, ``cells_per_step`` cells apart.
 """
 from __future__ import annotations
 

@@ -221,13 +221,14 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
     log(f"features: {config.n_features} per crop ({time.perf_counter() - t0:.1f} s)")
 
     def training_part(idx):
-        xs, ys = [x[idx]], [crops.labels[idx]]
+        parts = [(x[idx], crops.labels[idx])]
         if x_flip is not None:
-            xs.append(x_flip[idx]); ys.append(crops.labels[idx])
+            parts.append((x_flip[idx], crops.labels[idx]))
         if x_extra is not None:
-            xs.append(x_extra); ys.append(extra.labels)
-            if flip and x_extra_flip is not None:
-                xs.append(x_extra_flip); ys.append(extra.labels[extra.labels == 1])
+            parts.append((x_extra, extra.labels))
+            if x_extra_flip is not None:
+                parts.append((x_extra_flip, extra.labels[extra.labels == 1]))
+        xs, ys = zip(*parts)
         return np.concatenate(xs), np.concatenate(ys)
 
     report: dict[str, Any] = {"C": C, "classifier": classifier, "seed": seed, "flip": flip, "window_top": top,

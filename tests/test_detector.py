@@ -8,7 +8,7 @@ import pytest
 from benchmarks.classic import classic_band_scores, sklearn_pair
 from fastdet.config import FeatureConfig, SearchBand, SearchConfig
 from fastdet.detector import Detector
-from fastdet.model import Model, load_model
+from fastdet.model import Model
 
 
 @pytest.fixture(scope="module")
