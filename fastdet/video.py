@@ -561,9 +561,16 @@ _STAGES = (
 
 
 def _profile_table(totals: dict[str, float], n: int, wall: float, main_busy: float) -> str:
+    import numba
+
+    # with 2+ Numba threads the Detector runs its bands in that many threads: its stage
+    # times add up their work, which can exceed the main thread's busy time
+    band = numba.get_num_threads() > 1
     lines = [f"{'stage':<16}{'ms/frame':>10}  thread"]
     for label, key, thread in _STAGES:
         if key in totals:
+            if band and key in ("resize_colour", "hog", "score"):
+                thread = f"{numba.get_num_threads()} band threads (work summed)"
             lines.append(f"{label:<16}{1e3 * totals[key] / n:>10.2f}  {thread}")
     lines.append(f"{'main thread busy':<16}{1e3 * main_busy / n:>10.2f}  main (detect + heat + boxes out)")
     lines.append(f"{'wall':<16}{1e3 * wall / n:>10.2f}  ({n / wall:.1f} fps)")
