@@ -79,7 +79,7 @@ def main() -> None:
                  replace(d, box_mode="mean"), None))
     if args.wide_model:
         wide = Detector(wide=args.wide_model)
-        rows.append(("defaults + wide-window model (own heat map), see README", caches(wide), wide.score_kind, d,
+        rows.append(("defaults + wide-window model (own heat map), see below", caches(wide), wide.score_kind, d,
                      WIDE_HEAT))
     from fastdet.config import WIDE_SEARCH
 

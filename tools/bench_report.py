@@ -137,7 +137,8 @@ def detector_section(args: argparse.Namespace, thread_counts: list[int]) -> None
               f"| {c_best / best:,.0f}x |")
     n_frames = len(frames)
     print(f"\nfastdet: {calls} calls per row over {rounds} interleaved rounds, cycling through the "
-          f"{n_frames} test images; stage columns are medians. Classic: {classic_rounds} run(s) on "
+          f"{n_frames} test images; stage columns are medians, and at 2 threads they add up the work of both "
+          f"band threads (so they exceed the wall time). Classic: {classic_rounds} run(s) on "
           f"{CLASSIC_FRAME}. Same positive windows from classic and fastdet (main): "
           f"{'yes' if agree else 'NO'}.")
     if dets["default"].wide_model is None:
