@@ -181,11 +181,30 @@ class SearchConfig:
     bands: the search bands.
     cells_per_step: window stride in HOG cells (of the scaled band).
     threshold: a window is positive when its decision value exceeds this.
+    reference_shape: ``(H, W)`` of the frames the bands are written for. A frame of another
+        size gets the bands rescaled so they cover the same part of the picture: rows and
+        window scales by ``H / reference H``, columns by ``W / reference W``
+        (:meth:`for_frame`). ``None``: the bands are used as given, in pixels.
     """
 
     bands: tuple[SearchBand, ...] = field(default_factory=_default_bands)
     cells_per_step: int = 2
     threshold: float = 0.0
+    reference_shape: tuple[int, int] | None = (720, 1280)
+
+    def for_frame(self, frame_shape: tuple[int, int]) -> "SearchConfig":
+        """This config with its bands rescaled for frames of ``frame_shape = (H, W)``."""
+        if self.reference_shape is None or tuple(frame_shape[:2]) == tuple(self.reference_shape):
+            return self
+        (h, w), (rh, rw) = frame_shape[:2], self.reference_shape
+        fy, fx = h / rh, w / rw
+
+        def col(v: int | None) -> int | None:
+            return None if v is None else min(int(round(v * fx)), w)
+
+        bands = tuple(SearchBand(b.scale * fy, int(round(b.y_start * fy)), min(int(round(b.y_stop * fy)), h),
+                                 col(b.x_start), col(b.x_stop)) for b in self.bands)
+        return SearchConfig(bands, self.cells_per_step, self.threshold, None)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "bands", tuple(self.bands))
@@ -193,6 +212,11 @@ class SearchConfig:
             raise ValueError("a SearchConfig needs at least one band")
         if self.cells_per_step < 1:
             raise ValueError("cells_per_step must be >= 1")
+        if self.reference_shape is not None:
+            rs = tuple(int(v) for v in self.reference_shape)
+            if len(rs) != 2 or min(rs) < 1:
+                raise ValueError(f"reference_shape must be (H, W) or None, got {self.reference_shape!r}")
+            object.__setattr__(self, "reference_shape", rs)
 
 
 def _wide_bands() -> tuple[SearchBand, ...]:

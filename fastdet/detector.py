@@ -55,7 +55,8 @@ class _Scorer:
         self.bias = b
 
     def geometries(self, frame_shape: tuple[int, int]) -> list[BandGeometry]:
-        return [band_geometry(b, frame_shape, self.config, self.search.cells_per_step) for b in self.search.bands]
+        search = self.search.for_frame(frame_shape)
+        return [band_geometry(b, frame_shape, self.config, search.cells_per_step) for b in search.bands]
 
     def band_scores(self, frame: np.ndarray, geo: BandGeometry, timings: dict[str, float] | None,
                     serial: bool = False) -> np.ndarray:

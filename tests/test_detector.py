@@ -85,11 +85,34 @@ def test_boxes_land_on_the_cars(frames, data):
 @pytest.mark.parametrize("frame, msg", [
     (np.zeros((720, 1280, 3), np.float32), "uint8"),
     (np.zeros((720, 1280), np.uint8), r"\(H, W, 3\)"),
-    (np.zeros((300, 400, 3), np.uint8), "does not fit"),
 ])
 def test_bad_frames(frame, msg):
     with pytest.raises(ValueError, match=msg):
         Detector().detect(frame)
+
+
+def test_bands_in_pixels_must_fit_the_frame():
+    search = SearchConfig(reference_shape=None)
+    with pytest.raises(ValueError, match="does not fit"):
+        Detector(search=search).detect(np.zeros((300, 400, 3), np.uint8))
+
+
+def test_other_frame_sizes_get_rescaled_bands(frames):
+    """Bands are written for 1280x720; a 1920x1080 or 640x360 frame searches the same part
+    of the picture at proportional scales, and still finds the two cars of test1.jpg."""
+    cfg = SearchConfig()
+    big = cfg.for_frame((1080, 1920))
+    assert [b.scale for b in big.bands] == [1.5 * b.scale for b in cfg.bands]
+    assert [(b.y_start, b.y_stop) for b in big.bands][0] == (600, 744)
+    assert cfg.for_frame((720, 1280)) is cfg
+    det = Detector()
+    for size in ((1920, 1080), (640, 360)):
+        frame = cv2.resize(frames[0], size, interpolation=cv2.INTER_AREA)
+        d = det.detect(frame)
+        f = size[0] / 1280
+        cx = (d.boxes[:, 0] + d.boxes[:, 2]) / 2 / f
+        for x1, x2 in ((816, 944), (1052, 1270)):
+            assert np.any((cx > x1) & (cx < x2)), (size, x1)
 
 
 def test_band_threads_give_the_same_windows(frames):
