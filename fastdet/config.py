@@ -12,6 +12,14 @@ from typing import Any
 COLOR_SPACES = ("RGB", "HSV", "HLS", "LUV", "YCrCb", "YUV")
 
 
+def _from_dict(cls, d: dict[str, Any]):
+    """``cls(**d)`` for a config dataclass, refusing keys that are not its fields."""
+    unknown = set(d) - {f.name for f in fields(cls)}
+    if unknown:
+        raise ValueError(f"unknown {cls.__name__} fields: {sorted(unknown)}")
+    return cls(**d)
+
+
 @dataclass(frozen=True)
 class FeatureConfig:
     """Features of one 64x64 window.
@@ -136,11 +144,7 @@ class FeatureConfig:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "FeatureConfig":
-        known = {f.name for f in fields(cls)}
-        unknown = set(d) - known
-        if unknown:
-            raise ValueError(f"unknown FeatureConfig fields: {sorted(unknown)}")
-        return cls(**d)
+        return _from_dict(cls, d)
 
 
 @dataclass(frozen=True)
@@ -335,11 +339,7 @@ class HeatConfig:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "HeatConfig":
-        known = {f.name for f in fields(cls)}
-        unknown = set(d) - known
-        if unknown:
-            raise ValueError(f"unknown HeatConfig fields: {sorted(unknown)}")
-        return cls(**d)
+        return _from_dict(cls, d)
 
 
 #: heat map of a wide-window model's windows (VideoDetector): two frames of memory (the cars

@@ -121,7 +121,8 @@ class Detector:
             self.wide_model = wide if isinstance(wide, Model) else load_model(wide)
             self.scorers.append(_Scorer(self.wide_model, wide_search if wide_search is not None else WIDE_SEARCH))
         self.score_kind = self.model.score_kind
-        self._pool = None
+        self._pool = None  # band threads, made on the first multi-threaded detect
+        self._pool_size = 0
         self.timings: dict[str, float] = {}
         self.last_scales = np.zeros(0, np.float32)
         self.last_band_scores: list[tuple[BandGeometry, np.ndarray]] = []
@@ -154,7 +155,7 @@ class Detector:
         n_threads = numba.get_num_threads()
         if n_threads < 2 or len(geos) < 2:
             return [self.scorers[p].band_scores(frame, g, timings) for p, g in geos]
-        if self._pool is None or self._pool_size != n_threads:
+        if self._pool_size != n_threads:
             from concurrent.futures import ThreadPoolExecutor
 
             if self._pool is not None:
@@ -182,7 +183,7 @@ class Detector:
         """Stop the band threads (also done when the Detector is garbage-collected)."""
         if self._pool is not None:
             self._pool.shutdown(wait=True)
-            self._pool = None
+            self._pool, self._pool_size = None, 0
 
     def __del__(self) -> None:
         pool = getattr(self, "_pool", None)

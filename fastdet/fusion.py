@@ -15,12 +15,11 @@ from .detections import Detections
 
 def overlap_fraction(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``(N, M)``: the fraction of box ``a[i]``'s area that lies inside box ``b[j]``."""
+    from .eval import box_intersection
+
     a = np.asarray(a, np.float64).reshape(-1, 4)
-    b = np.asarray(b, np.float64).reshape(-1, 4)
-    iw = np.clip(np.minimum(a[:, None, 2], b[None, :, 2]) - np.maximum(a[:, None, 0], b[None, :, 0]), 0, None)
-    ih = np.clip(np.minimum(a[:, None, 3], b[None, :, 3]) - np.maximum(a[:, None, 1], b[None, :, 1]), 0, None)
     area = np.maximum((a[:, 2] - a[:, 0]) * (a[:, 3] - a[:, 1]), 1e-9)
-    return iw * ih / area[:, None]
+    return box_intersection(a, b) / area[:, None]
 
 
 def merge_wide(main: Detections, wide: Detections, max_overlap: float = 0.2) -> Detections:

@@ -41,16 +41,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-progress", action="store_true")
 
 
-def _overlaps(boxes: np.ndarray, regions: np.ndarray) -> np.ndarray:
-    """``(N,)`` bool: box i intersects any region (both x1, y1, x2, y2)."""
-    if len(regions) == 0 or len(boxes) == 0:
-        return np.zeros(len(boxes), bool)
-    b, r = boxes[:, None, :], regions[None, :, :]
-    ix = np.minimum(b[..., 2], r[..., 2]) - np.maximum(b[..., 0], r[..., 0])
-    iy = np.minimum(b[..., 3], r[..., 3]) - np.maximum(b[..., 1], r[..., 1])
-    return np.any((ix > 0) & (iy > 0), axis=1)
-
-
 def false_windows(boxes: np.ndarray, x_range=None, y_range=None, gt_boxes: np.ndarray | None = None) -> np.ndarray:
     """Indices of windows that are certainly not vehicles by the rules above."""
     keep = np.ones(len(boxes), bool)
@@ -58,8 +48,10 @@ def false_windows(boxes: np.ndarray, x_range=None, y_range=None, gt_boxes: np.nd
         keep &= (boxes[:, 0] >= x_range[0]) & (boxes[:, 2] <= x_range[1])
     if y_range is not None:
         keep &= (boxes[:, 1] >= y_range[0]) & (boxes[:, 3] <= y_range[1])
-    if gt_boxes is not None:
-        keep &= ~_overlaps(boxes, gt_boxes)
+    if gt_boxes is not None and len(gt_boxes) and len(boxes):
+        from .eval import box_intersection
+
+        keep &= ~np.any(box_intersection(boxes, gt_boxes) > 0, axis=1)
     return np.flatnonzero(keep)
 
 

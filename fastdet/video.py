@@ -164,7 +164,7 @@ class VideoDetector:
         from .heatmap import HeatMap
 
         hw = (int(shape[0]), int(shape[1]))
-        if getattr(self, "wide_heatmap", None) is None or self.wide_heatmap.frame_shape != hw:
+        if self.wide_heatmap is None or self.wide_heatmap.frame_shape != hw:
             self.wide_heatmap = HeatMap(hw, self.wide_heat_config or WIDE_HEAT,
                                         score_kind=getattr(self.detector, "score_kind", "decision"))
         return self.wide_heatmap

@@ -135,3 +135,9 @@ def test_band_threads_give_the_same_windows(frames):
     for a, (_, b) in zip(one_bands, det.last_band_scores):
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-9)
     det.close()
+    try:  # a closed detector starts new band threads when it is used again
+        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+        np.testing.assert_array_equal(det.detect(frames[3]).boxes, two.boxes)
+    finally:
+        numba.set_num_threads(before)
+    det.close()

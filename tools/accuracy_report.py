@@ -22,13 +22,13 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from tune_video import cache_windows, replay  # noqa: E402
+from tune_video import cache_windows, evaluate_from, replay  # noqa: E402
 
 from fastdet.config import WIDE_HEAT, HeatConfig, SearchConfig  # noqa: E402
 from fastdet.data import data_dir  # noqa: E402
 from fastdet.detector import Detector  # noqa: E402
 from fastdet.eval import evaluate  # noqa: E402
-from fastdet.motio import GroundTruth, Predictions, read_gt  # noqa: E402
+from fastdet.motio import Predictions, read_gt  # noqa: E402
 
 #: the classic write-ups' heat map: +1 per positive window, summed over 8 frames, threshold
 #: 6, the whole blob, boxes < 40 px wide or taller than 1.5 x width dropped. HeatMap keeps
@@ -36,12 +36,6 @@ from fastdet.motio import GroundTruth, Predictions, read_gt  # noqa: E402
 CLASSIC_HEAT = HeatConfig(n_frames=8, decay=1.0, threshold=0.75, w_max=1.0, extent=0.0, min_width=40,
                           min_height=1, max_aspect=1.5)
 
-
-def _tail(gt: GroundTruth, preds: Predictions, first: int, n: int):
-    sel, psel = gt.frames >= first, preds.frames >= first
-    sub = GroundTruth(gt.frames[sel] - first + 1, gt.ids[sel], gt.boxes[sel], gt.consider[sel])
-    p = Predictions(preds.frames[psel] - first + 1, preds.ids[psel], preds.boxes[psel], preds.scores[psel])
-    return evaluate(sub, p, iou=0.5, num_frames=n - first + 1)
 
 
 def main() -> None:
@@ -94,7 +88,7 @@ def main() -> None:
             preds = replay(cch, shape, thr, heat, kind, 1, wide_thr, wheat)
             r = evaluate(gts[n], preds, iou=0.5, num_frames=len(cch))
             cells.append(f"{r.precision:.2f} / {r.recall:.2f} / **{r.f1:.2f}** / {r.ap:.2f} / {r.fp_per_frame:.2f}")
-            held_f1.append(f"{_tail(gts[n], preds, held[n], len(cch)).f1:.2f}")
+            held_f1.append(f"{evaluate_from(gts[n], preds, held[n], len(cch)).f1:.2f}")
         print(f"| {label} | " + " | ".join(cells) + f" | {' / '.join(held_f1)} |", flush=True)
     # cross-check the defaults row against the code path of `python -m fastdet video`
     from fastdet.video import iter_video_detections

@@ -21,7 +21,7 @@ from fastdet.detections import Detections
 from fastdet.detector import Detector
 from fastdet.eval import evaluate
 from fastdet.heatmap import HeatMap
-from fastdet.motio import Predictions, read_gt
+from fastdet.motio import GroundTruth, Predictions, read_gt
 
 
 def cache_windows(det: Detector, video, low: float):
@@ -67,6 +67,14 @@ def replay(cache, shape, thr: float, heat: HeatConfig, kind: str, first: int = 1
         if i >= first:
             frames.append((i, d))
     return Predictions.from_frames(frames)
+
+
+def evaluate_from(gt: GroundTruth, preds: Predictions, first: int, n_frames: int):
+    """Evaluate frames ``first .. n_frames`` only (IoU 0.5), as if the clip began at ``first``."""
+    sel, psel = gt.frames >= first, preds.frames >= first
+    sub = GroundTruth(gt.frames[sel] - first + 1, gt.ids[sel], gt.boxes[sel], gt.consider[sel])
+    p = Predictions(preds.frames[psel] - first + 1, preds.ids[psel], preds.boxes[psel], preds.scores[psel])
+    return evaluate(sub, p, iou=0.5, num_frames=n_frames - first + 1)
 
 
 def main() -> None:
@@ -122,16 +130,7 @@ def main() -> None:
         for name, (gt, cache, shape) in caches.items():
             per_clip = dict(kv.split("=") for kv in args.first_per_clip.split(",")) if args.first_per_clip else {}
             first = int(per_clip.get(name, args.first)) or len(cache) // 2 + 1
-            r = evaluate(gt, replay(cache, shape, thr, heat, kind, first, tw, wheat), iou=0.5,
-                         num_frames=len(cache))
-            if first > 1:  # frames before `first` have no predictions: count only the rest
-                from fastdet.motio import GroundTruth
-
-                sel = gt.frames >= first
-                sub = GroundTruth(gt.frames[sel] - first + 1, gt.ids[sel], gt.boxes[sel], gt.consider[sel])
-                preds = replay(cache, shape, thr, heat, kind, first, tw, wheat)
-                preds = type(preds)(preds.frames - first + 1, preds.ids, preds.boxes, preds.scores)
-                r = evaluate(sub, preds, iou=0.5, num_frames=len(cache) - first + 1)
+            r = evaluate_from(gt, replay(cache, shape, thr, heat, kind, first, tw, wheat), first, len(cache))
             cells.append(f"{r.precision:.2f} {r.recall:.2f} **{r.f1:.2f}** {r.ap:.2f} {r.fp_per_frame:.2f}")
             f1s.append(r.f1)
         if args.separate:
