@@ -1,4 +1,4 @@
-"""``python -m fastdet bench [INPUT] [--frames N] [--threads T] [--repeat R] [--model M.npz] [--wide W.npz]``
+"""``python -m fastdet bench [INPUT] [--frames N] [--threads T] [--repeat R] [--model M.npz] [--oncoming-model W.npz | --no-oncoming]``
 
 Times the stages of :class:`~fastdet.video.VideoDetector` (what ``python -m fastdet video``
 runs on its main thread for every frame) on a video or an image, and prints ms per frame
@@ -10,10 +10,12 @@ per stage and the frames per second they allow.
   reader thread in ``video``; it is printed on its own line for a video).
 - Stages: ``resize/colour`` (crop, resize, colour conversion of every band), ``HOG``
   (block maps), ``scoring`` (spatial map, histogram integral image, dense window scores),
-  ``heat`` and ``label`` (heat map, blobs, boxes) — :attr:`Detector.timings` and
+  ``heat`` and ``label`` (heat map, blobs, boxes), ``motion`` (the frame difference that
+  narrows and gates the oncoming-traffic model's search) — :attr:`Detector.timings` and
   :attr:`VideoDetector.timings` — and ``other``: the rest of ``update`` (band geometry,
-  thresholding, window boxes, Python glue; with ``--wide``, also the wide model's own heat
-  map and the merge of its boxes).
+  thresholding, window boxes, Python glue, the oncoming model's own heat map and the
+  merge of its boxes). As ``video``, the bundled oncoming-traffic model runs unless
+  ``--no-oncoming``; on an image (the same frame N times) nothing moves, so it searches nothing.
 - One repeat = N frames through one ``VideoDetector`` whose heat map was reset first;
   the kernels are loaded and two frames processed before the first repeat (warm-up). The
   table gives, per stage, the best and the median over the ``R`` repeats of the mean ms
@@ -47,6 +49,7 @@ STAGES = (
     ("scoring", "score"),
     ("heat", "heat"),
     ("label", "label"),
+    ("motion", "motion"),
 )
 
 
@@ -67,9 +70,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--repeat", type=_positive_int, default=3, metavar="R",
                         help="timed repeats of the N frames; the table shows the best and the median (default 3)")
     parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
-    parser.add_argument("--wide", metavar="WIDE.npz",
-                        help="also run a wide-window model (trained with `train --window-rows`) beside the "
-                             "main one, as Detector(wide=...) (default: none, as `video`)")
+    from ._cliargs import add_oncoming_arguments
+
+    add_oncoming_arguments(parser)
 
 
 def load_frames(path: str | os.PathLike, n: int) -> tuple[list, str, float | None]:
@@ -111,10 +114,11 @@ def load_frames(path: str | os.PathLike, n: int) -> tuple[list, str, float | Non
 
 
 def _detector(args: argparse.Namespace) -> Any:
-    from .detector import Detector
+    from ._cliargs import oncoming_arg
+    from .video import make_detector
 
     try:
-        return Detector(model=args.model, wide=args.wide)
+        return make_detector(args.model, oncoming_arg(args))
     except FastdetError:
         raise
     except (OSError, ValueError) as exc:
@@ -200,7 +204,7 @@ def run(args: argparse.Namespace) -> int:
 
         h, w = frames[0].shape[:2]
         n_bands = sum(len(sc.search.bands) for sc in getattr(det, "scorers", []))
-        models = "main model" if det.wide_model is None else "main + wide model"
+        models = "main model" if det.wide_model is None else "main + oncoming model"
         try:
             layer = numba.threading_layer()
         except ValueError:

@@ -19,12 +19,13 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Sequence
 
 import numpy as np
 
 from ._hog import hog_channels
 from ._score_kernels import dense_scores, dense_scores_serial, hist_weight_integral
-from .config import SearchConfig
+from .config import SearchBand, SearchConfig
 from .detections import Detections
 from .features import convert_color, hist_bin_shift, spatial_factor, spatial_map
 from .model import Model, load_model
@@ -194,10 +195,14 @@ class Detector:
         """Geometry of every search band of model ``part`` on a frame of ``(H, W)``."""
         return self.scorers[part].geometries(frame_shape)
 
-    def detect(self, frame: np.ndarray, rgb: bool = False) -> Detections:
+    def detect(self, frame: np.ndarray, rgb: bool = False,
+               wide_bands: Sequence[SearchBand] | None = None) -> Detections:
         """Positive windows of one frame.
 
         frame: ``(H, W, 3) uint8``, BGR (OpenCV's order) or RGB with ``rgb=True``.
+        wide_bands: bands (in this frame's pixels) for the wide model to search instead of
+            its own search's; an empty list skips it. :class:`fastdet.VideoDetector` passes
+            the parts of the wide search where the picture moves (:mod:`fastdet.motion`).
         Returns :class:`~fastdet.detections.Detections`: ``boxes (N, 4) int32`` x1, y1, x2, y2
         (exclusive) in frame pixels and ``scores (N,) float32``: the probability of "vehicle"
         for a logistic-regression main model, the decision value otherwise (the wide model's
@@ -213,7 +218,14 @@ class Detector:
         timings: dict[str, float] = {}
         boxes, scores, scales = [], [], []
         self.last_band_scores, self.last_band_parts = [], []
-        geos = [(p, g) for p, sc in enumerate(self.scorers) for g in sc.geometries(frame.shape[:2])]
+        geos = [(0, g) for g in self.scorers[0].geometries(frame.shape[:2])]
+        if len(self.scorers) > 1:
+            if wide_bands is None:
+                geos += [(1, g) for g in self.scorers[1].geometries(frame.shape[:2])]
+            else:
+                sc = self.scorers[1]
+                geos += [(1, band_geometry(b, frame.shape[:2], sc.config, sc.search.cells_per_step))
+                         for b in wide_bands]
         for (part, geo), dec in zip(geos, self._all_band_scores(frame, geos, timings)):
             sc = self.scorers[part]
             self.last_band_scores.append((geo, dec))

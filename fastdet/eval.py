@@ -542,27 +542,33 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     src.add_argument("--video", metavar="CLIP.mp4",
                      help="run the default video pipeline on this clip and evaluate its boxes")
     parser.add_argument("--model", metavar="MODEL.npz", help="model for --video (default: the bundled one)")
+    from ._cliargs import add_oncoming_arguments
+
+    add_oncoming_arguments(parser)
     parser.add_argument("--iou", type=_iou_arg, default=0.5, help="IoU a match needs (default 0.5)")
     parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
     parser.add_argument("--plot", metavar="PR.png", help="write the precision-recall curve as a PNG")
 
 
-def _video_predictions(video: str, model: str | None) -> Predictions:
+def _video_predictions(video: str, model: str | None, oncoming: Any = True) -> Predictions:
     try:
         from .video import iter_video_detections
     except ImportError as exc:
         raise FastdetError(f"video pipeline not available ({exc})") from None
     if not os.path.isfile(video):
         raise DataError(f"{video}: file not found")
-    return Predictions.from_frames(iter_video_detections(video, model=model, progress=True), source=video)
+    return Predictions.from_frames(iter_video_detections(video, model=model, progress=True, oncoming=oncoming),
+                                   source=video)
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.model is not None and args.video is None:
-        raise FastdetError("--model only applies with --video")
+    if args.video is None and (args.model is not None or args.oncoming_model is not None or args.no_oncoming):
+        raise FastdetError("--model, --oncoming-model and --no-oncoming only apply with --video")
     gt = read_gt(args.gt)
     if args.video is not None:
-        preds = _video_predictions(args.video, args.model)
+        from ._cliargs import oncoming_arg
+
+        preds = _video_predictions(args.video, args.model, oncoming_arg(args))
     else:
         preds = read_predictions(args.pred)
     result = evaluate(gt, preds, iou=args.iou)

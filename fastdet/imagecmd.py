@@ -112,7 +112,7 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
     if detector is None:
         from .video import make_detector
 
-        detector = make_detector(args.model)
+        detector = make_detector(args.model, oncoming=False)  # its gate needs motion: video only
     elif args.model is not None:
         raise FastdetError("--model cannot be used with an injected detector")
 

@@ -18,7 +18,7 @@ import numpy as np
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("video", type=Path, help="video (or image) to mine")
+    p.add_argument("video", type=Path, help="video, image, or image sequence (e.g. test_images/test%%d.jpg) to mine")
     p.add_argument("--out", type=Path, required=True, help="folder for the 64x64 PNG crops (created)")
     p.add_argument("--x-range", type=int, nargs=2, metavar=("A", "B"), default=None,
                    help="only windows entirely within columns [A, B)")
@@ -55,6 +55,17 @@ def false_windows(boxes: np.ndarray, x_range=None, y_range=None, gt_boxes: np.nd
     return np.flatnonzero(keep)
 
 
+def _is_image_sequence(path: Path) -> bool:
+    """``path`` is a printf-style image sequence (``test%d.jpg``) whose frame 0 or 1 exists."""
+    name = str(path)
+    if "%" not in name:
+        return False
+    try:
+        return any(Path(name % i).exists() for i in (0, 1))
+    except (TypeError, ValueError):
+        return False
+
+
 def run(args: argparse.Namespace) -> int:
     import cv2
 
@@ -65,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
         raise FastdetError("say where there are no vehicles: --x-range/--y-range and/or --gt")
     if args.part == "wide" and args.wide_model is None:
         raise FastdetError("--part wide needs --wide-model")
-    if not args.video.exists():
+    if not (args.video.exists() or _is_image_sequence(args.video)):
         raise DataError(f"{args.video} not found")
     gt = None
     if args.gt is not None:
@@ -80,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
             sc.search = replace(sc.search, threshold=args.threshold)
     win_cfg = det.config if args.part == "main" else det.wide_model.config
     args.out.mkdir(parents=True, exist_ok=True)
-    prefix = args.prefix or args.video.stem
+    prefix = args.prefix or args.video.stem.replace("%", "")
     cap = cv2.VideoCapture(str(args.video))
     if not cap.isOpened():
         raise DataError(f"{args.video}: not a video OpenCV can read")

@@ -48,7 +48,7 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from .config import HeatConfig
+from .config import HeatConfig, MotionGate
 from .detections import Detections
 from .errors import DataError, FastdetError
 
@@ -72,14 +72,20 @@ def _passive_omp() -> None:
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 
-def make_detector(model: Any = None) -> Any:
-    """A :class:`fastdet.detector.Detector` for ``model`` (a Model, a path, or ``None`` for
-    the bundled model). Raises :class:`~fastdet.errors.ModelError` when it does not load."""
+def make_detector(model: Any = None, oncoming: Any = True) -> Any:
+    """The video pipeline's :class:`fastdet.detector.Detector`: ``model`` (a Model, a path,
+    or ``None`` for the bundled model) and, as its wide-window model, ``oncoming``: ``True``
+    for the bundled oncoming-traffic model, a Model or path for another, ``False`` / ``None``
+    for none. Raises :class:`~fastdet.errors.ModelError` when a model does not load."""
     try:
         from .detector import Detector
     except ImportError as exc:  # pragma: no cover - only while the detector is missing
         raise FastdetError(f"the detector is not available in this build ({exc})") from None
-    return Detector(model=model)
+    if oncoming is True:
+        from .model import ONCOMING_MODEL_PATH
+
+        oncoming = ONCOMING_MODEL_PATH
+    return Detector(model=model, wide=oncoming or None)
 
 
 class VideoDetector:
@@ -89,11 +95,16 @@ class VideoDetector:
 
     detector: anything with ``detect(frame, rgb=False) -> Detections``, ``score_kind``,
         ``timings`` and ``last_scales`` (as :class:`~fastdet.detector.Detector`); default the
-        Detector with the bundled model, created on first use.
+        Detector with the bundled model and the bundled oncoming-traffic model
+        (:func:`make_detector`), created on first use.
     heat: :class:`~fastdet.config.HeatConfig` (default ``HeatConfig()``).
     wide_heat: heat map of the wide-window model's windows, when the detector has one
         (default :data:`fastdet.config.WIDE_HEAT`); its boxes are added where the main heat
         map found nothing (:func:`fastdet.fusion.merge_wide`).
+    motion: :class:`~fastdet.config.MotionGate` for the wide-window model (default
+        ``MotionGate()``): it searches only where the picture moved since the previous frame
+        and keeps only its windows that moved enough (:mod:`fastdet.motion`); so it finds
+        nothing on the first frame.
 
     After :meth:`update`, for debugging the last frame: ``last_windows`` (the positive
     windows, :class:`Detections`), ``last_scales`` (scale of each window), ``last_heat``
@@ -108,10 +119,16 @@ class VideoDetector:
     """
 
     def __init__(self, detector: Any = None, heat: HeatConfig | None = None,
-                 wide_heat: HeatConfig | None = None) -> None:
+                 wide_heat: HeatConfig | None = None, motion: MotionGate | None = None) -> None:
+        from .motion import FrameMotion
+
         self._detector = detector
         self.wide_heat_config = wide_heat
         self.wide_heatmap = None
+        self.motion_gate = motion if motion is not None else MotionGate()
+        if not isinstance(self.motion_gate, MotionGate):
+            raise TypeError(f"motion must be a MotionGate, got {type(self.motion_gate).__name__}")
+        self._motion = FrameMotion()
         self.heat_config = heat if heat is not None else HeatConfig()
         if not isinstance(self.heat_config, HeatConfig):
             raise TypeError(f"heat must be a HeatConfig, got {type(self.heat_config).__name__}")
@@ -139,6 +156,7 @@ class VideoDetector:
             self.heatmap.reset()
         if self.wide_heatmap is not None:
             self.wide_heatmap.reset()
+        self._motion.reset()
         self._clear()
 
     def warmup(self) -> None:
@@ -177,14 +195,38 @@ class VideoDetector:
         if frame.ndim != 3 or frame.shape[2] != 3 or frame.dtype != np.uint8:
             raise ValueError(f"frame must be an (H, W, 3) uint8 array, got {frame.dtype} {frame.shape}")
         det = self.detector
-        windows = det.detect(frame, rgb=rgb)
+        has_wide = getattr(det, "wide_model", None) is not None
+        gate = self.motion_gate.min_motion if has_wide else 0.0
+        t0 = time.perf_counter()
+        if gate > 0:
+            from .motion import moving_bands
+
+            motion = self._motion.update(frame[:, :, ::-1] if rgb else frame)
+            wide_bands = [] if motion is None else [
+                b for g in det.geometries(frame.shape[:2], part=1)
+                for b in moving_bands(g, det.wide_model.config, motion, gate)]
+            t_motion = time.perf_counter() - t0
+            windows = det.detect(frame, rgb=rgb, wide_bands=wide_bands)
+        else:
+            windows = det.detect(frame, rgb=rgb)
         hm = self._heatmap_for(frame.shape)
         scales = np.asarray(getattr(det, "last_scales", np.zeros(0)), np.float32).reshape(-1)
         scales = scales.copy() if len(scales) == len(windows.boxes) else np.ones(len(windows.boxes), np.float32)
         wide = scales < 0  # windows of a wide-window model (Detector(wide=...)): own heat map
-        if getattr(det, "wide_model", None) is not None:
+        if has_wide:
             from .fusion import merge_wide
 
+            if gate > 0 and wide.any():
+                from .motion import window_motion
+
+                t1 = time.perf_counter()
+                idx = np.flatnonzero(wide)
+                still = idx[window_motion(motion, windows.boxes[idx]) < gate]
+                if len(still):
+                    keep = np.ones(len(scales), bool)
+                    keep[still] = False
+                    windows, scales, wide = Detections(windows.boxes[keep], windows.scores[keep]), scales[keep], wide[keep]
+                t_motion += time.perf_counter() - t1
             main_boxes = hm.update(Detections(windows.boxes[~wide], windows.scores[~wide]))
             hw = self._wide_heatmap_for(frame.shape)
             boxes = merge_wide(main_boxes, hw.update(Detections(windows.boxes[wide], windows.scores[wide])))
@@ -197,6 +239,8 @@ class VideoDetector:
         self.last_labels = hm.labels
         self.last_boxes = boxes
         self.timings = {**dict(getattr(det, "timings", {}) or {}), **hm.timings}
+        if gate > 0:
+            self.timings["motion"] = t_motion
         return boxes
 
 
@@ -469,12 +513,13 @@ def _progress(total: int | None, enabled: bool, desc: str):
 
 def iter_video_detections(path: str | os.PathLike, model: Any = None, start: int = 0,
                           frames: int | None = None, progress: bool = True, detector: Any = None,
-                          heat: HeatConfig | None = None) -> Iterator[tuple[int, Detections]]:
+                          heat: HeatConfig | None = None, oncoming: Any = True) -> Iterator[tuple[int, Detections]]:
     """Vehicle boxes of every frame of a video file: yields ``(frame, Detections)``.
 
     frame: 1-based frame number in the file (``start`` frames are skipped, so the first one
         yielded is ``start + 1``). frames: at most this many frames.
     model: model for the default Detector (Model, path, or ``None`` for the bundled one);
+        oncoming: its wide-window model (see :func:`make_detector`);
         ``detector``: use this detector instead (see :class:`VideoDetector`).
     progress: a tqdm bar on stderr when it is a terminal.
     Raises :class:`~fastdet.errors.DataError` / :class:`~fastdet.errors.ModelError` for bad
@@ -485,7 +530,7 @@ def iter_video_detections(path: str | os.PathLike, model: Any = None, start: int
     _passive_omp()
     reader = _Reader(path, start, frames)
     try:
-        vd = VideoDetector(detector if detector is not None else make_detector(model), heat)
+        vd = VideoDetector(detector if detector is not None else make_detector(model, oncoming), heat)
         vd.warmup()
         with _progress(reader.expected, progress, os.path.basename(reader.path)) as bar:
             for fno, frame, _ in reader:
@@ -521,6 +566,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="boxes per frame, MOTChallenge: frame,-1,left,top,width,height,conf,-1,-1,-1")
     parser.add_argument("--json", metavar="BOXES.jsonl", help="boxes per frame as JSON lines")
     parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
+    from ._cliargs import add_oncoming_arguments
+
+    add_oncoming_arguments(parser)
     parser.add_argument("--debug", action="store_true",
                         help="add panels along the top: windows by scale, heat map, thresholded blobs")
     parser.add_argument("--profile", action="store_true", help="print a table of ms per frame per stage")
@@ -597,7 +645,9 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
     sink = mot = jsl = None
     try:
         if detector is None:
-            detector = make_detector(args.model)
+            from ._cliargs import oncoming_arg
+
+            detector = make_detector(args.model, oncoming_arg(args))
         elif args.model is not None:
             raise FastdetError("--model cannot be used with an injected detector")
         vd = VideoDetector(detector, heat)

@@ -68,7 +68,7 @@ def test_load_frames_video_is_shorter_than_asked(data):
     assert kind == "video" and 80 <= len(frames) <= 91 and decode_ms > 0
 
 
-def test_bench_missing_wide_model(test_images, capsys):
-    rc = cli.main(["bench", str(test_images[0]), "--frames", "1", "--wide", "/nonexistent/wide.npz"])
+def test_bench_missing_oncoming_model(test_images, capsys):
+    rc = cli.main(["bench", str(test_images[0]), "--frames", "1", "--oncoming-model", "/nonexistent/wide.npz"])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and "wide.npz" in err[0]

@@ -378,8 +378,8 @@ def test_video_option_uses_pipeline(files, tmp_path, monkeypatch, capsys):
     clip.write_bytes(b"")
     calls = {}
 
-    def fake_iter(path, model=None, progress=True):
-        calls.update(path=path, model=model)
+    def fake_iter(path, model=None, progress=True, oncoming=True):
+        calls.update(path=path, model=model, oncoming=oncoming)
         for f in (1, 2):
             rows = [r for r in GT_ROWS if r[0] == f and r[6] == 1]
             boxes = np.array([[l, t, l + w, t + h] for (_, _, l, t, w, h, _) in rows], np.int32)
@@ -391,7 +391,11 @@ def test_video_option_uses_pipeline(files, tmp_path, monkeypatch, capsys):
     assert ev.run(_parse(["--gt", str(gt), "--video", str(clip), "--model", "m.npz", "--json"])) == 0
     d = json.loads(capsys.readouterr().out)
     assert d["ap"] == 1.0 and d["video"] == str(clip)
-    assert calls == {"path": str(clip), "model": "m.npz"}
+    assert calls == {"path": str(clip), "model": "m.npz", "oncoming": True}
+    assert ev.run(_parse(["--gt", str(gt), "--video", str(clip), "--no-oncoming", "--json"])) == 0
+    assert calls["oncoming"] is False
+    with pytest.raises(FastdetError, match="only apply with --video"):
+        ev.run(_parse(["--gt", str(gt), "--pred", str(gt), "--no-oncoming"]))
 
 
 def test_video_option_without_pipeline(files, tmp_path, monkeypatch):

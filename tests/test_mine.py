@@ -47,3 +47,34 @@ def test_mine_user_errors(tmp_path, capsys):
     assert main(["mine-negatives", str(tmp_path / "none.mp4"), "--out", str(tmp_path / "o"), "--gt", "x",
                  "--part", "wide"]) == 2
     assert "--wide-model" in capsys.readouterr().err
+
+
+def test_mine_image_sequence_with_annotations(data, tmp_path, capsys):
+    """``test%d.jpg`` reads the six test images as frames 1..6; with the hand annotations of
+    their oncoming cars (tools/test_images.gt.txt), wide windows touching them are not mined."""
+    from pathlib import Path
+
+    from fastdet.model import ONCOMING_MODEL_PATH
+    from fastdet.motio import read_gt
+
+    gt_path = Path(__file__).resolve().parents[1] / "tools" / "test_images.gt.txt"
+    out = tmp_path / "neg"
+    rc = main(["mine-negatives", str(data / "test_images" / "test%d.jpg"), "--gt", str(gt_path), "--out", str(out),
+               "--part", "wide", "--wide-model", str(ONCOMING_MODEL_PATH), "--threshold", "-1",
+               "--x-range", "0", "660", "--y-range", "380", "520", "--no-progress"])
+    assert rc == 0
+    assert "from 6 frames" in capsys.readouterr().out
+    files = sorted(out.glob("*.png"))
+    assert files and all(cv2.imread(str(f)).shape == (24, 64, 3) for f in files)
+    gt = read_gt(gt_path)
+    for f in files:  # test_fNNNNN_x_y_w.png
+        _, fr, x, y, w = f.stem.split("_")
+        frame, x, y, w = int(fr[1:]), int(x), int(y), int(w)
+        box = np.array([x, y, x + w, y + round(w * 24 / 64)])
+        g = gt.boxes[gt.frames == frame]
+        inter_w = np.minimum(box[2], g[:, 2] + 8) - np.maximum(box[0], g[:, 0] - 8)
+        inter_h = np.minimum(box[3], g[:, 3] + 8) - np.maximum(box[1], g[:, 1] - 8)
+        assert not ((inter_w > 0) & (inter_h > 0)).any(), f.name
+    assert main(["mine-negatives", str(data / "test_images" / "nothing%d.jpg"), "--x-range", "0", "9",
+                 "--out", str(out)]) == 2
+    assert "not found" in capsys.readouterr().err

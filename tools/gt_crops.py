@@ -31,7 +31,8 @@ def main() -> None:
     args = ap.parse_args()
     gt = read_gt(args.gt)
     args.out.mkdir(parents=True, exist_ok=True)
-    cap = cv2.VideoCapture(str(args.video))
+    cap = cv2.VideoCapture(str(args.video))  # a video, or an image sequence such as test%d.jpg
+    stem = args.video.stem.replace("%", "")
     rng = np.random.default_rng(args.seed)
     i = n = 0
     while True:
@@ -57,7 +58,7 @@ def main() -> None:
                 if a < 0 or b < 0 or a2 > frame.shape[1] or b2 > frame.shape[0]:
                     continue
                 crop = cv2.resize(frame[b:b2, a:a2], (64, args.height), interpolation=cv2.INTER_AREA)
-                cv2.imwrite(str(args.out / f"{args.video.stem}_f{i:05d}_{n}.png"), crop)
+                cv2.imwrite(str(args.out / f"{stem}_f{i:05d}_{n}.png"), crop)
                 n += 1
     print(f"wrote {n} crops to {args.out}")
 

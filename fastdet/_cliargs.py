@@ -1,0 +1,22 @@
+"""Command-line options shared by several subcommands."""
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+
+def add_oncoming_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--oncoming-model`` / ``--no-oncoming``, shared by ``video``, ``eval`` and ``bench``."""
+    g = parser.add_mutually_exclusive_group()
+    g.add_argument("--oncoming-model", metavar="WIDE.npz", default=None,
+                   help="wide-window model for oncoming traffic above the median "
+                        "(default: the bundled one; trained with `train --window-rows`)")
+    g.add_argument("--no-oncoming", action="store_true",
+                   help="no wide-window model: only the main model's square windows")
+
+
+def oncoming_arg(args: argparse.Namespace) -> Any:
+    """The ``oncoming`` argument of :func:`make_detector` for parsed CLI arguments."""
+    if getattr(args, "no_oncoming", False):
+        return False
+    return getattr(args, "oncoming_model", None) or True

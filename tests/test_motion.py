@@ -1,0 +1,167 @@
+"""Motion for the wide-window (oncoming-traffic) model: window_motion against a per-window
+NumPy loop, FrameMotion, moving_bands against the full band it narrows, and the
+VideoDetector's wide path against its plain reference (full wide search, then the gate)."""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from fastdet.config import WIDE_SEARCH, MotionGate
+from fastdet.motion import FrameMotion, moving_bands, window_motion
+from fastdet.search import band_geometry, window_boxes
+
+
+def naive_window_motion(prev_bgr: np.ndarray, cur_bgr: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """Per box: mean of |gray - previous gray| over the box's pixels inside the frame."""
+    a = cv2.cvtColor(cur_bgr, cv2.COLOR_BGR2GRAY).astype(np.float64)
+    b = cv2.cvtColor(prev_bgr, cv2.COLOR_BGR2GRAY).astype(np.float64)
+    d = np.abs(a - b)
+    h, w = d.shape
+    out = []
+    for x1, y1, x2, y2 in boxes:
+        x1, x2 = min(max(x1, 0), w), min(max(x2, 0), w)
+        y1, y2 = min(max(y1, 0), h), min(max(y2, 0), h)
+        patch = d[y1:y2, x1:x2]
+        out.append(patch.mean() if patch.size else 0.0)
+    return np.array(out)
+
+
+@settings(max_examples=60, deadline=None)
+@given(h=st.integers(1, 40), w=st.integers(1, 50), seed=st.integers(0, 2 ** 31 - 1), n=st.integers(0, 12))
+def test_window_motion_equals_the_per_window_loop(h, w, seed, n):
+    rng = np.random.default_rng(seed)
+    prev = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+    cur = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+    xs = np.sort(rng.integers(-5, w + 6, (n, 2)), axis=1)
+    ys = np.sort(rng.integers(-5, h + 6, (n, 2)), axis=1)
+    boxes = np.stack([xs[:, 0], ys[:, 0], xs[:, 1], ys[:, 1]], axis=1)
+    fm = FrameMotion()
+    assert fm.update(prev) is None
+    integral = fm.update(cur)
+    np.testing.assert_allclose(window_motion(integral, boxes), naive_window_motion(prev, cur, boxes), atol=1e-9)
+
+
+def test_frame_motion_restarts_after_reset_and_size_change():
+    fm = FrameMotion()
+    a = np.zeros((10, 12, 3), np.uint8)
+    b = np.full((10, 12, 3), 9, np.uint8)
+    assert fm.update(a) is None
+    np.testing.assert_allclose(window_motion(fm.update(b), [[0, 0, 12, 10]]), [9.0])
+    fm.reset()
+    assert fm.update(a) is None
+    assert fm.update(np.zeros((8, 12, 3), np.uint8)) is None  # another size: a new start
+    assert window_motion(fm.update(np.zeros((8, 12, 3), np.uint8)), [[0, 0, 12, 8]])[0] == 0.0
+
+
+def test_motion_gate_validates():
+    assert MotionGate().min_motion == 45.0
+    assert MotionGate.from_dict(MotionGate(30).to_dict()) == MotionGate(30)
+    for bad in (-1, 256, float("nan")):
+        with pytest.raises(ValueError):
+            MotionGate(bad)
+
+
+# ---------------------------------------------------------------- on real frames, real model
+
+
+@pytest.fixture(scope="module")
+def oncoming_frames(data):
+    """Frames 55 and 56 of test_small1: two oncoming cars above the median."""
+    cap = cv2.VideoCapture(str(data / "videos" / "test_small1.mp4"))
+    frames = []
+    for i in range(1, 57):
+        ok, frame = cap.read()
+        assert ok
+        if i >= 55:
+            frames.append(frame)
+    return frames
+
+
+@pytest.fixture(scope="module")
+def detector():
+    from fastdet.video import make_detector
+
+    return make_detector()
+
+
+def _wide_windows(det, frame, bands=None):
+    """All wide-model windows (any score) of ``bands`` (default: its full search), as
+    {box tuple: decision value}."""
+    det.detect(frame, wide_bands=bands)
+    out = {}
+    for (geo, dec), part in zip(det.last_band_scores, det.last_band_parts):
+        if part != 1:
+            continue
+        r, c = np.nonzero(np.ones_like(dec, bool))
+        for box, v in zip(window_boxes(geo, r, c, det.wide_model.config), dec[r, c]):
+            out[tuple(int(x) for x in box)] = float(v)
+    return out
+
+
+def test_moving_bands_cover_every_moving_window_with_the_same_scores(detector, oncoming_frames):
+    prev, cur = oncoming_frames
+    fm = FrameMotion()
+    fm.update(prev)
+    integral = fm.update(cur)
+    gate = MotionGate().min_motion
+    cfg = detector.wide_model.config
+    geos = detector.geometries(cur.shape[:2], part=1)
+    bands = [b for g in geos for b in moving_bands(g, cfg, integral, gate)]
+    assert bands, "the oncoming cars move: some band must be searched"
+    full = _wide_windows(detector, cur)
+    narrowed = _wide_windows(detector, cur, bands)
+    assert set(narrowed) <= set(full), "narrowed windows must sit where the full band's do"
+    moving = [k for k in full if window_motion(integral, [k])[0] >= gate]
+    assert moving and set(moving) <= set(narrowed)
+    # whole cells at every default wide scale: resampled exactly as the full band
+    np.testing.assert_allclose([narrowed[k] for k in moving], [full[k] for k in moving], rtol=0, atol=1e-6)
+    # narrowing is the point: far fewer windows than the full search
+    assert len(narrowed) < 0.5 * len(full)
+
+
+def test_moving_bands_is_empty_without_motion(detector, oncoming_frames):
+    cur = oncoming_frames[1]
+    fm = FrameMotion()
+    fm.update(cur)
+    integral = fm.update(cur)
+    for g in detector.geometries(cur.shape[:2], part=1):
+        assert moving_bands(g, detector.wide_model.config, integral, 1.0) == []
+    # and a band's geometry with no windows gives nothing either
+    g = band_geometry(WIDE_SEARCH.bands[0].__class__(1.0, 0, 10), cur.shape[:2], detector.wide_model.config, 1)
+    assert moving_bands(g, detector.wide_model.config, integral, 0.0) == []
+
+
+def test_detect_with_no_wide_bands_is_the_main_model_alone(detector, oncoming_frames):
+    from fastdet.detector import Detector
+
+    frame = oncoming_frames[1]
+    main_only = Detector().detect(frame)
+    both = detector.detect(frame, wide_bands=[])
+    assert both.boxes.tolist() == main_only.boxes.tolist()
+    np.testing.assert_array_equal(both.scores, main_only.scores)
+    assert (detector.last_scales > 0).all()
+
+
+def test_video_detector_wide_windows_are_the_gated_full_search(detector, oncoming_frames):
+    """VideoDetector's wide windows = the wide model's positive windows over its whole
+    search, kept where the motion reaches the gate."""
+    from fastdet.video import VideoDetector
+
+    prev, cur = oncoming_frames
+    vd = VideoDetector(detector)
+    vd.update(prev)
+    assert not (vd.last_scales < 0).any(), "no previous frame: no motion, no wide windows"
+    vd.update(cur)
+    got = {tuple(int(v) for v in b) for b, s in zip(vd.last_windows.boxes, vd.last_scales) if s < 0}
+    fm = FrameMotion()
+    fm.update(prev)
+    integral = fm.update(cur)
+    thr, gate = WIDE_SEARCH.threshold, MotionGate().min_motion
+    full = _wide_windows(detector, cur)
+    want = {k for k, v in full.items() if v > thr and window_motion(integral, [k])[0] >= gate}
+    assert want, "the oncoming cars must give gated wide windows"
+    assert got == want
+    assert "motion" in vd.timings
