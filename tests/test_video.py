@@ -294,6 +294,31 @@ def test_bad_model_exits_2_without_traceback(clip, tmp_path):
     assert not (tmp_path / "b.txt").exists()
 
 
+def test_bad_oncoming_model_exits_2_without_traceback(clip, tmp_path, capsys):
+    bad = tmp_path / "wide.npz"
+    bad.write_text("not a model")
+    assert cli.main(["video", str(clip), "--boxes", str(tmp_path / "b.txt"), "--oncoming-model", str(bad),
+                     "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "wide.npz" in err[0]
+    assert not (tmp_path / "b.txt").exists()
+    with pytest.raises(SystemExit) as exc:  # argparse: not both
+        cli.main(["video", str(clip), "--boxes", str(tmp_path / "b.txt"), "--oncoming-model", str(bad),
+                  "--no-oncoming"])
+    assert exc.value.code == 2 and "not allowed with" in capsys.readouterr().err
+
+
+def test_make_detector_oncoming_choices():
+    from fastdet.model import ONCOMING_MODEL_PATH, load_model
+
+    assert video.make_detector().wide_model is not None  # the bundled oncoming model
+    assert video.make_detector(oncoming=False).wide_model is None
+    assert video.make_detector(oncoming=None).wide_model is None
+    wide = load_model(ONCOMING_MODEL_PATH)
+    assert video.make_detector(oncoming=wide).wide_model is wide
+    assert wide.config.window_height == 24 and wide.config.win_w == 64
+
+
 # ------------------------------------------------------------------------- the real detector
 
 
@@ -312,7 +337,12 @@ def test_real_detector_on_the_test_video(data, tmp_path):
     rows = read_mot(boxes)
     assert rows and {int(r[0]) for r in rows} <= set(range(21, 27))
     vd = VideoDetector()
-    frame = cv2.VideoCapture(str(clip)).read()[1]
-    vd.update(frame)
-    assert set(vd.timings) >= {"resize_colour", "hog", "score", "heat", "label"}
+    cap = cv2.VideoCapture(str(clip))
+    vd.update(cap.read()[1])
+    vd.update(cap.read()[1])
+    assert set(vd.timings) >= {"resize_colour", "hog", "score", "heat", "label", "motion"}
     assert len(vd.last_scales) == len(vd.last_windows.boxes) > 0
+    rows = read_mot(boxes)
+    assert video.run(parse(clip, "--boxes", boxes, "--no-progress", "--start", 20, "--frames", 6,
+                           "--no-oncoming")) == 0
+    assert {tuple(r) for r in read_mot(boxes)} <= {tuple(r) for r in rows}  # the main boxes, nothing added
