@@ -8,7 +8,8 @@ Run::
 Each case runs the CLI in a fresh process with ``NUMBA_NUM_THREADS`` = 1 or 2, on
 ``videos/test_video.mp4`` (38 frames) or ``videos/test_small1.mp4`` (88 frames), both
 1280x720, writing either only the boxes (``--boxes B.txt``) or the annotated video
-(``-o OUT.mp4``), with ``--no-progress --profile``. The figure that matters is the fps
+(``-o OUT.mp4``), with ``--no-progress --profile``; the boxes-only case also with
+``--no-oncoming`` (the main model alone), to show what the oncoming-traffic model costs. The figure that matters is the fps
 of the CLI's summary line (``fastdet video: N frames in S s, F fps``: frames over the wall
 time of the frame loop, after the kernels are loaded), in ``extra_info["fps"]`` with the
 per-stage ms of ``--profile`` in ``extra_info["stages_ms"]``; the benchmark time itself is
@@ -32,8 +33,9 @@ import pytest
 
 REPO = Path(__file__).resolve().parent.parent
 CLIPS = ("test_video.mp4", "test_small1.mp4")
-MODES = ("boxes", "video")
-MODE_LABELS = {"boxes": "--boxes only", "video": "annotated video (-o)"}
+MODES = ("boxes", "boxes-main", "video")
+MODE_LABELS = {"boxes": "--boxes only", "boxes-main": "--boxes only, main model alone (--no-oncoming)",
+               "video": "annotated video (-o)"}
 _SUMMARY = re.compile(r"^fastdet video: (\d+) frames in ([\d.]+) s, ([\d.]+) fps", re.M)
 _STAGE = re.compile(r"^(\S[^\n]*?)\s{2,}([\d.]+)\s{2}(reader|main|writer)\b", re.M)
 
@@ -44,8 +46,8 @@ _STAGE = re.compile(r"^(\S[^\n]*?)\s{2,}([\d.]+)\s{2}(reader|main|writer)\b", re
 def video_args(clip: Path, mode: str, out_dir: Path, frames: int | None = None) -> list[str]:
     """Arguments after ``python -m fastdet``."""
     args = ["video", str(clip)]
-    args += ["--boxes", str(out_dir / "boxes.txt")] if mode == "boxes" else ["-o", str(out_dir / "out.mp4")]
-    args += ["--no-progress", "--profile"]
+    args += ["-o", str(out_dir / "out.mp4")] if mode == "video" else ["--boxes", str(out_dir / "boxes.txt")]
+    args += ["--no-progress", "--profile"] + (["--no-oncoming"] if mode == "boxes-main" else [])
     if frames is not None:
         args += ["--frames", str(frames)]
     return args
@@ -53,10 +55,10 @@ def video_args(clip: Path, mode: str, out_dir: Path, frames: int | None = None) 
 
 def command_line(clip: str, mode: str, n_threads: int | str = "T") -> str:
     """The shell command of one case, for a report (clip relative to the data folder)."""
-    out = "/tmp/boxes.txt" if mode == "boxes" else "/tmp/out.mp4"
-    flag = "--boxes" if mode == "boxes" else "-o"
+    out = "/tmp/out.mp4" if mode == "video" else "/tmp/boxes.txt"
+    flag = "-o" if mode == "video" else "--boxes"
     return (f"NUMBA_NUM_THREADS={n_threads} python -m fastdet video $FASTDET_DATA/videos/{clip} "
-            f"{flag} {out} --no-progress --profile")
+            f"{flag} {out} --no-progress --profile" + (" --no-oncoming" if mode == "boxes-main" else ""))
 
 
 def parse_output(stdout: str) -> dict:

@@ -15,7 +15,10 @@ with 1-based frame numbers of the file (``start`` frames skipped keep their numb
 Command line (``python -m fastdet video``)
 ------------------------------------------
 ``python -m fastdet video INPUT -o OUT.mp4 [--boxes B.txt] [--json B.jsonl] [--model M.npz]
-[--debug] [--profile] [--no-progress] [--start S] [--frames N]``
+[--oncoming-model W.npz | --no-oncoming] [--debug] [--profile] [--no-progress] [--start S] [--frames N]``
+
+- The bundled oncoming-traffic model runs beside the main one (see :class:`VideoDetector`);
+  ``--no-oncoming`` leaves it out, ``--oncoming-model`` replaces it.
 
 - Decoding runs in a reader thread and drawing + encoding in a writer thread, connected to
   the detecting main thread by bounded queues: OpenCV and the numba kernels release the
@@ -602,6 +605,7 @@ _STAGES = (
     ("scoring", "score", "main"),
     ("heat", "heat", "main"),
     ("label", "label", "main"),
+    ("motion", "motion", "main"),
     ("boxes out", "boxes_out", "main"),
     ("draw", "draw", "writer"),
     ("encode", "encode", "writer"),

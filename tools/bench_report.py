@@ -206,7 +206,8 @@ def video_section(args: argparse.Namespace, thread_counts: list[int]) -> None:
                             run_video(data / "videos" / clip, mode, n, tmp))
 
     print(f"### Video: `python -m fastdet video` frames per second\n\n`{this_command(args, 'video')}`  \n"
-          f"each cell: `{command_line('CLIP', 'boxes')}` (or `-o /tmp/out.mp4` instead of `--boxes`); "
+          f"each cell: `{command_line('CLIP', 'boxes')}` (or `-o /tmp/out.mp4` instead of `--boxes`, "
+          "or with `--no-oncoming`); "
           "fps from its summary line, best of "
           f"{repeat} (median in brackets)\n")
     head = " | ".join(f"fps, {n} thread{'s' if n > 1 else ''}" for n in thread_counts)
