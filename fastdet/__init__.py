@@ -6,7 +6,7 @@ Public API (imported lazily, so ``import fastdet`` is cheap)::
     from fastdet import hog_channels_batch           # per-channel HOG of a stack of crops
     from fastdet import Detector, VideoDetector      # one frame / a stream of frames
     from fastdet import load_model, Model            # the bundled or a trained model
-    from fastdet import FeatureConfig, SearchConfig, SearchBand, HeatConfig, Detections
+    from fastdet import FeatureConfig, SearchConfig, SearchBand, HeatConfig, MotionGate, Detections
 """
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ from typing import Any
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 from ._version import __version__
-from .config import FeatureConfig, HeatConfig, SearchBand, SearchConfig
+from .config import FeatureConfig, HeatConfig, MotionGate, SearchBand, SearchConfig
 from .detections import Detections
 from .errors import DataError, FastdetError, ModelError
 
@@ -37,7 +37,7 @@ _LAZY = {
 }
 
 __all__ = [
-    "__version__", "FeatureConfig", "HeatConfig", "SearchBand", "SearchConfig", "Detections",
+    "__version__", "FeatureConfig", "HeatConfig", "MotionGate", "SearchBand", "SearchConfig", "Detections",
     "FastdetError", "ModelError", "DataError", *_LAZY,
 ]
 

@@ -9,7 +9,7 @@ All figures are measured in this one run (setups as in ``benchmarks/bench_detect
     (``benchmarks.classic.ClassicDetector``, test1.jpg) and of fastdet's ``Detector.detect``
     (cycling through test_images/*.jpg) at 1 and 2 Numba threads, with the main model only
     (the same model and bands as the classic one) and as ``Detector()`` builds it by default
-    (today the same: no wide model ships), and with ``--wide W.npz`` also with that
+    (the same: the oncoming-traffic model runs in VideoDetector), and with ``--wide W.npz`` also with that
     wide-window model beside the main one; speed-up = classic best / fastdet best.
     The fastdet configurations are timed in interleaved rounds, so a burst of load from
     another program hits all of them alike.
@@ -142,7 +142,8 @@ def detector_section(args: argparse.Namespace, thread_counts: list[int]) -> None
           f"{CLASSIC_FRAME}. Same positive windows from classic and fastdet (main): "
           f"{'yes' if agree else 'NO'}.")
     if dets["default"].wide_model is None:
-        print("`Detector()` runs no wide-window model by default (none ships), so it is `Detector(wide=None)`.")
+        print("`Detector()` is `Detector(wide=None)`: the oncoming-traffic model runs in `VideoDetector` "
+              "(what `video` runs), where motion narrows its search; its cost is in the video table.")
     if args.wide:
         n_wide = sum(len(sc.search.bands) for sc in dets["wide"].scorers[1:])
         print(f"Wide model {args.wide}: {n_wide} more bands (`fastdet.config.WIDE_SEARCH`).")
