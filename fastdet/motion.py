@@ -2,13 +2,16 @@
 
 Oncoming cars above the median cross the view in about half a second, several times
 faster than the trees, barrier and road beside them, which the wide-window model otherwise
-mistakes for cars. :class:`FrameMotion` keeps the previous frame's grey levels and gives,
-for any window, the mean absolute grey-level difference inside it (an integral image of
-``|gray_t - gray_{t-1}|``, so each window costs four lookups). :func:`moving_bands` turns a
-search band into the sub-bands whose windows move enough, so the wide model is only run
-there; :func:`window_motion` gates its positive windows. Thresholds: :class:`fastdet.config.MotionGate`.
+mistakes for cars. :class:`FrameMotion` keeps the previous frame's grey levels over the
+region the wide search covers and gives, for any window, the mean absolute grey-level
+difference inside it (an integral image of ``|gray_t - gray_{t-1}|``: four lookups a
+window). :func:`moving_bands` turns a search band into the sub-bands whose windows move
+enough, so the wide model is only run there; :func:`window_motion` gates its positive
+windows. Thresholds: :class:`fastdet.config.MotionGate`.
 """
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -17,32 +20,50 @@ from .config import FeatureConfig, SearchBand
 from .search import BandGeometry
 
 
+class MotionMap(NamedTuple):
+    """Integral image ``(h + 1, w + 1) float64`` of ``|gray - previous gray|`` over the frame
+    region whose top-left corner is ``origin = (x, y)`` (frame pixels)."""
+
+    integral: np.ndarray
+    origin: tuple[int, int] = (0, 0)
+
+
 class FrameMotion:
     """The motion of the current frame against the previous one.
 
-    ``update(frame)`` takes a ``(H, W, 3) uint8`` BGR frame and returns the integral image
-    ``(H + 1, W + 1) float64`` of ``|gray - previous gray|``, or ``None`` for the first frame
-    (or the first after :meth:`reset`, or after a change of frame size).
+    ``update(frame, roi)`` takes a ``(H, W, 3) uint8`` BGR frame and returns the
+    :class:`MotionMap` of ``roi = (x1, y1, x2, y2)`` (default: the whole frame; only those
+    pixels are converted and differenced), or ``None`` for the first frame (or the first
+    after :meth:`reset`, or after a change of frame size or region).
     """
 
     def __init__(self) -> None:
         self._prev: np.ndarray | None = None
+        self._key: tuple | None = None
 
     def reset(self) -> None:
-        self._prev = None
+        self._prev = self._key = None
 
-    def update(self, frame: np.ndarray) -> np.ndarray | None:
-        gray = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+    def update(self, frame: np.ndarray, roi: tuple[int, int, int, int] | None = None) -> MotionMap | None:
+        h, w = frame.shape[:2]
+        x1, y1, x2, y2 = (0, 0, w, h) if roi is None else roi
+        x1, x2 = min(max(int(x1), 0), w), min(max(int(x2), 0), w)
+        y1, y2 = min(max(int(y1), 0), h), min(max(int(y2), 0), h)
+        gray = cv2.cvtColor(np.ascontiguousarray(frame[y1:y2, x1:x2]), cv2.COLOR_BGR2GRAY)
+        key = (h, w, x1, y1, x2, y2)
         prev, self._prev = self._prev, gray
-        if prev is None or prev.shape != gray.shape:
+        same, self._key = self._key == key, key
+        if prev is None or not same:
             return None
-        return cv2.integral(cv2.absdiff(gray, prev), sdepth=cv2.CV_64F)
+        return MotionMap(cv2.integral(cv2.absdiff(gray, prev), sdepth=cv2.CV_64F), (x1, y1))
 
 
-def window_motion(integral: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+def window_motion(motion: MotionMap, boxes: np.ndarray) -> np.ndarray:
     """Mean absolute grey-level change ``(N,) float64`` inside each box ``(N, 4)`` x1, y1,
-    x2, y2 (exclusive; clipped to the frame; an empty box gives 0)."""
-    boxes = np.asarray(boxes, np.int64).reshape(-1, 4)
+    x2, y2 (frame pixels, exclusive; clipped to the map's region; a box with nothing inside
+    it gives 0)."""
+    integral, (ox, oy) = motion
+    boxes = np.asarray(boxes, np.int64).reshape(-1, 4) - np.array([ox, oy, ox, oy])
     h, w = integral.shape[0] - 1, integral.shape[1] - 1
     x1, x2 = np.clip(boxes[:, 0], 0, w), np.clip(boxes[:, 2], 0, w)
     y1, y2 = np.clip(boxes[:, 1], 0, h), np.clip(boxes[:, 3], 0, h)
@@ -51,7 +72,7 @@ def window_motion(integral: np.ndarray, boxes: np.ndarray) -> np.ndarray:
     return np.where(area > 0, total / np.maximum(area, 1), 0.0)
 
 
-def moving_bands(geo: BandGeometry, config: FeatureConfig, integral: np.ndarray,
+def moving_bands(geo: BandGeometry, config: FeatureConfig, motion: MotionMap,
                  min_motion: float) -> list[SearchBand]:
     """The parts of one search band worth searching: for each run of window columns in which
     some window's :func:`window_motion` reaches ``min_motion``, a :class:`SearchBand` of the
@@ -63,11 +84,19 @@ def moving_bands(geo: BandGeometry, config: FeatureConfig, integral: np.ndarray,
     otherwise they differ by the resampling of slightly different widths."""
     if geo.n_windows == 0:
         return []
-    from .search import window_boxes
-
-    rows, cols = np.divmod(np.arange(geo.n_windows), geo.nx)
-    boxes = window_boxes(geo, rows, cols, config)
-    moving = (window_motion(integral, boxes) >= min_motion).reshape(geo.ny, geo.nx).any(axis=0)
+    # window boxes as window_boxes() gives them, on the (rows, cols) grid
+    s = geo.band.scale
+    cell = config.pixels_per_cell
+    left = geo.x0 + (np.arange(geo.nx) * geo.step * cell * s).astype(np.int64)
+    top = geo.y0 + (np.arange(geo.ny) * geo.step * cell * s).astype(np.int64)
+    right, bottom = left + int(config.win_w * s), top + int(config.win_h * s)
+    integral, (ox, oy) = motion
+    h, w = integral.shape[0] - 1, integral.shape[1] - 1
+    x1, x2 = np.clip(left - ox, 0, w), np.clip(right - ox, 0, w)
+    y1, y2 = np.clip(top - oy, 0, h)[:, None], np.clip(bottom - oy, 0, h)[:, None]
+    total = integral[y2, x2] - integral[y1, x2] - integral[y2, x1] + integral[y1, x1]
+    area = (x2 - x1) * (y2 - y1)
+    moving = (np.where(area > 0, total / np.maximum(area, 1), 0.0) >= min_motion).any(axis=0)
     if not moving.any():
         return []
     idx = np.flatnonzero(moving)
@@ -77,14 +106,14 @@ def moving_bands(geo: BandGeometry, config: FeatureConfig, integral: np.ndarray,
     starts = np.concatenate([[idx[0]], idx[breaks + 1]])
     stops = np.concatenate([idx[breaks], [idx[-1]]])
     b = geo.band
-    cell_px = config.pixels_per_cell * b.scale  # one cell of the scaled band, in frame pixels
-    win_cells = config.win_w // config.pixels_per_cell
+    cell_px = cell * s  # one cell of the scaled band, in frame pixels
+    win_cells = config.win_w // cell
     out = []
     for c0, c1 in zip(starts, stops):
         # one window position of margin on each side: the moving windows' pixels then see
         # the same neighbours as in the full band (HOG gradients, resampling)
         c0, c1 = max(c0 - 1, 0), min(c1 + 1, geo.nx - 1)
-        x_a = int(boxes[c0, 0])
+        x_a = int(left[c0])
         # whole cells wide: when a cell is a whole number of pixels (every default wide
         # scale), the sub-band resamples exactly as the full band does
         x_b = x_a + int(np.ceil(((c1 - c0) * geo.step + win_cells) * cell_px - 1e-9))

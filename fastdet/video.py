@@ -204,10 +204,11 @@ class VideoDetector:
         if gate > 0:
             from .motion import moving_bands
 
-            motion = self._motion.update(frame[:, :, ::-1] if rgb else frame)
+            geos = det.geometries(frame.shape[:2], part=1)
+            roi = (min(g.x0 for g in geos), min(g.y0 for g in geos), max(g.x1 for g in geos), max(g.y1 for g in geos))
+            motion = self._motion.update(frame[:, :, ::-1] if rgb else frame, roi)
             wide_bands = [] if motion is None else [
-                b for g in det.geometries(frame.shape[:2], part=1)
-                for b in moving_bands(g, det.wide_model.config, motion, gate)]
+                b for g in geos for b in moving_bands(g, det.wide_model.config, motion, gate)]
             t_motion = time.perf_counter() - t0
             windows = det.detect(frame, rgb=rgb, wide_bands=wide_bands)
         else:
@@ -232,7 +233,11 @@ class VideoDetector:
                 t_motion += time.perf_counter() - t1
             main_boxes = hm.update(Detections(windows.boxes[~wide], windows.scores[~wide]))
             hw = self._wide_heatmap_for(frame.shape)
-            boxes = merge_wide(main_boxes, hw.update(Detections(windows.boxes[wide], windows.scores[wide])))
+            if not wide.any() and hw.config.n_frames == 1:
+                hw.reset()  # no memory and no windows: no heat, no boxes (most frames)
+                boxes = main_boxes
+            else:
+                boxes = merge_wide(main_boxes, hw.update(Detections(windows.boxes[wide], windows.scores[wide])))
         else:
             boxes = hm.update(windows)
         self.last_windows = windows

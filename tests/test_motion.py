@@ -44,6 +44,29 @@ def test_window_motion_equals_the_per_window_loop(h, w, seed, n):
     np.testing.assert_allclose(window_motion(integral, boxes), naive_window_motion(prev, cur, boxes), atol=1e-9)
 
 
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2 ** 31 - 1), roi=st.tuples(st.integers(0, 20), st.integers(0, 15), st.integers(21, 50),
+                                                       st.integers(16, 40)))
+def test_motion_of_a_region_equals_the_whole_frames_inside_it(seed, roi):
+    rng = np.random.default_rng(seed)
+    prev, cur = rng.integers(0, 256, (2, 40, 50, 3), dtype=np.uint8)
+    whole, part = FrameMotion(), FrameMotion()
+    whole.update(prev)
+    part.update(prev, roi)
+    m_whole, m_part = whole.update(cur), part.update(cur, roi)
+    assert m_part.origin == roi[:2] and m_part.integral.shape == (roi[3] - roi[1] + 1, roi[2] - roi[0] + 1)
+    x1, y1, x2, y2 = roi
+    xs = np.sort(rng.integers(x1, x2 + 1, (10, 2)), axis=1)
+    ys = np.sort(rng.integers(y1, y2 + 1, (10, 2)), axis=1)
+    boxes = np.stack([xs[:, 0], ys[:, 0], xs[:, 1], ys[:, 1]], axis=1)
+    np.testing.assert_allclose(window_motion(m_part, boxes), window_motion(m_whole, boxes), atol=1e-9)
+    # a box reaching outside the region is clipped to it
+    clipped = np.array([[x1, y1, x2, y2]])
+    np.testing.assert_allclose(window_motion(m_part, [[x1 - 5, y1 - 5, x2 + 5, y2 + 5]]),
+                               window_motion(m_whole, clipped))
+    assert part.update(cur, (0, 0, 50, 40)) is None  # another region: a new start
+
+
 def test_frame_motion_restarts_after_reset_and_size_change():
     fm = FrameMotion()
     a = np.zeros((10, 12, 3), np.uint8)
