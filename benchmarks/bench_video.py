@@ -37,7 +37,7 @@ MODES = ("boxes", "boxes-main", "video")
 MODE_LABELS = {"boxes": "--boxes only", "boxes-main": "--boxes only, main model alone (--no-oncoming)",
                "video": "annotated video (-o)"}
 _SUMMARY = re.compile(r"^fastdet video: (\d+) frames in ([\d.]+) s, ([\d.]+) fps", re.M)
-_STAGE = re.compile(r"^(\S[^\n]*?)\s{2,}([\d.]+)\s{2}(reader|main|writer)\b", re.M)
+_STAGE = re.compile(r"^(\S[^\n]*?)\s{2,}([\d.]+)\s{2}(reader|main|writer|\d+ band threads)\b", re.M)
 
 
 # --------------------------------------------------------------------------------------
