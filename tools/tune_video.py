@@ -3,6 +3,8 @@
 Runs the Detector once per frame of every clip in ``$FASTDET_DATA/annotations`` with a low
 window threshold, caches the windows, then replays the heat map for each setting and
 evaluates like ``python -m fastdet eval`` (IoU 0.5). Prints one markdown row per setting.
+With ``--wide`` it replays a wide-window model's heat map too, but without the motion gate
+of ``VideoDetector`` (tools/accuracy_report.py runs that through the real pipeline).
 
     python tools/tune_video.py [--model M.npz] [--grid small|wide] [--frames-from K]
 """
