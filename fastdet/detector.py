@@ -120,6 +120,12 @@ class Detector:
         self.wide_model = None
         if wide is not None:
             self.wide_model = wide if isinstance(wide, Model) else load_model(wide)
+            if self.wide_model.config.window_height is None:
+                from .errors import ModelError
+
+                name = "the wide model" if isinstance(wide, Model) else os.fspath(wide)
+                raise ModelError(f"{name}: not a wide-window model (its windows are square); "
+                                 f"train one with `fastdet train --window-rows A B`")
             self.scorers.append(_Scorer(self.wide_model, wide_search if wide_search is not None else WIDE_SEARCH))
         self.score_kind = self.model.score_kind
         self._pool = None  # band threads, made on the first multi-threaded detect
@@ -131,8 +137,6 @@ class Detector:
 
     def warmup(self) -> None:
         """Load (or compile) the numba kernels now rather than on the first frame."""
-        from .config import SearchBand
-
         for sc in self.scorers:
             cfg = sc.config
             tiny = np.zeros((cfg.win_h * 2, cfg.win_w * 2, 3), np.uint8)

@@ -317,6 +317,11 @@ def test_make_detector_oncoming_choices():
     wide = load_model(ONCOMING_MODEL_PATH)
     assert video.make_detector(oncoming=wide).wide_model is wide
     assert wide.config.window_height == 24 and wide.config.win_w == 64
+    from fastdet.errors import ModelError
+    from fastdet.model import DEFAULT_MODEL_PATH
+
+    with pytest.raises(ModelError, match="not a wide-window model"):
+        video.make_detector(oncoming=DEFAULT_MODEL_PATH)
 
 
 # ------------------------------------------------------------------------- the real detector
