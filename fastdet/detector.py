@@ -102,11 +102,13 @@ class Detector:
     wide: an optional second model with wide windows (``FeatureConfig.window_height`` <
         ``window``, trained with ``fastdet train --window-rows``) for vehicles half hidden
         behind a barrier, e.g. oncoming traffic above the median; ``None`` (default) = off.
-        No wide model ships: the one we could train did not help on held-out frames (README).
+        The bundled one is ``fastdet.model.ONCOMING_MODEL_PATH``; :class:`fastdet.VideoDetector`
+        runs it by default, searching only where the picture moves (:mod:`fastdet.motion`).
     wide_search: its search bands (default :data:`fastdet.config.WIDE_SEARCH`).
 
-    ``detect(frame)`` returns the positive windows of both models; :class:`fastdet.VideoDetector`
-    turns them into one box per vehicle with a heat map over recent frames.
+    ``detect(frame)`` returns the positive windows of both models (``wide_bands`` narrows the
+    wide model's search); :class:`fastdet.VideoDetector` turns them into one box per vehicle
+    with a heat map over recent frames.
     """
 
     def __init__(self, model: Model | str | os.PathLike | None = None, search: SearchConfig | None = None,
