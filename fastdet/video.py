@@ -190,6 +190,31 @@ class VideoDetector:
                                         score_kind=getattr(self.detector, "score_kind", "decision"))
         return self.wide_heatmap
 
+    def _moving_wide_bands(self, det: Any, frame: np.ndarray, rgb: bool, gate: float):
+        """``(MotionMap or None, bands)``: this frame's motion over the wide search's region
+        and the parts of the wide bands where some window moves at least ``gate``."""
+        from .motion import moving_bands
+
+        geos = det.geometries(frame.shape[:2], part=1)
+        roi = (min(g.x0 for g in geos), min(g.y0 for g in geos), max(g.x1 for g in geos), max(g.y1 for g in geos))
+        motion = self._motion.update(frame[:, :, ::-1] if rgb else frame, roi)
+        if motion is None:
+            return None, []
+        return motion, [b for g in geos for b in moving_bands(g, det.wide_model.config, motion, gate)]
+
+    @staticmethod
+    def _gate_wide(windows: Detections, scales: np.ndarray, wide: np.ndarray, motion, gate: float):
+        """Drop the wide windows whose motion is below ``gate``."""
+        from .motion import window_motion
+
+        idx = np.flatnonzero(wide)
+        still = idx[window_motion(motion, windows.boxes[idx]) < gate]
+        if not len(still):
+            return windows, scales, wide
+        keep = np.ones(len(scales), bool)
+        keep[still] = False
+        return Detections(windows.boxes[keep], windows.scores[keep]), scales[keep], wide[keep]
+
     def update(self, frame: np.ndarray, rgb: bool = False) -> Detections:
         """Boxes of the vehicles in ``frame`` (``(H, W, 3) uint8``, BGR or RGB with ``rgb=True``).
 
@@ -201,14 +226,9 @@ class VideoDetector:
         has_wide = getattr(det, "wide_model", None) is not None
         gate = self.motion_gate.min_motion if has_wide else 0.0
         t0 = time.perf_counter()
+        motion = None
         if gate > 0:
-            from .motion import moving_bands
-
-            geos = det.geometries(frame.shape[:2], part=1)
-            roi = (min(g.x0 for g in geos), min(g.y0 for g in geos), max(g.x1 for g in geos), max(g.y1 for g in geos))
-            motion = self._motion.update(frame[:, :, ::-1] if rgb else frame, roi)
-            wide_bands = [] if motion is None else [
-                b for g in geos for b in moving_bands(g, det.wide_model.config, motion, gate)]
+            motion, wide_bands = self._moving_wide_bands(det, frame, rgb, gate)
             t_motion = time.perf_counter() - t0
             windows = det.detect(frame, rgb=rgb, wide_bands=wide_bands)
         else:
@@ -220,21 +240,14 @@ class VideoDetector:
         if has_wide:
             from .fusion import merge_wide
 
-            if gate > 0 and wide.any():
-                from .motion import window_motion
-
+            if motion is not None and wide.any():
                 t1 = time.perf_counter()
-                idx = np.flatnonzero(wide)
-                still = idx[window_motion(motion, windows.boxes[idx]) < gate]
-                if len(still):
-                    keep = np.ones(len(scales), bool)
-                    keep[still] = False
-                    windows, scales, wide = Detections(windows.boxes[keep], windows.scores[keep]), scales[keep], wide[keep]
+                windows, scales, wide = self._gate_wide(windows, scales, wide, motion, gate)
                 t_motion += time.perf_counter() - t1
             main_boxes = hm.update(Detections(windows.boxes[~wide], windows.scores[~wide]))
             hw = self._wide_heatmap_for(frame.shape)
             if not wide.any() and hw.config.n_frames == 1:
-                hw.reset()  # no memory and no windows: no heat, no boxes (most frames)
+                hw.reset()  # no memory and no windows: no heat, no boxes
                 boxes = main_boxes
             else:
                 boxes = merge_wide(main_boxes, hw.update(Detections(windows.boxes[wide], windows.scores[wide])))
