@@ -29,7 +29,9 @@ How one frame goes (``HeatMap.update``)
    blob's cells whose heat is at least ``extent`` x the blob's peak (``extent = 0``: the
    whole blob), in pixels (cells scaled by ``cell``, clipped to the frame). A box's
    **score is the blob's peak heat** (same units as the threshold, so every kept box
-   scores above it). ``blobs`` keeps every blob's box before the shape filter.
+   scores above it). ``blobs`` keeps every blob's box before the shape filter. With
+   ``split_gap`` > 0 a blob whose windows form groups side by side gives one box per group
+   (:class:`~fastdet.config.HeatConfig`).
 5. **Shape filter.** Boxes narrower than ``min_width``, lower than ``min_height`` or taller
    than ``max_aspect * width`` are dropped: no vehicle looks like that, heat blobs that
    do are fragments or poles.
@@ -172,7 +174,8 @@ class HeatMap:
         self._since_anchor = 0
 
     def boxes(self) -> Detections:
-        """Threshold the current heat, label blobs, one box per blob, shape filter."""
+        """Threshold the current heat, label blobs, one box per blob (or per part of a blob,
+        with ``split_gap``), shape filter."""
         t0 = time.perf_counter()
         cfg = self.config
         self.mask = self.heat > cfg.threshold
@@ -180,38 +183,68 @@ class HeatMap:
         self.labels = labels.astype(np.int32, copy=False)
         c = int(cfg.cell)
         h, w = self.frame_shape
-        out = np.zeros((n, 4), np.int32)
-        peak = np.zeros(n, np.float32)
         ext = float(cfg.extent)
-        owner = np.zeros(0, np.int64)
-        if cfg.box_mode == "mean" and len(self._cur[0]):
+        owner = np.zeros(0, np.int64)  # the blob label under each current window's centre
+        split = float(cfg.split_gap) > 0 and len(self._cur[0]) > 1
+        if (cfg.box_mode == "mean" or split) and len(self._cur[0]):
             cb = self._cur[0]
             cy = np.clip(((cb[:, 1] + cb[:, 3]) / 2 / c).astype(np.int64), 0, labels.shape[0] - 1)
             cx = np.clip(((cb[:, 0] + cb[:, 2]) / 2 / c).astype(np.int64), 0, labels.shape[1] - 1)
             owner = labels[cy, cx]
+        boxes_l: list[tuple[int, int, int, int]] = []
+        peaks_l: list[float] = []
         for i, sl in enumerate(ndimage.find_objects(labels)):
             blob = labels[sl] == i + 1
             hv = self.heat[sl]
-            pk = hv[blob].max()
             y0, x0 = sl[0].start, sl[1].start
-            if ext > 0:
-                ys, xs = np.nonzero(blob & (hv >= ext * pk))  # never empty: the peak is in it
+            for part in (self._split(blob, x0, owner == i + 1) if split else [blob]):
+                pk = hv[part].max()
+                # never empty: the peak is in it
+                ys, xs = np.nonzero(part & (hv >= ext * pk)) if ext > 0 else np.nonzero(part)
                 y1, y2, x1, x2 = y0 + ys.min(), y0 + ys.max() + 1, x0 + xs.min(), x0 + xs.max() + 1
-            else:
-                y1, y2, x1, x2 = y0, sl[0].stop, x0, sl[1].stop
-            out[i] = (x1 * c, y1 * c, min(x2 * c, w), min(y2 * c, h))
-            mine = owner == i + 1
-            if mine.any():
-                wts = self._cur[1][mine]
-                mb = (self._cur[0][mine] * wts[:, None]).sum(0) / wts.sum()
-                out[i] = np.clip(np.round(mb), 0, [w, h, w, h]).astype(np.int32)
-            peak[i] = pk
+                box = (int(x1 * c), int(y1 * c), int(min(x2 * c, w)), int(min(y2 * c, h)))
+                mine = owner == i + 1
+                if cfg.box_mode == "mean" and mine.any():
+                    wts = self._cur[1][mine]
+                    mb = (self._cur[0][mine] * wts[:, None]).sum(0) / wts.sum()
+                    box = tuple(int(v) for v in np.clip(np.round(mb), 0, [w, h, w, h]))
+                boxes_l.append(box)
+                peaks_l.append(pk)
+        out = np.array(boxes_l, np.int32).reshape(-1, 4)
+        peak = np.array(peaks_l, np.float32)
         self.blobs = Detections(out, peak)
         bw = out[:, 2] - out[:, 0]
         bh = out[:, 3] - out[:, 1]
         keep = (bw >= cfg.min_width) & (bh >= cfg.min_height) & (bh <= cfg.max_aspect * bw)
         self.timings["label"] = time.perf_counter() - t0
         return Detections(out[keep], peak[keep])
+
+    def _split(self, blob: np.ndarray, x0: int, mine: np.ndarray) -> list[np.ndarray]:
+        """``blob`` (a boolean sub-grid starting at grid column ``x0``) cut into parts by its
+        windows ``mine`` (a mask over this frame's windows): groups of windows whose sorted
+        centre x are more than ``split_gap`` x their median width apart each keep the blob's
+        columns they cover. One part (the blob) when the windows form one group."""
+        cb = self._cur[0][mine]
+        if len(cb) < 2:
+            return [blob]
+        order = np.argsort((cb[:, 0] + cb[:, 2]) / 2, kind="stable")
+        cb = cb[order]
+        centres = (cb[:, 0] + cb[:, 2]) / 2
+        gap = float(self.config.split_gap) * np.median(cb[:, 2] - cb[:, 0])
+        cuts = np.flatnonzero(np.diff(centres) > gap) + 1
+        if not len(cuts):
+            return [blob]
+        c = int(self.config.cell)
+        parts = []
+        for g in np.split(cb, cuts):
+            cols = np.zeros(blob.shape[1], bool)
+            a = max(int(np.floor(g[:, 0].min() / c)) - x0, 0)
+            b = max(int(np.ceil(g[:, 2].max() / c)) - x0, 0)
+            cols[a:b] = True
+            part = blob & cols[None, :]
+            if part.any():
+                parts.append(part)
+        return parts or [blob]
 
     def update(self, windows: Detections) -> Detections:
         """:meth:`add` this frame's positive windows, then :meth:`boxes`."""

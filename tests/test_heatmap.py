@@ -274,6 +274,34 @@ def test_extent_box_is_the_core_of_the_blob():
     assert len(_one_frame(boxes, extent=1.0, **{**kw, "min_width": 40})[1].boxes) == 0
 
 
+def test_split_gap_gives_one_box_per_group_of_windows():
+    # two cars side by side: windows over x 0..64 and 40..104 on the first, 100..164 and
+    # 140..204 on the second; every window overlaps the next, so they make one blob
+    boxes = [[0, 0, 64, 24], [40, 0, 104, 24], [100, 0, 164, 24], [140, 0, 204, 24]]
+    kw = dict(threshold=0.5, min_width=0, min_height=0, max_aspect=10.0, extent=0.0)
+    one = as_sorted(_one_frame(boxes, **kw)[1])
+    assert [b for b, _ in one] == [(0, 0, 204, 24)]
+    # centres 32, 72, 132, 172: gaps 40, 60, 40 against half a window (32): every gap splits
+    two = as_sorted(_one_frame(boxes, split_gap=0.5, **kw)[1])
+    assert [b for b, _ in two] == [(0, 0, 64, 24), (40, 0, 104, 24), (100, 0, 164, 24), (140, 0, 204, 24)]
+    # against 0.75 of a window (48) only the middle gap: one box per car
+    cars = as_sorted(_one_frame(boxes, split_gap=0.75, **kw)[1])
+    assert [b for b, _ in cars] == [(0, 0, 104, 24), (100, 0, 204, 24)]
+    # windows of one car (centres 8 px apart) stay one box
+    same = [[0, 0, 64, 24], [8, 0, 72, 24], [16, 0, 80, 24]]
+    assert as_sorted(_one_frame(same, split_gap=0.5, **kw)[1]) == as_sorted(_one_frame(same, **kw)[1])
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.tuples(st.integers(0, 150), st.integers(0, 80), st.integers(8, 80), st.integers(8, 40)),
+                min_size=0, max_size=12),
+       st.floats(0.0, 1.0))
+def test_split_gap_too_large_to_cut_changes_nothing(wins, extent):
+    boxes = [[x, y, x + w, y + h] for x, y, w, h in wins]
+    kw = dict(threshold=0.5, min_width=0, min_height=0, max_aspect=10.0, extent=extent, shape=(130, 240))
+    assert as_sorted(_one_frame(boxes, split_gap=1e6, **kw)[1]) == as_sorted(_one_frame(boxes, **kw)[1])
+
+
 def test_shape_filter():
     cases = {
         (0, 0, 30, 60): False,    # too narrow (< 40)
@@ -323,6 +351,7 @@ def test_empty_input_and_bad_arguments():
     dict(n_frames=0), dict(decay=0.0), dict(decay=1.5), dict(threshold=-1), dict(threshold=float("nan")),
     dict(score_lo=1.0), dict(score_lo=2.0, score_hi=1.0), dict(w_max=0.5), dict(cell=0), dict(min_width=-1),
     dict(max_aspect=0), dict(single_frame_threshold=-0.5), dict(extent=-0.1), dict(extent=1.5),
+    dict(split_gap=-0.5), dict(split_gap=float("inf")), dict(split_gap=0.5, box_mode="mean"),
 ])
 def test_heatconfig_validation(kw):
     with pytest.raises(ValueError):
