@@ -421,3 +421,17 @@ def test_real_annotations_against_themselves(data):
         assert (r.fp, r.fn, r.num_dropped) == (0, 0, 0)
         assert r.precision == r.recall == r.f1 == r.ap == 1.0
         assert r.mota == 1.0 and r.idf1 == 1.0 and r.id_switches == 0
+
+
+def test_default_pipeline_accuracy_on_the_annotated_clips(data):
+    """The README's accuracy table, defaults row: `python -m fastdet eval --video CLIP` with
+    the bundled models. Guards against accuracy regressions (the figures the README gives,
+    less a small margin: F1 0.90 / 1.00, FP per frame 0.05 / 0.00)."""
+    from fastdet.video import iter_video_detections
+
+    floors = {"test_video": (0.99, 0.01), "test_small1": (0.88, 0.08)}  # min F1, max FP per frame
+    for name, (min_f1, max_fp) in floors.items():
+        video = data / "videos" / f"{name}.mp4"
+        gt = read_gt(data / "annotations" / f"{name}.gt.txt")
+        r = evaluate(gt, Predictions.from_frames(iter_video_detections(video, progress=False)), iou=0.5)
+        assert r.f1 >= min_f1 and r.fp_per_frame <= max_fp, (name, r.f1, r.fp_per_frame)
