@@ -188,3 +188,15 @@ def test_video_detector_wide_windows_are_the_gated_full_search(detector, oncomin
     assert want, "the oncoming cars must give gated wide windows"
     assert got == want
     assert "motion" in vd.timings
+
+
+def test_video_detector_rgb_frames_give_the_same_boxes(detector, oncoming_frames):
+    from fastdet.video import VideoDetector
+
+    bgr, rgb = VideoDetector(detector), VideoDetector(detector)
+    for frame in oncoming_frames:
+        a = bgr.update(frame)
+        b = rgb.update(np.ascontiguousarray(frame[:, :, ::-1]), rgb=True)
+        assert a.boxes.tolist() == b.boxes.tolist()
+        assert bgr.last_windows.boxes.tolist() == rgb.last_windows.boxes.tolist()
+    assert (bgr.last_scales < 0).any(), "the second frame has moving oncoming cars"
