@@ -36,7 +36,7 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Iterable, Iterator, Sequence, Union
+from typing import IO, Any, Iterable, Iterator, Sequence, Union
 
 import numpy as np
 
@@ -93,6 +93,17 @@ def _as_boxes(a) -> np.ndarray:
     return np.ascontiguousarray(arr)
 
 
+def _normalise_rows(table: Any, last: str, dtype: Any) -> None:
+    """Check and convert the columns of a frozen box table in place: ``boxes`` to ``(N, 4)
+    float64``, ``frames`` and ``ids`` to ``(N,) int64`` and the column ``last`` to ``(N,)
+    dtype``."""
+    boxes = _as_boxes(table.boxes)
+    n = boxes.shape[0]
+    object.__setattr__(table, "boxes", boxes)
+    for name, dt in (("frames", np.int64), ("ids", np.int64), (last, dtype)):
+        object.__setattr__(table, name, _as_1d(name, getattr(table, name), dt, n))
+
+
 @dataclass(frozen=True, eq=False)
 class GroundTruth:
     """Ground-truth boxes of one clip, one row per box, in file order.
@@ -111,12 +122,7 @@ class GroundTruth:
     source: str = "<memory>"
 
     def __post_init__(self) -> None:
-        boxes = _as_boxes(self.boxes)
-        n = boxes.shape[0]
-        object.__setattr__(self, "boxes", boxes)
-        object.__setattr__(self, "frames", _as_1d("frames", self.frames, np.int64, n))
-        object.__setattr__(self, "ids", _as_1d("ids", self.ids, np.int64, n))
-        object.__setattr__(self, "consider", _as_1d("consider", self.consider, bool, n))
+        _normalise_rows(self, "consider", bool)
 
     def __len__(self) -> int:
         return int(self.boxes.shape[0])
@@ -149,12 +155,7 @@ class Predictions:
     source: str = "<memory>"
 
     def __post_init__(self) -> None:
-        boxes = _as_boxes(self.boxes)
-        n = boxes.shape[0]
-        object.__setattr__(self, "boxes", boxes)
-        object.__setattr__(self, "frames", _as_1d("frames", self.frames, np.int64, n))
-        object.__setattr__(self, "ids", _as_1d("ids", self.ids, np.int64, n))
-        object.__setattr__(self, "scores", _as_1d("scores", self.scores, np.float64, n))
+        _normalise_rows(self, "scores", np.float64)
 
     def __len__(self) -> int:
         return int(self.boxes.shape[0])
