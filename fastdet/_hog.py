@@ -117,6 +117,13 @@ def _block_norm_code(block_norm) -> int:
         ) from None
 
 
+def _hog_params(orientations, pixels_per_cell, cells_per_block, block_norm) -> tuple[int, tuple, tuple, int]:
+    """The HOG parameters every public function takes, checked: ``(orientations,
+    (cell rows, cell cols), (block rows, block cols), block-norm code)``."""
+    return (_positive_int(orientations, "orientations"), _pair(pixels_per_cell, "pixels_per_cell"),
+            _pair(cells_per_block, "cells_per_block"), _block_norm_code(block_norm))
+
+
 def _float_dtype(dtype: np.dtype) -> type:
     """skimage's working float type: float16/float32 -> float32, everything else -> float64."""
     if dtype.kind not in "biuf":
@@ -321,10 +328,7 @@ def hog(image, orientations=9, pixels_per_cell=(8, 8), cells_per_block=(3, 3),
     .. [2] scikit-image, ``skimage/feature/_hog.py`` and ``_hoghistogram.pyx``.
     """
     arr = _as_array(image)
-    orientations = _positive_int(orientations, "orientations")
-    ppc = _pair(pixels_per_cell, "pixels_per_cell")
-    cpb = _pair(cells_per_block, "cells_per_block")
-    method = _block_norm_code(block_norm)
+    orientations, ppc, cpb, method = _hog_params(orientations, pixels_per_cell, cells_per_block, block_norm)
     if channel_axis is None:
         if arr.ndim != 2:
             raise ValueError(
@@ -417,10 +421,7 @@ def hog_channels(image, orientations=9, pixels_per_cell=8, cells_per_block=2,
         arr = arr[:, :, None]
     elif arr.ndim != 3:
         raise ValueError(f"image must be (H, W) or (H, W, C), got shape {arr.shape}")
-    orientations = _positive_int(orientations, "orientations")
-    ppc = _pair(pixels_per_cell, "pixels_per_cell")
-    cpb = _pair(cells_per_block, "cells_per_block")
-    method = _block_norm_code(block_norm)
+    orientations, ppc, cpb, method = _hog_params(orientations, pixels_per_cell, cells_per_block, block_norm)
     chans = _channel_list(channels, arr.shape[2])
     _, out, float_dtype = _compute(arr, chans, False, ppc, cpb, orientations, method,
                                    bool(transform_sqrt))
@@ -452,10 +453,7 @@ def hog_channels_batch(images, orientations=9, pixels_per_cell=8, cells_per_bloc
         raise ValueError(f"images must be (N, H, W, C) or (N, H, W), got shape {arr.shape}")
     if arr.shape[1] == 0 or arr.shape[2] == 0 or arr.shape[3] == 0:
         raise ValueError(f"images are empty (shape {arr.shape})")
-    orientations = _positive_int(orientations, "orientations")
-    ppc = _pair(pixels_per_cell, "pixels_per_cell")
-    cpb = _pair(cells_per_block, "cells_per_block")
-    method = _block_norm_code(block_norm)
+    orientations, ppc, cpb, method = _hog_params(orientations, pixels_per_cell, cells_per_block, block_norm)
     chans = _channel_list(channels, arr.shape[3])
     _float_dtype(arr.dtype)
     n_cells, n_blocks = _geometry(arr.shape[1:3], ppc, cpb, name="images")
