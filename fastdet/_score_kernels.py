@@ -18,27 +18,23 @@ _FAST = {"reassoc", "contract"}
 
 
 @njit(cache=True, nogil=True, fastmath=_FAST, inline="always")
-def _window_score(block_rows, w_hog, nbx, k, spat_rows, w_sp, sp_off, integ, win_h, win_w, cell, yb, xb, bias):
-    """Decision value of the window whose top-left block is (yb, xb); see dense_scores."""
-    nby = w_hog.shape[0]
-    s = w_sp.shape[0]
-    s3 = w_sp.shape[1]
-    row_len = nbx * k
-    acc = 0.0
-    c0 = xb * k
-    for dr in range(nby):
-        r = block_rows[yb + dr]
-        wr = w_hog[dr]
-        for t in range(row_len):
+def _patch_dot(rows, weights, r0, c0, acc):
+    """``acc`` plus the correlation of ``weights`` (R, C) with ``rows[r0:r0+R, c0:c0+C]``."""
+    for dr in range(weights.shape[0]):
+        r = rows[r0 + dr]
+        wr = weights[dr]
+        for t in range(weights.shape[1]):
             acc += r[c0 + t] * wr[t]
+    return acc
+
+
+@njit(cache=True, nogil=True, fastmath=_FAST, inline="always")
+def _window_score(block_rows, w_hog, nbx, k, spat_rows, w_sp, sp_off, integ, win_h, win_w, cell, yb, xb, bias):
+    """Decision value of the window whose top-left block is (yb, xb); see dense_scores.
+    (``w_hog`` rows are ``nbx * k`` long: the window's blocks of one block row.)"""
+    acc = _patch_dot(block_rows, w_hog, yb, xb * k, 0.0)
     if spat_rows.shape[0] > 0:
-        ys = (yb * cell) // sp_off
-        xs3 = ((xb * cell) // sp_off) * 3
-        for dy in range(s):
-            r = spat_rows[ys + dy]
-            wr = w_sp[dy]
-            for t in range(s3):
-                acc += r[xs3 + t] * wr[t]
+        acc = _patch_dot(spat_rows, w_sp, (yb * cell) // sp_off, ((xb * cell) // sp_off) * 3, acc)
     if integ.shape[0] > 1:
         y0 = yb * cell
         x0 = xb * cell
