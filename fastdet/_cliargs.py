@@ -5,6 +5,22 @@ import argparse
 from typing import Any
 
 
+def positive_int(s: str) -> int:
+    """argparse type: an int >= 1."""
+    v = int(s)
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {v}")
+    return v
+
+
+def nonneg_int(s: str) -> int:
+    """argparse type: an int >= 0."""
+    v = int(s)
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {v}")
+    return v
+
+
 def add_oncoming_arguments(parser: argparse.ArgumentParser) -> None:
     """``--oncoming-model`` / ``--no-oncoming``, shared by ``video``, ``eval`` and ``bench``."""
     g = parser.add_mutually_exclusive_group()

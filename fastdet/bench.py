@@ -38,6 +38,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from ._cliargs import add_oncoming_arguments, oncoming_arg, positive_int
 from .errors import DataError, FastdetError
 
 DEFAULT_IMAGE = Path("test_images") / "test1.jpg"
@@ -53,25 +54,16 @@ STAGES = (
 )
 
 
-def _positive_int(s: str) -> int:
-    v = int(s)
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {v}")
-    return v
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("input", metavar="INPUT", nargs="?", default=None,
                         help=f"video or image file (default: {DEFAULT_IMAGE} in the data folder)")
-    parser.add_argument("--frames", type=_positive_int, default=30, metavar="N",
+    parser.add_argument("--frames", type=positive_int, default=30, metavar="N",
                         help="frames per repeat: a video's first N frames, or the image N times (default 30)")
-    parser.add_argument("--threads", type=_positive_int, default=None, metavar="T",
+    parser.add_argument("--threads", type=positive_int, default=None, metavar="T",
                         help="Numba and OpenCV threads (default: NUMBA_NUM_THREADS)")
-    parser.add_argument("--repeat", type=_positive_int, default=3, metavar="R",
+    parser.add_argument("--repeat", type=positive_int, default=3, metavar="R",
                         help="timed repeats of the N frames; the table shows the best and the median (default 3)")
     parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
-    from ._cliargs import add_oncoming_arguments
-
     add_oncoming_arguments(parser)
 
 
@@ -114,7 +106,6 @@ def load_frames(path: str | os.PathLike, n: int) -> tuple[list, str, float | Non
 
 
 def _detector(args: argparse.Namespace) -> Any:
-    from ._cliargs import oncoming_arg
     from .video import make_detector
 
     try:

@@ -65,6 +65,7 @@ from typing import Any
 
 import numpy as np
 
+from ._cliargs import add_oncoming_arguments, oncoming_arg
 from .errors import DataError, FastdetError
 from .motio import GroundTruth, Predictions, read_gt, read_predictions
 
@@ -542,8 +543,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     src.add_argument("--video", metavar="CLIP.mp4",
                      help="run the default video pipeline on this clip and evaluate its boxes")
     parser.add_argument("--model", metavar="MODEL.npz", help="model for --video (default: the bundled one)")
-    from ._cliargs import add_oncoming_arguments
-
     add_oncoming_arguments(parser)
     parser.add_argument("--iou", type=_iou_arg, default=0.5, help="IoU a match needs (default 0.5)")
     parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
@@ -566,8 +565,6 @@ def run(args: argparse.Namespace) -> int:
         raise FastdetError("--model, --oncoming-model and --no-oncoming only apply with --video")
     gt = read_gt(args.gt)
     if args.video is not None:
-        from ._cliargs import oncoming_arg
-
         preds = _video_predictions(args.video, args.model, oncoming_arg(args))
     else:
         preds = read_predictions(args.pred)

@@ -53,6 +53,7 @@ import numpy as np
 
 from .config import HeatConfig, MotionGate
 from .detections import Detections
+from ._cliargs import add_oncoming_arguments, nonneg_int, oncoming_arg, positive_int
 from .errors import DataError, FastdetError
 
 _QUEUE_SIZE = 8
@@ -565,18 +566,6 @@ def iter_video_detections(path: str | os.PathLike, model: Any = None, start: int
 # command line
 
 
-def _positive_int(s: str) -> int:
-    v = int(s)
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {v}")
-    return v
-
-
-def _nonneg_int(s: str) -> int:
-    v = int(s)
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {v}")
-    return v
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -587,19 +576,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="boxes per frame, MOTChallenge: frame,-1,left,top,width,height,conf,-1,-1,-1")
     parser.add_argument("--json", metavar="BOXES.jsonl", help="boxes per frame as JSON lines")
     parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
-    from ._cliargs import add_oncoming_arguments
-
     add_oncoming_arguments(parser)
     parser.add_argument("--debug", action="store_true",
                         help="add panels along the top: windows by scale, heat map, thresholded blobs")
     parser.add_argument("--profile", action="store_true", help="print a table of ms per frame per stage")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    parser.add_argument("--start", type=_nonneg_int, default=0, metavar="S",
+    parser.add_argument("--start", type=nonneg_int, default=0, metavar="S",
                         help="skip the first S frames (frame numbers stay those of the file)")
-    parser.add_argument("--frames", type=_positive_int, default=None, metavar="N",
+    parser.add_argument("--frames", type=positive_int, default=None, metavar="N",
                         help="process at most N frames")
     d = HeatConfig()
-    parser.add_argument("--heat-frames", type=_positive_int, default=d.n_frames, metavar="N",
+    parser.add_argument("--heat-frames", type=positive_int, default=d.n_frames, metavar="N",
                         help=f"frames the heat map remembers (default {d.n_frames})")
     parser.add_argument("--heat-decay", type=float, default=d.decay, metavar="D",
                         help=f"weight of a frame k frames old is D**k (default {d.decay})")
@@ -667,8 +654,6 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
     sink = mot = jsl = None
     try:
         if detector is None:
-            from ._cliargs import oncoming_arg
-
             detector = make_detector(args.model, oncoming_arg(args))
         elif args.model is not None:
             raise FastdetError("--model cannot be used with an injected detector")
