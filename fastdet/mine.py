@@ -16,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ._cliargs import nonneg_int, positive_int
+
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("video", type=Path, help="video, image, or image sequence (e.g. test_images/test%%d.jpg) to mine")
@@ -34,9 +36,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--threshold", type=float, default=None,
                    help="decision value a window needs to count as positive (default: the search's own); "
                         "lower it to mine near misses too")
-    p.add_argument("--start", type=int, default=0, help="first frame (0-based)")
-    p.add_argument("--frames", type=int, default=None, help="number of frames to mine")
-    p.add_argument("--every", type=int, default=1, help="mine every k-th frame")
+    p.add_argument("--start", type=nonneg_int, default=0, help="first frame (0-based)")
+    p.add_argument("--frames", type=positive_int, default=None, help="number of frames to mine")
+    p.add_argument("--every", type=positive_int, default=1, help="mine every k-th frame")
     p.add_argument("--prefix", default=None, help="file name prefix (default: the video's name)")
     p.add_argument("--no-progress", action="store_true")
 

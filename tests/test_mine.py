@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import cv2
+import pytest
 import numpy as np
 
 from fastdet.cli import main
@@ -47,6 +48,14 @@ def test_mine_user_errors(tmp_path, capsys):
     assert main(["mine-negatives", str(tmp_path / "none.mp4"), "--out", str(tmp_path / "o"), "--gt", "x",
                  "--part", "wide"]) == 2
     assert "--wide-model" in capsys.readouterr().err
+
+
+def test_mine_counts_must_be_positive(tmp_path, capsys):
+    for flag, value in (("--every", "0"), ("--frames", "0"), ("--start", "-1")):
+        with pytest.raises(SystemExit) as exc:
+            main(["mine-negatives", "x.mp4", "--x-range", "0", "9", "--out", str(tmp_path), flag, value])
+        assert exc.value.code == 2
+        assert "must be >=" in capsys.readouterr().err
 
 
 def test_mine_image_sequence_with_annotations(data, tmp_path, capsys):
