@@ -62,11 +62,18 @@ def window_motion(motion: MotionMap, boxes: np.ndarray) -> np.ndarray:
     """Mean absolute grey-level change ``(N,) float64`` inside each box ``(N, 4)`` x1, y1,
     x2, y2 (frame pixels, exclusive; clipped to the map's region; a box with nothing inside
     it gives 0)."""
+    b = np.asarray(boxes, np.int64).reshape(-1, 4)
+    return _mean_in(motion, b[:, 0], b[:, 1], b[:, 2], b[:, 3])
+
+
+def _mean_in(motion: MotionMap, x1, y1, x2, y2) -> np.ndarray:
+    """Mean of the map over the boxes ``x1..x2 x y1..y2`` (frame pixels, exclusive), given
+    as integer arrays that broadcast together (one box per element); clipped to the map's
+    region, 0 where nothing is left."""
     integral, (ox, oy) = motion
-    boxes = np.asarray(boxes, np.int64).reshape(-1, 4) - np.array([ox, oy, ox, oy])
     h, w = integral.shape[0] - 1, integral.shape[1] - 1
-    x1, x2 = np.clip(boxes[:, 0], 0, w), np.clip(boxes[:, 2], 0, w)
-    y1, y2 = np.clip(boxes[:, 1], 0, h), np.clip(boxes[:, 3], 0, h)
+    x1, x2 = np.clip(x1 - ox, 0, w), np.clip(x2 - ox, 0, w)
+    y1, y2 = np.clip(y1 - oy, 0, h), np.clip(y2 - oy, 0, h)
     total = integral[y2, x2] - integral[y1, x2] - integral[y2, x1] + integral[y1, x1]
     area = (x2 - x1) * (y2 - y1)
     return np.where(area > 0, total / np.maximum(area, 1), 0.0)
@@ -90,13 +97,8 @@ def moving_bands(geo: BandGeometry, config: FeatureConfig, motion: MotionMap,
     left = geo.x0 + (np.arange(geo.nx) * geo.step * cell * s).astype(np.int64)
     top = geo.y0 + (np.arange(geo.ny) * geo.step * cell * s).astype(np.int64)
     right, bottom = left + int(config.win_w * s), top + int(config.win_h * s)
-    integral, (ox, oy) = motion
-    h, w = integral.shape[0] - 1, integral.shape[1] - 1
-    x1, x2 = np.clip(left - ox, 0, w), np.clip(right - ox, 0, w)
-    y1, y2 = np.clip(top - oy, 0, h)[:, None], np.clip(bottom - oy, 0, h)[:, None]
-    total = integral[y2, x2] - integral[y1, x2] - integral[y2, x1] + integral[y1, x1]
-    area = (x2 - x1) * (y2 - y1)
-    moving = (np.where(area > 0, total / np.maximum(area, 1), 0.0) >= min_motion).any(axis=0)
+    # (rows, cols) grid of window means: row coordinates as a column vector
+    moving = (_mean_in(motion, left, top[:, None], right, bottom[:, None]) >= min_motion).any(axis=0)
     if not moving.any():
         return []
     idx = np.flatnonzero(moving)
