@@ -39,6 +39,11 @@ CLASSIC_HEAT = HeatConfig(n_frames=8, decay=1.0, threshold=0.75, w_max=1.0, exte
 
 
 
+def _cell(r) -> str:
+    """One table cell: P / R / **F1** / AP / FP per frame."""
+    return f"{r.precision:.2f} / {r.recall:.2f} / **{r.f1:.2f}** / {r.ap:.2f} / {r.fp_per_frame:.2f}"
+
+
 def _pipeline_row(label: str, names, videos, gts, **kw) -> str:
     """One row from the real video pipeline: ``kw`` go to VideoDetector (or ``oncoming`` to
     make_detector)."""
@@ -55,7 +60,7 @@ def _pipeline_row(label: str, names, videos, gts, **kw) -> str:
         while (item := cap.read())[0]:
             frames.append((len(frames) + 1, vd.update(item[1])))
         r = evaluate(gts[n], Predictions.from_frames(frames), iou=0.5, num_frames=len(frames))
-        cells.append(f"{r.precision:.2f} / {r.recall:.2f} / **{r.f1:.2f}** / {r.ap:.2f} / {r.fp_per_frame:.2f}")
+        cells.append(_cell(r))
     return f"| {label} | " + " | ".join(cells) + " |"
 
 
@@ -96,7 +101,7 @@ def main() -> None:
         for n in names:
             cch, shape = cache[n]
             r = evaluate(gts[n], replay(cch, shape, thr, heat, kind), iou=0.5, num_frames=len(cch))
-            cells.append(f"{r.precision:.2f} / {r.recall:.2f} / **{r.f1:.2f}** / {r.ap:.2f} / {r.fp_per_frame:.2f}")
+            cells.append(_cell(r))
         print(f"| {label} | " + " | ".join(cells) + " |", flush=True)
     print(_pipeline_row("+ oncoming-traffic model, full wide search, no motion gate", names, videos, gts,
                         motion=MotionGate(0)), flush=True)
@@ -107,7 +112,7 @@ def main() -> None:
     for n in names:
         preds = Predictions.from_frames(iter_video_detections(videos[n], progress=False))
         r = evaluate(gts[n], preds, iou=0.5)
-        cells.append(f"{r.precision:.2f} / {r.recall:.2f} / **{r.f1:.2f}** / {r.ap:.2f} / {r.fp_per_frame:.2f}")
+        cells.append(_cell(r))
     print("| **fastdet defaults**: + motion gate (search and keep only wide windows that moved) | "
           + " | ".join(cells) + " |")
 
