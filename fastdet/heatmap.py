@@ -197,13 +197,13 @@ class HeatMap:
             blob = labels[sl] == i + 1
             hv = self.heat[sl]
             y0, x0 = sl[0].start, sl[1].start
-            for part in (self._split(blob, x0, owner == i + 1) if split else [blob]):
+            mine = owner == i + 1  # this frame's windows centred in the blob
+            for part in (self._split(blob, x0, mine) if split else [blob]):
                 pk = hv[part].max()
                 # never empty: the peak is in it
                 ys, xs = np.nonzero(part & (hv >= ext * pk)) if ext > 0 else np.nonzero(part)
                 y1, y2, x1, x2 = y0 + ys.min(), y0 + ys.max() + 1, x0 + xs.min(), x0 + xs.max() + 1
                 box = (int(x1 * c), int(y1 * c), int(min(x2 * c, w)), int(min(y2 * c, h)))
-                mine = owner == i + 1
                 if cfg.box_mode == "mean" and mine.any():
                     wts = self._cur[1][mine]
                     mb = (self._cur[0][mine] * wts[:, None]).sum(0) / wts.sum()
@@ -227,9 +227,9 @@ class HeatMap:
         cb = self._cur[0][mine]
         if len(cb) < 2:
             return [blob]
-        order = np.argsort((cb[:, 0] + cb[:, 2]) / 2, kind="stable")
-        cb = cb[order]
         centres = (cb[:, 0] + cb[:, 2]) / 2
+        order = np.argsort(centres, kind="stable")
+        cb, centres = cb[order], centres[order]
         gap = float(self.config.split_gap) * np.median(cb[:, 2] - cb[:, 0])
         cuts = np.flatnonzero(np.diff(centres) > gap) + 1
         if not len(cuts):
