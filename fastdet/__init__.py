@@ -1,18 +1,24 @@
 """fastdet: real-time HOG + linear-classifier vehicle detection for dashcam video.
 
-Public API (imported lazily, so ``import fastdet`` is cheap)::
+Public API (the heavy parts are imported lazily, so ``import fastdet`` is cheap)::
 
     from fastdet import hog, hog_channels            # skimage-compatible HOG, per-channel HOG
     from fastdet import hog_channels_batch           # per-channel HOG of a stack of crops
     from fastdet import Detector, VideoDetector      # one frame / a stream of frames
     from fastdet import load_model, Model            # the bundled or a trained model
-    from fastdet import FeatureConfig, SearchConfig, SearchBand, HeatConfig, MotionGate, Detections
+    from fastdet import Detections                   # boxes + per-box columns (scores, scale, part, ids)
+    from fastdet import FeatureConfig, SearchConfig, SearchBand, HeatConfig, MotionGate
+
+Sub-packages, one per pipeline stage (layers point down): ``features`` (HOG, colour
+features) → ``detect`` (search bands, Detector) → ``video`` (heat map, motion gate, fusion,
+VideoDetector) → ``cli`` (commands); beside them ``io`` (reader, sink, box files, atomic
+writes), ``eval`` (metrics, report) and ``train`` (datasets, fitting, mining).
 """
 from __future__ import annotations
 
 import importlib
 import os
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 # numba's OpenMP workers busy-wait between parallel regions by default; on 2 cores shared with
 # the video reader/writer threads (or anything else) that spinning cost 5-8x in throughput.
@@ -24,16 +30,22 @@ from .config import FeatureConfig, HeatConfig, MotionGate, SearchBand, SearchCon
 from .detections import Detections
 from .errors import DataError, FastdetError, ModelError
 
+if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers and IDEs
+    from .detect import Detector
+    from .features import extract_features, hog, hog_channels, hog_channels_batch
+    from .model import Model, load_model
+    from .video import HeatMap, VideoDetector
+
 _LAZY = {
-    "hog": "fastdet._hog",
-    "hog_channels": "fastdet._hog",
-    "hog_channels_batch": "fastdet._hog",
-    "Detector": "fastdet.detector",
+    "hog": "fastdet.features",
+    "hog_channels": "fastdet.features",
+    "hog_channels_batch": "fastdet.features",
+    "extract_features": "fastdet.features",
+    "Detector": "fastdet.detect",
     "VideoDetector": "fastdet.video",
-    "HeatMap": "fastdet.heatmap",
+    "HeatMap": "fastdet.video",
     "load_model": "fastdet.model",
     "Model": "fastdet.model",
-    "extract_features": "fastdet.features",
 }
 
 __all__ = [
@@ -48,3 +60,7 @@ def __getattr__(name: str) -> Any:
         globals()[name] = value
         return value
     raise AttributeError(f"module 'fastdet' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

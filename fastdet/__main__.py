@@ -1,6 +1,6 @@
 """``python -m fastdet`` → :func:`fastdet.cli.main`."""
 import sys
 
-from .cli import main
+from .cli.main import main
 
 sys.exit(main())

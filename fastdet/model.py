@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,6 +31,8 @@ import numpy as np
 from ._version import __version__
 from .config import FeatureConfig
 from .errors import ModelError
+from .features import extract_features
+from .io.atomic import atomic_path
 
 FORMAT_VERSION = 1
 CLASSIFIERS = ("linearsvc", "logreg")
@@ -95,8 +96,6 @@ class Model:
 
     def decision_function(self, crops: np.ndarray) -> np.ndarray:
         """Decision values of ``(N, 64, 64, 3) uint8`` BGR crops: ``(N,) float64``, > 0 is vehicle."""
-        from .features import extract_features
-
         crops = np.asarray(crops)
         single = crops.ndim == 3
         scores = self.decision_from_features(extract_features(crops[None] if single else crops, self.config))
@@ -122,17 +121,10 @@ class Model:
                     classifier=self.classifier, fastdet_version=__version__)
         blob = np.frombuffer(json.dumps(meta, sort_keys=True).encode("utf-8"), dtype=np.uint8)
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
-        try:
-            with os.fdopen(fd, "wb") as fh:
+        with atomic_path(path) as tmp:
+            with open(tmp, "wb") as fh:
                 np.savez_compressed(fh, coef=self.coef, intercept=np.float64(self.intercept),
                                     mean=self.mean, scale=self.scale, metadata=blob)
-            os.chmod(tmp, 0o644)  # mkstemp makes 0600; a model is an ordinary file
-            os.replace(tmp, path)
-        except BaseException:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-            raise
         return path
 
 

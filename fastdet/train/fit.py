@@ -1,92 +1,38 @@
-"""``python -m fastdet train``: features → StandardScaler → LinearSVC / LogisticRegression.
+"""Training a model: features of crops → StandardScaler → LinearSVC / LogisticRegression.
 
-Reports accuracy, precision, recall, F1 and the confusion matrix on a random 80/20 split
-and on a leak-free *sequence* split (every folder cut into contiguous time blocks, see
-:mod:`fastdet.dataset`), then refits on all the data and writes the model. Hard negatives
-(``--negatives``) and flip augmentation only ever join the *training* part of a split, so
-the test figures stay comparable. Deterministic for a given ``--seed``.
+:func:`train` reports accuracy, precision, recall, F1 and the confusion matrix on a random
+80/20 split and on a leak-free *sequence* split (every folder cut into contiguous time
+blocks, see :mod:`fastdet.train.dataset`), then refits on all the data. Hard negatives and
+flip augmentation only ever join the *training* part of a split, so the test figures stay
+comparable. Deterministic for a given seed.
 """
 from __future__ import annotations
 
-import argparse
-import sys
 import time
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
+from sklearn.linear_model import LogisticRegression
+from sklearn.preprocessing import StandardScaler
+from sklearn.svm import LinearSVC
+from tqdm import tqdm
 
-from .config import COLOR_SPACES, FeatureConfig
-from .data import data_dir
-
-
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--data", type=Path, default=None,
-                   help="folder with vehicles/ and non-vehicles/ PNG crops (default: $FASTDET_DATA)")
-    p.add_argument("--out", type=Path, required=True, help="model file to write (.npz)")
-    p.add_argument("--classifier", choices=("linearsvc", "logreg"), default="logreg",
-                   help="linear classifier (default: logreg, which gives calibrated probabilities)")
-    p.add_argument("--C", type=float, default=None, help="inverse regularisation strength (default: per classifier)")
-    p.add_argument("--split", choices=("both", "random", "sequence"), default="both",
-                   help="which held-out evaluations to run before the final fit (default: both)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (split, classifier)")
-    p.add_argument("--negatives", type=Path, action="append", default=[],
-                   help="folder of extra non-vehicle crops (hard negatives), any depth; repeatable")
-    p.add_argument("--positives", type=Path, action="append", default=[],
-                   help="folder of extra vehicle crops, any depth; repeatable (joins the training parts only)")
-    p.add_argument("--no-flip", action="store_true", help="do not add mirrored copies of the training crops")
-    p.add_argument("--color-space", choices=COLOR_SPACES, default=None)
-    p.add_argument("--orientations", type=int, default=None)
-    p.add_argument("--spatial-size", type=int, default=None)
-    p.add_argument("--hist-bins", type=int, default=None)
-    p.add_argument("--hog-channels", default=None, help="e.g. 0,1,2 or ALL")
-    p.add_argument("--window-rows", type=int, nargs=2, metavar=("A", "B"), default=None,
-                   help="train a wide-window model on rows [A, B) of the 64x64 crops (e.g. 16 48: "
-                        "the middle rows of the vehicles; non-vehicle crops give their top, middle and "
-                        "bottom row bands as negatives)")
-    p.add_argument("--max-per-folder", type=int, default=None,
-                   help="use at most this many crops of each folder (evenly spaced; for quick runs)")
-    p.add_argument("--no-refit", action="store_true", help="skip the final fit on all data (no model written)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+from ..config import FeatureConfig
+from ..features import extract_features
+from ..model import Model
+from .dataset import CropSet, load_crops, load_folder, random_split, sequence_split
 
 
 DEFAULT_C = {"linearsvc": 1e-3, "logreg": 3e-2}
 
 
-def feature_config_from_args(args: argparse.Namespace) -> FeatureConfig:
-    cfg = FeatureConfig()
-    changes: dict[str, Any] = {}
-    if args.color_space:
-        changes["color_space"] = args.color_space
-    if args.orientations:
-        changes["orientations"] = args.orientations
-    if args.spatial_size is not None:
-        changes["spatial_size"] = args.spatial_size
-    if args.hist_bins is not None:
-        changes["hist_bins"] = args.hist_bins
-    if args.window_rows:
-        a, b = args.window_rows
-        if not 0 <= a < b <= cfg.window:
-            from .errors import FastdetError
-
-            raise FastdetError(f"--window-rows must satisfy 0 <= A < B <= {cfg.window}, got {a} {b}")
-        changes["window_height"] = b - a
-    if args.hog_channels:
-        hc = args.hog_channels
-        changes["hog_channels"] = "ALL" if hc.upper() == "ALL" else tuple(int(c) for c in hc.split(","))
-    return replace(cfg, **changes) if changes else cfg
-
-
 def features_in_chunks(images: np.ndarray, config: FeatureConfig, progress: bool, desc: str = "features",
                        chunk: int = 2048) -> np.ndarray:
-    from .features import extract_features
-
     out = np.empty((len(images), config.n_features), np.float64)
     starts = range(0, len(images), chunk)
     if progress:
-        from tqdm import tqdm
-
         starts = tqdm(starts, desc=desc, unit="chunk", leave=False)
     for s in starts:
         out[s: s + chunk] = extract_features(images[s: s + chunk], config)
@@ -95,17 +41,11 @@ def features_in_chunks(images: np.ndarray, config: FeatureConfig, progress: bool
 
 def fit_classifier(x: np.ndarray, y: np.ndarray, classifier: str, C: float, seed: int):
     """StandardScaler + classifier; returns ``(scaler, clf)``."""
-    from sklearn.preprocessing import StandardScaler
-
     scaler = StandardScaler().fit(x)
     xs = scaler.transform(x)
     if classifier == "linearsvc":
-        from sklearn.svm import LinearSVC
-
         clf = LinearSVC(C=C, dual=False, random_state=seed, max_iter=5000)
     else:
-        from sklearn.linear_model import LogisticRegression
-
         clf = LogisticRegression(C=C, max_iter=2000, random_state=seed)
     clf.fit(xs, y)
     return scaler, clf
@@ -149,8 +89,6 @@ def row_bands(crops, top: int, height: int):
     """Wide-window training set: vehicles' rows ``[top, top + height)``; every non-vehicle
     crop gives its top, middle-window and bottom row bands (three negatives, same group and
     time position, so the sequence split keeps them together)."""
-    from .dataset import CropSet
-
     pos = np.flatnonzero(crops.labels == 1)
     neg = np.flatnonzero(crops.labels == 0)
     parts = [CropSet(np.ascontiguousarray(crops.images[pos, top: top + height]), crops.labels[pos],
@@ -167,10 +105,6 @@ def row_bands(crops, top: int, height: int):
 def fit_to_window(crops, config: FeatureConfig, top: int):
     """Extra negatives to the config's window: a crop of the window's own size is kept, a
     64x64 crop gives its rows ``[top, top + win_h)``, anything else is resized."""
-    import cv2
-
-    from .dataset import CropSet
-
     h, w = crops.images.shape[1:3]
     if (h, w) == (config.win_h, config.win_w):
         return crops
@@ -190,9 +124,6 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
 
     For a wide-window ``config`` (``window_height`` set), ``window_top`` is the first row of
     the 64x64 crops that the window covers (default: centred)."""
-    from .dataset import CropSet, load_crops, load_folder, random_split, sequence_split
-    from .model import Model
-
     C = DEFAULT_C[classifier] if C is None else C
     t0 = time.perf_counter()
     crops = load_crops(data, progress=progress)
@@ -256,23 +187,3 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
     return model, report
 
 
-def run(args: argparse.Namespace) -> int:
-    from .errors import FastdetError
-
-    data = args.data or data_dir()
-    out: Path = args.out
-    if out.suffix != ".npz":
-        raise FastdetError(f"--out must end in .npz, got {out}")
-    if not out.parent.is_dir():
-        raise FastdetError(f"output folder {out.parent} does not exist")
-    config = feature_config_from_args(args)
-    progress = not args.no_progress and sys.stderr.isatty()
-    model, report = train(data, config, args.classifier, args.C, args.split, args.seed, args.negatives,
-                          not args.no_flip, args.max_per_folder, not args.no_refit, progress,
-                          window_top=args.window_rows[0] if args.window_rows else None,
-                          positives=args.positives)
-    if model is not None:
-        model.metadata["training"]["command"] = "python -m fastdet train " + " ".join(sys.argv[2:])
-        model.save(out)
-        print(f"wrote {out}")
-    return 0

@@ -10,16 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .detections import Detections
-
-
-def overlap_fraction(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``(N, M)``: the fraction of box ``a[i]``'s area that lies inside box ``b[j]``."""
-    from .eval import box_intersection
-
-    a = np.asarray(a, np.float64).reshape(-1, 4)
-    area = np.maximum((a[:, 2] - a[:, 0]) * (a[:, 3] - a[:, 1]), 1e-9)
-    return box_intersection(a, b) / area[:, None]
+from ..boxes import overlap_fraction
+from ..detections import Detections
 
 
 def merge_wide(main: Detections, wide: Detections, max_overlap: float = 0.2) -> Detections:

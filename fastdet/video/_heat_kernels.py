@@ -4,8 +4,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .._numba import EXACT
 
-@njit(cache=True, nogil=True)
+
+@njit(**EXACT)
 def add_rects(grid: np.ndarray, rects: np.ndarray, weights: np.ndarray, factor: float) -> None:
     """``grid[y1:y2, x1:x2] += factor * weights[i]`` for each ``rects[i] = (x1, y1, x2, y2)``.
 

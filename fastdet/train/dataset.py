@@ -16,7 +16,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .errors import DataError
+from ..errors import DataError
 
 _NUM = re.compile(r"(\d+)")
 

@@ -1,6 +1,6 @@
 """``python -m fastdet bench [INPUT] [--frames N] [--threads T] [--repeat R] [--model M.npz] [--oncoming-model W.npz | --no-oncoming]``
 
-Times the stages of :class:`~fastdet.video.VideoDetector` (what ``python -m fastdet video``
+Times the stages of :class:`~fastdet.VideoDetector` (what ``python -m fastdet video``
 runs on its main thread for every frame) on a video or an image, and prints ms per frame
 per stage and the frames per second they allow.
 
@@ -11,7 +11,7 @@ per stage and the frames per second they allow.
 - Stages: ``resize/colour`` (crop, resize, colour conversion of every band), ``HOG``
   (block maps), ``scoring`` (spatial map, histogram integral image, dense window scores),
   ``heat`` and ``label`` (heat map, blobs, boxes), ``motion`` (the frame difference that
-  narrows and gates the oncoming-traffic model's search) — :attr:`Detector.timings` and
+  narrows and gates the oncoming-traffic model's search) — :class:`~fastdet.detect.DetectStats` timings and
   :attr:`VideoDetector.timings` — and ``other``: the rest of ``update`` (band geometry,
   thresholding, window boxes, Python glue, the oncoming model's own heat map and the
   merge of its boxes). As ``video``, the bundled oncoming-traffic model runs unless
@@ -38,8 +38,15 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ._cliargs import add_oncoming_arguments, oncoming_arg, positive_int
-from .errors import DataError, FastdetError
+import cv2
+import numba
+import numpy as np
+
+from ..data import data_dir
+from ..errors import DataError, FastdetError
+from ..io.reader import FrameReader
+from ..video.pipeline import VideoDetector, _passive_omp, make_detector
+from ._args import add_oncoming_arguments, oncoming_arg, positive_int
 
 DEFAULT_IMAGE = Path("test_images") / "test1.jpg"
 
@@ -71,9 +78,6 @@ def load_frames(path: str | os.PathLike, n: int) -> tuple[list, str, float | Non
     """``(frames, kind, decode ms per frame)``: an image repeated ``n`` times (``kind``
     ``'image'``, no decode time) or the first ``n`` frames of a video (``'video'``; fewer
     when it is shorter). Raises :class:`DataError` for anything unreadable."""
-    import cv2
-    import numpy as np
-
     name = os.fspath(path)
     if not os.path.exists(name):
         raise DataError(f"{name}: file not found")
@@ -85,10 +89,8 @@ def load_frames(path: str | os.PathLike, n: int) -> tuple[list, str, float | Non
             raise DataError(f"{name}: not an image OpenCV can read (damaged?)")
         return [frame] * n, "image", None
 
-    from .video import _Reader
-
     try:
-        reader = _Reader(name, 0, n)
+        reader = FrameReader(name, 0, n)
     except DataError as exc:
         msg = str(exc)
         if "not a video OpenCV can read" in msg or msg.endswith("the video has no frames"):
@@ -106,8 +108,6 @@ def load_frames(path: str | os.PathLike, n: int) -> tuple[list, str, float | Non
 
 
 def _detector(args: argparse.Namespace) -> Any:
-    from .video import make_detector
-
     try:
         return make_detector(args.model, oncoming_arg(args))
     except FastdetError:
@@ -160,17 +160,10 @@ def format_table(runs: list[dict[str, float]]) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """The ``bench`` subcommand."""
-    from .video import _passive_omp
-
     _passive_omp()
     if args.input is None:
-        from .data import data_dir
-
         args.input = str(data_dir() / DEFAULT_IMAGE)
     frames, kind, decode_ms = load_frames(args.input, args.frames)
-
-    import cv2
-    import numba
 
     max_threads = numba.config.NUMBA_NUM_THREADS
     threads = args.threads if args.threads is not None else max_threads
@@ -181,8 +174,6 @@ def run(args: argparse.Namespace) -> int:
     numba.set_num_threads(threads)
     cv2.setNumThreads(threads)
     try:
-        from .video import VideoDetector
-
         det = _detector(args)
         vd = VideoDetector(det)
         t0 = time.perf_counter()

@@ -19,6 +19,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from .._numba import EXACT, EXACT_PARALLEL
+
 # block_norm codes (see _hog.BLOCK_NORMS)
 NORM_L1 = 0
 NORM_L1_SQRT = 1
@@ -35,8 +37,8 @@ LUT_SIDE = 511
 
 # error_model="numpy": x / 0 gives inf/nan as in NumPy instead of a Python-style check,
 # which also lets LLVM vectorise the division loops (5x faster normalisation).
-_JIT = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
-_PJIT = dict(_JIT, parallel=True)
+_JIT = EXACT
+_PJIT = EXACT_PARALLEL
 
 
 # --------------------------------------------------------------------------------------

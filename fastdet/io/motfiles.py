@@ -40,7 +40,8 @@ from typing import IO, Any, Iterable, Iterator, Sequence, Union
 
 import numpy as np
 
-from .errors import DataError
+from ..boxes import ltwh_to_xyxy, xyxy_to_ltwh
+from ..errors import DataError
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -53,24 +54,6 @@ MAX_COLUMNS = 10
 
 # ---------------------------------------------------------------------------------------
 # box conversions
-
-
-def ltwh_to_xyxy(ltwh: np.ndarray) -> np.ndarray:
-    """``(N, 4)`` left, top, width, height -> ``(N, 4)`` float64 x1, y1, x2, y2."""
-    a = np.asarray(ltwh, dtype=np.float64).reshape(-1, 4)
-    out = a.copy()
-    out[:, 2] = a[:, 0] + a[:, 2]
-    out[:, 3] = a[:, 1] + a[:, 3]
-    return out
-
-
-def xyxy_to_ltwh(xyxy: np.ndarray) -> np.ndarray:
-    """``(N, 4)`` x1, y1, x2, y2 -> ``(N, 4)`` left, top, width, height (same dtype)."""
-    a = np.asarray(xyxy).reshape(-1, 4)
-    out = a.copy()
-    out[:, 2] = a[:, 2] - a[:, 0]
-    out[:, 3] = a[:, 3] - a[:, 1]
-    return out
 
 
 # ---------------------------------------------------------------------------------------

@@ -9,15 +9,16 @@ from __future__ import annotations
 
 from numba import njit, prange
 
+from .._numba import EXACT, REASSOC, REASSOC_INLINE, REASSOC_PARALLEL
+
 
 # fastmath: only "reassoc" and "contract", so LLVM may vectorise the dot products (split
 # them into SIMD lanes and fuse multiply-adds). That changes the rounding of a sum of ~10k
 # products by ~1e-13, far inside the 1e-6 the exactness tests demand; no nan/inf assumptions.
-# Measured on a 1280x720 frame: 6.2 → 4.4 ms of scoring at 2 threads.
-_FAST = {"reassoc", "contract"}
+# Measured on a 1280x720 frame: 6.2 → 4.4 ms of scoring at 2 threads. (fastdet._numba.REASSOC)
 
 
-@njit(cache=True, nogil=True, fastmath=_FAST, inline="always")
+@njit(**REASSOC_INLINE)
 def _patch_dot(rows, weights, r0, c0, acc):
     """``acc`` plus the correlation of ``weights`` (R, C) with ``rows[r0:r0+R, c0:c0+C]``."""
     for dr in range(weights.shape[0]):
@@ -28,7 +29,7 @@ def _patch_dot(rows, weights, r0, c0, acc):
     return acc
 
 
-@njit(cache=True, nogil=True, fastmath=_FAST, inline="always")
+@njit(**REASSOC_INLINE)
 def _window_score(block_rows, w_hog, nbx, k, spat_rows, w_sp, sp_off, integ, win_h, win_w, cell, yb, xb, bias):
     """Decision value of the window whose top-left block is (yb, xb); see dense_scores.
     (``w_hog`` rows are ``nbx * k`` long: the window's blocks of one block row.)"""
@@ -42,7 +43,7 @@ def _window_score(block_rows, w_hog, nbx, k, spat_rows, w_sp, sp_off, integ, win
     return acc + bias
 
 
-@njit(cache=True, nogil=True, parallel=True, fastmath=_FAST)
+@njit(**REASSOC_PARALLEL)
 def dense_scores(block_rows, w_hog, nbx, k, spat_rows, w_sp, sp_off, integ, win_h, win_w, cell, step, bias, out):
     """Scores of every window of one band, windows spread over Numba's threads.
 
@@ -63,7 +64,7 @@ def dense_scores(block_rows, w_hog, nbx, k, spat_rows, w_sp, sp_off, integ, win_
                                   cell, i * step, j * step, bias)
 
 
-@njit(cache=True, nogil=True, fastmath=_FAST)
+@njit(**REASSOC)
 def dense_scores_serial(block_rows, w_hog, nbx, k, spat_rows, w_sp, sp_off, integ, win_h, win_w, cell, step,
                         bias, out):
     """:func:`dense_scores` on the calling thread only (for bands run in parallel threads)."""
@@ -74,7 +75,7 @@ def dense_scores_serial(block_rows, w_hog, nbx, k, spat_rows, w_sp, sp_off, inte
                                       cell, i * step, j * step, bias)
 
 
-@njit(cache=True, nogil=True)
+@njit(**EXACT)
 def hist_weight_integral(image, w_hist, shift, out):
     """Integral image of the per-pixel histogram weight ``sum_c w_hist[c, image[y, x, c] >> shift]``.
 

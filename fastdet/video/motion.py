@@ -16,8 +16,9 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
-from .config import FeatureConfig, SearchBand
-from .search import BandGeometry
+from ..boxes import window_offsets
+from ..config import FeatureConfig, SearchBand
+from ..detect.bands import BandGeometry
 
 
 class MotionMap(NamedTuple):
@@ -94,8 +95,8 @@ def moving_bands(geo: BandGeometry, config: FeatureConfig, motion: MotionMap,
     # window boxes as window_boxes() gives them, on the (rows, cols) grid
     s = geo.band.scale
     cell = config.pixels_per_cell
-    left = geo.x0 + (np.arange(geo.nx) * geo.step * cell * s).astype(np.int64)
-    top = geo.y0 + (np.arange(geo.ny) * geo.step * cell * s).astype(np.int64)
+    left = geo.x0 + window_offsets(np.arange(geo.nx), geo.step, cell, s)
+    top = geo.y0 + window_offsets(np.arange(geo.ny), geo.step, cell, s)
     right, bottom = left + int(config.win_w * s), top + int(config.win_h * s)
     # (rows, cols) grid of window means: row coordinates as a column vector
     moving = (_mean_in(motion, left, top[:, None], right, bottom[:, None]) >= min_motion).any(axis=0)

@@ -3,7 +3,7 @@
 Library::
 
     from fastdet.eval import evaluate, format_table
-    from fastdet.motio import read_gt, read_predictions
+    from fastdet.io.motfiles import read_gt, read_predictions
     result = evaluate(read_gt("clip.gt.txt"), read_predictions("pred.txt"), iou=0.5)
     print(format_table(result)); result.to_dict()
 
@@ -54,52 +54,24 @@ new track). A track id used twice in one frame (targets or predictions) is an er
 """
 from __future__ import annotations
 
-import argparse
-import json
 import math
-import os
-import sys
-import tempfile
 from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
 
-from ._cliargs import add_oncoming_arguments, oncoming_arg
-from .errors import DataError, FastdetError
-from .motio import GroundTruth, Predictions, read_gt, read_predictions
+from ..boxes import area, intersection
+from ..boxes import iou as box_iou
+from ..errors import DataError, FastdetError
+from ..io.motfiles import GroundTruth, Predictions
 
 __all__ = [
-    "EvalResult", "evaluate", "format_table", "plot_pr", "box_iou", "box_intersection",
-    "match_frame", "average_precision", "precision_envelope", "add_arguments", "run",
+    "EvalResult", "evaluate", "match_frame", "average_precision", "precision_envelope",
 ]
 
 
 # ---------------------------------------------------------------------------------------
 # geometry and matching
-
-
-def box_intersection(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``(N, M)`` intersection areas of x1, y1, x2, y2 boxes ``a (N, 4)`` and ``b (M, 4)``."""
-    a = np.asarray(a, dtype=np.float64).reshape(-1, 4)
-    b = np.asarray(b, dtype=np.float64).reshape(-1, 4)
-    w = np.minimum(a[:, None, 2], b[None, :, 2]) - np.maximum(a[:, None, 0], b[None, :, 0])
-    h = np.minimum(a[:, None, 3], b[None, :, 3]) - np.maximum(a[:, None, 1], b[None, :, 1])
-    return np.clip(w, 0.0, None) * np.clip(h, 0.0, None)
-
-
-def _area(b: np.ndarray) -> np.ndarray:
-    b = np.asarray(b, dtype=np.float64).reshape(-1, 4)
-    return np.clip(b[:, 2] - b[:, 0], 0.0, None) * np.clip(b[:, 3] - b[:, 1], 0.0, None)
-
-
-def box_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``(N, M)`` IoU of x1, y1, x2, y2 boxes (0 where both areas are 0)."""
-    inter = box_intersection(a, b)
-    union = _area(a)[:, None] + _area(b)[None, :] - inter
-    with np.errstate(invalid="ignore", divide="ignore"):
-        iou = np.where(union > 0, inter / np.where(union > 0, union, 1.0), 0.0)
-    return iou
 
 
 def match_frame(
@@ -135,9 +107,9 @@ def match_frame(
     if ignore_boxes is not None and n:
         ignore_boxes = np.asarray(ignore_boxes, dtype=np.float64).reshape(-1, 4)
         if ignore_boxes.shape[0]:
-            inter = box_intersection(pred_boxes, ignore_boxes).max(axis=1)
-            area = _area(pred_boxes)
-            dropped = ~tp & (area > 0) & (inter >= 0.5 * area)
+            inter = intersection(pred_boxes, ignore_boxes).max(axis=1)
+            pred_area = area(pred_boxes)
+            dropped = ~tp & (pred_area > 0) & (inter >= 0.5 * pred_area)
     return tp, dropped, gt_index
 
 
@@ -386,199 +358,3 @@ def _mot_metrics(
 
 # ---------------------------------------------------------------------------------------
 # output
-
-
-def _num(x: float | None, digits: int = 4) -> str:
-    if x is None or not math.isfinite(x):
-        return "n/a"
-    return f"{x:.{digits}f}"
-
-
-def format_table(result: EvalResult) -> str:
-    """A small human-readable table of the result (no trailing newline)."""
-    r = result
-    rows: list[tuple[str, str]] = [
-        ("IoU threshold", f"{r.iou_threshold:g}"),
-        ("frames", str(r.frames)),
-        ("GT boxes", f"{r.num_gt}  (+ {r.num_ignore} ignore regions)"),
-        ("predictions", f"{r.num_pred}  ({r.num_dropped} dropped on ignore regions)"),
-        ("TP", str(r.tp)),
-        ("FP", str(r.fp)),
-        ("FN", str(r.fn)),
-        ("precision", _num(r.precision)),
-        ("recall", _num(r.recall)),
-        ("F1", _num(r.f1)),
-        ("FP per frame", _num(r.fp_per_frame, 3)),
-        ("AP", _num(r.ap)),
-    ]
-    if r.has_tracking:
-        rows += [
-            ("MOTA", _num(r.mota)),
-            ("MOTP (1 - IoU)", _num(r.motp)),
-            ("IDF1", _num(r.idf1)),
-            ("ID switches", str(r.id_switches)),
-        ]
-    width = max(len(k) for k, _ in rows)
-    lines = [f"{k:<{width}}  {v}" for k, v in rows]
-    if r.num_outside:
-        lines.append(f"({r.num_outside} predictions after the last GT frame {r.frames} were not evaluated)")
-    return "\n".join(lines)
-
-
-def _pr_image(result: EvalResult, title: str | None = None) -> np.ndarray:
-    import cv2
-
-    W, H = 720, 560
-    left, right, top, bottom = 90, 30, 60, 75
-    pw, ph = W - left - right, H - top - bottom
-    img = np.full((H, W, 3), 255, np.uint8)
-    font = cv2.FONT_HERSHEY_SIMPLEX
-    black, grey, blue, light = (0, 0, 0), (225, 225, 225), (180, 90, 20), (235, 190, 150)
-
-    def px(r: float, p: float) -> tuple[int, int]:
-        return int(round(left + r * pw)), int(round(top + (1.0 - p) * ph))
-
-    def text_centered(s: str, cx: int, y: int, scale: float, thick: int = 1) -> None:
-        (tw, _), _ = cv2.getTextSize(s, font, scale, thick)
-        cv2.putText(img, s, (int(cx - tw / 2), y), font, scale, black, thick, cv2.LINE_AA)
-
-    for k in range(11):  # grid and ticks every 0.1, labels every 0.2
-        v = k / 10
-        x, _ = px(v, 0)
-        _, y = px(0, v)
-        cv2.line(img, (x, top), (x, top + ph), grey, 1)
-        cv2.line(img, (left, y), (left + pw, y), grey, 1)
-        cv2.line(img, (x, top + ph), (x, top + ph + 6), black, 1)
-        cv2.line(img, (left - 6, y), (left, y), black, 1)
-        if k % 2 == 0:
-            text_centered(f"{v:.1f}", x, top + ph + 24, 0.5)
-            s = f"{v:.1f}"
-            (tw, th), _ = cv2.getTextSize(s, font, 0.5, 1)
-            cv2.putText(img, s, (left - 10 - tw, y + th // 2), font, 0.5, black, 1, cv2.LINE_AA)
-    cv2.rectangle(img, (left, top), (left + pw, top + ph), black, 1)
-    text_centered("recall", left + pw // 2, H - 22, 0.65)
-    # rotated y label
-    (tw, th), base = cv2.getTextSize("precision", font, 0.65, 1)
-    lab = np.full((th + base + 4, tw + 4, 3), 255, np.uint8)
-    cv2.putText(lab, "precision", (2, th + 2), font, 0.65, black, 1, cv2.LINE_AA)
-    lab = cv2.rotate(lab, cv2.ROTATE_90_COUNTERCLOCKWISE)
-    y0 = top + ph // 2 - lab.shape[0] // 2
-    img[y0:y0 + lab.shape[0], 14:14 + lab.shape[1]] = lab
-
-    if title is None:
-        title = f"Precision-recall, IoU >= {result.iou_threshold:g}:  AP = {_num(result.ap, 3)}"
-    text_centered(title, W // 2, 36, 0.65, 2)
-
-    rec, prec = result.pr_recall, result.pr_precision
-    if rec.size and np.all(np.isfinite(rec)):
-        raw = np.array([px(r, p) for r, p in zip(rec, prec)], np.int32)
-        cv2.polylines(img, [raw.reshape(-1, 1, 2)], False, light, 1, cv2.LINE_AA)
-        env = precision_envelope(prec)
-        pts = [px(0.0, env[0])]
-        prev = 0.0
-        for r, p in zip(rec, env):
-            pts.append(px(prev, p))
-            pts.append(px(r, p))
-            prev = r
-        pts.append(px(prev, 0.0))
-        cv2.polylines(img, [np.array(pts, np.int32).reshape(-1, 1, 2)], False, blue, 2, cv2.LINE_AA)
-        # legend
-        lx, ly = left + pw - 230, top + 20
-        cv2.line(img, (lx, ly), (lx + 30, ly), blue, 2, cv2.LINE_AA)
-        cv2.putText(img, "interpolated (AP area)", (lx + 38, ly + 5), font, 0.45, black, 1, cv2.LINE_AA)
-        cv2.line(img, (lx, ly + 20), (lx + 30, ly + 20), light, 1, cv2.LINE_AA)
-        cv2.putText(img, "raw", (lx + 38, ly + 25), font, 0.45, black, 1, cv2.LINE_AA)
-    else:
-        text_centered("no predictions" if rec.size == 0 else "no ground-truth targets",
-                      left + pw // 2, top + ph // 2, 0.7)
-    return img
-
-
-def plot_pr(result: EvalResult, path: str | os.PathLike[str], title: str | None = None) -> None:
-    """Write the PR curve as a PNG (to a temporary name beside ``path``, then renamed)."""
-    import cv2
-
-    path = os.fspath(path)
-    ok, buf = cv2.imencode(".png", _pr_image(result, title))
-    if not ok:  # pragma: no cover
-        raise FastdetError(f"{path}: PNG encoding failed")
-    d = os.path.dirname(os.path.abspath(path))
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=".pr-", suffix=".png.tmp", dir=d)
-    except OSError as exc:
-        raise DataError(f"{path}: cannot write ({exc.strerror or exc})") from None
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(buf.tobytes())
-        os.replace(tmp, path)
-    except OSError as exc:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise DataError(f"{path}: cannot write ({exc.strerror or exc})") from None
-
-
-# ---------------------------------------------------------------------------------------
-# CLI
-
-
-def _iou_arg(s: str) -> float:
-    try:
-        v = float(s)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {s!r}") from None
-    if not (0.0 < v <= 1.0):
-        raise argparse.ArgumentTypeError(f"must be in (0, 1], got {s}")
-    return v
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--gt", required=True, metavar="GT.txt",
-                        help="MOTChallenge ground truth: frame,id,left,top,width,height,consider,class,visibility")
-    src = parser.add_mutually_exclusive_group(required=True)
-    src.add_argument("--pred", metavar="PRED.txt",
-                     help="predictions: MOTChallenge lines frame,id,left,top,width,height,conf,... "
-                          "(or the JSON lines of `fastdet video`, *.jsonl)")
-    src.add_argument("--video", metavar="CLIP.mp4",
-                     help="run the default video pipeline on this clip and evaluate its boxes")
-    parser.add_argument("--model", metavar="MODEL.npz", help="model for --video (default: the bundled one)")
-    add_oncoming_arguments(parser)
-    parser.add_argument("--iou", type=_iou_arg, default=0.5, help="IoU a match needs (default 0.5)")
-    parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
-    parser.add_argument("--plot", metavar="PR.png", help="write the precision-recall curve as a PNG")
-
-
-def _video_predictions(video: str, model: str | None, oncoming: Any = True) -> Predictions:
-    try:
-        from .video import iter_video_detections
-    except ImportError as exc:
-        raise FastdetError(f"video pipeline not available ({exc})") from None
-    if not os.path.isfile(video):
-        raise DataError(f"{video}: file not found")
-    return Predictions.from_frames(iter_video_detections(video, model=model, progress=True, oncoming=oncoming),
-                                   source=video)
-
-
-def run(args: argparse.Namespace) -> int:
-    if args.video is None and (args.model is not None or args.oncoming_model is not None or args.no_oncoming):
-        raise FastdetError("--model, --oncoming-model and --no-oncoming only apply with --video")
-    gt = read_gt(args.gt)
-    if args.video is not None:
-        preds = _video_predictions(args.video, args.model, oncoming_arg(args))
-    else:
-        preds = read_predictions(args.pred)
-    result = evaluate(gt, preds, iou=args.iou)
-    if args.plot:
-        plot_pr(result, args.plot)
-    if args.json:
-        out = {"gt": args.gt, ("video" if args.video else "pred"): args.video or args.pred, **result.to_dict()}
-        if args.plot:
-            out["plot"] = args.plot
-        print(json.dumps(out, allow_nan=False))
-    else:
-        print(format_table(result))
-        if args.plot:
-            print(f"PR curve written to {args.plot}")
-    sys.stdout.flush()
-    return 0

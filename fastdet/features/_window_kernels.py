@@ -4,8 +4,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from .._numba import EXACT_PARALLEL
 
-@njit(cache=True, nogil=True, parallel=True)
+
+@njit(**EXACT_PARALLEL)
 def color_hist_batch(images, shift, nbins, out):
     """Per-channel histograms of a stack of uint8 images.
 
@@ -22,7 +24,7 @@ def color_hist_batch(images, shift, nbins, out):
                     out[i, ch * nbins + (images[i, y, x, ch] >> shift)] += 1.0
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(**EXACT_PARALLEL)
 def hog_to_features(hog, out):
     """Copy per-crop block maps into feature rows, channel-major.
 
@@ -39,7 +41,7 @@ def hog_to_features(hog, out):
                         out[i, base + t] = hog[i, r, q, c, t]
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(**EXACT_PARALLEL)
 def spatial_batch(images, factor, out, col0):
     """Spatial bins of a stack of crops into ``out[:, col0:]`` (row, column, channel order):
     the rounded mean of the 2x2 pixels at offsets ``factor/2 - 1`` and ``factor/2`` of every

@@ -11,6 +11,8 @@ from typing import Sequence
 import cv2
 import numpy as np
 
+from ..detections import Detections
+
 BOX_COLOR = (0, 255, 0)  # final boxes: green
 TEXT_COLOR = (255, 255, 255)
 PANEL_BORDER = (255, 255, 255)
@@ -60,11 +62,12 @@ def draw_boxes(img: np.ndarray, boxes: np.ndarray, scores: np.ndarray | None = N
     return img
 
 
-def draw_windows(img: np.ndarray, boxes: np.ndarray, scales: np.ndarray,
-                 thickness: int = 1, scale: float = 1.0) -> np.ndarray:
-    """Draw positive windows, each in the colour of its search scale (:func:`scale_color`)."""
-    boxes = np.asarray(boxes).reshape(-1, 4)
-    scales = np.asarray(scales).reshape(-1)
+def draw_windows(img: np.ndarray, windows: Detections, thickness: int = 1, scale: float = 1.0) -> np.ndarray:
+    """Draw positive windows, each in the colour of its search scale (:func:`scale_color`;
+    the wide model's windows in the colour of the negated scale)."""
+    boxes = windows.boxes
+    scales = windows.scale if windows.scale is not None else np.ones(len(windows), np.float32)
+    scales = np.where(windows.is_wide, -scales, scales)
     for b, s in zip(boxes, scales):
         x1, y1, x2, y2 = (int(round(v * scale)) for v in b)
         cv2.rectangle(img, (x1, y1), (max(x1, x2 - 1), max(y1, y2 - 1)), scale_color(s), thickness)
@@ -125,7 +128,7 @@ def paste_panels(img: np.ndarray, panels: Sequence[np.ndarray], margin: int = 8)
     return img
 
 
-def debug_panels(frame: np.ndarray, windows_boxes: np.ndarray, windows_scales: np.ndarray,
+def debug_panels(frame: np.ndarray, windows: Detections,
                  heat: np.ndarray, labels: np.ndarray, mask: np.ndarray | None = None,
                  threshold: float | None = None, width: int | None = None,
                  boxes: np.ndarray | None = None) -> list[np.ndarray]:
@@ -143,8 +146,8 @@ def debug_panels(frame: np.ndarray, windows_boxes: np.ndarray, windows_scales: n
     ph = max(int(round(H * pw / W)), 1)
     f = pw / W
     p1 = cv2.resize(frame, (pw, ph), interpolation=cv2.INTER_AREA)
-    draw_windows(p1, windows_boxes, windows_scales, 1, scale=f)
-    _caption(p1, f"windows: {len(np.asarray(windows_boxes).reshape(-1, 4))}")
+    draw_windows(p1, windows, 1, scale=f)
+    _caption(p1, f"windows: {len(windows)}")
     vmax = 6.0 * threshold if threshold else None
     p2 = cv2.resize(heat_image(heat, vmax), (pw, ph), interpolation=cv2.INTER_NEAREST)
     _caption(p2, f"heat (max {float(np.max(heat, initial=0)):.1f})")

@@ -18,7 +18,9 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .config import FeatureConfig
+from ..config import FeatureConfig
+from ._hog import hog_channels_batch
+from ._window_kernels import color_hist_batch, hog_to_features, spatial_batch
 
 _CONVERSIONS = {
     "RGB": cv2.COLOR_BGR2RGB,
@@ -83,8 +85,6 @@ def extract_features(crops: np.ndarray, config: FeatureConfig | None = None) -> 
     Returns ``(N, config.n_features) float64`` (``(n_features,)`` for a single crop), in the
     order documented in this module. HOG and histograms run in parallel numba kernels.
     """
-    from ._feature_kernels import color_hist_batch, hog_to_features, spatial_batch
-    from ._hog import hog_channels_batch
 
     config = config or FeatureConfig()
     crops = np.asarray(crops)

@@ -18,18 +18,37 @@ windows as crops, and the sign differs on 0.6% of windows.
 from __future__ import annotations
 
 import os
+import threading
 import time
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
-from ._hog import hog_channels
+from ..features import hog_channels
 from ._score_kernels import dense_scores, dense_scores_serial, hist_weight_integral
-from .config import SearchBand, SearchConfig
-from .detections import Detections
-from .features import convert_color, hist_bin_shift, spatial_factor, spatial_map
-from .model import Model, load_model
-from .search import BandGeometry, band_geometry, scaled_band, window_boxes
+from ..config import WIDE_SEARCH, SearchBand, SearchConfig
+from ..detections import MAIN_PART, WIDE_PART, Detections
+from ..errors import ModelError
+from ..features import convert_color, hist_bin_shift, spatial_factor, spatial_map
+from ..model import Model, load_model
+from .bands import BandGeometry, band_geometry, scaled_band, window_boxes
+
+
+@dataclass
+class DetectStats:
+    """What one :meth:`Detector.detect` call did, recorded into an object the caller passes
+    (the Detector keeps nothing per call, so one Detector may serve several threads).
+
+    timings: seconds per stage (``resize_colour``, ``hog``, ``score``), summed over bands
+        (and over band threads: it can exceed the wall time).
+    bands: one ``(part, geometry, decision values (ny, nx) float64)`` per searched band.
+    """
+
+    timings: dict[str, float] = field(default_factory=dict)
+    bands: list[tuple[int, BandGeometry, np.ndarray]] = field(default_factory=list)
 
 
 class _Scorer:
@@ -113,8 +132,6 @@ class Detector:
 
     def __init__(self, model: Model | str | os.PathLike | None = None, search: SearchConfig | None = None,
                  wide: Model | str | os.PathLike | None = None, wide_search: SearchConfig | None = None):
-        from .config import WIDE_SEARCH
-
         self.model = model if isinstance(model, Model) else load_model(model)
         self.search = search if search is not None else SearchConfig()
         self.config = self.model.config
@@ -123,19 +140,19 @@ class Detector:
         if wide is not None:
             self.wide_model = wide if isinstance(wide, Model) else load_model(wide)
             if self.wide_model.config.window_height is None:
-                from .errors import ModelError
-
                 name = "the wide model" if isinstance(wide, Model) else os.fspath(wide)
                 raise ModelError(f"{name}: not a wide-window model (its windows are square); "
                                  f"train one with `fastdet train --window-rows A B`")
+            if self.wide_model.score_kind != self.model.score_kind:
+                name = "the wide model" if isinstance(wide, Model) else os.fspath(wide)
+                raise ModelError(f"{name}: a {self.wide_model.classifier} model gives {self.wide_model.score_kind} "
+                                 f"scores, the main model {self.model.score_kind} scores; train both with the "
+                                 f"same --classifier")
             self.scorers.append(_Scorer(self.wide_model, wide_search if wide_search is not None else WIDE_SEARCH))
         self.score_kind = self.model.score_kind
         self._pool = None  # band threads, made on the first multi-threaded detect
         self._pool_size = 0
-        self.timings: dict[str, float] = {}
-        self.last_scales = np.zeros(0, np.float32)
-        self.last_band_scores: list[tuple[BandGeometry, np.ndarray]] = []
-        self.last_band_parts: list[int] = []
+        self._pool_lock = threading.Lock()
 
     def warmup(self) -> None:
         """Load (or compile) the numba kernels now rather than on the first frame."""
@@ -157,18 +174,16 @@ class Detector:
         them release the GIL): a frame is a dozen small bands, and one band per core costs
         far less than waking a team of OpenMP workers for every kernel. ``timings`` then
         adds up the work of all threads (it can exceed the wall time)."""
-        import numba
-
         n_threads = numba.get_num_threads()
         if n_threads < 2 or len(geos) < 2:
             return [self.scorers[p].band_scores(frame, g, timings) for p, g in geos]
-        if self._pool_size != n_threads:
-            from concurrent.futures import ThreadPoolExecutor
-
-            if self._pool is not None:
-                self._pool.shutdown(wait=False)
-            self._pool = ThreadPoolExecutor(max_workers=n_threads, thread_name_prefix="fastdet-band")
-            self._pool_size = n_threads
+        with self._pool_lock:
+            if self._pool_size != n_threads:
+                if self._pool is not None:
+                    self._pool.shutdown(wait=False)
+                self._pool = ThreadPoolExecutor(max_workers=n_threads, thread_name_prefix="fastdet-band")
+                self._pool_size = n_threads
+            pool = self._pool
 
         def job(pg):
             numba.set_num_threads(1)  # thread-local: this worker runs the serial kernels
@@ -177,7 +192,7 @@ class Detector:
 
         # biggest bands first, so the last band to finish is a small one
         order = sorted(range(len(geos)), key=lambda i: -geos[i][1].scaled_w * geos[i][1].scaled_h)
-        futures = {i: self._pool.submit(job, geos[i]) for i in order}
+        futures = {i: pool.submit(job, geos[i]) for i in order}
         out = []
         for i in range(len(geos)):
             dec, t = futures[i].result()
@@ -202,51 +217,52 @@ class Detector:
         return self.scorers[part].geometries(frame_shape)
 
     def detect(self, frame: np.ndarray, rgb: bool = False,
-               wide_bands: Sequence[SearchBand] | None = None) -> Detections:
+               wide_bands: Sequence[SearchBand] | None = None, stats: DetectStats | None = None) -> Detections:
         """Positive windows of one frame.
 
         frame: ``(H, W, 3) uint8``, BGR (OpenCV's order) or RGB with ``rgb=True``.
         wide_bands: bands (in this frame's pixels) for the wide model to search instead of
             its own search's; an empty list skips it. :class:`fastdet.VideoDetector` passes
-            the parts of the wide search where the picture moves (:mod:`fastdet.motion`).
-        Returns :class:`~fastdet.detections.Detections`: ``boxes (N, 4) int32`` x1, y1, x2, y2
-        (exclusive) in frame pixels and ``scores (N,) float32``: the probability of "vehicle"
-        for a logistic-regression main model, the decision value otherwise (the wide model's
-        decision values go through the same transform). A window is positive when its decision
-        value exceeds its model's ``search.threshold``. ``last_scales`` holds each window's
-        band scale (negated for wide windows, so a drawing can tell them apart).
+            the parts of the wide search where the picture moves (:mod:`fastdet.video.motion`).
+        stats: a :class:`DetectStats` to record stage times and every band's decision values
+            into (optional).
+        Returns :class:`~fastdet.detections.Detections` with columns ``boxes (N, 4) int32``
+        x1, y1, x2, y2 (exclusive) in frame pixels, ``scores (N,) float32`` (the probability of
+        "vehicle" for logistic-regression models, the decision value for LinearSVC; both
+        models have the same kind), ``scale`` (the window's band scale) and ``part``
+        (``MAIN_PART`` or ``WIDE_PART``). A window is positive when its decision value
+        exceeds its model's ``search.threshold``.
         """
         frame = np.asarray(frame)
         if frame.dtype != np.uint8 or frame.ndim != 3 or frame.shape[2] != 3:
             raise ValueError(f"frame must be an (H, W, 3) uint8 array, got {frame.dtype} {frame.shape}")
         if rgb:
             frame = frame[:, :, ::-1]
-        timings: dict[str, float] = {}
-        boxes, scores, scales = [], [], []
-        self.last_band_scores, self.last_band_parts = [], []
-        geos = [(0, g) for g in self.scorers[0].geometries(frame.shape[:2])]
+        timings: dict[str, float] = stats.timings if stats is not None else {}
+        geos = [(MAIN_PART, g) for g in self.scorers[0].geometries(frame.shape[:2])]
         if len(self.scorers) > 1:
             if wide_bands is None:
-                geos += [(1, g) for g in self.scorers[1].geometries(frame.shape[:2])]
+                geos += [(WIDE_PART, g) for g in self.scorers[1].geometries(frame.shape[:2])]
             else:
                 sc = self.scorers[1]
-                geos += [(1, band_geometry(b, frame.shape[:2], sc.config, sc.search.cells_per_step))
+                geos += [(WIDE_PART, band_geometry(b, frame.shape[:2], sc.config, sc.search.cells_per_step))
                          for b in wide_bands]
+        boxes, decs, scales, parts = [], [], [], []
         for (part, geo), dec in zip(geos, self._all_band_scores(frame, geos, timings)):
             sc = self.scorers[part]
-            self.last_band_scores.append((geo, dec))
-            self.last_band_parts.append(part)
+            if stats is not None:
+                stats.bands.append((part, geo, dec))
             r, c = np.nonzero(dec > sc.search.threshold)
             if len(r):
                 boxes.append(window_boxes(geo, r, c, sc.config))
-                scores.append(dec[r, c])
-                scales.append(np.full(len(r), geo.band.scale if part == 0 else -geo.band.scale, np.float32))
-        self.timings = timings
+                decs.append(dec[r, c])
+                scales.append(np.full(len(r), geo.band.scale, np.float32))
+                parts.append(np.full(len(r), part, np.int8))
         if not boxes:
-            self.last_scales = np.zeros(0, np.float32)
-            return Detections.empty()
-        dec = np.concatenate(scores)
+            return Detections(np.zeros((0, 4), np.int32), np.zeros(0, np.float32),
+                              scale=np.zeros(0, np.float32), part=np.zeros(0, np.int8))
+        score = np.concatenate(decs)  # float64 decision values
         if self.score_kind == "probability":
-            dec = 1.0 / (1.0 + np.exp(-dec))
-        self.last_scales = np.concatenate(scales)
-        return Detections(np.concatenate(boxes), dec.astype(np.float32))
+            score = 1.0 / (1.0 + np.exp(-score))
+        return Detections(np.concatenate(boxes), score.astype(np.float32),
+                          scale=np.concatenate(scales), part=np.concatenate(parts))

@@ -1,7 +1,7 @@
 """``python -m fastdet image INPUT.jpg -o OUT.jpg [--windows] [--heat] [--model M.npz] [--threshold T]``
 
 Detects vehicles in one image: the positive windows of the Detector, then a single-frame
-heat map (:class:`~fastdet.heatmap.HeatMap` with ``n_frames=1``) thresholded at
+heat map (:class:`~fastdet.video.heatmap.HeatMap` with ``n_frames=1``) thresholded at
 ``HeatConfig.single_frame_threshold`` (or ``--threshold``), one box per blob, shape filter.
 Draws the final boxes with their scores (peak heat); ``--windows`` also draws the positive
 windows, coloured by search scale; ``--heat`` also writes the heat map as ``OUT.heat.jpg``
@@ -19,8 +19,14 @@ import os
 from pathlib import Path
 from typing import Any
 
-from .config import HeatConfig
-from .errors import DataError, FastdetError
+import cv2
+import numpy as np
+
+from ..config import HeatConfig
+from ..errors import DataError, FastdetError
+from ..io import draw
+from ..io.atomic import atomic_path, check_output_path
+from ..video.pipeline import detect_image, make_detector
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -42,66 +48,31 @@ def heat_path(output: str | os.PathLike) -> Path:
     return p.with_name(f"{p.stem}.heat{p.suffix}")
 
 
-def _check_output(path: Path, inp: str) -> None:
-    parent = path.resolve().parent
-    if not parent.is_dir():
-        raise DataError(f"{path}: output folder {parent} does not exist")
-    if not os.access(parent, os.W_OK):
-        raise DataError(f"{path}: output folder {parent} is not writable")
-    if path.is_dir():
-        raise DataError(f"{path}: is a folder, expected an image file name")
-    if path.exists() and os.path.samefile(path, inp):
-        raise DataError(f"{path}: the output would overwrite the input")
-
-
-def _write_image(path: Path, img) -> None:
-    """cv2.imwrite to ``.NAME.partial.EXT`` then rename to ``path``."""
-    import cv2
-
-    from .video import partial_name
-
-    tmp = partial_name(path)
-    try:
-        ok = cv2.imwrite(str(tmp), img)
-    except cv2.error:
-        ok = False
-    if not ok:
-        tmp.unlink(missing_ok=True)
-        raise DataError(f"{path}: cannot write an image there (extension {path.suffix or '(none)'!r} "
-                        f"not supported? use .jpg or .png)")
-    os.replace(tmp, path)
-
-
-def detect_image(frame, detector: Any, heat: HeatConfig):
-    """Positive windows, their scales, the single-frame heat map and its final boxes:
-    ``(windows, scales, heatmap, boxes)``."""
-    import numpy as np
-
-    from .heatmap import HeatMap
-
-    windows = detector.detect(frame)
-    scales = np.asarray(getattr(detector, "last_scales", np.ones(len(windows.boxes))), np.float32)
-    hm = HeatMap(frame.shape, heat, score_kind=getattr(detector, "score_kind", "decision"))
-    boxes = hm.update(windows)
-    return windows, scales, hm, boxes
+def _write_image(path: Path, img: np.ndarray) -> None:
+    """cv2.imwrite to ``.NAME.partial.EXT``, then rename to ``path``."""
+    with atomic_path(path) as tmp:
+        try:
+            ok = cv2.imwrite(str(tmp), img)
+        except cv2.error:
+            ok = False
+        if not ok:
+            tmp.unlink(missing_ok=True)
+            raise DataError(f"{path}: cannot write an image there (extension {path.suffix or '(none)'!r} "
+                            f"not supported? use .jpg or .png)")
 
 
 def run(args: argparse.Namespace, detector: Any = None) -> int:
     """The ``image`` subcommand. ``detector`` replaces the model's Detector (tests)."""
-    import cv2
-
-    from . import draw
-
     inp = args.input
     if not os.path.exists(inp):
         raise DataError(f"{inp}: file not found")
     if os.path.isdir(inp):
         raise DataError(f"{inp}: is a folder, not an image")
     out = Path(args.output)
-    _check_output(out, inp)
+    check_output_path(out, "image", inp)
     hout = heat_path(out) if args.heat else None
     if hout is not None:
-        _check_output(hout, inp)
+        check_output_path(hout, "image", inp)
     try:
         heat = HeatConfig().single_frame(args.threshold)
     except ValueError as exc:
@@ -110,16 +81,14 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
     if frame is None:
         raise DataError(f"{inp}: not an image OpenCV can read")
     if detector is None:
-        from .video import make_detector
-
         detector = make_detector(args.model, oncoming=False)  # its gate needs motion: video only
     elif args.model is not None:
         raise FastdetError("--model cannot be used with an injected detector")
 
-    windows, scales, hm, boxes = detect_image(frame, detector, heat)
+    windows, hm, boxes = detect_image(frame, detector, heat)
     img = frame.copy()
     if args.windows:
-        draw.draw_windows(img, windows.boxes, scales, 1)
+        draw.draw_windows(img, windows, 1)
     draw.draw_boxes(img, boxes.boxes, boxes.scores, thickness=3)
     _write_image(out, img)
     written = [str(out)]

@@ -1,22 +1,21 @@
-"""``python -m fastdet mine-negatives``: save the windows the detector wrongly fires on.
-
-Classic hard-negative mining. A positive window is a *false* alarm when it lies where no
-vehicle is: inside ``--x-range``/``--y-range`` (a region you know to be empty), and, with
-``--gt``, touching no annotated box at all (targets and ignore regions alike, so a
-partially visible or far-away car is never saved as a negative). Each such window is cut
-from the frame, resized to its model's window size (64x64 for the main model, e.g. 64x32
-for the wide one, chosen with ``--part``) and written as a PNG; ``fastdet train
---negatives DIR`` then adds them to the training negatives of that kind of model.
-"""
+"""``python -m fastdet mine-negatives``: save the windows the detector wrongly fires on
+(see :mod:`fastdet.train.mine` for the rules)."""
 from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 
+import cv2
 import numpy as np
+from tqdm import tqdm
 
-from ._cliargs import nonneg_int, positive_int
+from ..detect import Detector
+from ..errors import DataError, FastdetError
+from ..io.motfiles import read_gt
+from ..train.mine import hard_negatives, is_image_sequence
+from ._args import nonneg_int, positive_int
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -43,52 +42,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-progress", action="store_true")
 
 
-def false_windows(boxes: np.ndarray, x_range=None, y_range=None, gt_boxes: np.ndarray | None = None) -> np.ndarray:
-    """Indices of windows that are certainly not vehicles by the rules above."""
-    keep = np.ones(len(boxes), bool)
-    if x_range is not None:
-        keep &= (boxes[:, 0] >= x_range[0]) & (boxes[:, 2] <= x_range[1])
-    if y_range is not None:
-        keep &= (boxes[:, 1] >= y_range[0]) & (boxes[:, 3] <= y_range[1])
-    if gt_boxes is not None and len(gt_boxes) and len(boxes):
-        from .eval import box_intersection
-
-        keep &= ~np.any(box_intersection(boxes, gt_boxes) > 0, axis=1)
-    return np.flatnonzero(keep)
-
-
-def _is_image_sequence(path: Path) -> bool:
-    """``path`` is a printf-style image sequence (``test%d.jpg``) whose frame 0 or 1 exists."""
-    name = str(path)
-    if "%" not in name:
-        return False
-    try:
-        return any(Path(name % i).exists() for i in (0, 1))
-    except (TypeError, ValueError):
-        return False
-
-
 def run(args: argparse.Namespace) -> int:
-    import cv2
-
-    from .detector import Detector
-    from .errors import DataError, FastdetError
-
     if args.x_range is None and args.y_range is None and args.gt is None:
         raise FastdetError("say where there are no vehicles: --x-range/--y-range and/or --gt")
     if args.part == "wide" and args.wide_model is None:
         raise FastdetError("--part wide needs --wide-model")
-    if not (args.video.exists() or _is_image_sequence(args.video)):
+    if not (args.video.exists() or is_image_sequence(args.video)):
         raise DataError(f"{args.video} not found")
     gt = None
     if args.gt is not None:
-        from .motio import read_gt
-
         gt = read_gt(args.gt)
     det = Detector(args.model, wide=args.wide_model)
     if args.threshold is not None:
-        from dataclasses import replace
-
         for sc in det.scorers:
             sc.search = replace(sc.search, threshold=args.threshold)
     win_cfg = det.config if args.part == "main" else det.wide_model.config
@@ -103,8 +68,6 @@ def run(args: argparse.Namespace) -> int:
     limit = args.frames if args.frames is not None else (total - args.start if total else None)
     bar = None
     if not args.no_progress and sys.stderr.isatty():
-        from tqdm import tqdm
-
         bar = tqdm(total=limit, desc="mining", unit="frame")
     saved = done = 0
     frame_no = args.start
@@ -118,20 +81,16 @@ def run(args: argparse.Namespace) -> int:
             bar.update()
         if (done - 1) % args.every:
             continue
-        d = det.detect(frame)
-        part = det.last_scales > 0 if args.part == "main" else det.last_scales < 0
-        d = type(d)(d.boxes[part], d.scores[part])
         gt_boxes = None
         if gt is not None:
             gb = gt.boxes[gt.frames == frame_no]
             gt_boxes = gb + np.array([-args.margin, -args.margin, args.margin, args.margin])
-        for i in false_windows(d.boxes, args.x_range, args.y_range, gt_boxes):
-            x1, y1, x2, y2 = d.boxes[i]
-            crop = frame[max(y1, 0): y2, max(x1, 0): x2]
-            if crop.shape[0] < 8 or crop.shape[1] < 8:
-                continue
-            crop = cv2.resize(crop, (win_cfg.win_w, win_cfg.win_h), interpolation=cv2.INTER_AREA)
-            cv2.imwrite(str(args.out / f"{prefix}_f{frame_no:05d}_{x1}_{y1}_{x2 - x1}.png"), crop)
+        for (x1, y1, x2, y2), crop in hard_negatives(det, frame, args.part, win_cfg, args.x_range,
+                                                     args.y_range, gt_boxes):
+            path = args.out / f"{prefix}_f{frame_no:05d}_{x1}_{y1}_{x2 - x1}.png"
+            if not cv2.imwrite(str(path), crop):
+                raise DataError(f"{path}: could not write the crop (disk full or no permission?); "
+                                f"{saved} crops were written before it")
             saved += 1
     cap.release()
     if bar:

@@ -13,7 +13,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .config import FeatureConfig, SearchBand
+from ..boxes import window_grid_boxes
+from ..config import FeatureConfig, SearchBand
 
 
 @dataclass(frozen=True)
@@ -65,13 +66,5 @@ def scaled_band(frame: np.ndarray, geo: BandGeometry) -> np.ndarray:
 
 def window_boxes(geo: BandGeometry, rows: np.ndarray, cols: np.ndarray, config: FeatureConfig) -> np.ndarray:
     """Frame boxes ``(N, 4) int32 x1, y1, x2, y2`` of the windows at positions (rows, cols)."""
-    s = geo.band.scale
-    cell = config.pixels_per_cell
-    left = (cols * geo.step * cell * s).astype(np.int64)
-    top = (rows * geo.step * cell * s).astype(np.int64)
-    boxes = np.empty((len(rows), 4), np.int32)
-    boxes[:, 0] = geo.x0 + left
-    boxes[:, 1] = geo.y0 + top
-    boxes[:, 2] = boxes[:, 0] + int(config.win_w * s)
-    boxes[:, 3] = boxes[:, 1] + int(config.win_h * s)
-    return boxes
+    return window_grid_boxes(geo.x0, geo.y0, rows, cols, geo.step, config.pixels_per_cell,
+                             geo.band.scale, config.win_w, config.win_h)

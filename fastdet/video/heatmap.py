@@ -46,8 +46,8 @@ import numpy as np
 from scipy import ndimage
 
 from ._heat_kernels import add_rects
-from .config import HeatConfig
-from .detections import Detections
+from ..config import HeatConfig
+from ..detections import Detections
 
 _REANCHOR_EVERY = 64
 

@@ -1,0 +1,280 @@
+"""VideoDetector: positive windows of each frame → heat map over recent frames → one box per vehicle.
+
+Python API
+----------
+:class:`VideoDetector` turns a stream of frames into one box per vehicle per frame::
+
+    vd = VideoDetector()                # bundled model, default SearchConfig / HeatConfig
+    for frame in frames:                # (H, W, 3) uint8 BGR
+        dets = vd.update(frame)         # Detections: boxes (N, 4) x1, y1, x2, y2; scores
+    vd.last_windows, vd.last_heat, vd.last_mask, vd.last_labels   # debug of the last frame
+
+:func:`iter_video_detections` runs it over a file and yields ``(frame number, Detections)``
+with 1-based frame numbers of the file (``start`` frames skipped keep their numbers).
+"""
+from __future__ import annotations
+
+import os
+import sys
+import time
+from collections.abc import Iterator, Sequence
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+from tqdm import tqdm
+
+from ..config import WIDE_HEAT, HeatConfig, MotionGate, SearchBand
+from ..detect import BandGeometry, Detector, DetectStats
+from ..detections import Detections
+from ..io.reader import FrameReader
+from ..model import ONCOMING_MODEL_PATH, Model
+from .fusion import merge_wide
+from .heatmap import HeatMap
+from .motion import FrameMotion, MotionMap, moving_bands, window_motion
+
+ModelLike = Model | str | os.PathLike | None
+
+
+@runtime_checkable
+class WindowDetector(Protocol):
+    """What :class:`VideoDetector` needs of a detector (:class:`fastdet.Detector` is one).
+
+    ``score_kind``: ``"probability"`` or ``"decision"`` (how the heat map scales scores);
+    ``wide_model``: the wide-window model or ``None``; ``detect`` returns the positive
+    windows with the ``part`` column set (or no ``part``: all main-model windows);
+    ``geometries(shape, part=1)`` the wide model's bands (used only when ``wide_model``
+    is not ``None``, for the motion gate)."""
+
+    score_kind: str
+    wide_model: Model | None
+
+    def detect(self, frame: np.ndarray, rgb: bool = False, wide_bands: Sequence[SearchBand] | None = None,
+               stats: DetectStats | None = None) -> Detections: ...
+
+    def warmup(self) -> None: ...
+
+    def geometries(self, frame_shape: tuple[int, int], part: int = 0) -> list[BandGeometry]: ...
+
+
+def _passive_omp() -> None:
+    """Make idle OpenMP workers sleep instead of spinning (``OMP_WAIT_POLICY=PASSIVE``)
+    unless the user chose otherwise; must run before numba's OpenMP layer starts.
+
+    The numba kernels run parallel regions on numba's OpenMP layer, many per frame. With
+    GNU OpenMP's default spin-waiting, a thread waiting at a region's barrier burns the core
+    its partner needs whenever the reader / writer threads (or any other program) also want
+    the CPU: 10 fps instead of 65 with ``--boxes`` on 2 cores while other jobs ran.
+    """
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+
+def make_detector(model: ModelLike = None, oncoming: ModelLike | bool = True) -> Detector:
+    """The video pipeline's :class:`fastdet.Detector`: ``model`` (a Model, a path, or
+    ``None`` for the bundled model) and, as its wide-window model, ``oncoming``: ``True``
+    for the bundled oncoming-traffic model, a Model or path for another, ``False`` / ``None``
+    for none. Raises :class:`~fastdet.errors.ModelError` when a model does not load."""
+    if oncoming is True:
+        oncoming = ONCOMING_MODEL_PATH
+    return Detector(model=model, wide=oncoming or None)
+
+
+class VideoDetector:
+    """Vehicle boxes for a stream of frames: a :class:`~fastdet.Detector` for the positive
+    windows of each frame, then a :class:`~fastdet.video.heatmap.HeatMap` over recent
+    frames for one box per vehicle.
+
+    detector: a :class:`WindowDetector` (default: the Detector with the bundled model and
+        the bundled oncoming-traffic model, :func:`make_detector`, created on first use).
+        ``TypeError`` for an object that is not one.
+    heat: :class:`~fastdet.config.HeatConfig` (default ``HeatConfig()``).
+    wide_heat: heat map of the wide-window model's windows, when the detector has one
+        (default :data:`fastdet.config.WIDE_HEAT`); its boxes are added where the main heat
+        map found nothing (:func:`fastdet.video.fusion.merge_wide`).
+    motion: :class:`~fastdet.config.MotionGate` for the wide-window model (default
+        ``MotionGate()``): it searches only where the picture moved since the previous frame
+        and keeps only its windows that moved enough (:mod:`fastdet.video.motion`); so it
+        finds nothing on the first frame.
+
+    After :meth:`update`, for debugging the last frame: ``last_windows`` (the positive
+    windows, :class:`Detections` with ``scale`` and ``part``), ``last_heat`` (heat grid,
+    float64, one cell = ``heat.cell`` pixels), ``last_mask`` (heat > threshold),
+    ``last_labels`` (blob labels), ``last_boxes`` (the result) and ``timings`` (seconds per
+    stage: the detector's ``resize_colour``, ``hog``, ``score``, the heat map's ``heat``,
+    ``label``, and ``motion``). These are new objects every frame, so a consumer may keep
+    them (e.g. a writer thread) while the next frame is processed.
+
+    The heat map is sized on the first frame; a frame of another size starts a new heat map
+    (as :meth:`reset`).
+    """
+
+    def __init__(self, detector: WindowDetector | None = None, heat: HeatConfig | None = None,
+                 wide_heat: HeatConfig | None = None, motion: MotionGate | None = None) -> None:
+        if detector is not None and not isinstance(detector, WindowDetector):
+            raise TypeError(f"detector must provide detect(), warmup(), geometries(), score_kind and "
+                            f"wide_model (a WindowDetector), got {type(detector).__name__}")
+        self._detector = detector
+        self.wide_heat_config = wide_heat if wide_heat is not None else WIDE_HEAT
+        self.wide_heatmap: HeatMap | None = None
+        self.motion_gate = motion if motion is not None else MotionGate()
+        if not isinstance(self.motion_gate, MotionGate):
+            raise TypeError(f"motion must be a MotionGate, got {type(self.motion_gate).__name__}")
+        self._motion = FrameMotion()
+        self.heat_config = heat if heat is not None else HeatConfig()
+        if not isinstance(self.heat_config, HeatConfig):
+            raise TypeError(f"heat must be a HeatConfig, got {type(self.heat_config).__name__}")
+        self.heatmap: HeatMap | None = None
+        self.timings: dict[str, float] = {}
+        self._clear()
+
+    @property
+    def detector(self) -> WindowDetector:
+        if self._detector is None:
+            self._detector = make_detector()
+        return self._detector
+
+    def _clear(self) -> None:
+        self.last_windows = Detections.empty()
+        self.last_heat = np.zeros((0, 0), np.float64)
+        self.last_mask = np.zeros((0, 0), bool)
+        self.last_labels = np.zeros((0, 0), np.int32)
+        self.last_boxes = Detections.empty()
+
+    def reset(self) -> None:
+        """Forget the previous frames (a new video, or a cut)."""
+        if self.heatmap is not None:
+            self.heatmap.reset()
+        if self.wide_heatmap is not None:
+            self.wide_heatmap.reset()
+        self._motion.reset()
+        self._clear()
+
+    def warmup(self) -> None:
+        """Compile / load the numba kernels now, not on the first frame."""
+        self.detector.warmup()
+        HeatMap((8, 8), self.heat_config).warmup()
+
+    def _heatmap_for(self, shape: tuple[int, ...]) -> HeatMap:
+        hw = (int(shape[0]), int(shape[1]))
+        if self.heatmap is None or self.heatmap.frame_shape != hw:
+            self.heatmap = HeatMap(hw, self.heat_config, score_kind=self.detector.score_kind)
+        return self.heatmap
+
+    def _wide_heatmap_for(self, shape: tuple[int, ...]) -> HeatMap:
+        hw = (int(shape[0]), int(shape[1]))
+        if self.wide_heatmap is None or self.wide_heatmap.frame_shape != hw:
+            self.wide_heatmap = HeatMap(hw, self.wide_heat_config, score_kind=self.detector.score_kind)
+        return self.wide_heatmap
+
+    def _moving_wide_bands(self, det: WindowDetector, frame: np.ndarray, rgb: bool,
+                           gate: float) -> tuple[MotionMap | None, list[SearchBand]]:
+        """``(MotionMap or None, bands)``: this frame's motion over the wide search's region
+        and the parts of the wide bands where some window moves at least ``gate``."""
+        geos = det.geometries(frame.shape[:2], part=1)
+        roi = (min(g.x0 for g in geos), min(g.y0 for g in geos), max(g.x1 for g in geos), max(g.y1 for g in geos))
+        motion = self._motion.update(frame[:, :, ::-1] if rgb else frame, roi)
+        if motion is None:
+            return None, []
+        assert det.wide_model is not None
+        return motion, [b for g in geos for b in moving_bands(g, det.wide_model.config, motion, gate)]
+
+    @staticmethod
+    def _gate_wide(windows: Detections, motion: MotionMap, gate: float) -> Detections:
+        """Drop the wide windows whose motion is below ``gate``."""
+        wide = windows.is_wide
+        if not wide.any():
+            return windows
+        keep = np.ones(len(windows), bool)
+        idx = np.flatnonzero(wide)
+        keep[idx[window_motion(motion, windows.boxes[idx]) < gate]] = False
+        return windows if keep.all() else windows[keep]
+
+    def update(self, frame: np.ndarray, rgb: bool = False) -> Detections:
+        """Boxes of the vehicles in ``frame`` (``(H, W, 3) uint8``, BGR or RGB with ``rgb=True``).
+
+        Each box's score is the peak heat of its blob (:mod:`fastdet.video.heatmap`)."""
+        frame = np.asarray(frame)
+        if frame.ndim != 3 or frame.shape[2] != 3 or frame.dtype != np.uint8:
+            raise ValueError(f"frame must be an (H, W, 3) uint8 array, got {frame.dtype} {frame.shape}")
+        det = self.detector
+        has_wide = det.wide_model is not None
+        gate = self.motion_gate.min_motion if has_wide else 0.0
+        stats = DetectStats()
+        t0 = time.perf_counter()
+        motion = None
+        t_motion = 0.0
+        if gate > 0:
+            motion, wide_bands = self._moving_wide_bands(det, frame, rgb, gate)
+            t_motion = time.perf_counter() - t0
+            windows = det.detect(frame, rgb=rgb, wide_bands=wide_bands, stats=stats)
+        else:
+            windows = det.detect(frame, rgb=rgb, stats=stats)
+        hm = self._heatmap_for(frame.shape)
+        if has_wide:
+            wide = windows.is_wide
+            if motion is not None and wide.any():
+                t1 = time.perf_counter()
+                windows = self._gate_wide(windows, motion, gate)
+                wide = windows.is_wide
+                t_motion += time.perf_counter() - t1
+            main_boxes = hm.update(windows[~wide])
+            hw = self._wide_heatmap_for(frame.shape)
+            if not wide.any() and hw.config.n_frames == 1:
+                hw.reset()  # no memory and no windows: no heat, no boxes
+                boxes = main_boxes
+            else:
+                boxes = merge_wide(main_boxes, hw.update(windows[wide]))
+        else:
+            boxes = hm.update(windows)
+        self.last_windows = windows
+        self.last_heat = hm.heat
+        self.last_mask = hm.mask
+        self.last_labels = hm.labels
+        self.last_boxes = boxes
+        self.timings = {**stats.timings, **hm.timings}
+        if gate > 0:
+            self.timings["motion"] = t_motion
+        return boxes
+
+
+def detect_image(frame: np.ndarray, detector: WindowDetector, heat: HeatConfig) -> tuple[Detections, HeatMap, Detections]:
+    """One image: the positive windows of ``detector``, a single-frame heat map (``heat``,
+    e.g. ``HeatConfig().single_frame()``) and its boxes: ``(windows, heatmap, boxes)``."""
+    windows = detector.detect(frame)
+    hm = HeatMap(frame.shape, heat, score_kind=detector.score_kind)
+    return windows, hm, hm.update(windows)
+
+
+def _progress(total: int | None, enabled: bool, desc: str) -> tqdm:
+    return tqdm(total=total, unit="frame", desc=desc, file=sys.stderr, dynamic_ncols=True,
+                disable=not (enabled and sys.stderr.isatty()))
+
+
+def iter_video_detections(path: str | os.PathLike, model: Any = None, start: int = 0,
+                          frames: int | None = None, progress: bool = True, detector: Any = None,
+                          heat: HeatConfig | None = None, oncoming: Any = True) -> Iterator[tuple[int, Detections]]:
+    """Vehicle boxes of every frame of a video file: yields ``(frame, Detections)``.
+
+    frame: 1-based frame number in the file (``start`` frames are skipped, so the first one
+        yielded is ``start + 1``). frames: at most this many frames.
+    model: model for the default Detector (Model, path, or ``None`` for the bundled one);
+        oncoming: its wide-window model (see :func:`make_detector`);
+        ``detector``: use this detector instead (see :class:`VideoDetector`).
+    progress: a tqdm bar on stderr when it is a terminal.
+    Raises :class:`~fastdet.errors.DataError` / :class:`~fastdet.errors.ModelError` for bad
+    input (a decode failure midway raises after the frames before it were yielded).
+    """
+    if detector is not None and model is not None:
+        raise ValueError("give a model or a detector, not both")
+    _passive_omp()
+    reader = FrameReader(path, start, frames)
+    try:
+        vd = VideoDetector(detector if detector is not None else make_detector(model, oncoming), heat)
+        vd.warmup()
+        with _progress(reader.expected, progress, os.path.basename(reader.path)) as bar:
+            for fno, frame, _ in reader:
+                yield fno, vd.update(frame)
+                bar.update(1)
+    finally:
+        reader.close()
+
+
