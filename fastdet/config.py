@@ -7,9 +7,12 @@ and loading can check it.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, fields, replace
-from typing import Any
+from typing import Any, Literal
 
-COLOR_SPACES = ("RGB", "HSV", "HLS", "LUV", "YCrCb", "YUV")
+ColorSpace = Literal["RGB", "HSV", "HLS", "LUV", "YCrCb", "YUV"]
+COLOR_SPACES: tuple[str, ...] = ("RGB", "HSV", "HLS", "LUV", "YCrCb", "YUV")
+BoxMode = Literal["extent", "mean"]
+ScoreKind = Literal["probability", "decision"]
 
 
 def _from_dict(cls, d: dict[str, Any]):
@@ -37,7 +40,7 @@ class FeatureConfig:
         square. Spatial bins shrink both sides by the same factor ``window // spatial_size``.
     """
 
-    color_space: str = "YCrCb"
+    color_space: ColorSpace = "YCrCb"
     hog_channels: tuple[int, ...] = (0, 1, 2)
     orientations: int = 16
     pixels_per_cell: int = 8
@@ -327,7 +330,7 @@ class HeatConfig:
     score_hi: float | None = None
     w_max: float = 4.0
     extent: float = 0.4
-    box_mode: str = "extent"
+    box_mode: BoxMode = "extent"
     split_gap: float = 0.0
     cell: int = 4
     min_width: int = 40

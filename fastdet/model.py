@@ -24,12 +24,12 @@ import os
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
 from ._version import __version__
-from .config import FeatureConfig
+from .config import FeatureConfig, ScoreKind
 from .errors import ModelError
 from .features import extract_features
 from .io.atomic import atomic_path
@@ -57,7 +57,7 @@ class Model:
     intercept: float
     mean: np.ndarray
     scale: np.ndarray
-    classifier: str = "linearsvc"
+    classifier: Literal["linearsvc", "logreg"] = "linearsvc"
     metadata: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -79,7 +79,7 @@ class Model:
 
     # ---- scoring -----------------------------------------------------------------------
     @property
-    def score_kind(self) -> str:
+    def score_kind(self) -> ScoreKind:
         """``'probability'`` for logistic regression, ``'decision'`` for the SVM."""
         return "probability" if self.classifier == "logreg" else "decision"
 

@@ -17,13 +17,19 @@ from __future__ import annotations
 import operator
 import threading
 from collections.abc import Sequence
+from typing import Literal
 
 import numba
 import numpy as np
+from numpy.typing import ArrayLike
 
 from . import _hog_kernels as _k
 
 __all__ = ["hog", "hog_channels", "hog_channels_batch"]
+
+#: block normalisations, as scikit-image names them
+BlockNorm = Literal["L1", "L1-sqrt", "L2", "L2-Hys"]
+IntPair = tuple[int, int]
 
 BLOCK_NORMS = {
     "L1": _k.NORM_L1,
@@ -253,9 +259,10 @@ def _hog_image(hist, ppc, orientations, shape, float_dtype):
 # --------------------------------------------------------------------------------------
 # public API
 # --------------------------------------------------------------------------------------
-def hog(image, orientations=9, pixels_per_cell=(8, 8), cells_per_block=(3, 3),
-        block_norm="L2-Hys", visualize=False, transform_sqrt=False, feature_vector=True,
-        *, channel_axis=None):
+def hog(image: ArrayLike, orientations: int = 9, pixels_per_cell: IntPair = (8, 8),
+        cells_per_block: IntPair = (3, 3), block_norm: BlockNorm = "L2-Hys", visualize: bool = False,
+        transform_sqrt: bool = False, feature_vector: bool = True,
+        *, channel_axis: int | None = None) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Histogram of Oriented Gradients (HOG) of an image, as ``skimage.feature.hog``.
 
     Same arguments, defaults, output shape, dtype and values as scikit-image's ``hog``
@@ -379,8 +386,9 @@ def _channel_list(channels, n_channels: int) -> list[int]:
     return [c % n_channels for c in chans]
 
 
-def hog_channels(image, orientations=9, pixels_per_cell=8, cells_per_block=2,
-                 block_norm="L2-Hys", transform_sqrt=False, channels=None):
+def hog_channels(image: ArrayLike, orientations: int = 9, pixels_per_cell: int | IntPair = 8,
+                 cells_per_block: int | IntPair = 2, block_norm: BlockNorm = "L2-Hys",
+                 transform_sqrt: bool = False, channels: Sequence[int] | None = None) -> np.ndarray:
     """Per-channel HOG block map of an ``(H, W, C)`` (or ``(H, W)``) image.
 
     Each selected channel gets its own HOG, exactly
@@ -430,8 +438,9 @@ def hog_channels(image, orientations=9, pixels_per_cell=8, cells_per_block=2,
     return out.reshape(out.shape[0], out.shape[1], out.shape[2], cpb[0], cpb[1], orientations)
 
 
-def hog_channels_batch(images, orientations=9, pixels_per_cell=8, cells_per_block=2,
-                       block_norm="L2-Hys", channels=None):
+def hog_channels_batch(images: ArrayLike, orientations: int = 9, pixels_per_cell: int | IntPair = 8,
+                       cells_per_block: int | IntPair = 2, block_norm: BlockNorm = "L2-Hys",
+                       channels: Sequence[int] | None = None) -> np.ndarray:
     """:func:`hog_channels` of every image of an ``(N, H, W, C)`` stack (or ``(N, H, W)``).
 
     For a uint8 stack (e.g. 64x64 training crops) one kernel runs the whole stack,
