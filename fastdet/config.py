@@ -1,6 +1,8 @@
-"""Frozen configuration dataclasses: what features a model uses, where to search, how heat works.
+"""Frozen configuration dataclasses: what features a model uses (:class:`FeatureConfig`), where
+to search (:class:`SearchBand`, :class:`SearchConfig`), how the heat map turns windows into
+boxes (:class:`HeatConfig`) and how motion gates the wide model (:class:`MotionGate`).
 
-All three are plain values (hashable, comparable, JSON-round-trippable with
+All five are plain values (hashable, comparable, JSON-round-trippable with
 :func:`to_dict` / ``from_dict``), so a model file can record its :class:`FeatureConfig`
 and loading can check it.
 """
@@ -230,7 +232,7 @@ def _wide_bands() -> tuple[SearchBand, ...]:
     # 64x24 windows at 40..80 px wide: the 40-80 px wide cars seen just above the median.
     # Columns 0..~704 of 1280: oncoming traffic (right-hand traffic) is on the left of the
     # view; each band is a whole number of its 8 * scale px cells wide, so that the
-    # narrowed bands of fastdet.motion resample exactly as the full band does.
+    # narrowed bands of fastdet.video.motion resample exactly as the full band does.
     return tuple(SearchBand(s, 400, 400 + int(64 * s) + 24, 0, int(704 // (8 * s) * (8 * s)))
                  for s in (0.625, 0.75, 0.875, 1.0, 1.25))
 
@@ -273,7 +275,7 @@ class MotionGate:
 
 @dataclass(frozen=True)
 class HeatConfig:
-    """Heat map over recent frames (see :mod:`fastdet.heatmap`).
+    """Heat map over recent frames (see :mod:`fastdet.video.heatmap`).
 
     Each positive window adds heat to the pixels it covers; the heat of a frame is the
     age-weighted **mean** of the last ``n_frames`` per-frame maps (weights ``decay**age``,

@@ -122,7 +122,7 @@ class Detector:
         ``window``, trained with ``fastdet train --window-rows``) for vehicles half hidden
         behind a barrier, e.g. oncoming traffic above the median; ``None`` (default) = off.
         The bundled one is ``fastdet.model.ONCOMING_MODEL_PATH``; :class:`fastdet.VideoDetector`
-        runs it by default, searching only where the picture moves (:mod:`fastdet.motion`).
+        runs it by default, searching only where the picture moves (:mod:`fastdet.video.motion`).
     wide_search: its search bands (default :data:`fastdet.config.WIDE_SEARCH`).
 
     ``detect(frame)`` returns the positive windows of both models (``wide_bands`` narrows the

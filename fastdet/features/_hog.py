@@ -9,7 +9,7 @@ Public functions (exported as ``fastdet.hog`` and ``fastdet.hog_channels``):
 * :func:`hog_channels_batch` -- :func:`hog_channels` of a stack of equally sized crops,
   threaded over the stack.
 
-The kernels live in :mod:`fastdet._hog_kernels`; this module validates, allocates and
+The kernels live in :mod:`fastdet.features._hog_kernels`; this module validates, allocates and
 prepares look-up tables.
 """
 from __future__ import annotations

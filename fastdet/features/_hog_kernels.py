@@ -1,4 +1,4 @@
-"""Numba kernels behind :mod:`fastdet._hog` (private: call the wrappers there).
+"""Numba kernels behind :mod:`fastdet.features._hog` (private: call the wrappers there).
 
 Every kernel reproduces scikit-image's ``feature.hog`` arithmetic step for step, so that
 results agree to the last bit on the same machine:

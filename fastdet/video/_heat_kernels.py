@@ -1,4 +1,4 @@
-"""Numba kernels of :mod:`fastdet.heatmap`: add weighted rectangles to a heat grid."""
+"""Numba kernels of :mod:`fastdet.video.heatmap`: add weighted rectangles to a heat grid."""
 from __future__ import annotations
 
 import numpy as np
