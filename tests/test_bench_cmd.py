@@ -6,7 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from fastdet import bench, cli
+from fastdet import cli
+from fastdet.cli import bench
 
 
 def test_bench_image_prints_stage_table(test_images, capsys):

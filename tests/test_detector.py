@@ -7,7 +7,7 @@ import pytest
 
 from benchmarks.classic import classic_band_scores, sklearn_pair
 from fastdet.config import FeatureConfig, SearchBand, SearchConfig
-from fastdet.detector import Detector
+from fastdet.detect import Detector, DetectStats
 from fastdet.model import Model
 
 
@@ -56,13 +56,22 @@ def test_one_cell_step_and_other_feature_configs(frames):
 
 def test_detect_boxes_and_scores(frames):
     det = Detector()
-    d = det.detect(frames[0])
+    stats = DetectStats()
+    d = det.detect(frames[0], stats=stats)
     assert d.boxes.dtype == np.int32 and d.boxes.shape[1] == 4 and d.scores.dtype == np.float32
-    assert len(d.boxes) == len(d.scores) == len(det.last_scales)
+    assert len(d) == len(d.boxes) == len(d.scores) == len(d.scale) == len(d.part) > 0
+    assert not d.is_wide.any()  # no wide model
+    assert set(d.scale.tolist()) <= {b.scale for b in det.search.bands}
     if det.score_kind == "probability":
         assert np.all((d.scores > 0.5) & (d.scores <= 1))
     assert np.all(d.boxes[:, 2] > d.boxes[:, 0]) and np.all(d.boxes[:, 3] > d.boxes[:, 1])
-    assert set(det.timings) == {"resize_colour", "hog", "score"}
+    # each window is 64 * scale frame pixels square
+    np.testing.assert_array_equal(d.boxes[:, 2] - d.boxes[:, 0], (64 * d.scale).astype(np.int32))
+    assert set(stats.timings) == {"resize_colour", "hog", "score"}
+    assert [g.band for _, g, _ in stats.bands] == [g.band for g in det.geometries(frames[0].shape[:2])]
+    # the positive windows are those of the recorded decision values above the threshold
+    n_pos = sum(int((dec > det.search.threshold).sum()) for _, _, dec in stats.bands)
+    assert n_pos == len(d)
     rgb = det.detect(np.ascontiguousarray(frames[0][:, :, ::-1]), rgb=True)
     np.testing.assert_array_equal(rgb.boxes, d.boxes)
 
@@ -124,15 +133,17 @@ def test_band_threads_give_the_same_windows(frames):
     before = numba.get_num_threads()
     try:
         numba.set_num_threads(1)
-        one = det.detect(frames[3])
-        one_bands = [d.copy() for _, d in det.last_band_scores]
+        one_stats, two_stats = DetectStats(), DetectStats()
+        one = det.detect(frames[3], stats=one_stats)
         numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
-        two = det.detect(frames[3])
+        two = det.detect(frames[3], stats=two_stats)
     finally:
         numba.set_num_threads(before)
     np.testing.assert_array_equal(one.boxes, two.boxes)
     np.testing.assert_allclose(one.scores, two.scores, rtol=0, atol=1e-6)
-    for a, (_, b) in zip(one_bands, det.last_band_scores):
+    assert len(one_stats.bands) == len(two_stats.bands) > 1
+    for (pa, ga, a), (pb, gb, b) in zip(one_stats.bands, two_stats.bands):
+        assert pa == pb and ga == gb
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-9)
     det.close()
     try:  # a closed detector starts new band threads when it is used again

@@ -4,8 +4,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
-import types
 
 import numpy as np
 import pytest
@@ -13,9 +11,10 @@ import pytest
 from fastdet.cli import main
 from fastdet.detections import Detections
 from fastdet.errors import DataError, FastdetError
-from fastdet import eval as ev
-from fastdet.eval import average_precision, box_iou, evaluate, format_table, match_frame
-from fastdet.motio import (
+from fastdet.cli import eval as ev
+from fastdet.boxes import iou as box_iou
+from fastdet.eval import average_precision, evaluate, format_table, match_frame
+from fastdet.io.motfiles import (
     GroundTruth,
     JsonLinesWriter,
     MotWriter,
@@ -385,9 +384,7 @@ def test_video_option_uses_pipeline(files, tmp_path, monkeypatch, capsys):
             boxes = np.array([[l, t, l + w, t + h] for (_, _, l, t, w, h, _) in rows], np.int32)
             yield f, Detections(boxes, np.full(len(rows), 0.5, np.float32))
 
-    fake = types.ModuleType("fastdet.video")
-    fake.iter_video_detections = fake_iter
-    monkeypatch.setitem(sys.modules, "fastdet.video", fake)
+    monkeypatch.setattr(ev, "iter_video_detections", fake_iter)
     assert ev.run(_parse(["--gt", str(gt), "--video", str(clip), "--model", "m.npz", "--json"])) == 0
     d = json.loads(capsys.readouterr().out)
     assert d["ap"] == 1.0 and d["video"] == str(clip)
@@ -396,13 +393,6 @@ def test_video_option_uses_pipeline(files, tmp_path, monkeypatch, capsys):
     assert calls["oncoming"] is False
     with pytest.raises(FastdetError, match="only apply with --video"):
         ev.run(_parse(["--gt", str(gt), "--pred", str(gt), "--no-oncoming"]))
-
-
-def test_video_option_without_pipeline(files, tmp_path, monkeypatch):
-    gt, _ = files
-    monkeypatch.setitem(sys.modules, "fastdet.video", types.ModuleType("fastdet.video"))
-    with pytest.raises(FastdetError, match="video pipeline not available"):
-        ev.run(_parse(["--gt", str(gt), "--video", str(tmp_path / "clip.mp4")]))
 
 
 # ---------------------------------------------------------------------------------------
@@ -427,7 +417,7 @@ def test_default_pipeline_accuracy_on_the_annotated_clips(data):
     """The README's accuracy table, defaults row: `python -m fastdet eval --video CLIP` with
     the bundled models. Guards against accuracy regressions (the figures the README gives,
     less a small margin: F1 0.90 / 1.00, FP per frame 0.05 / 0.00)."""
-    from fastdet.video import iter_video_detections
+    from fastdet.video.pipeline import iter_video_detections
 
     floors = {"test_video": (0.99, 0.01), "test_small1": (0.88, 0.08)}  # min F1, max FP per frame
     for name, (min_f1, max_fp) in floors.items():

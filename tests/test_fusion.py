@@ -4,9 +4,10 @@ from __future__ import annotations
 import numpy as np
 
 from fastdet.config import HeatConfig, MotionGate
-from fastdet.detections import Detections
-from fastdet.fusion import merge_wide, overlap_fraction
-from fastdet.video import VideoDetector
+from fastdet.detections import MAIN_PART, WIDE_PART, Detections
+from fastdet.boxes import overlap_fraction
+from fastdet.video.fusion import merge_wide
+from fastdet.video.pipeline import VideoDetector
 
 
 def test_overlap_fraction_by_hand():
@@ -30,14 +31,21 @@ class _FakeWide:
     dropped) and on a small car on the left (must be kept)."""
 
     score_kind = "decision"
-    wide_model = object()
-    timings: dict = {}
+    wide_model = object()  # not None: VideoDetector routes WIDE_PART windows to the wide heat map
 
-    def detect(self, frame, rgb=False):
+    def warmup(self):
+        pass
+
+    def geometries(self, frame_shape, part=0):
+        raise AssertionError("no motion gate: the wide search's bands are not needed")
+
+    def detect(self, frame, rgb=False, wide_bands=None, stats=None):
+        assert wide_bands is None  # no motion gate: the full wide search
         main = [[600, 400, 664, 464], [608, 400, 672, 464], [600, 408, 664, 472]]
         wide = [[610, 420, 674, 444], [100, 430, 164, 454], [104, 430, 168, 454]]
-        self.last_scales = np.array([1, 1, 1, -1, -1, -1], np.float32)
-        return Detections(np.array(main + wide, np.int32), np.full(6, 3.0, np.float32))
+        part = [MAIN_PART] * 3 + [WIDE_PART] * 3
+        return Detections(np.array(main + wide, np.int32), np.full(6, 3.0, np.float32),
+                          scale=np.ones(6, np.float32), part=np.array(part, np.int8))
 
 
 def test_video_detector_routes_wide_windows_to_their_own_heat_map():
@@ -50,4 +58,5 @@ def test_video_detector_routes_wide_windows_to_their_own_heat_map():
     assert left.tolist() == [102, 430, 166, 454]  # mean of the two wide windows
     right = out.boxes[out.boxes[:, 0] >= 300][0]
     assert right[0] >= 596 and right[2] <= 676  # the main box, not widened by the wide window
+    assert vd.last_windows.is_wide.sum() == 3
     vd.reset()

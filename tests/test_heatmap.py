@@ -10,10 +10,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-import fastdet.heatmap as heatmap_mod
+import fastdet.video.heatmap as heatmap_mod
 from fastdet.config import HeatConfig
 from fastdet.detections import Detections
-from fastdet.heatmap import HeatMap
+from fastdet.video.heatmap import HeatMap
 
 # ------------------------------------------------------------------------- reference
 

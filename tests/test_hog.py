@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import fastdet
-from fastdet._hog import hog_channels_batch
+from fastdet.features._hog import hog_channels_batch
 
 skimage_feature = pytest.importorskip("skimage.feature")
 sk_hog = skimage_feature.hog
@@ -63,8 +63,9 @@ def _crops(data, per_folder=6):
 # real images
 # --------------------------------------------------------------------------------------
 def test_public_names_are_exported():
-    assert fastdet.hog is fastdet._hog.hog
-    assert fastdet.hog_channels is fastdet._hog.hog_channels
+    assert fastdet.hog is fastdet.features._hog.hog
+    assert fastdet.hog_channels is fastdet.features._hog.hog_channels
+    assert fastdet.hog_channels_batch is hog_channels_batch
 
 
 def test_grey_test_images(test_images):

@@ -8,33 +8,41 @@ import cv2
 import numpy as np
 import pytest
 
-from fastdet import cli, draw, imagecmd
+from fastdet import cli
+from fastdet.cli import image as imagecmd
+from fastdet.cli.main import build_parser
 from fastdet.config import HeatConfig
-from fastdet.detections import Detections
+from fastdet.detections import WIDE_PART, Detections
 from fastdet.errors import DataError
+from fastdet.io import draw
+from fastdet.video import detect_image
 
 
 class FakeDetector:
-    """Detector interface: windows around each bright rectangle (itself and shifted 4 px)."""
+    """A WindowDetector: windows around each bright rectangle (itself and shifted 4 px)."""
 
     score_kind = "decision"
+    wide_model = None
 
-    def __init__(self):
-        self.timings: dict[str, float] = {}
-        self.last_scales = np.zeros(0, np.float32)
+    def warmup(self) -> None:
+        pass
 
-    def detect(self, frame, rgb=False):
-        n, labels, stats, _ = cv2.connectedComponentsWithStats((frame.max(axis=2) > 200).astype(np.uint8))
+    def geometries(self, frame_shape, part=0):
+        return []
+
+    def detect(self, frame, rgb=False, wide_bands=None, stats=None):
+        n, labels, cc, _ = cv2.connectedComponentsWithStats((frame.max(axis=2) > 200).astype(np.uint8))
         boxes, scales = [], []
-        for x, y, w, h, _ in stats[1:]:
+        for x, y, w, h, _ in cc[1:]:
             for i, (dx, dy) in enumerate([(0, 0), (4, 0), (-4, 0), (0, 4), (0, -4)]):
                 boxes.append([x + dx, y + dy, x + w + dx, y + h + dy])
                 scales.append(1.0 + 0.5 * i)
-        self.last_scales = np.array(scales, np.float32)
-        self.timings = {"resize_colour": 0.0, "hog": 0.0, "score": 0.0}
+        if stats is not None:
+            stats.timings.update({"resize_colour": 0.0, "hog": 0.0, "score": 0.0})
         if not boxes:
             return Detections.empty()
-        return Detections(np.array(boxes, np.int32), np.full(len(boxes), 2.0, np.float32))
+        return Detections(np.array(boxes, np.int32), np.full(len(boxes), 2.0, np.float32),
+                          scale=np.array(scales, np.float32))
 
 
 @pytest.fixture
@@ -48,7 +56,7 @@ def image(tmp_path) -> Path:
 
 
 def parse(*argv):
-    return cli.build_parser().parse_args(["image", *map(str, argv)])
+    return build_parser("image").parse_args(["image", *map(str, argv)])
 
 
 def test_image_boxes_windows_heat(image, tmp_path, capsys):
@@ -68,14 +76,14 @@ def test_image_boxes_windows_heat(image, tmp_path, capsys):
 def test_detect_image_single_frame_threshold(image):
     frame = cv2.imread(str(image))
     cfg = HeatConfig().single_frame()
-    windows, scales, hm, boxes = imagecmd.detect_image(frame, FakeDetector(), cfg)
+    windows, hm, boxes = detect_image(frame, FakeDetector(), cfg)
     assert hm.config.n_frames == 1 and hm.config.threshold == cfg.single_frame_threshold
-    assert len(windows.boxes) == 10 and len(scales) == 10
+    assert len(windows) == 10 and windows.scale.tolist() == [1.0, 1.5, 2.0, 2.5, 3.0] * 2
     assert len(hm.blobs.boxes) == 2 and len(boxes.boxes) == 1  # the pole is filtered out
     x1, y1, x2, y2 = boxes.boxes[0]
     assert abs(x1 - 40) <= 4 and abs(x2 - 120) <= 4 and abs(y1 - 100) <= 4 and abs(y2 - 160) <= 4
     # a threshold above every heat value leaves nothing
-    _, _, _, none = imagecmd.detect_image(frame, FakeDetector(), HeatConfig().single_frame(1e6))
+    _, _, none = detect_image(frame, FakeDetector(), HeatConfig().single_frame(1e6))
     assert len(none.boxes) == 0
 
 
@@ -130,8 +138,24 @@ def test_draw_helpers():
     li = draw.label_image(labels, mask=heat > 0)
     assert (li[7, 7] == draw.label_color(1)).all() and li[0, 0].sum() == 0
     frame = np.zeros((240, 320, 3), np.uint8)
-    panels = draw.debug_panels(frame, np.array([[0, 0, 64, 64]]), np.array([1.0]), heat, labels, heat > 0,
-                               threshold=2.0)
+    windows = Detections(np.array([[0, 0, 64, 64]]), np.array([1.0]), scale=np.array([1.0]))
+    panels = draw.debug_panels(frame, windows, heat, labels, heat > 0, threshold=2.0)
     assert [p.shape for p in panels] == [(60, 80, 3)] * 3
     draw.paste_panels(frame, panels)
     assert frame[8:68, 8:88].any()
+
+
+def test_draw_windows_colours_by_scale_and_part():
+    """Each window is drawn in the colour of its scale (1 when the column is missing); the
+    wide model's windows in that of the negated scale."""
+    boxes = np.array([[0, 0, 20, 20], [30, 0, 50, 20], [60, 0, 80, 20]])
+    img = np.zeros((40, 100, 3), np.uint8)
+    w = Detections(boxes, np.ones(3), scale=np.array([1.0, 3.0, 3.0]), part=np.array([0, 0, WIDE_PART]))
+    assert draw.draw_windows(img, w, 1) is img
+    assert tuple(img[10, 0]) == draw.scale_color(1.0)
+    assert tuple(img[10, 30]) == draw.scale_color(3.0)
+    assert tuple(img[10, 60]) == draw.scale_color(-3.0)
+    assert img[10, 10].sum() == 0  # inside a window: untouched
+    img2 = np.zeros((40, 100, 3), np.uint8)
+    draw.draw_windows(img2, Detections(boxes, np.ones(3)), 1, scale=0.5)
+    assert tuple(img2[5, 9]) == draw.scale_color(1.0) and img2[5, 12].sum() == 0 and img2[15].sum() == 0

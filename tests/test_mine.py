@@ -6,7 +6,7 @@ import pytest
 import numpy as np
 
 from fastdet.cli import main
-from fastdet.mine import false_windows
+from fastdet.train.mine import false_windows
 
 
 def test_false_windows_rules():
@@ -64,7 +64,7 @@ def test_mine_image_sequence_with_annotations(data, tmp_path, capsys):
     from pathlib import Path
 
     from fastdet.model import ONCOMING_MODEL_PATH
-    from fastdet.motio import read_gt
+    from fastdet.io.motfiles import read_gt
 
     gt_path = Path(__file__).resolve().parents[1] / "tools" / "test_images.gt.txt"
     out = tmp_path / "neg"

@@ -10,8 +10,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fastdet.config import WIDE_SEARCH, MotionGate
-from fastdet.motion import FrameMotion, moving_bands, window_motion
-from fastdet.search import band_geometry, window_boxes
+from fastdet.video.motion import FrameMotion, moving_bands, window_motion
+from fastdet.detect import DetectStats
+from fastdet.detect.bands import band_geometry, window_boxes
+from fastdet.detections import WIDE_PART
 
 
 def naive_window_motion(prev_bgr: np.ndarray, cur_bgr: np.ndarray, boxes: np.ndarray) -> np.ndarray:
@@ -105,7 +107,7 @@ def oncoming_frames(data):
 
 @pytest.fixture(scope="module")
 def detector():
-    from fastdet.video import make_detector
+    from fastdet.video.pipeline import make_detector
 
     return make_detector()
 
@@ -113,10 +115,11 @@ def detector():
 def _wide_windows(det, frame, bands=None):
     """All wide-model windows (any score) of ``bands`` (default: its full search), as
     {box tuple: decision value}."""
-    det.detect(frame, wide_bands=bands)
+    stats = DetectStats()
+    det.detect(frame, wide_bands=bands, stats=stats)
     out = {}
-    for (geo, dec), part in zip(det.last_band_scores, det.last_band_parts):
-        if part != 1:
+    for part, geo, dec in stats.bands:
+        if part != WIDE_PART:
             continue
         r, c = np.nonzero(np.ones_like(dec, bool))
         for box, v in zip(window_boxes(geo, r, c, det.wide_model.config), dec[r, c]):
@@ -158,27 +161,28 @@ def test_moving_bands_is_empty_without_motion(detector, oncoming_frames):
 
 
 def test_detect_with_no_wide_bands_is_the_main_model_alone(detector, oncoming_frames):
-    from fastdet.detector import Detector
+    from fastdet.detect import Detector
 
     frame = oncoming_frames[1]
     main_only = Detector().detect(frame)
     both = detector.detect(frame, wide_bands=[])
     assert both.boxes.tolist() == main_only.boxes.tolist()
     np.testing.assert_array_equal(both.scores, main_only.scores)
-    assert (detector.last_scales > 0).all()
+    assert len(both) and not both.is_wide.any()
+    np.testing.assert_array_equal(both.scale, main_only.scale)
 
 
 def test_video_detector_wide_windows_are_the_gated_full_search(detector, oncoming_frames):
     """VideoDetector's wide windows = the wide model's positive windows over its whole
     search, kept where the motion reaches the gate."""
-    from fastdet.video import VideoDetector
+    from fastdet.video.pipeline import VideoDetector
 
     prev, cur = oncoming_frames
     vd = VideoDetector(detector)
     vd.update(prev)
-    assert not (vd.last_scales < 0).any(), "no previous frame: no motion, no wide windows"
+    assert not vd.last_windows.is_wide.any(), "no previous frame: no motion, no wide windows"
     vd.update(cur)
-    got = {tuple(int(v) for v in b) for b, s in zip(vd.last_windows.boxes, vd.last_scales) if s < 0}
+    got = {tuple(int(v) for v in b) for b in vd.last_windows[vd.last_windows.is_wide].boxes}
     fm = FrameMotion()
     fm.update(prev)
     integral = fm.update(cur)
@@ -191,7 +195,7 @@ def test_video_detector_wide_windows_are_the_gated_full_search(detector, oncomin
 
 
 def test_video_detector_rgb_frames_give_the_same_boxes(detector, oncoming_frames):
-    from fastdet.video import VideoDetector
+    from fastdet.video.pipeline import VideoDetector
 
     bgr, rgb = VideoDetector(detector), VideoDetector(detector)
     for frame in oncoming_frames:
@@ -199,4 +203,4 @@ def test_video_detector_rgb_frames_give_the_same_boxes(detector, oncoming_frames
         b = rgb.update(np.ascontiguousarray(frame[:, :, ::-1]), rgb=True)
         assert a.boxes.tolist() == b.boxes.tolist()
         assert bgr.last_windows.boxes.tolist() == rgb.last_windows.boxes.tolist()
-    assert (bgr.last_scales < 0).any(), "the second frame has moving oncoming cars"
+    assert bgr.last_windows.is_wide.any(), "the second frame has moving oncoming cars"

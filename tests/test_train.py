@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from fastdet.cli import main
-from fastdet.dataset import sequence_split
+from fastdet.train.dataset import sequence_split
 from fastdet.model import load_model
 
 

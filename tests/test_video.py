@@ -13,11 +13,14 @@ import cv2
 import numpy as np
 import pytest
 
-from fastdet import cli, video
+from fastdet import cli
+from fastdet.cli import video
+from fastdet.cli.main import build_parser
 from fastdet.config import HeatConfig
 from fastdet.detections import Detections
 from fastdet.errors import DataError
-from fastdet.video import VideoDetector, iter_video_detections, partial_name
+from fastdet.io.atomic import partial_name
+from fastdet.video.pipeline import VideoDetector, iter_video_detections, make_detector
 
 W, H = 320, 240
 RECT_W, RECT_H = 80, 60
@@ -50,14 +53,13 @@ def write_video(path: Path, n: int, fourcc: str = "mp4v") -> Path:
 
 
 class FakeDetector:
-    """Same interface as fastdet.detector.Detector: five windows around the bounding box of
-    the pixels brighter than 200 (the box itself and shifted by 4 px), scales 1..3."""
+    """A WindowDetector (the protocol VideoDetector needs): five windows around the bounding
+    box of the pixels brighter than 200 (the box itself and shifted by 4 px), scales 1..3."""
 
     score_kind = "decision"
+    wide_model = None
 
     def __init__(self, on_frame=None):
-        self.timings: dict[str, float] = {}
-        self.last_scales = np.zeros(0, np.float32)
         self.calls = 0
         self.rgb_args: list[bool] = []
         self.warmed = False
@@ -66,21 +68,23 @@ class FakeDetector:
     def warmup(self) -> None:
         self.warmed = True
 
-    def detect(self, frame: np.ndarray, rgb: bool = False) -> Detections:
+    def geometries(self, frame_shape, part=0):
+        return []
+
+    def detect(self, frame: np.ndarray, rgb: bool = False, wide_bands=None, stats=None) -> Detections:
         self.calls += 1
         self.rgb_args.append(rgb)
         if self.on_frame is not None:
             self.on_frame(self.calls)
-        self.timings = {"resize_colour": 1e-4, "hog": 2e-4, "score": 3e-4}
+        if stats is not None:
+            stats.timings.update({"resize_colour": 1e-4, "hog": 2e-4, "score": 3e-4})
         ys, xs = np.nonzero(frame.max(axis=2) > 200)
         if len(xs) == 0:
-            self.last_scales = np.zeros(0, np.float32)
             return Detections.empty()
         x1, y1, x2, y2 = xs.min(), ys.min(), xs.max() + 1, ys.max() + 1
         offs = [(0, 0), (4, 0), (-4, 0), (0, 4), (0, -4)]
         boxes = np.array([[x1 + dx, y1 + dy, x2 + dx, y2 + dy] for dx, dy in offs], np.int32)
-        self.last_scales = np.array([1, 1.5, 2, 2.5, 3], np.float32)
-        return Detections(boxes, np.full(5, 1.0, np.float32))
+        return Detections(boxes, np.full(5, 1.0, np.float32), scale=np.array([1, 1.5, 2, 2.5, 3], np.float32))
 
 
 def iou(a, b) -> float:
@@ -105,7 +109,7 @@ def read_mot(path: Path) -> list[list[float]]:
 
 
 def parse(*argv: str):
-    return cli.build_parser().parse_args(["video", *map(str, argv)])
+    return build_parser("video").parse_args(["video", *map(str, argv)])
 
 
 @pytest.fixture(scope="module")
@@ -124,7 +128,7 @@ def test_video_detector_follows_the_rectangle():
         assert len(out.boxes) == 1
         assert iou(out.boxes[0], rect_at(i)) > 0.8
         assert len(vd.last_windows.boxes) == 5
-        assert vd.last_scales.tolist() == [1, 1.5, 2, 2.5, 3]
+        assert vd.last_windows.scale.tolist() == [1, 1.5, 2, 2.5, 3]
         assert vd.last_heat.shape == (H // 4, W // 4)
         assert vd.last_mask.dtype == bool and vd.last_mask.any()
         assert vd.last_labels.max() == 1
@@ -311,17 +315,17 @@ def test_bad_oncoming_model_exits_2_without_traceback(clip, tmp_path, capsys):
 def test_make_detector_oncoming_choices():
     from fastdet.model import ONCOMING_MODEL_PATH, load_model
 
-    assert video.make_detector().wide_model is not None  # the bundled oncoming model
-    assert video.make_detector(oncoming=False).wide_model is None
-    assert video.make_detector(oncoming=None).wide_model is None
+    assert make_detector().wide_model is not None  # the bundled oncoming model
+    assert make_detector(oncoming=False).wide_model is None
+    assert make_detector(oncoming=None).wide_model is None
     wide = load_model(ONCOMING_MODEL_PATH)
-    assert video.make_detector(oncoming=wide).wide_model is wide
+    assert make_detector(oncoming=wide).wide_model is wide
     assert wide.config.window_height == 24 and wide.config.win_w == 64
     from fastdet.errors import ModelError
     from fastdet.model import DEFAULT_MODEL_PATH
 
     with pytest.raises(ModelError, match="not a wide-window model"):
-        video.make_detector(oncoming=DEFAULT_MODEL_PATH)
+        make_detector(oncoming=DEFAULT_MODEL_PATH)
 
 
 # ------------------------------------------------------------------------- the real detector
@@ -329,7 +333,7 @@ def test_make_detector_oncoming_choices():
 
 def test_real_detector_on_the_test_video(data, tmp_path):
     """The real Detector (bundled model) through the whole CLI on 6 frames of the test clip:
-    the interface VideoDetector relies on (timings, last_scales, score_kind) still holds."""
+    the interface VideoDetector relies on (stats timings, the scale and part columns, score_kind) still holds."""
     from fastdet.model import DEFAULT_MODEL_PATH
 
     if not DEFAULT_MODEL_PATH.exists():
@@ -346,7 +350,7 @@ def test_real_detector_on_the_test_video(data, tmp_path):
     vd.update(cap.read()[1])
     vd.update(cap.read()[1])
     assert set(vd.timings) >= {"resize_colour", "hog", "score", "heat", "label", "motion"}
-    assert len(vd.last_scales) == len(vd.last_windows.boxes) > 0
+    assert len(vd.last_windows.scale) == len(vd.last_windows.part) == len(vd.last_windows.boxes) > 0
     rows = read_mot(boxes)
     assert video.run(parse(clip, "--boxes", boxes, "--no-progress", "--start", 20, "--frames", 6,
                            "--no-oncoming")) == 0
