@@ -10,7 +10,7 @@ Frames: ``test_images/*.jpg`` (six 1280x720 dashcam frames). Model and search ar
 for both pipelines: the bundled main model (``fastdet.model.load_model()``) and the default
 ``fastdet.config.SearchConfig()`` (6 bands, 2 cells per step):
 
-* ``classic``: ``benchmarks.classic.ClassicDetector`` — skimage HOG of each scaled band,
+* ``classic``: ``tests.reference.ClassicDetector`` — skimage HOG of each scaled band,
   then every window one at a time (slice its blocks, ``cv2.resize`` spatial bins,
   ``np.histogram``, ``StandardScaler.transform``, ``decision_function``). About 5 s a
   frame, so 2 rounds on test1.jpg (``pedantic``);
@@ -76,7 +76,7 @@ def load_frames(data: Path | None = None) -> dict[str, np.ndarray]:
 
 def make_classic():
     """The classic pipeline with the bundled main model and the default search."""
-    from benchmarks.classic import ClassicDetector
+    from tests.reference import ClassicDetector
     from fastdet.config import SearchConfig
     from fastdet.model import load_model
 
@@ -86,7 +86,7 @@ def make_classic():
 def make_fastdet(kind: str, wide: str | os.PathLike | None = None):
     """``'main'``: ``Detector(wide=None)`` (same model and bands as the classic one);
     ``'default'``: ``Detector()``; ``'wide'``: ``Detector(wide=wide)``."""
-    from fastdet.detector import Detector
+    from fastdet.detect import Detector
 
     if kind == "main":
         det = Detector(wide=None)
@@ -115,7 +115,7 @@ _START_SCRIPT = """
 import sys, time, json
 t0 = time.perf_counter()
 import cv2, numpy as np
-from fastdet.detector import Detector
+from fastdet.detect import Detector
 t1 = time.perf_counter()
 det = Detector()
 t2 = time.perf_counter()

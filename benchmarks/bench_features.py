@@ -15,9 +15,9 @@ import numba
 import numpy as np
 import pytest
 
-from benchmarks.classic import crop_features
+from tests.reference import crop_features
 from fastdet.config import FeatureConfig
-from fastdet.dataset import load_crops
+from fastdet.train.dataset import load_crops
 from fastdet.features import extract_features
 
 CFG = FeatureConfig()

@@ -5,7 +5,7 @@ import cv2
 import numpy as np
 import pytest
 
-from benchmarks.classic import classic_band_scores, sklearn_pair
+from tests.reference import classic_band_scores, sklearn_pair
 from fastdet.config import FeatureConfig, SearchBand, SearchConfig
 from fastdet.detect import Detector, DetectStats
 from fastdet.model import Model

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from benchmarks.classic import crop_features
+from tests.reference import crop_features
 from fastdet.config import FeatureConfig
 from fastdet.features import extract_features, spatial_map
 

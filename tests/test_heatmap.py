@@ -1,9 +1,7 @@
-"""HeatMap against a plain, slow reference: a list of the last N full-frame float arrays,
-one per frame, summed with their age weights; labels against a naive flood fill."""
+"""HeatMap against a plain, slow reference (``tests.reference``): a list of the last N
+full-frame float arrays, one per frame, summed with their age weights; labels against a
+naive flood fill."""
 from __future__ import annotations
-
-import math
-from collections import deque
 
 import numpy as np
 import pytest
@@ -14,81 +12,7 @@ import fastdet.video.heatmap as heatmap_mod
 from fastdet.config import HeatConfig
 from fastdet.detections import Detections
 from fastdet.video.heatmap import HeatMap
-
-# ------------------------------------------------------------------------- reference
-
-
-def ref_window_heat(score: float, cfg: HeatConfig, kind: str = "decision") -> float:
-    lo, hi = cfg.score_range(kind)
-    t = min(max((score - lo) / (hi - lo), 0.0), 1.0)
-    return 1.0 + (cfg.w_max - 1.0) * t
-
-
-def ref_snap(v: int, c: int) -> int:
-    return math.floor(v / c + 0.5)
-
-
-def ref_frame_map(boxes, scores, shape, cfg, kind="decision") -> np.ndarray:
-    """One frame's heat at full resolution (frame padded to whole cells)."""
-    c = cfg.cell
-    hg, wg = -(-shape[0] // c), -(-shape[1] // c)
-    m = np.zeros((hg * c, wg * c), np.float64)
-    for (x1, y1, x2, y2), s in zip(boxes, scores):
-        if x2 <= x1 or y2 <= y1:
-            continue
-        gx1, gy1 = ref_snap(x1, c), ref_snap(y1, c)
-        gx2, gy2 = max(ref_snap(x2, c), gx1 + 1), max(ref_snap(y2, c), gy1 + 1)
-        gx1, gx2 = min(max(gx1, 0), wg), min(max(gx2, 0), wg)
-        gy1, gy2 = min(max(gy1, 0), hg), min(max(gy2, 0), hg)
-        if gx2 > gx1 and gy2 > gy1:
-            m[gy1 * c:gy2 * c, gx1 * c:gx2 * c] += ref_window_heat(float(s), cfg, kind)
-    return m
-
-
-def ref_heat(frames, shape, cfg, kind="decision") -> np.ndarray:
-    """Heat after the last of ``frames`` (list of (boxes, scores)), on the heat grid."""
-    recent = frames[-cfg.n_frames:]
-    maps = [ref_frame_map(b, s, shape, cfg, kind) for b, s in recent]
-    num = np.zeros_like(maps[0])
-    den = 0.0
-    for k in range(len(maps)):  # k = age
-        num = num + cfg.decay ** k * maps[-1 - k]
-        den += cfg.decay ** k
-    return (num / den)[::cfg.cell, ::cfg.cell]
-
-
-def flood_components(mask: np.ndarray) -> list[list[tuple[int, int]]]:
-    """4-connected components of a boolean grid, by breadth-first search."""
-    seen = np.zeros_like(mask, bool)
-    comps = []
-    h, w = mask.shape
-    for y in range(h):
-        for x in range(w):
-            if mask[y, x] and not seen[y, x]:
-                comp, todo = [], deque([(y, x)])
-                seen[y, x] = True
-                while todo:
-                    cy, cx = todo.popleft()
-                    comp.append((cy, cx))
-                    for ny, nx in ((cy - 1, cx), (cy + 1, cx), (cy, cx - 1), (cy, cx + 1)):
-                        if 0 <= ny < h and 0 <= nx < w and mask[ny, nx] and not seen[ny, nx]:
-                            seen[ny, nx] = True
-                            todo.append((ny, nx))
-                comps.append(comp)
-    return comps
-
-
-def ref_blobs(heat: np.ndarray, shape, cfg) -> list[tuple[tuple[int, int, int, int], float]]:
-    c = cfg.cell
-    out = []
-    for comp in flood_components(heat > cfg.threshold):
-        peak = max(heat[p] for p in comp)
-        core = [p for p in comp if heat[p] >= cfg.extent * peak]
-        ys = [p[0] for p in core]
-        xs = [p[1] for p in core]
-        box = (min(xs) * c, min(ys) * c, min((max(xs) + 1) * c, shape[1]), min((max(ys) + 1) * c, shape[0]))
-        out.append((box, float(np.float32(peak))))
-    return sorted(out)
+from tests.reference import ref_blobs, ref_heat
 
 
 def as_sorted(d: Detections):

@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 
 import fastdet
 from fastdet.features._hog import hog_channels_batch
+from tests.reference import sk_channels
 
 skimage_feature = pytest.importorskip("skimage.feature")
 sk_hog = skimage_feature.hog
@@ -30,13 +31,6 @@ def assert_same(ours, ref):
     assert ours.shape == ref.shape
     assert ours.dtype == ref.dtype
     np.testing.assert_allclose(ours, ref, rtol=0, atol=TOL, equal_nan=True)
-
-
-def sk_channels(img, channels=None, **kw):
-    """skimage HOG of each channel separately, stacked as hog_channels lays them out."""
-    img = img if img.ndim == 3 else img[:, :, None]
-    channels = range(img.shape[2]) if channels is None else channels
-    return np.stack([sk_hog(img[:, :, c], feature_vector=False, **kw) for c in channels], axis=2)
 
 
 def hc_kwargs(orientations=9, ppc=8, cpb=2, block_norm="L2-Hys", transform_sqrt=False):

@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from benchmarks.classic import sklearn_pair
+from tests.reference import sklearn_pair
 from fastdet.config import FeatureConfig
 from fastdet.errors import ModelError
 from fastdet.model import FORMAT_VERSION, Model, load_model

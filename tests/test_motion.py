@@ -1,5 +1,5 @@
 """Motion for the wide-window (oncoming-traffic) model: window_motion against a per-window
-NumPy loop, FrameMotion, moving_bands against the full band it narrows, and the
+NumPy loop (``tests.reference``), FrameMotion, moving_bands against the full band it narrows, and the
 VideoDetector's wide path against its plain reference (full wide search, then the gate)."""
 from __future__ import annotations
 
@@ -14,21 +14,7 @@ from fastdet.video.motion import FrameMotion, moving_bands, window_motion
 from fastdet.detect import DetectStats
 from fastdet.detect.bands import band_geometry, window_boxes
 from fastdet.detections import WIDE_PART
-
-
-def naive_window_motion(prev_bgr: np.ndarray, cur_bgr: np.ndarray, boxes: np.ndarray) -> np.ndarray:
-    """Per box: mean of |gray - previous gray| over the box's pixels inside the frame."""
-    a = cv2.cvtColor(cur_bgr, cv2.COLOR_BGR2GRAY).astype(np.float64)
-    b = cv2.cvtColor(prev_bgr, cv2.COLOR_BGR2GRAY).astype(np.float64)
-    d = np.abs(a - b)
-    h, w = d.shape
-    out = []
-    for x1, y1, x2, y2 in boxes:
-        x1, x2 = min(max(x1, 0), w), min(max(x2, 0), w)
-        y1, y2 = min(max(y1, 0), h), min(max(y2, 0), h)
-        patch = d[y1:y2, x1:x2]
-        out.append(patch.mean() if patch.size else 0.0)
-    return np.array(out)
+from tests.reference import naive_window_motion
 
 
 @settings(max_examples=60, deadline=None)

@@ -1,0 +1,295 @@
+"""Slow, obvious references for fastdet's fast code, all in one place (in the manner of
+stumpy's ``tests/naive.py``). Tests compare the package against these; the benchmarks time
+the package against the classic pipeline below.
+
+Nothing here is vectorised across boxes, windows or pixels unless the vectorised form is the
+definition itself; nothing here imports fastdet's kernels. Sections:
+
+- boxes: intersection, IoU, overlap fraction, conversions, clipping, window grids, one box
+  (pair) at a time in plain Python;
+- HOG: ``skimage.feature.hog`` of each channel, stacked as ``fastdet.hog_channels`` lays it out;
+- the classic HOG-sub-sampling vehicle pipeline (per band: crop, ``cv2.resize`` by
+  ``1/scale``, colour-convert, skimage HOG of each channel of the whole scaled band; then
+  every window one at a time: slice its blocks, spatial bins with ``cv2.resize``, colour
+  histograms with ``np.histogram``, ``StandardScaler.transform``, ``decision_function``);
+- heat map: one full-resolution float map per frame, summed with age weights; blobs by a
+  breadth-first flood fill;
+- motion: the mean absolute grey-level difference of each window's pixels.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Iterator, Sequence
+
+import cv2
+import numpy as np
+from skimage.feature import hog as sk_hog
+from sklearn.preprocessing import StandardScaler
+from sklearn.svm import LinearSVC
+
+from fastdet.config import FeatureConfig, HeatConfig, SearchConfig
+from fastdet.detect.bands import BandGeometry, band_geometry, scaled_band, window_boxes
+from fastdet.detections import Detections
+from fastdet.features import convert_color
+from fastdet.model import Model
+
+Box = Sequence[float]
+
+# ========================================================================== boxes
+
+
+def box_area(b: Box) -> float:
+    """Area of one ``x1, y1, x2, y2`` box (0 when empty or inverted)."""
+    return max(0.0, float(b[2]) - float(b[0])) * max(0.0, float(b[3]) - float(b[1]))
+
+
+def box_intersection(a: Box, b: Box) -> float:
+    """Area of the intersection of two boxes."""
+    w = min(float(a[2]), float(b[2])) - max(float(a[0]), float(b[0]))
+    h = min(float(a[3]), float(b[3])) - max(float(a[1]), float(b[1]))
+    return max(0.0, w) * max(0.0, h)
+
+
+def box_iou(a: Box, b: Box) -> float:
+    """Intersection over union of two boxes (0 when the union is empty)."""
+    inter = box_intersection(a, b)
+    union = box_area(a) + box_area(b) - inter
+    return inter / union if union > 0 else 0.0
+
+
+def box_overlap_fraction(a: Box, b: Box) -> float:
+    """Fraction of box ``a``'s area inside box ``b`` (0 for an empty ``a``)."""
+    ar = (float(a[2]) - float(a[0])) * (float(a[3]) - float(a[1]))
+    return box_intersection(a, b) / ar if ar > 0 else 0.0
+
+
+def pairwise(fn, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``(N, M)`` array of ``fn(a[i], b[j])`` by two loops."""
+    out = np.zeros((len(a), len(b)))
+    for i in range(len(a)):
+        for j in range(len(b)):
+            out[i, j] = fn(a[i], b[j])
+    return out
+
+
+def ltwh_to_xyxy(ltwh: Sequence[Box]) -> list[list[float]]:
+    return [[left, top, left + w, top + h] for left, top, w, h in ltwh]
+
+
+def xyxy_to_ltwh(xyxy: Sequence[Box]) -> list[list[float]]:
+    return [[x1, y1, x2 - x1, y2 - y1] for x1, y1, x2, y2 in xyxy]
+
+
+def clip_box(b: Box, h: int, w: int) -> list[int]:
+    """One box clipped to a ``h x w`` frame."""
+    x1, y1, x2, y2 = (int(v) for v in b)
+    return [min(max(x1, 0), w), min(max(y1, 0), h), min(max(x2, 0), w), min(max(y2, 0), h)]
+
+
+def window_grid_box(x0: int, y0: int, row: int, col: int, step_cells: int, cell_px: int, scale: float,
+                    win_w: int, win_h: int) -> list[int]:
+    """The frame box of the window at grid position ``(row, col)`` of a band with top-left
+    corner ``(x0, y0)`` scaled by ``1/scale``: the window's top-left corner in the scaled band
+    is ``(col, row) * step_cells * cell_px`` pixels; mapped back to the frame by ``* scale``
+    and truncated; its size is ``int(win * scale)`` frame pixels."""
+    left = x0 + int(col * step_cells * cell_px * scale)
+    top = y0 + int(row * step_cells * cell_px * scale)
+    return [left, top, left + int(win_w * scale), top + int(win_h * scale)]
+
+
+# ========================================================================== HOG
+
+
+def sk_channels(img: np.ndarray, channels: Sequence[int] | None = None, **kw) -> np.ndarray:
+    """skimage HOG of each channel separately (``feature_vector=False``), stacked on axis 2
+    as :func:`fastdet.hog_channels` lays them out: ``(blocks_y, blocks_x, n_channels, ...)``."""
+    img = img if img.ndim == 3 else img[:, :, None]
+    channels = range(img.shape[2]) if channels is None else channels
+    return np.stack([sk_hog(img[:, :, c], feature_vector=False, **kw) for c in channels], axis=2)
+
+
+# ========================================================================== classic pipeline
+
+
+def sklearn_pair(model: Model) -> tuple[StandardScaler, LinearSVC]:
+    """A fitted-looking scikit-learn scaler and linear classifier holding ``model``'s numbers."""
+    n = model.config.n_features
+    scaler = StandardScaler()
+    scaler.mean_, scaler.scale_, scaler.var_ = model.mean, model.scale, model.scale ** 2
+    scaler.n_features_in_, scaler.n_samples_seen_ = n, 1
+    clf = LinearSVC()
+    clf.coef_ = model.coef[None, :].copy()
+    clf.intercept_ = np.array([model.intercept])
+    clf.classes_ = np.array([0, 1])
+    clf.n_features_in_ = n
+    return scaler, clf
+
+
+def _hog(channel: np.ndarray, config: FeatureConfig, vector: bool) -> np.ndarray:
+    p, c = config.pixels_per_cell, config.cells_per_block
+    return sk_hog(channel, orientations=config.orientations, pixels_per_cell=(p, p), cells_per_block=(c, c),
+                  block_norm="L2-Hys", transform_sqrt=False, feature_vector=vector)
+
+
+def _color_features(window: np.ndarray, config: FeatureConfig) -> np.ndarray:
+    parts = []
+    if config.spatial_size:
+        sh, sw = config.spatial_shape
+        parts.append(cv2.resize(window, (sw, sh), interpolation=cv2.INTER_LINEAR).ravel().astype(np.float64))
+    if config.hist_bins:
+        parts += [np.histogram(window[:, :, c], bins=config.hist_bins, range=(0, 256))[0].astype(np.float64)
+                  for c in range(3)]
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def crop_features(crop_bgr: np.ndarray, config: FeatureConfig) -> np.ndarray:
+    """The feature vector of one BGR crop (window-sized), the plain way (HOG of the crop itself)."""
+    img = convert_color(crop_bgr, config.color_space)
+    hog = np.concatenate([_hog(img[:, :, c], config, True) for c in config.hog_channels])
+    return np.concatenate([hog, _color_features(img, config)])
+
+
+def band_window_features(frame: np.ndarray, geo: BandGeometry,
+                         config: FeatureConfig) -> Iterator[tuple[int, int, np.ndarray]]:
+    """Yield ``(row, col, features)`` for every window of the band, one window at a time."""
+    img = convert_color(scaled_band(frame, geo), config.color_space)
+    hogs = [_hog(img[:, :, c], config, False) for c in config.hog_channels]
+    bx, by, cell = config.blocks_x, config.blocks_y, config.pixels_per_cell
+    for i in range(geo.ny):
+        for j in range(geo.nx):
+            yb, xb = i * geo.step, j * geo.step
+            hog = np.concatenate([h[yb: yb + by, xb: xb + bx].ravel() for h in hogs])
+            y, x = yb * cell, xb * cell
+            window = img[y: y + config.win_h, x: x + config.win_w]
+            yield i, j, np.concatenate([hog, _color_features(window, config)])
+
+
+def classic_band_scores(frame: np.ndarray, geo: BandGeometry, model: Model, pair=None) -> np.ndarray:
+    """Decision value of every window of one band, one window at a time: ``(ny, nx)``."""
+    scaler, clf = pair or sklearn_pair(model)
+    out = np.empty((geo.ny, geo.nx))
+    for i, j, feat in band_window_features(frame, geo, model.config):
+        out[i, j] = clf.decision_function(scaler.transform(feat[None]))[0]
+    return out
+
+
+class ClassicDetector:
+    """The classic pipeline with ``Detector.detect``'s interface for one model (decision
+    values as scores, the ``scale`` column filled)."""
+
+    def __init__(self, model: Model, search: SearchConfig | None = None):
+        self.model, self.search = model, search or SearchConfig()
+        self.pair = sklearn_pair(model)
+
+    def detect(self, frame: np.ndarray) -> Detections:
+        parts = []
+        for band in self.search.for_frame(frame.shape[:2]).bands:
+            geo = band_geometry(band, frame.shape[:2], self.model.config, self.search.cells_per_step)
+            dec = classic_band_scores(frame, geo, self.model, self.pair)
+            r, c = np.nonzero(dec > self.search.threshold)
+            parts.append(Detections(window_boxes(geo, r, c, self.model.config), dec[r, c],
+                                    scale=np.full(len(r), band.scale)))
+        return Detections.concat(parts)
+
+
+# ========================================================================== heat map
+
+
+def ref_window_heat(score: float, cfg: HeatConfig, kind: str = "decision") -> float:
+    """Heat of one window: 1 at or below the score range's low end, ``w_max`` at or above
+    its high end, linear between."""
+    lo, hi = cfg.score_range(kind)
+    t = min(max((score - lo) / (hi - lo), 0.0), 1.0)
+    return 1.0 + (cfg.w_max - 1.0) * t
+
+
+def ref_snap(v: int, c: int) -> int:
+    """A pixel coordinate to the nearest heat-grid line (halves round up)."""
+    return math.floor(v / c + 0.5)
+
+
+def ref_frame_map(boxes, scores, shape, cfg: HeatConfig, kind: str = "decision") -> np.ndarray:
+    """One frame's heat at full resolution (frame padded to whole cells)."""
+    c = cfg.cell
+    hg, wg = -(-shape[0] // c), -(-shape[1] // c)
+    m = np.zeros((hg * c, wg * c), np.float64)
+    for (x1, y1, x2, y2), s in zip(boxes, scores):
+        if x2 <= x1 or y2 <= y1:
+            continue
+        gx1, gy1 = ref_snap(x1, c), ref_snap(y1, c)
+        gx2, gy2 = max(ref_snap(x2, c), gx1 + 1), max(ref_snap(y2, c), gy1 + 1)
+        gx1, gx2 = min(max(gx1, 0), wg), min(max(gx2, 0), wg)
+        gy1, gy2 = min(max(gy1, 0), hg), min(max(gy2, 0), hg)
+        if gx2 > gx1 and gy2 > gy1:
+            m[gy1 * c:gy2 * c, gx1 * c:gx2 * c] += ref_window_heat(float(s), cfg, kind)
+    return m
+
+
+def ref_heat(frames, shape, cfg: HeatConfig, kind: str = "decision") -> np.ndarray:
+    """Heat after the last of ``frames`` (list of (boxes, scores)), on the heat grid: the
+    last ``n_frames`` full-resolution maps weighted ``decay ** age``, divided by the sum of
+    the weights, sampled once per cell."""
+    recent = frames[-cfg.n_frames:]
+    maps = [ref_frame_map(b, s, shape, cfg, kind) for b, s in recent]
+    num = np.zeros_like(maps[0])
+    den = 0.0
+    for k in range(len(maps)):  # k = age
+        num = num + cfg.decay ** k * maps[-1 - k]
+        den += cfg.decay ** k
+    return (num / den)[::cfg.cell, ::cfg.cell]
+
+
+def flood_components(mask: np.ndarray) -> list[list[tuple[int, int]]]:
+    """4-connected components of a boolean grid, by breadth-first search."""
+    seen = np.zeros_like(mask, bool)
+    comps = []
+    h, w = mask.shape
+    for y in range(h):
+        for x in range(w):
+            if mask[y, x] and not seen[y, x]:
+                comp, todo = [], deque([(y, x)])
+                seen[y, x] = True
+                while todo:
+                    cy, cx = todo.popleft()
+                    comp.append((cy, cx))
+                    for ny, nx in ((cy - 1, cx), (cy + 1, cx), (cy, cx - 1), (cy, cx + 1)):
+                        if 0 <= ny < h and 0 <= nx < w and mask[ny, nx] and not seen[ny, nx]:
+                            seen[ny, nx] = True
+                            todo.append((ny, nx))
+                comps.append(comp)
+    return comps
+
+
+def ref_blobs(heat: np.ndarray, shape, cfg: HeatConfig) -> list[tuple[tuple[int, int, int, int], float]]:
+    """Sorted ``(box, peak heat)`` of every blob of ``heat > threshold``: the box of the
+    blob's cells with at least ``extent * peak`` heat, in frame pixels, clipped to the frame
+    (no shape filter, no split)."""
+    c = cfg.cell
+    out = []
+    for comp in flood_components(heat > cfg.threshold):
+        peak = max(heat[p] for p in comp)
+        core = [p for p in comp if heat[p] >= cfg.extent * peak]
+        ys = [p[0] for p in core]
+        xs = [p[1] for p in core]
+        box = (min(xs) * c, min(ys) * c, min((max(xs) + 1) * c, shape[1]), min((max(ys) + 1) * c, shape[0]))
+        out.append((box, float(np.float32(peak))))
+    return sorted(out)
+
+
+# ========================================================================== motion
+
+
+def naive_window_motion(prev_bgr: np.ndarray, cur_bgr: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """Per box: mean of |gray - previous gray| over the box's pixels inside the frame."""
+    a = cv2.cvtColor(cur_bgr, cv2.COLOR_BGR2GRAY).astype(np.float64)
+    b = cv2.cvtColor(prev_bgr, cv2.COLOR_BGR2GRAY).astype(np.float64)
+    d = np.abs(a - b)
+    h, w = d.shape
+    out = []
+    for x1, y1, x2, y2 in boxes:
+        x1, x2 = min(max(x1, 0), w), min(max(x2, 0), w)
+        y1, y2 = min(max(y1, 0), h), min(max(y2, 0), h)
+        patch = d[y1:y2, x1:x2]
+        out.append(patch.mean() if patch.size else 0.0)
+    return np.array(out)
