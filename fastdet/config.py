@@ -319,7 +319,12 @@ class HeatConfig:
     cell: heat-map resolution in pixels; boxes are snapped to this grid (rounded to the
         nearest multiple). Windows start on an 8-px grid at scale 1, so 4 loses nothing
         visible and is 16x cheaper than full resolution.
-    min_width, min_height: smallest box kept (px).
+    min_width, min_height: smallest box kept (px of a frame of ``reference_rows`` rows).
+    reference_rows: frame height the pixel sizes ``min_width`` / ``min_height`` are meant for
+        (720: a car 40 px wide in a 1280x720 frame is 30 px wide at 960x540, 60 px at
+        1920x1080). A :class:`~fastdet.video.heatmap.HeatMap` for frames of ``H`` rows uses
+        :meth:`for_frame`, which scales them by ``H / reference_rows``; ``None``: pixels
+        at every size.
     max_aspect: boxes taller than ``max_aspect * width`` are dropped (no vehicle seen from
         behind or the side is much taller than wide).
     """
@@ -338,6 +343,7 @@ class HeatConfig:
     min_width: int = 40
     min_height: int = 20
     max_aspect: float = 1.5
+    reference_rows: int | None = 720
 
     #: default ``(score_lo, score_hi)`` by ``Detector.score_kind``
     SCORE_RANGES = {"decision": (0.0, 2.0), "probability": (0.5, 1.0)}
@@ -371,6 +377,18 @@ class HeatConfig:
             raise ValueError("min_width and min_height must be >= 0")
         if not self.max_aspect > 0:
             raise ValueError("max_aspect must be > 0")
+        if self.reference_rows is not None and (int(self.reference_rows) != self.reference_rows
+                                                or self.reference_rows < 1):
+            raise ValueError(f"reference_rows must be an integer >= 1 or None, got {self.reference_rows!r}")
+
+    def for_frame(self, frame_rows: int) -> "HeatConfig":
+        """This config for frames of ``frame_rows`` rows: ``min_width`` / ``min_height``
+        scaled by ``frame_rows / reference_rows`` (rounded), ``reference_rows`` = ``None``."""
+        if self.reference_rows is None:
+            return self
+        f = int(frame_rows) / self.reference_rows
+        return replace(self, min_width=int(round(self.min_width * f)), min_height=int(round(self.min_height * f)),
+                       reference_rows=None)
 
     def score_range(self, score_kind: str = "decision") -> tuple[float, float]:
         """``(score_lo, score_hi)``: the configured values, or the default for ``score_kind``."""

@@ -159,6 +159,7 @@ def test_grid_snapping():
 def _one_frame(boxes, scores=None, shape=(200, 300), **kw):
     kw.setdefault("cell", 1)
     kw.setdefault("extent", 0.0)
+    kw.setdefault("reference_rows", None)  # sizes in pixels of these small frames
     cfg = HeatConfig(n_frames=1, **kw)
     hm = HeatMap(shape, cfg)
     boxes = np.array(boxes, np.int32).reshape(-1, 4)

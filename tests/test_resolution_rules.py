@@ -1,0 +1,34 @@
+"""Sizes in reference pixels: settings written for 1280x720 mean the same picture at any resolution."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fastdet.config import HeatConfig
+from fastdet.detections import Detections
+from fastdet.video.heatmap import HeatMap
+
+
+def test_heat_for_frame_scales_box_sizes():
+    cfg = HeatConfig()  # min 40 x 20 px at 720 rows
+    assert (cfg.for_frame(720).min_width, cfg.for_frame(720).min_height) == (40, 20)
+    assert (cfg.for_frame(360).min_width, cfg.for_frame(360).min_height) == (20, 10)
+    assert (cfg.for_frame(1080).min_width, cfg.for_frame(1080).min_height) == (60, 30)
+    assert cfg.for_frame(360).reference_rows is None
+    assert cfg.for_frame(360).for_frame(100) == cfg.for_frame(360)  # already in pixels
+    pixels = HeatConfig(reference_rows=None)
+    assert pixels.for_frame(360) == pixels
+    with pytest.raises(ValueError):
+        HeatConfig(reference_rows=0)
+
+
+@pytest.mark.parametrize("rows", [360, 720, 1080])
+def test_heatmap_keeps_the_same_car_at_every_resolution(rows):
+    # a car 36 x 24 px at 720 rows (just under min_width 40): dropped at every resolution;
+    # one 44 x 24 px: kept at every resolution
+    f = rows / 720
+    hm = HeatMap((rows, 2 * rows), HeatConfig(n_frames=1, threshold=0.5, extent=0.0, cell=1))
+    assert hm.config.min_width == round(40 * f)
+    boxes = np.round(np.array([[100, 300, 136, 324], [300, 300, 344, 324]]) * f).astype(np.int32)
+    out = hm.update(Detections(boxes, np.full(2, 2.0, np.float32)))
+    np.testing.assert_array_equal(out.boxes, boxes[1:])
