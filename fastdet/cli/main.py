@@ -29,6 +29,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "eval": ("fastdet.cli.eval", "score predicted boxes against MOTChallenge ground truth"),
     "mine-negatives": ("fastdet.cli.mine", "save the windows the detector wrongly fires on as hard negatives"),
     "bench": ("fastdet.cli.bench", "time the pipeline stages on a video or image"),
+    "batch": ("fastdet.cli.batch", "many videos in parallel on Dask (local or a cluster): boxes, manifest, resume"),
 }
 
 

@@ -1,0 +1,199 @@
+"""One video of a batch, run on a Dask worker: :func:`run_video`.
+
+The task gets paths and settings (:class:`VideoTask`) and returns a small summary dict. It
+runs the same building blocks, in the same way, as ``python -m fastdet video``:
+:class:`~fastdet.io.reader.FrameReader` → :class:`~fastdet.video.pipeline.VideoDetector`
+(a fresh one per video: heat map and motion state start empty) →
+:class:`~fastdet.io.motfiles.MotWriter` / :class:`~fastdet.io.motfiles.JsonLinesWriter` /
+:class:`~fastdet.io.sink.VideoSink`, so the boxes are byte-identical to ``video --boxes``
+(``tests/test_batch.py`` checks it).
+
+- The detector (models loaded, kernels warmed up) is made once per worker process and
+  settings (:func:`detector_for`), and every task runs the kernels on one Numba thread:
+  the batch gets its parallelism from the tasks (throughput), not from threads in a frame.
+- Every output is written under a temporary name unique to this attempt
+  (``OUT/.partial/NAME.boxes.<token>.txt``) and renamed to its final name only when the
+  whole video is done; a retried task (its worker was killed) writes its own files, and a
+  failed or killed attempt leaves nothing under a final name.
+- A video that cannot be read (:class:`~fastdet.errors.FastdetError`, e.g. not a video,
+  damaged midway) is returned as ``status: "failed"`` with the one-line reason: retrying
+  would fail again. Any other exception propagates, and Dask retries the task.
+- Progress: while it runs, the task sends ``{"name", "token", "frames", "expected"}``
+  events on the Dask topic ``task.topic`` (:meth:`distributed.Worker.log_event`) at most
+  every :data:`PROGRESS_EVERY` seconds, and once at the end.
+"""
+from __future__ import annotations
+
+import contextlib
+import os
+import secrets
+import socket
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numba
+from distributed import get_worker
+
+from ..errors import FastdetError
+from ..io.atomic import commit
+from ..io.motfiles import JsonLinesWriter, MotWriter
+from ..io.reader import FrameReader
+from ..io.sink import VideoSink
+from ..video.pipeline import VideoDetector, make_detector
+from .settings import Settings, output_paths
+
+PROGRESS_EVERY = 0.5  # seconds between progress events of one task
+PARTIAL_DIR = ".partial"  # folder in OUT for the outputs being written
+
+_detectors: dict[tuple, Any] = {}
+_detectors_lock = threading.Lock()
+
+
+@dataclass(frozen=True)
+class VideoTask:
+    """One video: ``input`` (absolute path), its output ``name``, the output folder
+    ``out_dir`` (absolute), the :class:`Settings`, and the Dask event ``topic`` for progress
+    (``None``: no progress events)."""
+
+    input: str
+    name: str
+    out_dir: str
+    settings: Settings
+    topic: str | None = None
+
+
+def detector_for(settings: Settings) -> Any:
+    """The warmed-up detector for ``settings``, made once per process (the key includes the
+    model files' hashes, so a long-lived worker notices a changed model file)."""
+    key = (settings.model, settings.model_sha256, settings.oncoming, settings.oncoming_sha256)
+    with _detectors_lock:
+        det = _detectors.get(key)
+        if det is None:
+            det = make_detector(settings.model, settings.oncoming if settings.oncoming else False)
+            det.warmup()
+            _detectors[key] = det
+        return det
+
+
+def partial_path(out_dir: str | os.PathLike, final: Path, token: str) -> Path:
+    """Temporary name of ``final`` for the attempt ``token``: ``OUT/.partial/STEM.TOKEN.EXT``."""
+    name = final.name
+    stem, dot, ext = name.rpartition(".")
+    return Path(out_dir) / PARTIAL_DIR / (f"{stem}.{token}.{ext}" if dot else f"{name}.{token}")
+
+
+def _reporter(task: VideoTask, token: str) -> Callable[[int, int | None, bool], None]:
+    """A function ``report(frames, expected, final)`` sending progress events (no-op
+    outside a Dask worker or without a topic)."""
+    worker = None
+    if task.topic is not None:
+        try:
+            worker = get_worker()
+        except ValueError:  # not running on a worker (called directly)
+            worker = None
+    last = [0.0]
+
+    def report(frames: int, expected: int | None, final: bool = False) -> None:
+        now = time.monotonic()
+        if worker is None or (not final and now - last[0] < PROGRESS_EVERY):
+            return
+        last[0] = now
+        worker.log_event(task.topic, {"name": task.name, "token": token, "frames": frames,
+                                      "expected": expected})
+
+    return report
+
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+def _quietly(fn: Callable[[], None]) -> None:
+    """Run a clean-up step after a failure; its own error must not hide the first one."""
+    with contextlib.suppress(Exception):
+        fn()
+
+
+def _unlink(paths: list[Path]) -> None:
+    for p in paths:
+        try:
+            p.unlink(missing_ok=True)
+        except OSError:
+            pass
+
+
+def run_video(task: VideoTask) -> dict[str, Any]:
+    """Detect vehicles in one video and write its outputs (see the module docstring).
+
+    Returns ``{"input", "name", "status": "done", "frames", "boxes", "seconds", "outputs":
+    {kind: file name}, "sizes": {file name: bytes}, "host", "token"}`` or, for a video that
+    cannot be read, ``{"input", "name", "status": "failed", "error", "seconds", "frames", ...}``.
+    """
+    t0 = time.perf_counter()
+    numba.set_num_threads(1)  # thread-local: this task's kernels run serially
+    token = secrets.token_hex(8)
+    s = task.settings
+    finals = output_paths(task.out_dir, task.name, s)
+    tmps = {k: partial_path(task.out_dir, p, token) for k, p in finals.items()}
+    summary: dict[str, Any] = {"input": task.input, "name": task.name, "host": socket.gethostname(),
+                               "token": token, "frames": 0}
+    report = _reporter(task, token)
+    n = n_boxes = 0
+    reader = sink = mot = jsl = None
+    made: list[Path] = list(tmps.values())
+
+    def close_all() -> None:
+        if reader is not None:
+            reader.close()
+        if sink is not None:
+            sink.close()
+        for wr in (mot, jsl):
+            if wr is not None:
+                wr.close()
+
+    try:
+        (Path(task.out_dir) / PARTIAL_DIR).mkdir(exist_ok=True)
+        reader = FrameReader(task.input)
+        vd = VideoDetector(detector_for(s), s.heat)
+        h, w = reader.shape[:2]
+        if "video" in tmps:
+            sink = VideoSink(str(tmps["video"]), reader.fps, (w, h), threshold=s.heat.threshold)
+            made.append(sink.tmp)
+        mot = MotWriter(tmps["boxes"])
+        if "json" in tmps:
+            jsl = JsonLinesWriter(tmps["json"])
+        report(0, reader.expected, True)
+        for fno, frame, _ in reader:
+            dets = vd.update(frame)
+            mot.write_detections(fno, dets)
+            if jsl is not None:
+                jsl.write_detections(fno, dets)
+            if sink is not None:
+                sink.put((frame, dets, None))
+            n += 1
+            n_boxes += len(dets)
+            report(n, reader.expected)
+        close_all()
+        if sink is not None and not sink.frames:
+            raise FastdetError(f"{task.input}: no frame was written to the video")
+        for kind in s.kinds:  # all complete: give them their final names
+            commit(tmps[kind], finals[kind])
+        report(n, n, True)
+    except FastdetError as exc:
+        _quietly(close_all)
+        _unlink(made)
+        summary.update(status="failed", error=_one_line(exc), frames=n, seconds=time.perf_counter() - t0)
+        return summary
+    except BaseException:
+        _quietly(close_all)
+        _unlink(made)
+        raise
+    summary.update(status="done", frames=n, boxes=n_boxes, seconds=time.perf_counter() - t0,
+                   outputs={k: p.name for k, p in finals.items()},
+                   sizes={p.name: p.stat().st_size for p in finals.values()})
+    return summary

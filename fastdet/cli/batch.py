@@ -1,0 +1,103 @@
+"""``python -m fastdet batch``: many videos, one Dask task each (see :mod:`fastdet.batch`).
+
+``python -m fastdet batch INPUT... --out DIR [--video] [--json] [--model M.npz]
+[--oncoming-model W.npz | --no-oncoming] [--workers N] [--scheduler tcp://host:8786]
+[--resume | --overwrite] [--retries N] [--table boxes.parquet|boxes.csv] [--no-progress]``
+
+- INPUT: video files, folders (searched recursively for videos), quoted glob patterns, or
+  ``.txt`` list files of paths (:mod:`fastdet.batch.inputs`).
+- For each video, in DIR: ``NAME.boxes.txt`` (MOTChallenge, byte-identical to ``fastdet video
+  --boxes``), with ``--json`` ``NAME.boxes.jsonl``, with ``--video`` ``NAME.annotated.mp4``;
+  ``DIR/manifest.jsonl`` records every finished video.
+- Exit status: 0 when every video is done (or was already), 1 when some failed (listed in
+  the summary), 2 for bad arguments (one line), 128 + N after signal N (the finished videos
+  are kept: rerun to do the rest).
+- Dask is an optional extra: without it the command says ``pip install fastdet[cluster]``.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import signal
+import sys
+from pathlib import Path
+from types import ModuleType
+
+from ..errors import FastdetError
+from ..io.atomic import check_output_path
+from ._args import add_oncoming_arguments, nonneg_int, oncoming_arg, positive_int
+
+_INSTALL = "pip install fastdet[cluster]"
+# the packages of the ``cluster`` extra that fastdet.batch imports
+_CLUSTER_MODULES = {"dask", "distributed", "pyarrow"}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("inputs", nargs="+", metavar="INPUT",
+                        help="video files, folders of videos, glob patterns (quoted) or .txt files listing paths")
+    parser.add_argument("-o", "--out", required=True, metavar="DIR",
+                        help="output folder (made if missing): NAME.boxes.txt per video, manifest.jsonl")
+    parser.add_argument("--video", action="store_true", help="also write the annotated video NAME.annotated.mp4")
+    parser.add_argument("--json", action="store_true", help="also write the boxes as JSON lines NAME.boxes.jsonl")
+    parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
+    add_oncoming_arguments(parser)
+    parser.add_argument("--workers", type=positive_int, default=None, metavar="N",
+                        help="worker processes of the local cluster (default: one per core)")
+    parser.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                        help="run on the Dask cluster of this scheduler, e.g. tcp://host:8786 "
+                             "(default: $DASK_SCHEDULER_ADDRESS, else a local cluster)")
+    g = parser.add_mutually_exclusive_group()
+    g.add_argument("--resume", dest="overwrite", action="store_false",
+                   help="skip videos done before with the same settings (the default)")
+    g.add_argument("--overwrite", dest="overwrite", action="store_true", help="redo every video")
+    parser.set_defaults(overwrite=False)
+    parser.add_argument("--retries", type=nonneg_int, default=2, metavar="N",
+                        help="extra attempts of a task that raised an error (default 2; a task whose "
+                             "worker died is rerun by the scheduler)")
+    parser.add_argument("--table", metavar="BOXES.parquet",
+                        help="also write one table of all boxes (video, frame, id, x1, y1, x2, y2, score): "
+                             ".parquet or .csv")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar: one line per video")
+
+
+def _batch_modules() -> tuple[ModuleType, ...]:
+    """``fastdet.batch.job``, ``.inputs``, ``.settings`` and ``.table``, imported here and not
+    at the top: they need the optional ``cluster`` extra, and ``--help`` must work without it."""
+    try:
+        return tuple(importlib.import_module(f"fastdet.batch.{m}") for m in ("job", "inputs", "settings", "table"))
+    except ImportError as exc:
+        if (exc.name or "").split(".")[0] in _CLUSTER_MODULES:
+            raise FastdetError(f"`batch` runs on Dask, which is not installed ({exc.name}): {_INSTALL}") from None
+        raise
+
+
+def run(args: argparse.Namespace) -> int:
+    """The ``batch`` subcommand."""
+    job, inputs, settings_mod, table_mod = _batch_modules()
+    scheduler = args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
+    if scheduler and args.workers:
+        raise FastdetError("--workers is for the local cluster; with --scheduler the cluster's workers run the tasks")
+    table = Path(args.table) if args.table else None
+    if table is not None:
+        table_mod.table_format(table)
+    videos = inputs.expand_inputs(args.inputs)
+    settings = settings_mod.Settings.create(args.model, oncoming_arg(args), video=args.video, json=args.json)
+    settings.check()
+    job.prepare_out_dir(Path(args.out))
+    if table is not None:  # after the output folder exists: the table may go into it
+        check_output_path(table, "table")
+    opts = job.BatchOptions(out_dir=Path(args.out), settings=settings, workers=args.workers, scheduler=scheduler,
+                            overwrite=args.overwrite, retries=args.retries, table=table,
+                            progress=not args.no_progress)
+    try:
+        report = job.run_batch(videos, opts)
+    except job.BatchInterrupted as exc:
+        name = signal.Signals(exc.signum).name
+        print(f"fastdet batch: stopped by {name} after {exc.done} video(s) done in this run; "
+              f"run the same command again to do the rest", file=sys.stderr, flush=True)
+        return 128 + exc.signum
+    print(job.format_summary(report), flush=True)
+    if report.table_rows is not None:
+        print(f"table: {table} ({report.table_rows} boxes)", flush=True)
+    return 1 if report.failed else 0
