@@ -22,7 +22,7 @@ For each localisation threshold ``alpha`` in ``0.05, 0.10, ..., 0.95``:
 
 The reported ``hota``, ``deta``, ``assa`` are the means over the 19 thresholds (so ``hota``
 is not ``sqrt(deta x assa)`` in general). ``loca`` is the mean IoU of the TP pairs, averaged
-the same way.
+the same way (1 at a threshold without TPs, as in TrackEval).
 
 Input: per frame, the targets' ids and boxes, the predictions' ids and boxes (predictions
 on ignore regions already removed by the caller).
@@ -37,7 +37,7 @@ from scipy.optimize import linear_sum_assignment
 
 from ..boxes import iou
 
-ALPHAS = np.arange(1, 20) * 0.05
+ALPHAS = np.arange(0.05, 0.99, 0.05)  # as TrackEval: 0.05, 0.10, ..., 0.95
 _EPS = np.finfo(float).eps
 
 

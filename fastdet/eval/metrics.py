@@ -40,8 +40,9 @@ normalised by the number of targets), takes the monotone precision envelope
 (``p_interp(r) = max precision at recall >= r``) and sums the area under it over the recall
 steps: PASCAL VOC's "all-point" AP (VOC 2010+). No predictions gives AP 0; no targets NaN.
 
-MOT metrics. When some prediction carries a track id (not all ``-1``), MOTA, MOTP, IDF1 and
-the number of id switches are computed with py-motmetrics: one ``MOTAccumulator`` update
+MOT metrics. When some prediction carries a track id (not all ``-1``), MOTA, MOTP, IDF1,
+the number of id switches and of fragmentations (a target's track interrupted: tracked,
+then missed, then tracked again) are computed with py-motmetrics: one ``MOTAccumulator`` update
 per evaluated frame with the targets' ids, the ids of the predictions that are not dropped
 by the ignore rule above (dropped ones are removed before motmetrics sees them), and the
 distance ``1 - IoU``, set to "no match possible" (NaN) where IoU < the threshold (so the
@@ -51,6 +52,11 @@ greedy detection counts above. ``motp`` is motmetrics' MOTP: the mean ``1 - IoU`
 matched pairs (0 is perfect; the CLEAR-MOT overlap form is ``1 - motp``). In a file that
 mixes ids and ``-1``, each ``-1`` box is given an identity of its own (an untracked box is a
 new track). A track id used twice in one frame (targets or predictions) is an error.
+The distances are computed here (:func:`fastdet.boxes.iou`), not with motmetrics'
+``iou_matrix``, which calls ``np.asfarray`` (removed in NumPy 2).
+HOTA, DetA and AssA (:mod:`fastdet.eval.hota`, Luiten et al., IJCV 2021) are computed on
+the same targets and predictions (ignore-region predictions removed the same way), over
+the localisation thresholds 0.05..0.95 (they do not use ``iou``).
 """
 from __future__ import annotations
 
@@ -64,6 +70,7 @@ from ..boxes import area, intersection
 from ..boxes import iou as box_iou
 from ..errors import DataError, FastdetError
 from ..io.motfiles import GroundTruth, Predictions
+from .hota import hota
 
 __all__ = [
     "EvalResult", "evaluate", "match_frame", "average_precision", "precision_envelope",
@@ -142,6 +149,8 @@ def average_precision(tp_ranked: np.ndarray, num_gt: int) -> tuple[float, np.nda
 # ---------------------------------------------------------------------------------------
 # result
 
+_TRACKING_FIELDS = ("mota", "motp", "idf1", "id_switches", "fragmentations", "hota", "deta", "assa")
+
 
 def _ratio(num: float, den: float) -> float:
     return float(num) / float(den) if den > 0 else math.nan
@@ -156,7 +165,8 @@ class EvalResult:
     dropped on ignore regions; num_outside: predictions on frames after the last GT frame.
     pr_scores / pr_recall / pr_precision: ``(K,)`` arrays over the ranked non-dropped
     predictions (K = TP + FP): the confidence and the precision/recall after each rank.
-    mota, motp, idf1, id_switches: None unless the predictions carry track ids.
+    mota, motp, idf1, id_switches, fragmentations, hota, deta, assa: None unless the
+    predictions carry track ids (module docstring, "MOT metrics").
     """
 
     iou_threshold: float
@@ -181,6 +191,10 @@ class EvalResult:
     motp: float | None = None
     idf1: float | None = None
     id_switches: int | None = None
+    fragmentations: int | None = None
+    hota: float | None = None
+    deta: float | None = None
+    assa: float | None = None
 
     @property
     def has_tracking(self) -> bool:
@@ -195,7 +209,7 @@ class EvalResult:
                 if curve:
                     out[f.name] = [None if not math.isfinite(x) else float(x) for x in v.tolist()]
                 continue
-            if f.name in ("mota", "motp", "idf1", "id_switches") and not self.has_tracking:
+            if f.name in _TRACKING_FIELDS and not self.has_tracking:
                 continue
             if isinstance(v, float) and not math.isfinite(v):
                 v = None
@@ -324,6 +338,7 @@ def _mot_metrics(
         start = int(max(pids.max(initial=-1), -1)) + 1
         pids[untracked] = start + np.arange(untracked.size)
 
+    per_frame = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         acc = mm.MOTAccumulator(auto_id=False)
@@ -339,8 +354,11 @@ def _mot_metrics(
             ious = box_iou(gt.boxes[gidx], preds.boxes[pidx])
             dist = np.where(ious >= iou, 1.0 - ious, np.nan)
             acc.update(oids.tolist(), hids.tolist(), dist, frameid=f)
+            per_frame.append((oids, gt.boxes[gidx], hids, preds.boxes[pidx]))
         mh = mm.metrics.create()
-        summary = mh.compute(acc, metrics=["mota", "motp", "idf1", "num_switches", "num_objects"], name="all")
+        summary = mh.compute(acc, metrics=["mota", "motp", "idf1", "num_switches", "num_fragmentations",
+                                           "num_objects"], name="all")
+    h = hota(per_frame)
     row = summary.loc["all"]
     num_objects = int(row["num_objects"])
 
@@ -353,6 +371,10 @@ def _mot_metrics(
         "motp": fin(row["motp"]),
         "idf1": fin(row["idf1"]),
         "id_switches": int(row["num_switches"]),
+        "fragmentations": int(row["num_fragmentations"]),
+        "hota": h.hota,
+        "deta": h.deta,
+        "assa": h.assa,
     }
 
 

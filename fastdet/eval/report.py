@@ -41,6 +41,10 @@ def format_table(result: EvalResult) -> str:
             ("MOTP (1 - IoU)", _num(r.motp)),
             ("IDF1", _num(r.idf1)),
             ("ID switches", str(r.id_switches)),
+            ("fragmentations", str(r.fragmentations)),
+            ("HOTA", _num(r.hota)),
+            ("DetA", _num(r.deta)),
+            ("AssA", _num(r.assa)),
         ]
     width = max(len(k) for k, _ in rows)
     lines = [f"{k:<{width}}  {v}" for k, v in rows]
