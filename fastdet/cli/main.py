@@ -6,9 +6,11 @@ is imported (so ``fastdet video`` does not pay for scikit-learn or Dask).
 
 Errors: a :class:`~fastdet.errors.FastdetError` (bad input, a model that does not load, a
 write that failed) becomes one line ``fastdet COMMAND: error: MESSAGE`` on stderr and exit
-status 2. Anything else is a bug in fastdet and shows its traceback (exit 1). Ctrl-C prints
-``fastdet COMMAND: interrupted`` and exits 130. ``FASTDET_DEBUG=1`` shows the traceback of
-user errors too.
+status 2. Anything else is a bug in fastdet and shows its traceback (exit 1). Ctrl-C,
+SIGTERM and SIGHUP (:mod:`fastdet.cli._signals`) print ``fastdet COMMAND: interrupted
+(SIGTERM)`` and exit with 128 + the signal's number (130 for Ctrl-C), whatever exception
+the interrupted code then raised. ``FASTDET_DEBUG=1`` shows the traceback of user errors too.
+An argument the command does not know is reported with the command's own usage.
 """
 from __future__ import annotations
 
@@ -18,8 +20,10 @@ import os
 import sys
 from collections.abc import Sequence
 
+from .. import console
 from .._version import __version__
 from ..errors import FastdetError
+from . import _signals
 
 # name -> (module, one-line help)
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
@@ -65,22 +69,61 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+def _say(line: str) -> None:
+    try:
+        print(line, file=sys.stderr, flush=True)
+    except (OSError, ValueError):  # stderr gone (SIGHUP: the terminal closed)
+        pass
+
+
+def _interrupted(name: str, signum: int, detail: str = "") -> int:
+    """One line for a command stopped by ``signum``; its exit status (128 + signum)."""
+    stopped = _signals.Stopped(signum, detail)
+    _say(f"fastdet {name}: interrupted ({stopped.name})" + (f"; {detail}" if detail else ""))
+    return stopped.exit_status
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     command = _chosen(argv)
     parser = build_parser(command) if command is not None else build_parser("")
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra:
+        # the command's own usage, not the top-level one
+        sub = _subparser(parser, args.command)
+        (sub or parser).error(f"unrecognized arguments: {' '.join(extra)}")
     if args.command is None:
         parser.print_help()
         return 0
     debug = os.environ.get("FASTDET_DEBUG", "") not in ("", "0")
-    try:
-        return int(args._module.run(args) or 0)
-    except FastdetError as exc:
-        if debug:
+    name = args._name
+    console.set_prog(f"fastdet {name}")
+    with _signals.handled():
+        try:
+            status = int(args._module.run(args) or 0)
+        except _signals.Stopped as exc:
+            return _interrupted(name, exc.signum, exc.detail)
+        except FastdetError as exc:
+            if _signals.received() is not None:
+                return _interrupted(name, _signals.received())
+            if debug:
+                raise
+            _say(f"fastdet {name}: error: {exc}")
+            return 2
+        except BaseException:
+            # an exception out of code that a signal interrupted (a compiler, a library)
+            # is the signal's doing, not a bug: one line
+            if _signals.received() is not None and not debug:
+                return _interrupted(name, _signals.received())
             raise
-        print(f"fastdet {args._name}: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"fastdet {args._name}: interrupted", file=sys.stderr)
-        return 130
+        if _signals.received() is not None:  # swallowed by a library: still a stop
+            return _interrupted(name, _signals.received())
+        return status
+
+
+def _subparser(parser: argparse.ArgumentParser, name: str | None) -> argparse.ArgumentParser | None:
+    """The sub-parser of command ``name``."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction) and name in action.choices:
+            return action.choices[name]
+    return None

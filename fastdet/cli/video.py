@@ -13,37 +13,53 @@
   and ``--json`` one JSON object per frame (:mod:`fastdet.io.motfiles`); both are flushed after
   every frame. ``frame`` is the 1-based frame number in INPUT, so with ``--start S`` the
   first line is frame ``S + 1``, aligned with the ground truth of the whole clip.
-- The video is written as ``.OUT.partial.mp4`` in the output folder (the extension is kept:
-  it picks the container) and renamed to ``OUT.mp4`` when the run ends -- also when it ends
-  early on Ctrl-C or on a frame that fails to decode, because the file is then a complete,
-  playable video of the frames done, matching the boxes file line for line. A run that
-  ends before its first frame leaves no video.
-- Bad input (missing file, not a video, no frames, an output folder that does not exist,
-  a model that does not load) raises :class:`~fastdet.errors.FastdetError`; the dispatcher
-  prints one line and exits with status 2. Inputs and outputs are all checked before any
-  output file is created.
+- INPUT is a video file, an image sequence (``frames/img%04d.jpg``), a URL (``rtsp://``,
+  ``http://``) or a camera index (``0``); live sources have no frame count (the progress
+  bar shows no total) and run until the stream ends or the run is stopped. The end of a
+  file is where decoding ends (one note when the header counted otherwise); damaged
+  frames in the middle are skipped with a note (:mod:`fastdet.io.reader`).
+- Every output is written under a temporary name in its folder (``.OUT.partial.mp4``,
+  ``.BOXES.partial.txt``; the extension is kept: it picks the container) and renamed when
+  the run ends -- also when Ctrl-C, SIGTERM or SIGHUP stops it (:mod:`fastdet.cli._signals`:
+  the current frame is finished, the outputs then hold the same frames, and the exit
+  status is 128 + the signal), because the video is then a complete, playable video of the
+  frames done. A run that fails (exit 2: a failed write, a frame of another size) keeps
+  no output; one killed outright (SIGKILL) leaves only temporary names. A run that ends
+  before its first frame leaves no video.
+- Bad input (missing file, not a video, no frames, frames too small or grey, an output
+  folder that does not exist, a model that does not load) raises
+  :class:`~fastdet.errors.FastdetError`; the dispatcher prints one line and exits with
+  status 2. Inputs and outputs are all checked before any output file is created.
+- The summary gives the frames per second of the frame loop and the whole run's wall time
+  (loading the model and, on a first run, compiling the kernels included).
 """
 from __future__ import annotations
 
 import argparse
 import os
 import time
+from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import numba
 
 from ..config import HeatConfig
+from ..console import process_seconds, prog
+from ..detect.checks import check_frame
 from ..errors import DataError, FastdetError
-from ..io.motfiles import JsonLinesWriter, MotWriter
-from ..io.reader import FrameReader
 from ..io.atomic import check_output_path
+from ..io.motfiles import JsonLinesWriter, MotWriter
+from ..io.reader import FrameReader, check_source
 from ..io.sink import VideoSink
 from ..video.pipeline import VideoDetector, _passive_omp, _progress, make_detector
+from . import _signals
 from ._args import add_oncoming_arguments, nonneg_int, oncoming_arg, positive_int
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("input", metavar="INPUT", help="video file (anything OpenCV reads)")
+    parser.add_argument("input", metavar="INPUT",
+                        help="video file, image sequence (img%%04d.jpg), URL (rtsp://, http://) or camera index")
     parser.add_argument("-o", "--output", metavar="OUTPUT.mp4",
                         help="annotated video (mp4v); written as .OUTPUT.partial.mp4, renamed when done")
     parser.add_argument("--boxes", metavar="BOXES.txt",
@@ -106,6 +122,30 @@ def _profile_table(totals: dict[str, float], n: int, wall: float, main_busy: flo
     return "\n".join(lines)
 
 
+def close_outputs(sink: VideoSink | None, writers: Sequence[Any], discard: bool) -> list[str]:
+    """Close the box files and the video: renamed to their final names (returned, video
+    first), or all removed with ``discard`` -- and when one of them fails to close (a
+    failed write: :class:`~fastdet.errors.DataError`, raised after the others were removed)."""
+    done: dict[int, Path] = {}
+    error: DataError | None = None
+    outs = (sink, *writers)
+    for i in (*range(1, len(outs)), 0):  # the box files first: the video's check takes longest
+        if outs[i] is None:
+            continue
+        try:
+            p = outs[i].close(discard=discard or error is not None)
+        except DataError as exc:
+            error = error or exc
+            continue
+        if p is not None:
+            done[i] = Path(p)
+    if error is not None:
+        for p in done.values():
+            p.unlink(missing_ok=True)
+        raise error
+    return [str(done[i]) for i in sorted(done)]
+
+
 def run(args: argparse.Namespace, detector: Any = None) -> int:
     """The ``video`` subcommand. ``detector`` replaces the model's Detector (tests)."""
     _passive_omp()
@@ -116,8 +156,7 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
     if len({os.path.abspath(p) for p in named}) != len(named):
         raise FastdetError("the outputs must be different files")
     heat = _heat_config(args)
-    if not os.path.exists(args.input):
-        raise DataError(f"{args.input}: file not found")
+    check_source(args.input)
     for p, what in ((out, "video"), (boxes_path, "boxes"), (json_path, "JSON")):
         if p:
             check_output_path(p, what, args.input)
@@ -129,6 +168,7 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
             detector = make_detector(args.model, oncoming_arg(args))
         elif args.model is not None:
             raise FastdetError("--model cannot be used with an injected detector")
+        check_frame(detector, reader.first_frame, args.input)
         vd = VideoDetector(detector, heat)
         vd.warmup()
 
@@ -145,45 +185,55 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
         main_busy = 0.0
         t_start = time.perf_counter()
         bar = _progress(reader.expected, not args.no_progress, os.path.basename(args.input))
+        failed, stop = True, None
         try:
-            for fno, frame, t_dec in reader:
-                t0 = time.perf_counter()
-                dets = vd.update(frame)
-                t1 = time.perf_counter()
-                if mot is not None:
-                    mot.write(fno, dets.boxes, dets.scores)
-                if jsl is not None:
-                    jsl.write(fno, dets.boxes, dets.scores)
-                t2 = time.perf_counter()
-                if sink is not None:
-                    dbg = None
-                    if args.debug:
-                        dbg = (vd.last_windows, vd.last_heat, vd.last_labels, vd.last_mask)
-                    sink.put((frame, dets, dbg))
-                for k, v in vd.timings.items():
-                    totals[k] = totals.get(k, 0.0) + v
-                totals["decode"] = totals.get("decode", 0.0) + t_dec
-                totals["boxes_out"] = totals.get("boxes_out", 0.0) + (t2 - t1)
-                main_busy += t2 - t0
-                n += 1
-                bar.update(1)
+            with _signals.deferred():  # a stop signal ends the loop after the current frame
+                for fno, frame, t_dec in reader:
+                    if _signals.stop_requested():
+                        break
+                    t0 = time.perf_counter()
+                    dets = vd.update(frame)
+                    t1 = time.perf_counter()
+                    if mot is not None:
+                        mot.write(fno, dets.boxes, dets.scores)
+                    if jsl is not None:
+                        jsl.write(fno, dets.boxes, dets.scores)
+                    t2 = time.perf_counter()
+                    if sink is not None:
+                        dbg = None
+                        if args.debug:
+                            dbg = (vd.last_windows, vd.last_heat, vd.last_labels, vd.last_mask)
+                        sink.put((frame, dets, dbg))
+                    for k, v in vd.timings.items():
+                        totals[k] = totals.get(k, 0.0) + v
+                    totals["decode"] = totals.get("decode", 0.0) + t_dec
+                    totals["boxes_out"] = totals.get("boxes_out", 0.0) + (t2 - t1)
+                    main_busy += t2 - t0
+                    n += 1
+                    bar.update(1)
+            failed = False
+        except KeyboardInterrupt as exc:  # a stop (Ctrl-C, SIGTERM, SIGHUP): keep the frames done
+            failed = False
+            stop = exc if isinstance(exc, _signals.Stopped) else None
+            raise
         finally:
             bar.close()
-            written = sink.close() if sink is not None else None
+            outs = close_outputs(sink, (mot, jsl), discard=failed)
             wall = time.perf_counter() - t_start
             if sink is not None:
                 totals["draw"], totals["encode"] = sink.draw_s, sink.encode_s
-            outs = [str(p) for p in (written, boxes_path, json_path) if p]
-            if n:
-                print(f"fastdet video: {n} frames in {wall:.2f} s, {n / wall:.1f} fps"
-                      + (f"; wrote {', '.join(outs)}" if outs else ""), flush=True)
+            if n and not failed:
+                summary = (f"{n} frames in {wall:.2f} s, {n / wall:.1f} fps "
+                           f"({process_seconds():.1f} s in all, start-up included)"
+                           + (f"; {reader.n_skipped} damaged frames skipped" if reader.n_skipped else "")
+                           + (f"; wrote {', '.join(outs)}" if outs else ""))
+                if stop is not None:
+                    stop.detail = summary  # the dispatcher's one line
+                else:
+                    print(f"{prog()}: {summary}", flush=True)
                 if args.profile:
                     print(_profile_table(totals, n, wall, main_busy), flush=True)
     finally:
         reader.close()
-        if sink is not None:
-            sink.close()
-        for wr in (mot, jsl):
-            if wr is not None:
-                wr.close()
+        close_outputs(sink, (mot, jsl), discard=True)  # no-op for outputs closed above
     return 0

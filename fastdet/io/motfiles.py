@@ -42,6 +42,7 @@ import numpy as np
 
 from ..boxes import ltwh_to_xyxy, xyxy_to_ltwh
 from ..errors import DataError
+from .atomic import commit, partial_name
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -365,21 +366,33 @@ def _json_coord(v):
 
 
 class _FrameWriter:
-    """Shared plumbing: open a path (or take a text stream), validate, flush per frame."""
+    """Shared plumbing: open a path (or take a text stream), validate, flush per frame.
+
+    A path is written under its temporary name (:func:`fastdet.io.atomic.partial_name`,
+    ``.NAME.partial.txt``; flushed after every frame, so it can be followed while a video
+    runs) and renamed to its final name by :meth:`close`: a run that is killed never
+    leaves a file under the final name that looks complete. A failed write (disk full)
+    raises :class:`~fastdet.errors.DataError` naming the final file, and the temporary
+    file is removed; so does ``close(discard=True)``.
+    """
 
     def __init__(self, target: PathLike | IO[str]) -> None:
+        self._tmp: Path | None = None
         if hasattr(target, "write"):
             self._f = target  # type: ignore[assignment]
             self._owns = False
             self.name = getattr(target, "name", "<stream>")
         else:
             self.name = os.fspath(target)  # type: ignore[arg-type]
+            self._tmp = partial_name(self.name)
             try:
-                self._f = open(self.name, "w", encoding="utf-8", newline="\n")
+                self._f = open(self._tmp, "w", encoding="utf-8", newline="\n")
             except OSError as exc:
                 raise DataError(f"{self.name}: cannot write ({exc.strerror or exc})") from None
             self._owns = True
         self.frames_written = 0
+        self._failed = False
+        self._result: Path | None = None
 
     @staticmethod
     def _check(frame: int, boxes, scores, ids) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
@@ -403,8 +416,13 @@ class _FrameWriter:
     def write(self, frame: int, boxes, scores, ids: Sequence[int] | np.ndarray | None = None) -> None:
         """Write one frame's boxes (``(N, 4)`` x1, y1, x2, y2) and scores; ids default to -1."""
         frame, b, s, i = self._check(frame, boxes, scores, ids)
-        self._f.write(self._format(frame, b, s, i))
-        self._f.flush()
+        try:
+            self._f.write(self._format(frame, b, s, i))
+            self._f.flush()
+        except OSError as exc:
+            self._failed = True
+            raise DataError(f"{self.name}: cannot write ({exc.strerror or exc}); "
+                            f"{self.frames_written} frames were written before it") from None
         self.frames_written += 1
 
     def write_detections(self, frame: int, det) -> None:
@@ -414,17 +432,35 @@ class _FrameWriter:
     def _format(self, frame: int, b: np.ndarray, s: np.ndarray, i: np.ndarray) -> str:
         raise NotImplementedError
 
-    def close(self) -> None:
-        if self._owns and not self._f.closed:
-            self._f.close()
-        elif not self._owns:
+    def close(self, discard: bool = False) -> Path | None:
+        """Close the file and give it its final name (the path); with ``discard`` (or after
+        a failed write) remove it instead (``None``). A stream is only flushed."""
+        if not self._owns:
             self._f.flush()
+            return None
+        if self._f.closed:
+            return self._result
+        tmp = self._tmp
+        assert tmp is not None
+        try:
+            self._f.close()
+        except OSError as exc:
+            self._failed = True
+            if not discard:
+                tmp.unlink(missing_ok=True)
+                raise DataError(f"{self.name}: cannot write ({exc.strerror or exc})") from None
+        if discard or self._failed:
+            tmp.unlink(missing_ok=True)
+            return None
+        self._result = commit(tmp, self.name)
+        return self._result
 
     def __enter__(self):
         return self
 
-    def __exit__(self, *exc) -> None:
-        self.close()
+    def __exit__(self, exc_type, *exc) -> None:
+        # an exception that is a stop (Ctrl-C, SIGTERM) keeps the frames written so far
+        self.close(discard=exc_type is not None and not issubclass(exc_type, KeyboardInterrupt))
 
 
 class MotWriter(_FrameWriter):

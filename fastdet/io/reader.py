@@ -1,58 +1,124 @@
 """Frames of a video, decoded in a background thread (:class:`FrameReader`).
 
 One reader for every command that reads video (``video``, ``eval --video``, ``bench``,
-``batch``): what it yields is what decodes.
+``mine-negatives``, ``batch``): what it yields is what decodes.
+
+Sources (:func:`source_kind`): a video file; an image sequence (``frames/img%04d.jpg``);
+a URL (``rtsp://``, ``http://``, ...) or a camera index (``0``) -- *live* sources, which
+have no frame count and end when the stream ends (or on Ctrl-C).
+
+The end of a stream is where decoding ends. The frame count in a file's header is an
+estimate (edit lists of ``ffmpeg -ss ... -c copy`` cuts, pre-roll and durations make it
+exceed the decodable frames: 91 for the 88 frames of ``test_small1.mp4``, 91 for the 65 of
+a cut), so it is used only for progress and, when decoding ends elsewhere, for one note.
+Damage in the middle of a file -- a frame that fails to decode while later ones still do
+-- is reported in one note and skipped: the frames after it are processed and keep their
+numbers in the file, because every failed read consumed the packet of the frame it could
+not decode (exact for one frame per packet, as in MP4, MOV, AVI and MKV files). A run of
+more than :data:`MAX_BAD_READS` failed reads (or every failed read on a live source)
+ends the stream.
 """
 from __future__ import annotations
 
 import math
 import os
 import queue
+import re
 import threading
 import time
-from typing import Any, Iterator
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
 
+from ..console import note, quiet_opencv
 from ..errors import DataError, FastdetError
 
 QUEUE_SIZE = 8
+#: failed reads in a row after which a file's stream counts as ended (damage in the middle
+#: is reported when a frame decodes again within this many reads; reads at the true end
+#: of a file fail at once, so trying costs nothing there)
+MAX_BAD_READS = 256
 _END = object()
+_URL = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*://")
 
 
-class FrameReader:
-    """Frames of a video file, decoded in a background thread.
+def is_image_sequence(path: str | os.PathLike) -> bool:
+    """``path`` is a printf-style image sequence (``test%d.jpg``) whose frame 0 or 1 exists."""
+    name = os.fspath(path)
+    if "%" not in name:
+        return False
+    try:
+        return any(Path(name % i).exists() for i in (0, 1))
+    except (TypeError, ValueError):
+        return False
 
-    Opening checks the file and decodes the first frame (after skipping ``start``), so a
-    missing file, a non-video or a zero-frame video fail here, before any output exists.
-    Iterating yields ``(frame_number, frame, decode_seconds)`` with 1-based frame numbers;
-    a frame that fails to decode midway (:meth:`_decode_failed`) raises DataError after
-    the frames before it were yielded.
-    """
 
-    def __init__(self, path: str | os.PathLike, start: int = 0, frames: int | None = None,
-                 queue_size: int = QUEUE_SIZE) -> None:
-        self.path = name = os.fspath(path)
-        if start < 0:
-            raise FastdetError(f"start must be >= 0, got {start}")
-        if frames is not None and frames < 1:
-            raise FastdetError(f"frames must be >= 1, got {frames}")
+def source_kind(source: str | os.PathLike | int) -> str:
+    """``'camera'`` (an int, or a string of digits that is not a file), ``'url'`` (``scheme://...``),
+    ``'sequence'`` (an image sequence, :func:`is_image_sequence`) or ``'file'``."""
+    if isinstance(source, int) or (isinstance(source, str) and source.isdigit() and not os.path.exists(source)):
+        return "camera"
+    name = os.fspath(source)
+    if _URL.match(name):
+        return "url"
+    if is_image_sequence(name):
+        return "sequence"
+    return "file"
+
+
+def check_source(source: str | os.PathLike | int) -> str:
+    """Refuse a file source that does not exist or is a folder (``DataError``); returns
+    :func:`source_kind`. Live sources are only checked by opening them."""
+    kind = source_kind(source)
+    if kind == "file":
+        name = os.fspath(source)
         if not os.path.exists(name):
             raise DataError(f"{name}: file not found")
         if os.path.isdir(name):
             raise DataError(f"{name}: is a folder, not a video")
-        # FFmpeg prints its own complaints ("moov atom not found") on stderr; we report errors
-        # ourselves, in one line. A user's own setting wins.
-        os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
-        cap = cv2.VideoCapture(name)
+    return kind
+
+
+class FrameReader:
+    """Frames of a video, decoded in a background thread.
+
+    source: a file, an image sequence, a URL or a camera index (see the module docstring).
+    start: frames to skip (their numbers are kept: the first frame yielded is ``start + 1``).
+    frames: at most this many frames.
+    notify: called with each note for the user (a frame count that differs from the
+        header's, damaged frames skipped); default :func:`fastdet.console.note`. Notes are
+        delivered in the iterating thread, in stream order.
+
+    Opening checks the source and decodes the first frame (after skipping ``start``), so a
+    missing file, a non-video or a zero-frame video fail here, before any output exists.
+    Iterating yields ``(frame_number, frame (H, W, 3) uint8 BGR, decode_seconds)`` with
+    1-based frame numbers. Afterwards ``decoded`` is the number of frames yielded and
+    ``skipped`` the list of ``(first, last)`` frame numbers that were damaged.
+    """
+
+    def __init__(self, source: str | os.PathLike | int, start: int = 0, frames: int | None = None,
+                 queue_size: int = QUEUE_SIZE, notify: Callable[[str], None] | None = None) -> None:
+        if start < 0:
+            raise FastdetError(f"start must be >= 0, got {start}")
+        if frames is not None and frames < 1:
+            raise FastdetError(f"frames must be >= 1, got {frames}")
+        self.kind = check_source(source)
+        self.live = self.kind in ("url", "camera")
+        self.path = name = str(source) if self.kind == "camera" else os.fspath(source)
+        self.notify = notify if notify is not None else note
+        quiet_opencv()
+        cap = cv2.VideoCapture(int(name)) if self.kind == "camera" else cv2.VideoCapture(name)
         if not cap.isOpened():
             cap.release()
-            raise DataError(f"{name}: not a video OpenCV can read (not a video file, damaged, or no frames)")
+            what = {"camera": "camera that can be opened", "url": "stream OpenCV can open (check the address)"}
+            raise DataError(f"{name}: not a {what.get(self.kind, 'video OpenCV can read (not a video file, damaged, or no frames)')}")
         n = cap.get(cv2.CAP_PROP_FRAME_COUNT)
-        self.frame_count = int(n) if math.isfinite(n) and n > 0 else None
+        self.frame_count = int(n) if math.isfinite(n) and n > 0 and not self.live else None
         fps = cap.get(cv2.CAP_PROP_FPS)
-        self.fps = float(fps) if math.isfinite(fps) and fps > 0 else 25.0
+        self.fps = float(fps) if math.isfinite(fps) and 0 < fps < 1000 else 25.0
         for i in range(start):
             if not cap.grab():
                 cap.release()
@@ -64,7 +130,8 @@ class FrameReader:
             cap.release()
             if start:
                 raise DataError(f"{name}: start {start} is past the end of the video ({start} frames)")
-            raise DataError(f"{name}: the video has no frames")
+            raise DataError(f"{name}: the video has no frames" if not self.live
+                            else f"{name}: the stream gave no frame")
         if frame.ndim != 3 or frame.shape[2] != 3 or frame.dtype != np.uint8:
             cap.release()
             raise DataError(f"{name}: frames are {frame.dtype} {frame.shape}, expected 8-bit colour")
@@ -73,12 +140,19 @@ class FrameReader:
         self.limit = frames
         remaining = None if self.frame_count is None else max(self.frame_count - start, 1)
         self.expected = remaining if frames is None else (frames if remaining is None else min(frames, remaining))
+        self.decoded = 0
+        self.skipped: list[tuple[int, int]] = []
         self._cap = cap
         self._first = (start + 1, frame, dt)
         self._q: queue.Queue = queue.Queue(maxsize=queue_size)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="fastdet-decode", daemon=True)
         self._started = False
+
+    @property
+    def first_frame(self) -> np.ndarray:
+        """The first frame (decoded when the reader was opened), for checks before any output."""
+        return self._first[1]
 
     def _put(self, item: Any) -> bool:
         while not self._stop.is_set():
@@ -89,52 +163,54 @@ class FrameReader:
                 continue
         return False
 
+    def _read(self) -> tuple[np.ndarray | None, float]:
+        t0 = time.perf_counter()
+        ok, frame = self._cap.read()
+        return (frame if ok else None), time.perf_counter() - t0
+
     def _run(self) -> None:
-        cap = self._cap
         try:
-            if not self._put(self._first):
-                return
-            k = 1
-            while not self._stop.is_set() and (self.limit is None or k < self.limit):
-                t0 = time.perf_counter()
-                ok, frame = cap.read()
-                dt = time.perf_counter() - t0
-                if not ok or frame is None:
-                    idx = self.start + k  # frames consumed before the failing one
-                    if self._decode_failed(idx):
-                        total = f" of {self.frame_count}" if self.frame_count else ""
-                        self._put(("error", f"{self.path}: frame {idx + 1}{total} could not be decoded; "
-                                            f"stopped after frame {idx}"))
-                    break
-                if frame.shape != self.shape:
-                    self._put(("error", f"{self.path}: frame {self.start + k + 1} is {frame.shape}, "
-                                        f"the first frame was {self.shape}; stopped"))
-                    break
-                if not self._put((self.start + k + 1, frame, dt)):
-                    return
-                k += 1
-            self._put(_END)
-        except BaseException as exc:  # pragma: no cover - defensive
+            self._decode()
+        except BaseException as exc:  # noqa: BLE001 - reported in the iterating thread
             self._put(("error", f"{self.path}: decoding failed: {exc}"))
-            self._put(_END)
         finally:
-            cap.release()
+            self._cap.release()  # before _END: the process may exit as soon as it is seen
+            self._put(_END)
 
-    def _decode_failed(self, idx: int) -> bool:
-        """After a failed read at 0-based frame ``idx``: a decode failure, or the end?
+    def _decode(self) -> None:
+        if not self._put(self._first):
+            return
+        fno, k = self.start + 1, 1  # last frame number yielded, frames yielded
+        while not self._stop.is_set() and (self.limit is None or k < self.limit):
+            frame, dt = self._read()
+            bad = 0
+            while frame is None and not self.live and bad < MAX_BAD_READS and not self._stop.is_set():
+                bad += 1
+                frame, dt = self._read()
+            if frame is None:
+                self._ended(fno)
+                return
+            if bad:
+                frames = f"frames {fno + 1}-{fno + bad}" if bad > 1 else f"frame {fno + 1}"
+                msg = f"{self.path}: {frames} could not be decoded (damaged); skipped, the frames after keep their numbers"
+                self._put(("note", msg))
+                self._put(("skipped", (fno + 1, fno + bad)))
+                fno += bad
+            if frame.shape != self.shape:
+                msg = f"{self.path}: frame {fno + 1} is {frame.shape}, the first frame was {self.shape}; stopped"
+                self._put(("error", msg))
+                return
+            fno += 1
+            if not self._put((fno, frame, dt)):
+                return
+            k += 1
 
-        A failure is a decode error when a further frame can still be read (damage in the
-        middle), or when it comes well before the container's frame count. That count is
-        only an estimate (edit lists, pre-roll and durations make it exceed the decodable
-        frames by a few: 91 for the 88 frames of test_small1.mp4), so a failure within
-        ``max(5, 5%)`` frames of it counts as the end of the video.
-        """
-        if self._cap.grab():
-            return True
-        if self.frame_count is None:
-            return False
-        slack = max(5, int(math.ceil(0.05 * self.frame_count)))
-        return idx < self.frame_count - slack
+    def _ended(self, last: int) -> None:
+        """The stream ended after frame ``last``: a note when the header counted otherwise."""
+        if self.frame_count is not None and last != self.frame_count:
+            msg = (f"{self.path}: {last} frames decoded; the file's header estimated "
+                   f"{self.frame_count} (the end is where decoding ends)")
+            self._put(("note", msg))
 
     def __iter__(self) -> Iterator[tuple[int, np.ndarray, float]]:
         if not self._started:
@@ -148,10 +224,24 @@ class FrameReader:
                     return
                 continue
             if item is _END:
+                self._thread.join()
                 return
-            if isinstance(item[0], str):
+            tag = item[0]
+            if tag == "note":
+                self.notify(item[1])
+                continue
+            if tag == "skipped":
+                self.skipped.append(item[1])
+                continue
+            if tag == "error":
                 raise DataError(item[1])
+            self.decoded += 1
             yield item
+
+    @property
+    def n_skipped(self) -> int:
+        """Damaged frames skipped so far."""
+        return sum(b - a + 1 for a, b in self.skipped)
 
     def close(self) -> None:
         self._stop.set()
@@ -165,4 +255,8 @@ class FrameReader:
         else:
             self._cap.release()
 
+    def __enter__(self) -> FrameReader:  # noqa: PYI034
+        return self
 
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -1,17 +1,51 @@
-"""The annotated output video, drawn and encoded in a background thread (:class:`VideoSink`)."""
+"""The annotated output video, drawn and encoded in a background thread (:class:`VideoSink`).
+
+The video is written under a temporary name (:func:`fastdet.io.atomic.partial_name`) and
+renamed when closed. OpenCV's ``VideoWriter.write`` fails silently (a full disk, a file
+size limit), so the sink checks what reached the disk: while writing, a file that stops
+growing on a full file system (or at the process's file-size limit) stops the run; when
+closing, the file must open and hold the frames written. Otherwise :class:`DataError`
+(one line) and no file under the final name.
+"""
 from __future__ import annotations
 
+import os
 import queue
+import resource
 import threading
 import time
 from pathlib import Path
 
 import cv2
 
+from ..console import quiet_native_stderr, quiet_opencv
 from ..errors import DataError
 from . import draw
 from .atomic import commit, partial_name
 from .reader import QUEUE_SIZE
+
+FOURCC = "mp4v"
+#: containers OpenCV's FFmpeg writes mp4v video into
+CONTAINERS = (".mp4", ".m4v", ".mov", ".avi", ".mkv")
+#: frames between two looks at the file's size while writing
+CHECK_EVERY = 10
+#: free bytes below which a file system counts as full
+FULL_BYTES = 1 << 20
+
+
+def _disk_full(path: Path) -> str | None:
+    """Why ``path`` cannot grow (a full file system, the file-size limit), or ``None``."""
+    try:
+        size = path.stat().st_size
+        st = os.statvfs(path.parent)
+    except OSError:
+        return None
+    soft, _ = resource.getrlimit(resource.RLIMIT_FSIZE)
+    if soft != resource.RLIM_INFINITY and size >= soft - 65536:
+        return f"the file reached the process's file-size limit ({soft} bytes)"
+    if st.f_bavail * st.f_frsize < FULL_BYTES:
+        return "the disk is full"
+    return None
 
 
 class VideoSink:
@@ -24,13 +58,19 @@ class VideoSink:
         self.tmp = partial_name(path)
         self.debug = debug
         self.threshold = threshold
-        self._writer = cv2.VideoWriter(str(self.tmp), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
+        quiet_opencv()
+        with quiet_native_stderr():  # FFmpeg lists what a container takes: we say it in one line
+            self._writer = cv2.VideoWriter(str(self.tmp), cv2.VideoWriter_fourcc(*FOURCC), fps, size)
         if not self._writer.isOpened():
             self._writer.release()
             self.tmp.unlink(missing_ok=True)
-            raise DataError(f"{path}: cannot write a video there (unknown extension "
-                            f"{self.path.suffix or '(none)'!r}? use .mp4 or .avi; or no permission)")
+            ext = self.path.suffix.lower()
+            why = ("no permission, or the codec is missing" if ext in CONTAINERS else
+                   f"fastdet writes {FOURCC} (MPEG-4) video, which OpenCV cannot put in "
+                   f"{'a ' + repr(ext) + ' file' if ext else 'a file without an extension'}")
+            raise DataError(f"{path}: cannot write a video there ({why}); use {', '.join(CONTAINERS)}")
         self.frames = 0
+        self._size = 0  # the file's size at the last look
         self.draw_s = 0.0
         self.encode_s = 0.0
         self.error: BaseException | None = None
@@ -41,6 +81,8 @@ class VideoSink:
 
     def put(self, item: tuple) -> None:
         while True:
+            if isinstance(self.error, DataError):
+                raise self.error
             if self.error is not None or not self._thread.is_alive():
                 raise RuntimeError(f"video writer thread failed: {self.error!r}")
             try:
@@ -67,14 +109,47 @@ class VideoSink:
                 self.draw_s += t1 - t0
                 self.encode_s += t2 - t1
                 self.frames += 1
+                if self.frames % CHECK_EVERY == 0:
+                    self._check_growing()
         except BaseException as exc:  # reported by put() / close()
             self.error = exc
 
-    def close(self) -> Path | None:
-        """Finish the queued frames, close the file and give it its final name (``None``
-        and no file when no frame was written)."""
+    def _check_growing(self) -> None:
+        """``DataError`` when the file stopped growing because it cannot (disk full)."""
+        try:
+            size = self.tmp.stat().st_size
+        except OSError:
+            size = -1
+        if size == self._size or size < 0:
+            why = _disk_full(self.tmp) if size >= 0 else "the file disappeared"
+            if why:
+                raise DataError(f"{self.path}: writing the video failed after {self.frames} frames: {why}")
+        self._size = size
+
+    def _verify(self) -> None:
+        """The closed temporary file opens and holds the frames written (``DataError``)."""
+        quiet_opencv()
+        with quiet_native_stderr():
+            cap = cv2.VideoCapture(str(self.tmp))
+        try:
+            n = cap.get(cv2.CAP_PROP_FRAME_COUNT) if cap.isOpened() else None
+            ok = n is not None and cap.read()[0]
+        finally:
+            cap.release()
+        if not ok:
+            why = _disk_full(self.tmp) or "the written file does not open"
+            raise DataError(f"{self.path}: writing the video failed: {why}; no video was kept")
+        if n and n > 0 and int(n) != self.frames:
+            why = _disk_full(self.tmp) or "the file was cut short"
+            raise DataError(f"{self.path}: writing the video failed: it holds {int(n)} of the "
+                            f"{self.frames} frames written ({why}); no video was kept")
+
+    def close(self, discard: bool = False) -> Path | None:
+        """Finish the queued frames, close the file, check it (:meth:`_verify`) and give it
+        its final name (``None`` and no file when no frame was written, or with
+        ``discard``). ``DataError`` (and no file) when the writes failed."""
         if self._closed:
-            return self.path if self.frames else None
+            return self.path if self.frames and not self.error and not discard else None
         self._closed = True
         if self._thread.is_alive():
             while True:
@@ -86,10 +161,18 @@ class VideoSink:
                         break
             self._thread.join()
         self._writer.release()
-        if self.frames:
-            commit(self.tmp, self.path)
-            return self.path
-        self.tmp.unlink(missing_ok=True)
-        return None
+        if not self.frames or discard or self.error is not None:
+            self.tmp.unlink(missing_ok=True)
+            if isinstance(self.error, DataError) and not discard:
+                raise self.error
+            return None
+        try:
+            self._verify()
+        except DataError as exc:
+            self.error = exc
+            self.tmp.unlink(missing_ok=True)
+            raise
+        commit(self.tmp, self.path)
+        return self.path
 
 

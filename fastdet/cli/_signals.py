@@ -1,0 +1,122 @@
+"""Every way a process is told to stop: Ctrl-C (SIGINT), SIGTERM, SIGHUP.
+
+``timeout``, ``kill``, closing the terminal, ``docker stop`` and systemd all send SIGTERM
+or SIGHUP; they are handled like Ctrl-C. The dispatcher (:mod:`fastdet.cli.main`) runs
+every command inside :func:`handled`; a command then only decides *where* it may stop:
+
+- Anywhere (loading a model, compiling kernels, training): a signal raises
+  :class:`Stopped` (a ``KeyboardInterrupt``) at once in the main thread; ``finally``
+  blocks and :func:`fastdet.io.atomic.atomic_path` remove the partial outputs.
+- Between frames: inside ``with deferred():`` a signal only sets a flag; the loop asks
+  :func:`stop_requested` once per frame, finishes the frame it is on, leaves the loop and
+  closes (renames) its outputs; leaving the block then raises :class:`Stopped`. A second
+  signal while the flag is set raises at once (an impatient second Ctrl-C).
+- A long step that may swallow an exception (third-party code) is followed by
+  :func:`check`, which raises :class:`Stopped` when a signal came meanwhile.
+
+The dispatcher turns :class:`Stopped` -- and any other exception raised after a signal
+came, e.g. from inside a compiler that was interrupted -- into one line
+``fastdet COMMAND: interrupted (SIGTERM)[; detail]`` and exit status ``128 + signal``
+(130 for Ctrl-C, 143 for SIGTERM, 129 for SIGHUP). A command may set
+:attr:`Stopped.detail` (e.g. the frames done and the files written) before re-raising.
+
+Handlers are installed only in the main thread, and the previous ones are restored when
+:func:`handled` ends (so calling ``main()`` from tests leaves the test runner as it was).
+"""
+from __future__ import annotations
+
+import signal
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from types import FrameType
+
+#: the signals that stop a command
+STOP_SIGNALS: tuple[int, ...] = tuple(s for s in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None))
+                                      if s is not None)
+
+_received: int | None = None
+_deferring = 0
+
+
+class Stopped(KeyboardInterrupt):
+    """A stop signal, raised in the main thread. ``signum``; ``exit_status`` = 128 + signum;
+    ``name`` (``'SIGTERM'``); ``detail``: what was done, for the one-line message."""
+
+    def __init__(self, signum: int, detail: str = "") -> None:
+        super().__init__(signum)
+        self.signum = signum
+        self.detail = detail
+
+    @property
+    def name(self) -> str:
+        return signal.Signals(self.signum).name
+
+    @property
+    def exit_status(self) -> int:
+        return 128 + self.signum
+
+
+def _handler(signum: int, frame: FrameType | None) -> None:
+    global _received
+    first = _received is None
+    if first:
+        _received = signum
+    if _deferring and first:
+        return  # the loop stops after its current frame
+    raise Stopped(signum)
+
+
+def received() -> int | None:
+    """The first stop signal received during :func:`handled` (``None``: none)."""
+    return _received
+
+
+def stop_requested() -> bool:
+    """A stop signal came: a frame loop should finish its frame and leave."""
+    return _received is not None
+
+
+def check() -> None:
+    """Raise :class:`Stopped` when a stop signal came (and was swallowed somewhere)."""
+    if _received is not None:
+        raise Stopped(_received)
+
+
+@contextmanager
+def deferred() -> Iterator[None]:
+    """Within the block a (first) stop signal only sets :func:`stop_requested`; on leaving
+    it, :class:`Stopped` is raised if one came. Nestable; a no-op outside the main thread."""
+    global _deferring
+    _deferring += 1
+    try:
+        yield
+    finally:
+        _deferring -= 1
+    check()
+
+
+@contextmanager
+def handled() -> Iterator[None]:
+    """Run a command with the stop signals turned into :class:`Stopped` (see the module
+    docstring); restores the previous handlers afterwards."""
+    global _received, _deferring
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {s: signal.getsignal(s) for s in STOP_SIGNALS}
+    _received, _deferring = None, 0
+    for s in STOP_SIGNALS:
+        signal.signal(s, _handler)
+    try:
+        yield
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h if h is not None else signal.SIG_DFL)
+        _deferring = 0
+
+
+def reset() -> None:
+    """Forget a received signal (tests)."""
+    global _received
+    _received = None

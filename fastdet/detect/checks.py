@@ -1,0 +1,121 @@
+"""Is a picture usable by a detector? Checked on the first frame, before any output exists.
+
+- Size (:func:`check_frame_size`): the default search is written for 1280x720 and scaled
+  to other sizes (:meth:`~fastdet.config.SearchConfig.for_frame`); a frame is refused
+  when a band of the main search does not fit it, holds no window, or its windows would
+  be smaller than :data:`MIN_WINDOW_PX` pixels (the band would be blown up many times over:
+  a 1280x16 frame took 850 ms and found nothing). The message gives the minimum size.
+- Colour (:func:`check_colour`): the models use colour features (YCrCb histograms and
+  spatial bins); on a greyscale picture -- the three channels equal, as OpenCV gives a
+  grey JPEG or video -- they find nothing (0 positive windows in the grey copies of the six
+  test images against 123 in the colour ones), so a grey picture is refused rather than
+  giving an empty answer that looks like "no vehicles".
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ..errors import DataError
+from .bands import band_geometry
+
+#: smallest window, in frame pixels, the main search may use
+MIN_WINDOW_PX = 16
+#: channels within this many grey levels count as equal (lossy codecs round the chroma)
+GREY_TOLERANCE = 2
+#: a picture whose grey levels vary less than this (standard deviation) is not judged: a
+#: black or flat frame (a fade-in) says nothing about colour
+MIN_CONTRAST = 8.0
+
+
+def _problem(detector: Any, shape: tuple[int, int]) -> str | None:
+    """Why the main search cannot run on frames of ``shape = (H, W)`` (``None``: it can)."""
+    sc = detector.scorers[0]
+    try:
+        search = sc.search.for_frame(shape)
+    except ValueError as exc:
+        return str(exc)
+    for band in search.bands:
+        if band.scale * min(sc.config.win_w, sc.config.win_h) < MIN_WINDOW_PX:
+            return f"its windows would be smaller than {MIN_WINDOW_PX} px"
+        try:
+            geo = band_geometry(band, shape, sc.config, search.cells_per_step)
+        except ValueError as exc:
+            return str(exc)
+        if geo.n_windows == 0:
+            return "a search band holds no window"
+    return None
+
+
+def minimum_frame_size(detector: Any, aspect: float = 16 / 9) -> tuple[int, int]:
+    """The smallest ``(W, H)`` of frames of width/height ratio ``aspect`` the detector's
+    main search runs on (a search in fixed pixels: the size it needs)."""
+    sc = detector.scorers[0]
+    ref = sc.search.reference_shape
+    if ref is None:
+        h = max(b.y_stop for b in sc.search.bands)
+        w = max(b.x_stop or 0 for b in sc.search.bands) or math.ceil(h * aspect)
+        return max(w, math.ceil(h * aspect)), h
+    lo, hi = 1, 8 * ref[0]
+    while lo < hi:  # fits is monotonic in the height at a fixed aspect ratio
+        mid = (lo + hi) // 2
+        if _problem(detector, (mid, max(1, round(mid * aspect)))) is None:
+            hi = mid
+        else:
+            lo = mid + 1
+    return max(1, round(lo * aspect)), lo
+
+
+def check_frame_size(detector: Any, shape: tuple[int, ...], source: str) -> None:
+    """``DataError`` naming the minimum size when frames of ``shape`` are too small (or too
+    thin) for ``detector``'s main search. Detectors without ``scorers`` are not checked."""
+    if not hasattr(detector, "scorers"):
+        return
+    h, w = int(shape[0]), int(shape[1])
+    why = _problem(detector, (h, w))
+    if why is None:
+        return
+    aspect = w / h if h else 0.0
+    mw16, mh16 = minimum_frame_size(detector)
+    need = f"at least {mw16}x{mh16} (16:9)"
+    if 0.2 <= aspect <= 5:
+        mw, mh = minimum_frame_size(detector, aspect)
+        if (mw, mh) != (mw16, mh16):
+            need += f" or {mw}x{mh} at this aspect ratio"
+    else:
+        need += ", and no thinner than 1:5 either way"
+    raise DataError(f"{source}: frames of {w}x{h} are too small for the vehicle search: it needs {need}")
+
+
+def is_grey(frame: np.ndarray) -> bool:
+    """``(H, W, 3) uint8`` ``frame`` is a greyscale picture: its three channels are equal
+    (within :data:`GREY_TOLERANCE` on 99% of a sample of its pixels) and it has contents
+    (grey levels varying by at least :data:`MIN_CONTRAST`; a flat or black frame is not
+    called grey)."""
+    f = np.asarray(frame)
+    if f.ndim == 3 and f.shape[2] == 1:
+        f = f[:, :, 0]
+    step = max(1, int(math.sqrt(f.shape[0] * f.shape[1] / 40000)))
+    s = f[::step, ::step].astype(np.int16)
+    if s.std() < MIN_CONTRAST:
+        return False
+    if s.ndim == 2:
+        return True
+    spread = s.max(axis=2) - s.min(axis=2)
+    return bool(np.mean(spread <= GREY_TOLERANCE) >= 0.99)
+
+
+def check_colour(detector: Any, frame: np.ndarray, source: str) -> None:
+    """``DataError`` for a greyscale picture (see the module docstring); only for fastdet's
+    own :class:`~fastdet.detect.Detector` (an injected detector may not need colour)."""
+    if hasattr(detector, "scorers") and is_grey(frame):
+        raise DataError(f"{source}: the picture is greyscale; fastdet's models use colour and find no "
+                        f"vehicles in grey pictures: give it the colour original")
+
+
+def check_frame(detector: Any, frame: np.ndarray, source: str) -> None:
+    """Both checks on a first frame: size (:func:`check_frame_size`), then colour."""
+    check_frame_size(detector, frame.shape, source)
+    check_colour(detector, frame, source)
