@@ -35,6 +35,10 @@ How one frame goes (``HeatMap.update``)
 5. **Shape filter.** Boxes narrower than ``min_width``, lower than ``min_height`` or taller
    than ``max_aspect * width`` are dropped: no vehicle looks like that, heat blobs that
    do are fragments or poles.
+6. **Weak boxes** (for the tracker, :meth:`HeatMap.weak_boxes`): the same steps 4-5 at a
+   lower threshold, keeping only the blobs whose peak stays at or below ``threshold``:
+   places with some evidence of a vehicle, too little to report one. ByteTrack
+   (:mod:`fastdet.video.track`) uses them as low-confidence boxes to keep a track alive.
 """
 from __future__ import annotations
 
@@ -179,10 +183,38 @@ class HeatMap:
         """Threshold the current heat, label blobs, one box per blob (or per part of a blob,
         with ``split_gap``), shape filter."""
         t0 = time.perf_counter()
-        cfg = self.config
-        self.mask = self.heat > cfg.threshold
-        labels, n = ndimage.label(self.mask)
+        self.mask = self.heat > self.config.threshold
+        labels, _ = ndimage.label(self.mask)
         self.labels = labels.astype(np.int32, copy=False)
+        self.blobs = self._blob_boxes(self.labels)
+        out = self.blobs[self._shape_ok(self.blobs.boxes)]
+        self.timings["label"] = time.perf_counter() - t0
+        return out
+
+    def weak_boxes(self, threshold: float) -> Detections:
+        """Boxes of the *weak* blobs of the current heat: blobs of ``heat > threshold`` (a
+        threshold below ``config.threshold``) whose peak heat is at most ``config.threshold``,
+        so no cell of them made a box of :meth:`boxes`. Same box rule, split and shape filter;
+        each box's score is its blob's peak heat (in ``(threshold, config.threshold]``).
+        For a tracker that uses low-confidence boxes to keep its tracks alive (ByteTrack).
+        Does not change ``mask``, ``labels`` or ``blobs``."""
+        labels, n = ndimage.label(self.heat > float(threshold))
+        if n == 0:
+            return Detections.empty()
+        d = self._blob_boxes(labels.astype(np.int32, copy=False))
+        return d[self._shape_ok(d.boxes) & (d.scores <= self.config.threshold)]
+
+    def _shape_ok(self, boxes: np.ndarray) -> np.ndarray:
+        """``(N,) bool``: the boxes that pass the shape filter (module docstring, step 5)."""
+        cfg = self.config
+        bw = boxes[:, 2] - boxes[:, 0]
+        bh = boxes[:, 3] - boxes[:, 1]
+        return (bw >= cfg.min_width) & (bh >= cfg.min_height) & (bh <= cfg.max_aspect * bw)
+
+    def _blob_boxes(self, labels: np.ndarray) -> Detections:
+        """One box per blob of ``labels`` (or per part, with ``split_gap``), scored by its
+        peak heat, before the shape filter (module docstring, step 4)."""
+        cfg = self.config
         c = int(cfg.cell)
         h, w = self.frame_shape
         ext = float(cfg.extent)
@@ -196,6 +228,8 @@ class HeatMap:
         boxes_l: list[tuple[int, int, int, int]] = []
         peaks_l: list[float] = []
         for i, sl in enumerate(ndimage.find_objects(labels)):
+            if sl is None:
+                continue
             blob = labels[sl] == i + 1
             hv = self.heat[sl]
             y0, x0 = sl[0].start, sl[1].start
@@ -212,14 +246,7 @@ class HeatMap:
                     box = tuple(int(v) for v in np.clip(np.round(mb), 0, [w, h, w, h]))
                 boxes_l.append(box)
                 peaks_l.append(pk)
-        out = np.array(boxes_l, np.int32).reshape(-1, 4)
-        peak = np.array(peaks_l, np.float32)
-        self.blobs = Detections(out, peak)
-        bw = out[:, 2] - out[:, 0]
-        bh = out[:, 3] - out[:, 1]
-        keep = (bw >= cfg.min_width) & (bh >= cfg.min_height) & (bh <= cfg.max_aspect * bw)
-        self.timings["label"] = time.perf_counter() - t0
-        return Detections(out[keep], peak[keep])
+        return Detections(np.array(boxes_l, np.int32).reshape(-1, 4), np.array(peaks_l, np.float32))
 
     def _split(self, blob: np.ndarray, x0: int, mine: np.ndarray) -> list[np.ndarray]:
         """``blob`` (a boolean sub-grid starting at grid column ``x0``) cut into parts by its
