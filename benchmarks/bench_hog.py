@@ -35,7 +35,7 @@ import numba
 import numpy as np
 import pytest
 
-from fastdet._hog import hog_channels, hog_channels_batch
+from fastdet.features._hog import hog_channels, hog_channels_batch
 from fastdet.data import data_dir
 
 ROI_Y = (400, 656)
@@ -100,8 +100,8 @@ _START_SCRIPT = """
 import sys, time
 t0 = time.perf_counter()
 import numpy as np
-from fastdet import _hog_kernels
-from fastdet._hog import hog_channels
+from fastdet.features import _hog_kernels
+from fastdet.features._hog import hog_channels
 t1 = time.perf_counter()
 roi = np.load(sys.argv[1])
 t2 = time.perf_counter()

@@ -1,6 +1,6 @@
 """Print the HOG benchmark as a markdown table (the figures in the README).
 
-    python tools/bench_hog_report.py [--repeat 30] [--no-start-up]
+    python -m tools.bench_hog_report [--repeat 30] [--no-start-up]     (from the project root)
 
 Times the 1280x256 LUV search band of test_images/test1.jpg, 3 channels, 9 orientations,
 8x8 cells, 2x2 blocks (see benchmarks/bench_hog.py for the exact setup): fastdet's
@@ -16,16 +16,12 @@ import argparse
 import os
 import platform
 import statistics
-import sys
 import time
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+import cv2
+import numba
 
-import cv2  # noqa: E402
-import numba  # noqa: E402
-
-from benchmarks.bench_hog import (  # noqa: E402
+from benchmarks.bench_hog import (
     load_roi, opencv_setup, run_fastdet, run_opencv, run_skimage, start_up_times,
 )
 

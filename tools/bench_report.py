@@ -1,12 +1,12 @@
 """Print the detector, video and start-up benchmarks as markdown tables (the README figures).
 
-    python tools/bench_report.py [--quick] [--only detector|wait-policy|video|start-up ...] [--wide W.npz]
+    python -m tools.bench_report [--quick] [--only detector|wait-policy|video|start-up ...] [--wide W.npz]
 
 All figures are measured in this one run (setups as in ``benchmarks/bench_detector.py`` and
 ``benchmarks/bench_video.py``):
 
 (a) detector: ms per 1280x720 frame of the classic per-window pipeline
-    (``benchmarks.classic.ClassicDetector``, test1.jpg) and of fastdet's ``Detector.detect``
+    (``tests.reference.ClassicDetector``, test1.jpg) and of fastdet's ``Detector.detect``
     (cycling through test_images/*.jpg) at 1 and 2 Numba threads, with the main model only
     (the same model and bands as the classic one) and as ``Detector()`` builds it by default
     (the same: the oncoming-traffic model runs in VideoDetector), and with ``--wide W.npz`` also with that
@@ -40,7 +40,6 @@ import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # as `python -m fastdet video`; before Numba starts OpenMP
 
 import cv2  # noqa: E402
@@ -51,6 +50,7 @@ from benchmarks.bench_detector import (  # noqa: E402
 )
 from benchmarks.bench_video import CLIPS, MODE_LABELS, MODES, command_line, run_video, warm_cache  # noqa: E402
 from fastdet.data import data_dir  # noqa: E402
+from fastdet.detect import DetectStats  # noqa: E402
 
 SECTIONS = ("detector", "wait-policy", "video", "start-up")
 NOISY = 1.25  # median / best above this: flagged as noisy
@@ -62,7 +62,7 @@ def set_threads(n: int) -> None:
 
 
 def this_command(args: argparse.Namespace, section: str) -> str:
-    cmd = ["python", "tools/bench_report.py", "--only", section]
+    cmd = ["python", "-m", "tools.bench_report", "--only", section]
     if args.quick:
         cmd.append("--quick")
     if args.wide and section == "detector":
@@ -98,10 +98,11 @@ def detector_section(args: argparse.Namespace, thread_counts: list[int]) -> None
             det = dets[kind]
             for _ in range(calls // rounds):
                 f = next(cycle)
+                stats = DetectStats()
                 t0 = time.perf_counter()
-                det.detect(f)
+                det.detect(f, stats=stats)
                 times[(kind, n)].append(time.perf_counter() - t0)
-                for k, v in det.timings.items():
+                for k, v in stats.timings.items():
                     stages[(kind, n)].setdefault(k, []).append(v)
 
     set_threads(1)
@@ -145,7 +146,7 @@ def detector_section(args: argparse.Namespace, thread_counts: list[int]) -> None
         print("`Detector()` is `Detector(wide=None)`: the oncoming-traffic model runs in `VideoDetector` "
               "(what `video` runs), where motion narrows its search; its cost is in the video table.")
     if args.wide:
-        n_wide = sum(len(sc.search.bands) for sc in dets["wide"].scorers[1:])
+        n_wide = len(dets["wide"].geometries(frames[CLASSIC_FRAME].shape[:2], part=1))
         print(f"Wide model {args.wide}: {n_wide} more bands (`fastdet.config.WIDE_SEARCH`).")
     nt = max(thread_counts)
     b = best2["default"]

@@ -13,8 +13,7 @@ import cv2
 import numpy as np
 
 from fastdet.data import data_dir
-from fastdet.detector import Detector
-from fastdet.search import scaled_band
+from fastdet.detect import Detector, scaled_band
 
 
 def main() -> None:

@@ -15,7 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from fastdet.motio import read_gt
+from fastdet.io.motfiles import read_gt
 
 
 def main() -> None:

@@ -15,8 +15,8 @@ import numpy as np
 
 from fastdet.config import FeatureConfig
 from fastdet.data import data_dir
-from fastdet.dataset import load_crops, random_split, sequence_split
-from fastdet.train import _flip, features_in_chunks, fit_classifier, metrics
+from fastdet.train.dataset import load_crops, random_split, sequence_split
+from fastdet.train.fit import features_in_chunks, fit_classifier, metrics
 
 
 def main() -> None:
@@ -47,7 +47,8 @@ def main() -> None:
         cfg = presets[name]
         t0 = time.perf_counter()
         x = features_in_chunks(crops.images, cfg, False)
-        xf = features_in_chunks(_flip(crops.images), cfg, False)
+        mirrored = np.ascontiguousarray(crops.images[:, :, ::-1])  # as `fastdet train` mirrors its crops
+        xf = features_in_chunks(mirrored, cfg, False)
         for seed in [int(s) for s in args.seeds.split(",")]:
             splits = {"sequence": sequence_split(crops.groups, crops.order, seed),
                       "random": random_split(crops.labels, seed)}

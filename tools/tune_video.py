@@ -1,73 +1,128 @@
-"""Sweep detector threshold and heat-map settings on the annotated clips (run by hand).
+"""Sweep window thresholds, heat-map settings and the motion gate on the annotated clips
+(run by hand).
 
-Runs the Detector once per frame of every clip in ``$FASTDET_DATA/annotations`` with a low
-window threshold, caches the windows, then replays the heat map for each setting and
-evaluates like ``python -m fastdet eval`` (IoU 0.5). Prints one markdown row per setting.
-With ``--wide`` it replays a wide-window model's heat map too, but without the motion gate
-of ``VideoDetector`` (tools/accuracy_report.py runs that through the real pipeline).
+Detection is the expensive part and does not depend on what comes after it, so each clip's
+windows are detected once (:func:`cache_windows`: every window with a decision value above
+``--low``). Then, for every setting, the real :class:`fastdet.VideoDetector` runs over the
+clip's frames with a :class:`ReplayDetector` in place of the Detector (:func:`replay`): it
+returns the cached windows above the setting's window thresholds, scored as
+:meth:`fastdet.Detector.detect` scores them. Everything after detection -- the main and the
+wide heat map, the wide model's motion gate, the fusion of the two -- is VideoDetector's own
+code. The boxes are evaluated like ``python -m fastdet eval`` (IoU 0.5). Prints one
+markdown row per setting.
 
-    python tools/tune_video.py [--model M.npz] [--grid small|wide] [--frames-from K]
+The replay returns the wide model's windows of its whole search when VideoDetector asks for
+some ``wide_bands`` (the parts of the search where the picture moved) and none when it asks
+for none; VideoDetector then keeps the wide windows that moved enough, which are exactly the
+windows of the narrowed search, with the same scores to 1e-6 (``tests/test_motion.py``
+checks both).
+
+    python tools/tune_video.py [--model M.npz] [--wide W.npz | --wide bundled] [--thr 0,0.5,1] ...
 """
 from __future__ import annotations
 
 import argparse
 import itertools
-from dataclasses import replace
+import os
+from dataclasses import dataclass, replace
+from pathlib import Path
 
-import cv2
 import numpy as np
 
-from fastdet.config import HeatConfig, SearchConfig
+from fastdet import Detections, Detector, HeatConfig, MotionGate, SearchBand, SearchConfig, VideoDetector
+from fastdet.config import WIDE_HEAT, WIDE_SEARCH
 from fastdet.data import data_dir
-from fastdet.detections import Detections
-from fastdet.detector import Detector
+from fastdet.detect import DetectStats, window_boxes
+from fastdet.detections import MAIN_PART
 from fastdet.eval import evaluate
-from fastdet.heatmap import HeatMap
-from fastdet.motio import GroundTruth, Predictions, read_gt
+from fastdet.io.motfiles import GroundTruth, Predictions, read_gt
+from fastdet.io.reader import FrameReader
+from fastdet.model import ONCOMING_MODEL_PATH
 
 
-def cache_windows(det: Detector, video, low: float):
-    cap = cv2.VideoCapture(str(video))
-    out = []
-    shape = (720, 1280)
-    while True:
-        ok, frame = cap.read()
-        if not ok:
-            break
-        det.detect(frame)
-        shape = frame.shape[:2]
-        boxes, decs, parts = [], [], []
-        from fastdet.search import window_boxes
+@dataclass
+class CachedClip:
+    """One clip's windows, detected once: per frame, every window whose decision value is
+    above the cache's low threshold (``windows[i]`` with ``scale`` and ``part``,
+    ``decisions[i]`` their decision values, float64)."""
 
-        for (geo, dec), part in zip(det.last_band_scores, det.last_band_parts):
+    video: Path
+    detector: Detector
+    windows: list[Detections]
+    decisions: list[np.ndarray]
+
+    def __len__(self) -> int:
+        return len(self.windows)
+
+
+def frames_of(video: str | os.PathLike):
+    """The decodable frames of ``video`` (BGR), as the video pipeline reads them."""
+    reader = FrameReader(video)
+    try:
+        for _, frame, _ in reader:
+            yield frame
+    finally:
+        reader.close()
+
+
+def cache_windows(det: Detector, video: str | os.PathLike, low: float) -> CachedClip:
+    """Run ``det`` over every frame of ``video`` once and keep every window (of both models)
+    with a decision value above ``low`` (at most the lowest threshold to sweep)."""
+    windows, decisions = [], []
+    for frame in frames_of(video):
+        stats = DetectStats()
+        det.detect(frame, stats=stats)
+        found, decs = [], []
+        for part, geo, dec in stats.bands:
+            config = det.model.config if part == MAIN_PART else det.wide_model.config
             r, c = np.nonzero(dec > low)
-            boxes.append(window_boxes(geo, r, c, det.scorers[part].config))
+            found.append(Detections(window_boxes(geo, r, c, config), dec[r, c],
+                                    scale=np.full(len(r), geo.band.scale), part=np.full(len(r), part)))
             decs.append(dec[r, c])
-            parts.append(np.full(len(r), part))
-        out.append((np.concatenate(boxes), np.concatenate(decs), np.concatenate(parts)))
-    return out, shape
+        windows.append(Detections.concat(found))
+        decisions.append(np.concatenate(decs) if decs else np.zeros(0))
+    return CachedClip(Path(video), det, windows, decisions)
 
 
-def replay(cache, shape, thr: float, heat: HeatConfig, kind: str, first: int = 1, thr_wide: float | None = None,
-           wide_heat: HeatConfig | None = None):
-    from fastdet.fusion import merge_wide
+class ReplayDetector:
+    """A :class:`fastdet.video.WindowDetector` that returns a :class:`CachedClip`'s windows,
+    one frame per :meth:`detect` call: those above ``thr`` (main model) or ``thr_wide`` (wide
+    model), with the scores :meth:`fastdet.Detector.detect` gives them (the probability for
+    logistic-regression models, the decision value for LinearSVC)."""
 
-    hm = HeatMap(shape, heat, score_kind=kind)
-    hw = HeatMap(shape, wide_heat, score_kind=kind) if wide_heat is not None else None
-    frames = []
-    thr_wide = thr if thr_wide is None else thr_wide
-    sig = (lambda v: 1 / (1 + np.exp(-v))) if kind == "probability" else (lambda v: v)
-    for i, (boxes, dec, parts) in enumerate(cache, start=1):
-        if hw is None:
-            keep = np.where(parts == 0, dec > thr, dec > thr_wide)
-            d = hm.update(Detections(boxes[keep], sig(dec[keep]).astype(np.float32)))
-        else:
-            km = (parts == 0) & (dec > thr)
-            kw = (parts == 1) & (dec > thr_wide)
-            d = merge_wide(hm.update(Detections(boxes[km], sig(dec[km]).astype(np.float32))),
-                           hw.update(Detections(boxes[kw], sig(dec[kw]).astype(np.float32))))
-        if i >= first:
-            frames.append((i, d))
+    def __init__(self, clip: CachedClip, thr: float, thr_wide: float):
+        self.clip, self.thr, self.thr_wide = clip, thr, thr_wide
+        self.score_kind = clip.detector.score_kind
+        self.wide_model = clip.detector.wide_model
+        self.frame = 0
+
+    def warmup(self) -> None:
+        pass
+
+    def geometries(self, frame_shape, part=0):
+        return self.clip.detector.geometries(frame_shape, part)
+
+    def detect(self, frame, rgb=False, wide_bands=None, stats=None) -> Detections:
+        windows, dec = self.clip.windows[self.frame], self.clip.decisions[self.frame]
+        self.frame += 1
+        keep = np.where(windows.is_wide, dec > self.thr_wide, dec > self.thr)
+        if wide_bands is not None and len(wide_bands) == 0:  # nothing moved (or the first frame)
+            keep &= ~windows.is_wide
+        score = dec[keep]
+        if self.score_kind == "probability":
+            score = 1.0 / (1.0 + np.exp(-score))
+        return replace(windows[keep], scores=score.astype(np.float32))
+
+
+def replay(clip: CachedClip, thr: float, heat: HeatConfig, wide_heat: HeatConfig | None = None,
+           motion: MotionGate | None = None, thr_wide: float = WIDE_SEARCH.threshold,
+           first: int = 1) -> Predictions:
+    """The boxes :class:`fastdet.VideoDetector` (``heat``, ``wide_heat``, ``motion``) gives on
+    the clip's frames from its cached windows, for frames ``first`` (1-based) on."""
+    vd = VideoDetector(ReplayDetector(clip, thr, thr_wide), heat=heat, wide_heat=wide_heat, motion=motion)
+    frames = [(i, d) for i, d in enumerate(map(vd.update, frames_of(clip.video)), start=1) if i >= first]
+    if vd.detector.frame != len(clip):
+        raise RuntimeError(f"{clip.video}: {vd.detector.frame} frames decoded, {len(clip)} cached")
     return Predictions.from_frames(frames)
 
 
@@ -80,64 +135,66 @@ def evaluate_from(gt: GroundTruth, preds: Predictions, first: int, n_frames: int
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--model", default=None)
-    ap.add_argument("--low", type=float, default=-1.0)
-    ap.add_argument("--thr", default="0,0.5,1")
-    ap.add_argument("--thr-wide", default="0")
-    ap.add_argument("--no-wide", action="store_true")
-    ap.add_argument("--wide", default=None, help="wide model file")
+    h, w = HeatConfig(), WIDE_HEAT
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    ap.add_argument("--model", default=None, help="main model file (default: the bundled one)")
+    ap.add_argument("--wide", default=None, help="wide-window model file, or 'bundled' (default: none)")
+    ap.add_argument("--low", type=float, default=-1.0, help="decision value above which windows are cached")
+    ap.add_argument("--thr", default="0,0.5,1", help="main model's window thresholds (decision values)")
+    ap.add_argument("--thr-wide", default=f"{WIDE_SEARCH.threshold:g}", help="wide model's window thresholds")
     ap.add_argument("--heat-thr", default="1,2,3,4,6")
     ap.add_argument("--n-frames", default="8")
     ap.add_argument("--decay", default="0.8")
     ap.add_argument("--extent", default="0.4")
     ap.add_argument("--w-max", default="4")
-    ap.add_argument("--step", type=int, default=None)
+    ap.add_argument("--box", default=h.box_mode)
+    ap.add_argument("--step", type=int, default=None, help="main search's cells per step")
     ap.add_argument("--bands", default=None, help="scale:y0:y1,... instead of the default bands")
-    ap.add_argument("--separate", action="store_true", help="wide windows in their own heat map")
-    ap.add_argument("--wide-heat-thr", default="4")
-    ap.add_argument("--wide-n", default="4")
-    ap.add_argument("--wide-extent", default="0.4")
-    ap.add_argument("--wide-max-aspect", default="0.8")
-    ap.add_argument("--wide-box", default="extent")
-    ap.add_argument("--box", default="extent")
+    ap.add_argument("--wide-heat-thr", default=f"{w.threshold:g}")
+    ap.add_argument("--wide-n", default=f"{w.n_frames}")
+    ap.add_argument("--wide-extent", default=f"{w.extent:g}")
+    ap.add_argument("--wide-max-aspect", default=f"{w.max_aspect:g}")
+    ap.add_argument("--wide-box", default=w.box_mode)
+    ap.add_argument("--motion", default=f"{MotionGate().min_motion:g}", help="motion gate thresholds (0: none)")
     ap.add_argument("--first-per-clip", default="", help="e.g. test_small1=67,test_video=20")
     ap.add_argument("--first", type=int, default=1, help="evaluate frames >= this only (0: the second half)")
     args = ap.parse_args()
-    fl = lambda s: [float(v) for v in s.split(",")]
+
+    def fl(s: str) -> list[float]:
+        return [float(v) for v in s.split(",")]
+
     search = SearchConfig() if args.step is None else replace(SearchConfig(), cells_per_step=args.step)
     if args.bands:
-        from fastdet.config import SearchBand
-
         bands = [b.split(":") for b in args.bands.split(",")]
         search = replace(search, bands=tuple(SearchBand(float(a), int(b), int(c)) for a, b, c in bands))
-    det = Detector(args.model, search, wide=None if args.no_wide else args.wide)
-    kind = det.score_kind
+    wide = ONCOMING_MODEL_PATH if args.wide == "bundled" else args.wide
+    det = Detector(args.model, search, wide=wide)
     clips = sorted((data_dir() / "annotations").glob("*.gt.txt"))
     caches = {}
     for gt_path in clips:
         name = gt_path.name[: -len(".gt.txt")]
-        caches[name] = (read_gt(gt_path), *cache_windows(det, data_dir() / "videos" / f"{name}.mp4", args.low))
-    print("| thr | wide thr | heat thr | n | decay | extent | w_max | " + " | ".join(f"{n} P R F1 AP FP/f" for n in caches) + " | min F1 |")
+        caches[name] = (read_gt(gt_path), cache_windows(det, data_dir() / "videos" / f"{name}.mp4", args.low))
+    per_clip = dict(kv.split("=") for kv in args.first_per_clip.split(",")) if args.first_per_clip else {}
+    print("| thr | wide thr | heat thr | n | decay | extent | w_max | wide heat thr/n/extent/aspect | motion | "
+          + " | ".join(f"{n} P R F1 AP FP/f" for n in caches) + " | min F1 |")
     rows = []
     grid = itertools.product(fl(args.thr), fl(args.thr_wide), fl(args.heat_thr), fl(args.n_frames), fl(args.decay),
                              fl(args.extent), fl(args.w_max), fl(args.wide_heat_thr), fl(args.wide_n),
-                             fl(args.wide_extent), fl(args.wide_max_aspect))
-    for thr, tw, ht, n, dc, ex, wm, wht, wn, wex, wma in grid:
-        heat = replace(HeatConfig(), threshold=ht, n_frames=int(n), decay=dc, extent=ex, w_max=wm, box_mode=args.box)
-        wheat = (replace(heat, threshold=wht, n_frames=int(wn), extent=wex, max_aspect=wma, min_height=10,
-                         box_mode=args.wide_box)
-                 if args.separate else None)
+                             fl(args.wide_extent), fl(args.wide_max_aspect), fl(args.motion))
+    for thr, tw, ht, n, dc, ex, wm, wht, wn, wex, wma, mo in grid:
+        heat = replace(h, threshold=ht, n_frames=int(n), decay=dc, extent=ex, w_max=wm, box_mode=args.box)
+        wheat = replace(w, threshold=wht, n_frames=int(wn), extent=wex, max_aspect=wma, box_mode=args.wide_box)
         cells, f1s = [], []
-        for name, (gt, cache, shape) in caches.items():
-            per_clip = dict(kv.split("=") for kv in args.first_per_clip.split(",")) if args.first_per_clip else {}
-            first = int(per_clip.get(name, args.first)) or len(cache) // 2 + 1
-            r = evaluate_from(gt, replay(cache, shape, thr, heat, kind, first, tw, wheat), first, len(cache))
+        for name, (gt, clip) in caches.items():
+            first = int(per_clip.get(name, args.first)) or len(clip) // 2 + 1
+            preds = replay(clip, thr, heat, wheat, MotionGate(mo), tw, first)
+            r = evaluate_from(gt, preds, first, len(clip))
             cells.append(f"{r.precision:.2f} {r.recall:.2f} **{r.f1:.2f}** {r.ap:.2f} {r.fp_per_frame:.2f}")
             f1s.append(r.f1)
-        if args.separate:
-            tw = f"{tw:g} w{wht:g}/{int(wn)}/{wex:g}/{wma:g}"
-        line = f"| {thr:g} | {tw} | {ht:g} | {int(n)} | {dc:g} | {ex:g} | {wm:g} | " + " | ".join(cells) + f" | {min(f1s):.3f} |"
+        wide_cell = f"{wht:g}/{int(wn)}/{wex:g}/{wma:g}" if det.wide_model is not None else "-"
+        line = (f"| {thr:g} | {tw:g} | {ht:g} | {int(n)} | {dc:g} | {ex:g} | {wm:g} | {wide_cell} | {mo:g} | "
+                + " | ".join(cells) + f" | {min(f1s):.3f} |")
         rows.append((min(f1s), line))
         print(line, flush=True)
     print("\nbest:")
