@@ -4,7 +4,8 @@ Times the stages of :class:`~fastdet.VideoDetector` (what ``python -m fastdet vi
 runs on its main thread for every frame) on a video or an image, and prints ms per frame
 per stage and the frames per second they allow.
 
-- INPUT: a video (its first N frames) or an image (the same frame N times); default
+- INPUT: a video, an image sequence (``img%04d.jpg``) or a stream URL (its first N
+  frames), or an image (the same frame N times); default
   ``test_images/test1.jpg`` in the data folder (:func:`fastdet.data.data_dir`). Frames are
   decoded into memory before timing, so decoding is not in the figures (it runs in a
   reader thread in ``video``; it is printed on its own line for a video).
@@ -42,9 +43,12 @@ import cv2
 import numba
 import numpy as np
 
+from ..console import quiet_native_stderr
 from ..data import data_dir
+from ..detect.checks import check_frame
 from ..errors import DataError, FastdetError
-from ..io.reader import FrameReader
+from ..io.images import check_image
+from ..io.reader import FrameReader, check_source
 from ..video.pipeline import VideoDetector, _passive_omp, make_detector
 from ._args import add_oncoming_arguments, oncoming_arg, positive_int
 
@@ -63,7 +67,8 @@ STAGES = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("input", metavar="INPUT", nargs="?", default=None,
-                        help=f"video or image file (default: {DEFAULT_IMAGE} in the data folder)")
+                        help=f"video, image sequence (img%%04d.jpg), stream URL or image file "
+                             f"(default: {DEFAULT_IMAGE} in the data folder)")
     parser.add_argument("--frames", type=positive_int, default=30, metavar="N",
                         help="frames per repeat: a video's first N frames, or the image N times (default 30)")
     parser.add_argument("--threads", type=positive_int, default=None, metavar="T",
@@ -79,14 +84,15 @@ def load_frames(path: str | os.PathLike, n: int) -> tuple[list, str, float | Non
     ``'image'``, no decode time) or the first ``n`` frames of a video (``'video'``; fewer
     when it is shorter). Raises :class:`DataError` for anything unreadable."""
     name = os.fspath(path)
-    if not os.path.exists(name):
-        raise DataError(f"{name}: file not found")
+    kind = check_source(name)
     if os.path.isdir(name):
         raise DataError(f"{name}: is a folder, not an image or a video")
-    if cv2.haveImageReader(name):
-        frame = cv2.imread(name, cv2.IMREAD_COLOR)
+    if kind == "file" and cv2.haveImageReader(name):
+        with quiet_native_stderr():  # libjpeg's warnings: check_image says it in one line
+            frame = cv2.imread(name, cv2.IMREAD_COLOR)
         if frame is None:
             raise DataError(f"{name}: not an image OpenCV can read (damaged?)")
+        check_image(name)
         return [frame] * n, "image", None
 
     try:
@@ -175,6 +181,7 @@ def run(args: argparse.Namespace) -> int:
     cv2.setNumThreads(threads)
     try:
         det = _detector(args)
+        check_frame(det, frames[0], args.input)
         vd = VideoDetector(det)
         t0 = time.perf_counter()
         vd.warmup()

@@ -3,17 +3,16 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from typing import Any
 
-from ..errors import DataError, FastdetError
+from ..errors import FastdetError
 from ..eval.metrics import evaluate
 from ..eval.report import format_table, plot_pr
 from ..io.motfiles import Predictions, read_gt, read_predictions
+from ..io.reader import check_source
 from ..video.pipeline import iter_video_detections
 from ._args import add_oncoming_arguments, oncoming_arg
-
 
 # ---------------------------------------------------------------------------------------
 # CLI
@@ -46,8 +45,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _video_predictions(video: str, model: str | None, oncoming: Any = True) -> Predictions:
-    if not os.path.isfile(video):
-        raise DataError(f"{video}: file not found")
+    check_source(video)
     return Predictions.from_frames(iter_video_detections(video, model=model, progress=True, oncoming=oncoming),
                                    source=video)
 

@@ -8,9 +8,11 @@ windows, coloured by search scale; ``--heat`` also writes the heat map as ``OUT.
 (same extension as OUT).
 
 Outputs are written under a temporary name in the output folder (``.OUT.partial.jpg``)
-and renamed when complete, so a reader never sees half an image. Bad input (missing or
-unreadable image, missing output folder, an output extension OpenCV cannot write, a model
-that does not load) raises :class:`~fastdet.errors.FastdetError`: one line, exit status 2.
+and renamed when complete and readable, so a reader never sees half an image
+(:func:`fastdet.io.images.write_image`: a full disk is reported as such). Bad input
+(missing, unreadable or truncated image, a greyscale or too small picture, missing output
+folder, an output extension OpenCV cannot write, a model that does not load) raises
+:class:`~fastdet.errors.FastdetError`: one line, exit status 2, before any output exists.
 """
 from __future__ import annotations
 
@@ -20,12 +22,13 @@ from pathlib import Path
 from typing import Any
 
 import cv2
-import numpy as np
 
 from ..config import HeatConfig
+from ..detect.checks import check_frame
 from ..errors import DataError, FastdetError
 from ..io import draw
-from ..io.atomic import atomic_path, check_output_path
+from ..io.atomic import check_output_path
+from ..io.images import read_image, write_image
 from ..video.pipeline import detect_image, make_detector
 
 
@@ -48,19 +51,6 @@ def heat_path(output: str | os.PathLike) -> Path:
     return p.with_name(f"{p.stem}.heat{p.suffix}")
 
 
-def _write_image(path: Path, img: np.ndarray) -> None:
-    """cv2.imwrite to ``.NAME.partial.EXT``, then rename to ``path``."""
-    with atomic_path(path) as tmp:
-        try:
-            ok = cv2.imwrite(str(tmp), img)
-        except cv2.error:
-            ok = False
-        if not ok:
-            tmp.unlink(missing_ok=True)
-            raise DataError(f"{path}: cannot write an image there (extension {path.suffix or '(none)'!r} "
-                            f"not supported? use .jpg or .png)")
-
-
 def run(args: argparse.Namespace, detector: Any = None) -> int:
     """The ``image`` subcommand. ``detector`` replaces the model's Detector (tests)."""
     inp = args.input
@@ -69,6 +59,10 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
     if os.path.isdir(inp):
         raise DataError(f"{inp}: is a folder, not an image")
     out = Path(args.output)
+    for p in (out, heat_path(out) if args.heat else None):
+        if p is not None and not cv2.haveImageWriter(str(p)):
+            raise DataError(f"{p}: cannot write an image there (extension {p.suffix or '(none)'!r} "
+                            f"not supported? use .jpg or .png)")
     check_output_path(out, "image", inp)
     hout = heat_path(out) if args.heat else None
     if hout is not None:
@@ -77,26 +71,25 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
         heat = HeatConfig().single_frame(args.threshold)
     except ValueError as exc:
         raise FastdetError(f"--threshold: {exc}") from None
-    frame = cv2.imread(inp, cv2.IMREAD_COLOR)
-    if frame is None:
-        raise DataError(f"{inp}: not an image OpenCV can read")
+    frame = read_image(inp)
     if detector is None:
         detector = make_detector(args.model, oncoming=False)  # its gate needs motion: video only
     elif args.model is not None:
         raise FastdetError("--model cannot be used with an injected detector")
+    check_frame(detector, frame, inp)
 
     windows, hm, boxes = detect_image(frame, detector, heat)
     img = frame.copy()
     if args.windows:
         draw.draw_windows(img, windows, 1)
     draw.draw_boxes(img, boxes.boxes, boxes.scores, thickness=3)
-    _write_image(out, img)
+    write_image(out, img)
     written = [str(out)]
     if hout is not None:
         himg = draw.grid_to_frame(draw.heat_image(hm.heat, vmax=max(2.0 * heat.threshold, float(hm.heat.max()))),
                                   heat.cell, frame.shape)
         draw.draw_boxes(himg, boxes.boxes, None, thickness=2)
-        _write_image(hout, himg)
+        write_image(hout, himg)
         written.append(str(hout))
     print(f"fastdet image: {len(boxes.boxes)} vehicle(s) from {len(windows.boxes)} positive window(s); "
           f"wrote {', '.join(written)}")

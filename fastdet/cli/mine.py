@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -12,15 +13,19 @@ import numpy as np
 from tqdm import tqdm
 
 from ..detect import Detector
+from ..detect.checks import check_frame
 from ..errors import DataError, FastdetError
+from ..io.images import check_image, write_image
 from ..io.motfiles import read_gt
-from ..train.mine import hard_negatives, is_image_sequence
+from ..io.reader import FrameReader, source_kind
+from ..train.mine import hard_negatives
 from ._args import nonneg_int, positive_int
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("video", type=Path, help="video, image, or image sequence (e.g. test_images/test%%d.jpg) to mine")
-    p.add_argument("--out", type=Path, required=True, help="folder for the 64x64 PNG crops (created)")
+    p.add_argument("--out", type=Path, required=True,
+                   help="folder for the 64x64 PNG crops (created once the input has been opened)")
     p.add_argument("--x-range", type=int, nargs=2, metavar=("A", "B"), default=None,
                    help="only windows entirely within columns [A, B)")
     p.add_argument("--y-range", type=int, nargs=2, metavar=("A", "B"), default=None,
@@ -42,13 +47,27 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-progress", action="store_true")
 
 
+def _check_out(out: Path) -> None:
+    """``--out`` can be created (or is a writable folder): checked before any work."""
+    if out.exists():
+        if not out.is_dir():
+            raise DataError(f"--out {out}: exists and is not a folder")
+        if not os.access(out, os.W_OK | os.X_OK):
+            raise DataError(f"--out {out}: folder is not writable")
+        return
+    parent = next((p for p in out.absolute().parents if p.exists()), None)
+    if parent is None or not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+        raise DataError(f"--out {out}: cannot create the folder ({parent} is not writable)")
+
+
 def run(args: argparse.Namespace) -> int:
     if args.x_range is None and args.y_range is None and args.gt is None:
         raise FastdetError("say where there are no vehicles: --x-range/--y-range and/or --gt")
     if args.part == "wide" and args.wide_model is None:
         raise FastdetError("--part wide needs --wide-model")
-    if not (args.video.exists() or is_image_sequence(args.video)):
-        raise DataError(f"{args.video} not found")
+    if source_kind(str(args.video)) == "file" and not args.video.exists():
+        raise DataError(f"{args.video}: file not found")
+    _check_out(args.out)
     gt = None
     if args.gt is not None:
         gt = read_gt(args.gt)
@@ -57,45 +76,40 @@ def run(args: argparse.Namespace) -> int:
         for sc in det.scorers:
             sc.search = replace(sc.search, threshold=args.threshold)
     win_cfg = det.config if args.part == "main" else det.wide_model.config
-    args.out.mkdir(parents=True, exist_ok=True)
-    prefix = args.prefix or args.video.stem.replace("%", "")
-    cap = cv2.VideoCapture(str(args.video))
-    if not cap.isOpened():
-        raise DataError(f"{args.video}: not a video OpenCV can read")
-    if args.start:
-        cap.set(cv2.CAP_PROP_POS_FRAMES, args.start)
-    total = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) or None
-    limit = args.frames if args.frames is not None else (total - args.start if total else None)
-    bar = None
-    if not args.no_progress and sys.stderr.isatty():
-        bar = tqdm(total=limit, desc="mining", unit="frame")
-    saved = done = 0
-    frame_no = args.start
-    while limit is None or done < limit:
-        ok, frame = cap.read()
-        if not ok:
-            break
-        frame_no += 1  # 1-based, as in MOTChallenge files
-        done += 1
+    if args.video.is_file() and cv2.haveImageReader(str(args.video)):
+        check_image(args.video)  # a truncated JPEG: one line, before any output
+    # the input is opened (and its first frame checked) before --out is created
+    reader = FrameReader(args.video, args.start, args.frames)
+    try:
+        check_frame(det, reader.first_frame, str(args.video))
+        args.out.mkdir(parents=True, exist_ok=True)
+        prefix = args.prefix or args.video.stem.replace("%", "")
+        bar = None
+        if not args.no_progress and sys.stderr.isatty():
+            bar = tqdm(total=reader.expected, desc="mining", unit="frame")
+        saved = done = 0
+        for frame_no, frame, _ in reader:  # 1-based frame numbers, as in MOTChallenge files
+            done += 1
+            if bar:
+                bar.update()
+            if (done - 1) % args.every:
+                continue
+            gt_boxes = None
+            if gt is not None:
+                gb = gt.boxes[gt.frames == frame_no]
+                gt_boxes = gb + np.array([-args.margin, -args.margin, args.margin, args.margin])
+            for (x1, y1, x2, y2), crop in hard_negatives(det, frame, args.part, win_cfg, args.x_range,
+                                                         args.y_range, gt_boxes):
+                path = args.out / f"{prefix}_f{frame_no:05d}_{x1}_{y1}_{x2 - x1}.png"
+                try:
+                    write_image(path, crop)
+                except DataError:
+                    raise DataError(f"{path}: could not write the crop (disk full or no permission?); "
+                                    f"{saved} crops were written before it") from None
+                saved += 1
         if bar:
-            bar.update()
-        if (done - 1) % args.every:
-            continue
-        gt_boxes = None
-        if gt is not None:
-            gb = gt.boxes[gt.frames == frame_no]
-            gt_boxes = gb + np.array([-args.margin, -args.margin, args.margin, args.margin])
-        for (x1, y1, x2, y2), crop in hard_negatives(det, frame, args.part, win_cfg, args.x_range,
-                                                     args.y_range, gt_boxes):
-            path = args.out / f"{prefix}_f{frame_no:05d}_{x1}_{y1}_{x2 - x1}.png"
-            if not cv2.imwrite(str(path), crop):
-                raise DataError(f"{path}: could not write the crop (disk full or no permission?); "
-                                f"{saved} crops were written before it")
-            saved += 1
-    cap.release()
-    if bar:
-        bar.close()
-    if done == 0:
-        raise DataError(f"{args.video}: no frames could be read")
+            bar.close()
+    finally:
+        reader.close()
     print(f"mined {saved} false-positive windows from {done} frames into {args.out}")
     return 0

@@ -10,8 +10,6 @@ for the wide one, chosen with ``--part``) and written as a PNG; ``fastdet train
 """
 from __future__ import annotations
 
-from pathlib import Path
-
 import cv2
 import numpy as np
 
@@ -31,17 +29,6 @@ def false_windows(boxes: np.ndarray, x_range=None, y_range=None, gt_boxes: np.nd
     if gt_boxes is not None and len(gt_boxes) and len(boxes):
         keep &= ~np.any(intersection(boxes, gt_boxes) > 0, axis=1)
     return np.flatnonzero(keep)
-
-
-def is_image_sequence(path: Path) -> bool:
-    """``path`` is a printf-style image sequence (``test%d.jpg``) whose frame 0 or 1 exists."""
-    name = str(path)
-    if "%" not in name:
-        return False
-    try:
-        return any(Path(name % i).exists() for i in (0, 1))
-    except (TypeError, ValueError):
-        return False
 
 
 def hard_negatives(det: Detector, frame: np.ndarray, part: str, win_cfg: FeatureConfig, x_range=None,

@@ -25,6 +25,7 @@ from tqdm import tqdm
 
 from ..config import WIDE_HEAT, HeatConfig, MotionGate, SearchBand
 from ..detect import BandGeometry, Detector, DetectStats
+from ..detect.checks import check_frame
 from ..detections import Detections
 from ..io.reader import FrameReader
 from ..model import ONCOMING_MODEL_PATH, Model
@@ -268,7 +269,10 @@ def iter_video_detections(path: str | os.PathLike, model: Any = None, start: int
     _passive_omp()
     reader = FrameReader(path, start, frames)
     try:
-        vd = VideoDetector(detector if detector is not None else make_detector(model, oncoming), heat)
+        if detector is None:
+            detector = make_detector(model, oncoming)
+        check_frame(detector, reader.first_frame, reader.path)  # before any output: size, colour
+        vd = VideoDetector(detector, heat)
         vd.warmup()
         with _progress(reader.expected, progress, os.path.basename(reader.path)) as bar:
             for fno, frame, _ in reader:
