@@ -1,0 +1,103 @@
+"""Detections: a frozen table of boxes with per-box columns."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from fastdet import Detections
+from fastdet.detections import MAIN_PART, WIDE_PART
+
+
+def _dets(n: int = 4, **cols) -> Detections:
+    boxes = np.array([[i, 2 * i, i + 10, 2 * i + 20] for i in range(n)])
+    return Detections(boxes, np.arange(n) / 10, **cols)
+
+
+def test_len_bool_and_empty():
+    e = Detections.empty()
+    assert len(e) == 0 and not e and e.boxes.shape == (0, 4)
+    assert e.boxes.dtype == np.int32 and e.scores.dtype == np.float32
+    assert e.scale is None and e.part is None and e.ids is None
+    d = _dets(3)
+    assert len(d) == 3 and bool(d)
+    assert Detections(np.zeros((0, 4)), []).boxes.shape == (0, 4)
+    assert len(Detections([], [])) == 0  # no boxes at all: still (0, 4)
+
+
+def test_dtypes_and_shapes_normalised():
+    d = Detections([[1.9, 2, 3, 4]], [0.5], scale=[1.5], part=[1], ids=[7])
+    assert d.boxes.dtype == np.int32 and d.boxes.tolist() == [[1, 2, 3, 4]]
+    assert d.scores.dtype == np.float32 and d.scale.dtype == np.float32
+    assert d.part.dtype == np.int8 and d.ids.dtype == np.int64
+    assert Detections([1, 2, 3, 4], 0.5).boxes.shape == (1, 4)  # one box, flat
+    assert d.boxes.flags.c_contiguous
+
+
+@pytest.mark.parametrize("col", ["scores", "scale", "part", "ids"])
+def test_column_length_mismatch_raises(col):
+    cols = {"scores": np.zeros(3)}
+    cols[col] = np.zeros(2)
+    with pytest.raises(ValueError, match=f"3 boxes but 2 {col}"):
+        Detections(np.zeros((3, 4)), **cols)
+
+
+def test_frozen():
+    d = _dets()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        d.boxes = np.zeros((0, 4))
+
+
+def test_getitem_mask_index_slice_int():
+    d = _dets(5, scale=np.arange(5) + 1.0, part=[0, 1, 0, 1, 0], ids=[10, 11, 12, 13, 14])
+    for index, rows in ((np.array([True, False, True, False, False]), [0, 2]), (np.array([3, 1]), [3, 1]),
+                        ([4], [4]), (slice(1, 3), [1, 2]), (2, [2]), (np.int64(-1), [4])):
+        s = d[index]
+        assert isinstance(s, Detections) and len(s) == len(rows)
+        for name in ("boxes", "scores", "scale", "part", "ids"):
+            np.testing.assert_array_equal(getattr(s, name), getattr(d, name)[rows], err_msg=f"{index!r} {name}")
+    assert len(d[np.zeros(5, bool)]) == 0
+    # missing columns stay missing
+    plain = _dets(3)
+    assert plain[[0]].scale is None and plain[[0]].part is None and plain[[0]].ids is None
+
+
+def test_concat_fills_missing_columns():
+    a = _dets(2, scale=[1.0, 2.0], part=[WIDE_PART, WIDE_PART])
+    b = _dets(3)
+    c = _dets(1, ids=[5])
+    d = Detections.concat([a, b, c])
+    assert len(d) == 6
+    np.testing.assert_array_equal(d.boxes, np.concatenate([a.boxes, b.boxes, c.boxes]))
+    np.testing.assert_array_equal(d.scores, np.concatenate([a.scores, b.scores, c.scores]))
+    np.testing.assert_array_equal(d.scale, [1.0, 2.0, np.nan, np.nan, np.nan, np.nan])
+    np.testing.assert_array_equal(d.part, [WIDE_PART, WIDE_PART, MAIN_PART, MAIN_PART, MAIN_PART, MAIN_PART])
+    np.testing.assert_array_equal(d.ids, [-1, -1, -1, -1, -1, 5])
+    assert Detections.concat([b, b]).scale is None  # a column no part has stays missing
+    assert len(Detections.concat([])) == 0
+    assert Detections.concat([a]) is a
+    assert len(Detections.concat([Detections.empty(), b])) == 3
+
+
+def test_is_wide_and_with_ids():
+    d = _dets(3, part=[MAIN_PART, WIDE_PART, MAIN_PART])
+    assert d.is_wide.tolist() == [False, True, False]
+    assert _dets(3).is_wide.tolist() == [False, False, False]
+    t = d.with_ids(np.array([4, 5, 6]))
+    assert t.ids.tolist() == [4, 5, 6] and d.ids is None  # a new object; the original unchanged
+    np.testing.assert_array_equal(t.part, d.part)
+    with pytest.raises(ValueError):
+        d.with_ids(np.array([1]))
+
+
+def test_tuple_unpacking_is_deprecated_but_works():
+    d = _dets(2)
+    with pytest.warns(DeprecationWarning, match=r"\.boxes and \.scores"):
+        boxes, scores = d
+    assert boxes is d.boxes and scores is d.scores
+
+
+def test_repr_names_the_columns():
+    assert repr(_dets(2)) == "Detections(2 boxes)"
+    assert repr(_dets(2, scale=[1, 1], part=[0, 0])) == "Detections(2 boxes, with scale, part)"
