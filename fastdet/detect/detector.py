@@ -133,6 +133,11 @@ class Detector:
     def __init__(self, model: Model | str | os.PathLike | None = None, search: SearchConfig | None = None,
                  wide: Model | str | os.PathLike | None = None, wide_search: SearchConfig | None = None):
         self.model = model if isinstance(model, Model) else load_model(model)
+        if self.model.config.window_height is not None:
+            name = "the main model" if isinstance(model, Model) else os.fspath(model)
+            cfg = self.model.config
+            raise ModelError(f"{name}: a wide-window model ({cfg.win_w}x{cfg.win_h} windows) cannot be the "
+                             f"main model, whose windows are square; give it as the oncoming (wide) model")
         self.search = search if search is not None else SearchConfig()
         self.config = self.model.config
         self.scorers = [_Scorer(self.model, self.search)]
