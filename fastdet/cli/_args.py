@@ -21,6 +21,17 @@ def nonneg_int(s: str) -> int:
     return v
 
 
+def positive_float(s: str) -> float:
+    """argparse type: a finite float > 0."""
+    try:
+        v = float(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {s!r}") from None
+    if not (v > 0 and v != float("inf")):
+        raise argparse.ArgumentTypeError(f"must be > 0, got {s}")
+    return v
+
+
 def add_oncoming_arguments(parser: argparse.ArgumentParser) -> None:
     """``--oncoming-model`` / ``--no-oncoming``, shared by ``video``, ``eval`` and ``bench``."""
     g = parser.add_mutually_exclusive_group()

@@ -11,6 +11,7 @@ the test figures stay comparable. Deterministic for a given ``--seed``.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -18,8 +19,11 @@ from typing import Any
 
 from ..config import COLOR_SPACES, FeatureConfig
 from ..data import data_dir
-from ..errors import FastdetError
+from ..errors import DataError, FastdetError
+from ..io.atomic import check_output_path
 from ..train.fit import train
+from . import _signals
+from ._args import nonneg_int, positive_float, positive_int
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -28,7 +32,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, required=True, help="model file to write (.npz)")
     p.add_argument("--classifier", choices=("linearsvc", "logreg"), default="logreg",
                    help="linear classifier (default: logreg, which gives calibrated probabilities)")
-    p.add_argument("--C", type=float, default=None, help="inverse regularisation strength (default: per classifier)")
+    p.add_argument("--C", type=positive_float, default=None,
+                   help="inverse regularisation strength, > 0 (default: per classifier)")
     p.add_argument("--split", choices=("both", "random", "sequence"), default="both",
                    help="which held-out evaluations to run before the final fit (default: both)")
     p.add_argument("--seed", type=int, default=0, help="random seed (split, classifier)")
@@ -38,18 +43,24 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="folder of extra vehicle crops, any depth; repeatable (joins the training parts only)")
     p.add_argument("--no-flip", action="store_true", help="do not add mirrored copies of the training crops")
     p.add_argument("--color-space", choices=COLOR_SPACES, default=None)
-    p.add_argument("--orientations", type=int, default=None)
-    p.add_argument("--spatial-size", type=int, default=None)
-    p.add_argument("--hist-bins", type=int, default=None)
+    p.add_argument("--orientations", type=positive_int, default=None, help="HOG orientation bins (>= 1)")
+    p.add_argument("--spatial-size", type=nonneg_int, default=None, help="spatial-bin image side (0: none)")
+    p.add_argument("--hist-bins", type=nonneg_int, default=None, help="colour histogram bins (0: none)")
     p.add_argument("--hog-channels", default=None, help="e.g. 0,1,2 or ALL")
     p.add_argument("--window-rows", type=int, nargs=2, metavar=("A", "B"), default=None,
                    help="train a wide-window model on rows [A, B) of the 64x64 crops (e.g. 16 48: "
                         "the middle rows of the vehicles; non-vehicle crops give their top, middle and "
                         "bottom row bands as negatives)")
-    p.add_argument("--max-per-folder", type=int, default=None,
+    p.add_argument("--max-per-folder", type=positive_int, default=None,
                    help="use at most this many crops of each folder (evenly spaced; for quick runs)")
     p.add_argument("--no-refit", action="store_true", help="skip the final fit on all data (no model written)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+
+def _command_name() -> str:
+    """How fastdet was started, for the model's record: ``fastdet`` or ``python -m fastdet``."""
+    argv0 = os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else ""
+    return "fastdet" if argv0 == "fastdet" else "python -m fastdet"
 
 
 def feature_config_from_args(args: argparse.Namespace) -> FeatureConfig:
@@ -57,7 +68,7 @@ def feature_config_from_args(args: argparse.Namespace) -> FeatureConfig:
     changes: dict[str, Any] = {}
     if args.color_space:
         changes["color_space"] = args.color_space
-    if args.orientations:
+    if args.orientations is not None:
         changes["orientations"] = args.orientations
     if args.spatial_size is not None:
         changes["spatial_size"] = args.spatial_size
@@ -70,8 +81,27 @@ def feature_config_from_args(args: argparse.Namespace) -> FeatureConfig:
         changes["window_height"] = b - a
     if args.hog_channels:
         hc = args.hog_channels
-        changes["hog_channels"] = "ALL" if hc.upper() == "ALL" else tuple(int(c) for c in hc.split(","))
-    return replace(cfg, **changes) if changes else cfg
+        try:
+            changes["hog_channels"] = "ALL" if hc.upper() == "ALL" else tuple(int(c) for c in hc.split(","))
+        except ValueError:
+            raise FastdetError(f"--hog-channels must be channels such as 0,1,2 or ALL, got {hc!r}") from None
+    try:
+        return replace(cfg, **changes) if changes else cfg
+    except ValueError as exc:
+        raise FastdetError(f"feature options: {exc}") from None
+
+
+def _check_inputs(data: Path, args: argparse.Namespace) -> None:
+    """The data folders exist (before any of them is loaded)."""
+    if not data.is_dir():
+        raise DataError(f"data folder {data} not found (give --data or set FASTDET_DATA)")
+    for sub in ("vehicles", "non-vehicles"):
+        if not (data / sub).is_dir():
+            raise DataError(f"data folder {data} has no {sub}/ folder")
+    for flag, folders in (("--negatives", args.negatives), ("--positives", args.positives)):
+        for f in folders:
+            if not f.is_dir():
+                raise DataError(f"{flag} {f}: folder not found")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -79,16 +109,19 @@ def run(args: argparse.Namespace) -> int:
     out: Path = args.out
     if out.suffix != ".npz":
         raise FastdetError(f"--out must end in .npz, got {out}")
-    if not out.parent.is_dir():
-        raise FastdetError(f"output folder {out.parent} does not exist")
     config = feature_config_from_args(args)
+    # everything checked before the data is loaded (minutes of work)
+    if not args.no_refit:
+        check_output_path(out, "model")
+    _check_inputs(Path(data), args)
     progress = not args.no_progress and sys.stderr.isatty()
     model, report = train(data, config, args.classifier, args.C, args.split, args.seed, args.negatives,
                           not args.no_flip, args.max_per_folder, not args.no_refit, progress,
                           window_top=args.window_rows[0] if args.window_rows else None,
                           positives=args.positives)
     if model is not None:
-        model.metadata["training"]["command"] = "python -m fastdet train " + " ".join(sys.argv[2:])
+        _signals.check()  # a stop that a library swallowed: no model
+        model.metadata["training"]["command"] = f"{_command_name()} train " + " ".join(sys.argv[2:])
         model.save(out)
         print(f"wrote {out}")
     return 0

@@ -8,6 +8,7 @@ fails or is stopped leaves no file under the final name that looks complete.
 from __future__ import annotations
 
 import os
+import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -75,6 +76,18 @@ def write_bytes(path: str | os.PathLike, data: bytes) -> Path:
     return Path(path)
 
 
+def folder_writable(folder: str | os.PathLike) -> bool:
+    """A file can be created in ``folder`` (tried: ``os.access`` says yes to root on a
+    read-only mount)."""
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".fastdet-probe-", dir=folder)
+    except OSError:
+        return False
+    os.close(fd)
+    _unlink_quietly(Path(probe))
+    return True
+
+
 def check_output_path(path: str | os.PathLike, what: str, inp: str | os.PathLike | None = None) -> None:
     """Refuse an output location before any work: folder missing or not writable, a folder
     given as a file name, or the output being the input itself."""
@@ -82,7 +95,7 @@ def check_output_path(path: str | os.PathLike, what: str, inp: str | os.PathLike
     parent = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(parent):
         raise DataError(f"{path}: output folder {parent} does not exist")
-    if not os.access(parent, os.W_OK):
+    if not folder_writable(parent):
         raise DataError(f"{path}: output folder {parent} is not writable")
     if os.path.isdir(path):
         raise DataError(f"{path}: is a folder, expected a {what} file name")
