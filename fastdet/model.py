@@ -169,8 +169,14 @@ def load_model(path: str | os.PathLike | None = None, expected_config: FeatureCo
     except (ValueError, UnicodeDecodeError) as exc:
         raise ModelError(f"{path}: metadata is not valid JSON: {exc}") from None
     version = meta.get("format_version")
-    if version != FORMAT_VERSION:
-        raise ModelError(f"{path}: model format version {version!r}, this fastdet reads version {FORMAT_VERSION}")
+    if version != FORMAT_VERSION or isinstance(version, bool):
+        if not isinstance(version, int) or isinstance(version, bool):
+            raise ModelError(f"{path}: the model's format version must be the number {FORMAT_VERSION}, "
+                             f"got {type(version).__name__} {json.dumps(version)}")
+        raise ModelError(f"{path}: model format version {version}, this fastdet reads version {FORMAT_VERSION}")
+    for name in ("coef", "intercept", "mean", "scale"):
+        if arrays[name].dtype.kind not in "fiu":
+            raise ModelError(f"{path}: '{name}' holds {arrays[name].dtype} values, expected numbers")
     try:
         config = FeatureConfig.from_dict(meta["feature_config"])
     except (KeyError, TypeError, ValueError) as exc:
