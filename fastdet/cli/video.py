@@ -51,7 +51,7 @@ from ..errors import DataError, FastdetError
 from ..io.atomic import check_output_path
 from ..io.motfiles import JsonLinesWriter, MotWriter
 from ..io.reader import FrameReader, check_source
-from ..io.sink import VideoSink
+from ..io.sink import VideoSink, check_video_path
 from ..video.pipeline import VideoDetector, _passive_omp, _progress, make_detector
 from . import _signals
 from ._args import add_oncoming_arguments, nonneg_int, oncoming_arg, positive_int
@@ -160,6 +160,8 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
     for p, what in ((out, "video"), (boxes_path, "boxes"), (json_path, "JSON")):
         if p:
             check_output_path(p, what, args.input)
+    if out:
+        check_video_path(out)  # .webm and the like: refused before any work
 
     reader = FrameReader(args.input, args.start, args.frames)
     sink = mot = jsl = None

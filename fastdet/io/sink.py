@@ -48,6 +48,16 @@ def _disk_full(path: Path) -> str | None:
     return None
 
 
+def check_video_path(path: str | os.PathLike) -> None:
+    """``DataError`` before any work when ``path``'s extension is not a container fastdet's
+    ``mp4v`` video can be written into (``.webm`` takes only VP8/VP9/AV1)."""
+    ext = Path(path).suffix.lower()
+    if ext not in CONTAINERS:
+        what = f"a {ext!r} file" if ext else "a file without an extension"
+        raise DataError(f"{path}: cannot write a video there (fastdet writes {FOURCC} (MPEG-4) video, "
+                        f"which OpenCV cannot put in {what}); use {', '.join(CONTAINERS)}")
+
+
 class VideoSink:
     """Draws and encodes frames in a background thread; see the module docstring for the
     temporary name. ``put((frame, boxes, debug))`` then ``close()``."""
