@@ -140,8 +140,11 @@ def load_model(path: str | os.PathLike | None = None, expected_config: FeatureCo
         raise ModelError(f"model file {path} not found")
     if path.is_dir():
         raise ModelError(f"model path {path} is a folder, not an .npz file")
-    with open(path, "rb") as fh:
-        magic = fh.read(4)
+    try:
+        with open(path, "rb") as fh:
+            magic = fh.read(4)
+    except OSError as exc:
+        raise ModelError(f"model file {path}: cannot read ({exc.strerror or exc})") from None
     if magic != b"PK\x03\x04":
         raise ModelError(f"{path} is not a fastdet model: not an .npz (zip) archive"
                          + (" (empty file)" if not magic else ""))
@@ -160,7 +163,9 @@ def load_model(path: str | os.PathLike | None = None, expected_config: FeatureCo
             raise ModelError(f"{path} holds a pickled object array; fastdet models hold plain numeric "
                              "arrays only and are never unpickled") from None
         raise ModelError(f"{path} is not a readable .npz model file (truncated or another format): {exc}") from None
-    except (zipfile.BadZipFile, EOFError, OSError, KeyError) as exc:
+    except OSError as exc:
+        raise ModelError(f"model file {path}: cannot read ({exc.strerror or exc})") from None
+    except (zipfile.BadZipFile, EOFError, KeyError) as exc:
         raise ModelError(f"{path} is not a readable .npz model file (truncated or another format): {exc}") from None
     try:
         meta = json.loads(arrays["metadata"].astype(np.uint8).tobytes().decode("utf-8"))
