@@ -153,8 +153,9 @@ def _geometry(shape, ppc, cpb, name="image"):
     n_blocks = (n_cells[0] - cpb[0] + 1, n_cells[1] - cpb[1] + 1)
     if n_blocks[0] <= 0 or n_blocks[1] <= 0:
         raise ValueError(
-            f"{name} of shape {tuple(shape)} is too small for pixels_per_cell={ppc} and "
-            f"cells_per_block={cpb}: it needs at least {cpb[0] * ppc[0]} rows and "
+            f"The input image is too small given the values of pixels_per_cell and "
+            f"cells_per_block: {name} of shape {tuple(shape)}, pixels_per_cell={ppc} and "
+            f"cells_per_block={cpb} need at least {cpb[0] * ppc[0]} rows and "
             f"{cpb[1] * ppc[1]} columns"
         )
     return n_cells, n_blocks
