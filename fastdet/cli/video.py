@@ -1,7 +1,8 @@
 """``python -m fastdet video``: detect vehicles in a video.
 
 ``python -m fastdet video INPUT -o OUT.mp4 [--boxes B.txt] [--json B.jsonl] [--model M.npz]
-[--oncoming-model W.npz | --no-oncoming] [--debug] [--profile] [--no-progress] [--start S] [--frames N]``
+[--oncoming-model W.npz | --no-oncoming] [--debug] [--profile] [--no-progress] [--start S] [--frames N]
+[--no-track | --offline] [--count] [--line X1,Y1,X2,Y2] [--summary S.json]``
 
 - The bundled oncoming-traffic model runs beside the main one (see :class:`VideoDetector`);
   ``--no-oncoming`` leaves it out, ``--oncoming-model`` replaces it.
@@ -9,9 +10,18 @@
 - Decoding runs in a reader thread and drawing + encoding in a writer thread, connected to
   the detecting main thread by bounded queues: OpenCV and the numba kernels release the
   GIL, so the three overlap on two cores.
-- ``--boxes`` writes MOTChallenge lines ``frame,-1,left,top,width,height,conf,-1,-1,-1``
+- Every vehicle box carries a track id (:mod:`fastdet.video.track`, ByteTrack); ids start
+  at 1 and are the same run after run. ``--no-track`` turns the tracker off (ids ``-1``).
+  ``--offline`` (files only) runs the offline pass after the last frame
+  (:mod:`fastdet.video.offline`: short gaps of a track filled, tracks extended back); the
+  outputs are then written after the whole file was read (the video by reading the file a
+  second time), and ``--debug`` draws the tracks but not the panels.
+- ``--boxes`` writes MOTChallenge lines ``frame,id,left,top,width,height,conf,-1,-1,-1``
   and ``--json`` one JSON object per frame (:mod:`fastdet.io.motfiles`); both are flushed after
-  every frame. ``frame`` is the 1-based frame number in INPUT, so with ``--start S`` the
+  every frame. ``conf`` is the peak heat of the vehicle's blob
+  (:class:`~fastdet.video.pipeline.VideoDetector`): above the heat threshold for a heat-map
+  box, at or below it for a weak blob that kept a track alive, 0 for a box the offline pass
+  added. ``frame`` is the 1-based frame number in INPUT, so with ``--start S`` the
   first line is frame ``S + 1``, aligned with the ground truth of the whole clip.
 - INPUT is a video file, an image sequence (``frames/img%04d.jpg``), a URL (``rtsp://``,
   ``http://``) or a camera index (``0``); live sources have no frame count (the progress
@@ -32,10 +42,16 @@
   status 2. Inputs and outputs are all checked before any output file is created.
 - The summary gives the frames per second of the frame loop and the whole run's wall time
   (loading the model and, on a first run, compiling the kernels included).
+- Counting (:mod:`fastdet.video.count`): ``--count`` prints the number of distinct vehicles
+  (track ids) and, with ``--line X1,Y1,X2,Y2`` (frame pixels; implies ``--count``), how many
+  crossed that line in each direction. ``--summary S.json`` writes one JSON object when the
+  run ends: ``input``, ``frames``, ``fps``, ``outputs`` and, with the tracker, ``vehicles``
+  (and ``line`` with its two counts ``left_to_right`` / ``right_to_left``).
 """
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import time
 from collections.abc import Sequence
@@ -45,13 +61,16 @@ from typing import Any
 import numba
 
 from ..config import HeatConfig
+from ..detections import Detections
 from ..console import process_seconds, prog
 from ..detect.checks import check_frame
 from ..errors import DataError, FastdetError
-from ..io.atomic import check_output_path
+from ..io.atomic import check_output_path, write_bytes
 from ..io.motfiles import JsonLinesWriter, MotWriter
 from ..io.reader import FrameReader, check_source
 from ..io.sink import VideoSink, check_video_path
+from ..video.count import CountLine, VehicleCounter
+from ..video.offline import offline_pass
 from ..video.pipeline import VideoDetector, _passive_omp, _progress, make_detector
 from . import _signals
 from ._args import add_oncoming_arguments, nonneg_int, oncoming_arg, positive_int
@@ -63,12 +82,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-o", "--output", metavar="OUTPUT.mp4",
                         help="annotated video (mp4v); written as .OUTPUT.partial.mp4, renamed when done")
     parser.add_argument("--boxes", metavar="BOXES.txt",
-                        help="boxes per frame, MOTChallenge: frame,-1,left,top,width,height,conf,-1,-1,-1")
+                        help="boxes per frame, MOTChallenge: frame,id,left,top,width,height,conf,-1,-1,-1")
     parser.add_argument("--json", metavar="BOXES.jsonl", help="boxes per frame as JSON lines")
     parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
     add_oncoming_arguments(parser)
     parser.add_argument("--debug", action="store_true",
-                        help="add panels along the top: windows by scale, heat map, thresholded blobs")
+                        help="add panels along the top: windows by scale, heat map, thresholded blobs; "
+                             "every live track's predicted box and state")
+    track = parser.add_mutually_exclusive_group()
+    track.add_argument("--no-track", action="store_true", help="no tracker: boxes without ids (-1)")
+    track.add_argument("--offline", action="store_true",
+                       help="files only: after the last frame, fill short gaps of each track and extend "
+                            "tracks back; outputs are written when the whole file was read")
+    parser.add_argument("--count", action="store_true",
+                        help="print the number of distinct vehicles (track ids)")
+    parser.add_argument("--line", metavar="X1,Y1,X2,Y2", type=_line_arg,
+                        help="count the vehicles crossing this line, per direction (implies --count)")
+    parser.add_argument("--summary", metavar="SUMMARY.json",
+                        help="write a JSON summary (frames, fps, outputs, vehicle counts) when the run ends")
     parser.add_argument("--profile", action="store_true", help="print a table of ms per frame per stage")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--start", type=nonneg_int, default=0, metavar="S",
@@ -82,6 +113,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"weight of a frame k frames old is D**k (default {d.decay})")
     parser.add_argument("--heat-threshold", type=float, default=d.threshold, metavar="T",
                         help=f"heat a pixel needs to be part of a vehicle (default {d.threshold})")
+
+
+def _line_arg(s: str) -> CountLine:
+    try:
+        return CountLine.parse(s)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _heat_config(args: argparse.Namespace) -> HeatConfig:
@@ -101,6 +139,8 @@ _STAGES = (
     ("heat", "heat", "main"),
     ("label", "label", "main"),
     ("motion", "motion", "main"),
+    ("weak blobs", "weak", "main"),
+    ("track", "track", "main"),
     ("boxes out", "boxes_out", "main"),
     ("draw", "draw", "writer"),
     ("encode", "encode", "writer"),
@@ -146,18 +186,54 @@ def close_outputs(sink: VideoSink | None, writers: Sequence[Any], discard: bool)
     return [str(done[i]) for i in sorted(done)]
 
 
+def _emit(fno: int, dets: Detections, mot: MotWriter | None, jsl: JsonLinesWriter | None,
+          counter: VehicleCounter | None) -> None:
+    """One frame's boxes (with their ids) to the box files and the counter."""
+    if mot is not None:
+        mot.write_detections(fno, dets)
+    if jsl is not None:
+        jsl.write_detections(fno, dets)
+    if counter is not None:
+        counter.update(dets)
+
+
+def _redraw(args: argparse.Namespace, sink: VideoSink, frames: list[tuple[int, Detections]]) -> None:
+    """``--offline``: read INPUT again and give the sink each frame with its final boxes (no
+    debug panels: the heat maps of every frame are not kept)."""
+    by_frame = dict(frames)
+    last = frames[-1][0]
+    reader = FrameReader(args.input, args.start, last - args.start)
+    try:
+        for fno, frame, _ in reader:
+            if fno > last or _signals.stop_requested():
+                break
+            dets = by_frame.get(fno)
+            if dets is not None:
+                sink.put((frame, dets, None))
+    finally:
+        reader.close()
+
+
 def run(args: argparse.Namespace, detector: Any = None) -> int:
     """The ``video`` subcommand. ``detector`` replaces the model's Detector (tests)."""
     _passive_omp()
     out, boxes_path, json_path = args.output, args.boxes, args.json
-    if not (out or boxes_path or json_path):
-        raise FastdetError("nothing to write: give -o OUTPUT.mp4, --boxes BOXES.txt and/or --json BOXES.jsonl")
-    named = [p for p in (out, boxes_path, json_path) if p]
+    summary_path = getattr(args, "summary", None)
+    line = getattr(args, "line", None)
+    counting = bool(getattr(args, "count", False) or line is not None)
+    track = not getattr(args, "no_track", False)
+    offline = bool(getattr(args, "offline", False))
+    if not (out or boxes_path or json_path or summary_path or counting):
+        raise FastdetError("nothing to write: give -o OUTPUT.mp4, --boxes BOXES.txt, --json BOXES.jsonl, "
+                           "--summary S.json and/or --count")
+    if counting and not track:
+        raise FastdetError("--count and --line need the tracker: leave out --no-track")
+    named = [p for p in (out, boxes_path, json_path, summary_path) if p]
     if len({os.path.abspath(p) for p in named}) != len(named):
         raise FastdetError("the outputs must be different files")
     heat = _heat_config(args)
     check_source(args.input)
-    for p, what in ((out, "video"), (boxes_path, "boxes"), (json_path, "JSON")):
+    for p, what in ((out, "video"), (boxes_path, "boxes"), (json_path, "JSON"), (summary_path, "summary")):
         if p:
             check_output_path(p, what, args.input)
     if out:
@@ -166,13 +242,17 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
     reader = FrameReader(args.input, args.start, args.frames)
     sink = mot = jsl = None
     try:
+        if offline and reader.live:
+            raise FastdetError(f"{args.input}: --offline needs a video file, not a live source")
         if detector is None:
             detector = make_detector(args.model, oncoming_arg(args))
         elif args.model is not None:
             raise FastdetError("--model cannot be used with an injected detector")
         check_frame(detector, reader.first_frame, args.input)
-        vd = VideoDetector(detector, heat)
+        vd = VideoDetector(detector, heat, tracker=track)
         vd.warmup()
+        counter = VehicleCounter(line) if track else None
+        done: list[tuple[int, Detections]] = []  # --offline: every frame's tracks
 
         h, w = reader.shape[:2]
         if out:
@@ -196,15 +276,15 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
                     t0 = time.perf_counter()
                     dets = vd.update(frame)
                     t1 = time.perf_counter()
-                    if mot is not None:
-                        mot.write(fno, dets.boxes, dets.scores)
-                    if jsl is not None:
-                        jsl.write(fno, dets.boxes, dets.scores)
+                    if offline:
+                        done.append((fno, dets))
+                    else:
+                        _emit(fno, dets, mot, jsl, counter)
                     t2 = time.perf_counter()
-                    if sink is not None:
+                    if sink is not None and not offline:
                         dbg = None
                         if args.debug:
-                            dbg = (vd.last_windows, vd.last_heat, vd.last_labels, vd.last_mask)
+                            dbg = (vd.last_windows, vd.last_heat, vd.last_labels, vd.last_mask, vd.last_tracks)
                         sink.put((frame, dets, dbg))
                     for k, v in vd.timings.items():
                         totals[k] = totals.get(k, 0.0) + v
@@ -213,6 +293,13 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
                     main_busy += t2 - t0
                     n += 1
                     bar.update(1)
+                if offline and done:
+                    assert vd.tracker is not None
+                    final = offline_pass(done, reader.shape, vd.tracker.config)
+                    for fno, dets in final:
+                        _emit(fno, dets, mot, jsl, counter)
+                    if sink is not None:
+                        _redraw(args, sink, final)
             failed = False
         except KeyboardInterrupt as exc:  # a stop (Ctrl-C, SIGTERM, SIGHUP): keep the frames done
             failed = False
@@ -225,10 +312,18 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
             if sink is not None:
                 totals["draw"], totals["encode"] = sink.draw_s, sink.encode_s
             if n and not failed:
+                if summary_path:
+                    info: dict[str, Any] = {"input": str(args.input), "frames": n, "fps": round(n / wall, 2),
+                                            "outputs": list(outs)}
+                    if counter is not None:
+                        info.update(counter.summary())
+                    outs.append(str(write_bytes(summary_path, (json.dumps(info) + "\n").encode())))
                 summary = (f"{n} frames in {wall:.2f} s, {n / wall:.1f} fps "
                            f"({process_seconds():.1f} s in all, start-up included)"
                            + (f"; {reader.n_skipped} damaged frames skipped" if reader.n_skipped else "")
                            + (f"; wrote {', '.join(outs)}" if outs else ""))
+                if counting and counter is not None:
+                    summary += f"; {counter.text()}"
                 if stop is not None:
                     stop.detail = summary  # the dispatcher's one line
                 else:

@@ -6,6 +6,7 @@ Every function takes and returns BGR ``uint8`` images (OpenCV order). Functions 
 from __future__ import annotations
 
 import math
+from collections import deque
 from typing import Sequence
 
 import cv2
@@ -59,6 +60,78 @@ def draw_boxes(img: np.ndarray, boxes: np.ndarray, scores: np.ndarray | None = N
             cv2.rectangle(img, (x1, ty - th - 2), (x1 + tw + 2, ty + base - 1), color, -1)
             cv2.putText(img, text, (x1 + 1, ty), cv2.FONT_HERSHEY_SIMPLEX, font_scale,
                         (0, 0, 0), 1, cv2.LINE_AA)
+    return img
+
+
+#: frames of a track's trail (its box centres) drawn behind it
+TRAIL_LENGTH = 20
+
+
+class Trails:
+    """The last ``length`` box centres of each track id, for :func:`draw_tracks`.
+
+    ``update(dets)`` once per frame with that frame's :class:`Detections` (``ids`` set); a
+    track not seen for ``length`` frames is forgotten."""
+
+    def __init__(self, length: int = TRAIL_LENGTH) -> None:
+        self.length = int(length)
+        self._pts: dict[int, deque[tuple[int, int]]] = {}
+        self._seen: dict[int, int] = {}
+        self._frame = 0
+
+    def update(self, dets: Detections) -> None:
+        self._frame += 1
+        if dets.ids is not None:
+            for b, i in zip(dets.boxes, dets.ids):
+                if i < 1:
+                    continue
+                pts = self._pts.setdefault(int(i), deque(maxlen=self.length))
+                pts.append((int(b[0] + b[2]) // 2, int(b[1] + b[3]) // 2))
+                self._seen[int(i)] = self._frame
+        for i in [i for i, f in self._seen.items() if self._frame - f >= self.length]:
+            del self._pts[i], self._seen[i]
+
+    def points(self, track_id: int) -> list[tuple[int, int]]:
+        """The centres of ``track_id``, oldest first (empty when unknown)."""
+        return list(self._pts.get(int(track_id), ()))
+
+
+def draw_tracks(img: np.ndarray, dets: Detections, trails: Trails | None = None,
+                scores: bool = False, thickness: int = 2) -> np.ndarray:
+    """Draw tracked boxes, each in the colour of its id (:func:`label_color`) with the label
+    ``#id`` (and its score with ``scores``), and the trail of its recent centres (thicker
+    towards now). Rows with id < 1 are drawn as :func:`draw_boxes` draws them."""
+    ids = dets.ids if dets.ids is not None else np.full(len(dets), -1, np.int64)
+    font_scale = 0.5 if img.shape[0] >= 360 else 0.35
+    for b, s, i in zip(dets.boxes, dets.scores, ids):
+        if i < 1:
+            draw_boxes(img, b[None], [s], thickness=thickness)
+            continue
+        color = label_color(int(i))
+        if trails is not None:
+            pts = trails.points(int(i))
+            for k in range(1, len(pts)):
+                cv2.line(img, pts[k - 1], pts[k], color, max(1, thickness * k // len(pts)), cv2.LINE_AA)
+        x1, y1, x2, y2 = (int(v) for v in b)
+        cv2.rectangle(img, (x1, y1), (max(x1, x2 - 1), max(y1, y2 - 1)), color, thickness)
+        text = f"#{int(i)}" + (f" {float(s):.1f}" if scores else "")
+        (tw, th), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, font_scale, 1)
+        ty = y1 - 3 if y1 - th - 4 >= 0 else y1 + th + 3
+        cv2.rectangle(img, (x1, ty - th - 2), (x1 + tw + 2, ty + base - 1), color, -1)
+        cv2.putText(img, text, (x1 + 1, ty), cv2.FONT_HERSHEY_SIMPLEX, font_scale, (0, 0, 0), 1, cv2.LINE_AA)
+    return img
+
+
+def draw_track_states(img: np.ndarray, tracks: Sequence[tuple[int, str, np.ndarray]]) -> np.ndarray:
+    """Debug view of the tracker: every live track's predicted box (thin), labelled with its
+    id (``?`` while tentative) and state (``tracked``, ``lost``, ``tentative``)."""
+    for tid, state, box in tracks:
+        color = label_color(tid) if tid >= 1 else (200, 200, 200)
+        x1, y1, x2, y2 = (int(round(v)) for v in box)
+        cv2.rectangle(img, (x1, y1), (max(x1, x2 - 1), max(y1, y2 - 1)), color, 1)
+        text = f"{tid if tid >= 1 else '?'} {state}"
+        cv2.putText(img, text, (x1, y2 + 12), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 3, cv2.LINE_AA)
+        cv2.putText(img, text, (x1, y2 + 12), cv2.FONT_HERSHEY_SIMPLEX, 0.4, color, 1, cv2.LINE_AA)
     return img
 
 

@@ -60,7 +60,13 @@ def check_video_path(path: str | os.PathLike) -> None:
 
 class VideoSink:
     """Draws and encodes frames in a background thread; see the module docstring for the
-    temporary name. ``put((frame, boxes, debug))`` then ``close()``."""
+    temporary name. ``put((frame, boxes, debug))`` then ``close()``.
+
+    ``boxes`` is the frame's :class:`~fastdet.detections.Detections`; with ``ids`` they are
+    drawn as tracks (id label, colour and trail, :func:`fastdet.io.draw.draw_tracks`).
+    ``debug`` is ``None`` or ``(windows, heat, labels, mask[, tracks])`` for the debug
+    panels (:func:`fastdet.io.draw.debug_panels`) and, with ``tracks``, every live track's
+    predicted box (:func:`fastdet.io.draw.draw_track_states`)."""
 
     def __init__(self, path: str, fps: float, size: tuple[int, int], debug: bool = False,
                  threshold: float | None = None) -> None:
@@ -84,6 +90,7 @@ class VideoSink:
         self.draw_s = 0.0
         self.encode_s = 0.0
         self.error: BaseException | None = None
+        self._trails = draw.Trails()
         self._q: queue.Queue = queue.Queue(maxsize=QUEUE_SIZE)
         self._thread = threading.Thread(target=self._run, name="fastdet-encode", daemon=True)
         self._thread.start()
@@ -112,7 +119,13 @@ class VideoSink:
                 if dbg is not None:
                     draw.paste_panels(frame, draw.debug_panels(frame, *dbg, threshold=self.threshold,
                                                                boxes=boxes.boxes))
-                draw.draw_boxes(frame, boxes.boxes, boxes.scores)
+                    if len(dbg) > 4:
+                        draw.draw_track_states(frame, dbg[4])
+                if boxes.ids is not None:
+                    self._trails.update(boxes)
+                    draw.draw_tracks(frame, boxes, self._trails, scores=dbg is not None)
+                else:
+                    draw.draw_boxes(frame, boxes.boxes, boxes.scores)
                 t1 = time.perf_counter()
                 self._writer.write(frame)
                 t2 = time.perf_counter()

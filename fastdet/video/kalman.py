@@ -29,7 +29,8 @@ def xyxy_to_cxcywh(boxes: np.ndarray) -> np.ndarray:
 def cxcywh_to_xyxy(z: np.ndarray) -> np.ndarray:
     """``(N, >=4)`` centre x, centre y, width, height (further columns ignored) -> ``(N, 4)
     float64`` x1, y1, x2, y2."""
-    z = np.asarray(z, np.float64).reshape(len(z), -1)
+    z = np.asarray(z, np.float64)
+    z = z.reshape(-1, 4) if z.size == 0 else z.reshape(len(z), -1)
     hw, hh = z[:, 2] / 2, z[:, 3] / 2
     return np.stack([z[:, 0] - hw, z[:, 1] - hh, z[:, 0] + hw, z[:, 1] + hh], 1)
 

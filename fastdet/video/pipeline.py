@@ -4,13 +4,15 @@ Python API
 ----------
 :class:`VideoDetector` turns a stream of frames into one box per vehicle per frame::
 
-    vd = VideoDetector()                # bundled model, default SearchConfig / HeatConfig
+    vd = VideoDetector()                # bundled model, default SearchConfig / HeatConfig / TrackerConfig
     for frame in frames:                # (H, W, 3) uint8 BGR
-        dets = vd.update(frame)         # Detections: boxes (N, 4) x1, y1, x2, y2; scores
+        dets = vd.update(frame)         # Detections: boxes (N, 4) x1, y1, x2, y2; scores; ids
     vd.last_windows, vd.last_heat, vd.last_mask, vd.last_labels   # debug of the last frame
+    vd.last_boxes, vd.last_low, vd.tracker.tracks                 # heat-map boxes, weak boxes, tracks
 
 :func:`iter_video_detections` runs it over a file and yields ``(frame number, Detections)``
-with 1-based frame numbers of the file (``start`` frames skipped keep their numbers).
+with 1-based frame numbers of the file (``start`` frames skipped keep their numbers);
+``offline=True`` adds the offline pass (:mod:`fastdet.video.offline`).
 """
 from __future__ import annotations
 
@@ -23,7 +25,8 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 from tqdm import tqdm
 
-from ..config import WIDE_HEAT, HeatConfig, MotionGate, SearchBand
+from ..boxes import clip, overlap_fraction
+from ..config import WIDE_HEAT, HeatConfig, MotionGate, SearchBand, TrackerConfig
 from ..detect import BandGeometry, Detector, DetectStats
 from ..detect.checks import check_frame
 from ..detections import Detections
@@ -32,6 +35,8 @@ from ..model import ONCOMING_MODEL_PATH, Model
 from .fusion import merge_wide
 from .heatmap import HeatMap
 from .motion import FrameMotion, MotionMap, moving_bands, window_motion
+from .offline import offline_pass
+from .track import Tracker
 
 ModelLike = Model | str | os.PathLike | None
 
@@ -95,21 +100,35 @@ class VideoDetector:
         ``MotionGate()``): it searches only where the picture moved since the previous frame
         and keeps only its windows that moved enough (:mod:`fastdet.video.motion`); so it
         finds nothing on the first frame.
+    tracker: :class:`~fastdet.config.TrackerConfig` of the tracker that gives each vehicle
+        an id (:mod:`fastdet.video.track`; default ``TrackerConfig()``), or ``False`` for no
+        tracking (every box from the heat maps, ``ids`` ``None``). Ids start at 1 for a new
+        VideoDetector and after :meth:`reset`, so they are the same run after run.
+
+    What :meth:`update` returns, with the tracker: the tracked vehicles of this frame (the
+    confirmed tracks that found a box), each with its id and, as its score, the peak heat of
+    the blob it was matched to -- above the heat map's threshold for a heat-map box, at or
+    below it for a weak blob that kept the vehicle's track alive. Without the tracker: the
+    heat maps' boxes, scored by peak heat.
 
     After :meth:`update`, for debugging the last frame: ``last_windows`` (the positive
     windows, :class:`Detections` with ``scale`` and ``part``), ``last_heat`` (heat grid,
     float64, one cell = ``heat.cell`` pixels), ``last_mask`` (heat > threshold),
     ``last_labels`` (blob labels), ``last_boxes`` (the result) and ``timings`` (seconds per
     stage: the detector's ``resize_colour``, ``hog``, ``score``, the heat map's ``heat``,
-    ``label``, and ``motion``). These are new objects every frame, so a consumer may keep
-    them (e.g. a writer thread) while the next frame is processed.
+    ``label``, ``motion``, ``weak`` (the weak blobs) and ``track``), ``last_low`` (the weak boxes given to the tracker)
+    and ``last_tracks`` (every live track: ``(id, state, predicted box)``, id -1 while
+    tentative). ``last_boxes`` is the heat maps' boxes before the tracker. These are new
+    objects every frame, so a consumer may keep them (e.g. a writer thread) while the next
+    frame is processed.
 
     The heat map is sized on the first frame; a frame of another size starts a new heat map
     (as :meth:`reset`).
     """
 
     def __init__(self, detector: WindowDetector | None = None, heat: HeatConfig | None = None,
-                 wide_heat: HeatConfig | None = None, motion: MotionGate | None = None) -> None:
+                 wide_heat: HeatConfig | None = None, motion: MotionGate | None = None,
+                 tracker: TrackerConfig | bool | None = None) -> None:
         if detector is not None and not isinstance(detector, WindowDetector):
             raise TypeError(f"detector must provide detect(), warmup(), geometries(), score_kind and "
                             f"wide_model (a WindowDetector), got {type(detector).__name__}")
@@ -124,6 +143,11 @@ class VideoDetector:
         if not isinstance(self.heat_config, HeatConfig):
             raise TypeError(f"heat must be a HeatConfig, got {type(self.heat_config).__name__}")
         self.heatmap: HeatMap | None = None
+        if tracker is None or tracker is True:
+            tracker = TrackerConfig()
+        if tracker is not False and not isinstance(tracker, TrackerConfig):
+            raise TypeError(f"tracker must be a TrackerConfig or False, got {type(tracker).__name__}")
+        self.tracker: Tracker | None = Tracker(tracker) if tracker is not False else None
         self.timings: dict[str, float] = {}
         self._clear()
 
@@ -139,9 +163,13 @@ class VideoDetector:
         self.last_mask = np.zeros((0, 0), bool)
         self.last_labels = np.zeros((0, 0), np.int32)
         self.last_boxes = Detections.empty()
+        self.last_low = Detections.empty()
+        self.last_tracks: list[tuple[int, str, np.ndarray]] = []
 
     def reset(self) -> None:
-        """Forget the previous frames (a new video, or a cut)."""
+        """Forget the previous frames (a new video, or a cut); track ids start again at 1."""
+        if self.tracker is not None:
+            self.tracker.reset()
         if self.heatmap is not None:
             self.heatmap.reset()
         if self.wide_heatmap is not None:
@@ -157,6 +185,8 @@ class VideoDetector:
     def _heatmap_for(self, shape: tuple[int, ...]) -> HeatMap:
         hw = (int(shape[0]), int(shape[1]))
         if self.heatmap is None or self.heatmap.frame_shape != hw:
+            if self.heatmap is not None and self.tracker is not None:
+                self.tracker.reset()  # another picture: its tracks do not continue
             self.heatmap = HeatMap(hw, self.heat_config, score_kind=self.detector.score_kind)
         return self.heatmap
 
@@ -192,7 +222,9 @@ class VideoDetector:
     def update(self, frame: np.ndarray, rgb: bool = False) -> Detections:
         """Boxes of the vehicles in ``frame`` (``(H, W, 3) uint8``, BGR or RGB with ``rgb=True``).
 
-        Each box's score is the peak heat of its blob (:mod:`fastdet.video.heatmap`)."""
+        Each box's score is the peak heat of its blob (:mod:`fastdet.video.heatmap`); with
+        the tracker, the boxes are those of the tracked vehicles, with ``ids`` (class
+        docstring). Causal: uses this and earlier frames only."""
         frame = np.asarray(frame)
         if frame.ndim != 3 or frame.shape[2] != 3 or frame.dtype != np.uint8:
             raise ValueError(f"frame must be an (H, W, 3) uint8 array, got {frame.dtype} {frame.shape}")
@@ -226,6 +258,18 @@ class VideoDetector:
                 boxes = merge_wide(main_boxes, hw.update(windows[wide]))
         else:
             boxes = hm.update(windows)
+        out = boxes
+        t_weak = t_track = 0.0
+        if self.tracker is not None:
+            t1 = time.perf_counter()
+            low = self._weak_boxes(boxes)
+            t2 = time.perf_counter()
+            out = self.tracker.update(boxes, low)
+            if self.tracker.config.output == "filtered" and len(out):
+                out = Detections(clip(out.boxes, frame.shape), out.scores, ids=out.ids)
+            t_weak, t_track = t2 - t1, time.perf_counter() - t2
+            self.last_low = low
+            self.last_tracks = [(t.id, t.state, t.predicted) for t in self.tracker.tracks]
         self.last_windows = windows
         self.last_heat = hm.heat
         self.last_mask = hm.mask
@@ -234,7 +278,25 @@ class VideoDetector:
         self.timings = {**stats.timings, **hm.timings}
         if gate > 0:
             self.timings["motion"] = t_motion
-        return boxes
+        if self.tracker is not None:
+            self.timings["weak"] = t_weak
+            self.timings["track"] = t_track
+        return out
+
+    def _weak_boxes(self, boxes: Detections) -> Detections:
+        """The tracker's low-confidence boxes: the weak blobs of the heat maps above
+        ``low_heat`` x their thresholds (:meth:`HeatMap.weak_boxes`), less those with more
+        than 0.2 of their area inside a box of ``boxes`` (as :func:`merge_wide`)."""
+        assert self.tracker is not None
+        f = self.tracker.config.low_heat
+        if f <= 0:
+            return Detections.empty()
+        parts = [hm.weak_boxes(f * hm.config.threshold) for hm in (self.heatmap, self.wide_heatmap)
+                 if hm is not None and hm.n_seen]
+        low = Detections.concat(parts) if parts else Detections.empty()
+        if len(low) and len(boxes):
+            low = low[overlap_fraction(low.boxes, boxes.boxes).max(axis=1) <= 0.2]
+        return low
 
 
 def detect_image(frame: np.ndarray, detector: WindowDetector, heat: HeatConfig) -> tuple[Detections, HeatMap, Detections]:
@@ -252,7 +314,9 @@ def _progress(total: int | None, enabled: bool, desc: str) -> tqdm:
 
 def iter_video_detections(path: str | os.PathLike, model: Any = None, start: int = 0,
                           frames: int | None = None, progress: bool = True, detector: Any = None,
-                          heat: HeatConfig | None = None, oncoming: Any = True) -> Iterator[tuple[int, Detections]]:
+                          heat: HeatConfig | None = None, oncoming: Any = True,
+                          tracker: TrackerConfig | bool | None = None,
+                          offline: bool = False) -> Iterator[tuple[int, Detections]]:
     """Vehicle boxes of every frame of a video file: yields ``(frame, Detections)``.
 
     frame: 1-based frame number in the file (``start`` frames are skipped, so the first one
@@ -260,25 +324,40 @@ def iter_video_detections(path: str | os.PathLike, model: Any = None, start: int
     model: model for the default Detector (Model, path, or ``None`` for the bundled one);
         oncoming: its wide-window model (see :func:`make_detector`);
         ``detector``: use this detector instead (see :class:`VideoDetector`).
+    tracker: as :class:`VideoDetector` (default: tracking on, ``ids`` filled).
+    offline: run the offline pass over the whole file's tracks first
+        (:func:`fastdet.video.offline.offline_pass`: gap interpolation, extension back); the
+        first frame is then yielded only after the last one was read. Needs the tracker.
     progress: a tqdm bar on stderr when it is a terminal.
     Raises :class:`~fastdet.errors.DataError` / :class:`~fastdet.errors.ModelError` for bad
     input (a decode failure midway raises after the frames before it were yielded).
     """
     if detector is not None and model is not None:
         raise ValueError("give a model or a detector, not both")
+    if offline and tracker is False:
+        raise ValueError("offline needs the tracker")
     _passive_omp()
     reader = FrameReader(path, start, frames)
     try:
         if detector is None:
             detector = make_detector(model, oncoming)
         check_frame(detector, reader.first_frame, reader.path)  # before any output: size, colour
-        vd = VideoDetector(detector, heat)
+        vd = VideoDetector(detector, heat, tracker=tracker)
         vd.warmup()
+        done: list[tuple[int, Detections]] = []
         with _progress(reader.expected, progress, os.path.basename(reader.path)) as bar:
             for fno, frame, _ in reader:
-                yield fno, vd.update(frame)
+                dets = vd.update(frame)
+                if offline:
+                    done.append((fno, dets))
+                else:
+                    yield fno, dets
                 bar.update(1)
+        shape = reader.shape
     finally:
         reader.close()
+    if offline:
+        assert vd.tracker is not None
+        yield from offline_pass(done, shape, vd.tracker.config)
 
 

@@ -50,17 +50,16 @@ TENTATIVE, TRACKED, LOST = "tentative", "tracked", "lost"
 
 @dataclass(eq=False)
 class Track:
-    """One track (mutable, owned by :class:`Tracker`).
+    """One track's bookkeeping (mutable, owned by :class:`Tracker`, which keeps the Kalman
+    states of all tracks in one stack).
 
     id: the public id once confirmed, ``-1`` while tentative. state: ``TENTATIVE``,
-    ``TRACKED`` (found a box in the last frame) or ``LOST``. mean, cov: Kalman state
-    (:mod:`fastdet.video.kalman`). hits: frames with a box; streak: of them in a row.
-    first_frame, last_frame: frame numbers (of the tracker's own count, 1-based) of its first
-    and latest box. box, score: its latest box (x1, y1, x2, y2 float64) and that box's score.
+    ``TRACKED`` (found a box in the last frame) or ``LOST``. hits: frames with a box; streak:
+    of them in a row. first_frame, last_frame: the tracker's frame count (1-based) at its
+    first and latest box. box, score: its latest box (x1, y1, x2, y2 float64) and that box's
+    score. predicted: its box predicted for the current frame (x1, y1, x2, y2 float64).
     """
 
-    mean: np.ndarray
-    cov: np.ndarray
     first_frame: int
     box: np.ndarray
     score: float
@@ -69,24 +68,23 @@ class Track:
     hits: int = 1
     streak: int = 1
     last_frame: int = 0
-
-    @property
-    def predicted_box(self) -> np.ndarray:
-        """``(4,) float64`` x1, y1, x2, y2 of the Kalman state."""
-        return cxcywh_to_xyxy(self.mean[None, :4])[0]
+    predicted: np.ndarray | None = None
 
 
-def assign(cost_iou: np.ndarray, min_iou: float) -> tuple[np.ndarray, np.ndarray]:
-    """Hungarian assignment maximising the total IoU of ``cost_iou (N, M)`` (rows: tracks,
-    columns: boxes) among the pairs with IoU >= ``min_iou``: ``(rows, cols)``, the matched
-    pairs in row order. Pairs below ``min_iou`` are never matched."""
-    if cost_iou.size == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    ok = cost_iou >= min_iou
+def assign(ious: np.ndarray, min_iou: float) -> tuple[np.ndarray, np.ndarray]:
+    """Hungarian assignment of ``ious (N, M)`` (rows: tracks, columns: boxes): among the
+    matchings that use only pairs with IoU >= ``min_iou``, the one with the largest total
+    ``IoU - min_iou`` -- ByteTrack's objective (``lap.lapjv`` with ``cost_limit``: a pair is
+    worth matching by how much it beats the threshold). Returns ``(rows, cols)`` of the
+    matched pairs, in row order."""
+    none = np.zeros(0, np.int64), np.zeros(0, np.int64)
+    if ious.size == 0:
+        return none
+    ok = ious >= min_iou
     if not ok.any():
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    cost = np.where(ok, 1.0 - cost_iou, 2.0)  # a forbidden pair costs more than any allowed one
-    r, c = linear_sum_assignment(cost)
+        return none
+    gain = np.where(ok, ious - min_iou, 0.0)  # a forbidden pair gains nothing: never needed
+    r, c = linear_sum_assignment(gain, maximize=True)
     keep = ok[r, c]
     return r[keep].astype(np.int64), c[keep].astype(np.int64)
 
@@ -144,8 +142,9 @@ class Tracker:
     ``update(high, low)`` once per frame returns the confirmed, matched tracks as
     :class:`~fastdet.detections.Detections` with ``ids``. Causal: an output depends only on
     this and earlier frames. ``reset()`` forgets every track and restarts ids at 1.
-    ``tracks`` lists the live tracks (for drawing / debugging); ``confirmed`` is the number of
-    ids given so far (distinct vehicles confirmed).
+    ``tracks`` lists the live tracks (for drawing / debugging: ``id``, ``state``,
+    ``predicted``); ``confirmed`` is the number of ids given so far (distinct vehicles
+    confirmed).
     """
 
     def __init__(self, config: TrackerConfig | None = None) -> None:
@@ -159,47 +158,21 @@ class Tracker:
     def reset(self) -> None:
         """Forget every track; the next confirmed track gets id 1."""
         self.tracks: list[Track] = []
+        self._mean = np.zeros((0, 8))  # Kalman state of tracks[i] in row i
+        self._cov = np.zeros((0, 8, 8))
         self.frame = 0
         self.confirmed = 0
 
-    # ------------------------------------------------------------------ steps
-    def _predict(self) -> None:
-        if not self.tracks:
-            return
-        mean = np.stack([t.mean for t in self.tracks])
-        cov = np.stack([t.cov for t in self.tracks])
-        lost = np.array([t.state == LOST for t in self.tracks])
-        mean[lost, 6:8] = 0.0  # a lost track keeps its size (ByteTrack: no height velocity)
-        mean, cov = self.kalman.predict(mean, cov)
-        for t, m, s in zip(self.tracks, mean, cov):
-            t.mean, t.cov = m, s
-
-    def _match(self, tracks: list[Track], boxes: np.ndarray, min_iou: float) -> tuple[np.ndarray, np.ndarray]:
-        if not tracks or not len(boxes):
+    def _match(self, rows: np.ndarray, pred: np.ndarray, boxes: np.ndarray,
+               min_iou: float) -> tuple[np.ndarray, np.ndarray]:
+        """Assign ``boxes`` to the tracks in ``rows`` (their predicted boxes ``pred[rows]``):
+        ``(track rows, box indices)``."""
+        if not len(rows) or not len(boxes):
             return np.zeros(0, np.int64), np.zeros(0, np.int64)
-        pred = np.stack([t.predicted_box for t in tracks])
         b = self.config.buffer
-        return assign(iou(buffered(pred, b), buffered(boxes, b)), min_iou)
+        r, k = assign(iou(buffered(pred[rows], b), buffered(boxes, b)), min_iou)
+        return rows[r], k
 
-    def _correct(self, tracks: list[Track], boxes: np.ndarray, scores: np.ndarray) -> None:
-        """Kalman update of ``tracks`` with their boxes (row i for track i)."""
-        if not tracks:
-            return
-        mean = np.stack([t.mean for t in tracks])
-        cov = np.stack([t.cov for t in tracks])
-        mean, cov = self.kalman.update(mean, cov, xyxy_to_cxcywh(boxes))
-        for t, m, s, b, sc in zip(tracks, mean, cov, boxes, scores):
-            t.mean, t.cov, t.box, t.score = m, s, b.copy(), float(sc)
-            t.hits += 1
-            t.streak = t.streak + 1 if t.last_frame == self.frame - 1 else 1
-            t.last_frame = self.frame
-
-    def _confirm(self, t: Track) -> None:
-        self.confirmed += 1
-        t.id = self.confirmed
-        t.state = TRACKED
-
-    # ------------------------------------------------------------------ update
     def update(self, high: Detections, low: Detections | None = None) -> Detections:
         """Track one frame. ``high``: the high-confidence boxes (they may start tracks);
         ``low``: low-confidence boxes (they only continue tracked tracks), or ``None``.
@@ -207,82 +180,106 @@ class Tracker:
         matched box), ids, in ascending id order."""
         c = self.config
         self.frame += 1
-        self._predict()
-        confirmed = [t for t in self.tracks if t.state != TENTATIVE]
-        tentative = [t for t in self.tracks if t.state == TENTATIVE]
+        tracks = self.tracks
+        is_lost = np.array([t.state == LOST for t in tracks], bool)
+        is_tent = np.array([t.state == TENTATIVE for t in tracks], bool)
+        if tracks:  # predict
+            self._mean[is_lost, 6:8] = 0.0  # a lost track keeps its size
+            self._mean, self._cov = self.kalman.predict(self._mean, self._cov)
+        pred = cxcywh_to_xyxy(self._mean)
+        for t, p in zip(tracks, pred):
+            t.predicted = p
+        confirmed = np.flatnonzero(~is_tent)
+        tracked = np.flatnonzero(~is_tent & ~is_lost)
+        tentative = np.flatnonzero(is_tent)
 
         hb = high.boxes.astype(np.float64)
         hs = high.scores.astype(np.float64)
-        tracked = [t for t in confirmed if t.state == TRACKED]
         if len(tracked) >= 2 and len(hb) and c.split_overlap > 0:
-            hb, src = split_merged(hb, np.stack([t.predicted_box for t in tracked]), c.split_overlap)
+            hb, src = split_merged(hb, pred[tracked], c.split_overlap)
             hs = hs[src]
-        matched: list[Track] = []
+        used = np.zeros(len(hb), bool)
+        fix_rows: list[np.ndarray] = []  # Kalman corrections, done together at the end
+        fix_boxes: list[np.ndarray] = []
+        fix_scores: list[np.ndarray] = []
 
         # stage 1: high boxes vs confirmed tracks (tracked and lost)
-        r, k = self._match(confirmed, hb, c.match_iou)
-        used = np.zeros(len(hb), bool)
-        used[k] = True
-        got = [confirmed[i] for i in r]
-        self._correct(got, hb[k], hs[k])
-        for t in got:
-            t.state = TRACKED
-        matched += got
-        rest = [t for t in confirmed if t not in got]
+        r1, k1 = self._match(confirmed, pred, hb, c.match_iou)
+        used[k1] = True
+        fix_rows.append(r1), fix_boxes.append(hb[k1]), fix_scores.append(hs[k1])
+        done = np.zeros(len(tracks), bool)
+        done[r1] = True
+        left = tracked[~done[tracked]]
 
-        # stage 2: low boxes vs tracked tracks left over
-        if low is not None and len(low):
+        # stage 2: low boxes vs the tracked tracks left over
+        if low is not None and len(low) and len(left):
             lb = low.boxes.astype(np.float64)
-            cand = [t for t in rest if t.state == TRACKED]
-            r2, k2 = self._match(cand, lb, c.low_match_iou)
-            got2 = [cand[i] for i in r2]
-            self._correct(got2, lb[k2], low.scores[k2].astype(np.float64))
-            matched += got2
-            rest = [t for t in rest if t not in got2]
-        for t in rest:
-            t.state = LOST
-            t.streak = 0
+            r2, k2 = self._match(left, pred, lb, c.low_match_iou)
+            fix_rows.append(r2), fix_boxes.append(lb[k2]), fix_scores.append(low.scores[k2].astype(np.float64))
+            done[r2] = True
+            left = left[~done[left]]
+        for i in left:
+            tracks[i].state = LOST
+            tracks[i].streak = 0
 
         # stage 3: tentative tracks vs the high boxes left
         free = np.flatnonzero(~used)
-        r3, k3 = self._match(tentative, hb[free], c.tentative_match_iou)
-        got3 = [tentative[i] for i in r3]
-        self._correct(got3, hb[free[k3]], hs[free[k3]])
+        r3, k3 = self._match(tentative, pred, hb[free], c.tentative_match_iou)
         used[free[k3]] = True
-        keep_tent = []
-        for t in got3:
-            if t.streak >= c.min_hits:
-                self._confirm(t)
-                matched.append(t)
-            else:
-                keep_tent.append(t)
+        fix_rows.append(r3), fix_boxes.append(hb[free[k3]]), fix_scores.append(hs[free[k3]])
 
-        # stage 4: new tracks
+        rows = np.concatenate(fix_rows)
+        if len(rows):
+            self._mean[rows], self._cov[rows] = self.kalman.update(self._mean[rows], self._cov[rows],
+                                                                   xyxy_to_cxcywh(np.concatenate(fix_boxes)))
+        matched = []
+        for i, b, sc in zip(rows, np.concatenate(fix_boxes), np.concatenate(fix_scores)):
+            t = tracks[i]
+            t.box, t.score = b, float(sc)
+            t.hits += 1
+            t.streak = t.streak + 1 if t.last_frame == self.frame - 1 else 1
+            t.last_frame = self.frame
+            if t.state == TENTATIVE:
+                if t.streak < c.min_hits:
+                    continue
+                self._confirm(t)
+            t.state = TRACKED
+            matched.append(t)
+
+        # stage 4: each high box left starts a track
         new = np.flatnonzero(~used)
         if len(new):
             mean, cov = self.kalman.initiate(xyxy_to_cxcywh(hb[new]))
-            for j, m, s in zip(new, mean, cov):
-                t = Track(m, s, self.frame, hb[j].copy(), float(hs[j]), last_frame=self.frame)
+            self._mean = np.concatenate([self._mean, mean])
+            self._cov = np.concatenate([self._cov, cov])
+            for j, m in zip(new, mean):
+                t = Track(self.frame, hb[j], float(hs[j]), last_frame=self.frame,
+                          predicted=cxcywh_to_xyxy(m[None])[0])
+                tracks.append(t)
                 if c.min_hits <= 1:
                     self._confirm(t)
+                    t.state = TRACKED
                     matched.append(t)
-                else:
-                    keep_tent.append(t)
-                self.tracks.append(t)
 
-        # stage 5: forget
-        self.tracks = [t for t in self.tracks
-                       if (t.state == TENTATIVE and t in keep_tent)
-                       or (t.state == TRACKED)
-                       or (t.state == LOST and self.frame - t.last_frame <= c.max_lost)]
+        # stage 5: forget tentative tracks that missed this frame and lost tracks too old
+        keep = np.array([t.last_frame == self.frame if t.state == TENTATIVE
+                         else self.frame - t.last_frame <= c.max_lost for t in tracks], bool)
+        if not keep.all():
+            self.tracks = [t for t, k in zip(tracks, keep) if k]
+            self._mean, self._cov = self._mean[keep], self._cov[keep]
         return self._output(matched)
+
+    def _confirm(self, t: Track) -> None:
+        self.confirmed += 1
+        t.id = self.confirmed
 
     def _output(self, matched: list[Track]) -> Detections:
         if not matched:
             return Detections(np.zeros((0, 4), np.int32), np.zeros(0, np.float32), ids=np.zeros(0, np.int64))
         matched = sorted(matched, key=lambda t: t.id)
         if self.config.output == "filtered":
-            boxes = np.stack([t.predicted_box for t in matched])
+            index = {id(t): i for i, t in enumerate(self.tracks)}
+            boxes = cxcywh_to_xyxy(self._mean[[index[id(t)] for t in matched]])
         else:
             boxes = np.stack([t.box for t in matched])
         return Detections(np.round(boxes).astype(np.int32), np.array([t.score for t in matched], np.float32),
