@@ -447,8 +447,17 @@ class TrackerConfig:
         them (:func:`fastdet.video.track.split_merged`); ``0`` = never split.
     output: which box a tracked vehicle is reported with: ``'detection'`` (the heat map's box
         of this frame) or ``'filtered'`` (the Kalman filter's estimate).
+    buffer: boxes are grown by this fraction of their width / height on every side before
+        the IoU of an association (the buffered IoU of C-BIoU, Yang et al., WACV 2023, whose
+        first stage uses 0.3): an oncoming car 45 px wide moves 15-20 px a frame at 25 fps,
+        so its new box barely overlaps its predicted one until the filter has learnt its
+        velocity. 0 = plain IoU.
     std_position, std_velocity, init_velocity: Kalman noise, fractions of the box's width /
-        height per frame (:class:`fastdet.video.kalman.BoxKalman`).
+        height per frame (:class:`fastdet.video.kalman.BoxKalman`). ``std_position`` and
+        ``std_velocity`` are ByteTrack's; ``init_velocity``, the uncertainty of a new track's
+        velocity, is 4x ByteTrack's 10/160 (made for pedestrians at 30 fps): vehicles cross the
+        view at up to half their width per frame, and with 0.25 a track knows its velocity from
+        its second box.
     max_gap: ``--offline`` only: a track's gaps of at most this many frames are filled by
         linear interpolation (StrongSORT's gap interpolation, Du et al., 2023).
     extend_back: ``--offline`` only: each track is extended this many frames back from its
@@ -463,7 +472,7 @@ class TrackerConfig:
     max_lost: int = 30
     split_overlap: float = 0.5
     output: Literal["detection", "filtered"] = "detection"
-    buffer: float = 0.0
+    buffer: float = 0.3
     std_position: float = 1 / 20
     std_velocity: float = 1 / 160
     init_velocity: float = 0.25
@@ -479,15 +488,12 @@ class TrackerConfig:
                 raise ValueError(f"{name} must be in (0, 1], got {v!r}")
         for name, lo in (("min_hits", 1), ("max_lost", 0), ("max_gap", 0), ("extend_back", 0)):
             v = getattr(self, name)
-    buffer: boxes are grown by this fraction of their width / height on every side before
-        the IoU of an association (the buffered IoU of C-BIoU, Yang et al., WACV 2023, whose
-        first stage uses 0.3): an oncoming car 45 px wide moves 15-20 px a frame at 25 fps,
-        so its new box barely overlaps its predicted one until the filter has learnt its
-        velocity. 0 = plain IoU.
             if int(v) != v or v < lo:
                 raise ValueError(f"{name} must be an integer >= {lo}, got {v!r}")
         if not 0 <= self.split_overlap <= 1:
             raise ValueError(f"split_overlap must be in [0, 1], got {self.split_overlap!r}")
+        if not 0 <= self.buffer <= 2:
+            raise ValueError(f"buffer must be in [0, 2], got {self.buffer!r}")
         if self.output not in ("detection", "filtered"):
             raise ValueError(f"output must be 'detection' or 'filtered', got {self.output!r}")
         for name in ("std_position", "std_velocity", "init_velocity"):
@@ -501,5 +507,3 @@ class TrackerConfig:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "TrackerConfig":
         return _from_dict(cls, d)
-        if not 0 <= self.buffer <= 2:
-            raise ValueError(f"buffer must be in [0, 2], got {self.buffer!r}")
