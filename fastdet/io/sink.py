@@ -117,7 +117,7 @@ class VideoSink:
                 frame, boxes, dbg = item
                 t0 = time.perf_counter()
                 if dbg is not None:
-                    draw.paste_panels(frame, draw.debug_panels(frame, *dbg, threshold=self.threshold,
+                    draw.paste_panels(frame, draw.debug_panels(frame, *dbg[:4], threshold=self.threshold,
                                                                boxes=boxes.boxes))
                     if len(dbg) > 4:
                         draw.draw_track_states(frame, dbg[4])
