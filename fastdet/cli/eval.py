@@ -39,23 +39,33 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                      help="run the default video pipeline on this clip and evaluate its boxes")
     parser.add_argument("--model", metavar="MODEL.npz", help="model for --video (default: the bundled one)")
     add_oncoming_arguments(parser)
+    track = parser.add_mutually_exclusive_group()
+    track.add_argument("--no-track", action="store_true",
+                       help="--video without the tracker (boxes without ids: no MOT metrics)")
+    track.add_argument("--offline", action="store_true",
+                       help="--video with the offline pass (gap interpolation, tracks extended back)")
     parser.add_argument("--iou", type=_iou_arg, default=0.5, help="IoU a match needs (default 0.5)")
     parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
     parser.add_argument("--plot", metavar="PR.png", help="write the precision-recall curve as a PNG")
 
 
-def _video_predictions(video: str, model: str | None, oncoming: Any = True) -> Predictions:
+def _video_predictions(video: str, model: str | None, oncoming: Any = True, track: bool = True,
+                       offline: bool = False) -> Predictions:
     check_source(video)
-    return Predictions.from_frames(iter_video_detections(video, model=model, progress=True, oncoming=oncoming),
-                                   source=video)
+    frames = iter_video_detections(video, model=model, progress=True, oncoming=oncoming, tracker=track,
+                                   offline=offline)
+    return Predictions.from_frames(frames, source=video)
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.video is None and (args.model is not None or args.oncoming_model is not None or args.no_oncoming):
-        raise FastdetError("--model, --oncoming-model and --no-oncoming only apply with --video")
+    no_track, offline = getattr(args, "no_track", False), getattr(args, "offline", False)
+    if args.video is None and (args.model is not None or args.oncoming_model is not None or args.no_oncoming
+                               or no_track or offline):
+        raise FastdetError("--model, --oncoming-model, --no-oncoming, --no-track and --offline only apply "
+                           "with --video")
     gt = read_gt(args.gt)
     if args.video is not None:
-        preds = _video_predictions(args.video, args.model, oncoming_arg(args))
+        preds = _video_predictions(args.video, args.model, oncoming_arg(args), not no_track, offline)
     else:
         preds = read_predictions(args.pred)
     result = evaluate(gt, preds, iou=args.iou)
