@@ -183,6 +183,12 @@ def _default_bands() -> tuple[SearchBand, ...]:
     )
 
 
+#: horizon row of the frames the default bands are written for (the Udacity clips, 1280x720),
+#: a fraction of the frame height: 421 px, the median focus of expansion of their optical flow
+#: (:mod:`fastdet.video.horizon`; their lane lines meet at about 419 px)
+REFERENCE_HORIZON = 0.585
+
+
 @dataclass(frozen=True)
 class SearchConfig:
     """Where and how densely to search.
@@ -194,26 +200,48 @@ class SearchConfig:
         size gets the bands rescaled so they cover the same part of the picture: rows and
         window scales by ``H / reference H``, columns by ``W / reference W``
         (:meth:`for_frame`). ``None``: the bands are used as given, in pixels.
+    reference_horizon: the horizon row of those frames, a fraction of their height.
+    horizon: the horizon row of the frames searched, a fraction of their height (0 = top),
+        or ``None`` for "where the reference frames have it". :meth:`for_frame` moves every
+        band by ``(horizon - reference_horizon) x H`` rows after rescaling, so each window
+        size is searched at the same distance from the horizon, where cars of that size are
+        (a car's size and how far below the horizon it stands both scale with 1 / its
+        distance, whatever the lens). Bands are clipped to the frame; a band the clip leaves
+        lower than its 64-px window (``64 x scale`` rows) is dropped.
     """
 
     bands: tuple[SearchBand, ...] = field(default_factory=_default_bands)
     cells_per_step: int = 2
     threshold: float = 0.0
     reference_shape: tuple[int, int] | None = (720, 1280)
+    reference_horizon: float = REFERENCE_HORIZON
+    horizon: float | None = None
 
     def for_frame(self, frame_shape: tuple[int, int]) -> "SearchConfig":
-        """This config with its bands rescaled for frames of ``frame_shape = (H, W)``."""
-        if self.reference_shape is None or tuple(frame_shape[:2]) == tuple(self.reference_shape):
+        """This config with its bands rescaled (and moved to ``horizon``) for frames of
+        ``frame_shape = (H, W)``: bands in that frame's pixels (``reference_shape`` and
+        ``horizon`` ``None``)."""
+        h, w = (int(v) for v in frame_shape[:2])
+        moved = self.horizon is not None and self.horizon != self.reference_horizon
+        if not moved and (self.reference_shape is None or (h, w) == tuple(self.reference_shape)):
             return self
-        (h, w), (rh, rw) = frame_shape[:2], self.reference_shape
+        rh, rw = self.reference_shape if self.reference_shape is not None else (h, w)
         fy, fx = h / rh, w / rw
+        dy = (self.horizon - self.reference_horizon) * h if moved else 0.0
 
         def col(v: int | None) -> int | None:
             return None if v is None else min(int(round(v * fx)), w)
 
-        bands = tuple(SearchBand(b.scale * fy, int(round(b.y_start * fy)), min(int(round(b.y_stop * fy)), h),
-                                 col(b.x_start), col(b.x_stop)) for b in self.bands)
-        return SearchConfig(bands, self.cells_per_step, self.threshold, None)
+        bands = []
+        for b in self.bands:
+            a, z = int(round(b.y_start * fy + dy)), int(round(b.y_stop * fy + dy))
+            y0, y1 = max(a, 0), min(z, h)
+            if y1 > y0 and ((y0, y1) == (a, z) or y1 - y0 >= 64 * b.scale * fy):
+                bands.append(SearchBand(b.scale * fy, y0, y1, col(b.x_start), col(b.x_stop)))
+        if not bands:
+            raise ValueError(f"the horizon at {self.horizon:g} of the height leaves no search band "
+                             f"in a {w}x{h} frame")
+        return SearchConfig(tuple(bands), self.cells_per_step, self.threshold, None, self.reference_horizon, None)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "bands", tuple(self.bands))
@@ -226,6 +254,10 @@ class SearchConfig:
             if len(rs) != 2 or min(rs) < 1:
                 raise ValueError(f"reference_shape must be (H, W) or None, got {self.reference_shape!r}")
             object.__setattr__(self, "reference_shape", rs)
+        for name in ("reference_horizon", "horizon"):
+            v = getattr(self, name)
+            if v is not None and not 0 <= v <= 1:
+                raise ValueError(f"{name} must be a fraction of the frame height in [0, 1], got {v!r}")
 
 
 def _wide_bands() -> tuple[SearchBand, ...]:

@@ -35,7 +35,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from fastdet.config import HeatConfig
+from fastdet.config import REFERENCE_HORIZON, HeatConfig
 from fastdet.data import data_dir
 from fastdet.detect import Detector
 from fastdet.detections import Detections
@@ -43,6 +43,7 @@ from fastdet.eval import evaluate
 from fastdet.eval.sizes import WIDTH_EDGES, recall_by_width
 from fastdet.eval.variants import Variant, standard_variants, transform_gt
 from fastdet.io.motfiles import Predictions, read_gt
+from fastdet.video.horizon import estimate_horizon, search_horizon
 from fastdet.video.pipeline import VideoDetector, make_detector
 
 # ---------------------------------------------------------------------------------------
@@ -160,7 +161,7 @@ def run_clip(det: Any, frames: list[np.ndarray], heat: HeatConfig, cache: Path |
 
 
 def iter_suite(variants: list[Variant], clips: list[str], det: Any, heat: HeatConfig, cache_dir: Path | None,
-               tag: str) -> Iterator[dict[str, Any]]:
+               tag: str, horizon: str = "reference") -> Iterator[dict[str, Any]]:
     root = data_dir()
     with tempfile.TemporaryDirectory(prefix="fastdet_camera_shift_") as tmpd:
         for clip in clips:
@@ -170,11 +171,17 @@ def iter_suite(variants: list[Variant], clips: list[str], det: Any, heat: HeatCo
             for v in variants:
                 frames = variant_frames(src, v, clip, Path(tmpd))
                 gt = transform_gt(gt0, v, shape)
+                if horizon == "oracle":  # the reference horizon moved with the pixels
+                    row = REFERENCE_HORIZON * shape[0]
+                    det.set_horizon(float(v.boxes(np.array([[0, row, 1, row]]), shape)[0][0, 1]) / frames[0].shape[0])
+                elif horizon == "estimate":
+                    det.set_horizon(search_horizon(estimate_horizon(frames)))
                 cache = cache_dir / f"{tag}.{clip}.{v.name}.npz" if cache_dir is not None else None
                 preds, dt = run_clip(det, frames, heat, cache)
                 res = evaluate(gt, preds, iou=0.5, num_frames=len(frames))
                 bins = recall_by_width(gt, preds, frames[0].shape[0], num_frames=len(frames))
                 yield {"variant": v.name, "clip": clip, "shape": list(frames[0].shape[:2]), "frames": len(frames),
+                       "horizon": det.horizon,
                        "targets": res.num_gt, "tp": res.tp, "fp": res.fp, "fn": res.fn,
                        "precision": res.precision, "recall": res.recall, "f1": res.f1,
                        "fp_per_frame": res.fp_per_frame, "ms_per_frame": 1000 * dt,
@@ -229,6 +236,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--heat", type=_heat_arg, action="append", default=[], metavar="FIELD=VALUE",
                     help="override a HeatConfig field of the main heat map (repeatable)")
     ap.add_argument("--no-oncoming", action="store_true", help="main model only")
+    ap.add_argument("--horizon", choices=("reference", "oracle", "estimate"), default="reference",
+                    help="search bands at the reference horizon (default), at the reference horizon moved "
+                         "with the variant's pixels (oracle), or at the horizon estimated from each clip")
     args = ap.parse_args(argv)
 
     variants = standard_variants()
@@ -249,7 +259,7 @@ def main(argv: list[str] | None = None) -> int:
 
     rows: list[dict[str, Any]] = []
     by_variant: dict[str, list[dict[str, Any]]] = {}
-    for r in iter_suite(variants, clips, det, heat, cache, args.tag):
+    for r in iter_suite(variants, clips, det, heat, cache, args.tag, args.horizon):
         rows.append(r)
         by_variant.setdefault(r["variant"], []).append(r)
         print(f"{r['variant']:>14} {r['clip']:<12} F1 {r['f1']:.3f} P {r['precision']:.3f} R {r['recall']:.3f} "

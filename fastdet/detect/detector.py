@@ -22,7 +22,7 @@ import threading
 import time
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numba
 import numpy as np
@@ -124,6 +124,9 @@ class Detector:
         The bundled one is ``fastdet.model.ONCOMING_MODEL_PATH``; :class:`fastdet.VideoDetector`
         runs it by default, searching only where the picture moves (:mod:`fastdet.video.motion`).
     wide_search: its search bands (default :data:`fastdet.config.WIDE_SEARCH`).
+    horizon: the horizon row of the frames, a fraction of their height, for both searches
+        (:attr:`SearchConfig.horizon <fastdet.config.SearchConfig>`: the bands move with it);
+        ``None`` keeps the searches' own. Change it later with :meth:`set_horizon`.
 
     ``detect(frame)`` returns the positive windows of both models (``wide_bands`` narrows the
     wide model's search); :class:`fastdet.VideoDetector` turns them into one box per vehicle
@@ -131,7 +134,8 @@ class Detector:
     """
 
     def __init__(self, model: Model | str | os.PathLike | None = None, search: SearchConfig | None = None,
-                 wide: Model | str | os.PathLike | None = None, wide_search: SearchConfig | None = None):
+                 wide: Model | str | os.PathLike | None = None, wide_search: SearchConfig | None = None,
+                 horizon: float | None = None):
         self.model = model if isinstance(model, Model) else load_model(model)
         if self.model.config.window_height is not None:
             name = "the main model" if isinstance(model, Model) else os.fspath(model)
@@ -154,10 +158,24 @@ class Detector:
                                  f"scores, the main model {self.model.score_kind} scores; train both with the "
                                  f"same --classifier")
             self.scorers.append(_Scorer(self.wide_model, wide_search if wide_search is not None else WIDE_SEARCH))
+        if horizon is not None:
+            self.set_horizon(horizon)
         self.score_kind = self.model.score_kind
         self._pool = None  # band threads, made on the first multi-threaded detect
         self._pool_size = 0
         self._pool_lock = threading.Lock()
+
+    @property
+    def horizon(self) -> float | None:
+        """The main search's horizon (fraction of the frame height; ``None``: the reference's)."""
+        return self.scorers[0].search.horizon
+
+    def set_horizon(self, horizon: float | None) -> None:
+        """Search frames whose horizon is at row ``horizon`` x H (``None``: where the reference
+        frames have it): every band of both models moves with it (:meth:`SearchConfig.for_frame
+        <fastdet.config.SearchConfig.for_frame>`). Call it between frames, not during one."""
+        for sc in self.scorers:
+            sc.search = replace(sc.search, horizon=None if horizon is None else float(horizon))
 
     def warmup(self) -> None:
         """Load (or compile) the numba kernels now rather than on the first frame."""

@@ -1,0 +1,146 @@
+"""Where the horizon is in a dashcam video: the focus of expansion of its optical flow.
+
+A camera moving straight ahead sees the scenery flow away from one point, the focus of
+expansion (FOE); on a level road it lies on the horizon. fastdet's search bands are placed
+relative to the horizon (:attr:`fastdet.config.SearchConfig.horizon`), so a camera mounted
+higher, lower or tilted gets its bands where its cars are.
+
+Per frame pair (:func:`focus_of_expansion`): corners (``cv2.goodFeaturesToTrack``) of the
+earlier frame, shrunk to :data:`WORK_ROWS` rows, followed into the later one
+(``cv2.calcOpticalFlowPyrLK``); every flow vector that moved at least :data:`MIN_FLOW` px
+defines a line through its corner, and the FOE is the point nearest to all of them (least
+squares, re-weighted to shrug off moving cars and mismatches). One pair is noisy (its y
+spreads by about 30 px at 720 rows on the bundled clips: bumps pitch the camera, curves
+yaw it); the estimate is the **median** over pairs :data:`GAP` frames apart
+(:class:`HorizonEstimator`), and ``None`` -- keep the default bands -- when too few pairs
+gave one (the camera stood still) or they disagree by more than :data:`MAX_SPREAD` of the
+height (median absolute deviation).
+
+On the bundled 1280x720 clips the median FOE is at rows 422 (``test_video``) and 426
+(``test_small1``); their lane lines meet at about 419.
+"""
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import cv2
+import numpy as np
+
+from ..config import REFERENCE_HORIZON
+
+#: frames are shrunk to this many rows before tracking corners (speed; flow is smooth)
+WORK_ROWS = 360
+#: a flow vector must be at least this long (px at WORK_ROWS) to say where it points
+MIN_FLOW = 1.0
+#: fewest usable flow vectors for one frame pair to give a FOE
+MIN_VECTORS = 20
+#: frames between the two frames of a pair (flow of a single frame is short)
+GAP = 2
+#: fewest frame pairs with a FOE before there is an estimate
+MIN_PAIRS = 5
+#: an estimate this close to the reference horizon (fraction of the height: 7 px at 720 rows,
+#: the estimator's own precision on the bundled clips) keeps the reference bands
+TOLERANCE = 0.01
+#: largest spread (median absolute deviation of the pairs' FOE rows, fraction of the height)
+#: an estimate may have
+MAX_SPREAD = 0.05
+
+
+def _grey(frame: np.ndarray, rows: int) -> tuple[np.ndarray, float]:
+    f = rows / frame.shape[0]
+    small = cv2.resize(frame, (max(1, round(frame.shape[1] * f)), rows), interpolation=cv2.INTER_AREA)
+    return cv2.cvtColor(small, cv2.COLOR_BGR2GRAY), f
+
+
+def focus_of_expansion(prev: np.ndarray, cur: np.ndarray, work_rows: int = WORK_ROWS) -> tuple[float, float] | None:
+    """``(x, y)`` in frame pixels of the point the flow from ``prev`` to ``cur`` (two
+    ``(H, W, 3) uint8`` frames, BGR or RGB) expands from; ``None`` when fewer than
+    :data:`MIN_VECTORS` corners moved or the point is outside the frame."""
+    rows = min(work_rows, prev.shape[0])
+    g0, f = _grey(prev, rows)
+    g1, _ = _grey(cur, rows)
+    p0 = cv2.goodFeaturesToTrack(g0, maxCorners=400, qualityLevel=0.01, minDistance=8)
+    if p0 is None or len(p0) < MIN_VECTORS:
+        return None
+    p1, st, _ = cv2.calcOpticalFlowPyrLK(g0, g1, p0, None, winSize=(21, 21), maxLevel=3)
+    ok = st[:, 0] == 1
+    a, d = p0[ok, 0].astype(np.float64), (p1[ok, 0] - p0[ok, 0]).astype(np.float64)
+    m = np.hypot(d[:, 0], d[:, 1])
+    keep = m >= MIN_FLOW
+    if keep.sum() < MIN_VECTORS:
+        return None
+    a, d, m = a[keep], d[keep], m[keep]
+    n = np.stack([-d[:, 1], d[:, 0]], 1) / m[:, None]  # unit normal of each flow line
+    b = (n * a).sum(1)  # line: n . p = b
+    w = np.ones(len(b))
+    foe = np.zeros(2)
+    for _ in range(10):  # iteratively re-weighted least squares, Huber weights
+        foe = np.linalg.lstsq(n * w[:, None], b * w, rcond=None)[0]
+        r = np.abs(n @ foe - b)
+        s = max(1.5 * float(np.median(r)), 1.0)
+        w = 1.0 / np.maximum(r / s, 1.0)
+    x, y = foe / f
+    if not (0 <= x < prev.shape[1] and 0 <= y < prev.shape[0]):
+        return None
+    return float(x), float(y)
+
+
+class HorizonEstimator:
+    """The horizon of a video from its frames so far (module docstring).
+
+    Feed frames in order with :meth:`update`; :attr:`estimate` is the horizon row as a
+    fraction of the frame height, or ``None`` until at least ``min_pairs`` frame pairs
+    ``gap`` frames apart gave a FOE (and whenever they disagree by more than ``max_spread``).
+    ``every``: use one pair in this many frames (the flow of neighbouring pairs is alike).
+    """
+
+    def __init__(self, gap: int = GAP, every: int = 3, min_pairs: int = MIN_PAIRS,
+                 max_spread: float = MAX_SPREAD) -> None:
+        if gap < 1 or every < 1 or min_pairs < 1:
+            raise ValueError("gap, every and min_pairs must be >= 1")
+        self.gap, self.every, self.min_pairs, self.max_spread = gap, every, min_pairs, max_spread
+        self.rows: list[float] = []  # FOE row of each pair, fraction of the height
+        self._recent: list[np.ndarray] = []
+        self._n = 0
+
+    def update(self, frame: np.ndarray) -> None:
+        """Add the next frame (``(H, W, 3) uint8``)."""
+        self._recent.append(frame)
+        if len(self._recent) > self.gap + 1:
+            self._recent.pop(0)
+        if len(self._recent) == self.gap + 1 and self._n % self.every == 0:
+            p = focus_of_expansion(self._recent[0], frame)
+            if p is not None:
+                self.rows.append(p[1] / frame.shape[0])
+        self._n += 1
+
+    @property
+    def estimate(self) -> float | None:
+        if len(self.rows) < self.min_pairs:
+            return None
+        r = np.asarray(self.rows)
+        med = float(np.median(r))
+        if float(np.median(np.abs(r - med))) > self.max_spread:
+            return None
+        return med
+
+
+def estimate_horizon(frames: Iterable[np.ndarray], max_frames: int = 75, **kw) -> float | None:
+    """The horizon (fraction of the height) of the first ``max_frames`` of ``frames``, or
+    ``None`` (:class:`HorizonEstimator`; ``kw`` are its arguments)."""
+    est = HorizonEstimator(**kw)
+    for i, f in enumerate(frames):
+        if i >= max_frames:
+            break
+        est.update(f)
+    return est.estimate
+
+
+def search_horizon(estimate: float | None, reference: float = REFERENCE_HORIZON,
+                   tolerance: float = TOLERANCE) -> float | None:
+    """The horizon to give :meth:`fastdet.Detector.set_horizon` for an ``estimate``: ``None``
+    (the reference bands) when there is no estimate or it is within ``tolerance`` of
+    ``reference`` -- moving the bands by less than the estimate's precision only adds noise."""
+    if estimate is None or abs(estimate - reference) <= tolerance:
+        return None
+    return float(estimate)

@@ -1,0 +1,96 @@
+"""Search bands relative to the horizon, and the horizon estimated from the optical flow."""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from fastdet.config import REFERENCE_HORIZON, SearchBand, SearchConfig
+from fastdet.video.horizon import (
+    HorizonEstimator,
+    estimate_horizon,
+    focus_of_expansion,
+    search_horizon,
+)
+
+REF_ROW = REFERENCE_HORIZON * 720
+
+
+def test_for_frame_moves_bands_with_the_horizon():
+    cfg = SearchConfig(bands=(SearchBand(1.0, 400, 496), SearchBand(2.0, 400, 592, 100, 900)))
+    up = SearchConfig(cfg.bands, horizon=0.485).for_frame((720, 1280))
+    dy = round((0.485 - REFERENCE_HORIZON) * 720)  # -72 rows
+    assert [(b.scale, b.y_start, b.y_stop, b.x_start, b.x_stop) for b in up.bands] == \
+        [(1.0, 400 + dy, 496 + dy, None, None), (2.0, 400 + dy, 592 + dy, 100, 900)]
+    assert up.horizon is None and up.reference_shape is None
+    # at half the resolution: rows and scales halve, then the shift is in that frame's rows
+    half = SearchConfig(cfg.bands, horizon=0.485).for_frame((360, 640))
+    assert [(b.scale, b.y_start, b.y_stop) for b in half.bands] == [(0.5, 200 - 36, 248 - 36), (1.0, 200 - 36, 296 - 36)]
+    # the reference horizon itself changes nothing
+    assert SearchConfig(cfg.bands, horizon=REFERENCE_HORIZON).for_frame((720, 1280)).bands == cfg.bands
+
+
+def test_for_frame_clips_and_drops_bands():
+    cfg = SearchConfig(bands=(SearchBand(1.0, 400, 496), SearchBand(3.0, 400, 656)), horizon=0.9)
+    out = cfg.for_frame((720, 1280))  # +227 rows: both clipped to 627..720, too low for 192-px windows
+    assert [(b.scale, b.y_start, b.y_stop) for b in out.bands] == [(1.0, 627, 720)]
+    with pytest.raises(ValueError, match="no search band"):
+        SearchConfig(bands=(SearchBand(1.0, 400, 496),), horizon=1.0).for_frame((720, 1280))
+    with pytest.raises(ValueError):
+        SearchConfig(horizon=1.5)
+
+
+def test_detector_set_horizon_moves_both_searches():
+    from fastdet.video.pipeline import make_detector
+
+    det = make_detector()
+    before = {p: [(g.y0, g.y1) for g in det.geometries((720, 1280), p)] for p in (0, 1)}
+    det.set_horizon(REFERENCE_HORIZON - 0.1)
+    assert det.horizon == pytest.approx(REFERENCE_HORIZON - 0.1)
+    after = {p: [(g.y0, g.y1) for g in det.geometries((720, 1280), p)] for p in (0, 1)}
+    for p in (0, 1):
+        assert [(a - 72, b - 72) for a, b in before[p]] == after[p]
+    det.set_horizon(None)
+    assert {p: [(g.y0, g.y1) for g in det.geometries((720, 1280), p)] for p in (0, 1)} == before
+
+
+def _texture(h: int, w: int, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    small = rng.integers(0, 256, (h // 8, w // 8, 3), dtype=np.uint8)
+    return cv2.GaussianBlur(cv2.resize(small, (w, h), interpolation=cv2.INTER_NEAREST), (5, 5), 0)
+
+
+def _zoom_about(img: np.ndarray, x0: float, y0: float, z: float) -> np.ndarray:
+    m = np.array([[z, 0, (1 - z) * x0], [0, z, (1 - z) * y0]])
+    return cv2.warpAffine(img, m, (img.shape[1], img.shape[0]), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+
+
+@pytest.mark.parametrize("fx, fy", [(640, 300), (500, 420), (700, 200)])
+def test_focus_of_expansion_of_a_zoom(fx, fy):
+    img = _texture(720, 1280)
+    foe = focus_of_expansion(img, _zoom_about(img, fx, fy, 1.03))
+    assert foe is not None
+    assert foe == pytest.approx((fx, fy), abs=6)
+
+
+def test_no_estimate_without_motion():
+    img = _texture(360, 640)
+    assert focus_of_expansion(img, img) is None
+    assert estimate_horizon([img] * 20) is None
+
+
+def test_estimator_takes_the_median_of_pairs():
+    img = _texture(360, 640, seed=1)
+    frames = [_zoom_about(img, 320, 150, 1.02 ** k) for k in range(20)]
+    est = HorizonEstimator(gap=1, every=1, min_pairs=5)
+    for f in frames:
+        est.update(f)
+    assert len(est.rows) >= 5
+    assert est.estimate == pytest.approx(150 / 360, abs=0.01)
+    assert estimate_horizon(frames, gap=1, every=1) == pytest.approx(est.estimate)
+
+
+def test_search_horizon_tolerance():
+    assert search_horizon(None) is None
+    assert search_horizon(REFERENCE_HORIZON + 0.005) is None
+    assert search_horizon(REFERENCE_HORIZON - 0.05) == pytest.approx(REFERENCE_HORIZON - 0.05)
