@@ -31,3 +31,35 @@ def test_images(data: Path) -> list[Path]:
     paths = sorted((data / "test_images").glob("*.jpg"))
     assert paths, "no test images"
     return paths
+
+
+# ------------------------------------------------------------------------- slow tests
+# Tests marked ``@pytest.mark.slow`` (several seconds each: training, every window of every
+# band against the classic pipeline, ...) are left out of a plain ``pytest`` run; ``--slow``
+# runs them too, as does CI (``CI=true``), and so does any explicit ``-m`` expression.
+
+
+def _ci() -> bool:
+    return os.environ.get("CI", "").lower() in ("1", "true", "yes")
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption("--slow", action="store_true", default=False,
+                     help="also run the tests marked slow (CI=true does too)")
+
+
+def _run_slow(config: pytest.Config) -> bool:
+    return bool(config.getoption("--slow") or _ci() or config.getoption("markexpr"))
+
+
+def pytest_report_header(config: pytest.Config) -> str:
+    return "slow tests: " + ("included" if _run_slow(config) else "left out (--slow or CI=true runs them)")
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    if _run_slow(config):
+        return
+    slow = [item for item in items if item.get_closest_marker("slow") is not None]
+    if slow:
+        config.hook.pytest_deselected(items=slow)
+        items[:] = [item for item in items if item.get_closest_marker("slow") is None]

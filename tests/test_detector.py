@@ -22,18 +22,20 @@ def _random_model(config: FeatureConfig, seed=0) -> Model:
     return Model(config, rng.normal(size=n) * 0.01, -0.2, rng.normal(size=n), rng.uniform(0.5, 2.0, n))
 
 
-def _compare_all_windows(det: Detector, frame: np.ndarray) -> int:
-    pair = sklearn_pair(det.model)
+def _compare_all_windows(det: Detector, frame: np.ndarray, part: int = 0) -> int:
+    model = det.model if part == 0 else det.wide_model
+    pair = sklearn_pair(model)
     n = 0
-    for geo in det.geometries(frame.shape[:2]):
-        fast = det.band_scores(frame, geo)
-        ref = classic_band_scores(frame, geo, det.model, pair)
+    for geo in det.geometries(frame.shape[:2], part):
+        fast = det.band_scores(frame, geo, part=part)
+        ref = classic_band_scores(frame, geo, model, pair)
         assert fast.shape == ref.shape == (geo.ny, geo.nx)
-        np.testing.assert_allclose(fast, ref, rtol=0, atol=1e-6, err_msg=f"band {geo.band}")
+        np.testing.assert_allclose(fast, ref, rtol=0, atol=1e-6, err_msg=f"part {part} band {geo.band}")
         n += geo.n_windows
     return n
 
 
+@pytest.mark.slow
 def test_every_window_of_every_default_band_matches_classic(frames):
     det = Detector()  # bundled model, default search
     n = sum(_compare_all_windows(det, f) for f in frames)
@@ -45,10 +47,10 @@ def test_one_cell_step_and_other_feature_configs(frames):
     search = SearchConfig(bands=(SearchBand(1.0, 400, 500, 100, 400), SearchBand(1.7, 380, 600)), cells_per_step=1)
     det = Detector(_random_model(cfg), search)
     assert _compare_all_windows(det, frames[0]) > 500
-    cfg = FeatureConfig(window_height=32, orientations=11, spatial_size=16)  # wide windows
+    cfg = FeatureConfig(window_height=32, orientations=11, spatial_size=16)  # wide windows: the wide model
     search = SearchConfig(bands=(SearchBand(0.75, 400, 480, 0, 640), SearchBand(1.0, 390, 470)), cells_per_step=1)
-    det = Detector(_random_model(cfg, 2), search)
-    assert _compare_all_windows(det, frames[2]) > 500
+    det = Detector(_random_model(FeatureConfig(), 3), search, wide=_random_model(cfg, 2), wide_search=search)
+    assert _compare_all_windows(det, frames[2], part=1) > 500
     cfg = FeatureConfig(color_space="HSV", spatial_size=0, hist_bins=0, cells_per_block=3)
     det = Detector(_random_model(cfg, 1), SearchConfig(bands=(SearchBand(1.3, 390, 610),), cells_per_step=3))
     _compare_all_windows(det, frames[1])

@@ -76,6 +76,7 @@ def test_grey_test_image_block_norms(test_images, block_norm):
     assert_same(fastdet.hog(grey, **kw), sk_hog(grey, **kw))
 
 
+@pytest.mark.slow
 def test_luv_per_channel_test_images(test_images):
     ours_kw, ref_kw = hc_kwargs()
     for path in test_images:

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from fastdet import Detections, Detector, HeatConfig, MotionGate, SearchBand, SearchConfig, VideoDetector
-from fastdet.config import WIDE_HEAT, WIDE_SEARCH
+from fastdet.config import WIDE_HEAT, WIDE_SEARCH, TrackerConfig
 from fastdet.data import data_dir
 from fastdet.detect import DetectStats, window_boxes
 from fastdet.detections import MAIN_PART
@@ -116,10 +116,12 @@ class ReplayDetector:
 
 def replay(clip: CachedClip, thr: float, heat: HeatConfig, wide_heat: HeatConfig | None = None,
            motion: MotionGate | None = None, thr_wide: float = WIDE_SEARCH.threshold,
-           first: int = 1) -> Predictions:
-    """The boxes :class:`fastdet.VideoDetector` (``heat``, ``wide_heat``, ``motion``) gives on
-    the clip's frames from its cached windows, for frames ``first`` (1-based) on."""
-    vd = VideoDetector(ReplayDetector(clip, thr, thr_wide), heat=heat, wide_heat=wide_heat, motion=motion)
+           first: int = 1, tracker: TrackerConfig | bool | None = None) -> Predictions:
+    """The boxes :class:`fastdet.VideoDetector` (``heat``, ``wide_heat``, ``motion``,
+    ``tracker``: its arguments) gives on the clip's frames from its cached windows, for frames
+    ``first`` (1-based) on."""
+    vd = VideoDetector(ReplayDetector(clip, thr, thr_wide), heat=heat, wide_heat=wide_heat, motion=motion,
+                       tracker=tracker)
     frames = [(i, d) for i, d in enumerate(map(vd.update, frames_of(clip.video)), start=1) if i >= first]
     if vd.detector.frame != len(clip):
         raise RuntimeError(f"{clip.video}: {vd.detector.frame} frames decoded, {len(clip)} cached")
@@ -159,6 +161,7 @@ def main() -> None:
     ap.add_argument("--motion", default=f"{MotionGate().min_motion:g}", help="motion gate thresholds (0: none)")
     ap.add_argument("--first-per-clip", default="", help="e.g. test_small1=67,test_video=20")
     ap.add_argument("--first", type=int, default=1, help="evaluate frames >= this only (0: the second half)")
+    ap.add_argument("--no-track", action="store_true", help="the heat maps' boxes, without the tracker")
     args = ap.parse_args()
 
     def fl(s: str) -> list[float]:
@@ -188,7 +191,7 @@ def main() -> None:
         cells, f1s = [], []
         for name, (gt, clip) in caches.items():
             first = int(per_clip.get(name, args.first)) or len(clip) // 2 + 1
-            preds = replay(clip, thr, heat, wheat, MotionGate(mo), tw, first)
+            preds = replay(clip, thr, heat, wheat, MotionGate(mo), tw, first, tracker=not args.no_track)
             r = evaluate_from(gt, preds, first, len(clip))
             cells.append(f"{r.precision:.2f} {r.recall:.2f} **{r.f1:.2f}** {r.ap:.2f} {r.fp_per_frame:.2f}")
             f1s.append(r.f1)
