@@ -77,6 +77,7 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
     elif args.model is not None:
         raise FastdetError("--model cannot be used with an injected detector")
     check_frame(detector, frame, inp)
+    detector.warmup()  # compiles on a first run, after saying so
 
     windows, hm, boxes = detect_image(frame, detector, heat)
     img = frame.copy()

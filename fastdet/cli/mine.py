@@ -82,6 +82,7 @@ def run(args: argparse.Namespace) -> int:
     reader = FrameReader(args.video, args.start, args.frames)
     try:
         check_frame(det, reader.first_frame, str(args.video))
+        det.warmup()  # compiles on a first run, after saying so
         args.out.mkdir(parents=True, exist_ok=True)
         prefix = args.prefix or args.video.stem.replace("%", "")
         bar = None

@@ -17,9 +17,11 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from .._numba import announce_compile
 from ..config import COLOR_SPACES, FeatureConfig
 from ..data import data_dir
 from ..errors import DataError, FastdetError
+from ..features._hog_kernels import hog_u8_batch
 from ..io.atomic import check_output_path
 from ..train.fit import train
 from . import _signals
@@ -114,6 +116,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.no_refit:
         check_output_path(out, "model")
     _check_inputs(Path(data), args)
+    announce_compile(hog_u8_batch, what="the feature kernels")
     progress = not args.no_progress and sys.stderr.isatty()
     model, report = train(data, config, args.classifier, args.C, args.split, args.seed, args.negatives,
                           not args.no_flip, args.max_per_folder, not args.no_refit, progress,

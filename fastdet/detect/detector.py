@@ -28,6 +28,8 @@ import numba
 import numpy as np
 
 from ..features import hog_channels
+from .._numba import announce_compile
+from ..features._hog_kernels import hog_u8
 from ._score_kernels import dense_scores, dense_scores_serial, hist_weight_integral
 from ..config import WIDE_SEARCH, SearchBand, SearchConfig
 from ..detections import MAIN_PART, WIDE_PART, Detections
@@ -178,12 +180,16 @@ class Detector:
             sc.search = replace(sc.search, horizon=None if horizon is None else float(horizon))
 
     def warmup(self) -> None:
-        """Load (or compile) the numba kernels now rather than on the first frame."""
+        """Load (or compile) the numba kernels now rather than on the first frame: the
+        multi-threaded scoring kernel and the serial one the band threads run. On a first
+        run this says once that it compiles (:func:`fastdet._numba.announce_compile`)."""
+        announce_compile(hog_u8, dense_scores, dense_scores_serial, hist_weight_integral)
         for sc in self.scorers:
             cfg = sc.config
             tiny = np.zeros((cfg.win_h * 2, cfg.win_w * 2, 3), np.uint8)
             geo = band_geometry(SearchBand(1.0, 0, tiny.shape[0]), tiny.shape[:2], cfg, sc.search.cells_per_step)
             sc.band_scores(tiny, geo, None)
+            sc.band_scores(tiny, geo, None, serial=True)
 
     def band_scores(self, frame: np.ndarray, geo: BandGeometry, timings: dict[str, float] | None = None,
                     part: int = 0) -> np.ndarray:
