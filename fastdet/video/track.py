@@ -163,14 +163,14 @@ class Tracker:
         self.frame = 0
         self.confirmed = 0
 
-    def _match(self, rows: np.ndarray, pred: np.ndarray, boxes: np.ndarray,
+    @staticmethod
+    def _match(rows: np.ndarray, pred: np.ndarray, boxes: np.ndarray,
                min_iou: float) -> tuple[np.ndarray, np.ndarray]:
-        """Assign ``boxes`` to the tracks in ``rows`` (their predicted boxes ``pred[rows]``):
-        ``(track rows, box indices)``."""
+        """Assign ``boxes`` (buffered) to the tracks in ``rows`` (their buffered predicted
+        boxes ``pred[rows]``): ``(track rows, box indices)``."""
         if not len(rows) or not len(boxes):
             return np.zeros(0, np.int64), np.zeros(0, np.int64)
-        b = self.config.buffer
-        r, k = assign(iou(buffered(pred[rows], b), buffered(boxes, b)), min_iou)
+        r, k = assign(iou(pred[rows], boxes), min_iou)
         return rows[r], k
 
     def update(self, high: Detections, low: Detections | None = None) -> Detections:
@@ -199,12 +199,13 @@ class Tracker:
             hb, src = split_merged(hb, pred[tracked], c.split_overlap)
             hs = hs[src]
         used = np.zeros(len(hb), bool)
+        bpred, bhigh = buffered(pred, c.buffer), buffered(hb, c.buffer)
         fix_rows: list[np.ndarray] = []  # Kalman corrections, done together at the end
         fix_boxes: list[np.ndarray] = []
         fix_scores: list[np.ndarray] = []
 
         # stage 1: high boxes vs confirmed tracks (tracked and lost)
-        r1, k1 = self._match(confirmed, pred, hb, c.match_iou)
+        r1, k1 = self._match(confirmed, bpred, bhigh, c.match_iou)
         used[k1] = True
         fix_rows.append(r1), fix_boxes.append(hb[k1]), fix_scores.append(hs[k1])
         done = np.zeros(len(tracks), bool)
@@ -214,7 +215,7 @@ class Tracker:
         # stage 2: low boxes vs the tracked tracks left over
         if low is not None and len(low) and len(left):
             lb = low.boxes.astype(np.float64)
-            r2, k2 = self._match(left, pred, lb, c.low_match_iou)
+            r2, k2 = self._match(left, bpred, buffered(lb, c.buffer), c.low_match_iou)
             fix_rows.append(r2), fix_boxes.append(lb[k2]), fix_scores.append(low.scores[k2].astype(np.float64))
             done[r2] = True
             left = left[~done[left]]
@@ -224,7 +225,7 @@ class Tracker:
 
         # stage 3: tentative tracks vs the high boxes left
         free = np.flatnonzero(~used)
-        r3, k3 = self._match(tentative, pred, hb[free], c.tentative_match_iou)
+        r3, k3 = self._match(tentative, bpred, bhigh[free], c.tentative_match_iou)
         used[free[k3]] = True
         fix_rows.append(r3), fix_boxes.append(hb[free[k3]]), fix_scores.append(hs[free[k3]])
 
