@@ -1,0 +1,164 @@
+"""A video is what decodes (issue 14, item 1), on files made with a real muxer.
+
+- ``ffmpeg -ss ... -c copy`` cuts: the header counts more frames than decode; every command
+  that reads video ends at the end of the stream with exit 0 and at most one note.
+- Damage in the middle: the frames that fail are reported in one note and skipped, the
+  frames after them are processed and keep their numbers in the file.
+- Live input: a clip served over HTTP from 127.0.0.1, a camera index, an image sequence.
+"""
+from __future__ import annotations
+
+import json
+
+import cv2
+import pytest
+
+from fastdet.cli.main import main
+from fastdet.io.motfiles import read_predictions
+from fastdet.io.reader import FrameReader, source_kind
+from tests.media import (
+    GOP12,
+    INTRA,
+    cut_copy,
+    damage,
+    decoded_count,
+    frames,
+    header_count,
+    http_server,
+    write_video,
+)
+
+
+@pytest.fixture(scope="module")
+def cut(tmp_path_factory):
+    """A real ``-ss 0.7 -c copy`` cut: its header counts more frames than decode."""
+    d = tmp_path_factory.mktemp("cut")
+    src = write_video(d / "src.mp4", 60, GOP12)
+    out = cut_copy(src, d / "cut.mp4", 0.7)
+    n, header = decoded_count(out), header_count(out)
+    assert 0 < n < header  # what the tests below are about
+    return out, n, header
+
+
+@pytest.fixture(scope="module")
+def damaged(tmp_path_factory):
+    """An intra-only clip of 40 frames whose frames 16-18 (1-based) are zeroed."""
+    d = tmp_path_factory.mktemp("damaged")
+    src = write_video(d / "src.mp4", 40, INTRA)
+    return damage(src, d / "damaged.mp4", [15, 16, 17])
+
+
+def _err_lines(capsys) -> tuple[str, list[str]]:
+    cap = capsys.readouterr()
+    return cap.out, [ln for ln in cap.err.splitlines() if ln.strip()]
+
+
+def test_reader_ends_where_decoding_ends(cut):
+    path, n, header = cut
+    notes = []
+    with FrameReader(path, notify=notes.append) as r:
+        got = [fno for fno, frame, _ in r]
+    assert got == list(range(1, n + 1))
+    assert r.decoded == n and r.skipped == []
+    assert len(notes) == 1 and f"{n} frames decoded" in notes[0] and str(header) in notes[0]
+
+
+def test_reader_no_note_when_stopped_by_frames(cut):
+    path, _, _ = cut
+    notes = []
+    with FrameReader(path, start=2, frames=5, notify=notes.append) as r:
+        assert [fno for fno, *_ in r] == [3, 4, 5, 6, 7]
+    assert notes == []
+
+
+def test_reader_skips_damage_and_keeps_numbers(damaged):
+    notes = []
+    with FrameReader(damaged, notify=notes.append) as r:
+        got = [fno for fno, *_ in r]
+    assert got == [*range(1, 16), *range(19, 41)]
+    assert r.skipped == [(16, 18)] and r.n_skipped == 3
+    assert len(notes) == 1 and "frames 16-18 could not be decoded" in notes[0]
+
+
+def test_video_cli_on_a_cut_exits_0_with_every_output(cut, tmp_path, capsys):
+    path, n, header = cut
+    out, boxes, js = tmp_path / "o.mp4", tmp_path / "b.txt", tmp_path / "b.jsonl"
+    rc = main(["video", str(path), "-o", str(out), "--boxes", str(boxes), "--json", str(js), "--no-progress"])
+    stdout, err = _err_lines(capsys)
+    assert rc == 0, err
+    assert f"{n} frames in" in stdout
+    assert len(err) == 1 and "header" in err[0] and str(header) in err[0]  # one informational line
+    assert decoded_count(out) == n
+    lines = js.read_text().splitlines()
+    assert [json.loads(ln)["frame"] for ln in lines] == list(range(1, n + 1))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["b.jsonl", "b.txt", "o.mp4"]
+
+
+def test_video_cli_on_damage_processes_the_frames_after(damaged, tmp_path, capsys):
+    js = tmp_path / "b.jsonl"
+    rc = main(["video", str(damaged), "--json", str(js), "--no-progress"])
+    stdout, err = _err_lines(capsys)
+    assert rc == 0, err
+    assert "3 damaged frames skipped" in stdout
+    assert len(err) == 1 and "frames 16-18 could not be decoded" in err[0]
+    frames = [json.loads(ln)["frame"] for ln in js.read_text().splitlines()]
+    assert frames == [*range(1, 16), *range(19, 41)]
+
+
+def test_eval_video_on_a_cut_prints_metrics(cut, tmp_path, capsys):
+    path, n, _ = cut
+    gt = tmp_path / "gt.txt"
+    gt.write_text("".join(f"{f},1,10,80,60,50,1,1,1\n" for f in range(1, n + 1)))
+    rc = main(["eval", "--gt", str(gt), "--video", str(path), "--json"])
+    stdout, err = _err_lines(capsys)
+    assert rc == 0, err
+    result = json.loads(stdout)
+    assert "error" not in stdout and result["video"] == str(path)
+
+
+def test_bench_more_frames_than_decode(cut, capsys):
+    path, n, header = cut
+    rc = main(["bench", str(path), "--frames", str(header), "--repeat", "1", "--no-oncoming"])
+    stdout, err = _err_lines(capsys)
+    assert rc == 0, err
+    assert f"{n} frames" in stdout
+
+
+def test_live_http_stream(tmp_path, capsys):
+    """A clip served over HTTP from 127.0.0.1 (MPEG-TS, as live streams are): no frame
+    count, boxes for every frame."""
+    write_video(tmp_path / "live.ts", 30, ("-c:v", "mpeg2video", "-q:v", "4"), extra=("-f", "mpegts"))
+    boxes = tmp_path / "out" / "b.jsonl"
+    boxes.parent.mkdir()
+    with http_server(tmp_path) as url:
+        with FrameReader(f"{url}/live.ts") as r:
+            assert r.live and r.frame_count is None and r.expected is None
+            assert sum(1 for _ in r) == 30
+        rc = main(["video", f"{url}/live.ts", "--json", str(boxes), "--no-progress"])
+    _, err = _err_lines(capsys)
+    assert rc == 0, err
+    assert [json.loads(ln)["frame"] for ln in boxes.read_text().splitlines()] == list(range(1, 31))
+
+
+def test_live_sources_are_not_files(tmp_path, capsys):
+    assert source_kind("rtsp://example.invalid/x") == "url"
+    assert source_kind("7") == "camera" and source_kind(3) == "camera"
+    rc = main(["video", "97", "--boxes", str(tmp_path / "b.txt")])
+    _, err = _err_lines(capsys)
+    assert rc == 2 and len(err) == 1 and "camera" in err[0] and "not found" not in err[0], err
+    with http_server(tmp_path) as url:
+        rc = main(["video", f"{url}/nothing.ts", "--boxes", str(tmp_path / "b.txt")])
+    _, err = _err_lines(capsys)
+    assert rc == 2 and len(err) == 1 and "not found" not in err[0], err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_image_sequence_is_a_video(tmp_path, capsys):
+    for i, f in enumerate(frames(4), start=1):
+        cv2.imwrite(str(tmp_path / f"img{i:03d}.png"), f)
+    boxes = tmp_path / "b.txt"
+    assert main(["video", str(tmp_path / "img%03d.png"), "--boxes", str(boxes), "--no-progress"]) == 0
+    assert main(["bench", str(tmp_path / "img%03d.png"), "--frames", "2", "--repeat", "1", "--no-oncoming"]) == 0
+    stdout, err = _err_lines(capsys)
+    assert "4 frames in" in stdout and not err
+    assert read_predictions(boxes).frames.max(initial=0) <= 4
