@@ -38,9 +38,11 @@ from __future__ import annotations
 import itertools
 import json
 import os
+import re
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # before Numba's OpenMP layer starts
@@ -105,6 +107,70 @@ def models_label(det) -> str:
     return "main" if det.wide_model is None else "main + wide"
 
 
+def time_detectors(dets: dict[str, Detector], frames: dict[str, np.ndarray], thread_counts: list[int],
+                   calls: int, rounds: int) -> tuple[dict, dict]:
+    """Seconds per ``detect`` of every detector at every thread count: ``calls`` calls each,
+    cycling through ``frames``, in ``rounds`` interleaved rounds (so a burst of load from
+    another program hits all of them alike), after a warm-up pass over the frames.
+    Returns ``times {(kind, n): [s, ...]}`` and ``stages {(kind, n): {stage: [s, ...]}}``
+    (the :class:`~fastdet.detect.DetectStats` timings of each call)."""
+    configs = [(kind, n) for kind in dets for n in thread_counts]
+    times: dict = {c: [] for c in configs}
+    stages: dict = {c: {} for c in configs}
+    cycle = itertools.cycle(list(frames.values()))
+    for kind, n in configs:  # warm: thread pool, first frame of this size
+        with threads(n):
+            for f in frames.values():
+                dets[kind].detect(f)
+    for _ in range(rounds):
+        for kind, n in configs:
+            with threads(n):
+                det = dets[kind]
+                for _ in range(calls // rounds):
+                    f = next(cycle)
+                    stats = DetectStats()
+                    t0 = time.perf_counter()
+                    det.detect(f, stats=stats)
+                    times[(kind, n)].append(time.perf_counter() - t0)
+                    for k, v in stats.timings.items():
+                        stages[(kind, n)].setdefault(k, []).append(v)
+    return times, stages
+
+
+def time_classic(frame: np.ndarray, rounds: int):
+    """``(seconds per run, the windows)`` of the classic pipeline (:func:`make_classic`) on
+    ``frame``, ``rounds`` runs at 1 thread."""
+    classic = make_classic()
+    times = []
+    with threads(1):
+        for _ in range(rounds):
+            t0 = time.perf_counter()
+            result = classic.detect(frame)
+            times.append(time.perf_counter() - t0)
+    return times, result
+
+
+_TOTAL = re.compile(r"^total(?: \(wall\))?\s+([\d.]+)\s+([\d.]+)", re.M)
+
+
+def wait_policy_times(bench_args: list[str], repeat: int) -> dict[str, list[tuple[float, float]]]:
+    """``{policy: [(best ms, median ms) per run]}`` of ``python -m fastdet bench BENCH_ARGS``
+    (its ``total`` row: detect + heat map) in fresh processes with ``OMP_WAIT_POLICY`` =
+    ``PASSIVE`` and ``ACTIVE``, ``repeat`` times each, interleaved."""
+    res: dict[str, list[tuple[float, float]]] = {}
+    for _ in range(repeat):
+        for policy in ("PASSIVE", "ACTIVE"):
+            env = dict(os.environ, OMP_WAIT_POLICY=policy)
+            env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO), env.get("PYTHONPATH")]))
+            out = subprocess.run([sys.executable, "-m", "fastdet", "bench", *bench_args], env=env, cwd=REPO,
+                                 capture_output=True, text=True, check=True).stdout
+            m = _TOTAL.search(out)
+            if m is None:
+                raise RuntimeError(f"no total row in the output of fastdet bench:\n{out}")
+            res.setdefault(policy, []).append((float(m.group(1)), float(m.group(2))))
+    return res
+
+
 def same_windows(a, b) -> bool:
     """Same set of positive-window boxes."""
     return set(map(tuple, np.asarray(a.boxes).tolist())) == set(map(tuple, np.asarray(b.boxes).tolist()))
@@ -133,8 +199,6 @@ def _start_run(frame_file: Path, cache_dir: Path, n_threads: int) -> dict:
     env = dict(os.environ, NUMBA_CACHE_DIR=str(cache_dir), NUMBA_NUM_THREADS=str(n_threads))
     env.setdefault("OMP_WAIT_POLICY", "PASSIVE")
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO), env.get("PYTHONPATH")]))
-    import time
-
     t0 = time.perf_counter()
     out = subprocess.run([sys.executable, "-c", _START_SCRIPT, str(frame_file)], env=env,
                          capture_output=True, text=True, check=True, cwd=REPO)

@@ -25,9 +25,11 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 import cv2
@@ -79,6 +81,18 @@ def opencv_setup(roi):
 
 def run_opencv(desc, planes):
     return [desc.compute(p) for p in planes]
+
+
+def time_ms(fn, *args, repeat: int) -> tuple[float, float]:
+    """``(median, min)`` milliseconds per call of ``fn(*args)`` over ``repeat`` calls, after
+    a warm-up call."""
+    fn(*args)
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn(*args)
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times) * 1e3, min(times) * 1e3
 
 
 @contextlib.contextmanager

@@ -25,6 +25,7 @@ import re
 import shlex
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -91,6 +92,23 @@ def warm_cache(clip: Path, out_dir: Path) -> None:
     """A 2-frame run of each mode so the Numba cache is filled before anything is timed."""
     for mode in MODES:
         run_video(clip, mode, 2, out_dir, frames=2)
+
+
+def video_runs(data: Path, thread_counts: list[int], repeat: int) -> dict[tuple[str, str, int], list[dict]]:
+    """Every case (clip of :data:`CLIPS` found in ``data/videos``, mode, thread count) run
+    ``repeat`` times, interleaved, after :func:`warm_cache`: ``{(clip, mode, n): [run_video
+    result, ...]}``."""
+    clips = [c for c in CLIPS if (data / "videos" / c).exists()]
+    results: dict[tuple[str, str, int], list[dict]] = {}
+    with tempfile.TemporaryDirectory(prefix="fastdet-bench-") as tmp:
+        warm_cache(data / "videos" / clips[0], Path(tmp))
+        for _ in range(repeat):
+            for clip in clips:
+                for mode in MODES:
+                    for n in thread_counts:
+                        results.setdefault((clip, mode, n), []).append(
+                            run_video(data / "videos" / clip, mode, n, Path(tmp)))
+    return results
 
 
 # --------------------------------------------------------------------------------------

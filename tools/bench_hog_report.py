@@ -15,31 +15,13 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import statistics
-import time
 
 import cv2
 import numba
 
 from benchmarks.bench_hog import (
-    load_roi, opencv_setup, run_fastdet, run_opencv, run_skimage, start_up_times,
+    load_roi, opencv_setup, run_fastdet, run_opencv, run_skimage, start_up_times, threads, time_ms,
 )
-
-
-def time_ms(fn, *args, repeat: int) -> tuple[float, float]:
-    """(median, min) milliseconds per call over ``repeat`` calls after a warm-up call."""
-    fn(*args)
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn(*args)
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times) * 1e3, min(times) * 1e3
-
-
-def set_threads(n: int) -> None:
-    numba.set_num_threads(n)
-    cv2.setNumThreads(n)
 
 
 def main(argv=None) -> int:
@@ -59,9 +41,9 @@ def main(argv=None) -> int:
 
     rows = {}
     for n in thread_counts:
-        set_threads(n)
-        rows[("fastdet.hog_channels", n)] = time_ms(run_fastdet, roi, repeat=args.repeat)
-        rows[("cv2.HOGDescriptor x3", n)] = time_ms(run_opencv, desc, planes, repeat=args.repeat)
+        with threads(n):
+            rows[("fastdet.hog_channels", n)] = time_ms(run_fastdet, roi, repeat=args.repeat)
+            rows[("cv2.HOGDescriptor x3", n)] = time_ms(run_opencv, desc, planes, repeat=args.repeat)
     if have_skimage:
         rows[("skimage.feature.hog x3", 1)] = time_ms(run_skimage, roi, repeat=3)
     sk = rows.get(("skimage.feature.hog x3", 1))

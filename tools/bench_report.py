@@ -28,17 +28,11 @@ typical one; a wide gap between them means the machine was busy. ``--quick``: fe
 from __future__ import annotations
 
 import argparse
-import itertools
 import os
 import platform
-import re
 import shlex
 import statistics
-import subprocess
 import sys
-import tempfile
-import time
-from pathlib import Path
 
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # as `python -m fastdet video`; before Numba starts OpenMP
 
@@ -46,19 +40,14 @@ import cv2  # noqa: E402
 import numba  # noqa: E402
 
 from benchmarks.bench_detector import (  # noqa: E402
-    CLASSIC_FRAME, load_frames, make_classic, make_fastdet, models_label, same_windows, start_up_times,
+    CLASSIC_FRAME, load_frames, make_fastdet, models_label, same_windows, start_up_times, time_classic,
+    time_detectors, wait_policy_times,
 )
-from benchmarks.bench_video import CLIPS, MODE_LABELS, MODES, command_line, run_video, warm_cache  # noqa: E402
+from benchmarks.bench_video import CLIPS, MODE_LABELS, MODES, command_line, video_runs  # noqa: E402
 from fastdet.data import data_dir  # noqa: E402
-from fastdet.detect import DetectStats  # noqa: E402
 
 SECTIONS = ("detector", "wait-policy", "video", "start-up")
 NOISY = 1.25  # median / best above this: flagged as noisy
-
-
-def set_threads(n: int) -> None:
-    numba.set_num_threads(n)
-    cv2.setNumThreads(n)
 
 
 def this_command(args: argparse.Namespace, section: str) -> str:
@@ -85,35 +74,9 @@ def detector_section(args: argparse.Namespace, thread_counts: list[int]) -> None
     kinds = ("main", "default", "wide") if args.wide else ("main", "default")
     dets = {kind: make_fastdet(kind, args.wide) for kind in kinds}
     configs = [(kind, n) for kind in dets for n in thread_counts]
-    times = {c: [] for c in configs}
-    stages = {c: {} for c in configs}
-    cycle = itertools.cycle(list(frames.values()))
-    for kind, n in configs:  # warm: thread pool, first frame of this size
-        set_threads(n)
-        for f in frames.values():
-            dets[kind].detect(f)
-    for _ in range(rounds):
-        for kind, n in configs:
-            set_threads(n)
-            det = dets[kind]
-            for _ in range(calls // rounds):
-                f = next(cycle)
-                stats = DetectStats()
-                t0 = time.perf_counter()
-                det.detect(f, stats=stats)
-                times[(kind, n)].append(time.perf_counter() - t0)
-                for k, v in stats.timings.items():
-                    stages[(kind, n)].setdefault(k, []).append(v)
-
-    set_threads(1)
-    classic = make_classic()
+    times, stages = time_detectors(dets, frames, thread_counts, calls, rounds)
     frame = frames[CLASSIC_FRAME]
-    ctimes = []
-    for _ in range(classic_rounds):
-        t0 = time.perf_counter()
-        cres = classic.detect(frame)
-        ctimes.append(time.perf_counter() - t0)
-    set_threads(max(thread_counts))
+    ctimes, cres = time_classic(frame, classic_rounds)
     agree = same_windows(cres, dets["main"].detect(frame))
     c_best, c_med = 1e3 * min(ctimes), 1e3 * statistics.median(ctimes)
 
@@ -157,23 +120,11 @@ def detector_section(args: argparse.Namespace, thread_counts: list[int]) -> None
 # --------------------------------------------------------------------------------------
 # (a') OpenMP wait policy
 # --------------------------------------------------------------------------------------
-_TOTAL = re.compile(r"^total\s+([\d.]+)\s+([\d.]+)", re.M)
-
-
 def wait_policy_section(args: argparse.Namespace, thread_counts: list[int]) -> None:
     nt = max(thread_counts)
     repeat = 1 if args.quick else 3
     bench_args = ["--threads", str(nt), "--frames", "30", "--repeat", "5"]
-    repo = Path(__file__).resolve().parent.parent
-    res: dict[str, list[tuple[float, float]]] = {}
-    for _ in range(repeat):
-        for policy in ("PASSIVE", "ACTIVE"):
-            env = dict(os.environ, OMP_WAIT_POLICY=policy)
-            env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(repo), env.get("PYTHONPATH")]))
-            out = subprocess.run([sys.executable, "-m", "fastdet", "bench", *bench_args], env=env, cwd=repo,
-                                 capture_output=True, text=True, check=True).stdout
-            m = _TOTAL.search(out)
-            res.setdefault(policy, []).append((float(m.group(1)), float(m.group(2))))
+    res = wait_policy_times(bench_args, repeat)
     print(f"### OpenMP wait policy, {nt} threads, ms per frame (detect + heat map)\n\n"
           f"`{this_command(args, 'wait-policy')}`  \n"
           f"each row: `OMP_WAIT_POLICY=P python -m fastdet bench {shlex.join(bench_args)}`, "
@@ -195,17 +146,8 @@ def wait_policy_section(args: argparse.Namespace, thread_counts: list[int]) -> N
 def video_section(args: argparse.Namespace, thread_counts: list[int]) -> None:
     data = data_dir()
     repeat = 1 if args.quick else 3
-    clips = [c for c in CLIPS if (data / "videos" / c).exists()]
-    results: dict[tuple, list[dict]] = {}
-    with tempfile.TemporaryDirectory(prefix="fastdet-bench-") as tmp:
-        tmp = Path(tmp)
-        warm_cache(data / "videos" / clips[0], tmp)
-        for _ in range(repeat):  # interleaved, as above
-            for clip in clips:
-                for mode in MODES:
-                    for n in thread_counts:
-                        results.setdefault((clip, mode, n), []).append(
-                            run_video(data / "videos" / clip, mode, n, tmp))
+    results = video_runs(data, thread_counts, repeat)
+    clips = [c for c in CLIPS if any(k[0] == c for k in results)]
 
     print(f"### Video: `python -m fastdet video` frames per second\n\n`{this_command(args, 'video')}`  \n"
           f"each cell: `{command_line('CLIP', 'boxes')}` (or `-o /tmp/out.mp4` instead of `--boxes`, "
