@@ -23,8 +23,9 @@ from .bands import band_geometry
 
 #: smallest window, in frame pixels, the main search may use
 MIN_WINDOW_PX = 16
-#: channels within this many grey levels count as equal (lossy codecs round the chroma)
-GREY_TOLERANCE = 2
+#: channels within this many grey levels count as equal (a grey picture through a lossy codec:
+#: up to 3; real colour footage has 10% of its pixels within 6, test_small1.mp4)
+GREY_TOLERANCE = 6
 #: a picture whose grey levels vary less than this (standard deviation) is not judged: a
 #: black or flat frame (a fade-in) says nothing about colour
 MIN_CONTRAST = 8.0

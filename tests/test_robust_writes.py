@@ -1,0 +1,81 @@
+"""A failed write is a failure (issue 14, item 2). "Disk full" is a real file-size limit
+(``RLIMIT_FSIZE`` in a subprocess): writes past it fail with EFBIG, as on a full disk.
+
+Every case: a non-zero exit, one line on stderr, and no file under the final name.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import pytest
+
+from tests.media import fastdet_cmd, frames, leftovers, run_limited, write_video
+
+
+@pytest.fixture(scope="module")
+def clip(tmp_path_factory) -> Path:
+    return write_video(tmp_path_factory.mktemp("w") / "clip.mp4", 60, w=640, h=360)
+
+
+def _one_line_failure(r, match: str) -> str:
+    assert r.returncode == 2, r.stdout + r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and match in lines[0], r.stderr
+    assert "wrote" not in r.stdout
+    return lines[0]
+
+
+def test_video_on_a_full_disk_fails_and_keeps_nothing(clip, tmp_path):
+    out = tmp_path / "o.mp4"
+    r = run_limited(fastdet_cmd("video", clip, "-o", out, "--no-progress", "--no-oncoming"), 200_000)
+    line = _one_line_failure(r, "writing the video failed")
+    assert "file-size limit" in line
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_video_cut_short_at_close_is_caught_by_the_final_check(clip, tmp_path):
+    """Too few frames for the check while writing: the file is checked when closed (it
+    does not open, or holds fewer frames than were written)."""
+    out = tmp_path / "o.mp4"
+    r = run_limited(fastdet_cmd("video", clip, "-o", out, "--frames", "5", "--no-progress", "--no-oncoming"), 40_000)
+    _one_line_failure(r, "writing the video failed")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_box_files_on_a_full_disk(clip, tmp_path):
+    boxes, js = tmp_path / "b.txt", tmp_path / "b.jsonl"
+    r = run_limited(fastdet_cmd("video", clip, "--boxes", boxes, "--json", js, "--no-progress", "--no-oncoming"), 300)
+    _one_line_failure(r, "cannot write")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_full_disk_removes_the_other_outputs_too(clip, tmp_path):
+    """The video fails: the box files, complete as they are, are not kept either (a failed
+    run keeps nothing)."""
+    out, boxes = tmp_path / "o.mp4", tmp_path / "b.txt"
+    r = run_limited(fastdet_cmd("video", clip, "-o", out, "--boxes", boxes, "--no-progress", "--no-oncoming"), 200_000)
+    _one_line_failure(r, "writing the video failed")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_image_on_a_full_disk_does_not_blame_the_extension(tmp_path):
+    img = tmp_path / "in.jpg"
+    cv2.imwrite(str(img), next(frames(1, 640, 360)))
+    out = tmp_path / "out" / "o.jpg"
+    out.parent.mkdir()
+    r = run_limited(fastdet_cmd("image", img, "-o", out), 20_000)
+    line = _one_line_failure(r, "writing the image failed")
+    assert "extension" not in line
+    assert list(out.parent.iterdir()) == []
+
+
+def test_mine_negatives_on_a_full_disk_says_so(tmp_path):
+    img = tmp_path / "in.jpg"
+    cv2.imwrite(str(img), next(frames(1, 1280, 720)))
+    out = tmp_path / "neg"
+    r = run_limited(fastdet_cmd("mine-negatives", img, "--out", out, "--x-range", "0", "1280",
+                                "--threshold", "-5", "--no-progress"), 3000)
+    _one_line_failure(r, "could not write the crop")
+    assert "mined" not in r.stdout
+    assert leftovers(out) == []
