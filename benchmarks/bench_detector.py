@@ -4,7 +4,7 @@ Numba cold / warm start of ``Detector().detect``.
 Run::
 
     python -m pytest benchmarks/bench_detector.py --benchmark-only
-    python tools/bench_report.py                 # the same figures as markdown tables
+    python -m tools.bench_report                 # the same figures as markdown tables
 
 Frames: ``test_images/*.jpg`` (six 1280x720 dashcam frames). Model and search are the same
 for both pipelines: the bundled main model (``fastdet.model.load_model()``) and the default

@@ -4,7 +4,7 @@ Numba start-up cost.
 Run::
 
     python -m pytest benchmarks/bench_hog.py --benchmark-only
-    python tools/bench_hog_report.py            # the same figures as a markdown table
+    python -m tools.bench_hog_report             # the same figures as a markdown table
 
 The band is the 1280x256 ROI ``y in [400, 656)`` of ``test_images/test1.jpg`` in LUV; all
 three channels, 9 orientations, 8x8-pixel cells, 2x2-cell blocks:

@@ -3,7 +3,7 @@
 Run::
 
     python -m pytest benchmarks/bench_video.py --benchmark-only
-    python tools/bench_report.py --only video    # the same figures as a markdown table
+    python -m tools.bench_report --only video    # the same figures as a markdown table
 
 Each case runs the CLI in a fresh process with ``NUMBA_NUM_THREADS`` = 1 or 2, on
 ``videos/test_video.mp4`` (38 frames) or ``videos/test_small1.mp4`` (88 frames), both
