@@ -378,6 +378,20 @@ def test_vehicle_counter_counts_ids_and_crossings_once_per_direction():
     assert VehicleCounter().summary() == {"vehicles": 0}
 
 
+def test_vehicle_counter_leaves_out_glimpses():
+    # id 1 seen in 5 frames, id 2 in 2 (crossing the line meanwhile): only id 1 counts
+    c = VehicleCounter(CountLine(0, 100, 200, 100), min_frames=3)
+    for f in range(5):
+        boxes = [[10, 50, 50, 80]] + ([[100, 60 + 40 * f, 140, 90 + 40 * f]] if f < 2 else [])
+        c.update(Detections(np.array(boxes, np.int32), np.ones(len(boxes), np.float32),
+                            ids=np.arange(1, len(boxes) + 1)))
+    assert c.vehicles == 1 and c.ids == {1}
+    assert c.crossed["left_to_right"] == {2} and c.crossings() == {"left_to_right": 0, "right_to_left": 0}
+    assert VehicleCounter(min_frames=1).min_frames == 1
+    with pytest.raises(ValueError):
+        VehicleCounter(min_frames=0)
+
+
 # ------------------------------------------------------------------ weak boxes of the heat map
 
 

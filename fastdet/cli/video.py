@@ -43,7 +43,7 @@
 - The summary gives the frames per second of the frame loop and the whole run's wall time
   (loading the model and, on a first run, compiling the kernels included).
 - Counting (:mod:`fastdet.video.count`): ``--count`` prints the number of distinct vehicles
-  (track ids) and, with ``--line X1,Y1,X2,Y2`` (frame pixels; implies ``--count``), how many
+  (track ids seen in at least 3 frames) and, with ``--line X1,Y1,X2,Y2`` (frame pixels; implies ``--count``), how many
   crossed that line in each direction. ``--summary S.json`` writes one JSON object when the
   run ends: ``input``, ``frames``, ``fps``, ``outputs`` and, with the tracker, ``vehicles``
   (and ``line`` with its two counts ``left_to_right`` / ``right_to_left``).
@@ -95,7 +95,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                        help="files only: after the last frame, fill short gaps of each track and extend "
                             "tracks back; outputs are written when the whole file was read")
     parser.add_argument("--count", action="store_true",
-                        help="print the number of distinct vehicles (track ids)")
+                        help="print the number of distinct vehicles (track ids seen in 3 frames or more)")
     parser.add_argument("--line", metavar="X1,Y1,X2,Y2", type=_line_arg,
                         help="count the vehicles crossing this line, per direction (implies --count)")
     parser.add_argument("--summary", metavar="SUMMARY.json",

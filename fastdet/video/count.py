@@ -3,13 +3,16 @@
 :class:`VehicleCounter` reads the tracker's output frame by frame (``Detections`` with
 ``ids``, e.g. from :class:`~fastdet.video.pipeline.VideoDetector` or after the offline pass):
 
-- ``vehicles``: the number of distinct track ids seen, i.e. of vehicles the tracker
-  confirmed (a track gets its id when it is confirmed, :mod:`fastdet.video.track`).
+- ``vehicles``: the number of distinct track ids seen in at least ``min_frames`` frames
+  (default 3): vehicles the tracker confirmed (:mod:`fastdet.video.track`) and followed for
+  more than a glimpse. A heat-map box that appears for a frame or two (a far-away car on the
+  horizon, a false alarm) gets an id but is not counted.
 - With a :class:`CountLine` ``(x1, y1) -> (x2, y2)`` in frame pixels: a vehicle *crosses*
   it when the bottom centre of its box (where it touches the road) moves from one side of
   the line to the other between two of its boxes, through the segment itself (not its
   extension); a box whose point lies exactly on the line is skipped (the crossing is then
-  counted between the boxes before and after it). Sides are named as seen walking from ``(x1, y1)`` to ``(x2, y2)`` in the
+  counted between the boxes before and after it). Only vehicles that are counted (seen in
+  ``min_frames`` frames) count as crossings. Sides are named as seen walking from ``(x1, y1)`` to ``(x2, y2)`` in the
   picture (y pointing down): a line drawn left to right has its *right* side below it. Each
   vehicle counts at most once per direction: a track that wavers back and forth over the
   line counts once ``left_to_right`` and once ``right_to_left``.
@@ -81,9 +84,12 @@ def bottom_centres(boxes: np.ndarray) -> np.ndarray:
 class VehicleCounter:
     """Distinct vehicles and line crossings (module docstring). ``update(dets)`` per frame."""
 
-    def __init__(self, line: CountLine | None = None) -> None:
+    def __init__(self, line: CountLine | None = None, min_frames: int = 3) -> None:
+        if int(min_frames) != min_frames or min_frames < 1:
+            raise ValueError(f"min_frames must be an integer >= 1, got {min_frames!r}")
         self.line = line
-        self.ids: set[int] = set()
+        self.min_frames = int(min_frames)
+        self.frames_seen: dict[int, int] = {}
         self._last: dict[int, np.ndarray] = {}
         self.crossed: dict[str, set[int]] = {"left_to_right": set(), "right_to_left": set()}
 
@@ -95,7 +101,7 @@ class VehicleCounter:
             i = int(i)
             if i < 1:
                 continue
-            self.ids.add(i)
+            self.frames_seen[i] = self.frames_seen.get(i, 0) + 1
             if self.line is not None and self.line.side(p)[0] != 0:  # a point on the line decides nothing
                 prev = self._last.get(i)
                 if prev is not None:
@@ -105,8 +111,18 @@ class VehicleCounter:
                 self._last[i] = p
 
     @property
+    def ids(self) -> set[int]:
+        """The ids of the vehicles counted (seen in at least ``min_frames`` frames)."""
+        return {i for i, n in self.frames_seen.items() if n >= self.min_frames}
+
+    @property
     def vehicles(self) -> int:
         return len(self.ids)
+
+    def crossings(self) -> dict[str, int]:
+        """``{"left_to_right": n, "right_to_left": n}``: counted vehicles that crossed the line."""
+        ids = self.ids
+        return {k: len(v & ids) for k, v in self.crossed.items()}
 
     def summary(self) -> dict[str, Any]:
         """``{"vehicles": n}`` plus, with a line, ``"line": {"x1", "y1", "x2", "y2",
@@ -114,16 +130,14 @@ class VehicleCounter:
         out: dict[str, Any] = {"vehicles": self.vehicles}
         if self.line is not None:
             ln = self.line
-            out["line"] = {"x1": ln.x1, "y1": ln.y1, "x2": ln.x2, "y2": ln.y2,
-                           **{k: len(v) for k, v in self.crossed.items()}}
+            out["line"] = {"x1": ln.x1, "y1": ln.y1, "x2": ln.x2, "y2": ln.y2, **self.crossings()}
         return out
 
     def text(self) -> str:
         """One line for people: ``"4 vehicles; line (x1,y1)-(x2,y2): 2 left to right, 1 right to left"``."""
         s = f"{self.vehicles} vehicle{'s' if self.vehicles != 1 else ''}"
         if self.line is not None:
-            ln = self.line
+            ln, n = self.line, self.crossings()
             s += (f"; line ({ln.x1:g},{ln.y1:g})-({ln.x2:g},{ln.y2:g}): "
-                  f"{len(self.crossed['left_to_right'])} left to right, "
-                  f"{len(self.crossed['right_to_left'])} right to left")
+                  f"{n['left_to_right']} left to right, {n['right_to_left']} right to left")
         return s
