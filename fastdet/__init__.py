@@ -7,7 +7,7 @@ Public API (the heavy parts are imported lazily, so ``import fastdet`` is cheap)
     from fastdet import Detector, VideoDetector      # one frame / a stream of frames
     from fastdet import load_model, Model            # the bundled or a trained model
     from fastdet import Detections                   # boxes + per-box columns (scores, scale, part, ids)
-    from fastdet import FeatureConfig, SearchConfig, SearchBand, HeatConfig, MotionGate
+    from fastdet import FeatureConfig, SearchConfig, SearchBand, HeatConfig, MotionGate, TrackerConfig
 
 Sub-packages, one per pipeline stage (layers point down): ``features`` (HOG, colour
 features) → ``detect`` (search bands, Detector) → ``video`` (heat map, motion gate, fusion,
@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 from ._version import __version__
-from .config import FeatureConfig, HeatConfig, MotionGate, SearchBand, SearchConfig
+from .config import FeatureConfig, HeatConfig, MotionGate, SearchBand, SearchConfig, TrackerConfig
 from .detections import Detections
 from .errors import DataError, FastdetError, ModelError
 
@@ -49,7 +49,8 @@ _LAZY = {
 }
 
 __all__ = [
-    "__version__", "FeatureConfig", "HeatConfig", "MotionGate", "SearchBand", "SearchConfig", "Detections",
+    "__version__", "FeatureConfig", "HeatConfig", "MotionGate", "SearchBand", "SearchConfig", "TrackerConfig",
+    "Detections",
     "FastdetError", "ModelError", "DataError", *_LAZY,
 ]
 

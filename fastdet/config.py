@@ -1,8 +1,9 @@
 """Frozen configuration dataclasses: what features a model uses (:class:`FeatureConfig`), where
 to search (:class:`SearchBand`, :class:`SearchConfig`), how the heat map turns windows into
-boxes (:class:`HeatConfig`) and how motion gates the wide model (:class:`MotionGate`).
+boxes (:class:`HeatConfig`), how motion gates the wide model (:class:`MotionGate`) and how
+the tracker gives boxes ids (:class:`TrackerConfig`).
 
-All five are plain values (hashable, comparable, JSON-round-trippable with
+All six are plain values (hashable, comparable, JSON-round-trippable with
 :func:`to_dict` / ``from_dict``), so a model file can record its :class:`FeatureConfig`
 and loading can check it.
 """

@@ -69,7 +69,7 @@ class BlobsDetector:
         return []
 
     def detect(self, frame, rgb=False, wide_bands=None, stats=None) -> Detections:
-        labels, n = ndimage.label(frame.max(axis=2) > 200)
+        labels, _ = ndimage.label(frame.max(axis=2) > 200)
         boxes = []
         for sl in ndimage.find_objects(labels):
             y1, y2, x1, x2 = sl[0].start, sl[0].stop, sl[1].start, sl[1].stop

@@ -61,9 +61,9 @@ from typing import Any
 import numba
 
 from ..config import HeatConfig
-from ..detections import Detections
 from ..console import process_seconds, prog
 from ..detect.checks import check_frame
+from ..detections import Detections
 from ..errors import DataError, FastdetError
 from ..io.atomic import check_output_path, write_bytes
 from ..io.motfiles import JsonLinesWriter, MotWriter

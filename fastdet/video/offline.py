@@ -19,6 +19,7 @@ An added box that overlaps a box of its frame (IoU > 0.3) is left out. Added box
 from __future__ import annotations
 
 from collections.abc import Sequence
+from itertools import pairwise
 
 import numpy as np
 
@@ -44,7 +45,7 @@ def interpolate_gaps(track: list[tuple[int, np.ndarray]], max_gap: int) -> list[
     """The boxes to add to one track ``[(frame, box), ...]`` (ascending frames): every frame
     of a gap of at most ``max_gap`` frames, linearly interpolated."""
     out = []
-    for (f1, b1), (f2, b2) in zip(track[:-1], track[1:]):
+    for (f1, b1), (f2, b2) in pairwise(track):
         gap = f2 - f1 - 1
         if 1 <= gap <= max_gap:
             for f in range(f1 + 1, f2):

@@ -36,6 +36,7 @@ at the time of writing, OpenCV 5), plus ``supervision`` and matplotlib.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import pairwise
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -129,7 +130,7 @@ def split_merged(boxes: np.ndarray, predicted: np.ndarray, min_overlap: float) -
         mine = mine[np.argsort((mine[:, 0] + mine[:, 2]) / 2, kind="stable")]
         cuts = np.clip((mine[:-1, 2] + mine[1:, 0]) / 2, box[0], box[2])
         edges = np.concatenate([[box[0]], cuts, [box[2]]])
-        for a, z in zip(edges[:-1], edges[1:]):
+        for a, z in pairwise(edges):
             if z > a:
                 parts.append(np.array([a, box[1], z, box[3]]))
                 src.append(i)
