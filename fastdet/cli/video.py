@@ -15,7 +15,7 @@
   ``--offline`` (files only) runs the offline pass after the last frame
   (:mod:`fastdet.video.offline`: short gaps of a track filled, tracks extended back); the
   outputs are then written after the whole file was read (the video by reading the file a
-  second time), and ``--debug`` draws the tracks but not the panels.
+  second time), without the ``--debug`` panels (the heat maps of every frame are not kept).
 - ``--boxes`` writes MOTChallenge lines ``frame,id,left,top,width,height,conf,-1,-1,-1``
   and ``--json`` one JSON object per frame (:mod:`fastdet.io.motfiles`); both are flushed after
   every frame. ``conf`` is the peak heat of the vehicle's blob
@@ -202,10 +202,11 @@ def _redraw(args: argparse.Namespace, sink: VideoSink, frames: list[tuple[int, D
     debug panels: the heat maps of every frame are not kept)."""
     by_frame = dict(frames)
     last = frames[-1][0]
+    stopped = _signals.stop_requested()  # a stop during detection: still draw the frames done
     reader = FrameReader(args.input, args.start, last - args.start)
     try:
         for fno, frame, _ in reader:
-            if fno > last or _signals.stop_requested():
+            if fno > last or (_signals.stop_requested() and not stopped):
                 break
             dets = by_frame.get(fno)
             if dets is not None:
