@@ -377,7 +377,7 @@ def test_video_option_uses_pipeline(files, tmp_path, monkeypatch, capsys):
     clip.write_bytes(b"")
     calls = {}
 
-    def fake_iter(path, model=None, progress=True, oncoming=True):
+    def fake_iter(path, model=None, progress=True, oncoming=True, **kw):
         calls.update(path=path, model=model, oncoming=oncoming)
         for f in (1, 2):
             rows = [r for r in GT_ROWS if r[0] == f and r[6] == 1]

@@ -5,16 +5,17 @@ Every ``import`` in every module of ``fastdet/`` (at the top, inside functions, 
 layer of its top-level name (``fastdet.video.heatmap`` -> ``video``), and the layers are
 ranked (a layer may import only layers of lower rank; a sub-package may import itself)::
 
-    0  _version, errors, _numba, data, console   no fastdet imports but these
-    1  config, boxes, detections                  values and arithmetic
-    2  features, io                               pixels in, files in and out
-    3  model                                      a model file and its features
-    4  detect                                     one frame
-    5  video, eval, train                         a stream of frames; scoring; fitting
-    6  batch                                      many videos
-    7  fastdet (the package __init__: public API) re-exports the layers below
-    8  cli                                        one module per command
-    9  __main__                                   ``python -m fastdet``
+    0  _version, errors, console               no fastdet imports
+    1  _numba, data                            numba options, the data folder (may note on the console)
+    2  config, boxes, detections               values and arithmetic
+    3  features, io                            pixels in, files in and out
+    4  model                                   a model file and its features
+    5  detect                                  one frame
+    6  video, eval, train                      a stream of frames; scoring; fitting
+    7  batch                                   many videos
+    8  fastdet (the package __init__)          the public API: re-exports the layers below
+    9  cli                                     one module per command
+    10 __main__                                ``python -m fastdet``
 
 so nothing but ``cli`` itself and ``__main__`` imports ``cli``. A new top-level module or
 sub-package must be given a rank here. Imports between modules of one sub-package may go
@@ -32,16 +33,17 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "fastdet"
 
 RANKS: dict[str, int] = {
-    "_version": 0, "errors": 0, "_numba": 0, "data": 0, "console": 0,
-    "config": 1, "boxes": 1, "detections": 1,
-    "features": 2, "io": 2,
-    "model": 3,
-    "detect": 4,
-    "video": 5, "eval": 5, "train": 5,
-    "batch": 6,
-    "": 7,  # fastdet/__init__.py
-    "cli": 8,
-    "__main__": 9,
+    "_version": 0, "errors": 0, "console": 0,
+    "_numba": 1, "data": 1,
+    "config": 2, "boxes": 2, "detections": 2,
+    "features": 3, "io": 3,
+    "model": 4,
+    "detect": 5,
+    "video": 6, "eval": 6, "train": 6,
+    "batch": 7,
+    "": 8,  # fastdet/__init__.py
+    "cli": 9,
+    "__main__": 10,
 }
 
 
@@ -199,18 +201,21 @@ def test_rules_on_synthetic_graphs():
         "fastdet.video.b": {"fastdet.boxes"},
         "fastdet.detect": {"fastdet.features", "fastdet.model"},
         "fastdet.io.sink": {"fastdet.detections", "fastdet.boxes", "fastdet.console"},
+        "fastdet._numba": {"fastdet.console"},
     }
     assert layer_violations(ok) == [] and cycles(ok) == []
     up = {**ok, "fastdet.features": {"fastdet.video.a"}}
-    assert layer_violations(up) == ["fastdet.features (layer features, rank 2) imports fastdet.video.a "
-                                    "(layer video, rank 5)"]
+    assert layer_violations(up) == ["fastdet.features (layer features, rank 3) imports fastdet.video.a "
+                                    "(layer video, rank 6)"]
     sideways = {**ok, "fastdet.eval.metrics": {"fastdet.video"}}
-    assert layer_violations(sideways) == ["fastdet.eval.metrics (layer eval, rank 5) imports fastdet.video "
-                                          "(layer video, rank 5)"]
+    assert layer_violations(sideways) == ["fastdet.eval.metrics (layer eval, rank 6) imports fastdet.video "
+                                          "(layer video, rank 6)"]
     into_cli = {**ok, "fastdet.batch.task": {"fastdet.cli.main"}}
     assert len(layer_violations(into_cli)) == 1
     facade = {**ok, "fastdet.video.b": {"fastdet"}}  # `from fastdet import X` inside the package
     assert len(layer_violations(facade)) == 1
+    base = {**ok, "fastdet.console": {"fastdet._numba"}}  # the lowest layer imports nothing of fastdet
+    assert len(layer_violations(base)) == 1 and len(cycles(base)) == 1
     unknown = {**ok, "fastdet.gadgets": set()}
     assert layer_violations(unknown) == ["fastdet.gadgets: layer 'gadgets' has no rank"]
     cyclic = {**ok, "fastdet.video.b": {"fastdet.video.c"}, "fastdet.video.c": {"fastdet.video.a"}}
@@ -246,7 +251,7 @@ def test_reader_on_a_synthetic_package(tmp_path):
         "fastdet.video.pipeline": {"fastdet.detections", "fastdet.features", "fastdet.video.helpers"},
         "fastdet.video.helpers": {"fastdet.config"},
     }
-    assert layer_violations(g) == ["fastdet.features._hog (layer features, rank 2) imports fastdet.video "
-                                   "(layer video, rank 5)"]
+    assert layer_violations(g) == ["fastdet.features._hog (layer features, rank 3) imports fastdet.video "
+                                   "(layer video, rank 6)"]
     # and the cycle it makes: features._hog -> video -> pipeline -> features -> features._hog
     assert cycles(g) == [["fastdet.features", "fastdet.features._hog", "fastdet.video", "fastdet.video.pipeline"]]
