@@ -41,7 +41,7 @@ class CountLine:
             raise ValueError("a counting line needs two different end points")
 
     @classmethod
-    def parse(cls, text: str) -> "CountLine":
+    def parse(cls, text: str) -> CountLine:
         """From ``"x1,y1,x2,y2"`` (``ValueError`` with a one-line reason otherwise)."""
         parts = [p.strip() for p in str(text).split(",")]
         if len(parts) != 4:
