@@ -10,7 +10,8 @@ An INPUT is
   per line (relative paths are relative to the list file's folder; blank lines and lines
   starting with ``#`` are skipped; a line may itself be a folder or a glob).
 
-Videos are kept in the order given (each folder and glob sorted), each file once. An
+Videos are kept in the order given (the videos of a folder or a glob sorted by path), each
+file once. An
 INPUT that does not exist or matches nothing raises :class:`~fastdet.errors.DataError`
 before anything runs.
 """
@@ -41,8 +42,8 @@ def _folder_videos(folder: Path) -> list[Path]:
     found: list[Path] = []
     for root, dirs, files in os.walk(folder):
         dirs[:] = sorted(d for d in dirs if not d.startswith("."))
-        found.extend(Path(root) / f for f in sorted(files) if not f.startswith(".") and is_video_name(f))
-    return found
+        found.extend(Path(root) / f for f in files if not f.startswith(".") and is_video_name(f))
+    return sorted(found, key=lambda p: p.relative_to(folder).parts)
 
 
 def _expand_one(arg: str, base: Path | None, depth: int) -> list[Path]:

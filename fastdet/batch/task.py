@@ -15,9 +15,11 @@ runs the same building blocks, in the same way, as ``python -m fastdet video``:
   (``OUT/.partial/NAME.boxes.<token>.txt``) and renamed to its final name only when the
   whole video is done; a retried task (its worker was killed) writes its own files, and a
   failed or killed attempt leaves nothing under a final name.
-- A video that cannot be read (:class:`~fastdet.errors.FastdetError`, e.g. not a video,
-  damaged midway) is returned as ``status: "failed"`` with the one-line reason: retrying
-  would fail again. Any other exception propagates, and Dask retries the task.
+- A video that cannot be used (:class:`~fastdet.errors.FastdetError`: not a video, frames
+  too small or grey, a failed write) is returned as ``status: "failed"`` with the one-line
+  reason: retrying would fail again. Any other exception propagates, and Dask retries the
+  task. The reader's notes (damaged frames skipped, a frame count other than the header's)
+  are returned in ``notes`` instead of being printed on the worker.
 - Progress: while it runs, the task sends ``{"name", "token", "frames", "expected"}``
   events on the Dask topic ``task.topic`` (:meth:`distributed.Worker.log_event`) at most
   every :data:`PROGRESS_EVERY` seconds, and once at the end.
@@ -38,6 +40,7 @@ from typing import Any
 import numba
 from distributed import get_worker
 
+from ..detect.checks import check_frame
 from ..errors import FastdetError
 from ..io.atomic import commit
 from ..io.motfiles import JsonLinesWriter, MotWriter
@@ -143,30 +146,31 @@ def run_video(task: VideoTask) -> dict[str, Any]:
     summary: dict[str, Any] = {"input": task.input, "name": task.name, "host": socket.gethostname(),
                                "token": token, "frames": 0}
     report = _reporter(task, token)
+    notes: list[str] = []
     n = n_boxes = 0
-    reader = sink = mot = jsl = None
-    made: list[Path] = list(tmps.values())
+    reader = sink = None
+    writers: list[Any] = []
 
-    def close_all() -> None:
-        if reader is not None:
-            reader.close()
-        if sink is not None:
-            sink.close()
-        for wr in (mot, jsl):
+    def close_outputs(discard: bool) -> None:
+        """Close the writers: renamed to this attempt's names, or removed with ``discard``."""
+        for wr in (*writers, sink):
             if wr is not None:
-                wr.close()
+                wr.close(discard=discard)
 
     try:
         (Path(task.out_dir) / PARTIAL_DIR).mkdir(exist_ok=True)
-        reader = FrameReader(task.input)
-        vd = VideoDetector(detector_for(s), s.heat)
+        reader = FrameReader(task.input, notify=notes.append)
+        detector = detector_for(s)
+        check_frame(detector, reader.first_frame, task.input)
+        vd = VideoDetector(detector, s.heat)
         h, w = reader.shape[:2]
         if "video" in tmps:
             sink = VideoSink(str(tmps["video"]), reader.fps, (w, h), threshold=s.heat.threshold)
-            made.append(sink.tmp)
         mot = MotWriter(tmps["boxes"])
-        if "json" in tmps:
-            jsl = JsonLinesWriter(tmps["json"])
+        writers.append(mot)
+        jsl = JsonLinesWriter(tmps["json"]) if "json" in tmps else None
+        if jsl is not None:
+            writers.append(jsl)
         report(0, reader.expected, True)
         for fno, frame, _ in reader:
             dets = vd.update(frame)
@@ -178,22 +182,25 @@ def run_video(task: VideoTask) -> dict[str, Any]:
             n += 1
             n_boxes += len(dets)
             report(n, reader.expected)
-        close_all()
-        if sink is not None and not sink.frames:
-            raise FastdetError(f"{task.input}: no frame was written to the video")
+        close_outputs(discard=False)
         for kind in s.kinds:  # all complete: give them their final names
             commit(tmps[kind], finals[kind])
         report(n, n, True)
     except FastdetError as exc:
-        _quietly(close_all)
-        _unlink(made)
-        summary.update(status="failed", error=_one_line(exc), frames=n, seconds=time.perf_counter() - t0)
+        _quietly(lambda: close_outputs(discard=True))
+        _unlink(list(tmps.values()))
+        summary.update(status="failed", error=_one_line(exc), frames=n, seconds=time.perf_counter() - t0,
+                       notes=notes)
         return summary
     except BaseException:
-        _quietly(close_all)
-        _unlink(made)
+        _quietly(lambda: close_outputs(discard=True))
+        _unlink(list(tmps.values()))
         raise
+    finally:
+        if reader is not None:
+            reader.close()
     summary.update(status="done", frames=n, boxes=n_boxes, seconds=time.perf_counter() - t0,
+                   skipped_frames=reader.n_skipped, notes=notes,
                    outputs={k: p.name for k, p in finals.items()},
                    sizes={p.name: p.stat().st_size for p in finals.values()})
     return summary
