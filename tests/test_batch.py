@@ -226,6 +226,7 @@ def test_batch_manifest(first_run, clips: Path) -> None:
         assert e["settings"]["outputs"] == ["boxes", "json", "video"]
     assert entries["road"]["input"] == str(clips / "road.mp4")
     assert entries["broken"]["status"] == "failed" and "not a video" in entries["broken"]["error"]
+    assert entries["broken"]["permanent"] is True
     assert "\n" not in entries["broken"]["error"]
 
 
@@ -244,25 +245,40 @@ def test_batch_rerun_skips_then_overwrite_redoes(first_run, clips: Path) -> None
     before = {f.name: f.stat().st_ino for f in out.glob("*.boxes.txt")}
     n_lines = len(manifest_lines(out))
     r = batch(clips, "--out", out, "--workers", "2", "--json", "--video", "--no-progress")
-    assert r.returncode == 1, r.stderr  # the broken file is tried again, and fails again
+    # the broken file is not run again (unchanged, failed because of what it is), but still failed
+    assert r.returncode == 1, r.stderr
     skipped = next(line for line in r.stdout.splitlines() if line.startswith("skipped"))
     assert skipped.split()[1:3] == ["2", "12"]
+    assert "broken.mp4" in r.stdout and "--overwrite tries again" in r.stdout
     assert {f.name: f.stat().st_ino for f in out.glob("*.boxes.txt")} == before
     lines = manifest_lines(out)
-    assert [e["name"] for e in lines[n_lines:]] == ["broken"]
+    assert len(lines) == n_lines
+    # other settings (no tracker, no --video): nothing is complete for them, so all is redone,
+    # as `video --no-track` does it; and the broken file, changed since, is tried again
+    broken = clips / "broken.mp4"
+    st = broken.stat()
+    os.utime(broken, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+    r = batch(clips, "--out", out, "--workers", "2", "--json", "--no-track", "--no-progress")
+    assert r.returncode == 1, r.stderr
+    lines = manifest_lines(out)
+    assert sorted(e["name"] for e in lines[n_lines:]) == ["broken", "oncoming", "road"]
+    last = {e["name"]: e for e in lines[n_lines:]}["road"]
+    assert last["settings"]["outputs"] == ["boxes", "json"] and last["settings"]["tracker"] is None
+    ref = out.parent / "road_no_track.txt"
+    v = subprocess.run(FASTDET + ["video", str(clips / "road.mp4"), "--no-track", "--boxes", str(ref),
+                                  "--no-progress"], capture_output=True, text=True, timeout=TIMEOUT)
+    assert v.returncode == 0, v.stderr
+    assert (out / "road.boxes.txt").read_bytes() == ref.read_bytes()
+    assert set(read_predictions(ref).ids.tolist()) == {-1}
 
-    # other settings (no --video): not complete for them, so redone
-    r = batch(clips / "road.mp4", "--out", out, "--workers", "1", "--json", "--no-progress")
-    assert r.returncode == 0, r.stderr
-    assert manifest_lines(out)[-1]["settings"]["outputs"] == ["boxes", "json"]
-
+    # --overwrite: the same settings as the first run, but everything is done again
+    before = {f.name: f.stat().st_ino for f in out.glob("*.boxes.*")}
     r = batch(clips, "--out", out, "--workers", "2", "--overwrite", "--json", "--video", "--no-progress")
     assert r.returncode == 1, r.stderr
-    redone = {e["name"]: e for e in manifest_lines(out)[len(lines) + 1:]}
+    redone = {e["name"]: e for e in manifest_lines(out)[len(lines):]}
     assert set(redone) == {"road", "oncoming", "broken"}
-    assert all(e["token"] != lines_e["token"] for lines_e in lines for e in redone.values()
-               if lines_e["name"] == e["name"])
-    assert {f.name: f.stat().st_ino for f in out.glob("*.boxes.txt")} != before
+    assert all(f.stat().st_ino != before[f.name] for f in out.glob("*.boxes.*"))
+    assert (out / "road.boxes.txt").read_bytes() != ref.read_bytes()  # with track ids again
 
 
 def test_batch_bad_arguments_one_line(tmp_path: Path, clips: Path, capsys: pytest.CaptureFixture) -> None:

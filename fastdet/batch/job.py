@@ -2,9 +2,11 @@
 
 :func:`run_batch` is what ``python -m fastdet batch`` runs:
 
-1. Each video gets its output name (:func:`~fastdet.batch.inputs.output_names`); with
-   ``resume`` the videos the manifest shows complete for the same settings are skipped
-   (:meth:`~fastdet.batch.manifest.Manifest.is_complete`). With nothing left to do no
+1. Each video gets its output name (:func:`~fastdet.batch.inputs.output_names`); unless
+   ``overwrite``, the videos the manifest shows complete for the same settings are skipped
+   (:meth:`~fastdet.batch.manifest.Manifest.is_complete`), and those that failed because
+   of the file itself (not a video, ...) and have not changed are reported as failed
+   without running them again (:meth:`~fastdet.batch.manifest.Manifest.known_failure`). With nothing left to do no
    cluster is started.
 2. The cluster: by default a ``LocalCluster`` of ``workers`` processes (one per core) with
    one thread and one Numba thread each; with ``scheduler`` (``tcp://host:8786``) the
@@ -299,9 +301,14 @@ def run_batch(videos: Sequence[Path], opts: BatchOptions) -> BatchReport:
     stats: dict[str, dict[str, int]] = {}
     for video, name in zip(videos, names):
         path = str(video)
-        if not opts.overwrite and manifest.is_complete(path, name, digest, output_paths(out_dir, name, settings)):
-            report.skipped.append(manifest.entries[path])
-            continue
+        if not opts.overwrite:
+            if manifest.is_complete(path, name, digest, output_paths(out_dir, name, settings)):
+                report.skipped.append(manifest.entries[path])
+                continue
+            before = manifest.known_failure(path, name, digest)
+            if before is not None:  # the same file failed the same way: not run again
+                report.failed.append({**before, "earlier": True})
+                continue
         try:
             stats[path] = input_stat(path)
         except OSError as exc:

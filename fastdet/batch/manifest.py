@@ -11,7 +11,9 @@ is read, and the file is then rewritten without it (under a temporary name, rena
 
 :meth:`Manifest.is_complete` is the ``--resume`` test: a ``done`` line with the same output
 name and settings hash, an unchanged input file, and every output present at its
-recorded size.
+recorded size. :meth:`Manifest.known_failure` finds the videos that failed because of the
+input itself (``permanent``: not a video, ...) with the same settings and an unchanged
+file: a rerun reports them as failed again without running them.
 """
 from __future__ import annotations
 
@@ -80,6 +82,20 @@ class Manifest:
         except OSError as exc:
             raise DataError(f"{self.path}: cannot write the manifest ({exc.strerror or exc})") from None
         self.entries[entry["input"]] = entry
+
+    def known_failure(self, video: str | os.PathLike, name: str, settings_hash: str) -> dict[str, Any] | None:
+        """The entry of ``video`` when it failed because of the input itself (``permanent``:
+        not a video, frames too small, ...) with these settings and the input has not changed
+        since: running it again would fail again. ``None`` otherwise."""
+        e = self.entries.get(os.fspath(video))
+        if not e or e.get("status") != "failed" or not e.get("permanent") or e.get("name") != name \
+                or e.get("settings_hash") != settings_hash:
+            return None
+        try:
+            same = {k: e.get(k) for k in ("input_size", "input_mtime_ns")} == input_stat(video)
+        except OSError:
+            return None
+        return e if same else None
 
     def is_complete(self, video: str | os.PathLike, name: str, settings_hash: str,
                     outputs: dict[str, Path]) -> bool:

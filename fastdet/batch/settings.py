@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from .._version import __version__
-from ..config import HeatConfig
+from ..config import HeatConfig, TrackerConfig
 from ..errors import ModelError
 from ..model import DEFAULT_MODEL_PATH, ONCOMING_MODEL_PATH
 from ..video.pipeline import make_detector
@@ -48,6 +48,8 @@ class Settings:
     oncoming: absolute path of the wide-window (oncoming-traffic) model, or ``None`` for
         none (``--no-oncoming``). oncoming_sha256: its hash (``""`` for none).
     heat: the heat map's :class:`~fastdet.config.HeatConfig`.
+    track: give the boxes track ids (the default :class:`~fastdet.config.TrackerConfig`, as
+        ``fastdet video``); ``False`` as ``video --no-track`` (ids -1).
     video, json: also write the annotated video / JSON lines (the boxes file is always written).
     """
 
@@ -56,12 +58,14 @@ class Settings:
     oncoming: str | None
     oncoming_sha256: str = ""
     heat: HeatConfig = field(default_factory=HeatConfig)
+    track: bool = True
     video: bool = False
     json: bool = False
 
     @classmethod
     def create(cls, model: str | os.PathLike | None = None, oncoming: str | os.PathLike | bool = True,
-               heat: HeatConfig | None = None, video: bool = False, json: bool = False) -> Settings:
+               heat: HeatConfig | None = None, track: bool = True, video: bool = False,
+               json: bool = False) -> Settings:
         """Settings for ``model`` (``None``: the bundled one) and ``oncoming`` (``True``:
         the bundled oncoming model, ``False``: none, or a path), hashing the model files."""
         main = os.path.abspath(model) if model is not None else str(DEFAULT_MODEL_PATH)
@@ -75,7 +79,7 @@ class Settings:
             if p is not None and not os.path.isfile(p):
                 raise ModelError(f"{p}: model file not found")
         return cls(main, file_sha256(main), wide, file_sha256(wide) if wide else "",
-                   heat if heat is not None else HeatConfig(), bool(video), bool(json))
+                   heat if heat is not None else HeatConfig(), bool(track), bool(video), bool(json))
 
     def check(self) -> None:
         """Load the models as a worker will: :class:`ModelError` (one line) now, before any
@@ -93,6 +97,7 @@ class Settings:
             "model": self.model, "model_sha256": self.model_sha256,
             "oncoming": self.oncoming, "oncoming_sha256": self.oncoming_sha256,
             "heat": dataclasses.asdict(self.heat),
+            "tracker": dataclasses.asdict(TrackerConfig()) if self.track else None,
             "outputs": list(self.kinds),
             "fastdet": __version__,
         }

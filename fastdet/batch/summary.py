@@ -32,5 +32,7 @@ def format_summary(done: Sequence[dict[str, Any]], skipped: Sequence[dict[str, A
     lines += [f"{a:<9}{b:>7}{c:>9}{d:>16}{e:>17}" for a, b, c, d, e in rows]
     for r in failed:
         where, err = str(r.get("input", r.get("name"))), str(r.get("error", "unknown error"))
-        lines.append(f"failed: {err}" if err.startswith(where) else f"failed: {where}: {err}")
+        line = f"failed: {err}" if err.startswith(where) else f"failed: {where}: {err}"
+        lines.append(line + (" (in an earlier run; unchanged since: --overwrite tries again)"
+                             if r.get("earlier") else ""))
     return "\n".join(lines)

@@ -17,8 +17,8 @@ runs the same building blocks, in the same way, as ``python -m fastdet video``:
   failed or killed attempt leaves nothing under a final name.
 - A video that cannot be used (:class:`~fastdet.errors.FastdetError`: not a video, frames
   too small or grey, a failed write) is returned as ``status: "failed"`` with the one-line
-  reason: retrying would fail again. Any other exception propagates, and Dask retries the
-  task. The reader's notes (damaged frames skipped, a frame count other than the header's)
+  reason and ``permanent: True``: retrying would fail again (a rerun skips it while the
+  file is unchanged). Any other exception propagates, and Dask retries the task. The reader's notes (damaged frames skipped, a frame count other than the header's)
   are returned in ``notes`` instead of being printed on the worker.
 - Progress: while it runs, the task sends ``{"name", "token", "frames", "expected"}``
   events on the Dask topic ``task.topic`` (:meth:`distributed.Worker.log_event`) at most
@@ -162,7 +162,7 @@ def run_video(task: VideoTask) -> dict[str, Any]:
         reader = FrameReader(task.input, notify=notes.append)
         detector = detector_for(s)
         check_frame(detector, reader.first_frame, task.input)
-        vd = VideoDetector(detector, s.heat)
+        vd = VideoDetector(detector, s.heat, tracker=s.track)
         h, w = reader.shape[:2]
         if "video" in tmps:
             sink = VideoSink(str(tmps["video"]), reader.fps, (w, h), threshold=s.heat.threshold)
@@ -189,7 +189,8 @@ def run_video(task: VideoTask) -> dict[str, Any]:
     except FastdetError as exc:
         _quietly(lambda: close_outputs(discard=True))
         _unlink(list(tmps.values()))
-        summary.update(status="failed", error=_one_line(exc), frames=n, seconds=time.perf_counter() - t0,
+        summary.update(status="failed", error=_one_line(exc), permanent=True, frames=n,
+                       seconds=time.perf_counter() - t0,
                        notes=notes)
         return summary
     except BaseException:

@@ -1,13 +1,13 @@
 """``python -m fastdet batch``: many videos, one Dask task each (see :mod:`fastdet.batch`).
 
 ``python -m fastdet batch INPUT... --out DIR [--video] [--json] [--model M.npz]
-[--oncoming-model W.npz | --no-oncoming] [--workers N] [--scheduler tcp://host:8786]
+[--oncoming-model W.npz | --no-oncoming] [--no-track] [--workers N] [--scheduler tcp://host:8786]
 [--resume | --overwrite] [--retries N] [--table boxes.parquet|boxes.csv] [--no-progress]``
 
 - INPUT: video files, folders (searched recursively for videos), quoted glob patterns, or
   ``.txt`` list files of paths (:mod:`fastdet.batch.inputs`).
-- For each video, in DIR: ``NAME.boxes.txt`` (MOTChallenge, byte-identical to ``fastdet video
-  --boxes``), with ``--json`` ``NAME.boxes.jsonl``, with ``--video`` ``NAME.annotated.mp4``;
+- For each video, in DIR: ``NAME.boxes.txt`` (MOTChallenge with track ids, byte-identical to
+  ``fastdet video --boxes``; ``--no-track`` as ``video --no-track``), with ``--json`` ``NAME.boxes.jsonl``, with ``--video`` ``NAME.annotated.mp4``;
   ``DIR/manifest.jsonl`` records every finished video.
 - Exit status: 0 when every video is done (or was already), 1 when some failed (listed in
   the summary), 2 for bad arguments (one line), 128 + N after signal N (the finished videos
@@ -42,6 +42,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="also write the boxes as JSON lines NAME.boxes.jsonl")
     parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
     add_oncoming_arguments(parser)
+    parser.add_argument("--no-track", action="store_true",
+                        help="no tracker: boxes without ids (-1), as `fastdet video --no-track`")
     parser.add_argument("--workers", type=positive_int, default=None, metavar="N",
                         help="worker processes of the local cluster (default: one per core)")
     parser.add_argument("--scheduler", metavar="ADDRESS", default=None,
@@ -82,7 +84,8 @@ def run(args: argparse.Namespace) -> int:
     if table is not None:
         table_mod.table_format(table)
     videos = inputs.expand_inputs(args.inputs)
-    settings = settings_mod.Settings.create(args.model, oncoming_arg(args), video=args.video, json=args.json)
+    settings = settings_mod.Settings.create(args.model, oncoming_arg(args), track=not args.no_track,
+                                            video=args.video, json=args.json)
     settings.check()
     job.prepare_out_dir(Path(args.out))
     if table is not None:  # after the output folder exists: the table may go into it

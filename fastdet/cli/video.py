@@ -250,7 +250,7 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
         elif args.model is not None:
             raise FastdetError("--model cannot be used with an injected detector")
         check_frame(detector, reader.first_frame, args.input)
-        vd = VideoDetector(detector, heat, tracker=track)
+        vd = VideoDetector(detector, heat, tracker=track, fps=reader.fps)
         vd.warmup()
         counter = VehicleCounter(line) if track else None
         done: list[tuple[int, Detections]] = []  # --offline: every frame's tracks

@@ -11,6 +11,7 @@ windows. Thresholds: :class:`fastdet.config.MotionGate`.
 """
 from __future__ import annotations
 
+from collections import deque
 from typing import NamedTuple
 
 import cv2
@@ -23,40 +24,54 @@ from ..detect.bands import BandGeometry
 
 class MotionMap(NamedTuple):
     """Integral image ``(h + 1, w + 1) float64`` of ``|gray - previous gray|`` over the frame
-    region whose top-left corner is ``origin = (x, y)`` (frame pixels)."""
+    region whose top-left corner is ``origin = (x, y)`` (frame pixels); ``noise``: the
+    median of ``|gray - previous gray|`` over the region (grey levels, from every 4th pixel
+    of every 4th row), what :meth:`fastdet.config.MotionGate.threshold` scales with."""
 
     integral: np.ndarray
     origin: tuple[int, int] = (0, 0)
+    noise: float = 0.0
 
 
 class FrameMotion:
     """The motion of the current frame against the previous one.
 
-    ``update(frame, roi)`` takes a ``(H, W, 3) uint8`` BGR frame and returns the
+    ``update(frame, roi, lag=1)`` takes a ``(H, W, 3) uint8`` BGR frame and returns the
     :class:`MotionMap` of ``roi = (x1, y1, x2, y2)`` (default: the whole frame; only those
-    pixels are converted and differenced), or ``None`` for the first frame (or the first
-    after :meth:`reset`, or after a change of frame size or region).
+    pixels are converted and differenced) against the frame ``lag`` frames back
+    (:meth:`fastdet.config.MotionGate.lag`), or ``None`` while fewer than ``lag`` earlier
+    frames were seen (the first frame; the first after :meth:`reset`, or after a change of
+    frame size or region).
     """
 
     def __init__(self) -> None:
-        self._prev: np.ndarray | None = None
+        self._prev: deque[np.ndarray] = deque()
         self._key: tuple | None = None
 
     def reset(self) -> None:
-        self._prev = self._key = None
+        self._prev.clear()
+        self._key = None
 
-    def update(self, frame: np.ndarray, roi: tuple[int, int, int, int] | None = None) -> MotionMap | None:
+    def update(self, frame: np.ndarray, roi: tuple[int, int, int, int] | None = None,
+               lag: int = 1) -> MotionMap | None:
         h, w = frame.shape[:2]
         x1, y1, x2, y2 = (0, 0, w, h) if roi is None else roi
         x1, x2 = min(max(int(x1), 0), w), min(max(int(x2), 0), w)
         y1, y2 = min(max(int(y1), 0), h), min(max(int(y2), 0), h)
         gray = cv2.cvtColor(np.ascontiguousarray(frame[y1:y2, x1:x2]), cv2.COLOR_BGR2GRAY)
         key = (h, w, x1, y1, x2, y2)
-        prev, self._prev = self._prev, gray
-        same, self._key = self._key == key, key
-        if prev is None or not same:
+        if self._key != key:
+            self._prev.clear()
+        self._key = key
+        prev = self._prev[0] if len(self._prev) >= lag else None
+        self._prev.append(gray)
+        while len(self._prev) > lag:
+            self._prev.popleft()
+        if prev is None:
             return None
-        return MotionMap(cv2.integral(cv2.absdiff(gray, prev), sdepth=cv2.CV_64F), (x1, y1))
+        diff = cv2.absdiff(gray, prev)
+        noise = float(np.median(diff[::4, ::4])) if diff.size else 0.0
+        return MotionMap(cv2.integral(diff, sdepth=cv2.CV_64F), (x1, y1), noise)
 
 
 def window_motion(motion: MotionMap, boxes: np.ndarray) -> np.ndarray:
@@ -71,7 +86,7 @@ def _mean_in(motion: MotionMap, x1, y1, x2, y2) -> np.ndarray:
     """Mean of the map over the boxes ``x1..x2 x y1..y2`` (frame pixels, exclusive), given
     as integer arrays that broadcast together (one box per element); clipped to the map's
     region, 0 where nothing is left."""
-    integral, (ox, oy) = motion
+    integral, (ox, oy) = motion.integral, motion.origin
     h, w = integral.shape[0] - 1, integral.shape[1] - 1
     x1, x2 = np.clip(x1 - ox, 0, w), np.clip(x2 - ox, 0, w)
     y1, y2 = np.clip(y1 - oy, 0, h), np.clip(y2 - oy, 0, h)

@@ -98,12 +98,14 @@ class VideoDetector:
         map found nothing (:func:`fastdet.video.fusion.merge_wide`).
     motion: :class:`~fastdet.config.MotionGate` for the wide-window model (default
         ``MotionGate()``): it searches only where the picture moved since the previous frame
-        and keeps only its windows that moved enough (:mod:`fastdet.video.motion`); so it
-        finds nothing on the first frame.
+        (at 25 fps; ``fps``) and keeps only its windows that moved enough
+        (:mod:`fastdet.video.motion`); so it finds nothing on the first frame.
     tracker: :class:`~fastdet.config.TrackerConfig` of the tracker that gives each vehicle
         an id (:mod:`fastdet.video.track`; default ``TrackerConfig()``), or ``False`` for no
         tracking (every box from the heat maps, ``ids`` ``None``). Ids start at 1 for a new
         VideoDetector and after :meth:`reset`, so they are the same run after run.
+    fps: frames per second of the video (``None``: 25): the motion gate compares frames
+        :meth:`MotionGate.lag <fastdet.config.MotionGate.lag>` apart.
 
     What :meth:`update` returns, with the tracker: the tracked vehicles of this frame (the
     confirmed tracks that found a box), each with its id and, as its score, the peak heat of
@@ -128,7 +130,7 @@ class VideoDetector:
 
     def __init__(self, detector: WindowDetector | None = None, heat: HeatConfig | None = None,
                  wide_heat: HeatConfig | None = None, motion: MotionGate | None = None,
-                 tracker: TrackerConfig | bool | None = None) -> None:
+                 tracker: TrackerConfig | bool | None = None, fps: float | None = None) -> None:
         if detector is not None and not isinstance(detector, WindowDetector):
             raise TypeError(f"detector must provide detect(), warmup(), geometries(), score_kind and "
                             f"wide_model (a WindowDetector), got {type(detector).__name__}")
@@ -139,6 +141,7 @@ class VideoDetector:
         if not isinstance(self.motion_gate, MotionGate):
             raise TypeError(f"motion must be a MotionGate, got {type(self.motion_gate).__name__}")
         self._motion = FrameMotion()
+        self.fps = fps  # frames per second of the video, for the motion gate (None: 25)
         self.heat_config = heat if heat is not None else HeatConfig()
         if not isinstance(self.heat_config, HeatConfig):
             raise TypeError(f"heat must be a HeatConfig, got {type(self.heat_config).__name__}")
@@ -196,17 +199,20 @@ class VideoDetector:
             self.wide_heatmap = HeatMap(hw, self.wide_heat_config, score_kind=self.detector.score_kind)
         return self.wide_heatmap
 
-    def _moving_wide_bands(self, det: WindowDetector, frame: np.ndarray, rgb: bool,
-                           gate: float) -> tuple[MotionMap | None, list[SearchBand]]:
-        """``(MotionMap or None, bands)``: this frame's motion over the wide search's region
-        and the parts of the wide bands where some window moves at least ``gate``."""
+    def _moving_wide_bands(self, det: WindowDetector, frame: np.ndarray,
+                           rgb: bool) -> tuple[MotionMap | None, list[SearchBand], float]:
+        """``(MotionMap or None, bands, gate)``: this frame's motion over the wide search's
+        region (against the frame :meth:`MotionGate.lag` back at ``fps``), the gate for it
+        (:meth:`MotionGate.threshold` of its noise) and the parts of the wide bands where
+        some window moves at least that much."""
         geos = det.geometries(frame.shape[:2], part=1)
         roi = (min(g.x0 for g in geos), min(g.y0 for g in geos), max(g.x1 for g in geos), max(g.y1 for g in geos))
-        motion = self._motion.update(frame[:, :, ::-1] if rgb else frame, roi)
+        motion = self._motion.update(frame[:, :, ::-1] if rgb else frame, roi, lag=self.motion_gate.lag(self.fps))
         if motion is None:
-            return None, []
+            return None, [], 0.0
         assert det.wide_model is not None
-        return motion, [b for g in geos for b in moving_bands(g, det.wide_model.config, motion, gate)]
+        gate = self.motion_gate.threshold(motion.noise)
+        return motion, [b for g in geos for b in moving_bands(g, det.wide_model.config, motion, gate)], gate
 
     @staticmethod
     def _gate_wide(windows: Detections, motion: MotionMap, gate: float) -> Detections:
@@ -230,13 +236,13 @@ class VideoDetector:
             raise ValueError(f"frame must be an (H, W, 3) uint8 array, got {frame.dtype} {frame.shape}")
         det = self.detector
         has_wide = det.wide_model is not None
-        gate = self.motion_gate.min_motion if has_wide else 0.0
+        gated = has_wide and self.motion_gate.min_motion > 0
         stats = DetectStats()
         t0 = time.perf_counter()
         motion = None
-        t_motion = 0.0
-        if gate > 0:
-            motion, wide_bands = self._moving_wide_bands(det, frame, rgb, gate)
+        t_motion = gate = 0.0
+        if gated:
+            motion, wide_bands, gate = self._moving_wide_bands(det, frame, rgb)
             t_motion = time.perf_counter() - t0
             windows = det.detect(frame, rgb=rgb, wide_bands=wide_bands, stats=stats)
         else:
@@ -276,7 +282,7 @@ class VideoDetector:
         self.last_labels = hm.labels
         self.last_boxes = boxes
         self.timings = {**stats.timings, **hm.timings}
-        if gate > 0:
+        if gated:
             self.timings["motion"] = t_motion
         if self.tracker is not None:
             self.timings["weak"] = t_weak
@@ -342,7 +348,7 @@ def iter_video_detections(path: str | os.PathLike, model: Any = None, start: int
         if detector is None:
             detector = make_detector(model, oncoming)
         check_frame(detector, reader.first_frame, reader.path)  # before any output: size, colour
-        vd = VideoDetector(detector, heat, tracker=tracker)
+        vd = VideoDetector(detector, heat, tracker=tracker, fps=reader.fps)
         vd.warmup()
         done: list[tuple[int, Detections]] = []
         with _progress(reader.expected, progress, os.path.basename(reader.path)) as bar:
