@@ -31,10 +31,15 @@ from .detections import Detections
 from .errors import DataError, FastdetError, ModelError
 
 if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers and IDEs
-    from .detect import Detector
-    from .features import extract_features, hog, hog_channels, hog_channels_batch
-    from .model import Model, load_model
-    from .video import HeatMap, VideoDetector
+    from .detect import Detector as Detector
+    from .features import extract_features as extract_features
+    from .features import hog as hog
+    from .features import hog_channels as hog_channels
+    from .features import hog_channels_batch as hog_channels_batch
+    from .model import Model as Model
+    from .model import load_model as load_model
+    from .video import HeatMap as HeatMap
+    from .video import VideoDetector as VideoDetector
 
 _LAZY = {
     "hog": "fastdet.features",

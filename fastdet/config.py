@@ -3,9 +3,9 @@ to search (:class:`SearchBand`, :class:`SearchConfig`), how the heat map turns w
 boxes (:class:`HeatConfig`), how motion gates the wide model (:class:`MotionGate`) and how
 the tracker gives boxes ids (:class:`TrackerConfig`).
 
-All six are plain values (hashable, comparable, JSON-round-trippable with
-:func:`to_dict` / ``from_dict``), so a model file can record its :class:`FeatureConfig`
-and loading can check it.
+All are plain frozen values (hashable, comparable); the ones with ``to_dict`` /
+``from_dict`` (:class:`FeatureConfig`, :class:`HeatConfig`, :class:`MotionGate` ...) round-trip
+through JSON, so a model file can record its :class:`FeatureConfig` and loading can check it.
 """
 from __future__ import annotations
 
@@ -174,7 +174,12 @@ class SearchBand:
 
 
 def _default_bands() -> tuple[SearchBand, ...]:
+    # Each window size where cars of that size stand: all bands start 21 px above the horizon
+    # (421 px, SearchConfig.reference_horizon) and reach 1.3-1.5 windows below it; 48-px
+    # windows (scale 0.75, the band upsampled before HOG) for the 45-70 px cars of a wider
+    # lens or a far lane, near the horizon only.
     return (
+        SearchBand(0.75, 400, 460, 128, 1152),
         SearchBand(1.0, 400, 496),
         SearchBand(1.25, 400, 528),
         SearchBand(1.5, 400, 560),
@@ -209,6 +214,11 @@ class SearchConfig:
         (a car's size and how far below the horizon it stands both scale with 1 / its
         distance, whatever the lens). Bands are clipped to the frame; a band the clip leaves
         lower than its 64-px window (``64 x scale`` rows) is dropped.
+    border: windows may hang this fraction of their width over the left / right frame edge
+        (bands whose ``x_start`` / ``x_stop`` is ``None``), so a car cut by the border can fill
+        one; the columns past the edge are filled as ``border_mode`` says (``'reflect'``:
+        the frame mirrored at its edge, ``'replicate'``: its edge column repeated) and the
+        boxes clipped to the frame (:mod:`fastdet.detect.bands`). ``0``: windows stay inside.
     """
 
     bands: tuple[SearchBand, ...] = field(default_factory=_default_bands)
@@ -217,6 +227,8 @@ class SearchConfig:
     reference_shape: tuple[int, int] | None = (720, 1280)
     reference_horizon: float = REFERENCE_HORIZON
     horizon: float | None = None
+    border: float = 0.5
+    border_mode: Literal["reflect", "replicate"] = "replicate"
 
     def for_frame(self, frame_shape: tuple[int, int]) -> "SearchConfig":
         """This config with its bands rescaled (and moved to ``horizon``) for frames of
@@ -242,7 +254,7 @@ class SearchConfig:
         if not bands:
             raise ValueError(f"the horizon at {self.horizon:g} of the height leaves no search band "
                              f"in a {w}x{h} frame")
-        return SearchConfig(tuple(bands), self.cells_per_step, self.threshold, None, self.reference_horizon, None)
+        return replace(self, bands=tuple(bands), reference_shape=None, horizon=None)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "bands", tuple(self.bands))
@@ -255,6 +267,10 @@ class SearchConfig:
             if len(rs) != 2 or min(rs) < 1:
                 raise ValueError(f"reference_shape must be (H, W) or None, got {self.reference_shape!r}")
             object.__setattr__(self, "reference_shape", rs)
+        if not 0 <= self.border <= 1:
+            raise ValueError(f"border must be a fraction of the window width in [0, 1], got {self.border!r}")
+        if self.border_mode not in ("reflect", "replicate"):
+            raise ValueError(f"border_mode must be 'reflect' or 'replicate', got {self.border_mode!r}")
         for name in ("reference_horizon", "horizon"):
             v = getattr(self, name)
             if v is not None and not 0 <= v <= 1:
