@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from fastdet.cli.main import main
+from fastdet.detect.checks import check_frame_size, minimum_frame_size
 from fastdet.errors import ModelError
 from fastdet.model import DEFAULT_MODEL_PATH, ONCOMING_MODEL_PATH, load_model
 from fastdet.video.pipeline import make_detector
@@ -61,10 +62,13 @@ def test_truncated_jpeg_is_refused(data, tmp_path, capsys):
 
 @pytest.mark.parametrize("w, h", [(2, 2), (16, 720), (720, 10), (1280, 16)])
 def test_frames_too_small_name_the_minimum(tmp_path, capsys, w, h):
+    det = make_detector()
+    mw, mh = minimum_frame_size(det)
+    check_frame_size(det, (mh, mw), "minimum")  # the size the message names does run
     rng = np.random.default_rng(0)
     img = rng.integers(0, 255, (h, w, 3), dtype=np.uint8)
     cv2.imwrite(str(tmp_path / "in.png"), img)
-    _refused(["image", tmp_path / "in.png", "-o", tmp_path / "o.jpg"], capsys, "at least 320x180")
+    _refused(["image", tmp_path / "in.png", "-o", tmp_path / "o.jpg"], capsys, f"at least {mw}x{mh}")
     frames_dir = tmp_path / "seq"
     frames_dir.mkdir()
     for i in range(3):
