@@ -116,6 +116,13 @@ def test_webm_blames_the_codec_before_any_work(tmp_path, capsys):
     assert "[webm" not in capsys.readouterr().err
 
 
+def test_mine_negatives_read_only_out_is_refused_before_the_work(data, capsys):
+    # /sys is read-only even for root: "mined N" with nothing written is what this replaces
+    img = data / "test_images" / "test1.jpg"
+    _refused(["mine-negatives", img, "--out", "/sys", "--x-range", "0", "1280"], capsys, "not writable")
+    _refused(["mine-negatives", img, "--out", "/sys/negs", "--x-range", "0", "1280"], capsys, "not writable")
+
+
 def test_mine_negatives_checks_its_input_before_creating_out(tmp_path, capsys):
     txt = tmp_path / "notes.txt"
     txt.write_text("not a video\n")

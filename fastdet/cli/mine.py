@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -15,6 +14,7 @@ from tqdm import tqdm
 from ..detect import Detector
 from ..detect.checks import check_frame
 from ..errors import DataError, FastdetError
+from ..io.atomic import folder_writable
 from ..io.images import check_image, write_image
 from ..io.motfiles import read_gt
 from ..io.reader import FrameReader, source_kind
@@ -52,11 +52,11 @@ def _check_out(out: Path) -> None:
     if out.exists():
         if not out.is_dir():
             raise DataError(f"--out {out}: exists and is not a folder")
-        if not os.access(out, os.W_OK | os.X_OK):
+        if not folder_writable(out):
             raise DataError(f"--out {out}: folder is not writable")
         return
     parent = next((p for p in out.absolute().parents if p.exists()), None)
-    if parent is None or not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+    if parent is None or not parent.is_dir() or not folder_writable(parent):
         raise DataError(f"--out {out}: cannot create the folder ({parent} is not writable)")
 
 
