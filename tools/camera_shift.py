@@ -35,7 +35,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from fastdet.config import REFERENCE_HORIZON, HeatConfig
+from fastdet.config import REFERENCE_HORIZON, HeatConfig, SearchBand
 from fastdet.data import data_dir
 from fastdet.detect import Detector
 from fastdet.detections import Detections
@@ -236,6 +236,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--heat", type=_heat_arg, action="append", default=[], metavar="FIELD=VALUE",
                     help="override a HeatConfig field of the main heat map (repeatable)")
     ap.add_argument("--no-oncoming", action="store_true", help="main model only")
+    ap.add_argument("--band", action="append", default=[], metavar="SCALE,Y0,Y1[,X0,X1]",
+                    help="add a band to the main search (1280x720 reference pixels; repeatable)")
+    ap.add_argument("--border", type=float, default=None, help="SearchConfig.border of the main search")
+    ap.add_argument("--border-mode", choices=("reflect", "replicate"), default=None)
     ap.add_argument("--horizon", choices=("reference", "oracle", "estimate"), default="reference",
                     help="search bands at the reference horizon (default), at the reference horizon moved "
                          "with the variant's pixels (oracle), or at the horizon estimated from each clip")
@@ -252,6 +256,14 @@ def main(argv: list[str] | None = None) -> int:
              sorted(p.name[: -len(".gt.txt")] for p in (data_dir() / "annotations").glob("*.gt.txt")))
     heat = replace(HeatConfig(), **dict(args.heat))
     det: Detector = make_detector(oncoming=not args.no_oncoming)
+    if args.band:
+        extra = tuple(SearchBand(float(f[0]), *(int(v) for v in f[1:])) for f in (b.split(",") for b in args.band))
+        sc = det.scorers[0]
+        sc.search = replace(sc.search, bands=tuple(sc.search.bands) + extra)
+    if args.border is not None or args.border_mode is not None:
+        sc = det.scorers[0]
+        sc.search = replace(sc.search, border=sc.search.border if args.border is None else args.border,
+                            border_mode=args.border_mode or sc.search.border_mode)
     cache = Path(args.cache) if args.cache else None
     if cache is not None:
         cache.mkdir(parents=True, exist_ok=True)

@@ -78,7 +78,8 @@ class _Scorer:
 
     def geometries(self, frame_shape: tuple[int, int]) -> list[BandGeometry]:
         search = self.search.for_frame(frame_shape)
-        return [band_geometry(b, frame_shape, self.config, search.cells_per_step) for b in search.bands]
+        return [band_geometry(b, frame_shape, self.config, search.cells_per_step, search.border, search.border_mode)
+                for b in search.bands]
 
     def band_scores(self, frame: np.ndarray, geo: BandGeometry, timings: dict[str, float] | None,
                     serial: bool = False) -> np.ndarray:

@@ -1,0 +1,78 @@
+"""Windows hanging over the left / right border: exactly the search of the frame padded the same way."""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from tests.reference import classic_band_scores, sklearn_pair
+from fastdet.config import SearchBand
+from fastdet.detect import Detector
+from fastdet.detect.bands import BORDER_MODES, band_geometry, scaled_band, window_boxes
+
+
+@pytest.fixture(scope="module")
+def frame(test_images):
+    return cv2.imread(str(test_images[0]))
+
+
+@pytest.fixture(scope="module")
+def detector():
+    return Detector()
+
+
+@pytest.mark.parametrize("mode", ["replicate", "reflect"])
+@pytest.mark.parametrize("scale", [1.0, 1.5, 0.75])
+def test_padded_band_is_the_band_of_the_padded_frame(frame, detector, mode, scale):
+    cfg = detector.config
+    band = SearchBand(scale, 400, 400 + int(96 * scale))
+    geo = band_geometry(band, frame.shape[:2], cfg, 2, border=0.5, border_mode=mode)
+    pad = round(32 * scale)
+    assert (geo.pad_left, geo.pad_right, geo.x0, geo.x1) == (pad, pad, -pad, frame.shape[1] + pad)
+    padded = cv2.copyMakeBorder(frame, 0, 0, pad, pad, BORDER_MODES[mode])
+    ref = band_geometry(SearchBand(scale, 400, band.y_stop, 0, padded.shape[1]), padded.shape[:2], cfg, 2)
+    assert (geo.nx, geo.ny, geo.scaled_w) == (ref.nx, ref.ny, ref.scaled_w)
+    np.testing.assert_array_equal(scaled_band(frame, geo), scaled_band(padded, ref))
+    # the same decision values, window for window
+    np.testing.assert_array_equal(detector.band_scores(frame, geo), detector.band_scores(padded, ref))
+    # boxes: those of the padded frame, shifted back and clipped to the frame
+    r, c = np.meshgrid(np.arange(geo.ny), np.arange(geo.nx), indexing="ij")
+    r, c = r.ravel(), c.ravel()
+    want = window_boxes(ref, r, c, cfg) - np.array([pad, 0, pad, 0])
+    want[:, 0::2] = np.clip(want[:, 0::2], 0, frame.shape[1])
+    np.testing.assert_array_equal(window_boxes(geo, r, c, cfg), want)
+
+
+def test_only_edges_the_band_reaches_are_padded(frame, detector):
+    cfg = detector.config
+    g = band_geometry(SearchBand(1.0, 400, 496, 100, None), frame.shape[:2], cfg, 2, border=0.5)
+    assert (g.pad_left, g.pad_right, g.x0, g.x1) == (0, 32, 100, frame.shape[1] + 32)
+    g = band_geometry(SearchBand(1.0, 400, 496, None, 900), frame.shape[:2], cfg, 2, border=0.5)
+    assert (g.pad_left, g.pad_right, g.x0, g.x1) == (32, 0, -32, 900)
+    g = band_geometry(SearchBand(1.0, 400, 496), frame.shape[:2], cfg, 2, border=0.0)
+    assert (g.pad_left, g.pad_right, g.x0, g.x1) == (0, 0, 0, frame.shape[1])
+    with pytest.raises(ValueError):
+        band_geometry(SearchBand(1.0, 400, 496), frame.shape[:2], cfg, 2, border=0.5, border_mode="wrap")
+
+
+def test_padded_windows_match_the_classic_reference(frame, detector):
+    # the classic per-window pipeline on the padded band: every window to 1e-6
+    pair = sklearn_pair(detector.model)
+    for mode in ("replicate", "reflect"):
+        geo = band_geometry(SearchBand(1.25, 400, 528), frame.shape[:2], detector.config, 2, 0.5, mode)
+        np.testing.assert_allclose(detector.band_scores(frame, geo),
+                                   classic_band_scores(frame, geo, detector.model, pair), rtol=0, atol=1e-6)
+
+
+def test_default_search_boxes_stay_in_the_frame(frame, detector):
+    assert detector.search.border > 0
+    geos = detector.geometries(frame.shape[:2])
+    assert any(g.pad_left for g in geos) and any(g.pad_right for g in geos)
+    d = detector.detect(frame)
+    assert len(d)
+    assert d.boxes[:, 0].min() >= 0 and d.boxes[:, 2].max() <= frame.shape[1]
+    # some windows reach past the edge: their boxes are clipped, narrower than 64 x scale
+    geo_boxes = np.concatenate([window_boxes(g, *[a.ravel() for a in np.meshgrid(np.arange(g.ny), np.arange(g.nx),
+                                                                                 indexing="ij")], detector.config)
+                                for g in geos])
+    assert geo_boxes[:, 0].min() == 0 and geo_boxes[:, 2].max() == frame.shape[1]
