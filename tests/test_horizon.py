@@ -94,3 +94,44 @@ def test_search_horizon_tolerance():
     assert search_horizon(None) is None
     assert search_horizon(REFERENCE_HORIZON + 0.005) is None
     assert search_horizon(REFERENCE_HORIZON - 0.05) == pytest.approx(REFERENCE_HORIZON - 0.05)
+
+
+def _zoom_frames(n: int, y0: float, shape=(360, 640)) -> list[np.ndarray]:
+    img = _texture(*shape, seed=2)
+    return [_zoom_about(img, shape[1] / 2, y0, 1.02 ** k) for k in range(n)]
+
+
+def test_video_detector_horizon_settings():
+    from fastdet.video.pipeline import VideoDetector, make_detector
+
+    det = make_detector()
+    frame = _zoom_frames(1, 150)[0]
+    vd = VideoDetector(det, horizon=0.5)
+    vd.update(frame)
+    assert det.horizon == pytest.approx(0.5)
+    det.set_horizon(0.45)
+    VideoDetector(det, horizon=None).update(frame)
+    assert det.horizon == pytest.approx(0.45)  # None: the detector's own search
+    with pytest.raises(ValueError):
+        VideoDetector(det, horizon=1.5)
+    with pytest.raises(ValueError):
+        VideoDetector(det, horizon="middle")
+
+
+def test_video_detector_estimates_the_horizon():
+    from fastdet.video.pipeline import VideoDetector, make_detector
+
+    det = make_detector()
+    frames = _zoom_frames(24, 150)  # the picture expands from row 150 of 360
+    vd = VideoDetector(det)  # horizon='auto'
+    assert vd.prime_horizon(frames) == pytest.approx(150 / 360, abs=0.01)
+    assert det.horizon == pytest.approx(150 / 360, abs=0.01)
+    vd.reset()  # a new video: back to the reference until it has an estimate of its own
+    vd.update(frames[0])
+    assert det.horizon is None
+    for f in frames[1:]:  # online: the estimate arrives after MIN_PAIRS pairs
+        vd.update(f)
+    assert det.horizon == pytest.approx(150 / 360, abs=0.01)
+    # still pictures give no estimate: the reference bands
+    vd2 = VideoDetector(det)
+    assert vd2.prime_horizon([frames[0]] * 20) is None and det.horizon is None

@@ -7,15 +7,19 @@ with x264 CRF 23 and OpenCV's mp4v), its ground truth transformed with the pixel
 (:func:`fastdet.eval.variants.transform_gt`: the annotation rules re-applied, cars narrower
 than 40 reference px or less than half in view become ignore regions). The default video
 pipeline (``VideoDetector``: main model + oncoming model behind the motion gate, default
-heat maps) runs on each, and the tool prints F1 / precision / recall / false positives per
-frame per variant per clip, and recall by box width in reference (1280x720) pixels.
+heat maps and tracker, the horizon estimated from the clip's first frames as
+``iter_video_detections`` does for a file) runs on each, and the tool prints F1 / precision /
+recall / false positives per frame per variant per clip, and recall by box width in
+reference (1280x720) pixels.
 
-    python tools/camera_shift.py [--variants original,960x540,...] [--clips test_small1]
-        [--json OUT.json] [--cache DIR] [--heat split_gap=0.5 ...] [--no-oncoming]
+    python -m tools.camera_shift [--variants original,960x540,...] [--clips test_small1]
+        [--json OUT.json] [--cache DIR --tag NAME] [--heat split_gap=0.5 ...]
+        [--horizon auto|reference|oracle] [--band S,Y0,Y1[,X0,X1]] [--border F] [--no-oncoming]
 
 ``--cache DIR`` stores every frame's positive windows (per clip, variant and ``--tag``) and
 replays them on the next run, so heat-map settings (``--heat``) can be compared without
-running the detector again. Re-encoded copies are written under ``$TMPDIR``, never the repo.
+running the detector again (a new ``--tag`` for every detector setting: ``--band``,
+``--border``, ``--horizon``). Re-encoded copies are written under ``$TMPDIR``, never the repo.
 """
 from __future__ import annotations
 
@@ -43,7 +47,6 @@ from fastdet.eval import evaluate
 from fastdet.eval.sizes import WIDTH_EDGES, recall_by_width
 from fastdet.eval.variants import Variant, standard_variants, transform_gt
 from fastdet.io.motfiles import Predictions, read_gt
-from fastdet.video.horizon import estimate_horizon, search_horizon
 from fastdet.video.pipeline import VideoDetector, make_detector
 
 # ---------------------------------------------------------------------------------------
@@ -123,6 +126,13 @@ class Recorder:
     def geometries(self, frame_shape, part=0):
         return self.det.geometries(frame_shape, part)
 
+    @property
+    def horizon(self):
+        return self.det.horizon
+
+    def set_horizon(self, horizon) -> None:
+        self.det.set_horizon(horizon)
+
 
 def save_windows(path: Path, dets: list[Detections]) -> None:
     n = np.array([len(d) for d in dets])
@@ -146,11 +156,18 @@ def load_windows(path: Path) -> list[Detections]:
 # the suite
 
 
-def run_clip(det: Any, frames: list[np.ndarray], heat: HeatConfig, cache: Path | None) -> tuple[Predictions, float]:
-    """Boxes of every frame through a fresh VideoDetector, and the seconds per frame."""
+def run_clip(det: Any, frames: list[np.ndarray], heat: HeatConfig, cache: Path | None,
+             horizon: float | str | None) -> tuple[Predictions, float]:
+    """Boxes of every frame through a fresh VideoDetector (``horizon`` as its argument;
+    ``'auto'`` primed with the clip's first frames, as ``iter_video_detections`` does for a
+    file), and the seconds per frame."""
     replay = load_windows(cache) if cache is not None and cache.exists() else None
     rec = Recorder(det, replay)
-    vd = VideoDetector(rec, heat)
+    if horizon is None:
+        det.set_horizon(None)
+    vd = VideoDetector(rec, heat, horizon=horizon)
+    if horizon == "auto":
+        vd.prime_horizon(frames)
     rec.warmup()
     t0 = time.perf_counter()
     out = [(i, vd.update(f)) for i, f in enumerate(frames, start=1)]
@@ -161,7 +178,7 @@ def run_clip(det: Any, frames: list[np.ndarray], heat: HeatConfig, cache: Path |
 
 
 def iter_suite(variants: list[Variant], clips: list[str], det: Any, heat: HeatConfig, cache_dir: Path | None,
-               tag: str, horizon: str = "reference") -> Iterator[dict[str, Any]]:
+               tag: str, horizon: str = "auto") -> Iterator[dict[str, Any]]:
     root = data_dir()
     with tempfile.TemporaryDirectory(prefix="fastdet_camera_shift_") as tmpd:
         for clip in clips:
@@ -171,13 +188,12 @@ def iter_suite(variants: list[Variant], clips: list[str], det: Any, heat: HeatCo
             for v in variants:
                 frames = variant_frames(src, v, clip, Path(tmpd))
                 gt = transform_gt(gt0, v, shape)
+                hz: float | str | None = None if horizon == "reference" else "auto"
                 if horizon == "oracle":  # the reference horizon moved with the pixels
                     row = REFERENCE_HORIZON * shape[0]
-                    det.set_horizon(float(v.boxes(np.array([[0, row, 1, row]]), shape)[0][0, 1]) / frames[0].shape[0])
-                elif horizon == "estimate":
-                    det.set_horizon(search_horizon(estimate_horizon(frames)))
+                    hz = float(v.boxes(np.array([[0, row, 1, row]]), shape)[0][0, 1]) / frames[0].shape[0]
                 cache = cache_dir / f"{tag}.{clip}.{v.name}.npz" if cache_dir is not None else None
-                preds, dt = run_clip(det, frames, heat, cache)
+                preds, dt = run_clip(det, frames, heat, cache, hz)
                 res = evaluate(gt, preds, iou=0.5, num_frames=len(frames))
                 bins = recall_by_width(gt, preds, frames[0].shape[0], num_frames=len(frames))
                 yield {"variant": v.name, "clip": clip, "shape": list(frames[0].shape[:2]), "frames": len(frames),
@@ -240,9 +256,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="add a band to the main search (1280x720 reference pixels; repeatable)")
     ap.add_argument("--border", type=float, default=None, help="SearchConfig.border of the main search")
     ap.add_argument("--border-mode", choices=("reflect", "replicate"), default=None)
-    ap.add_argument("--horizon", choices=("reference", "oracle", "estimate"), default="reference",
-                    help="search bands at the reference horizon (default), at the reference horizon moved "
-                         "with the variant's pixels (oracle), or at the horizon estimated from each clip")
+    ap.add_argument("--horizon", choices=("auto", "reference", "oracle"), default="auto",
+                    help="search bands at the horizon the pipeline estimates from each clip (auto, the "
+                         "default), at the reference horizon, or at the reference horizon moved with the "
+                         "variant's pixels (oracle)")
     args = ap.parse_args(argv)
 
     variants = standard_variants()

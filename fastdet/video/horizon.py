@@ -38,6 +38,8 @@ MIN_VECTORS = 20
 GAP = 2
 #: fewest frame pairs with a FOE before there is an estimate
 MIN_PAIRS = 5
+#: frames a video's horizon is estimated from (3 s at 25 fps); the estimate is then fixed
+HORIZON_FRAMES = 75
 #: an estimate this close to the reference horizon (fraction of the height: 7 px at 720 rows,
 #: the estimator's own precision on the bundled clips) keeps the reference bands
 TOLERANCE = 0.01
@@ -115,6 +117,11 @@ class HorizonEstimator:
         self._n += 1
 
     @property
+    def frames(self) -> int:
+        """Frames seen so far."""
+        return self._n
+
+    @property
     def estimate(self) -> float | None:
         if len(self.rows) < self.min_pairs:
             return None
@@ -125,7 +132,7 @@ class HorizonEstimator:
         return med
 
 
-def estimate_horizon(frames: Iterable[np.ndarray], max_frames: int = 75, **kw) -> float | None:
+def estimate_horizon(frames: Iterable[np.ndarray], max_frames: int = HORIZON_FRAMES, **kw) -> float | None:
     """The horizon (fraction of the height) of the first ``max_frames`` of ``frames``, or
     ``None`` (:class:`HorizonEstimator`; ``kw`` are its arguments)."""
     est = HorizonEstimator(**kw)

@@ -19,7 +19,7 @@ from __future__ import annotations
 import os
 import sys
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -34,6 +34,7 @@ from ..io.reader import FrameReader
 from ..model import ONCOMING_MODEL_PATH, Model
 from .fusion import merge_wide
 from .heatmap import HeatMap
+from .horizon import HORIZON_FRAMES, TOLERANCE, HorizonEstimator, search_horizon
 from .motion import FrameMotion, MotionMap, moving_bands, window_motion
 from .offline import offline_pass
 from .track import Tracker
@@ -106,6 +107,15 @@ class VideoDetector:
         VideoDetector and after :meth:`reset`, so they are the same run after run.
     fps: frames per second of the video (``None``: 25): the motion gate compares frames
         :meth:`MotionGate.lag <fastdet.config.MotionGate.lag>` apart.
+    horizon: where the search bands go (:attr:`SearchConfig.horizon
+        <fastdet.config.SearchConfig>`): ``'auto'`` (default) estimates the horizon from the
+        optical flow of the first :data:`~fastdet.video.horizon.HORIZON_FRAMES` frames
+        (:mod:`fastdet.video.horizon`; until there is an estimate, and when it is within the
+        estimate's precision of the reference, the bands stay where they are written) --
+        :meth:`prime_horizon` gives it those frames ahead of time; a number: the horizon row
+        as a fraction of the frame height (a camera whose horizon is known); ``None``: the
+        detector's search as it is. Needs a detector with ``set_horizon`` (a
+        :class:`~fastdet.Detector`); others are left alone.
 
     What :meth:`update` returns, with the tracker: the tracked vehicles of this frame (the
     confirmed tracks that found a box), each with its id and, as its score, the peak heat of
@@ -130,7 +140,8 @@ class VideoDetector:
 
     def __init__(self, detector: WindowDetector | None = None, heat: HeatConfig | None = None,
                  wide_heat: HeatConfig | None = None, motion: MotionGate | None = None,
-                 tracker: TrackerConfig | bool | None = None, fps: float | None = None) -> None:
+                 tracker: TrackerConfig | bool | None = None, fps: float | None = None,
+                 horizon: float | str | None = "auto") -> None:
         if detector is not None and not isinstance(detector, WindowDetector):
             raise TypeError(f"detector must provide detect(), warmup(), geometries(), score_kind and "
                             f"wide_model (a WindowDetector), got {type(detector).__name__}")
@@ -151,6 +162,12 @@ class VideoDetector:
         if tracker is not False and not isinstance(tracker, TrackerConfig):
             raise TypeError(f"tracker must be a TrackerConfig or False, got {type(tracker).__name__}")
         self.tracker: Tracker | None = Tracker(tracker) if tracker is not False else None
+        if not (horizon is None or horizon == "auto" or (isinstance(horizon, (int, float)) and 0 <= horizon <= 1)):
+            raise ValueError(f"horizon must be 'auto', a fraction of the frame height in [0, 1] or None, "
+                             f"got {horizon!r}")
+        self.horizon = horizon
+        self._horizon_est: HorizonEstimator | None = None
+        self._horizon_started = False
         self.timings: dict[str, float] = {}
         self._clear()
 
@@ -178,7 +195,53 @@ class VideoDetector:
         if self.wide_heatmap is not None:
             self.wide_heatmap.reset()
         self._motion.reset()
+        self._horizon_started = False  # a new video: estimate its horizon again
         self._clear()
+
+    def _start_horizon(self, det: WindowDetector) -> None:
+        """Put the detector's bands at the configured horizon (``'auto'``: at the reference
+        until there is an estimate) and start a new estimate."""
+        self._horizon_started = True
+        self._horizon_est = None
+        if self.horizon is None or not hasattr(det, "set_horizon"):
+            return
+        if self.horizon == "auto":
+            det.set_horizon(None)
+            self._horizon_est = HorizonEstimator()
+        else:
+            det.set_horizon(float(self.horizon))
+
+    def _feed_horizon(self, det: WindowDetector, frame: np.ndarray) -> None:
+        """One more frame for the horizon estimate (``'auto'``, the first HORIZON_FRAMES
+        frames); the bands move when the estimate moves by more than its precision."""
+        est = self._horizon_est
+        if est is None:
+            return
+        est.update(frame)
+        h = search_horizon(est.estimate)
+        cur = det.horizon
+        if (h is None) != (cur is None) or (h is not None and abs(h - cur) > 0.5 * TOLERANCE):
+            det.set_horizon(h)
+        if est.frames >= HORIZON_FRAMES:
+            self._horizon_est = None  # settled: no more flow to compute
+
+    def prime_horizon(self, frames: Iterable[np.ndarray]) -> float | None:
+        """With ``horizon='auto'``: estimate the horizon from ``frames`` (the first frames of
+        the video, BGR or RGB alike; at most HORIZON_FRAMES are used) before :meth:`update`
+        sees them, so the first frames are searched at it too. Returns the horizon the bands
+        are now at (``None``: the reference)."""
+        det = self.detector
+        self._start_horizon(det)
+        est = self._horizon_est
+        if est is None:
+            return getattr(det, "horizon", None)
+        for i, f in enumerate(frames):
+            if i >= HORIZON_FRAMES:
+                break
+            est.update(np.asarray(f))
+        det.set_horizon(search_horizon(est.estimate))  # type: ignore[attr-defined]
+        self._horizon_est = None
+        return det.horizon  # type: ignore[attr-defined]
 
     def warmup(self) -> None:
         """Compile / load the numba kernels now, not on the first frame."""
@@ -235,6 +298,10 @@ class VideoDetector:
         if frame.ndim != 3 or frame.shape[2] != 3 or frame.dtype != np.uint8:
             raise ValueError(f"frame must be an (H, W, 3) uint8 array, got {frame.dtype} {frame.shape}")
         det = self.detector
+        if not self._horizon_started:
+            self._start_horizon(det)
+        if self._horizon_est is not None:
+            self._feed_horizon(det, frame)
         has_wide = det.wide_model is not None
         gated = has_wide and self.motion_gate.min_motion > 0
         stats = DetectStats()
@@ -318,6 +385,16 @@ def _progress(total: int | None, enabled: bool, desc: str) -> tqdm:
                 disable=not (enabled and sys.stderr.isatty()))
 
 
+def _first_frames(path: str, start: int) -> Iterator[np.ndarray]:
+    """The first HORIZON_FRAMES frames of a file from ``start`` (a reader of their own)."""
+    reader = FrameReader(path, start, HORIZON_FRAMES)
+    try:
+        for _, frame, _ in reader:
+            yield frame
+    finally:
+        reader.close()
+
+
 def iter_video_detections(path: str | os.PathLike, model: Any = None, start: int = 0,
                           frames: int | None = None, progress: bool = True, detector: Any = None,
                           heat: HeatConfig | None = None, oncoming: Any = True,
@@ -349,6 +426,8 @@ def iter_video_detections(path: str | os.PathLike, model: Any = None, start: int
             detector = make_detector(model, oncoming)
         check_frame(detector, reader.first_frame, reader.path)  # before any output: size, colour
         vd = VideoDetector(detector, heat, tracker=tracker, fps=reader.fps)
+        if os.path.isfile(reader.path):  # a file can be read twice: its first seconds give the horizon
+            vd.prime_horizon(_first_frames(reader.path, start))
         vd.warmup()
         done: list[tuple[int, Detections]] = []
         with _progress(reader.expected, progress, os.path.basename(reader.path)) as bar:
