@@ -8,6 +8,7 @@ definition itself; nothing here imports fastdet's kernels. Sections:
 - boxes: intersection, IoU, overlap fraction, conversions, clipping, window grids, one box
   (pair) at a time in plain Python;
 - HOG: ``skimage.feature.hog`` of each channel, stacked as ``fastdet.hog_channels`` lays it out;
+- dense window scores: every window's dot products one product at a time;
 - the classic HOG-sub-sampling vehicle pipeline (per band: crop, ``cv2.resize`` by
   ``1/scale``, colour-convert, skimage HOG of each channel of the whole scaled band; then
   every window one at a time: slice its blocks, spatial bins with ``cv2.resize``, colour
@@ -171,6 +172,32 @@ def classic_band_scores(frame: np.ndarray, geo: BandGeometry, model: Model, pair
     out = np.empty((geo.ny, geo.nx))
     for i, j, feat in band_window_features(frame, geo, model.config):
         out[i, j] = clf.decision_function(scaler.transform(feat[None]))[0]
+    return out
+
+
+def loop_dense_scores(block_rows: np.ndarray, w_hog: np.ndarray, k: int, ny: int, nx: int, step: int, cell: int,
+                      win_h: int, win_w: int, bias: float, spat_rows=None, w_sp=None, sp_off: int = 1,
+                      integ=None) -> np.ndarray:
+    """``fastdet.detect.scoring.dense_scores`` one window and one product at a time: the
+    window's blocks, spatial-map crop and integral-image corners sliced out and summed."""
+    nby, nbx = w_hog.shape[0], w_hog.shape[1] // k
+    out = np.empty((ny, nx))
+    for i in range(ny):
+        for j in range(nx):
+            yb, xb = i * step, j * step
+            acc = float(bias)
+            for dr in range(nby):
+                for t in range(nbx * k):
+                    acc += float(block_rows[yb + dr, xb * k + t]) * float(w_hog[dr, t])
+            if spat_rows is not None:
+                ys, xs = yb * cell // sp_off, xb * cell // sp_off * 3
+                for dr in range(w_sp.shape[0]):
+                    for t in range(w_sp.shape[1]):
+                        acc += float(spat_rows[ys + dr, xs + t]) * float(w_sp[dr, t])
+            if integ is not None:
+                y, x = yb * cell, xb * cell
+                acc += float(integ[y + win_h, x + win_w] - integ[y, x + win_w] - integ[y + win_h, x] + integ[y, x])
+            out[i, j] = acc
     return out
 
 

@@ -2,7 +2,7 @@
 
 Per band: crop, resize by ``1/scale``, colour-convert once; HOG block map, spatial-bin
 map and histogram-weight integral image once; then one numba kernel gives the decision
-value of every window position (``fastdet._score_kernels.dense_scores``). The result equals
+value of every window position (``fastdet.detect.scoring.dense_scores``). The result equals
 the classic per-window pipeline (skimage HOG of the scaled band, the window's blocks sliced
 out, the window's own spatial and histogram features, ``scaler.transform``,
 ``decision_function``) to floating-point rounding; ``tests/test_detector.py`` checks every
@@ -27,16 +27,22 @@ from dataclasses import dataclass, field, replace
 import numba
 import numpy as np
 
-from ..features import hog_channels
 from .._numba import announce_compile
-from ..features._hog_kernels import hog_u8
-from ._score_kernels import dense_scores, dense_scores_serial, hist_weight_integral
 from ..config import WIDE_SEARCH, SearchBand, SearchConfig
 from ..detections import MAIN_PART, WIDE_PART, Detections
 from ..errors import ModelError
-from ..features import convert_color, hist_bin_shift, spatial_factor, spatial_map
+from ..features import (
+    convert_color,
+    hist_bin_shift,
+    hog_channels,
+    spatial_factor,
+    spatial_map,
+)
+from ..features._hog_kernels import hog_u8
 from ..model import Model, load_model
 from .bands import BandGeometry, band_geometry, scaled_band, window_boxes
+from .scoring import KERNELS as SCORE_KERNELS
+from .scoring import dense_scores, hist_weight_integral
 
 
 @dataclass
@@ -98,15 +104,11 @@ class _Scorer:
                 sp = spatial_map(img, f).astype(np.float64)
                 sp = sp.reshape(sp.shape[0], -1)
             else:
-                f, sp = 1, np.zeros((0, 0))
-            if self.w_hist is not None:
-                integ = np.empty((img.shape[0] + 1, img.shape[1] + 1), np.float64)
-                hist_weight_integral(img, self.w_hist, hist_bin_shift(cfg), integ)
-            else:
-                integ = np.zeros((1, 1))
-            kernel = dense_scores_serial if serial else dense_scores
-            kernel(rows, self.w_hog, cfg.blocks_x, self.k, sp, self.w_sp, f, integ,
-                   cfg.win_h, cfg.win_w, cfg.pixels_per_cell, geo.step, self.bias, out)
+                f, sp = 1, None
+            integ = hist_weight_integral(img, self.w_hist, hist_bin_shift(cfg)) if self.w_hist is not None else None
+            dense_scores(rows, self.w_hog, self.k, out, step=geo.step, cell=cfg.pixels_per_cell, win_h=cfg.win_h,
+                         win_w=cfg.win_w, bias=self.bias, spat_rows=sp, w_sp=self.w_sp if cfg.spatial_size else None,
+                         sp_off=f, integ=integ, parallel=not serial)
         t3 = time.perf_counter()
         if timings is not None:
             timings["resize_colour"] = timings.get("resize_colour", 0.0) + (t1 - t0)
@@ -184,7 +186,7 @@ class Detector:
         """Load (or compile) the numba kernels now rather than on the first frame: the
         multi-threaded scoring kernel and the serial one the band threads run. On a first
         run this says once that it compiles (:func:`fastdet._numba.announce_compile`)."""
-        announce_compile(hog_u8, dense_scores, dense_scores_serial, hist_weight_integral)
+        announce_compile(hog_u8, *SCORE_KERNELS)
         for sc in self.scorers:
             cfg = sc.config
             tiny = np.zeros((cfg.win_h * 2, cfg.win_w * 2, 3), np.uint8)

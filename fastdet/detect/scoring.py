@@ -1,0 +1,99 @@
+"""The dense window scores of one band: a checked front for the numba kernels of
+:mod:`fastdet.detect._score_kernels` (which index without bounds checks)."""
+from __future__ import annotations
+
+import numpy as np
+
+from ._score_kernels import dense_scores as _dense_parallel
+from ._score_kernels import dense_scores_serial as _dense_serial
+from ._score_kernels import hist_weight_integral as _hist_integral
+
+#: the kernels, for warm-up and the compile notice (fastdet._numba.announce_compile)
+KERNELS = (_dense_parallel, _dense_serial, _hist_integral)
+
+
+def _f64_rows(name: str, a: np.ndarray) -> None:
+    if not isinstance(a, np.ndarray) or a.dtype != np.float64 or a.ndim != 2 or not a.flags.c_contiguous:
+        raise ValueError(f"{name} must be a C-contiguous 2-D float64 array, got "
+                         f"{getattr(a, 'dtype', type(a).__name__)} {getattr(a, 'shape', '')}")
+
+
+def dense_scores(block_rows: np.ndarray, w_hog: np.ndarray, k: int, out: np.ndarray, *, step: int, cell: int,
+                 win_h: int, win_w: int, bias: float = 0.0, spat_rows: np.ndarray | None = None,
+                 w_sp: np.ndarray | None = None, sp_off: int = 1, integ: np.ndarray | None = None,
+                 parallel: bool = False) -> np.ndarray:
+    """Decision value of every window of a band into ``out (ny, nx) float64``; returns ``out``.
+
+    ``out[i, j] = bias + HOG term + spatial term + histogram term`` of the window whose
+    top-left block is ``(i*step, j*step)``:
+
+    - HOG: ``sum_dr block_rows[i*step + dr, j*step*k : j*step*k + nbx*k] @ w_hog[dr]``
+      (``block_rows (R, Cb*k)``: the block map, one row of blocks of ``k`` values each;
+      ``w_hog (nby, nbx*k)``);
+    - spatial (``spat_rows (Hs, Ws*3)``, ``w_sp (Sh, Sw*3)``, both or neither):
+      ``sum_dr spat_rows[y + dr, x*3 : x*3 + Sw*3] @ w_sp[dr]`` at ``y, x = (i, j)*step*cell /
+      sp_off`` (``sp_off``: pixels per spatial-map pixel, a divisor of ``cell``);
+    - histogram (``integ (H+1, W+1)``: integral image of the per-pixel weights): the sum over
+      the ``win_h x win_w`` pixels at ``(i, j)*step*cell``.
+
+    ``parallel``: spread the windows over Numba's threads (else the calling thread only).
+    ``ValueError`` when an array has the wrong type or is too small for ``out``'s windows.
+    """
+    _f64_rows("block_rows", block_rows)
+    _f64_rows("w_hog", w_hog)
+    _f64_rows("out", out)
+    k, step, cell, win_h, win_w, sp_off = (int(v) for v in (k, step, cell, win_h, win_w, sp_off))
+    if min(k, step, cell, win_h, win_w, sp_off) < 1:
+        raise ValueError("k, step, cell, win_h, win_w and sp_off must be >= 1")
+    nby, lw = w_hog.shape
+    if lw % k or nby < 1:
+        raise ValueError(f"w_hog {w_hog.shape}: rows of whole blocks of k={k} values expected")
+    nbx = lw // k
+    ny, nx = out.shape
+    if ny and nx and (block_rows.shape[0] < (ny - 1) * step + nby
+                      or block_rows.shape[1] < ((nx - 1) * step + nbx) * k):
+        raise ValueError(f"block_rows {block_rows.shape} too small for {ny}x{nx} windows of {nby}x{nbx} "
+                             f"blocks at step {step} (k={k})")
+    if (spat_rows is None) != (w_sp is None):
+        raise ValueError("spat_rows and w_sp go together")
+    if spat_rows is None:
+        spat_rows = w_sp = np.zeros((0, 0))
+    else:
+        _f64_rows("spat_rows", spat_rows)
+        _f64_rows("w_sp", w_sp)
+        if cell % sp_off or w_sp.shape[1] % 3:
+            raise ValueError(f"sp_off {sp_off} must divide cell {cell}; w_sp rows hold 3 channels")
+        if ny and nx and (spat_rows.shape[0] < ((ny - 1) * step * cell) // sp_off + w_sp.shape[0]
+                          or spat_rows.shape[1] < ((nx - 1) * step * cell) // sp_off * 3 + w_sp.shape[1]):
+            raise ValueError(f"spat_rows {spat_rows.shape} too small for {ny}x{nx} windows of w_sp {w_sp.shape}")
+    if integ is None:
+        integ = np.zeros((1, 1))
+    else:
+        _f64_rows("integ", integ)
+        if integ.shape[0] < 2:
+            raise ValueError(f"integ {integ.shape}: an integral image has at least 2 rows")
+        if ny and nx and (integ.shape[0] < (ny - 1) * step * cell + win_h + 1
+                          or integ.shape[1] < (nx - 1) * step * cell + win_w + 1):
+            raise ValueError(f"integ {integ.shape} too small for {ny}x{nx} windows of {win_h}x{win_w} px")
+    if ny and nx:
+        kernel = _dense_parallel if parallel else _dense_serial
+        kernel(block_rows, w_hog, k, spat_rows, w_sp, sp_off, integ, win_h, win_w, cell, step, float(bias), out)
+    return out
+
+
+def hist_weight_integral(image: np.ndarray, w_hist: np.ndarray, shift: int, out: np.ndarray | None = None) -> np.ndarray:
+    """Integral image ``(H+1, W+1) float64`` of the per-pixel histogram weight
+    ``sum_c w_hist[c, image[y, x, c] >> shift]`` of an ``(H, W, 3) uint8`` image."""
+    if image.dtype != np.uint8 or image.ndim != 3:
+        raise ValueError(f"image must be (H, W, C) uint8, got {image.dtype} {image.shape}")
+    _f64_rows("w_hist", w_hist)
+    if w_hist.shape[0] != image.shape[2] or w_hist.shape[1] << int(shift) < 256:
+        raise ValueError(f"w_hist {w_hist.shape} does not cover {image.shape[2]} channels of 256 >> {shift} bins")
+    if out is None:
+        out = np.empty((image.shape[0] + 1, image.shape[1] + 1), np.float64)
+    elif out.shape != (image.shape[0] + 1, image.shape[1] + 1):
+        raise ValueError(f"out must be {(image.shape[0] + 1, image.shape[1] + 1)}, got {out.shape}")
+    else:
+        _f64_rows("out", out)
+    _hist_integral(image, w_hist, int(shift), out)
+    return out
