@@ -279,15 +279,18 @@ class SearchConfig:
 
 def _wide_bands() -> tuple[SearchBand, ...]:
     # 64x24 windows at 40..80 px wide: the 40-80 px wide cars seen just above the median.
-    # Columns 0..~704 of 1280: oncoming traffic (right-hand traffic) is on the left of the
-    # view; each band is a whole number of its 8 * scale px cells wide, so that the
-    # narrowed bands of fastdet.video.motion resample exactly as the full band does.
-    return tuple(SearchBand(s, 400, 400 + int(64 * s) + 24, 0, int(704 // (8 * s) * (8 * s)))
+    # The whole width: oncoming traffic is on the left of the view where traffic drives on
+    # the right, on the right where it drives on the left (the camera-shift suite's mirrored
+    # clips: F1 0.90 -> 0.93, the original clips unchanged); the motion gate narrows each
+    # band to where the picture moves. Each band is a whole number of its 8 * scale px cells
+    # wide, so that the narrowed bands of fastdet.video.motion resample exactly as the full
+    # band does.
+    return tuple(SearchBand(s, 400, 400 + int(64 * s) + 24, 0, int(1280 // (8 * s) * (8 * s)))
                  for s in (0.625, 0.75, 0.875, 1.0, 1.25))
 
 
 #: default search of the wide-window (oncoming-traffic) model: small scales near the horizon
-#: on the left of the view, where oncoming cars half hidden behind the median barrier are
+#: across the whole width, where oncoming cars half hidden behind the median barrier are
 #: seen. :class:`~fastdet.VideoDetector` narrows it each frame to where the picture moves
 #: (:class:`MotionGate`).
 WIDE_SEARCH = SearchConfig(bands=_wide_bands(), cells_per_step=1, threshold=1.0)

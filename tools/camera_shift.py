@@ -254,6 +254,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-oncoming", action="store_true", help="main model only")
     ap.add_argument("--band", action="append", default=[], metavar="SCALE,Y0,Y1[,X0,X1]",
                     help="add a band to the main search (1280x720 reference pixels; repeatable)")
+    ap.add_argument("--wide-columns", metavar="X0,X1", help="columns (1280-wide reference pixels) of the "
+                    "wide (oncoming) model's bands instead of 0..704, e.g. 0,1280 or 576,1280")
     ap.add_argument("--border", type=float, default=None, help="SearchConfig.border of the main search")
     ap.add_argument("--border-mode", choices=("reflect", "replicate"), default=None)
     ap.add_argument("--horizon", choices=("auto", "reference", "oracle"), default="auto",
@@ -277,6 +279,12 @@ def main(argv: list[str] | None = None) -> int:
         extra = tuple(SearchBand(float(f[0]), *(int(v) for v in f[1:])) for f in (b.split(",") for b in args.band))
         sc = det.scorers[0]
         sc.search = replace(sc.search, bands=tuple(sc.search.bands) + extra)
+    if args.wide_columns and len(det.scorers) > 1:
+        a, b = (int(v) for v in args.wide_columns.split(","))
+        sc = det.scorers[1]
+        sc.search = replace(sc.search, bands=tuple(
+            replace(bd, x_start=a + int((b - a) % (8 * bd.scale)) if a else 0,
+                    x_stop=b if a else int(b // (8 * bd.scale) * (8 * bd.scale))) for bd in sc.search.bands))
     if args.border is not None or args.border_mode is not None:
         sc = det.scorers[0]
         sc.search = replace(sc.search, border=sc.search.border if args.border is None else args.border,
