@@ -177,7 +177,7 @@ def classic_band_scores(frame: np.ndarray, geo: BandGeometry, model: Model, pair
 
 def loop_dense_scores(block_rows: np.ndarray, w_hog: np.ndarray, k: int, ny: int, nx: int, step: int, cell: int,
                       win_h: int, win_w: int, bias: float, spat_rows=None, w_sp=None, sp_off: int = 1,
-                      integ=None) -> np.ndarray:
+                      integ=None, hist_step: int = 1) -> np.ndarray:
     """``fastdet.detect.scoring.dense_scores`` one window and one product at a time: the
     window's blocks, spatial-map crop and integral-image corners sliced out and summed."""
     nby, nbx = w_hog.shape[0], w_hog.shape[1] // k
@@ -195,8 +195,8 @@ def loop_dense_scores(block_rows: np.ndarray, w_hog: np.ndarray, k: int, ny: int
                     for t in range(w_sp.shape[1]):
                         acc += float(spat_rows[ys + dr, xs + t]) * float(w_sp[dr, t])
             if integ is not None:
-                y, x = yb * cell, xb * cell
-                acc += float(integ[y + win_h, x + win_w] - integ[y, x + win_w] - integ[y + win_h, x] + integ[y, x])
+                y, x, h, w = yb * cell // hist_step, xb * cell // hist_step, win_h // hist_step, win_w // hist_step
+                acc += float(integ[y + h, x + w] - integ[y, x + w] - integ[y + h, x] + integ[y, x])
             out[i, j] = acc
     return out
 

@@ -26,10 +26,11 @@ def band_case(draw):
     cell = draw(st.sampled_from([2, 4, 8]))
     sp_off = draw(st.sampled_from([d for d in (1, 2, 4, 8) if cell % d == 0]))
     spatial, hist = draw(st.booleans()), draw(st.booleans())
-    win_h, win_w = draw(st.integers(1, 20)), draw(st.integers(1, 20))
+    hist_step = draw(st.sampled_from([d for d in (1, 2, 4, 8) if cell % d == 0]))
+    win_h, win_w = hist_step * draw(st.integers(1, 8)), hist_step * draw(st.integers(1, 8))
     extra = draw(st.tuples(st.integers(0, 3), st.integers(0, 3)))
     return {"k": k, "nby": nby, "nbx": nbx, "step": step, "ny": ny, "nx": nx, "cell": cell, "sp_off": sp_off,
-            "spatial": spatial, "hist": hist, "win_h": win_h, "win_w": win_w, "extra": extra,
+            "spatial": spatial, "hist": hist, "hist_step": hist_step, "win_h": win_h, "win_w": win_w, "extra": extra,
             "parallel": draw(st.booleans()), "seed": draw(st.integers(0, 2**32 - 1))}
 
 
@@ -46,8 +47,9 @@ def _arrays(c):
         a["spat_rows"] = rng.normal(size=(max(ny - 1, 0) * step * cell // sp_off + sh + er,
                                           max(nx - 1, 0) * step * cell // sp_off * 3 + sw * 3 + ec))
     if c["hist"]:
-        a["integ"] = rng.normal(size=(max(ny - 1, 0) * step * cell + c["win_h"] + 1 + er,
-                                      max(nx - 1, 0) * step * cell + c["win_w"] + 1 + ec))
+        g = c["hist_step"]
+        a["integ"] = rng.normal(size=((max(ny - 1, 0) * step * cell + c["win_h"]) // g + 1 + er,
+                                      (max(nx - 1, 0) * step * cell + c["win_w"]) // g + 1 + ec))
     return a, float(rng.normal())
 
 
@@ -58,11 +60,11 @@ def test_dense_scores_equal_a_plain_loop(c):
     out = np.full((c["ny"], c["nx"]), np.nan)
     got = dense_scores(a["block_rows"], a["w_hog"], c["k"], out, step=c["step"], cell=c["cell"], win_h=c["win_h"],
                        win_w=c["win_w"], bias=bias, spat_rows=a.get("spat_rows"), w_sp=a.get("w_sp"),
-                       sp_off=c["sp_off"], integ=a.get("integ"), parallel=c["parallel"])
+                       sp_off=c["sp_off"], integ=a.get("integ"), hist_step=c["hist_step"], parallel=c["parallel"])
     assert got is out
     ref = loop_dense_scores(a["block_rows"], a["w_hog"], c["k"], c["ny"], c["nx"], c["step"], c["cell"],
                             c["win_h"], c["win_w"], bias, a.get("spat_rows"), a.get("w_sp"), c["sp_off"],
-                            a.get("integ"))
+                            a.get("integ"), c["hist_step"])
     np.testing.assert_allclose(out, ref, rtol=1e-12, atol=1e-11)
 
 
@@ -96,19 +98,38 @@ def test_checks():
         dense_scores(rows, w, 12, out, spat_rows=np.zeros((31, 96)), w_sp=np.zeros((32, 96)), sp_off=2, **kw)
     with pytest.raises(ValueError, match="too small"):
         dense_scores(rows, w, 12, out, integ=np.zeros((64, 65)), **kw)
+    with pytest.raises(ValueError, match="too small"):
+        dense_scores(rows, w, 12, out, integ=np.zeros((9, 8)), hist_step=8, **kw)
+    with pytest.raises(ValueError, match="divide"):
+        dense_scores(rows, w, 12, out, integ=np.zeros((9, 9)), hist_step=3, **kw)
+    dense_scores(rows, w, 12, out, integ=np.zeros((9, 9)), hist_step=8, **kw)
     dense_scores(rows, w, 12, np.empty((0, 5)), **kw)  # no windows: nothing to check against
 
 
-def test_hist_weight_integral_is_the_cumulative_sum():
-    rng = np.random.default_rng(1)
-    img = rng.integers(0, 256, (13, 17, 3), dtype=np.uint8)
-    w = rng.normal(size=(3, 32))
-    per_pixel = sum(w[c, img[:, :, c] >> 3] for c in range(3))
-    ref = np.zeros((14, 18))
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 40), st.integers(0, 40), st.integers(1, 4), st.sampled_from([1, 2, 3, 8]),
+       st.sampled_from([(32, 3), (16, 4), (256, 0)]), st.integers(0, 2**32 - 1))
+def test_hist_weight_integral_is_the_cumulative_sum(h, w, c, g, bins_shift, seed):
+    bins, shift = bins_shift
+    rng = np.random.default_rng(seed)
+    img = rng.integers(0, 256, (h, w, c), dtype=np.uint8)
+    wh = rng.normal(size=(c, bins))
+    per_pixel = sum(wh[ch, img[:, :, ch] >> shift] for ch in range(c)) + np.zeros((h, w))
+    ref = np.zeros((h + 1, w + 1))
     ref[1:, 1:] = per_pixel.cumsum(0).cumsum(1)
-    np.testing.assert_allclose(hist_weight_integral(img, w, 3), ref, rtol=0, atol=1e-10)
+    got = hist_weight_integral(img, wh, shift, g)
+    assert got.shape == (h // g + 1, w // g + 1)
+    np.testing.assert_allclose(got, ref[::g, ::g][: h // g + 1, : w // g + 1], rtol=0, atol=1e-9)
+
+
+def test_hist_weight_integral_checks():
+    img, w = np.zeros((8, 8, 3), np.uint8), np.zeros((3, 32))
     with pytest.raises(ValueError, match="bins"):
         hist_weight_integral(img, np.ascontiguousarray(w[:, :16]), 3)
+    with pytest.raises(ValueError, match="step"):
+        hist_weight_integral(img, w, 3, 0)
+    with pytest.raises(ValueError, match="out must be"):
+        hist_weight_integral(img, w, 3, 8, out=np.empty((9, 9)))
 
 
 def _cpu_flags() -> set[str]:
@@ -126,7 +147,7 @@ def test_inner_loop_is_packed_fma_without_gathers():
     vgatherqpd). Compiled afresh: Numba does not show the assembly of cached code."""
     fresh = numba.njit(**dict(REASSOC, cache=False))(_score_kernels.dense_scores_serial.py_func)
     rows, w = np.zeros((7, 7 * 12)), np.zeros((7, 7 * 12))
-    fresh(rows, w, 12, np.zeros((0, 0)), np.zeros((0, 0)), 1, np.zeros((1, 1)), 64, 64, 8, 2, 0.0, np.empty((1, 1)))
+    fresh(rows, w, 12, np.zeros((0, 0)), np.zeros((0, 0)), 1, np.zeros((1, 1)), 1, 64, 64, 8, 2, 0.0, np.empty((1, 1)))
     asm = fresh.inspect_asm(fresh.signatures[0])
     assert re.search(r"vfmadd\d+pd\s+[^\n]*%[yz]mm", asm), "no packed FMA in the scoring kernel"
     assert "gather" not in asm

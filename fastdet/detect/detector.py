@@ -105,10 +105,11 @@ class _Scorer:
                 sp = sp.reshape(sp.shape[0], -1)
             else:
                 f, sp = 1, None
-            integ = hist_weight_integral(img, self.w_hist, hist_bin_shift(cfg)) if self.w_hist is not None else None
-            dense_scores(rows, self.w_hog, self.k, out, step=geo.step, cell=cfg.pixels_per_cell, win_h=cfg.win_h,
-                         win_w=cfg.win_w, bias=self.bias, spat_rows=sp, w_sp=self.w_sp if cfg.spatial_size else None,
-                         sp_off=f, integ=integ, parallel=not serial)
+            cell = cfg.pixels_per_cell
+            integ = hist_weight_integral(img, self.w_hist, hist_bin_shift(cfg), cell) if self.w_hist is not None else None
+            dense_scores(rows, self.w_hog, self.k, out, step=geo.step, cell=cell, win_h=cfg.win_h, win_w=cfg.win_w,
+                         bias=self.bias, spat_rows=sp, w_sp=self.w_sp if cfg.spatial_size else None, sp_off=f,
+                         integ=integ, hist_step=cell, parallel=not serial)
         t3 = time.perf_counter()
         if timings is not None:
             timings["resize_colour"] = timings.get("resize_colour", 0.0) + (t1 - t0)

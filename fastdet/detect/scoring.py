@@ -21,7 +21,7 @@ def _f64_rows(name: str, a: np.ndarray) -> None:
 def dense_scores(block_rows: np.ndarray, w_hog: np.ndarray, k: int, out: np.ndarray, *, step: int, cell: int,
                  win_h: int, win_w: int, bias: float = 0.0, spat_rows: np.ndarray | None = None,
                  w_sp: np.ndarray | None = None, sp_off: int = 1, integ: np.ndarray | None = None,
-                 parallel: bool = False) -> np.ndarray:
+                 hist_step: int = 1, parallel: bool = False) -> np.ndarray:
     """Decision value of every window of a band into ``out (ny, nx) float64``; returns ``out``.
 
     ``out[i, j] = bias + HOG term + spatial term + histogram term`` of the window whose
@@ -33,8 +33,10 @@ def dense_scores(block_rows: np.ndarray, w_hog: np.ndarray, k: int, out: np.ndar
     - spatial (``spat_rows (Hs, Ws*3)``, ``w_sp (Sh, Sw*3)``, both or neither):
       ``sum_dr spat_rows[y + dr, x*3 : x*3 + Sw*3] @ w_sp[dr]`` at ``y, x = (i, j)*step*cell /
       sp_off`` (``sp_off``: pixels per spatial-map pixel, a divisor of ``cell``);
-    - histogram (``integ (H+1, W+1)``: integral image of the per-pixel weights): the sum over
-      the ``win_h x win_w`` pixels at ``(i, j)*step*cell``.
+    - histogram (``integ``: integral image of the per-pixel weights at every ``hist_step``-th
+      row and column, ``(H/hist_step + 1, W/hist_step + 1)``, see :func:`hist_weight_integral`;
+      ``hist_step`` divides ``cell``, ``win_h`` and ``win_w``): the sum over the
+      ``win_h x win_w`` pixels at ``(i, j)*step*cell``.
 
     ``parallel``: spread the windows over Numba's threads (else the calling thread only).
     ``ValueError`` when an array has the wrong type or is too small for ``out``'s windows.
@@ -42,9 +44,9 @@ def dense_scores(block_rows: np.ndarray, w_hog: np.ndarray, k: int, out: np.ndar
     _f64_rows("block_rows", block_rows)
     _f64_rows("w_hog", w_hog)
     _f64_rows("out", out)
-    k, step, cell, win_h, win_w, sp_off = (int(v) for v in (k, step, cell, win_h, win_w, sp_off))
-    if min(k, step, cell, win_h, win_w, sp_off) < 1:
-        raise ValueError("k, step, cell, win_h, win_w and sp_off must be >= 1")
+    k, step, cell, win_h, win_w, sp_off, hg = (int(v) for v in (k, step, cell, win_h, win_w, sp_off, hist_step))
+    if min(k, step, cell, win_h, win_w, sp_off, hg) < 1:
+        raise ValueError("k, step, cell, win_h, win_w, sp_off and hist_step must be >= 1")
     nby, lw = w_hog.shape
     if lw % k or nby < 1:
         raise ValueError(f"w_hog {w_hog.shape}: rows of whole blocks of k={k} values expected")
@@ -72,28 +74,40 @@ def dense_scores(block_rows: np.ndarray, w_hog: np.ndarray, k: int, out: np.ndar
         _f64_rows("integ", integ)
         if integ.shape[0] < 2:
             raise ValueError(f"integ {integ.shape}: an integral image has at least 2 rows")
-        if ny and nx and (integ.shape[0] < (ny - 1) * step * cell + win_h + 1
-                          or integ.shape[1] < (nx - 1) * step * cell + win_w + 1):
-            raise ValueError(f"integ {integ.shape} too small for {ny}x{nx} windows of {win_h}x{win_w} px")
+        if cell % hg or win_h % hg or win_w % hg:
+            raise ValueError(f"hist_step {hg} must divide cell {cell}, win_h {win_h} and win_w {win_w}")
+        if ny and nx and (integ.shape[0] < ((ny - 1) * step * cell + win_h) // hg + 1
+                          or integ.shape[1] < ((nx - 1) * step * cell + win_w) // hg + 1):
+            raise ValueError(f"integ {integ.shape} too small for {ny}x{nx} windows of {win_h}x{win_w} px "
+                             f"(hist_step {hg})")
     if ny and nx:
         kernel = _dense_parallel if parallel else _dense_serial
-        kernel(block_rows, w_hog, k, spat_rows, w_sp, sp_off, integ, win_h, win_w, cell, step, float(bias), out)
+        kernel(block_rows, w_hog, k, spat_rows, w_sp, sp_off, integ, hg, win_h, win_w, cell, step, float(bias), out)
     return out
 
 
-def hist_weight_integral(image: np.ndarray, w_hist: np.ndarray, shift: int, out: np.ndarray | None = None) -> np.ndarray:
-    """Integral image ``(H+1, W+1) float64`` of the per-pixel histogram weight
-    ``sum_c w_hist[c, image[y, x, c] >> shift]`` of an ``(H, W, 3) uint8`` image."""
-    if image.dtype != np.uint8 or image.ndim != 3:
+def hist_weight_integral(image: np.ndarray, w_hist: np.ndarray, shift: int, step: int = 1,
+                         out: np.ndarray | None = None) -> np.ndarray:
+    """Integral image of the per-pixel histogram weight ``sum_c w_hist[c, image[y, x, c] >> shift]``
+    of an ``(H, W, C) uint8`` image at every ``step``-th row and column:
+    ``(H // step + 1, W // step + 1) float64``, ``out[r, q]`` = the sum over
+    ``image[:r*step, :q*step]`` (pass ``step`` = the cell size, and ``hist_step=step`` to
+    :func:`dense_scores`)."""
+    if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] < 1:
         raise ValueError(f"image must be (H, W, C) uint8, got {image.dtype} {image.shape}")
     _f64_rows("w_hist", w_hist)
     if w_hist.shape[0] != image.shape[2] or w_hist.shape[1] << int(shift) < 256:
         raise ValueError(f"w_hist {w_hist.shape} does not cover {image.shape[2]} channels of 256 >> {shift} bins")
+    step = int(step)
+    if step < 1:
+        raise ValueError(f"step must be >= 1, got {step}")
+    shape = (image.shape[0] // step + 1, image.shape[1] // step + 1)
     if out is None:
-        out = np.empty((image.shape[0] + 1, image.shape[1] + 1), np.float64)
-    elif out.shape != (image.shape[0] + 1, image.shape[1] + 1):
-        raise ValueError(f"out must be {(image.shape[0] + 1, image.shape[1] + 1)}, got {out.shape}")
+        out = np.empty(shape, np.float64)
+    elif out.shape != shape:
+        raise ValueError(f"out must be {shape}, got {out.shape}")
     else:
         _f64_rows("out", out)
-    _hist_integral(image, w_hist, int(shift), out)
+    lut = np.ascontiguousarray(w_hist[:, np.arange(256) >> int(shift)])  # weight of every byte value
+    _hist_integral(np.ascontiguousarray(image), lut, step, out)
     return out
