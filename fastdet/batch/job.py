@@ -34,6 +34,7 @@ import logging
 import os
 import re
 import signal
+import sys
 import threading
 import time
 import uuid
@@ -199,8 +200,15 @@ def _client(opts: BatchOptions) -> Iterator[tuple[Client, int]]:
             cluster.close(timeout=CLOSE_TIMEOUT_S)
         raise
     try:
-        client.register_plugin(_WorkerSetup())
+        try:
+            client.register_plugin(_WorkerSetup())
+        except ImportError as exc:  # raised on a worker, which cannot unpickle fastdet's plugin
+            raise FastdetError(f"the Dask workers cannot import {exc.name or 'fastdet'}: install "
+                               f"fastdet[cluster] on every worker machine") from None
         workers = len(client.scheduler_info().get("workers", {}))
+        if not workers:
+            print(f"fastdet batch: the scheduler at {opts.scheduler} has no workers yet; the videos "
+                  f"wait for some to join", file=sys.stderr, flush=True)
         yield client, workers
     finally:
         try:
