@@ -162,7 +162,7 @@ def run_video(task: VideoTask) -> dict[str, Any]:
         reader = FrameReader(task.input, notify=notes.append)
         detector = detector_for(s)
         check_frame(detector, reader.first_frame, task.input)
-        vd = VideoDetector(detector, s.heat, tracker=s.track)
+        vd = VideoDetector(detector, s.heat, tracker=s.track, fps=reader.fps)
         h, w = reader.shape[:2]
         if "video" in tmps:
             sink = VideoSink(str(tmps["video"]), reader.fps, (w, h), threshold=s.heat.threshold)
