@@ -38,7 +38,7 @@ from ..features import (
     spatial_factor,
     spatial_map,
 )
-from ..features._hog_kernels import hog_u8
+from ..features._hog_kernels import hog_u8_fast
 from ..model import Model, load_model
 from .bands import BandGeometry, band_geometry, scaled_band, window_boxes
 from .scoring import KERNELS as SCORE_KERNELS
@@ -94,7 +94,7 @@ class _Scorer:
         img = convert_color(scaled_band(frame, geo), cfg.color_space)
         t1 = time.perf_counter()
         blocks = hog_channels(img, cfg.orientations, cfg.pixels_per_cell, cfg.cells_per_block,
-                              channels=list(cfg.hog_channels))
+                              channels=list(cfg.hog_channels), exact=False)
         t2 = time.perf_counter()
         out = np.empty((geo.ny, geo.nx), np.float64)
         if geo.n_windows:
@@ -187,7 +187,7 @@ class Detector:
         """Load (or compile) the numba kernels now rather than on the first frame: the
         multi-threaded scoring kernel and the serial one the band threads run. On a first
         run this says once that it compiles (:func:`fastdet._numba.announce_compile`)."""
-        announce_compile(hog_u8, *SCORE_KERNELS)
+        announce_compile(hog_u8_fast, *SCORE_KERNELS)
         for sc in self.scorers:
             cfg = sc.config
             tiny = np.zeros((cfg.win_h * 2, cfg.win_w * 2, 3), np.uint8)

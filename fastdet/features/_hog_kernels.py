@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .._numba import EXACT, EXACT_PARALLEL
+from .._numba import EXACT, EXACT_PARALLEL, REASSOC
 
 # block_norm codes (see _hog.BLOCK_NORMS)
 NORM_L1 = 0
@@ -395,6 +395,92 @@ def hog_u8_batch(imgs, chans, c_row, c_col, b_row, b_col, n_cells_row, n_cells_c
         hist = np.empty((n_cells_row, n_cells_col, n_ch, n_or))
         hog_u8(imgs[n], chans, False, c_row, c_col, b_row, b_col, bin_lut, mag_lut, method,
                hist, out[n])
+
+
+# --------------------------------------------------------------------------------------
+# the detector's block map: the same cell histograms, blocks normalised to within an ulp
+# --------------------------------------------------------------------------------------
+# The detector needs every block value to ~1e-15 relative, not to the last bit: NumPy's
+# pairwise order and the lane transposes of _normalize_range cost 60% of its HOG time. Here
+# the cell histograms (still skimage's exact float32 sums) are kept channel-major within a
+# cell row, ``ht[r, k, c, o]``, so a block row of one channel, ``b_col`` cells of ``n_or``
+# bins, is one contiguous run: a block is ``b_row`` runs, read in place, summed in any order
+# and scaled by a reciprocal (5x faster: 0.98 -> 0.2 ms for the 3-channel 1344x96 band).
+@njit(**REASSOC)
+def _normalize_rows_fast(ht, bi0, bi1, b_row, b_col, method, out):
+    """Normalise block rows ``bi0 <= bi < bi1`` of ``ht (rows, n_ch, cols, n_or)`` into
+    ``out (n_blocks_row, n_blocks_col, n_ch, b_row * b_col * n_or)``."""
+    n_bc = out.shape[1]
+    n_ch = out.shape[2]
+    n_or = ht.shape[3]
+    flat = ht.reshape(ht.shape[0], n_ch, ht.shape[2] * n_or)
+    run = b_col * n_or
+    for bi in range(bi0, bi1):
+        for k in range(n_ch):
+            for bj in range(n_bc):
+                c0 = bj * n_or
+                dst = out[bi, bj, k]
+                s = 0.0
+                if method == NORM_L1 or method == NORM_L1_SQRT:
+                    for i in range(b_row):
+                        a = flat[bi + i, k, c0: c0 + run]
+                        for p in range(run):
+                            s += abs(a[p])
+                    inv = 1.0 / (s + EPS)
+                    for i in range(b_row):
+                        a = flat[bi + i, k, c0: c0 + run]
+                        d = dst[i * run: i * run + run]
+                        if method == NORM_L1:
+                            for p in range(run):
+                                d[p] = a[p] * inv
+                        else:
+                            for p in range(run):
+                                d[p] = np.sqrt(a[p] * inv)
+                    continue
+                for i in range(b_row):
+                    a = flat[bi + i, k, c0: c0 + run]
+                    for p in range(run):
+                        s += a[p] * a[p]
+                inv = 1.0 / np.sqrt(s + EPS2)
+                if method == NORM_L2:
+                    for i in range(b_row):
+                        a = flat[bi + i, k, c0: c0 + run]
+                        d = dst[i * run: i * run + run]
+                        for p in range(run):
+                            d[p] = a[p] * inv
+                    continue
+                s2 = 0.0  # L2-Hys: clip at 0.2, renormalise
+                for i in range(b_row):
+                    a = flat[bi + i, k, c0: c0 + run]
+                    for p in range(run):
+                        x = min(a[p] * inv, HYS_CLIP)
+                        s2 += x * x
+                inv2 = 1.0 / np.sqrt(s2 + EPS2)
+                for i in range(b_row):
+                    a = flat[bi + i, k, c0: c0 + run]
+                    d = dst[i * run: i * run + run]
+                    for p in range(run):
+                        d[p] = min(a[p] * inv, HYS_CLIP) * inv2
+
+
+@njit(**_JIT)
+def hog_u8_fast(img, chans, c_row, c_col, b_row, b_col, bin_lut, mag_lut, method, ht, out):
+    """Per-channel uint8 HOG for the detector, one thread: skimage's cell histograms into
+    ``ht (n_cells_row, n_ch, n_cells_col, n_or)``, blocks by :func:`_normalize_rows_fast`."""
+    hist = ht.transpose(0, 2, 1, 3)  # (rows, cols, n_ch, n_or) view: what _cell_row_u8 fills
+    for ci in range(ht.shape[0]):
+        _cell_row_u8(img, chans, False, ci, c_row, c_col, bin_lut, mag_lut, hist)
+    _normalize_rows_fast(ht, 0, out.shape[0], b_row, b_col, method, out)
+
+
+@njit(**_PJIT)
+def hog_u8_fast_parallel(img, chans, c_row, c_col, b_row, b_col, bin_lut, mag_lut, method, ht, out):
+    """As :func:`hog_u8_fast`, threads over cell rows, then over block rows."""
+    hist = ht.transpose(0, 2, 1, 3)
+    for ci in prange(ht.shape[0]):
+        _cell_row_u8(img, chans, False, ci, c_row, c_col, bin_lut, mag_lut, hist)
+    for bi in prange(out.shape[0]):
+        _normalize_rows_fast(ht, bi, bi + 1, b_row, b_col, method, out)
 
 
 # --------------------------------------------------------------------------------------
