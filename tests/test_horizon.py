@@ -19,21 +19,26 @@ REF_ROW = REFERENCE_HORIZON * 720
 def test_for_frame_moves_bands_with_the_horizon():
     cfg = SearchConfig(bands=(SearchBand(1.0, 400, 496), SearchBand(2.0, 400, 592, 100, 900)))
     up = SearchConfig(cfg.bands, horizon=0.485).for_frame((720, 1280))
-    dy = round((0.485 - REFERENCE_HORIZON) * 720)  # -72 rows
+    # 72 rows up, in whole window steps (2 cells of 8 x scale rows): 4 x 16 and 2 x 32 rows
     assert [(b.scale, b.y_start, b.y_stop, b.x_start, b.x_stop) for b in up.bands] == \
-        [(1.0, 400 + dy, 496 + dy, None, None), (2.0, 400 + dy, 592 + dy, 100, 900)]
+        [(1.0, 336, 432, None, None), (2.0, 336, 528, 100, 900)]
     assert up.horizon is None and up.reference_shape is None
-    # at half the resolution: rows and scales halve, then the shift is in that frame's rows
+    # at half the resolution: rows and scales halve, then 36 rows up in steps of 8 and 16
     half = SearchConfig(cfg.bands, horizon=0.485).for_frame((360, 640))
-    assert [(b.scale, b.y_start, b.y_stop) for b in half.bands] == [(0.5, 200 - 36, 248 - 36), (1.0, 200 - 36, 296 - 36)]
+    assert [(b.scale, b.y_start, b.y_stop) for b in half.bands] == [(0.5, 168, 216), (1.0, 168, 264)]
+    # 0.7 of a step down moves a band by one step, 0.3 of a step not at all
+    assert SearchConfig(cfg.bands[:1], horizon=REFERENCE_HORIZON + 11.2 / 720).for_frame((720, 1280)).bands == \
+        (SearchBand(1.0, 416, 512),)
+    assert SearchConfig(cfg.bands[:1], horizon=REFERENCE_HORIZON + 4.8 / 720).for_frame((720, 1280)).bands == \
+        cfg.bands[:1]
     # the reference horizon itself changes nothing
     assert SearchConfig(cfg.bands, horizon=REFERENCE_HORIZON).for_frame((720, 1280)).bands == cfg.bands
 
 
 def test_for_frame_clips_and_drops_bands():
     cfg = SearchConfig(bands=(SearchBand(1.0, 400, 496), SearchBand(3.0, 400, 656)), horizon=0.9)
-    out = cfg.for_frame((720, 1280))  # +227 rows: both clipped to 627..720, too low for 192-px windows
-    assert [(b.scale, b.y_start, b.y_stop) for b in out.bands] == [(1.0, 627, 720)]
+    out = cfg.for_frame((720, 1280))  # +227 rows: 224 (14 steps) and 240: too low for 192-px windows
+    assert [(b.scale, b.y_start, b.y_stop) for b in out.bands] == [(1.0, 624, 720)]
     with pytest.raises(ValueError, match="no search band"):
         SearchConfig(bands=(SearchBand(1.0, 400, 496),), horizon=1.0).for_frame((720, 1280))
     with pytest.raises(ValueError):
@@ -49,7 +54,11 @@ def test_detector_set_horizon_moves_both_searches():
     assert det.horizon == pytest.approx(REFERENCE_HORIZON - 0.1)
     after = {p: [(g.y0, g.y1) for g in det.geometries((720, 1280), p)] for p in (0, 1)}
     for p in (0, 1):
-        assert [(a - 72, b - 72) for a, b in before[p]] == after[p]
+        for g, (a, b), (a2, b2) in zip(det.geometries((720, 1280), p), before[p], after[p]):
+            step = 8 * g.band.scale * det.scorers[p].search.cells_per_step
+            moved = a - a2
+            assert moved == b - b2 and abs(moved - 72) <= step / 2 + 0.5  # the nearest whole steps
+            assert abs(moved / step - round(moved / step)) < 0.07  # (rounded to whole rows)
     det.set_horizon(None)
     assert {p: [(g.y0, g.y1) for g in det.geometries((720, 1280), p)] for p in (0, 1)} == before
 

@@ -222,7 +222,7 @@ class VideoDetector:
         cur = det.horizon
         if (h is None) != (cur is None) or (h is not None and abs(h - cur) > 0.5 * TOLERANCE):
             det.set_horizon(h)
-        if est.frames >= HORIZON_FRAMES:
+        if est.done or est.frames >= HORIZON_FRAMES:
             self._horizon_est = None  # settled: no more flow to compute
 
     def prime_horizon(self, frames: Iterable[np.ndarray]) -> float | None:
@@ -236,7 +236,7 @@ class VideoDetector:
         if est is None:
             return getattr(det, "horizon", None)
         for i, f in enumerate(frames):
-            if i >= HORIZON_FRAMES:
+            if i >= HORIZON_FRAMES or est.done:
                 break
             est.update(np.asarray(f))
         det.set_horizon(search_horizon(est.estimate))  # type: ignore[attr-defined]
