@@ -135,12 +135,19 @@ def test_video_detector_estimates_the_horizon():
     vd = VideoDetector(det)  # horizon='auto'
     assert vd.prime_horizon(frames) == pytest.approx(150 / 360, abs=0.01)
     assert det.horizon == pytest.approx(150 / 360, abs=0.01)
-    vd.reset()  # a new video: back to the reference until it has an estimate of its own
+    vd.reset()  # a cut: the same camera, the horizon stays
+    vd.update(frames[0])
+    assert det.horizon == pytest.approx(150 / 360, abs=0.01)
+    vd = VideoDetector(det)  # another video: back to the reference until it has an estimate of its own
     vd.update(frames[0])
     assert det.horizon is None
     for f in frames[1:]:  # online: the estimate arrives after MIN_PAIRS pairs
         vd.update(f)
     assert det.horizon == pytest.approx(150 / 360, abs=0.01)
+    n = len(vd._horizon_est.rows) if vd._horizon_est is not None else None
+    vd.reset()
+    vd.update(frames[0])  # no pair across the cut
+    assert vd._horizon_est is None or len(vd._horizon_est.rows) == n
     # still pictures give no estimate: the reference bands
     vd2 = VideoDetector(det)
     assert vd2.prime_horizon([frames[0]] * 20) is None and det.horizon is None

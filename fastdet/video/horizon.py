@@ -127,6 +127,10 @@ class HorizonEstimator:
                 self.rows.append(p[1] / frame.shape[0])
         self._n += 1
 
+    def cut(self) -> None:
+        """The next frame does not follow the last one (a cut): pair no frames across it."""
+        self._recent.clear()
+
     @property
     def frames(self) -> int:
         """Frames seen so far."""

@@ -112,7 +112,8 @@ class VideoDetector:
         optical flow of the first :data:`~fastdet.video.horizon.HORIZON_FRAMES` frames
         (:mod:`fastdet.video.horizon`; until there is an estimate, and when it is within the
         estimate's precision of the reference, the bands stay where they are written) --
-        :meth:`prime_horizon` gives it those frames ahead of time; a number: the horizon row
+        :meth:`prime_horizon` gives it those frames ahead of time; :meth:`reset` keeps it (a
+        cut, same camera; another camera wants a new VideoDetector); a number: the horizon row
         as a fraction of the frame height (a camera whose horizon is known); ``None``: the
         detector's search as it is. Needs a detector with ``set_horizon`` (a
         :class:`~fastdet.Detector`); others are left alone.
@@ -195,7 +196,8 @@ class VideoDetector:
         if self.wide_heatmap is not None:
             self.wide_heatmap.reset()
         self._motion.reset()
-        self._horizon_started = False  # a new video: estimate its horizon again
+        if self._horizon_est is not None:
+            self._horizon_est.cut()  # the camera stays: keep the estimate, pair no frames across the cut
         self._clear()
 
     def _start_horizon(self, det: WindowDetector) -> None:
