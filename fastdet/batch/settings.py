@@ -51,6 +51,8 @@ class Settings:
     track: give the boxes track ids (the default :class:`~fastdet.config.TrackerConfig`, as
         ``fastdet video``); ``False`` as ``video --no-track`` (ids -1).
     video, json: also write the annotated video / JSON lines (the boxes file is always written).
+    horizon: where the search bands go, as ``video --horizon``: ``'auto'``, a fraction of the
+        frame height, or ``None`` (off).
     """
 
     model: str
@@ -61,11 +63,12 @@ class Settings:
     track: bool = True
     video: bool = False
     json: bool = False
+    horizon: float | str | None = "auto"
 
     @classmethod
     def create(cls, model: str | os.PathLike | None = None, oncoming: str | os.PathLike | bool = True,
                heat: HeatConfig | None = None, track: bool = True, video: bool = False,
-               json: bool = False) -> Settings:
+               json: bool = False, horizon: float | str | None = "auto") -> Settings:
         """Settings for ``model`` (``None``: the bundled one) and ``oncoming`` (``True``:
         the bundled oncoming model, ``False``: none, or a path), hashing the model files."""
         main = os.path.abspath(model) if model is not None else str(DEFAULT_MODEL_PATH)
@@ -79,7 +82,7 @@ class Settings:
             if p is not None and not os.path.isfile(p):
                 raise ModelError(f"{p}: model file not found")
         return cls(main, file_sha256(main), wide, file_sha256(wide) if wide else "",
-                   heat if heat is not None else HeatConfig(), bool(track), bool(video), bool(json))
+                   heat if heat is not None else HeatConfig(), bool(track), bool(video), bool(json), horizon)
 
     def check(self) -> None:
         """Load the models as a worker will: :class:`ModelError` (one line) now, before any
@@ -99,6 +102,7 @@ class Settings:
             "heat": dataclasses.asdict(self.heat),
             "tracker": dataclasses.asdict(TrackerConfig()) if self.track else None,
             "outputs": list(self.kinds),
+            "horizon": self.horizon,
             "fastdet": __version__,
         }
 

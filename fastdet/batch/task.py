@@ -46,7 +46,7 @@ from ..io.atomic import commit
 from ..io.motfiles import JsonLinesWriter, MotWriter
 from ..io.reader import FrameReader
 from ..io.sink import VideoSink
-from ..video.pipeline import VideoDetector, make_detector
+from ..video.pipeline import VideoDetector, make_detector, prime_horizon_from_file
 from .settings import Settings, output_paths
 
 PROGRESS_EVERY = 0.5  # seconds between progress events of one task
@@ -162,7 +162,8 @@ def run_video(task: VideoTask) -> dict[str, Any]:
         reader = FrameReader(task.input, notify=notes.append)
         detector = detector_for(s)
         check_frame(detector, reader.first_frame, task.input)
-        vd = VideoDetector(detector, s.heat, tracker=s.track, fps=reader.fps)
+        vd = VideoDetector(detector, s.heat, tracker=s.track, fps=reader.fps, horizon=s.horizon)
+        prime_horizon_from_file(vd, task.input)
         h, w = reader.shape[:2]
         if "video" in tmps:
             sink = VideoSink(str(tmps["video"]), reader.fps, (w, h), threshold=s.heat.threshold)

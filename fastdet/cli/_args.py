@@ -32,6 +32,29 @@ def positive_float(s: str) -> float:
     return v
 
 
+def horizon_value(s: str) -> float | str | None:
+    """argparse type of ``--horizon``: ``auto`` (estimate it from the video), ``off`` (the
+    search bands as configured, for 1280x720 footage with the horizon at 0.585 of the height)
+    or the horizon row as a fraction of the frame height, in [0, 1]."""
+    if s in ("auto", "off"):
+        return None if s == "off" else "auto"
+    try:
+        v = float(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'auto', 'off' or a fraction of the frame height, got {s!r}") from None
+    if not 0.0 <= v <= 1.0:
+        raise argparse.ArgumentTypeError(f"a fraction of the frame height is between 0 and 1, got {v}")
+    return v
+
+
+def add_horizon_argument(parser: argparse.ArgumentParser) -> None:
+    """``--horizon auto|off|F``, shared by ``video``, ``eval`` and ``batch``."""
+    parser.add_argument("--horizon", type=horizon_value, default="auto", metavar="auto|off|F",
+                        help="where the search bands go: 'auto' (default) follows the horizon estimated "
+                             "from the first seconds of the video; F: the horizon row as a fraction of the "
+                             "frame height (another camera's known horizon); 'off': bands as configured")
+
+
 def add_oncoming_arguments(parser: argparse.ArgumentParser) -> None:
     """``--oncoming-model`` / ``--no-oncoming``, shared by ``video``, ``eval`` and ``bench``."""
     g = parser.add_mutually_exclusive_group()

@@ -113,7 +113,7 @@ def handled() -> Iterator[None]:
     finally:
         for s, h in previous.items():
             signal.signal(s, h if h is not None else signal.SIG_DFL)
-        _deferring = 0
+        _received, _deferring = None, 0  # a stop belongs to the command it stopped
 
 
 def reset() -> None:

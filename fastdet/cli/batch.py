@@ -26,7 +26,7 @@ from types import ModuleType
 
 from ..errors import FastdetError
 from ..io.atomic import check_output_path
-from ._args import add_oncoming_arguments, nonneg_int, oncoming_arg, positive_int
+from ._args import add_horizon_argument, add_oncoming_arguments, nonneg_int, oncoming_arg, positive_int
 
 _INSTALL = "pip install fastdet[cluster]"
 # the packages of the ``cluster`` extra that fastdet.batch imports
@@ -42,6 +42,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="also write the boxes as JSON lines NAME.boxes.jsonl")
     parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
     add_oncoming_arguments(parser)
+    add_horizon_argument(parser)
     parser.add_argument("--no-track", action="store_true",
                         help="no tracker: boxes without ids (-1), as `fastdet video --no-track`")
     parser.add_argument("--workers", type=positive_int, default=None, metavar="N",
@@ -85,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
         table_mod.table_format(table)
     videos = inputs.expand_inputs(args.inputs)
     settings = settings_mod.Settings.create(args.model, oncoming_arg(args), track=not args.no_track,
-                                            video=args.video, json=args.json)
+                                            video=args.video, json=args.json, horizon=args.horizon)
     settings.check()
     job.prepare_out_dir(Path(args.out))
     if table is not None:  # after the output folder exists: the table may go into it

@@ -12,7 +12,7 @@ from ..eval.report import format_table, plot_pr
 from ..io.motfiles import Predictions, read_gt, read_predictions
 from ..io.reader import check_source
 from ..video.pipeline import iter_video_detections
-from ._args import add_oncoming_arguments, oncoming_arg
+from ._args import add_horizon_argument, add_oncoming_arguments, oncoming_arg
 
 # ---------------------------------------------------------------------------------------
 # CLI
@@ -39,6 +39,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                      help="run the default video pipeline on this clip and evaluate its boxes")
     parser.add_argument("--model", metavar="MODEL.npz", help="model for --video (default: the bundled one)")
     add_oncoming_arguments(parser)
+    add_horizon_argument(parser)
     track = parser.add_mutually_exclusive_group()
     track.add_argument("--no-track", action="store_true",
                        help="--video without the tracker (boxes without ids: no MOT metrics)")
@@ -50,10 +51,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _video_predictions(video: str, model: str | None, oncoming: Any = True, track: bool = True,
-                       offline: bool = False) -> Predictions:
+                       offline: bool = False, horizon: float | str | None = "auto") -> Predictions:
     check_source(video)
     frames = iter_video_detections(video, model=model, progress=True, oncoming=oncoming, tracker=track,
-                                   offline=offline)
+                                   offline=offline, horizon=horizon)
     return Predictions.from_frames(frames, source=video)
 
 
@@ -65,7 +66,8 @@ def run(args: argparse.Namespace) -> int:
                            "with --video")
     gt = read_gt(args.gt)
     if args.video is not None:
-        preds = _video_predictions(args.video, args.model, oncoming_arg(args), not no_track, offline)
+        preds = _video_predictions(args.video, args.model, oncoming_arg(args), not no_track, offline,
+                                   getattr(args, "horizon", "auto"))
     else:
         preds = read_predictions(args.pred)
     result = evaluate(gt, preds, iou=args.iou)

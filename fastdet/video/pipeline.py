@@ -397,11 +397,20 @@ def _first_frames(path: str, start: int) -> Iterator[np.ndarray]:
         reader.close()
 
 
+def prime_horizon_from_file(vd: VideoDetector, path: str | os.PathLike, start: int = 0) -> None:
+    """For a file (not a live source): give ``vd`` the first seconds of the video ahead of time
+    (:meth:`VideoDetector.prime_horizon`), so every frame, the first ones too, is searched at the
+    estimated horizon. Every command that reads a file does this, so ``video``, ``batch`` and
+    ``eval --video`` give the same boxes."""
+    if vd.horizon == "auto" and os.path.isfile(os.fspath(path)):
+        vd.prime_horizon(_first_frames(os.fspath(path), start))
+
+
 def iter_video_detections(path: str | os.PathLike, model: Any = None, start: int = 0,
                           frames: int | None = None, progress: bool = True, detector: Any = None,
                           heat: HeatConfig | None = None, oncoming: Any = True,
                           tracker: TrackerConfig | bool | None = None,
-                          offline: bool = False) -> Iterator[tuple[int, Detections]]:
+                          offline: bool = False, horizon: float | str | None = "auto") -> Iterator[tuple[int, Detections]]:
     """Vehicle boxes of every frame of a video file: yields ``(frame, Detections)``.
 
     frame: 1-based frame number in the file (``start`` frames are skipped, so the first one
@@ -427,9 +436,8 @@ def iter_video_detections(path: str | os.PathLike, model: Any = None, start: int
         if detector is None:
             detector = make_detector(model, oncoming)
         check_frame(detector, reader.first_frame, reader.path)  # before any output: size, colour
-        vd = VideoDetector(detector, heat, tracker=tracker, fps=reader.fps)
-        if os.path.isfile(reader.path):  # a file can be read twice: its first seconds give the horizon
-            vd.prime_horizon(_first_frames(reader.path, start))
+        vd = VideoDetector(detector, heat, tracker=tracker, fps=reader.fps, horizon=horizon)
+        prime_horizon_from_file(vd, reader.path, start)  # a file can be read twice: its first seconds give the horizon
         vd.warmup()
         done: list[tuple[int, Detections]] = []
         with _progress(reader.expected, progress, os.path.basename(reader.path)) as bar:
