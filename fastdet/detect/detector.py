@@ -88,16 +88,51 @@ class _Scorer:
                 for b in search.bands]
 
     def band_scores(self, frame: np.ndarray, geo: BandGeometry, timings: dict[str, float] | None,
-                    serial: bool = False) -> np.ndarray:
+                    serial: bool = False, spans: Sequence[tuple[int, int]] | None = None) -> np.ndarray:
+        """Decision values of the band's windows (``spans``: only the window columns
+        ``j0 <= j < j1`` of each ``(j0, j1)``, the others -inf; see :meth:`Detector.detect`)."""
         cfg = self.config
         t0 = time.perf_counter()
         img = convert_color(scaled_band(frame, geo), cfg.color_space)
         t1 = time.perf_counter()
+        t_hog = t_score = 0.0
+        if spans is None:
+            out = np.empty((geo.ny, geo.nx), np.float64)
+            t_hog, t_score = self._image_scores(img, geo.step, out, serial)
+        else:
+            # Every window of a span, scored on a column slice of the scaled band that runs one
+            # window step (>= 1 cell) past it on each side where the band goes on: HOG zeroes the
+            # gradients of an image's first and last columns, so a window touching the slice's
+            # edge would see other values than in the whole band. The slice starts on the
+            # window grid, so its windows are the band's own; the margin ones are dropped.
+            out = np.full((geo.ny, geo.nx), -np.inf)
+            px = geo.step * cfg.pixels_per_cell  # window step in scaled-band pixels
+            for j0, j1 in spans:
+                j0, j1 = max(int(j0), 0), min(int(j1), geo.nx)
+                if j0 >= j1 or not geo.ny:
+                    continue
+                a = (j0 - 1) * px if j0 > 0 else 0
+                b = min(img.shape[1], (j1 - 1) * px + cfg.win_w + px)
+                sub = np.ascontiguousarray(img[:, a:b])
+                part = np.empty((geo.ny, (b - a - cfg.win_w) // px + 1), np.float64)
+                th, ts = self._image_scores(sub, geo.step, part, serial)
+                t_hog, t_score = t_hog + th, t_score + ts
+                out[:, j0:j1] = part[:, j0 - a // px: j1 - a // px]
+        if timings is not None:
+            timings["resize_colour"] = timings.get("resize_colour", 0.0) + (t1 - t0)
+            timings["hog"] = timings.get("hog", 0.0) + t_hog
+            timings["score"] = timings.get("score", 0.0) + t_score
+        return out
+
+    def _image_scores(self, img: np.ndarray, step: int, out: np.ndarray, serial: bool) -> tuple[float, float]:
+        """Decision values of the windows of a scaled, colour-converted band image (``step``
+        cells apart) into ``out (ny, nx)``; returns the seconds of HOG and of scoring."""
+        cfg = self.config
+        t1 = time.perf_counter()
         blocks = hog_channels(img, cfg.orientations, cfg.pixels_per_cell, cfg.cells_per_block,
                               channels=list(cfg.hog_channels), exact=False)
         t2 = time.perf_counter()
-        out = np.empty((geo.ny, geo.nx), np.float64)
-        if geo.n_windows:
+        if out.size:
             rows = blocks.reshape(blocks.shape[0], -1)
             if cfg.spatial_size:
                 f = spatial_factor(cfg)
@@ -107,15 +142,10 @@ class _Scorer:
                 f, sp = 1, None
             cell = cfg.pixels_per_cell
             integ = hist_weight_integral(img, self.w_hist, hist_bin_shift(cfg), cell) if self.w_hist is not None else None
-            dense_scores(rows, self.w_hog, self.k, out, step=geo.step, cell=cell, win_h=cfg.win_h, win_w=cfg.win_w,
+            dense_scores(rows, self.w_hog, self.k, out, step=step, cell=cell, win_h=cfg.win_h, win_w=cfg.win_w,
                          bias=self.bias, spat_rows=sp, w_sp=self.w_sp if cfg.spatial_size else None, sp_off=f,
                          integ=integ, hist_step=cell, parallel=not serial)
-        t3 = time.perf_counter()
-        if timings is not None:
-            timings["resize_colour"] = timings.get("resize_colour", 0.0) + (t1 - t0)
-            timings["hog"] = timings.get("hog", 0.0) + (t2 - t1)
-            timings["score"] = timings.get("score", 0.0) + (t3 - t2)
-        return out
+        return t2 - t1, time.perf_counter() - t2
 
 
 class Detector:
@@ -201,15 +231,18 @@ class Detector:
         (``part`` 0: the main model, 1: the wide model)."""
         return self.scorers[part].band_scores(frame, geo, timings)
 
-    def _all_band_scores(self, frame: np.ndarray, geos: list, timings: dict[str, float]) -> list[np.ndarray]:
+    def _all_band_scores(self, frame: np.ndarray, geos: list, timings: dict[str, float],
+                         spans: Sequence[Sequence[tuple[int, int]] | None] | None = None) -> list[np.ndarray]:
         """Scores of every band. With more than one Numba thread, the bands are shared
         between that many Python threads, each running the kernels single-threaded (all of
         them release the GIL): a frame is a dozen small bands, and one band per core costs
         far less than waking a team of OpenMP workers for every kernel. ``timings`` then
         adds up the work of all threads (it can exceed the wall time)."""
         n_threads = numba.get_num_threads()
+        spans = list(spans) if spans is not None else []
+        spans += [None] * (len(geos) - len(spans))
         if n_threads < 2 or len(geos) < 2:
-            return [self.scorers[p].band_scores(frame, g, timings) for p, g in geos]
+            return [self.scorers[p].band_scores(frame, g, timings, spans=sp) for (p, g), sp in zip(geos, spans)]
         with self._pool_lock:
             if self._pool_size != n_threads:
                 if self._pool is not None:
@@ -218,14 +251,20 @@ class Detector:
                 self._pool_size = n_threads
             pool = self._pool
 
-        def job(pg):
+        def job(i):
             numba.set_num_threads(1)  # thread-local: this worker runs the serial kernels
             t: dict[str, float] = {}
-            return self.scorers[pg[0]].band_scores(frame, pg[1], t, serial=True), t
+            p, g = geos[i]
+            return self.scorers[p].band_scores(frame, g, t, serial=True, spans=spans[i]), t
 
-        # biggest bands first, so the last band to finish is a small one
-        order = sorted(range(len(geos)), key=lambda i: -geos[i][1].scaled_w * geos[i][1].scaled_h)
-        futures = {i: pool.submit(job, geos[i]) for i in order}
+        def work(i):
+            g, sp = geos[i][1], spans[i]
+            cols = g.nx if sp is None else sum(max(0, min(j1, g.nx) - max(j0, 0)) for j0, j1 in sp)
+            return g.scaled_h * cols
+
+        # biggest jobs first, so the last one to finish is a small one
+        order = sorted(range(len(geos)), key=lambda i: -work(i))
+        futures = {i: pool.submit(job, i) for i in order}
         out = []
         for i in range(len(geos)):
             dec, t = futures[i].result()
@@ -250,7 +289,8 @@ class Detector:
         return self.scorers[part].geometries(frame_shape)
 
     def detect(self, frame: np.ndarray, rgb: bool = False,
-               wide_bands: Sequence[SearchBand] | None = None, stats: DetectStats | None = None) -> Detections:
+               wide_bands: Sequence[SearchBand] | None = None, stats: DetectStats | None = None,
+               columns: Sequence[Sequence[tuple[int, int]] | None] | None = None) -> Detections:
         """Positive windows of one frame.
 
         frame: ``(H, W, 3) uint8``, BGR (OpenCV's order) or RGB with ``rgb=True``.
@@ -259,6 +299,14 @@ class Detector:
             the parts of the wide search where the picture moves (:mod:`fastdet.video.motion`).
         stats: a :class:`DetectStats` to record stage times and every band's decision values
             into (optional).
+        columns: which windows of the main model's bands to score, one entry per band of
+            :meth:`geometries` (missing entries: ``None``): ``None`` for all, else a sequence
+            of window-column ranges ``(j0, j1)``, ``j0 <= j < j1``. Each scored window's
+            decision value is the one the whole band gives it (to rounding, ~1e-15): the band
+            is cut and resized as a whole, HOG runs on a slice of it with a window step of
+            margin. Windows not scored are negative (-inf in ``stats``).
+            :class:`fastdet.VideoDetector` searches near the tracked vehicles this way
+            between full scans (:class:`fastdet.config.GuidedSearch`).
         Returns :class:`~fastdet.detections.Detections` with columns ``boxes (N, 4) int32``
         x1, y1, x2, y2 (exclusive) in frame pixels, ``scores (N,) float32`` (the probability of
         "vehicle" for logistic-regression models, the decision value for LinearSVC; both
@@ -273,6 +321,8 @@ class Detector:
             frame = frame[:, :, ::-1]
         timings: dict[str, float] = stats.timings if stats is not None else {}
         geos = [(MAIN_PART, g) for g in self.scorers[0].geometries(frame.shape[:2])]
+        if columns is not None and len(columns) > len(geos):
+            raise ValueError(f"columns: {len(columns)} entries for {len(geos)} bands")
         if len(self.scorers) > 1:
             if wide_bands is None:
                 geos += [(WIDE_PART, g) for g in self.scorers[1].geometries(frame.shape[:2])]
@@ -281,7 +331,7 @@ class Detector:
                 geos += [(WIDE_PART, band_geometry(b, frame.shape[:2], sc.config, sc.search.cells_per_step))
                          for b in wide_bands]
         boxes, decs, scales, parts = [], [], [], []
-        for (part, geo), dec in zip(geos, self._all_band_scores(frame, geos, timings)):
+        for (part, geo), dec in zip(geos, self._all_band_scores(frame, geos, timings, columns)):
             sc = self.scorers[part]
             if stats is not None:
                 stats.bands.append((part, geo, dec))
