@@ -26,18 +26,19 @@ import numpy as np
 from tqdm import tqdm
 
 from ..boxes import clip, overlap_fraction
-from ..config import WIDE_HEAT, HeatConfig, MotionGate, SearchBand, TrackerConfig
+from ..config import WIDE_HEAT, GuidedSearch, HeatConfig, MotionGate, SearchBand, TrackerConfig
 from ..detect import BandGeometry, Detector, DetectStats
 from ..detect.checks import check_frame
 from ..detections import Detections
 from ..io.reader import FrameReader
 from ..model import ONCOMING_MODEL_PATH, Model
 from .fusion import merge_wide
+from .guided import SearchPlanner
 from .heatmap import HeatMap
 from .horizon import HORIZON_FRAMES, TOLERANCE, HorizonEstimator, search_horizon
 from .motion import FrameMotion, MotionMap, moving_bands, window_motion
 from .offline import offline_pass
-from .track import Tracker
+from .track import LOST, Tracker
 
 ModelLike = Model | str | os.PathLike | None
 
@@ -117,6 +118,12 @@ class VideoDetector:
         as a fraction of the frame height (a camera whose horizon is known); ``None``: the
         detector's search as it is. Needs a detector with ``set_horizon`` (a
         :class:`~fastdet.Detector`); others are left alone.
+    guided: how the main model's bands are searched between full scans
+        (:class:`~fastdet.config.GuidedSearch`, default ``GuidedSearch()``: every window
+        every few frames and after a cut or a lost track, near the tracked vehicles and the
+        recent positive windows plus a rotating strip in between; :mod:`fastdet.video.guided`),
+        or ``False`` for the full search on every frame. Needs a detector whose ``detect``
+        takes ``columns`` (a :class:`~fastdet.Detector`); others search in full.
 
     What :meth:`update` returns, with the tracker: the tracked vehicles of this frame (the
     confirmed tracks that found a box), each with its id and, as its score, the peak heat of
@@ -142,7 +149,7 @@ class VideoDetector:
     def __init__(self, detector: WindowDetector | None = None, heat: HeatConfig | None = None,
                  wide_heat: HeatConfig | None = None, motion: MotionGate | None = None,
                  tracker: TrackerConfig | bool | None = None, fps: float | None = None,
-                 horizon: float | str | None = "auto") -> None:
+                 horizon: float | str | None = "auto", guided: GuidedSearch | bool | None = None) -> None:
         if detector is not None and not isinstance(detector, WindowDetector):
             raise TypeError(f"detector must provide detect(), warmup(), geometries(), score_kind and "
                             f"wide_model (a WindowDetector), got {type(detector).__name__}")
@@ -167,6 +174,12 @@ class VideoDetector:
             raise ValueError(f"horizon must be 'auto', a fraction of the frame height in [0, 1] or None, "
                              f"got {horizon!r}")
         self.horizon = horizon
+        if guided is None or guided is True:
+            guided = GuidedSearch()
+        if guided is not False and not isinstance(guided, GuidedSearch):
+            raise TypeError(f"guided must be a GuidedSearch or False, got {type(guided).__name__}")
+        self.guided: GuidedSearch | None = None if guided is False or guided.full else guided
+        self._planner = SearchPlanner(self.guided) if self.guided is not None else None
         self._horizon_est: HorizonEstimator | None = None
         self._horizon_started = False
         self.timings: dict[str, float] = {}
@@ -196,6 +209,8 @@ class VideoDetector:
         if self.wide_heatmap is not None:
             self.wide_heatmap.reset()
         self._motion.reset()
+        if self._planner is not None:
+            self._planner.reset()  # a full scan next
         if self._horizon_est is not None:
             self._horizon_est.cut()  # the camera stays: keep the estimate, pair no frames across the cut
         self._clear()
@@ -255,6 +270,8 @@ class VideoDetector:
         if self.heatmap is None or self.heatmap.frame_shape != hw:
             if self.heatmap is not None and self.tracker is not None:
                 self.tracker.reset()  # another picture: its tracks do not continue
+            if self._planner is not None:
+                self._planner.reset()
             self.heatmap = HeatMap(hw, self.heat_config, score_kind=self.detector.score_kind)
         return self.heatmap
 
@@ -307,15 +324,16 @@ class VideoDetector:
         has_wide = det.wide_model is not None
         gated = has_wide and self.motion_gate.min_motion > 0
         stats = DetectStats()
+        guide = self._plan(det, frame.shape)
         t0 = time.perf_counter()
         motion = None
         t_motion = gate = 0.0
         if gated:
             motion, wide_bands, gate = self._moving_wide_bands(det, frame, rgb)
             t_motion = time.perf_counter() - t0
-            windows = det.detect(frame, rgb=rgb, wide_bands=wide_bands, stats=stats)
+            windows = det.detect(frame, rgb=rgb, wide_bands=wide_bands, stats=stats, **guide)
         else:
-            windows = det.detect(frame, rgb=rgb, stats=stats)
+            windows = det.detect(frame, rgb=rgb, stats=stats, **guide)
         hm = self._heatmap_for(frame.shape)
         if has_wide:
             wide = windows.is_wide
@@ -345,6 +363,8 @@ class VideoDetector:
             t_weak, t_track = t2 - t1, time.perf_counter() - t2
             self.last_low = low
             self.last_tracks = [(t.id, t.state, t.predicted) for t in self.tracker.tracks]
+        if self._planner is not None:
+            self._observe(windows)
         self.last_windows = windows
         self.last_heat = hm.heat
         self.last_mask = hm.mask
@@ -357,6 +377,28 @@ class VideoDetector:
             self.timings["weak"] = t_weak
             self.timings["track"] = t_track
         return out
+
+    def _plan(self, det: WindowDetector, shape: tuple[int, ...]) -> dict[str, Any]:
+        """``{"columns": ...}`` for this frame's ``detect`` (guided search), or ``{}`` (full)."""
+        if self._planner is None or not isinstance(det, Detector):
+            return {}
+        cfg = det.config
+        columns = self._planner.plan(det.geometries(shape[:2], 0), cfg.win_w, cfg.pixels_per_cell, shape[:2])
+        return {} if columns is None else {"columns": columns}
+
+    def _observe(self, windows: Detections) -> None:
+        """Tell the planner what this frame found: its main-model windows, the live tracks
+        and whether a confirmed vehicle's track was lost."""
+        assert self._planner is not None
+        main = windows[~windows.is_wide] if windows.part is not None else windows
+        tracks, lost = [], False
+        if self.tracker is not None:
+            frame = self.tracker.frame
+            for t in self.tracker.tracks:
+                pred = t.predicted if t.predicted is not None else t.box
+                tracks.append((t.box, pred, frame - t.last_frame))
+                lost |= t.state == LOST and t.id > 0 and t.last_frame == frame - 1
+        self._planner.observe(main, tracks, lost)
 
     def _weak_boxes(self, boxes: Detections) -> Detections:
         """The tracker's low-confidence boxes: the weak blobs of the heat maps above
@@ -388,8 +430,9 @@ def _progress(total: int | None, enabled: bool, desc: str) -> tqdm:
 
 
 def _first_frames(path: str, start: int) -> Iterator[np.ndarray]:
-    """The first HORIZON_FRAMES frames of a file from ``start`` (a reader of their own)."""
-    reader = FrameReader(path, start, HORIZON_FRAMES)
+    """The first HORIZON_FRAMES frames of a file from ``start`` (a reader of their own, quiet:
+    the reader of the run itself says what there is to say about the file)."""
+    reader = FrameReader(path, start, HORIZON_FRAMES, notify=lambda _note: None)
     try:
         for _, frame, _ in reader:
             yield frame
