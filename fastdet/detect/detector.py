@@ -92,6 +92,8 @@ class _Scorer:
         """Decision values of the band's windows (``spans``: only the window columns
         ``j0 <= j < j1`` of each ``(j0, j1)``, the others -inf; see :meth:`Detector.detect`)."""
         cfg = self.config
+        if spans is not None and not any(min(j1, geo.nx) > max(j0, 0) for j0, j1 in spans):
+            return np.full((geo.ny, geo.nx), -np.inf)  # nothing to score: not even the resize
         t0 = time.perf_counter()
         img = convert_color(scaled_band(frame, geo), cfg.color_space)
         t1 = time.perf_counter()

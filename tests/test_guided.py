@@ -1,0 +1,112 @@
+"""Tracking-guided search (fastdet.video.guided): when the planner scans in full, which window
+columns it picks in between, and that VideoDetector with it finds what the full search finds."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fastdet.config import GuidedSearch
+from fastdet.detect import Detector
+from fastdet.detections import Detections
+from fastdet.eval.metrics import evaluate
+from fastdet.io.motfiles import Predictions, read_gt
+from fastdet.io.reader import FrameReader
+from fastdet.video import VideoDetector
+from fastdet.video.guided import SearchPlanner, merge_spans
+from fastdet.video.pipeline import prime_horizon_from_file
+
+SHAPE = (720, 1280)
+
+
+@pytest.fixture(scope="module")
+def det():
+    d = Detector()
+    d.warmup()
+    return d
+
+
+def _windows(boxes, scale):
+    b = np.asarray(boxes, np.int32).reshape(-1, 4)
+    return Detections(b, np.ones(len(b), np.float32), scale=np.full(len(b), scale, np.float32),
+                      part=np.zeros(len(b), np.int8))
+
+
+def _plan(p, det):
+    cfg = det.config
+    return p.plan(det.geometries(SHAPE), cfg.win_w, cfg.pixels_per_cell, SHAPE)
+
+
+def test_config():
+    g = GuidedSearch()
+    assert GuidedSearch.from_dict(g.to_dict()) == g and not g.full and GuidedSearch(every=1).full
+    for bad in ({"every": 0}, {"every": 2.5}, {"margin": -1}, {"memory": 0}, {"scales": (2.0, 1.0)}):
+        with pytest.raises(ValueError):
+            GuidedSearch(**bad)
+
+
+def test_merge_spans():
+    assert merge_spans([(5, 9), (0, 2), (3, 4), (20, 22), (8, 12), (7, 7)], gap=1) == [(0, 12), (20, 22)]
+    assert merge_spans([(0, 2), (10, 12)], gap=8) == [(0, 12)]
+    assert merge_spans([]) == []
+
+
+def test_full_scans(det):
+    p = SearchPlanner(GuidedSearch(every=4))
+    plans = []
+    for i in range(9):
+        plans.append(_plan(p, det))
+        p.observe(Detections.empty(), [], lost=i == 5)
+    # the first frame, every 4th frame after a full scan, and the frame after a lost track
+    assert [pl is None for pl in plans] == [True, False, False, False, True, False, True, False, False]
+    p.reset()
+    assert _plan(p, det) is None
+    assert p.plan(det.geometries(SHAPE), 64, 8, (720, 1281)) is None  # another frame size
+    assert SearchPlanner(GuidedSearch(every=1)).plan(det.geometries(SHAPE), 64, 8, SHAPE) is None
+
+
+def test_columns_between_full_scans(det):
+    geos = det.geometries(SHAPE)
+    g = GuidedSearch(every=4, margin=0.5)
+    p = SearchPlanner(g)
+    assert _plan(p, det) is None
+    one = next(geo for geo in geos if geo.band.scale == 1.0)
+    # a positive window of the scale-1 band at x 600..664, and a 100x80 track at x 900..1000
+    p.observe(_windows([[600, 420, 664, 484]], 1.0), [(np.array([900., 420, 1000, 500]),) * 2 + (0,)], False)
+    plan = _plan(p, det)
+    for geo, spans in zip(geos, plan, strict=True):
+        scored = np.zeros(geo.nx, bool)
+        for j0, j1 in spans:
+            scored[j0:j1] = True
+        px = geo.step * 8 * geo.band.scale
+        left = geo.x0 + np.arange(geo.nx) * px
+        right = left + 64 * geo.band.scale
+        # the strip: frame 1 of 4 -> x 320..640 in every band
+        assert scored[(right > 320) & (left < 640)].all()
+        if geo is one:  # near the positive window: 600 - 32 .. 664 + 32
+            assert scored[(right > 568) & (left < 696)].all()
+        near_track = (right > 850) & (left < 1050)
+        if 0.4 * 80 <= 64 * geo.band.scale <= 2.0 * 80:
+            assert scored[near_track].all()
+        far = (left > 1100) | (right < 300)
+        assert not scored[far].any()
+
+
+def _run(clip, guided, data):
+    path = str(data / "videos" / clip)
+    reader = FrameReader(path)
+    vd = VideoDetector(guided=guided, fps=reader.fps)
+    prime_horizon_from_file(vd, path)
+    out = [(fno, vd.update(frame)) for fno, frame, _ in reader]
+    return vd, out, path
+
+
+def test_guided_video_finds_what_the_full_search_finds(data):
+    clip = "test_video.mp4"
+    vd, guided, path = _run(clip, GuidedSearch(), data)
+    assert 0 < vd._planner.full_scans < len(guided)
+    _, full, _ = _run(clip, False, data)
+    gt = read_gt(str(data / "annotations" / "test_video.gt.txt"))
+    a = evaluate(gt, Predictions.from_frames(guided, source=path)).to_dict()
+    b = evaluate(gt, Predictions.from_frames(full, source=path)).to_dict()
+    for k in ("f1", "ap", "idf1"):
+        assert abs(a[k] - b[k]) <= 0.01, (k, a[k], b[k])
