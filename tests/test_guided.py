@@ -2,6 +2,8 @@
 columns it picks in between, and that VideoDetector with it finds what the full search finds."""
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -110,3 +112,19 @@ def test_guided_video_finds_what_the_full_search_finds(data):
     b = evaluate(gt, Predictions.from_frames(full, source=path)).to_dict()
     for k in ("f1", "ap", "idf1"):
         assert abs(a[k] - b[k]) <= 0.01, (k, a[k], b[k])
+
+
+def test_full_search_flag(data, capsys):
+    from fastdet.cli._args import guided_arg
+    from fastdet.cli.main import build_parser, main
+
+    for cmd in (["video", "in.mp4", "--boxes", "b.txt"], ["eval", "--gt", "g.txt", "--video", "v.mp4"], ["bench"]):
+        assert guided_arg(build_parser().parse_args([*cmd, "--full-search"])) is False
+        assert guided_arg(build_parser().parse_args(cmd)) is None
+    gt, video = data / "annotations" / "test_video.gt.txt", data / "videos" / "test_video.mp4"
+    res = []
+    for flag in ([], ["--full-search"]):
+        assert main(["eval", "--gt", str(gt), "--video", str(video), "--json", *flag]) == 0
+        res.append(json.loads(capsys.readouterr().out.strip().splitlines()[-1]))
+    for k in ("f1", "ap", "idf1"):
+        assert abs(res[0][k] - res[1][k]) <= 0.01

@@ -55,6 +55,19 @@ def add_horizon_argument(parser: argparse.ArgumentParser) -> None:
                              "frame height (another camera's known horizon); 'off': bands as configured")
 
 
+def add_search_argument(parser: argparse.ArgumentParser) -> None:
+    """``--full-search``, shared by ``video``, ``eval`` and ``bench``."""
+    parser.add_argument("--full-search", action="store_true",
+                        help="score every window of every band on every frame (default: every window every "
+                             "5 frames and after a cut or a lost track; in between only near the tracked "
+                             "vehicles and recent detections, plus a rotating strip)")
+
+
+def guided_arg(args: argparse.Namespace) -> Any:
+    """The ``guided`` argument of :class:`~fastdet.VideoDetector` for parsed CLI arguments."""
+    return False if getattr(args, "full_search", False) else None
+
+
 def add_oncoming_arguments(parser: argparse.ArgumentParser) -> None:
     """``--oncoming-model`` / ``--no-oncoming``, shared by ``video``, ``eval`` and ``bench``."""
     g = parser.add_mutually_exclusive_group()

@@ -50,7 +50,7 @@ from ..errors import DataError, FastdetError
 from ..io.images import check_image
 from ..io.reader import FrameReader, check_source
 from ..video.pipeline import VideoDetector, _passive_omp, make_detector
-from ._args import add_oncoming_arguments, oncoming_arg, positive_int
+from ._args import add_oncoming_arguments, add_search_argument, guided_arg, oncoming_arg, positive_int
 
 DEFAULT_IMAGE = Path("test_images") / "test1.jpg"
 
@@ -77,6 +77,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="timed repeats of the N frames; the table shows the best and the median (default 3)")
     parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
     add_oncoming_arguments(parser)
+    add_search_argument(parser)
 
 
 def load_frames(path: str | os.PathLike, n: int) -> tuple[list, str, float | None]:
@@ -182,7 +183,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         det = _detector(args)
         check_frame(det, frames[0], args.input)
-        vd = VideoDetector(det)
+        vd = VideoDetector(det, guided=guided_arg(args))
         t0 = time.perf_counter()
         vd.warmup()
         for frame in frames[:2]:

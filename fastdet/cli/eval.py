@@ -12,7 +12,7 @@ from ..eval.report import format_table, plot_pr
 from ..io.motfiles import Predictions, read_gt, read_predictions
 from ..io.reader import check_source
 from ..video.pipeline import iter_video_detections
-from ._args import add_horizon_argument, add_oncoming_arguments, oncoming_arg
+from ._args import add_horizon_argument, add_oncoming_arguments, add_search_argument, guided_arg, oncoming_arg
 
 # ---------------------------------------------------------------------------------------
 # CLI
@@ -40,6 +40,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", metavar="MODEL.npz", help="model for --video (default: the bundled one)")
     add_oncoming_arguments(parser)
     add_horizon_argument(parser)
+    add_search_argument(parser)
     track = parser.add_mutually_exclusive_group()
     track.add_argument("--no-track", action="store_true",
                        help="--video without the tracker (boxes without ids: no MOT metrics)")
@@ -51,10 +52,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _video_predictions(video: str, model: str | None, oncoming: Any = True, track: bool = True,
-                       offline: bool = False, horizon: float | str | None = "auto") -> Predictions:
+                       offline: bool = False, horizon: float | str | None = "auto",
+                       guided: Any = None) -> Predictions:
     check_source(video)
     frames = iter_video_detections(video, model=model, progress=True, oncoming=oncoming, tracker=track,
-                                   offline=offline, horizon=horizon)
+                                   offline=offline, horizon=horizon, guided=guided)
     return Predictions.from_frames(frames, source=video)
 
 
@@ -67,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
     gt = read_gt(args.gt)
     if args.video is not None:
         preds = _video_predictions(args.video, args.model, oncoming_arg(args), not no_track, offline,
-                                   getattr(args, "horizon", "auto"))
+                                   getattr(args, "horizon", "auto"), guided_arg(args))
     else:
         preds = read_predictions(args.pred)
     result = evaluate(gt, preds, iou=args.iou)

@@ -73,7 +73,8 @@ from ..video.count import CountLine, VehicleCounter
 from ..video.offline import offline_pass
 from ..video.pipeline import VideoDetector, _passive_omp, _progress, make_detector, prime_horizon_from_file
 from . import _signals
-from ._args import add_horizon_argument, add_oncoming_arguments, nonneg_int, oncoming_arg, positive_int
+from ._args import (add_horizon_argument, add_oncoming_arguments, add_search_argument, guided_arg, nonneg_int,
+                    oncoming_arg, positive_int)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -101,6 +102,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--summary", metavar="SUMMARY.json",
                         help="write a JSON summary (frames, fps, outputs, vehicle counts) when the run ends")
     add_horizon_argument(parser)
+    add_search_argument(parser)
     parser.add_argument("--profile", action="store_true", help="print a table of ms per frame per stage")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--start", type=nonneg_int, default=0, metavar="S",
@@ -251,7 +253,8 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
         elif args.model is not None:
             raise FastdetError("--model cannot be used with an injected detector")
         check_frame(detector, reader.first_frame, args.input)
-        vd = VideoDetector(detector, heat, tracker=track, fps=reader.fps, horizon=args.horizon)
+        vd = VideoDetector(detector, heat, tracker=track, fps=reader.fps, horizon=args.horizon,
+                           guided=guided_arg(args))
         prime_horizon_from_file(vd, args.input, args.start)
         vd.warmup()
         counter = VehicleCounter(line) if track else None

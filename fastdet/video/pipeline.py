@@ -453,7 +453,8 @@ def iter_video_detections(path: str | os.PathLike, model: Any = None, start: int
                           frames: int | None = None, progress: bool = True, detector: Any = None,
                           heat: HeatConfig | None = None, oncoming: Any = True,
                           tracker: TrackerConfig | bool | None = None,
-                          offline: bool = False, horizon: float | str | None = "auto") -> Iterator[tuple[int, Detections]]:
+                          offline: bool = False, horizon: float | str | None = "auto",
+                          guided: GuidedSearch | bool | None = None) -> Iterator[tuple[int, Detections]]:
     """Vehicle boxes of every frame of a video file: yields ``(frame, Detections)``.
 
     frame: 1-based frame number in the file (``start`` frames are skipped, so the first one
@@ -461,7 +462,8 @@ def iter_video_detections(path: str | os.PathLike, model: Any = None, start: int
     model: model for the default Detector (Model, path, or ``None`` for the bundled one);
         oncoming: its wide-window model (see :func:`make_detector`);
         ``detector``: use this detector instead (see :class:`VideoDetector`).
-    tracker: as :class:`VideoDetector` (default: tracking on, ``ids`` filled).
+    tracker: as :class:`VideoDetector` (default: tracking on, ``ids`` filled); guided,
+        horizon: as :class:`VideoDetector` (``guided=False``: the full search on every frame).
     offline: run the offline pass over the whole file's tracks first
         (:func:`fastdet.video.offline.offline_pass`: gap interpolation, extension back); the
         first frame is then yielded only after the last one was read. Needs the tracker.
@@ -479,7 +481,7 @@ def iter_video_detections(path: str | os.PathLike, model: Any = None, start: int
         if detector is None:
             detector = make_detector(model, oncoming)
         check_frame(detector, reader.first_frame, reader.path)  # before any output: size, colour
-        vd = VideoDetector(detector, heat, tracker=tracker, fps=reader.fps, horizon=horizon)
+        vd = VideoDetector(detector, heat, tracker=tracker, fps=reader.fps, horizon=horizon, guided=guided)
         prime_horizon_from_file(vd, reader.path, start)  # a file can be read twice: its first seconds give the horizon
         vd.warmup()
         done: list[tuple[int, Detections]] = []
