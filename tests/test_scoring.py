@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from fastdet._numba import REASSOC
 from fastdet.detect import _score_kernels
-from fastdet.detect.scoring import dense_scores, hist_weight_integral
+from fastdet.detect.scoring import dense_scores, hist_weight_integral, weight_table
 from tests.reference import loop_dense_scores
 
 
@@ -117,7 +117,7 @@ def test_hist_weight_integral_is_the_cumulative_sum(h, w, c, g, bins_shift, seed
     per_pixel = sum(wh[ch, img[:, :, ch] >> shift] for ch in range(c)) + np.zeros((h, w))
     ref = np.zeros((h + 1, w + 1))
     ref[1:, 1:] = per_pixel.cumsum(0).cumsum(1)
-    got = hist_weight_integral(img, wh, shift, g)
+    got = hist_weight_integral(img, weight_table(wh, shift), g)
     assert got.shape == (h // g + 1, w // g + 1)
     np.testing.assert_allclose(got, ref[::g, ::g][: h // g + 1, : w // g + 1], rtol=0, atol=1e-9)
 
@@ -125,11 +125,15 @@ def test_hist_weight_integral_is_the_cumulative_sum(h, w, c, g, bins_shift, seed
 def test_hist_weight_integral_checks():
     img, w = np.zeros((8, 8, 3), np.uint8), np.zeros((3, 32))
     with pytest.raises(ValueError, match="bins"):
-        hist_weight_integral(img, np.ascontiguousarray(w[:, :16]), 3)
+        weight_table(np.ascontiguousarray(w[:, :16]), 3)
+    t = weight_table(w, 3)
+    assert t.shape == (3, 256) and t[1, 37] == w[1, 37 >> 3]
+    with pytest.raises(ValueError, match="table"):
+        hist_weight_integral(img, t[:2], 8)
     with pytest.raises(ValueError, match="step"):
-        hist_weight_integral(img, w, 3, 0)
+        hist_weight_integral(img, t, 0)
     with pytest.raises(ValueError, match="out must be"):
-        hist_weight_integral(img, w, 3, 8, out=np.empty((9, 9)))
+        hist_weight_integral(img, t, 8, out=np.empty((9, 9)))
 
 
 def _cpu_flags() -> set[str]:

@@ -42,7 +42,7 @@ from ..features._hog_kernels import hog_u8_fast
 from ..model import Model, load_model
 from .bands import BandGeometry, band_geometry, scaled_band, window_boxes
 from .scoring import KERNELS as SCORE_KERNELS
-from .scoring import dense_scores, hist_weight_integral
+from .scoring import dense_scores, hist_weight_integral, weight_table
 
 
 @dataclass
@@ -80,6 +80,7 @@ class _Scorer:
         self.w_sp = np.ascontiguousarray(w[pos: pos + cfg.n_spatial].reshape(sh, 3 * sw)) if sh else np.zeros((0, 0))
         pos += cfg.n_spatial
         self.w_hist = np.ascontiguousarray(w[pos:].reshape(3, cfg.hist_bins)) if cfg.hist_bins else None
+        self.hist_table = weight_table(self.w_hist, hist_bin_shift(cfg)) if self.w_hist is not None else None
         self.bias = b
 
     def geometries(self, frame_shape: tuple[int, int]) -> list[BandGeometry]:
@@ -143,7 +144,7 @@ class _Scorer:
             else:
                 f, sp = 1, None
             cell = cfg.pixels_per_cell
-            integ = hist_weight_integral(img, self.w_hist, hist_bin_shift(cfg), cell) if self.w_hist is not None else None
+            integ = hist_weight_integral(img, self.hist_table, cell) if self.hist_table is not None else None
             dense_scores(rows, self.w_hog, self.k, out, step=step, cell=cell, win_h=cfg.win_h, win_w=cfg.win_w,
                          bias=self.bias, spat_rows=sp, w_sp=self.w_sp if cfg.spatial_size else None, sp_off=f,
                          integ=integ, hist_step=cell, parallel=not serial)

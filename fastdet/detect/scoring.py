@@ -86,18 +86,28 @@ def dense_scores(block_rows: np.ndarray, w_hog: np.ndarray, k: int, out: np.ndar
     return out
 
 
-def hist_weight_integral(image: np.ndarray, w_hist: np.ndarray, shift: int, step: int = 1,
+def weight_table(w_hist: np.ndarray, shift: int) -> np.ndarray:
+    """Each channel's histogram weight of every byte value: ``(C, 256) float64``,
+    ``table[c, v] = w_hist[c, v >> shift]`` (``w_hist (C, bins)``, ``bins << shift >= 256``)."""
+    _f64_rows("w_hist", w_hist)
+    shift = int(shift)
+    if shift < 0 or w_hist.shape[0] < 1 or w_hist.shape[1] << shift < 256:
+        raise ValueError(f"w_hist {w_hist.shape} does not cover 256 >> {shift} bins")
+    return np.ascontiguousarray(w_hist[:, np.arange(256) >> shift])
+
+
+def hist_weight_integral(image: np.ndarray, table: np.ndarray, step: int = 1,
                          out: np.ndarray | None = None) -> np.ndarray:
-    """Integral image of the per-pixel histogram weight ``sum_c w_hist[c, image[y, x, c] >> shift]``
-    of an ``(H, W, C) uint8`` image at every ``step``-th row and column:
-    ``(H // step + 1, W // step + 1) float64``, ``out[r, q]`` = the sum over
+    """Integral image of the per-pixel histogram weight ``sum_c table[c, image[y, x, c]]``
+    (``table``: :func:`weight_table`) of an ``(H, W, C) uint8`` image at every ``step``-th row
+    and column: ``(H // step + 1, W // step + 1) float64``, ``out[r, q]`` = the sum over
     ``image[:r*step, :q*step]`` (pass ``step`` = the cell size, and ``hist_step=step`` to
     :func:`dense_scores`)."""
     if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] < 1:
         raise ValueError(f"image must be (H, W, C) uint8, got {image.dtype} {image.shape}")
-    _f64_rows("w_hist", w_hist)
-    if w_hist.shape[0] != image.shape[2] or w_hist.shape[1] << int(shift) < 256:
-        raise ValueError(f"w_hist {w_hist.shape} does not cover {image.shape[2]} channels of 256 >> {shift} bins")
+    _f64_rows("table", table)
+    if table.shape != (image.shape[2], 256):
+        raise ValueError(f"table must be ({image.shape[2]}, 256) for {image.shape[2]} channels, got {table.shape}")
     step = int(step)
     if step < 1:
         raise ValueError(f"step must be >= 1, got {step}")
@@ -108,6 +118,5 @@ def hist_weight_integral(image: np.ndarray, w_hist: np.ndarray, shift: int, step
         raise ValueError(f"out must be {shape}, got {out.shape}")
     else:
         _f64_rows("out", out)
-    lut = np.ascontiguousarray(w_hist[:, np.arange(256) >> int(shift)])  # weight of every byte value
-    _hist_integral(np.ascontiguousarray(image), lut, step, out)
+    _hist_integral(np.ascontiguousarray(image), table, step, out)
     return out
