@@ -9,7 +9,12 @@ Each case runs the CLI in a fresh process with ``NUMBA_NUM_THREADS`` = 1 or 2, o
 ``videos/test_video.mp4`` (38 frames) or ``videos/test_small1.mp4`` (88 frames), both
 1280x720, writing either only the boxes (``--boxes B.txt``) or the annotated video
 (``-o OUT.mp4``), with ``--no-progress --profile``; the boxes-only case also with
-``--no-oncoming`` (the main model alone), to show what the oncoming-traffic model costs. The figure that matters is the fps
+``--no-oncoming`` (the main model alone), to show what the oncoming-traffic model costs, and
+with ``--full-search`` (every window of every band on every frame instead of the
+tracking-guided search). Beside them, the I/O limit of the same clip: a fresh process that
+only decodes it with OpenCV (``decode``), and one that decodes and writes it again with
+OpenCV's ``mp4v`` writer (``decode + encode``, fastdet's output codec), fps over the same
+loop (:func:`run_io`). The figure that matters is the fps
 of the CLI's summary line (``fastdet video: N frames in S s, F fps``: frames over the wall
 time of the frame loop, after the kernels are loaded), in ``extra_info["fps"]`` with the
 per-stage ms of ``--profile`` in ``extra_info["stages_ms"]``; the benchmark time itself is
@@ -34,9 +39,12 @@ import pytest
 
 REPO = Path(__file__).resolve().parent.parent
 CLIPS = ("test_video.mp4", "test_small1.mp4")
-MODES = ("boxes", "boxes-main", "video")
-MODE_LABELS = {"boxes": "--boxes only", "boxes-main": "--boxes only, main model alone (--no-oncoming)",
+MODES = ("boxes", "boxes-full", "boxes-main", "video")
+MODE_LABELS = {"boxes": "--boxes only", "boxes-full": "--boxes only, --full-search",
+               "boxes-main": "--boxes only, main model alone (--no-oncoming)",
                "video": "annotated video (-o)"}
+IO_MODES = ("decode", "encode")
+IO_LABELS = {"decode": "decode only (OpenCV)", "encode": "decode + mp4v encode (OpenCV)"}
 _SUMMARY = re.compile(r"^fastdet video: (\d+) frames in ([\d.]+) s, ([\d.]+) fps", re.M)
 _STAGE = re.compile(r"^(\S[^\n]*?)\s{2,}([\d.]+)\s{2}(reader|main|writer|\d+ band threads)\b", re.M)
 
@@ -49,6 +57,7 @@ def video_args(clip: Path, mode: str, out_dir: Path, frames: int | None = None) 
     args = ["video", str(clip)]
     args += ["-o", str(out_dir / "out.mp4")] if mode == "video" else ["--boxes", str(out_dir / "boxes.txt")]
     args += ["--no-progress", "--profile"] + (["--no-oncoming"] if mode == "boxes-main" else [])
+    args += ["--full-search"] if mode == "boxes-full" else []
     if frames is not None:
         args += ["--frames", str(frames)]
     return args
@@ -59,7 +68,41 @@ def command_line(clip: str, mode: str, n_threads: int | str = "T") -> str:
     out = "/tmp/out.mp4" if mode == "video" else "/tmp/boxes.txt"
     flag = "-o" if mode == "video" else "--boxes"
     return (f"NUMBA_NUM_THREADS={n_threads} python -m fastdet video $FASTDET_DATA/videos/{clip} "
-            f"{flag} {out} --no-progress --profile" + (" --no-oncoming" if mode == "boxes-main" else ""))
+            f"{flag} {out} --no-progress --profile" + (" --no-oncoming" if mode == "boxes-main" else "")
+            + (" --full-search" if mode == "boxes-full" else ""))
+
+
+_IO_SCRIPT = """
+import sys, time, cv2
+cap = cv2.VideoCapture(sys.argv[1])
+out, writer, n = sys.argv[2], None, 0
+t0 = time.perf_counter()
+while True:
+    ok, frame = cap.read()
+    if not ok:
+        break
+    if out != "-":
+        if writer is None:
+            fps = cap.get(cv2.CAP_PROP_FPS) or 25.0
+            writer = cv2.VideoWriter(out, cv2.VideoWriter_fourcc(*"mp4v"), fps, (frame.shape[1], frame.shape[0]))
+        writer.write(frame)
+    n += 1
+if writer is not None:
+    writer.release()
+dt = time.perf_counter() - t0
+print(n, dt, n / dt)
+"""
+
+
+def run_io(clip: Path, mode: str, out_dir: Path) -> dict:
+    """The I/O limit of ``clip`` in a fresh process: ``mode`` ``'decode'`` (OpenCV decodes
+    every frame) or ``'encode'`` (and writes it with the ``mp4v`` writer, as ``video -o``):
+    ``{'frames', 'seconds', 'fps'}``."""
+    out = str(out_dir / "io.mp4") if mode == "encode" else "-"
+    proc = subprocess.run([sys.executable, "-c", _IO_SCRIPT, str(clip), out], capture_output=True, text=True,
+                          check=True)
+    n, dt, fps = proc.stdout.split()
+    return {"frames": int(n), "seconds": float(dt), "fps": float(fps)}
 
 
 def parse_output(stdout: str) -> dict:
@@ -97,13 +140,16 @@ def warm_cache(clip: Path, out_dir: Path) -> None:
 def video_runs(data: Path, thread_counts: list[int], repeat: int) -> dict[tuple[str, str, int], list[dict]]:
     """Every case (clip of :data:`CLIPS` found in ``data/videos``, mode, thread count) run
     ``repeat`` times, interleaved, after :func:`warm_cache`: ``{(clip, mode, n): [run_video
-    result, ...]}``."""
+    result, ...]}``; the I/O limits as ``(clip, 'decode' | 'encode', 0)`` (:func:`run_io`),
+    interleaved with them."""
     clips = [c for c in CLIPS if (data / "videos" / c).exists()]
     results: dict[tuple[str, str, int], list[dict]] = {}
     with tempfile.TemporaryDirectory(prefix="fastdet-bench-") as tmp:
         warm_cache(data / "videos" / clips[0], Path(tmp))
         for _ in range(repeat):
             for clip in clips:
+                for mode in IO_MODES:
+                    results.setdefault((clip, mode, 0), []).append(run_io(data / "videos" / clip, mode, Path(tmp)))
                 for mode in MODES:
                     for n in thread_counts:
                         results.setdefault((clip, mode, n), []).append(
@@ -118,6 +164,17 @@ def video_runs(data: Path, thread_counts: list[int], repeat: int) -> dict[tuple[
 def warmed(data, tmp_path_factory):
     warm_cache(data / "videos" / CLIPS[0], tmp_path_factory.mktemp("warm"))
     return data
+
+
+@pytest.mark.parametrize("mode", IO_MODES)
+@pytest.mark.parametrize("clip", CLIPS)
+def test_io_limit(benchmark, data, tmp_path, clip, mode):
+    path = data / "videos" / clip
+    if not path.exists():
+        pytest.skip(f"{path} not found")
+    benchmark.group = f"python -m fastdet video {clip} (whole process)"
+    result = benchmark.pedantic(run_io, args=(path, mode, tmp_path), rounds=3, iterations=1)
+    benchmark.extra_info.update(clip=clip, mode=IO_LABELS[mode], fps=result["fps"], frames=result["frames"])
 
 
 @pytest.mark.parametrize("mode", MODES)

@@ -47,7 +47,7 @@ from benchmarks.bench_detector import (  # noqa: E402
     time_detectors, wait_policy_times,
 )
 from benchmarks.bench_opencv import CASES, summary, time_side_by_side  # noqa: E402
-from benchmarks.bench_video import CLIPS, MODE_LABELS, MODES, command_line, video_runs  # noqa: E402
+from benchmarks.bench_video import CLIPS, IO_LABELS, IO_MODES, MODE_LABELS, MODES, command_line, video_runs  # noqa: E402
 from fastdet.data import data_dir  # noqa: E402
 
 SECTIONS = ("detector", "opencv", "wait-policy", "video", "start-up")
@@ -193,9 +193,15 @@ def video_section(args: argparse.Namespace, thread_counts: list[int]) -> None:
           f"{repeat} (median in brackets)\n")
     head = " | ".join(f"fps, {n} thread{'s' if n > 1 else ''}" for n in thread_counts)
     nt = max(thread_counts)
-    print(f"| clip | frames | output | {head} | HOG ms ({nt}T) | scoring ms ({nt}T) | encode ms ({nt}T) |")
-    print("|---|---:|---|" + "---:|" * len(thread_counts) + "---:|---:|---:|")
+    print(f"| clip | frames | output | {head} | I/O limit fps | {nt}T / I/O limit (best) "
+          f"| HOG ms ({nt}T) | scoring ms ({nt}T) | encode ms ({nt}T) |")
+    print("|---|---:|---|" + "---:|" * len(thread_counts) + "---:|---:|---:|---:|---:|")
     for clip in clips:
+        io = {m: [r["fps"] for r in results[(clip, m, 0)]] for m in IO_MODES}
+        for mode in IO_MODES:
+            best, med = max(io[mode]), statistics.median(io[mode])
+            print(f"| {clip} | {results[(clip, mode, 0)][0]['frames']} | {IO_LABELS[mode]} "
+                  + "| " * len(thread_counts) + f"| {best:.1f} ({med:.1f}) | 1x | | | |")
         for mode in MODES:
             cells = []
             for n in thread_counts:
@@ -205,10 +211,15 @@ def video_section(args: argparse.Namespace, thread_counts: list[int]) -> None:
             top = max(results[(clip, mode, nt)], key=lambda r: r["fps"])
             st = top["stages_ms"]
             enc = f"{st['encode']:.2f}" if "encode" in st else ""
+            limit = max(io["encode" if mode == "video" else "decode"])
             print(f"| {clip} | {top['frames']} | {MODE_LABELS[mode]} | {' | '.join(cells)} "
+                  f"| {limit:.1f} | {top['fps'] / limit:.2f}x "
                   f"| {st.get('HOG', 0):.2f} | {st.get('scoring', 0):.2f} | {enc} |")
     print("\nDecoding (reader thread) and drawing + encoding (writer thread) overlap with detection; "
-          "stage columns are from `--profile` of the best run.\n")
+          "stage columns are from `--profile` of the best run. I/O limit: a fresh process that only "
+          "decodes the clip with OpenCV (for the `--boxes` rows), or decodes and writes it again with "
+          "the `mp4v` writer (for `-o`), best of the runs (median in brackets), interleaved with the "
+          "others.\n")
 
 
 # --------------------------------------------------------------------------------------
