@@ -211,8 +211,10 @@ class ClassicDetector:
 
     def detect(self, frame: np.ndarray) -> Detections:
         parts = []
-        for band in self.search.for_frame(frame.shape[:2]).bands:
-            geo = band_geometry(band, frame.shape[:2], self.model.config, self.search.cells_per_step)
+        search = self.search.for_frame(frame.shape[:2])
+        for band in search.bands:  # the Detector's geometry: windows over the border too
+            geo = band_geometry(band, frame.shape[:2], self.model.config, search.cells_per_step, search.border,
+                                search.border_mode)
             dec = classic_band_scores(frame, geo, self.model, self.pair)
             r, c = np.nonzero(dec > self.search.threshold)
             parts.append(Detections(window_boxes(geo, r, c, self.model.config), dec[r, c],
