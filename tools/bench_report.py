@@ -188,7 +188,7 @@ def video_section(args: argparse.Namespace, thread_counts: list[int]) -> None:
 
     print(f"### Video: `python -m fastdet video` frames per second\n\n`{this_command(args, 'video')}`  \n"
           f"each cell: `{command_line('CLIP', 'boxes')}` (or `-o /tmp/out.mp4` instead of `--boxes`, "
-          "or with `--no-oncoming`); "
+          "or with `--no-oncoming` or `--full-search`); "
           "fps from its summary line, best of "
           f"{repeat} (median in brackets)\n")
     head = " | ".join(f"fps, {n} thread{'s' if n > 1 else ''}" for n in thread_counts)
