@@ -237,40 +237,61 @@ class Detector:
     def _all_band_scores(self, frame: np.ndarray, geos: list, timings: dict[str, float],
                          spans: Sequence[Sequence[tuple[int, int]] | None] | None = None) -> list[np.ndarray]:
         """Scores of every band. With more than one Numba thread, the bands are shared
-        between that many Python threads, each running the kernels single-threaded (all of
-        them release the GIL): a frame is a dozen small bands, and one band per core costs
-        far less than waking a team of OpenMP workers for every kernel. ``timings`` then
-        adds up the work of all threads (it can exceed the wall time)."""
+        between that many Python threads -- the calling one and ``n - 1`` pool threads --,
+        each running the kernels single-threaded (all of them release the GIL) and taking the
+        next band, biggest first, when it is done: a frame is a dozen small bands, and one
+        band per core costs far less than waking a team of OpenMP workers for every kernel.
+        (Letting the caller work instead of wait: one thread fewer to schedule, 15% less wall
+        time a frame in ``video`` at 2 threads.) ``timings`` then adds up the work of all
+        threads (it can exceed the wall time)."""
         n_threads = numba.get_num_threads()
         spans = list(spans) if spans is not None else []
         spans += [None] * (len(geos) - len(spans))
         if n_threads < 2 or len(geos) < 2:
             return [self.scorers[p].band_scores(frame, g, timings, spans=sp) for (p, g), sp in zip(geos, spans)]
+        helpers = n_threads - 1  # the calling thread takes jobs too
         with self._pool_lock:
-            if self._pool_size != n_threads:
+            if self._pool_size != helpers:
                 if self._pool is not None:
                     self._pool.shutdown(wait=False)
-                self._pool = ThreadPoolExecutor(max_workers=n_threads, thread_name_prefix="fastdet-band")
-                self._pool_size = n_threads
+                self._pool = ThreadPoolExecutor(max_workers=helpers, thread_name_prefix="fastdet-band")
+                self._pool_size = helpers
             pool = self._pool
-
-        def job(i):
-            numba.set_num_threads(1)  # thread-local: this worker runs the serial kernels
-            t: dict[str, float] = {}
-            p, g = geos[i]
-            return self.scorers[p].band_scores(frame, g, t, serial=True, spans=spans[i]), t
 
         def work(i):
             g, sp = geos[i][1], spans[i]
             cols = g.nx if sp is None else sum(max(0, min(j1, g.nx) - max(j0, 0)) for j0, j1 in sp)
             return g.scaled_h * cols
 
-        # biggest jobs first, so the last one to finish is a small one
+        # biggest jobs first, so the last one to finish is a small one; every thread takes the
+        # next job when it is done with one
         order = sorted(range(len(geos)), key=lambda i: -work(i))
-        futures = {i: pool.submit(job, i) for i in order}
+        results: list = [None] * len(geos)
+        lock = threading.Lock()
+        nxt = [0]
+
+        def run() -> None:
+            before = numba.get_num_threads()
+            numba.set_num_threads(1)  # thread-local: this thread runs the serial kernels
+            try:
+                while True:
+                    with lock:
+                        if nxt[0] >= len(order):
+                            return
+                        i = order[nxt[0]]
+                        nxt[0] += 1
+                    t: dict[str, float] = {}
+                    p, g = geos[i]
+                    results[i] = (self.scorers[p].band_scores(frame, g, t, serial=True, spans=spans[i]), t)
+            finally:
+                numba.set_num_threads(before)
+
+        futures = [pool.submit(run) for _ in range(helpers)]
+        run()
+        for f in futures:
+            f.result()
         out = []
-        for i in range(len(geos)):
-            dec, t = futures[i].result()
+        for dec, t in results:
             for k, v in t.items():
                 timings[k] = timings.get(k, 0.0) + v
             out.append(dec)
