@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from .._version import __version__
-from ..config import HeatConfig, TrackerConfig
+from ..config import GuidedSearch, HeatConfig, TrackerConfig
 from ..errors import ModelError
 from ..model import DEFAULT_MODEL_PATH, ONCOMING_MODEL_PATH
 from ..video.pipeline import make_detector
@@ -53,6 +53,8 @@ class Settings:
     video, json: also write the annotated video / JSON lines (the boxes file is always written).
     horizon: where the search bands go, as ``video --horizon``: ``'auto'``, a fraction of the
         frame height, or ``None`` (off).
+    full_search: the exact full search on every frame (``video --full-search``) instead of the
+        tracking-guided search.
     """
 
     model: str
@@ -64,11 +66,12 @@ class Settings:
     video: bool = False
     json: bool = False
     horizon: float | str | None = "auto"
+    full_search: bool = False
 
     @classmethod
     def create(cls, model: str | os.PathLike | None = None, oncoming: str | os.PathLike | bool = True,
                heat: HeatConfig | None = None, track: bool = True, video: bool = False,
-               json: bool = False, horizon: float | str | None = "auto") -> Settings:
+               json: bool = False, horizon: float | str | None = "auto", full_search: bool = False) -> Settings:
         """Settings for ``model`` (``None``: the bundled one) and ``oncoming`` (``True``:
         the bundled oncoming model, ``False``: none, or a path), hashing the model files."""
         main = os.path.abspath(model) if model is not None else str(DEFAULT_MODEL_PATH)
@@ -82,7 +85,8 @@ class Settings:
             if p is not None and not os.path.isfile(p):
                 raise ModelError(f"{p}: model file not found")
         return cls(main, file_sha256(main), wide, file_sha256(wide) if wide else "",
-                   heat if heat is not None else HeatConfig(), bool(track), bool(video), bool(json), horizon)
+                   heat if heat is not None else HeatConfig(), bool(track), bool(video), bool(json), horizon,
+                   bool(full_search))
 
     def check(self) -> None:
         """Load the models as a worker will: :class:`ModelError` (one line) now, before any
@@ -103,6 +107,7 @@ class Settings:
             "tracker": dataclasses.asdict(TrackerConfig()) if self.track else None,
             "outputs": list(self.kinds),
             "horizon": self.horizon,
+            "search": "full" if self.full_search else dataclasses.asdict(GuidedSearch()),
             "fastdet": __version__,
         }
 

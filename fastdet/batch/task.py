@@ -162,7 +162,8 @@ def run_video(task: VideoTask) -> dict[str, Any]:
         reader = FrameReader(task.input, notify=notes.append)
         detector = detector_for(s)
         check_frame(detector, reader.first_frame, task.input)
-        vd = VideoDetector(detector, s.heat, tracker=s.track, fps=reader.fps, horizon=s.horizon)
+        vd = VideoDetector(detector, s.heat, tracker=s.track, fps=reader.fps, horizon=s.horizon,
+                           guided=False if s.full_search else None)
         prime_horizon_from_file(vd, task.input)
         h, w = reader.shape[:2]
         if "video" in tmps:

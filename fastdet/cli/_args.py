@@ -56,7 +56,7 @@ def add_horizon_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def add_search_argument(parser: argparse.ArgumentParser) -> None:
-    """``--full-search``, shared by ``video``, ``eval`` and ``bench``."""
+    """``--full-search``, shared by ``video``, ``eval``, ``bench`` and ``batch``."""
     parser.add_argument("--full-search", action="store_true",
                         help="score every window of every band on every frame (default: every window every "
                              "5 frames and after a cut or a lost track; in between only near the tracked "
