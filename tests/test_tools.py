@@ -1,5 +1,6 @@
 """tools/tune_video.py replays the real VideoDetector: its boxes over cached windows are the
-boxes (and track ids) of the video pipeline itself."""
+boxes (and track ids) of the video pipeline itself with the full search (``--full-search``:
+the cache holds every window of every band; the tracking-guided search scores a subset)."""
 from __future__ import annotations
 
 from dataclasses import replace
@@ -39,11 +40,11 @@ def _same(a: Predictions, b: Predictions) -> None:
 def test_replay_of_the_defaults_is_the_video_pipeline(clip, cached):
     det, windows = cached
     got = replay(windows, det.search.threshold, HeatConfig(), WIDE_HEAT, MotionGate())
-    want = Predictions.from_frames(iter_video_detections(clip, progress=False))
+    want = Predictions.from_frames(iter_video_detections(clip, progress=False, guided=False))
     _same(got, want)
     assert (got.ids >= 1).all()  # tracked, as the pipeline
     untracked = replay(windows, det.search.threshold, HeatConfig(), WIDE_HEAT, MotionGate(), tracker=False)
-    _same(untracked, Predictions.from_frames(iter_video_detections(clip, progress=False, tracker=False)))
+    _same(untracked, Predictions.from_frames(iter_video_detections(clip, progress=False, tracker=False, guided=False)))
 
 
 def test_replay_of_other_settings_is_video_detector_with_them(clip, cached):
@@ -55,7 +56,7 @@ def test_replay_of_other_settings_is_video_detector_with_them(clip, cached):
     # the same settings, run for real: the window thresholds are the searches' own
     real = Detector(search=replace(det.search, threshold=thr),
                     wide=det.wide_model, wide_search=replace(WIDE_SEARCH, threshold=0.5))
-    vd = VideoDetector(real, heat=heat, wide_heat=wide_heat, motion=MotionGate(30.0))
+    vd = VideoDetector(real, heat=heat, wide_heat=wide_heat, motion=MotionGate(30.0), guided=False)
     reader = FrameReader(clip)
     try:
         want = Predictions.from_frames((f, vd.update(frame)) for f, frame, _ in reader)

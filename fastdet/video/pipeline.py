@@ -122,7 +122,8 @@ class VideoDetector:
         (:class:`~fastdet.config.GuidedSearch`, default ``GuidedSearch()``: every window
         every few frames and after a cut or a lost track, near the tracked vehicles and the
         recent positive windows plus a rotating strip in between; :mod:`fastdet.video.guided`),
-        or ``False`` for the full search on every frame. Needs a detector whose ``detect``
+        or ``False`` for the full search on every frame; ``None`` (default): ``GuidedSearch()``
+        with the tracker, the full search without it. Needs a detector whose ``detect``
         takes ``columns`` (a :class:`~fastdet.Detector`); others search in full.
 
     What :meth:`update` returns, with the tracker: the tracked vehicles of this frame (the
@@ -174,7 +175,9 @@ class VideoDetector:
             raise ValueError(f"horizon must be 'auto', a fraction of the frame height in [0, 1] or None, "
                              f"got {horizon!r}")
         self.horizon = horizon
-        if guided is None or guided is True:
+        if guided is None:  # guided by the tracks: without a tracker, the full search
+            guided = GuidedSearch() if self.tracker is not None else False
+        elif guided is True:
             guided = GuidedSearch()
         if guided is not False and not isinstance(guided, GuidedSearch):
             raise TypeError(f"guided must be a GuidedSearch or False, got {type(guided).__name__}")
