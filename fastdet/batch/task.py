@@ -40,13 +40,12 @@ from typing import Any
 import numba
 from distributed import get_worker
 
-from ..detect.checks import check_frame
 from ..errors import FastdetError
 from ..io.atomic import commit
 from ..io.motfiles import JsonLinesWriter, MotWriter
 from ..io.reader import FrameReader
 from ..io.sink import VideoSink
-from ..video.pipeline import VideoDetector, make_detector, prime_horizon_from_file
+from ..video.pipeline import make_detector, video_detector_for
 from .settings import Settings, output_paths
 
 PROGRESS_EVERY = 0.5  # seconds between progress events of one task
@@ -161,10 +160,7 @@ def run_video(task: VideoTask) -> dict[str, Any]:
         (Path(task.out_dir) / PARTIAL_DIR).mkdir(exist_ok=True)
         reader = FrameReader(task.input, notify=notes.append)
         detector = detector_for(s)
-        check_frame(detector, reader.first_frame, task.input)
-        vd = VideoDetector(detector, s.heat, tracker=s.track, fps=reader.fps, horizon=s.horizon,
-                           guided=False if s.full_search else None)
-        prime_horizon_from_file(vd, task.input)
+        vd = video_detector_for(reader, detector, s.heat, s.track, s.horizon, False if s.full_search else None)
         h, w = reader.shape[:2]
         if "video" in tmps:
             sink = VideoSink(str(tmps["video"]), reader.fps, (w, h), threshold=s.heat.threshold)

@@ -62,7 +62,6 @@ import numba
 
 from ..config import HeatConfig
 from ..console import process_seconds, prog
-from ..detect.checks import check_frame
 from ..detections import Detections
 from ..errors import DataError, FastdetError
 from ..io.atomic import check_output_path, write_bytes
@@ -71,7 +70,7 @@ from ..io.reader import FrameReader, check_source
 from ..io.sink import VideoSink, check_video_path
 from ..video.count import CountLine, VehicleCounter
 from ..video.offline import offline_pass
-from ..video.pipeline import VideoDetector, _passive_omp, _progress, make_detector, prime_horizon_from_file
+from ..video.pipeline import _passive_omp, _progress, make_detector, video_detector_for
 from . import _signals
 from ._args import (add_horizon_argument, add_oncoming_arguments, add_search_argument, guided_arg, nonneg_int,
                     oncoming_arg, positive_int)
@@ -252,10 +251,7 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
             detector = make_detector(args.model, oncoming_arg(args))
         elif args.model is not None:
             raise FastdetError("--model cannot be used with an injected detector")
-        check_frame(detector, reader.first_frame, args.input)
-        vd = VideoDetector(detector, heat, tracker=track, fps=reader.fps, horizon=args.horizon,
-                           guided=guided_arg(args))
-        prime_horizon_from_file(vd, args.input, args.start)
+        vd = video_detector_for(reader, detector, heat, track, args.horizon, guided_arg(args))
         vd.warmup()
         counter = VehicleCounter(line) if track else None
         done: list[tuple[int, Detections]] = []  # --offline: every frame's tracks

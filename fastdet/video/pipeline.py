@@ -452,6 +452,20 @@ def prime_horizon_from_file(vd: VideoDetector, path: str | os.PathLike, start: i
         vd.prime_horizon(_first_frames(os.fspath(path), start))
 
 
+def video_detector_for(reader: FrameReader, detector: WindowDetector, heat: HeatConfig | None = None,
+                       tracker: TrackerConfig | bool | None = None, horizon: float | str | None = "auto",
+                       guided: GuidedSearch | bool | None = None) -> VideoDetector:
+    """The :class:`VideoDetector` for the video ``reader`` reads, built the one way every command
+    (``video``, ``eval --video``, ``batch``) builds it, so they all give the same boxes: the
+    first frame checked against the detector's search (size, colour) before any output exists,
+    the motion gate at the video's frame rate, and for a file the horizon primed from its first
+    seconds (:func:`prime_horizon_from_file`)."""
+    check_frame(detector, reader.first_frame, reader.path)
+    vd = VideoDetector(detector, heat, tracker=tracker, fps=reader.fps, horizon=horizon, guided=guided)
+    prime_horizon_from_file(vd, reader.path, reader.start)
+    return vd
+
+
 def iter_video_detections(path: str | os.PathLike, model: Any = None, start: int = 0,
                           frames: int | None = None, progress: bool = True, detector: Any = None,
                           heat: HeatConfig | None = None, oncoming: Any = True,
@@ -483,9 +497,7 @@ def iter_video_detections(path: str | os.PathLike, model: Any = None, start: int
     try:
         if detector is None:
             detector = make_detector(model, oncoming)
-        check_frame(detector, reader.first_frame, reader.path)  # before any output: size, colour
-        vd = VideoDetector(detector, heat, tracker=tracker, fps=reader.fps, horizon=horizon, guided=guided)
-        prime_horizon_from_file(vd, reader.path, start)  # a file can be read twice: its first seconds give the horizon
+        vd = video_detector_for(reader, detector, heat, tracker, horizon, guided)
         vd.warmup()
         done: list[tuple[int, Detections]] = []
         with _progress(reader.expected, progress, os.path.basename(reader.path)) as bar:
