@@ -49,7 +49,7 @@ from ..detect.checks import check_frame
 from ..errors import DataError, FastdetError
 from ..io.images import check_image
 from ..io.reader import FrameReader, check_source
-from ..video.pipeline import VideoDetector, _passive_omp, make_detector
+from ..video.pipeline import VideoDetector, make_detector
 from ._args import add_oncoming_arguments, add_search_argument, guided_arg, oncoming_arg, positive_int
 
 DEFAULT_IMAGE = Path("test_images") / "test1.jpg"
@@ -167,7 +167,6 @@ def format_table(runs: list[dict[str, float]]) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """The ``bench`` subcommand."""
-    _passive_omp()
     if args.input is None:
         args.input = str(data_dir() / DEFAULT_IMAGE)
     frames, kind, decode_ms = load_frames(args.input, args.frames)

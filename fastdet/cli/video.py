@@ -70,7 +70,7 @@ from ..io.reader import FrameReader, check_source
 from ..io.sink import VideoSink, check_video_path
 from ..video.count import CountLine, VehicleCounter
 from ..video.offline import offline_pass
-from ..video.pipeline import _passive_omp, _progress, make_detector, video_detector_for
+from ..video.pipeline import _progress, make_detector, video_detector_for
 from . import _signals
 from ._args import (add_horizon_argument, add_oncoming_arguments, add_search_argument, guided_arg, nonneg_int,
                     oncoming_arg, positive_int)
@@ -219,7 +219,6 @@ def _redraw(args: argparse.Namespace, sink: VideoSink, frames: list[tuple[int, D
 
 def run(args: argparse.Namespace, detector: Any = None) -> int:
     """The ``video`` subcommand. ``detector`` replaces the model's Detector (tests)."""
-    _passive_omp()
     out, boxes_path, json_path = args.output, args.boxes, args.json
     summary_path = getattr(args, "summary", None)
     line = getattr(args, "line", None)

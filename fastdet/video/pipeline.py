@@ -64,18 +64,6 @@ class WindowDetector(Protocol):
     def geometries(self, frame_shape: tuple[int, int], part: int = 0) -> list[BandGeometry]: ...
 
 
-def _passive_omp() -> None:
-    """Make idle OpenMP workers sleep instead of spinning (``OMP_WAIT_POLICY=PASSIVE``)
-    unless the user chose otherwise; must run before numba's OpenMP layer starts.
-
-    The numba kernels run parallel regions on numba's OpenMP layer, many per frame. With
-    GNU OpenMP's default spin-waiting, a thread waiting at a region's barrier burns the core
-    its partner needs whenever the reader / writer threads (or any other program) also want
-    the CPU: 10 fps instead of 65 with ``--boxes`` on 2 cores while other jobs ran.
-    """
-    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-
-
 def make_detector(model: ModelLike = None, oncoming: ModelLike | bool = True) -> Detector:
     """The video pipeline's :class:`fastdet.Detector`: ``model`` (a Model, a path, or
     ``None`` for the bundled model) and, as its wide-window model, ``oncoming``: ``True``
@@ -492,7 +480,6 @@ def iter_video_detections(path: str | os.PathLike, model: Any = None, start: int
         raise ValueError("give a model or a detector, not both")
     if offline and tracker is False:
         raise ValueError("offline needs the tracker")
-    _passive_omp()
     reader = FrameReader(path, start, frames)
     try:
         if detector is None:
