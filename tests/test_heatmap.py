@@ -291,3 +291,167 @@ def test_heatconfig_single_frame_and_round_trip():
     assert HeatConfig.from_dict(cfg.to_dict()) == cfg
     with pytest.raises(ValueError):
         HeatConfig.from_dict({"bogus": 1})
+
+
+# ------------------------------------------------------------------------- label kernel
+# The blob labelling kernel (fastdet.video._label_kernels) against scipy.ndimage.label and the
+# flood fill of tests.reference; HeatMap's blob boxes against the SciPy-based code it replaced.
+
+from scipy import ndimage  # noqa: E402
+
+from fastdet.video._label_kernels import extent_boxes, label_blobs  # noqa: E402
+from tests.reference import flood_components  # noqa: E402
+
+
+def kernel_label(heat: np.ndarray, thr: float):
+    labels = np.full(heat.shape, -7, np.int32)  # garbage in: every cell must be written
+    k = heat.size // 2 + 2
+    bbox, peak = np.empty((k, 4), np.int64), np.empty(k, np.float64)
+    n = label_blobs(np.ascontiguousarray(heat, np.float64), float(thr), labels, bbox, peak)
+    return labels, n, bbox[:n], peak[:n]
+
+
+def check_labels(heat: np.ndarray, thr: float, extent: float = 0.4) -> None:
+    labels, n, bbox, peak = kernel_label(heat, thr)
+    ref, rn = ndimage.label(heat > thr)
+    assert n == rn
+    np.testing.assert_array_equal(labels, ref)
+    comps = flood_components(heat > thr)  # raster order of each blob's first cell
+    assert len(comps) == n
+    for i, comp in enumerate(comps):
+        ys, xs = zip(*comp)
+        assert all(labels[p] == i + 1 for p in comp)
+        assert tuple(bbox[i]) == (min(ys), max(ys) + 1, min(xs), max(xs) + 1)
+        assert peak[i] == max(heat[p] for p in comp)
+    eb = np.empty((n, 4), np.int64)
+    extent_boxes(np.ascontiguousarray(heat, np.float64), labels, n, bbox, peak, float(extent), eb)
+    for i, comp in enumerate(comps):
+        core = [p for p in comp if extent <= 0 or heat[p] >= extent * peak[i]]
+        ys, xs = zip(*core)
+        assert tuple(eb[i]) == (min(ys), max(ys) + 1, min(xs), max(xs) + 1)
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(h=st.integers(1, 24), w=st.integers(1, 24), density=st.floats(0, 1), seed=st.integers(0, 2**31 - 1),
+       extent=st.sampled_from([0.0, 0.3, 0.4, 1.0]))
+def test_label_kernel_matches_scipy_and_flood_fill(h, w, density, seed, extent):
+    rng = np.random.default_rng(seed)
+    heat = np.where(rng.random((h, w)) < density, rng.random((h, w)) * 10, 0.0)
+    check_labels(heat, 1.0, extent)
+
+
+@pytest.mark.parametrize("pattern", ["checker", "stripes", "spiral", "full", "empty", "comb"])
+def test_label_kernel_worst_shapes(pattern):
+    """Shapes that stress union-find: most blobs possible, merges from far right, one blob."""
+    h, w = 31, 37
+    y, x = np.mgrid[:h, :w]
+    mask = {"checker": (y + x) % 2 == 0, "stripes": x % 2 == 0, "full": np.ones((h, w), bool),
+            "empty": np.zeros((h, w), bool),
+            "comb": (y == h - 1) | (x % 2 == 0),  # teeth joined only on the last row
+            "spiral": np.zeros((h, w), bool)}[pattern]
+    if pattern == "spiral":
+        t, l, b, r = 0, 0, h - 1, w - 1
+        while t <= b and l <= r:
+            mask[t, l:r + 1] = mask[t:b + 1, r] = True
+            mask[b, l:r + 1] = True
+            mask[t + 2:b + 1, l] = True
+            t, l, b, r = t + 2, l + 2, b - 2, r - 2
+    heat = np.where(mask, 1.0 + (y * w + x) % 7, 0.0)
+    check_labels(heat, 0.5)
+
+
+def _old_blob_boxes(hm: HeatMap, labels: np.ndarray) -> Detections:
+    """HeatMap._blob_boxes as it was with scipy.ndimage.find_objects (the reference)."""
+    cfg, c = hm.config, int(hm.config.cell)
+    h, w = hm.frame_shape
+    ext = float(cfg.extent)
+    owner = np.zeros(0, np.int64)
+    split = float(cfg.split_gap) > 0 and len(hm._cur[0]) > 1
+    if (cfg.box_mode == "mean" or split) and len(hm._cur[0]):
+        cb = hm._cur[0]
+        cy = np.clip(((cb[:, 1] + cb[:, 3]) / 2 / c).astype(np.int64), 0, labels.shape[0] - 1)
+        cx = np.clip(((cb[:, 0] + cb[:, 2]) / 2 / c).astype(np.int64), 0, labels.shape[1] - 1)
+        owner = labels[cy, cx]
+    boxes_l, peaks_l = [], []
+    for i, sl in enumerate(ndimage.find_objects(labels)):
+        if sl is None:
+            continue
+        blob = labels[sl] == i + 1
+        hv = hm.heat[sl]
+        y0, x0 = sl[0].start, sl[1].start
+        mine = owner == i + 1
+        for part in (hm._split(blob, x0, mine) if split else [blob]):
+            pk = hv[part].max()
+            ys, xs = np.nonzero(part & (hv >= ext * pk)) if ext > 0 else np.nonzero(part)
+            y1, y2, x1, x2 = y0 + ys.min(), y0 + ys.max() + 1, x0 + xs.min(), x0 + xs.max() + 1
+            box = (int(x1 * c), int(y1 * c), int(min(x2 * c, w)), int(min(y2 * c, h)))
+            if cfg.box_mode == "mean" and mine.any():
+                wts = hm._cur[1][mine]
+                mb = (hm._cur[0][mine] * wts[:, None]).sum(0) / wts.sum()
+                box = tuple(int(v) for v in np.clip(np.round(mb), 0, [w, h, w, h]))
+            boxes_l.append(box)
+            peaks_l.append(pk)
+    return Detections(np.array(boxes_l, np.int32).reshape(-1, 4), np.array(peaks_l, np.float32))
+
+
+def _old_weak(hm: HeatMap, thr: float) -> Detections:
+    labels, n = ndimage.label(hm.heat > thr)
+    if n == 0:
+        return Detections.empty()
+    d = _old_blob_boxes(hm, labels.astype(np.int32))
+    return d[hm._shape_ok(d.boxes) & (d.scores <= hm.config.threshold)]
+
+
+def assert_same(a: Detections, b: Detections) -> None:
+    np.testing.assert_array_equal(a.boxes, b.boxes)
+    np.testing.assert_array_equal(a.scores, b.scores)
+    assert a.boxes.dtype == b.boxes.dtype and a.scores.dtype == b.scores.dtype
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(0, 30), frames=st.integers(1, 4),
+       mode=st.sampled_from(["extent", "mean", "split"]), extent=st.sampled_from([0.0, 0.3, 0.6]))
+def test_blob_boxes_same_as_scipy_version(seed, n, frames, mode, extent):
+    rng = np.random.default_rng(seed)
+    h, w = 90, 160
+    kw = dict(box_mode="mean") if mode == "mean" else dict(split_gap=0.5) if mode == "split" else {}
+    cfg = HeatConfig(n_frames=3, threshold=1.5, extent=extent, min_width=0, min_height=0, max_aspect=100.0, **kw)
+    hm = HeatMap((h, w), cfg)
+    for _ in range(frames):
+        x1 = rng.integers(-10, w, n)
+        y1 = rng.integers(-10, h, n)
+        s = rng.integers(8, 40, n)
+        boxes = np.stack([x1, y1, x1 + s, y1 + s], 1)
+        got = hm.update(Detections(boxes.astype(np.int32), rng.normal(0.5, 1, n).astype(np.float32)))
+    labels, _ = ndimage.label(hm.heat > cfg.threshold)
+    np.testing.assert_array_equal(hm.labels, labels)
+    ref = _old_blob_boxes(hm, labels.astype(np.int32))
+    assert_same(hm.blobs, ref)
+    assert_same(got, ref[hm._shape_ok(ref.boxes)])
+    assert_same(hm.weak_boxes(0.5), _old_weak(hm, 0.5))
+
+
+def test_blob_boxes_same_as_scipy_version_on_real_frames(data):
+    """A few frames of the bundled clip through the video pipeline: both heat maps' labels,
+    boxes and weak boxes as the SciPy-based code gave them."""
+    from fastdet.io.reader import FrameReader
+    from fastdet.video.pipeline import VideoDetector
+
+    reader = FrameReader(data / "videos" / "test_small1.mp4", 0, 12, notify=lambda _n: None)
+    vd = VideoDetector(fps=reader.fps, horizon=None)
+    checked = 0
+    try:
+        for _, frame, _ in reader:
+            vd.update(frame)
+            for hm in (vd.heatmap, vd.wide_heatmap):
+                if hm is None or not hm.n_seen:
+                    continue
+                labels, _ = ndimage.label(hm.heat > hm.config.threshold)
+                np.testing.assert_array_equal(hm.labels, labels)
+                assert_same(hm.blobs, _old_blob_boxes(hm, labels.astype(np.int32)))
+                for f in (0.3, 0.5):
+                    assert_same(hm.weak_boxes(f * hm.config.threshold), _old_weak(hm, f * hm.config.threshold))
+                checked += int(labels.max() > 0)
+    finally:
+        reader.close()
+    assert checked > 0

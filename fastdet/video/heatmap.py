@@ -25,7 +25,8 @@ How one frame goes (``HeatMap.update``)
    makes the threshold mean "heat of one frame" for any N / decay, and lets the first
    frames of a video produce boxes.
 4. **Threshold, labels, boxes.** ``mask = heat > threshold``; connected blobs of the mask
-   (``scipy.ndimage.label``, 4-connectivity) each give one box: the bounding box of the
+   (4-connectivity, numbered as ``scipy.ndimage.label`` numbers them:
+   :func:`fastdet.video._label_kernels.label_blobs`) each give one box: the bounding box of the
    blob's cells whose heat is at least ``extent`` x the blob's peak (``extent = 0``: the
    whole blob), in pixels (cells scaled by ``cell``, clipped to the frame). A box's
    **score is the blob's peak heat** (same units as the threshold, so every kept box
@@ -47,9 +48,9 @@ from collections import deque
 from typing import NamedTuple
 
 import numpy as np
-from scipy import ndimage
 
 from ._heat_kernels import add_rects
+from ._label_kernels import extent_boxes, label_blobs
 from ..config import HeatConfig
 from ..detections import Detections
 
@@ -183,10 +184,10 @@ class HeatMap:
         """Threshold the current heat, label blobs, one box per blob (or per part of a blob,
         with ``split_gap``), shape filter."""
         t0 = time.perf_counter()
-        self.mask = self.heat > self.config.threshold
-        labels, _ = ndimage.label(self.mask)
-        self.labels = labels.astype(np.int32, copy=False)
-        self.blobs = self._blob_boxes(self.labels)
+        thr = float(self.config.threshold)
+        self.mask = self.heat > thr
+        self.labels, n, bbox, peak = self._label(thr)
+        self.blobs = self._blob_boxes(self.labels, n, bbox, peak)
         out = self.blobs[self._shape_ok(self.blobs.boxes)]
         self.timings["label"] = time.perf_counter() - t0
         return out
@@ -198,11 +199,25 @@ class HeatMap:
         each box's score is its blob's peak heat (in ``(threshold, config.threshold]``).
         For a tracker that uses low-confidence boxes to keep its tracks alive (ByteTrack).
         Does not change ``mask``, ``labels`` or ``blobs``."""
-        labels, n = ndimage.label(self.heat > float(threshold))
+        labels, n, bbox, peak = self._label(float(threshold))
         if n == 0:
             return Detections.empty()
-        d = self._blob_boxes(labels.astype(np.int32, copy=False))
+        d = self._blob_boxes(labels, n, bbox, peak)
         return d[self._shape_ok(d.boxes) & (d.scores <= self.config.threshold)]
+
+    def _label(self, threshold: float) -> tuple[np.ndarray, int, np.ndarray, np.ndarray]:
+        """Blobs of ``heat > threshold``: ``(labels (Hg, Wg) int32, n, bbox (n, 4) int64
+        (y0, y1, x0, x1) grid cells, end exclusive, peak (n,) float64)`` (a new labels array
+        every call: ``labels`` of an earlier frame may still be in use)."""
+        heat = self.heat
+        if heat.dtype != np.float64 or heat.ndim != 2 or not heat.flags.c_contiguous:
+            heat = np.ascontiguousarray(heat, np.float64).reshape(self.grid_shape)
+        labels = np.empty(heat.shape, np.int32)
+        k = heat.size // 2 + 2  # room for any number of 4-connected blobs
+        bbox = np.empty((k, 4), np.int64)
+        peak = np.empty(k, np.float64)
+        n = int(label_blobs(heat, threshold, labels, bbox, peak))
+        return labels, n, bbox[:n], peak[:n]
 
     def _shape_ok(self, boxes: np.ndarray) -> np.ndarray:
         """``(N,) bool``: the boxes that pass the shape filter (module docstring, step 5)."""
@@ -211,13 +226,21 @@ class HeatMap:
         bh = boxes[:, 3] - boxes[:, 1]
         return (bw >= cfg.min_width) & (bh >= cfg.min_height) & (bh <= cfg.max_aspect * bw)
 
-    def _blob_boxes(self, labels: np.ndarray) -> Detections:
-        """One box per blob of ``labels`` (or per part, with ``split_gap``), scored by its
-        peak heat, before the shape filter (module docstring, step 4)."""
+    def _blob_boxes(self, labels: np.ndarray, n: int, bbox: np.ndarray, peak: np.ndarray) -> Detections:
+        """One box per blob of ``labels`` (``n`` blobs, their ``bbox`` and ``peak`` as
+        :meth:`_label` gives them; or one per part, with ``split_gap``), scored by its peak
+        heat, before the shape filter (module docstring, step 4)."""
         cfg = self.config
         c = int(cfg.cell)
         h, w = self.frame_shape
         ext = float(cfg.extent)
+        if n == 0:
+            return Detections(np.zeros((0, 4), np.int32), np.zeros(0, np.float32))
+        eb = np.empty((n, 4), np.int64)
+        extent_boxes(self.heat if self.heat.dtype == np.float64 and self.heat.flags.c_contiguous
+                     else np.ascontiguousarray(self.heat, np.float64), labels, n, bbox, peak, ext, eb)
+        # (x1, y1, x2, y2) pixels of each blob's extent box
+        fast = np.stack([eb[:, 2] * c, eb[:, 0] * c, np.minimum(eb[:, 3] * c, w), np.minimum(eb[:, 1] * c, h)], 1)
         owner = np.zeros(0, np.int64)  # the blob label under each current window's centre
         split = float(cfg.split_gap) > 0 and len(self._cur[0]) > 1
         if (cfg.box_mode == "mean" or split) and len(self._cur[0]):
@@ -225,22 +248,33 @@ class HeatMap:
             cy = np.clip(((cb[:, 1] + cb[:, 3]) / 2 / c).astype(np.int64), 0, labels.shape[0] - 1)
             cx = np.clip(((cb[:, 0] + cb[:, 2]) / 2 / c).astype(np.int64), 0, labels.shape[1] - 1)
             owner = labels[cy, cx]
+        if not (split or (cfg.box_mode == "mean" and len(owner))):  # one extent box per blob
+            return Detections(fast.astype(np.int32), peak.astype(np.float32))
+        counts = np.bincount(owner, minlength=n + 1)
         boxes_l: list[tuple[int, int, int, int]] = []
         peaks_l: list[float] = []
-        for i, sl in enumerate(ndimage.find_objects(labels)):
-            if sl is None:
+        for i in range(n):
+            mine_n = counts[i + 1]
+            if mine_n == 0 or (cfg.box_mode != "mean" and mine_n < 2):
+                boxes_l.append(tuple(int(v) for v in fast[i]))  # no window of this frame to split by or average
+                peaks_l.append(peak[i])
                 continue
-            blob = labels[sl] == i + 1
-            hv = self.heat[sl]
-            y0, x0 = sl[0].start, sl[1].start
+            y0, y1, x0, x1 = (int(v) for v in bbox[i])
+            blob = labels[y0:y1, x0:x1] == i + 1
+            hv = self.heat[y0:y1, x0:x1]
             mine = owner == i + 1  # this frame's windows centred in the blob
-            for part in (self._split(blob, x0, mine) if split else [blob]):
+            parts = self._split(blob, x0, mine) if split else [blob]
+            if parts[0] is blob and cfg.box_mode != "mean":  # not split: the blob's own box
+                boxes_l.append(tuple(int(v) for v in fast[i]))
+                peaks_l.append(peak[i])
+                continue
+            for part in parts:
                 pk = hv[part].max()
                 # never empty: the peak is in it
                 ys, xs = np.nonzero(part & (hv >= ext * pk)) if ext > 0 else np.nonzero(part)
-                y1, y2, x1, x2 = y0 + ys.min(), y0 + ys.max() + 1, x0 + xs.min(), x0 + xs.max() + 1
-                box = (int(x1 * c), int(y1 * c), int(min(x2 * c, w)), int(min(y2 * c, h)))
-                if cfg.box_mode == "mean" and mine.any():
+                py1, py2, px1, px2 = y0 + ys.min(), y0 + ys.max() + 1, x0 + xs.min(), x0 + xs.max() + 1
+                box = (int(px1 * c), int(py1 * c), int(min(px2 * c, w)), int(min(py2 * c, h)))
+                if cfg.box_mode == "mean":
                     wts = self._cur[1][mine]
                     mb = (self._cur[0][mine] * wts[:, None]).sum(0) / wts.sum()
                     box = tuple(int(v) for v in np.clip(np.round(mb), 0, [w, h, w, h]))
@@ -281,6 +315,10 @@ class HeatMap:
         return self.boxes()
 
     def warmup(self) -> None:
-        """Compile (or load from cache) the numba kernel."""
+        """Compile (or load from cache) the numba kernels."""
         g = np.zeros((2, 2), np.float64)
         add_rects(g, np.zeros((1, 4), np.int32), np.ones(1, np.float64), 1.0)
+        labels = np.empty((2, 2), np.int32)
+        bbox, peak = np.empty((3, 4), np.int64), np.empty(3, np.float64)
+        n = label_blobs(g, 0.5, labels, bbox, peak)
+        extent_boxes(g, labels, n, bbox, peak, 0.5, np.empty((3, 4), np.int64))
