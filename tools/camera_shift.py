@@ -15,6 +15,7 @@ reference (1280x720) pixels.
     python -m tools.camera_shift [--variants original,960x540,...] [--clips test_small1]
         [--json OUT.json] [--cache DIR --tag NAME] [--heat split_gap=0.5 ...]
         [--horizon auto|reference|oracle] [--band S,Y0,Y1[,X0,X1]] [--border F] [--no-oncoming]
+        [--model MAIN.npz] [--oncoming-model WIDE.npz]
 
 ``--cache DIR`` stores every frame's positive windows (per clip, variant and ``--tag``) and
 replays them on the next run, so heat-map settings (``--heat``) can be compared without
@@ -67,14 +68,19 @@ def read_frames(path: Path) -> list[np.ndarray]:
     return out
 
 
+#: variants this tool adds on request (``--variants``), with the OpenCV codec that re-encodes
+#: them (:class:`Variant` itself knows only x264 and mp4v)
+TOOL_CODECS = {"mjpg": "MJPG"}
+
+
 def encode(frames: list[np.ndarray], codec: str, crf: int, out: Path, fps: float = 25.0) -> None:
     """Write ``frames`` (BGR) to ``out`` with x264 at ``crf`` (imageio-ffmpeg's binary) or
-    OpenCV's mp4v writer."""
+    OpenCV's mp4v or MJPG writer."""
     h, w = frames[0].shape[:2]
-    if codec == "mp4v":
-        wr = cv2.VideoWriter(str(out), cv2.VideoWriter_fourcc(*"mp4v"), fps, (w, h))
+    if codec in ("mp4v", "MJPG"):
+        wr = cv2.VideoWriter(str(out), cv2.VideoWriter_fourcc(*codec), fps, (w, h))
         if not wr.isOpened():
-            raise SystemExit("OpenCV cannot write mp4v")
+            raise SystemExit(f"OpenCV cannot write {codec}")
         for f in frames:
             wr.write(f)
         wr.release()
@@ -89,10 +95,11 @@ def encode(frames: list[np.ndarray], codec: str, crf: int, out: Path, fps: float
 
 def variant_frames(src: list[np.ndarray], variant: Variant, clip: str, tmp: Path) -> list[np.ndarray]:
     frames = [variant.frame(f) for f in src]
-    if variant.codec is None:
+    codec = variant.codec or TOOL_CODECS.get(variant.name)
+    if codec is None:
         return frames
-    out = tmp / f"{clip}.{variant.name}.mp4"
-    encode(frames, variant.codec, variant.crf, out)
+    out = tmp / f"{clip}.{variant.name}.{'avi' if codec == 'MJPG' else 'mp4'}"
+    encode(frames, codec, variant.crf, out)
     dec = read_frames(out)
     if len(dec) != len(frames):
         raise SystemExit(f"{out}: {len(dec)} frames decoded, {len(frames)} written")
@@ -252,6 +259,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--heat", type=_heat_arg, action="append", default=[], metavar="FIELD=VALUE",
                     help="override a HeatConfig field of the main heat map (repeatable)")
     ap.add_argument("--no-oncoming", action="store_true", help="main model only")
+    ap.add_argument("--model", metavar="MAIN.npz", help="main model (default: the bundled one)")
+    ap.add_argument("--oncoming-model", metavar="WIDE.npz", help="wide-window model for oncoming traffic "
+                    "(default: the bundled one)")
     ap.add_argument("--band", action="append", default=[], metavar="SCALE,Y0,Y1[,X0,X1]",
                     help="add a band to the main search (1280x720 reference pixels; repeatable)")
     ap.add_argument("--wide-columns", metavar="X0,X1", help="columns (1280-wide reference pixels) of the "
@@ -266,6 +276,7 @@ def main(argv: list[str] | None = None) -> int:
 
     variants = standard_variants()
     if args.variants:
+        variants += [Variant(name) for name in TOOL_CODECS]
         want = args.variants.split(",")
         unknown = set(want) - {v.name for v in variants}
         if unknown:
@@ -274,7 +285,9 @@ def main(argv: list[str] | None = None) -> int:
     clips = (args.clips.split(",") if args.clips else
              sorted(p.name[: -len(".gt.txt")] for p in (data_dir() / "annotations").glob("*.gt.txt")))
     heat = replace(HeatConfig(), **dict(args.heat))
-    det: Detector = make_detector(oncoming=not args.no_oncoming)
+    if args.no_oncoming and args.oncoming_model:
+        raise SystemExit("--no-oncoming and --oncoming-model exclude each other")
+    det: Detector = make_detector(args.model, oncoming=False if args.no_oncoming else (args.oncoming_model or True))
     if args.band:
         extra = tuple(SearchBand(float(f[0]), *(int(v) for v in f[1:])) for f in (b.split(",") for b in args.band))
         sc = det.scorers[0]

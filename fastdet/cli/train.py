@@ -6,7 +6,9 @@ Reports accuracy, precision, recall, F1 and the confusion matrix on a random 80/
 and on a leak-free *sequence* split (every folder cut into contiguous time blocks, see
 :mod:`fastdet.train.dataset`), then refits on all the data and writes the model. Hard negatives
 (``--negatives``) and flip augmentation only ever join the *training* part of a split, so
-the test figures stay comparable. Deterministic for a given ``--seed``.
+the test figures stay comparable; so do the augmented copies (``--truncate``: crops cut by
+the image border, padded as the detector pads a window over the frame edge; ``--reencode``:
+compression artefacts; :mod:`fastdet.train.augment`). Deterministic for a given ``--seed``.
 """
 from __future__ import annotations
 
@@ -23,9 +25,21 @@ from ..data import data_dir
 from ..errors import DataError, FastdetError
 from ..features._hog_kernels import hog_u8_batch
 from ..io.atomic import check_output_path
+from ..train.augment import JPEG_QUALITY
 from ..train.fit import train
 from . import _signals
 from ._args import nonneg_int, positive_float, positive_int
+
+
+def fraction(s: str) -> float:
+    """argparse type: a number in [0, 1]."""
+    try:
+        v = float(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a fraction in [0, 1], got {s!r}") from None
+    if not 0 <= v <= 1:
+        raise argparse.ArgumentTypeError(f"expected a fraction in [0, 1], got {s!r}")
+    return v
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -44,6 +58,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--positives", type=Path, action="append", default=[],
                    help="folder of extra vehicle crops, any depth; repeatable (joins the training parts only)")
     p.add_argument("--no-flip", action="store_true", help="do not add mirrored copies of the training crops")
+    p.add_argument("--truncate", type=fraction, default=0.0, metavar="F",
+                   help="add truncated copies of this fraction of the vehicle crops (and of the non-vehicles): "
+                        "cut at a random column on the left or right, 50..87.5%% of the crop kept, the rest "
+                        "filled by replicating the edge column as the detector pads windows over the frame "
+                        "edge (training parts only; default 0)")
+    p.add_argument("--truncate-vehicles-only", action="store_true",
+                   help="with --truncate: no truncated copies of the non-vehicle crops")
+    p.add_argument("--reencode", type=fraction, default=0.0, metavar="F",
+                   help="add re-encoded copies of this fraction of the crops (both labels): blown up 1..2x, "
+                        "JPEG at a random --jpeg-quality, scaled back, mild blur, +-2 grey levels of "
+                        "brightness and chroma (training parts only; default 0)")
+    p.add_argument("--jpeg-quality", type=int, nargs=2, metavar=("Q1", "Q2"), default=list(JPEG_QUALITY),
+                   help=f"JPEG quality range of --reencode (default {JPEG_QUALITY[0]} {JPEG_QUALITY[1]})")
     p.add_argument("--color-space", choices=COLOR_SPACES, default=None)
     p.add_argument("--orientations", type=positive_int, default=None, help="HOG orientation bins (>= 1)")
     p.add_argument("--spatial-size", type=nonneg_int, default=None, help="spatial-bin image side (0: none)")
@@ -116,12 +143,17 @@ def run(args: argparse.Namespace) -> int:
     if not args.no_refit:
         check_output_path(out, "model")
     _check_inputs(Path(data), args)
+    q0, q1 = args.jpeg_quality
+    if not 1 <= q0 <= q1 <= 100:
+        raise FastdetError(f"--jpeg-quality must satisfy 1 <= Q1 <= Q2 <= 100, got {q0} {q1}")
     announce_compile(hog_u8_batch, what="the feature kernels")
     progress = not args.no_progress and sys.stderr.isatty()
     model, report = train(data, config, args.classifier, args.C, args.split, args.seed, args.negatives,
                           not args.no_flip, args.max_per_folder, not args.no_refit, progress,
                           window_top=args.window_rows[0] if args.window_rows else None,
-                          positives=args.positives)
+                          positives=args.positives, truncate=args.truncate,
+                          truncate_negatives=not args.truncate_vehicles_only, reencode=args.reencode,
+                          jpeg_quality=(q0, q1))
     if model is not None:
         _signals.check()  # a stop that a library swallowed: no model
         model.metadata["training"]["command"] = f"{_command_name()} train " + " ".join(sys.argv[2:])

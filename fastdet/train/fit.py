@@ -4,7 +4,9 @@
 80/20 split and on a leak-free *sequence* split (every folder cut into contiguous time
 blocks, see :mod:`fastdet.train.dataset`), then refits on all the data. Hard negatives and
 flip augmentation only ever join the *training* part of a split, so the test figures stay
-comparable. Deterministic for a given seed.
+comparable; so do the augmented copies of :mod:`fastdet.train.augment` (crops cut by the
+image border, ``truncate``; compression artefacts, ``reencode``): a split adds only the
+copies made from its training crops. Deterministic for a given seed.
 """
 from __future__ import annotations
 
@@ -22,8 +24,8 @@ from tqdm import tqdm
 from ..config import FeatureConfig
 from ..features import extract_features
 from ..model import Model
+from .augment import JPEG_QUALITY, augmented_copies
 from .dataset import CropSet, load_crops, load_folder, random_split, sequence_split
-
 
 DEFAULT_C = {"linearsvc": 1e-3, "logreg": 3e-2}
 
@@ -52,7 +54,13 @@ def fit_classifier(x: np.ndarray, y: np.ndarray, classifier: str, C: float, seed
 
 
 def metrics(y_true: np.ndarray, y_pred: np.ndarray) -> dict[str, Any]:
-    from sklearn.metrics import accuracy_score, confusion_matrix, f1_score, precision_score, recall_score
+    from sklearn.metrics import (
+        accuracy_score,
+        confusion_matrix,
+        f1_score,
+        precision_score,
+        recall_score,
+    )
 
     return {
         "accuracy": float(accuracy_score(y_true, y_pred)),
@@ -119,8 +127,14 @@ def fit_to_window(crops, config: FeatureConfig, top: int):
 def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: float | None = None,
           split: str = "both", seed: int = 0, negatives: list[Path] | None = None, flip: bool = True,
           max_per_folder: int | None = None, refit: bool = True, progress: bool = True,
-          window_top: int | None = None, positives: list[Path] | None = None, log=print):
+          window_top: int | None = None, positives: list[Path] | None = None, truncate: float = 0.0,
+          truncate_negatives: bool = True, reencode: float = 0.0, jpeg_quality: tuple[int, int] = JPEG_QUALITY,
+          log=print):
     """Train and evaluate; returns ``(model or None, report dict)``.
+
+    ``truncate`` / ``reencode``: fractions of the crops that also join the training parts as
+    truncated / re-encoded copies (:func:`fastdet.train.augment.augmented_copies`; truncated
+    copies of as many non-vehicles unless ``truncate_negatives`` is false).
 
     For a wide-window ``config`` (``window_height`` set), ``window_top`` is the first row of
     the 64x64 crops that the window covers (default: centred)."""
@@ -149,12 +163,21 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
     x_extra_flip = None
     if extra is not None and flip and n_extra:
         x_extra_flip = features_in_chunks(_flip(extra.images[extra.labels == 1]), config, progress, "flipped")
+    aug = augmented_copies(crops.images, crops.labels, seed, truncate, truncate_negatives, reencode, jpeg_quality)
+    x_aug = features_in_chunks(aug.images, config, progress, "augmented") if len(aug) else None
+    if len(aug):
+        log(f"augmented copies: {len(aug)} ({int(aug.labels.sum())} vehicles; truncate {truncate:g}"
+            f"{'' if truncate_negatives else ' of vehicles only'}, reencode {reencode:g}) "
+            f"({time.perf_counter() - t0:.1f} s)")
     log(f"features: {config.n_features} per crop ({time.perf_counter() - t0:.1f} s)")
 
     def training_part(idx):
         parts = [(x[idx], crops.labels[idx])]
         if x_flip is not None:
             parts.append((x_flip[idx], crops.labels[idx]))
+        if x_aug is not None:
+            a = aug.in_training(idx)
+            parts.append((x_aug[a], aug.labels[a]))
         if x_extra is not None:
             parts.append((x_extra, extra.labels))
             if x_extra_flip is not None:
@@ -163,6 +186,9 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
         return np.concatenate(xs), np.concatenate(ys)
 
     report: dict[str, Any] = {"C": C, "classifier": classifier, "seed": seed, "flip": flip, "window_top": top,
+                              "augment": {"truncate": truncate, "truncate_negatives": truncate_negatives,
+                                          "reencode": reencode, "jpeg_quality": list(jpeg_quality),
+                                          "copies": len(aug)},
                               "data": {"vehicles": n_pos, "non_vehicles": n_neg,
                                        "hard_negatives": n_hard, "extra_positives": n_extra}}
     splits = {"random": lambda: random_split(crops.labels, seed),
