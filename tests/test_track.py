@@ -7,6 +7,8 @@ import itertools
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from fastdet.config import HeatConfig, TrackerConfig
 from fastdet.detections import Detections
@@ -127,6 +129,36 @@ def test_assign_finds_the_best_matching(seed):
     assert len(set(r.tolist())) == len(r) and len(set(c.tolist())) == len(c)
     assert (ious[r, c] >= 0.3).all()
     assert float((ious[r, c] - 0.3).sum()) == pytest.approx(brute_force_assign(ious, 0.3))
+
+
+def scipy_assign(ious: np.ndarray, min_iou: float) -> tuple[np.ndarray, np.ndarray]:
+    """assign() as it was: always scipy.optimize.linear_sum_assignment (the reference)."""
+    from scipy.optimize import linear_sum_assignment
+
+    ok = ious >= min_iou
+    if ious.size == 0 or not ok.any():
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    r, c = linear_sum_assignment(np.where(ok, ious - min_iou, 0.0), maximize=True)
+    keep = ok[r, c]
+    return r[keep].astype(np.int64), c[keep].astype(np.int64)
+
+
+@settings(max_examples=400, deadline=None)
+@given(n=st.integers(0, 7), m=st.integers(0, 7), seed=st.integers(0, 2**31 - 1), p=st.floats(0, 1),
+       exact=st.booleans())
+def test_assign_same_pairs_as_the_solver(n, m, seed, p, exact):
+    """The shortcut for conflict-free matrices gives the solver's pairs, in the same order;
+    ``exact`` puts some IoUs exactly at the threshold (gain 0: left to the solver)."""
+    rng = np.random.default_rng(seed)
+    ious = np.where(rng.random((n, m)) < p, rng.random((n, m)), 0.0)
+    if exact and ious.size:
+        ious[rng.random((n, m)) < 0.3] = 0.3
+    for thr in (0.3, 0.6):
+        r, c = assign(ious, thr)
+        rr, cc = scipy_assign(ious, thr)
+        np.testing.assert_array_equal(r, rr)
+        np.testing.assert_array_equal(c, cc)
+        assert r.dtype == np.int64 and c.dtype == np.int64
 
 
 def test_assign_prefers_the_pairs_that_beat_the_threshold_most():
