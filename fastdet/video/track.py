@@ -89,14 +89,64 @@ def assign(ious: np.ndarray, min_iou: float) -> tuple[np.ndarray, np.ndarray]:
     if not ok.any():
         return none
     gain = np.where(ok, ious - min_iou, 0.0)  # a forbidden pair gains nothing: never needed
-    if ok.sum(axis=0).max() <= 1 and ok.sum(axis=1).max() <= 1 and (gain[ok] > 0).all():
-        r, c = np.nonzero(ok)  # row-major: in row order
-        return r.astype(np.int64), c.astype(np.int64)
+    if (gain[ok] > 0).all():
+        if ok.sum(axis=0).max() <= 1 and ok.sum(axis=1).max() <= 1:
+            r, c = np.nonzero(ok)  # row-major: in row order
+            return r.astype(np.int64), c.astype(np.int64)
+        best = _unique_best_matching(ok, gain)
+        if best is not None:
+            return best
     from scipy.optimize import linear_sum_assignment  # noqa: PLC0415 - 0.1 s of import, rarely needed
 
     r, c = linear_sum_assignment(gain, maximize=True)
     keep = ok[r, c]
     return r[keep].astype(np.int64), c[keep].astype(np.int64)
+
+
+#: most partial matchings :func:`_unique_best_matching` looks at before leaving it to the solver
+_SEARCH_LIMIT = 5000
+#: two matchings whose gains differ by less than this are a tie (left to the solver)
+_TIE = 1e-9
+
+
+def _unique_best_matching(ok: np.ndarray, gain: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """The matching of allowed pairs (``ok (N, M) bool``) with the largest total ``gain``
+    (every allowed gain > 0), by trying every matching of the few allowed pairs -- when it is
+    the best by more than :data:`_TIE` (so every optimal assignment, the solver's too, holds
+    exactly its pairs) and found within :data:`_SEARCH_LIMIT` steps; else ``None``.
+    ``(rows, cols)`` in row order."""
+    rows = [np.flatnonzero(ok[i]).tolist() for i in range(ok.shape[0])]
+    g = gain.tolist()
+    used = [False] * ok.shape[1]
+    best: list = [-1.0, -1.0, []]  # best total, second best, pairs
+    steps = [0]
+    cur: list[tuple[int, int]] = []
+
+    def walk(i: int, total: float) -> bool:
+        steps[0] += 1
+        if steps[0] > _SEARCH_LIMIT:
+            return False
+        if i == len(rows):
+            if total > best[0]:
+                best[0], best[1], best[2] = total, best[0], list(cur)
+            elif total > best[1]:
+                best[1] = total
+            return True
+        for j in rows[i]:
+            if not used[j]:
+                used[j] = True
+                cur.append((i, j))
+                if not walk(i + 1, total + g[i][j]):
+                    return False
+                cur.pop()
+                used[j] = False
+        return walk(i + 1, total)
+
+    if not walk(0, 0.0) or best[0] - best[1] < _TIE:
+        return None
+    pairs = best[2]
+    return (np.array([p[0] for p in pairs], np.int64).reshape(-1),
+            np.array([p[1] for p in pairs], np.int64).reshape(-1))
 
 
 def buffered(boxes: np.ndarray, b: float) -> np.ndarray:
