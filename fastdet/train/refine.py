@@ -1,0 +1,221 @@
+"""Fitting the box regressor of :mod:`fastdet.video.refine` from annotated frames.
+
+Samples: for every annotated vehicle box (``consider = 1``) of every training frame, random
+*jittered* boxes about it (:func:`jitter_boxes`: centre moved by up to ``shift`` x the size,
+size scaled by ``0.7 .. 1.4``, aspect changed by up to ``exp(+-aspect)``, kept when their IoU
+with the vehicle is at least ``min_iou``), each with the features of its region
+(``coder.features``, :class:`fastdet.video.refine.BoxFeatures`) and, as its target, the
+offsets that take it to the vehicle's box (``coder.encode``); the frame mirrored
+left-right gives as many again. A ridge regression on standardised features
+(:func:`fit_ridge`) predicts the four offsets; its ``alpha`` is chosen by cross-validation
+over folds that keep each vehicle (``group``) on one side, by the mean IoU of the decoded
+boxes with their vehicles.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+
+from ..boxes import iou as box_iou
+
+
+class BoxCoder(Protocol):
+    """What fitting needs to know of a regressor's inputs and outputs
+    (:class:`fastdet.video.refine.BoxFeatures` is one; the video layer is not imported here):
+    ``features(frame, boxes (N, 4)) -> (N, n_features)``, ``encode(boxes, targets) -> (N, 4)``
+    offsets and ``decode(boxes, offsets) -> (N, 4)`` boxes."""
+
+    @property
+    def n_features(self) -> int: ...
+
+    def features(self, frame: np.ndarray, boxes: np.ndarray) -> np.ndarray: ...
+
+    def encode(self, boxes: np.ndarray, targets: np.ndarray) -> np.ndarray: ...
+
+    def decode(self, boxes: np.ndarray, offsets: np.ndarray) -> np.ndarray: ...
+
+#: ridge penalties tried by :func:`fit_ridge` (on standardised features, summed squared error)
+ALPHAS = tuple(float(a) for a in np.logspace(1, 6, 11))
+
+
+@dataclass(frozen=True)
+class JitterConfig:
+    """Random boxes about a vehicle's box (module docstring). shift: fraction of the width /
+    height; scale: ``(low, high)`` size factors (log-uniform); aspect: ``|log|`` aspect change;
+    min_iou: smallest IoU with the vehicle kept; per_box: samples per vehicle box."""
+
+    shift: float = 0.25
+    scale: tuple[float, float] = (0.7, 1.4)
+    aspect: float = 0.2
+    min_iou: float = 0.3
+    per_box: int = 16
+
+
+def jitter_boxes(target: np.ndarray, n: int, rng: np.random.Generator, config: JitterConfig = JitterConfig()) -> np.ndarray:
+    """``n`` random boxes ``(n, 4) float64`` about ``target (4,)`` x1, y1, x2, y2 whose IoU
+    with it is at least ``config.min_iou`` (drawn in rounds until there are ``n``)."""
+    t = np.asarray(target, np.float64).reshape(4)
+    w, h = t[2] - t[0], t[3] - t[1]
+    cx, cy = t[0] + 0.5 * w, t[1] + 0.5 * h
+    out: list[np.ndarray] = []
+    got = 0
+    for _ in range(100):
+        m = 4 * n
+        s = np.exp(rng.uniform(math.log(config.scale[0]), math.log(config.scale[1]), m))
+        a = np.exp(rng.uniform(-config.aspect, config.aspect, m))
+        nw, nh = w * s * np.sqrt(a), h * s / np.sqrt(a)
+        ncx = cx + rng.uniform(-config.shift, config.shift, m) * w
+        ncy = cy + rng.uniform(-config.shift, config.shift, m) * h
+        b = np.stack([ncx - 0.5 * nw, ncy - 0.5 * nh, ncx + 0.5 * nw, ncy + 0.5 * nh], axis=1)
+        b = b[box_iou(b, t[None])[:, 0] >= config.min_iou]
+        out.append(b)
+        got += len(b)
+        if got >= n:
+            break
+    return np.concatenate(out)[:n]
+
+
+@dataclass
+class Samples:
+    """Training rows: features ``x (N, F) float64``, offsets ``t (N, 4) float64``, the boxes
+    they were cut from ``boxes (N, 4)`` and their vehicles ``targets (N, 4)`` (x1, y1, x2, y2),
+    ``group (N,) int64`` (one number per vehicle, for leak-free folds)."""
+
+    x: np.ndarray
+    t: np.ndarray
+    boxes: np.ndarray
+    targets: np.ndarray
+    group: np.ndarray
+
+    @classmethod
+    def concat(cls, parts: Sequence["Samples"]) -> "Samples":
+        return cls(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("x", "t", "boxes", "targets", "group")))
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+def frame_samples(frame: np.ndarray, targets: np.ndarray, groups: np.ndarray, rng: np.random.Generator,
+                  coder: BoxCoder, jitter: JitterConfig = JitterConfig(), flip: bool = True) -> Samples:
+    """Samples of one frame ``(H, W, 3) uint8 BGR`` with vehicle boxes ``targets (M, 4)``
+    and their groups ``(M,)``; ``flip``: the mirrored frame too."""
+    targets = np.asarray(targets, np.float64).reshape(-1, 4)
+    groups = np.asarray(groups, np.int64).reshape(-1)
+    W = frame.shape[1]
+    views = [(frame, targets)]
+    if flip:
+        views.append((np.ascontiguousarray(frame[:, ::-1]),
+                      np.stack([W - targets[:, 2], targets[:, 1], W - targets[:, 0], targets[:, 3]], axis=1)))
+    parts = []
+    for img, tg in views:
+        boxes, tgs, grp = [], [], []
+        for g, t in zip(groups, tg):
+            if t[2] - t[0] < 4 or t[3] - t[1] < 4:
+                continue
+            b = jitter_boxes(t, jitter.per_box, rng, jitter)
+            boxes.append(b)
+            tgs.append(np.repeat(t[None], len(b), 0))
+            grp.append(np.full(len(b), g, np.int64))
+        if not boxes:
+            continue
+        b, tt = np.concatenate(boxes), np.concatenate(tgs)
+        parts.append(Samples(coder.features(img, b), coder.encode(b, tt), b, tt,
+                             np.concatenate(grp)))
+    if not parts:
+        return Samples(np.zeros((0, coder.n_features)), np.zeros((0, 4)), np.zeros((0, 4)), np.zeros((0, 4)), np.zeros(0, np.int64))
+    return Samples.concat(parts)
+
+
+def collect_samples(frames: Iterable[tuple[np.ndarray, np.ndarray, np.ndarray]], coder: BoxCoder, seed: int = 0,
+                    jitter: JitterConfig = JitterConfig(), flip: bool = True) -> Samples:
+    """:func:`frame_samples` of every ``(frame, targets (M, 4), groups (M,))``, one random
+    stream seeded by ``seed``."""
+    rng = np.random.default_rng(seed)
+    parts = [frame_samples(f, t, g, rng, coder, jitter, flip) for f, t, g in frames]
+    parts = [p for p in parts if len(p)]
+    if not parts:
+        raise ValueError("no training samples: no annotated vehicle boxes in the frames given")
+    return Samples.concat(parts)
+
+
+def _ridge_path(x: np.ndarray, y: np.ndarray, alphas: Sequence[float]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Ridge solutions ``(coef (4, F), intercept (4,))`` of standardised ``x (N, F)`` on
+    ``y (N, 4)`` for every alpha, from one eigendecomposition of the smaller Gram matrix."""
+    ym = y.mean(axis=0)
+    yc = y - ym
+    xc = x - x.mean(axis=0)
+    out = []
+    if xc.shape[0] >= xc.shape[1]:  # (X'X + a I)^-1 X'y
+        lam, v = np.linalg.eigh(xc.T @ xc)
+        vtxy = v.T @ (xc.T @ yc)
+        for a in alphas:
+            out.append(((v @ (vtxy / (np.clip(lam, 0, None) + a)[:, None])).T, ym.copy()))
+    else:  # X' (XX' + a I)^-1 y
+        lam, u = np.linalg.eigh(xc @ xc.T)
+        uty = u.T @ yc
+        for a in alphas:
+            out.append(((xc.T @ (u @ (uty / (np.clip(lam, 0, None) + a)[:, None]))).T, ym.copy()))
+    return out
+
+
+def _standardise(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    mean = x.mean(axis=0)
+    scale = x.std(axis=0)
+    scale = np.where(scale > 1e-8, scale, 1.0)
+    return (x - mean) / scale, mean, scale
+
+
+def mean_iou(boxes: np.ndarray, offsets: np.ndarray, targets: np.ndarray, coder: BoxCoder) -> float:
+    """Mean IoU of ``boxes (N, 4)`` moved by ``offsets (N, 4)`` with ``targets (N, 4)``."""
+    return float(np.mean(paired_iou(coder.decode(boxes, offsets), targets))) if len(boxes) else math.nan
+
+
+def paired_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``(N,) float64`` IoU of ``a[i]`` with ``b[i]`` (``(N, 4)`` boxes each)."""
+    a, b = np.asarray(a, np.float64).reshape(-1, 4), np.asarray(b, np.float64).reshape(-1, 4)
+    w = np.clip(np.minimum(a[:, 2], b[:, 2]) - np.maximum(a[:, 0], b[:, 0]), 0, None)
+    h = np.clip(np.minimum(a[:, 3], b[:, 3]) - np.maximum(a[:, 1], b[:, 1]), 0, None)
+    inter = w * h
+    union = (np.clip(a[:, 2] - a[:, 0], 0, None) * np.clip(a[:, 3] - a[:, 1], 0, None)
+             + np.clip(b[:, 2] - b[:, 0], 0, None) * np.clip(b[:, 3] - b[:, 1], 0, None) - inter)
+    return np.where(union > 0, inter / np.where(union > 0, union, 1.0), 0.0)
+
+
+def fit_ridge(samples: Samples, coder: BoxCoder, alphas: Sequence[float] = ALPHAS, folds: int = 4,
+              max_offset: float = 1.0) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], dict[str, Any]]:
+    """Fit offsets on features with ridge regression; ``alpha`` by ``folds``-fold
+    cross-validation over groups (each vehicle wholly in one fold; fewer folds when there
+    are fewer vehicles; at least 2), scored by the mean IoU of the decoded boxes. Offsets
+    are clipped to ``+-max_offset`` for fitting (an outlier's log-size is not learnt as is).
+
+    Returns ``((coef (4, F), intercept (4,), mean (F,), scale (F,)), report)``, refitted on
+    all samples (:meth:`fastdet.video.refine.BoxRegressor.from_fit` makes the regressor of
+    them), the report holding: the alphas, the cross-validated mean
+    IoU of each, the chosen alpha, the mean IoU of the jittered boxes as they were."""
+    x, y = samples.x, np.clip(samples.t, -max_offset, max_offset)
+    groups = np.unique(samples.group)
+    k = max(2, min(folds, len(groups)))
+    if len(groups) < 2:
+        raise ValueError("cross-validation needs samples of at least two vehicles")
+    fold_of = {g: i % k for i, g in enumerate(groups)}
+    fold = np.array([fold_of[g] for g in samples.group])
+    scores = np.zeros((k, len(alphas)))
+    for f in range(k):
+        tr, te = fold != f, fold == f
+        xs, mean, scale = _standardise(x[tr])
+        xte = (x[te] - mean) / scale
+        for j, (coef, icpt) in enumerate(_ridge_path(xs, y[tr], alphas)):
+            scores[f, j] = mean_iou(samples.boxes[te], np.clip(xte @ coef.T + icpt, -max_offset, max_offset),
+                                    samples.targets[te], coder)
+    cv = scores.mean(axis=0)
+    best = int(np.argmax(cv))
+    xs, mean, scale = _standardise(x)
+    coef, icpt = _ridge_path(xs, y, [alphas[best]])[0]
+    report = {"alphas": [float(a) for a in alphas], "cv_mean_iou": [float(v) for v in cv], "alpha": float(alphas[best]),
+              "folds": k, "groups": int(len(groups)), "samples": int(len(samples)),
+              "jittered_mean_iou": mean_iou(samples.boxes, np.zeros_like(samples.t), samples.targets, coder)}
+    return (coef, icpt, mean, scale), report

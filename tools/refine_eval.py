@@ -1,0 +1,270 @@
+"""Learned box refinement (:mod:`fastdet.video.refine`), measured cross-clip on the real pipeline's boxes.
+
+For each held-out clip E of ``$FASTDET_DATA`` (``test_small1``, ``test_video``), a box
+regressor is fitted (:mod:`fastdet.train.refine`) on the annotated vehicles of the *other*
+clip and the six test images (``tools/test_images.gt.txt``) -- never on E. The default video
+pipeline (``VideoDetector``: main + oncoming model, heat maps, tracker, horizon primed from
+the clip, as ``iter_video_detections``) runs on E (and on camera-shift variants of it,
+``--variants``, :mod:`fastdet.eval.variants`), each frame's boxes are refined, and both are
+scored with :func:`fastdet.eval.evaluate` at IoU 0.5 (F1, AP, IDF1, FP per frame) and by the
+IoU of *paired* boxes: each vehicle (``consider = 1``) paired with the pipeline box that
+overlaps it most if that IoU >= 0.3 (greedy, one box per vehicle), the IoU of the same box
+with the same vehicle before and after refinement (median, fraction >= 0.5 and >= 0.7).
+
+    python -m tools.refine_eval [--clips test_small1,test_video] [--variants original,960x540,wide0.8]
+        [--contexts 1.5] [--iterations 1] [--parts 0,1] [--per-box 16] [--hog-channels 0]
+        [--cache DIR] [--json OUT.json] [--ship fastdet/models/refine.npz]
+
+``--ship PATH`` also fits one regressor on everything (both clips and the test images)
+and writes it to PATH. Pipeline boxes are cached under ``--cache`` (default
+``$TMPDIR/fastdet_refine_eval``), keyed by clip and variant, so settings of the refinement
+can be compared without running the detector again.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from fastdet.config import FeatureConfig
+from fastdet.data import data_dir
+from fastdet.detections import Detections
+from fastdet.eval import evaluate
+from fastdet.eval.variants import Variant, standard_variants, transform_gt
+from fastdet.io.motfiles import GroundTruth, Predictions, read_gt
+from fastdet.train.refine import JitterConfig, Samples, collect_samples, fit_ridge, paired_iou
+from fastdet.video.pipeline import VideoDetector, make_detector
+from fastdet.video.refine import BoxFeatures, BoxRegressor, RefineConfig, refine
+
+from .camera_shift import read_frames, variant_frames
+
+CLIPS = ("test_small1", "test_video")
+TEST_IMAGES_GT = Path(__file__).resolve().parent / "test_images.gt.txt"
+
+
+# ---------------------------------------------------------------------------------------- data
+
+
+def annotated(frames: list[np.ndarray], gt: GroundTruth, group_base: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """``(frame, vehicle boxes (M, 4), groups (M,))`` of every frame with a ``consider = 1`` box."""
+    out = []
+    for f in np.unique(gt.frames[gt.consider]):
+        sel = (gt.frames == f) & gt.consider
+        if 1 <= f <= len(frames):
+            out.append((frames[int(f) - 1], gt.boxes[sel], group_base + gt.ids[sel]))
+    return out
+
+
+def test_images() -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    gt = read_gt(TEST_IMAGES_GT)
+    imgs = [cv2.imread(str(data_dir() / "test_images" / f"test{i}.jpg")) for i in range(1, 7)]
+    return annotated(imgs, gt, 900_000)  # ids are unique over the six images
+
+
+def clip_data(clip: str) -> tuple[list[np.ndarray], GroundTruth]:
+    root = data_dir()
+    return read_frames(root / "videos" / f"{clip}.mp4"), read_gt(root / "annotations" / f"{clip}.gt.txt")
+
+
+def fit_box_regressor(samples: Samples, spec: BoxFeatures, metadata: dict[str, Any] | None = None) -> BoxRegressor:
+    """:func:`fastdet.train.refine.fit_ridge` on ``samples`` (made with ``spec``), as a
+    regressor whose metadata holds the fit's report (``"fit"``) and ``metadata``."""
+    arrays, report = fit_ridge(samples, spec)
+    return BoxRegressor.from_fit(spec, *arrays, metadata={**(metadata or {}), "fit": report})
+
+
+# ---------------------------------------------------------------------------------------- pipeline boxes
+
+
+def _part_of(boxes: np.ndarray, windows: Detections) -> np.ndarray:
+    """``(N,) int8``: 1 where most positive windows centred in a box are the wide model's."""
+    out = np.zeros(len(boxes), np.int8)
+    if len(windows) == 0 or len(boxes) == 0:
+        return out
+    wb = windows.boxes.astype(np.float64)
+    cx, cy = 0.5 * (wb[:, 0] + wb[:, 2]), 0.5 * (wb[:, 1] + wb[:, 3])
+    wide = windows.is_wide
+    for i, b in enumerate(boxes):
+        inside = (cx >= b[0]) & (cx < b[2]) & (cy >= b[1]) & (cy < b[3])
+        out[i] = int(inside.any() and wide[inside].sum() > (~wide[inside]).sum())
+    return out
+
+
+def pipeline_boxes(det: Any, frames: list[np.ndarray], cache: Path) -> list[Detections]:
+    """The default pipeline's boxes of every frame (cached in ``cache``), ``part`` filled by
+    :func:`_part_of` (the tracker's output has no part column)."""
+    if cache.exists():
+        z = np.load(cache, allow_pickle=False)
+        out, i = [], 0
+        for k in z["n"]:
+            sl = slice(i, i + int(k))
+            out.append(Detections(z["boxes"][sl], z["scores"][sl], part=z["part"][sl], ids=z["ids"][sl]))
+            i += int(k)
+        return out
+    vd = VideoDetector(det, horizon="auto")
+    vd.prime_horizon(frames)
+    vd.warmup()
+    out = []
+    for f in frames:
+        d = vd.update(f)
+        ids = d.ids if d.ids is not None else np.full(len(d), -1)
+        out.append(Detections(d.boxes, d.scores, part=_part_of(d.boxes, vd.last_windows), ids=ids))
+    cat = Detections.concat(out)
+    cache.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(cache, n=np.array([len(d) for d in out]), boxes=cat.boxes, scores=cat.scores,
+                        part=cat.part if cat.part is not None else np.zeros(0, np.int8),
+                        ids=cat.ids if cat.ids is not None else np.zeros(0, np.int64))
+    return out
+
+
+# ---------------------------------------------------------------------------------------- scoring
+
+
+def paired(gt: GroundTruth, dets: list[Detections], min_iou: float = 0.3) -> list[tuple[int, int, int]]:
+    """``(frame index, box row, gt row)``: each vehicle with the box overlapping it most
+    (IoU >= ``min_iou``), greedily by IoU, one box per vehicle and one vehicle per box."""
+    from fastdet.boxes import iou
+
+    out = []
+    for fi, d in enumerate(dets):
+        rows = np.flatnonzero((gt.frames == fi + 1) & gt.consider)
+        if not len(rows) or not len(d):
+            continue
+        m = iou(d.boxes, gt.boxes[rows])
+        while True:
+            i, j = np.unravel_index(int(np.argmax(m)), m.shape)
+            if m[i, j] < min_iou:
+                break
+            out.append((fi, int(i), int(rows[j])))
+            m[i, :] = -1
+            m[:, j] = -1
+    return out
+
+
+def score(gt: GroundTruth, dets: list[Detections], pairs: list[tuple[int, int, int]], n_frames: int) -> dict[str, Any]:
+    preds = Predictions.from_frames([(i + 1, d) for i, d in enumerate(dets)])
+    r = evaluate(gt, preds, iou=0.5, num_frames=n_frames)
+    ious = np.array([paired_iou(dets[fi].boxes[i:i + 1], gt.boxes[g:g + 1])[0] for fi, i, g in pairs])
+    nan = math.nan
+    return {"f1": r.f1, "ap": r.ap, "idf1": r.idf1, "fp_per_frame": r.fp_per_frame, "tp": r.tp, "fp": r.fp,
+            "fn": r.fn, "pairs": len(ious),
+            "iou_median": float(np.median(ious)) if len(ious) else nan,
+            "iou_mean": float(np.mean(ious)) if len(ious) else nan,
+            "iou_ge_0.5": float(np.mean(ious >= 0.5)) if len(ious) else nan,
+            "iou_ge_0.7": float(np.mean(ious >= 0.7)) if len(ious) else nan}
+
+
+def refine_all(frames: list[np.ndarray], dets: list[Detections], reg: BoxRegressor,
+               cfg: RefineConfig) -> tuple[list[Detections], float]:
+    """Every frame's boxes refined, and the milliseconds per frame it took."""
+    refine(frames[0], dets[0], reg, cfg)  # warm the kernels
+    t0 = time.perf_counter()
+    out = [refine(f, d, reg, cfg) for f, d in zip(frames, dets)]
+    return out, 1000 * (time.perf_counter() - t0) / len(frames)
+
+
+# ---------------------------------------------------------------------------------------- main
+
+
+def _fmt(row: dict[str, Any]) -> str:
+    def g(k: str, d: int = 3) -> str:
+        v = row[k]
+        return "n/a" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{v:.{d}f}"
+    return (f"F1 {g('f1')}  AP {g('ap')}  IDF1 {g('idf1')}  FP/frame {g('fp_per_frame')}  "
+            f"TP/FP/FN {row['tp']}/{row['fp']}/{row['fn']}  pairs {row['pairs']}  IoU median {g('iou_median')} "
+            f"mean {g('iou_mean')}  >=0.5 {g('iou_ge_0.5')}  >=0.7 {g('iou_ge_0.7')}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--clips", default=",".join(CLIPS))
+    ap.add_argument("--variants", default="original")
+    ap.add_argument("--contexts", default="1.5", help="context factors of the feature crops, comma-separated")
+    ap.add_argument("--iterations", type=int, default=1)
+    ap.add_argument("--parts", default=None, help="refine only these parts (0 main, 1 oncoming), e.g. 1")
+    ap.add_argument("--per-box", type=int, default=16, help="jittered samples per vehicle box (and as many mirrored)")
+    ap.add_argument("--hog-channels", default="0", help="HOG channels of YCrCb, e.g. 0 or 0,1,2")
+    ap.add_argument("--orientations", type=int, default=9)
+    ap.add_argument("--cell", type=int, default=8, help="HOG pixels per cell")
+    ap.add_argument("--spatial", type=int, default=8, help="spatial-bin side (0: none)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--cache", default=os.path.join(tempfile.gettempdir(), "fastdet_refine_eval"))
+    ap.add_argument("--json", default=None)
+    ap.add_argument("--ship", default=None, help="also fit on everything and write the regressor here")
+    a = ap.parse_args(argv)
+
+    fcfg = FeatureConfig(color_space="YCrCb", hog_channels=tuple(int(c) for c in a.hog_channels.split(",")),
+                         orientations=a.orientations, pixels_per_cell=a.cell, cells_per_block=2,
+                         spatial_size=a.spatial, hist_bins=0)
+    contexts = tuple(float(c) for c in a.contexts.split(","))
+    spec = BoxFeatures(fcfg, contexts)
+    rcfg = RefineConfig(iterations=a.iterations,
+                        parts=None if a.parts is None else tuple(int(p) for p in a.parts.split(",")))
+    jitter = JitterConfig(per_box=a.per_box)
+    clips = [c for c in a.clips.split(",") if c]
+    by_name = {v.name: v for v in standard_variants()}
+    variants: list[Variant] = [by_name[n] for n in a.variants.split(",") if n]
+    cache = Path(a.cache)
+
+    data = {c: clip_data(c) for c in CLIPS}
+    imgs = test_images()
+    train_frames = {c: annotated(data[c][0], data[c][1], 1000 * (k + 1)) for k, c in enumerate(CLIPS)}
+
+    def samples_for(names: list[str]) -> Samples:
+        src = [fr for n in names for fr in train_frames[n]] + imgs
+        return collect_samples(src, spec, seed=a.seed, jitter=jitter)
+
+    det = make_detector()
+    rows: list[dict[str, Any]] = []
+    settings = {"contexts": contexts, "features": fcfg.to_dict(), "iterations": a.iterations, "parts": a.parts,
+                "per_box": a.per_box, "seed": a.seed}
+    print(json.dumps(settings), flush=True)
+    with tempfile.TemporaryDirectory(prefix="fastdet_refine_eval_") as tmpd:
+        for clip in clips:
+            others = [c for c in CLIPS if c != clip]
+            t0 = time.perf_counter()
+            smp = samples_for(others)
+            reg = fit_box_regressor(smp, spec, metadata={"trained_on": others + ["test_images"]})
+            fit = reg.metadata["fit"]
+            print(f"[{clip}] regressor fitted on {'+'.join(others)}+test_images: {fit['samples']} samples of "
+                  f"{fit['groups']} vehicles, alpha {fit['alpha']:g}, CV mean IoU {max(fit['cv_mean_iou']):.3f} "
+                  f"(jittered {fit['jittered_mean_iou']:.3f}), {time.perf_counter() - t0:.1f} s", flush=True)
+            src, gt0 = data[clip]
+            for v in variants:
+                frames = variant_frames(src, v, clip, Path(tmpd))
+                gt = transform_gt(gt0, v, src[0].shape[:2])
+                dets = pipeline_boxes(det, frames, cache / f"{clip}.{v.name}.npz")
+                pairs = paired(gt, dets)
+                before = score(gt, dets, pairs, len(frames))
+                refined, ms = refine_all(frames, dets, reg, rcfg)
+                after = score(gt, refined, pairs, len(frames))
+                nbox = sum(len(d) for d in dets) / len(frames)
+                row = {"clip": clip, "variant": v.name, "before": before, "after": after, "ms_per_frame": ms,
+                       "boxes_per_frame": nbox, "alpha": fit["alpha"]}
+                rows.append(row)
+                print(f"[{clip} {v.name}] before  {_fmt(before)}\n[{clip} {v.name}] after   {_fmt(after)}"
+                      f"\n[{clip} {v.name}] refinement {ms:.2f} ms/frame ({nbox:.2f} boxes/frame)", flush=True)
+    if a.ship:
+        smp = samples_for(list(CLIPS))
+        reg = fit_box_regressor(smp, spec, metadata={
+            "trained_on": list(CLIPS) + ["test_images"], "settings": settings,
+            "command": "python -m tools.refine_eval " + " ".join(argv if argv is not None else sys.argv[1:]),
+            "held_out": rows})
+        reg.save(a.ship)
+        print(f"wrote {a.ship}: fitted on {'+'.join(CLIPS)}+test_images, alpha {reg.metadata['fit']['alpha']:g}")
+    if a.json:
+        Path(a.json).write_text(json.dumps({"settings": settings, "rows": rows}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
