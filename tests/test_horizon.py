@@ -151,3 +151,37 @@ def test_video_detector_estimates_the_horizon():
     # still pictures give no estimate: the reference bands
     vd2 = VideoDetector(det)
     assert vd2.prime_horizon([frames[0]] * 20) is None and det.horizon is None
+
+
+@pytest.mark.parametrize("start", [0, 7])
+def test_video_detector_for_primes_from_the_run_reader(data, start, monkeypatch):
+    """video_detector_for takes the first seconds from the run's reader (peek): the same
+    horizon as a second reader of the file gives, the file decoded once, every frame still
+    yielded; over the buffer limit (or a run shorter than the priming) it decodes them again."""
+    from fastdet.io.reader import FrameReader
+    from fastdet.video import pipeline
+    from fastdet.video.pipeline import VideoDetector, make_detector, prime_horizon_from_file, video_detector_for
+
+    path = data / "videos" / "test_small1.mp4"
+    det = make_detector()
+    prime_horizon_from_file(VideoDetector(det), path, start)
+    want = det.horizon
+    opened = []
+    real = pipeline.FrameReader
+
+    class Counting(real):
+        def __init__(self, *a, **k):
+            opened.append(a[0])
+            super().__init__(*a, **k)
+
+    monkeypatch.setattr(pipeline, "FrameReader", Counting)
+    with FrameReader(path, start, notify=lambda _n: None) as r:
+        det.set_horizon(None)
+        video_detector_for(r, det)
+        assert det.horizon == want and opened == []
+        assert [fno for fno, *_ in r][:3] == [start + 1, start + 2, start + 3]
+    monkeypatch.setattr(pipeline, "PRIME_BUFFER_BYTES", 1000)
+    with FrameReader(path, start, notify=lambda _n: None) as r:
+        det.set_horizon(None)
+        video_detector_for(r, det)
+        assert det.horizon == want and len(opened) == 1

@@ -80,6 +80,54 @@ def test_reader_skips_damage_and_keeps_numbers(damaged):
     assert len(notes) == 1 and "frames 16-18 could not be decoded" in notes[0]
 
 
+@pytest.mark.parametrize("ahead", [0, 1, 10, 17, 200])
+def test_peek_then_iterate_yields_every_frame_once(damaged, ahead):
+    """peek(n) gives the next n frames (fewer at the end) and iteration yields them again,
+    then the rest: the same numbers, pixels, notes and skipped ranges as without it."""
+    with FrameReader(damaged, start=2, notify=lambda _n: None) as plain:
+        want = [(fno, frame.copy()) for fno, frame, _ in plain]
+    notes = []
+    with FrameReader(damaged, start=2, notify=notes.append) as r:
+        peeked = r.peek(ahead)
+        assert len(peeked) == min(ahead, len(want))
+        for (fno, frame), p in zip(want, peeked):
+            assert (frame == p).all()
+        assert r.peek(ahead) == peeked or all((a == b).all() for a, b in zip(r.peek(ahead), peeked))
+        got = [(fno, frame) for fno, frame, _ in r]
+    assert [f for f, _ in got] == [f for f, _ in want]
+    assert all((a == b).all() for (_, a), (_, b) in zip(got, want))
+    assert r.decoded == len(want) and r.skipped == [(16, 18)]
+    assert len(notes) == 1
+
+
+def test_peek_keeps_a_decoding_error_for_the_iteration(tmp_path):
+    """A decoding error inside the frames peeked at is raised when the iteration reaches it,
+    after the frames before it were yielded."""
+    from fastdet.errors import DataError
+
+    path = write_video(tmp_path / "v.mp4", 6, INTRA)
+    r = FrameReader(path)
+    real = r._read
+    calls = [0]
+
+    def failing():
+        calls[0] += 1
+        if calls[0] == 3:
+            raise RuntimeError("boom")
+        return real()
+
+    r._read = failing
+    try:
+        assert len(r.peek(10)) == 3  # the first frame and two more, then the error
+        got = []
+        with pytest.raises(DataError, match="boom"):
+            for fno, *_ in r:
+                got.append(fno)
+        assert got == [1, 2, 3]
+    finally:
+        r.close()
+
+
 def test_video_cli_on_a_cut_exits_0_with_every_output(cut, tmp_path, capsys):
     path, n, header = cut
     out, boxes, js = tmp_path / "o.mp4", tmp_path / "b.txt", tmp_path / "b.jsonl"

@@ -26,6 +26,7 @@ import queue
 import re
 import threading
 import time
+from collections import deque
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -95,7 +96,8 @@ class FrameReader:
     Opening checks the source and decodes the first frame (after skipping ``start``), so a
     missing file, a non-video or a zero-frame video fail here, before any output exists.
     Iterating yields ``(frame_number, frame (H, W, 3) uint8 BGR, decode_seconds)`` with
-    1-based frame numbers. Afterwards ``decoded`` is the number of frames yielded and
+    1-based frame numbers; :meth:`peek` decodes the next frames ahead and iterating then
+    yields them as well (each frame is decoded once). Afterwards ``decoded`` is the number of frames yielded and
     ``skipped`` the list of ``(first, last)`` frame numbers that were damaged.
     """
 
@@ -148,6 +150,9 @@ class FrameReader:
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="fastdet-decode", daemon=True)
         self._started = False
+        self._held: deque[tuple[int, np.ndarray, float]] = deque()  # peeked, not yet yielded
+        self._held_error: DataError | None = None  # raised after the held frames
+        self._items: Iterator[tuple[int, np.ndarray, float]] | None = None
 
     @property
     def first_frame(self) -> np.ndarray:
@@ -212,7 +217,8 @@ class FrameReader:
                    f"{self.frame_count} (the end is where decoding ends)")
             self._put(("note", msg))
 
-    def __iter__(self) -> Iterator[tuple[int, np.ndarray, float]]:
+    def _pull(self) -> Iterator[tuple[int, np.ndarray, float]]:
+        """The decoded frames from the thread (notes delivered, damage recorded on the way)."""
         if not self._started:
             self._started = True
             self._thread.start()
@@ -235,6 +241,40 @@ class FrameReader:
                 continue
             if tag == "error":
                 raise DataError(item[1])
+            yield item
+
+    def _source(self) -> Iterator[tuple[int, np.ndarray, float]]:
+        if self._items is None:
+            self._items = self._pull()
+        return self._items
+
+    def peek(self, n: int) -> list[np.ndarray]:
+        """The next ``n`` frames (fewer when the stream ends first), decoded now and kept:
+        iterating yields them (with their numbers and decode times) before the frames after
+        them, so a caller can look ahead (e.g. the horizon estimate of the first seconds)
+        without decoding them twice. A decoding error among them is raised by the iteration
+        once it reaches it, as without the look-ahead."""
+        src = self._source()
+        while len(self._held) < n and self._held_error is None:
+            try:
+                item = next(src, None)
+            except DataError as exc:
+                self._held_error = exc
+                break
+            if item is None:
+                break
+            self._held.append(item)
+        return [item[1] for item in list(self._held)[:n]]
+
+    def __iter__(self) -> Iterator[tuple[int, np.ndarray, float]]:
+        while self._held:
+            item = self._held.popleft()
+            self.decoded += 1
+            yield item
+        if self._held_error is not None:
+            exc, self._held_error = self._held_error, None
+            raise exc
+        for item in self._source():
             self.decoded += 1
             yield item
 
@@ -244,6 +284,7 @@ class FrameReader:
         return sum(b - a + 1 for a, b in self.skipped)
 
     def close(self) -> None:
+        self._held.clear()
         self._stop.set()
         if self._started:
             while self._thread.is_alive():

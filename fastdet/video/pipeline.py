@@ -42,6 +42,11 @@ from .track import LOST, Tracker
 
 ModelLike = Model | str | os.PathLike | None
 
+#: most bytes of frames :func:`video_detector_for` keeps to estimate the horizon from the
+#: run's own reader (75 frames of 1280x720: 207 MB); for larger frames the first seconds are
+#: decoded a second time instead
+PRIME_BUFFER_BYTES = 256 * 2**20
+
 
 @runtime_checkable
 class WindowDetector(Protocol):
@@ -447,10 +452,19 @@ def video_detector_for(reader: FrameReader, detector: WindowDetector, heat: Heat
     (``video``, ``eval --video``, ``batch``) builds it, so they all give the same boxes: the
     first frame checked against the detector's search (size, colour) before any output exists,
     the motion gate at the video's frame rate, and for a file the horizon primed from its first
-    seconds (:func:`prime_horizon_from_file`)."""
+    seconds (:func:`prime_horizon_from_file`; the frames come from ``reader`` itself,
+    :meth:`FrameReader.peek <fastdet.io.reader.FrameReader.peek>`, when they fit in
+    :data:`PRIME_BUFFER_BYTES` and the run reads at least that many)."""
     check_frame(detector, reader.first_frame, reader.path)
     vd = VideoDetector(detector, heat, tracker=tracker, fps=reader.fps, horizon=horizon, guided=guided)
-    prime_horizon_from_file(vd, reader.path, reader.start)
+    if (vd.horizon == "auto" and reader.kind == "file" and os.path.isfile(reader.path)
+            and (reader.limit is None or reader.limit >= HORIZON_FRAMES)
+            and HORIZON_FRAMES * reader.first_frame.nbytes <= PRIME_BUFFER_BYTES):
+        # the run's own reader decodes the first seconds ahead and yields them again: the
+        # same frames as a second reader of the file would give, decoded once
+        vd.prime_horizon(reader.peek(HORIZON_FRAMES))
+    else:
+        prime_horizon_from_file(vd, reader.path, reader.start)
     return vd
 
 
