@@ -190,3 +190,71 @@ def test_video_detector_rgb_frames_give_the_same_boxes(detector, oncoming_frames
         assert a.boxes.tolist() == b.boxes.tolist()
         assert bgr.last_windows.boxes.tolist() == rgb.last_windows.boxes.tolist()
     assert bgr.last_windows.is_wide.any(), "the second frame has moving oncoming cars"
+
+
+# ------------------------------------------------------------------ the moving-columns kernel
+
+
+def _old_moving_bands(geo, config, motion, min_motion):
+    """moving_bands as it was, in NumPy (the reference for the kernel version)."""
+    from fastdet.boxes import window_offsets
+    from fastdet.config import SearchBand
+    from fastdet.video.motion import _mean_in
+
+    if geo.n_windows == 0:
+        return []
+    s, cell = geo.band.scale, config.pixels_per_cell
+    left = geo.x0 + window_offsets(np.arange(geo.nx), geo.step, cell, s)
+    top = geo.y0 + window_offsets(np.arange(geo.ny), geo.step, cell, s)
+    right, bottom = left + int(config.win_w * s), top + int(config.win_h * s)
+    moving = (_mean_in(motion, left, top[:, None], right, bottom[:, None]) >= min_motion).any(axis=0)
+    if not moving.any():
+        return []
+    idx = np.flatnonzero(moving)
+    per_window = max(1, config.blocks_x // geo.step)
+    breaks = np.flatnonzero(np.diff(idx) > per_window)
+    starts = np.concatenate([[idx[0]], idx[breaks + 1]])
+    stops = np.concatenate([idx[breaks], [idx[-1]]])
+    out = []
+    for c0, c1 in zip(starts, stops):
+        c0, c1 = max(c0 - 1, 0), min(c1 + 1, geo.nx - 1)
+        x_a = int(left[c0])
+        x_b = x_a + int(np.ceil(((c1 - c0) * geo.step + config.win_w // cell) * cell * s - 1e-9))
+        out.append(SearchBand(geo.band.scale, geo.band.y_start, geo.band.y_stop, x_a, min(x_b, geo.x1)))
+    return out
+
+
+@settings(max_examples=150, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), roi=st.tuples(st.integers(0, 300), st.integers(0, 200),
+                                                     st.integers(1, 320), st.integers(1, 240)),
+       gate=st.sampled_from([0.0, 0.5, 2.0, 5.0, 20.0]), blob=st.integers(0, 4))
+def test_moving_bands_same_as_the_numpy_version(detector, seed, roi, gate, blob):
+    """Random motion (a few moving patches over noise) in a region of a 320x240 frame that
+    may miss the bands: the kernel's bands equal the NumPy grid's."""
+    rng = np.random.default_rng(seed)
+    prev = rng.integers(0, 256, (240, 320, 3), np.uint8)
+    cur = prev.copy()
+    cur = np.clip(cur.astype(np.int16) + rng.integers(-3, 4, cur.shape), 0, 255).astype(np.uint8)
+    for _ in range(blob):
+        x, y = rng.integers(0, 300), rng.integers(0, 220)
+        cur[y:y + 30, x:x + 40] = rng.integers(0, 256, 3)
+    fm = FrameMotion()
+    x1, y1, w, h = roi  # a non-empty region, maybe past the frame's edge (clipped)
+    x2, y2 = min(x1 + w, 320), min(y1 + h, 240)
+    fm.update(prev, (x1, y1, x2, y2))
+    motion = fm.update(cur, (x1, y1, x2, y2))
+    cfg = detector.wide_model.config
+    for g in detector.geometries((240, 320), part=1):
+        assert moving_bands(g, cfg, motion, gate) == _old_moving_bands(g, cfg, motion, gate)
+
+
+def test_moving_bands_same_as_the_numpy_version_on_real_frames(detector, oncoming_frames):
+    prev, cur = oncoming_frames
+    cfg = detector.wide_model.config
+    for lag_frames in ((prev, cur), (cur, prev)):
+        fm = FrameMotion()
+        fm.update(lag_frames[0])
+        motion = fm.update(lag_frames[1])
+        for gate in (0.0, 1.0, MotionGate().threshold(motion.noise), 8.0, 50.0):
+            for g in detector.geometries(cur.shape[:2], part=1):
+                assert moving_bands(g, cfg, motion, gate) == _old_moving_bands(g, cfg, motion, gate)

@@ -11,7 +11,9 @@ windows. Thresholds: :class:`fastdet.config.MotionGate`.
 """
 from __future__ import annotations
 
+import math
 from collections import deque
+from functools import lru_cache
 from typing import NamedTuple
 
 import cv2
@@ -20,6 +22,7 @@ import numpy as np
 from ..boxes import window_offsets
 from ..config import FeatureConfig, SearchBand
 from ..detect.bands import BandGeometry
+from ._motion_kernels import moving_columns
 
 
 class MotionMap(NamedTuple):
@@ -95,6 +98,22 @@ def _mean_in(motion: MotionMap, x1, y1, x2, y2) -> np.ndarray:
     return np.where(area > 0, total / np.maximum(area, 1), 0.0)
 
 
+@lru_cache(maxsize=64)
+def _window_edges(geo: BandGeometry, win_w: int, win_h: int,
+                  cell: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(left (nx,), top (ny,), right (nx,), bottom (ny,))`` int64 frame pixels of the window
+    columns and rows of a band, as ``window_boxes()`` gives them (the same for every frame
+    of a video: kept, read-only)."""
+    s = geo.band.scale
+    left = geo.x0 + window_offsets(np.arange(geo.nx), geo.step, cell, s)
+    top = geo.y0 + window_offsets(np.arange(geo.ny), geo.step, cell, s)
+    right, bottom = left + int(win_w * s), top + int(win_h * s)
+    out = tuple(np.ascontiguousarray(a, np.int64) for a in (left, top, right, bottom))
+    for a in out:
+        a.flags.writeable = False
+    return out  # type: ignore[return-value]
+
+
 def moving_bands(geo: BandGeometry, config: FeatureConfig, motion: MotionMap,
                  min_motion: float) -> list[SearchBand]:
     """The parts of one search band worth searching: for each run of window columns in which
@@ -107,22 +126,24 @@ def moving_bands(geo: BandGeometry, config: FeatureConfig, motion: MotionMap,
     otherwise they differ by the resampling of slightly different widths."""
     if geo.n_windows == 0:
         return []
-    # window boxes as window_boxes() gives them, on the (rows, cols) grid
     s = geo.band.scale
     cell = config.pixels_per_cell
-    left = geo.x0 + window_offsets(np.arange(geo.nx), geo.step, cell, s)
-    top = geo.y0 + window_offsets(np.arange(geo.ny), geo.step, cell, s)
-    right, bottom = left + int(config.win_w * s), top + int(config.win_h * s)
-    # (rows, cols) grid of window means: row coordinates as a column vector
-    moving = (_mean_in(motion, left, top[:, None], right, bottom[:, None]) >= min_motion).any(axis=0)
-    if not moving.any():
-        return []
+    left, top, right, bottom = _window_edges(geo, int(config.win_w), int(config.win_h), int(cell))
+    # columns with a window whose mean motion reaches min_motion (the grid of _mean_in)
+    moving = np.empty(geo.nx, bool)
+    integral = motion.integral
+    if integral.dtype != np.float64 or not integral.flags.c_contiguous:
+        integral = np.ascontiguousarray(integral, np.float64)
+    moving_columns(integral, int(motion.origin[0]), int(motion.origin[1]), left, top, right, bottom,
+                   float(min_motion), moving)
     idx = np.flatnonzero(moving)
+    if not len(idx):
+        return []
     # runs of moving columns; columns less than a window apart are searched together
     per_window = max(1, config.blocks_x // geo.step)
     breaks = np.flatnonzero(np.diff(idx) > per_window)
-    starts = np.concatenate([[idx[0]], idx[breaks + 1]])
-    stops = np.concatenate([idx[breaks], [idx[-1]]])
+    starts = [int(idx[0]), *idx[breaks + 1].tolist()]
+    stops = [*idx[breaks].tolist(), int(idx[-1])]
     b = geo.band
     cell_px = cell * s  # one cell of the scaled band, in frame pixels
     win_cells = config.win_w // cell
@@ -134,6 +155,12 @@ def moving_bands(geo: BandGeometry, config: FeatureConfig, motion: MotionMap,
         x_a = int(left[c0])
         # whole cells wide: when a cell is a whole number of pixels (every default wide
         # scale), the sub-band resamples exactly as the full band does
-        x_b = x_a + int(np.ceil(((c1 - c0) * geo.step + win_cells) * cell_px - 1e-9))
+        x_b = x_a + math.ceil(((c1 - c0) * geo.step + win_cells) * cell_px - 1e-9)
         out.append(SearchBand(b.scale, b.y_start, b.y_stop, x_a, min(x_b, geo.x1)))
     return out
+
+
+def warmup_motion() -> None:
+    """Compile (or load from cache) the numba kernel of :func:`moving_bands`."""
+    e = np.zeros(1, np.int64)
+    moving_columns(np.zeros((2, 2), np.float64), 0, 0, e, e, e + 1, e + 1, 1.0, np.empty(1, bool))

@@ -36,7 +36,7 @@ from .fusion import merge_wide
 from .guided import SearchPlanner
 from .heatmap import HeatMap
 from .horizon import HORIZON_FRAMES, TOLERANCE, HorizonEstimator, search_horizon
-from .motion import FrameMotion, MotionMap, moving_bands, window_motion
+from .motion import FrameMotion, MotionMap, moving_bands, warmup_motion, window_motion
 from .offline import offline_pass
 from .track import LOST, Tracker
 
@@ -260,6 +260,7 @@ class VideoDetector:
         """Compile / load the numba kernels now, not on the first frame."""
         self.detector.warmup()
         HeatMap((8, 8), self.heat_config).warmup()
+        warmup_motion()
 
     def _heatmap_for(self, shape: tuple[int, ...]) -> HeatMap:
         hw = (int(shape[0]), int(shape[1]))
