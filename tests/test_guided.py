@@ -6,6 +6,8 @@ import json
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from fastdet.config import GuidedSearch
 from fastdet.detect import Detector
@@ -128,3 +130,24 @@ def test_full_search_flag(data, capsys):
         res.append(json.loads(capsys.readouterr().out.strip().splitlines()[-1]))
     for k in ("f1", "ap", "idf1"):
         assert abs(res[0][k] - res[1][k]) <= 0.01
+
+
+@settings(max_examples=200, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(0, 40))
+def test_planner_picks_the_windows_of_a_band_as_isclose(seed, n):
+    """The planner keeps each frame's windows grouped by scale and matches a band's scale
+    once per pair (cached): the same windows as ``np.isclose(windows.scale, s)``."""
+    from fastdet.video.guided import SearchPlanner
+
+    rng = np.random.default_rng(seed)
+    bands = [0.5, 0.75, 1.0, 1.5, 1.0 + 1e-7, 2.0]
+    scale = rng.choice(bands + [np.nan, 0.7500001, 1.25], n).astype(np.float32)
+    x1 = rng.integers(-50, 1200, n)
+    boxes = np.stack([x1, rng.integers(0, 700, n), x1 + rng.integers(1, 200, n), rng.integers(0, 700, n)], 1)
+    wins = Detections(boxes.astype(np.int32), rng.random(n).astype(np.float32), scale=scale)
+    p = SearchPlanner()
+    grouped = p._group(wins)
+    for s in bands + [0.75000003]:
+        got = sorted(x for u, xs in grouped.items() if p._close(u, s) for x in xs)
+        want = sorted(map(tuple, wins.boxes[np.isclose(wins.scale, s)][:, [0, 2]].tolist()))
+        assert got == want

@@ -56,7 +56,10 @@ class SearchPlanner:
         self.reset()
 
     def reset(self) -> None:
-        self._recent: deque[Detections] = deque(maxlen=self.config.memory)
+        # each recent frame's positive windows: {scale: [(x1, x2), ...]} (the order of the
+        # spans does not matter: merge_spans sorts them)
+        self._recent: deque[dict[float, list[tuple[float, float]]]] = deque(maxlen=self.config.memory)
+        self._close_cache: dict[tuple[float, float], bool] = {}
         self._tracks: list[tuple[np.ndarray, float]] = []  # (box, extra margin in widths)
         self._since_full = 0
         self._force = True
@@ -94,14 +97,12 @@ class SearchPlanner:
                 return max(j0, 0), min(j1, geo.nx)
 
             spans = [cols(*strip)]
-            for win in self._recent:
-                if win.scale is None or not len(win):
-                    continue
-                m = np.isclose(win.scale, s)
-                if m.any():
-                    pad = c.margin * ws
-                    for x0, _, x1, _ in win.boxes[m]:
-                        spans.append(cols(x0 - pad, x1 + pad))
+            pad = c.margin * ws
+            for by_scale in self._recent:  # the windows of this band's scale (np.isclose)
+                for u, xs in by_scale.items():
+                    if self._close(u, s):
+                        for x0, x1 in xs:
+                            spans.append(cols(x0 - pad, x1 + pad))
             for box, extra in self._tracks:
                 bw, bh = box[2] - box[0], box[3] - box[1]
                 if c.scales[0] * bh <= ws <= c.scales[1] * bh:
@@ -111,12 +112,33 @@ class SearchPlanner:
             plan.append(merge_spans(spans, gap=win_w // (geo.step * cell) + 2))
         return plan
 
+    @staticmethod
+    def _group(windows: Detections) -> dict[float, list[tuple[float, float]]]:
+        """``{scale: [(x1, x2) of each window of that scale]}`` (``scale`` as float32 values;
+        nothing for windows without a scale)."""
+        if windows.scale is None or not len(windows):
+            return {}
+        out: dict[float, list[tuple[float, float]]] = {}
+        for u, (a, _, b, _) in zip(np.asarray(windows.scale, np.float32).tolist(), windows.boxes.tolist()):
+            if u == u:  # np.isclose(NaN, s) is False: no band's
+                out.setdefault(u, []).append((a, b))
+        return out
+
+    def _close(self, u: float, s: float) -> bool:
+        """``np.isclose`` of a float32 window scale ``u`` and a band's scale ``s`` (cached:
+        a video has a few of each)."""
+        key = (u, s)
+        v = self._close_cache.get(key)
+        if v is None:
+            v = self._close_cache[key] = bool(np.isclose(np.array([u], np.float32), s)[0])
+        return v
+
     def observe(self, windows: Detections, tracks: Sequence[tuple[np.ndarray, np.ndarray, int]],
                 lost: bool) -> None:
         """After a frame: its positive windows of the main model (``windows``, with
         ``scale``), the live tracks as ``(latest box, predicted box, frames since seen)`` and
         whether a confirmed track was lost in it (the next frame is then a full scan)."""
-        self._recent.append(windows)
+        self._recent.append(self._group(windows))
         g = self.config.lost_growth
         self._tracks = []
         for box, pred, missed in tracks:
