@@ -16,6 +16,11 @@ three channels, 9 orientations, 8x8-pixel cells, 2x2-cell blocks:
   grid; OpenCV's HOG interpolates and weights differently, so only the time compares).
   The channel planes are split beforehand (not timed).
 
+Detector bands: ``hog_channels(..., exact=False)`` (the detector's HOG) on the 7 scaled
+YCrCb bands the default ``Detector()`` feeds it for test1.jpg (16 orientations, 2x2-cell
+blocks), at 1 thread; ``python -m tools.hog_profile`` splits this into cell histograms and
+block normalisation and compares it with another git revision.
+
 Start-up: a fresh interpreter imports fastdet and calls ``hog_channels`` once, with
 ``NUMBA_CACHE_DIR`` pointing at an empty folder (cold: everything is compiled) and then
 again with that folder filled (warm: machine code loaded from the on-disk cache).
@@ -187,6 +192,57 @@ def test_skimage_hog(benchmark, roi):
     benchmark.group = GROUP
     benchmark.extra_info["threads"] = 1
     benchmark.pedantic(run_skimage, args=(roi,), rounds=3, iterations=1, warmup_rounds=1)
+
+
+def band_images(det, frame: np.ndarray) -> list[np.ndarray]:
+    """The scaled, colour-converted band images ``det.detect(frame)`` runs HOG on (also used
+    by tools/hog_profile.py)."""
+    import fastdet.detect.detector as detector_module
+
+    seen = []
+    real = detector_module.hog_channels
+
+    def spy(img, *args, **kwargs):
+        seen.append(np.ascontiguousarray(img))
+        return real(img, *args, **kwargs)
+
+    detector_module.hog_channels = spy
+    try:
+        det.detect(frame)
+    finally:
+        detector_module.hog_channels = real
+    return seen
+
+
+def detector_bands(data: Path | None = None) -> list[np.ndarray]:
+    """The band images the default ``Detector()`` runs HOG on for test1.jpg."""
+    from fastdet.detect import Detector
+
+    data = data_dir() if data is None else data
+    det = Detector()
+    try:
+        return band_images(det, cv2.imread(str(data / "test_images" / "test1.jpg")))
+    finally:
+        det.close()
+
+
+def test_fastdet_detector_bands(benchmark, data):
+    """The detector's HOG of one 1280x720 frame: every default band, 1 thread."""
+    from fastdet.config import FeatureConfig
+
+    cfg = FeatureConfig()
+    bands = detector_bands(data)
+
+    def run():
+        for img in bands:
+            hog_channels(img, cfg.orientations, cfg.pixels_per_cell, cfg.cells_per_block,
+                         channels=list(cfg.hog_channels), exact=False)
+
+    with threads(1):
+        run()
+        benchmark.group = "HOG of the detector's 7 bands of a 1280x720 frame (exact=False)"
+        benchmark.extra_info["threads"] = 1
+        benchmark(run)
 
 
 @pytest.mark.parametrize("n_threads", [1, 2])

@@ -35,15 +35,16 @@ from pathlib import Path
 
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
-import cv2  # noqa: E402
-import numba  # noqa: E402
-import numpy as np  # noqa: E402
+import cv2
+import numba
+import numpy as np
 
-import fastdet.detect.detector as detector_module  # noqa: E402
-from fastdet.data import data_dir  # noqa: E402
-from fastdet.detect import Detector, DetectStats  # noqa: E402
-from fastdet.features import _hog as new_hog  # noqa: E402
-from fastdet.features import _hog_kernels as new_k  # noqa: E402
+import fastdet.detect.detector as detector_module
+from benchmarks.bench_hog import band_images
+from fastdet.data import data_dir
+from fastdet.detect import Detector, DetectStats
+from fastdet.features import _hog as new_hog
+from fastdet.features import _hog_kernels as new_k
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -70,23 +71,6 @@ def load_old(rev: str, folder: Path):
     return mods[1], mods[0]
 
 
-def detector_bands(det: Detector, frame: np.ndarray) -> list[np.ndarray]:
-    """The scaled, colour-converted band images ``det.detect(frame)`` runs HOG on."""
-    seen = []
-    real = detector_module.hog_channels
-
-    def spy(img, *args, **kwargs):
-        seen.append(np.ascontiguousarray(img))
-        return real(img, *args, **kwargs)
-
-    detector_module.hog_channels = spy
-    try:
-        det.detect(frame)
-    finally:
-        detector_module.hog_channels = real
-    return seen
-
-
 def best_ms(fn, repeat: int) -> float:
     best = float("inf")
     for _ in range(repeat):
@@ -109,13 +93,13 @@ def hog_split(hog_mod, k, bands, cfg, rounds: int) -> dict[str, float]:
         out = np.empty((n_cells[0] - b + 1, n_cells[1] - b + 1, 3, b * b * o))
         hist = ht.transpose(0, 2, 1, 3)
 
-        def cells():
-            for ci in range(n_cells[0]):
+        def cells(img=img, hist=hist, n_rows=n_cells[0]):
+            for ci in range(n_rows):
                 k._cell_row_u8(img, chans, False, ci, c, c, bin_lut, mag_lut, hist)
 
-        fns = {"hog": lambda: hog_mod.hog_channels(img, o, c, b, channels=[0, 1, 2], exact=False),
+        fns = {"hog": lambda img=img: hog_mod.hog_channels(img, o, c, b, channels=[0, 1, 2], exact=False),
                "cells": cells,
-               "blocks": lambda: k._normalize_rows_fast(ht, 0, out.shape[0], b, b, method, out)}
+               "blocks": lambda ht=ht, out=out: k._normalize_rows_fast(ht, 0, out.shape[0], b, b, method, out)}
         for f in fns.values():
             f()
         for name, f in fns.items():
@@ -136,9 +120,9 @@ def main(argv=None) -> None:
         frames = [cv2.imread(str(p)) for p in test_images][: args.frames]
         det = Detector()
         cfg = det.scorers[0].config
-        bands = detector_bands(det, frames[0])
-        kw = dict(orientations=cfg.orientations, pixels_per_cell=cfg.pixels_per_cell,
-                  cells_per_block=cfg.cells_per_block, channels=list(cfg.hog_channels), exact=False)
+        bands = band_images(det, frames[0])
+        kw = {"orientations": cfg.orientations, "pixels_per_cell": cfg.pixels_per_cell,
+              "cells_per_block": cfg.cells_per_block, "channels": list(cfg.hog_channels), "exact": False}
         for img in bands:  # same blocks
             a, b = old_hog.hog_channels(img, **kw), new_hog.hog_channels(img, **kw)
             np.testing.assert_allclose(b, a, rtol=1e-13, atol=1e-15)
