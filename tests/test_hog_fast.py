@@ -104,12 +104,22 @@ def test_cell_histograms_equal_the_float_path_bit_for_bit(n_ch, p_row, p_col, ex
     out = np.empty(ref.shape[:2] + (len(chans), orientations))
     _k.hog_u8(img, chans, False, p_row, p_col, 1, 1, bin_lut, mag_lut, _k.NORM_L2, hist, out)
     np.testing.assert_array_equal(hist, ref)
+    # both implementations, whatever the width (the kernels pick one by PLANES_MIN_CELLS)
+    hist[...] = np.nan
+    _k._cell_rows_planes(img, chans, 0, ref.shape[0], p_row, p_col, bin_lut, mag_lut, hist)
+    np.testing.assert_array_equal(hist, ref)
+    hist[...] = np.nan
+    for ci in range(ref.shape[0]):
+        _k._cell_row_interleaved(img, chans, ci, p_row, p_col, bin_lut, mag_lut, hist)
+    np.testing.assert_array_equal(hist, ref)
 
 
 def test_cell_histograms_of_the_detector_bands_bit_for_bit(test_images):
-    """Real frames: three YCrCb bands as the detector sees them, 16 and 9 orientations."""
+    """Real frames: YCrCb bands as the detector sees them (wide: the de-interleaved kernel;
+    narrow: the interleaved one), 16 and 9 orientations."""
     frame = cv2.cvtColor(cv2.imread(str(test_images[0])), cv2.COLOR_BGR2YCrCb)
-    for y0, y1, x1 in ((400, 496, 1280), (380, 480, 1277), (500, 720, 640)):
+    assert 640 // 8 >= _k.PLANES_MIN_CELLS > 300 // 8
+    for y0, y1, x1 in ((400, 496, 1280), (380, 480, 1277), (500, 720, 640), (400, 464, 300)):
         img = np.ascontiguousarray(frame[y0:y1, :x1])
         chans = np.arange(3, dtype=np.int64)
         for orientations in (16, 9):
