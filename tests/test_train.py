@@ -1,12 +1,14 @@
 """End-to-end training on a small subset of the real crops, through the CLI."""
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
 import pytest
 
 from fastdet.cli import main
-from fastdet.train.dataset import sequence_split
 from fastdet.model import load_model
+from fastdet.train.dataset import sequence_split
 
 
 @pytest.mark.slow
@@ -70,3 +72,16 @@ def test_train_wide_window_model(data, tmp_path, capsys):
     rep = m.metadata["training"]
     assert rep["window_top"] == 20 and rep["data"]["hard_negatives"] == 2
     assert main(["train", "--data", str(data), "--out", str(out), "--window-rows", "40", "30"]) == 2
+
+
+@pytest.mark.parametrize("opts, msg", [
+    (["--truncate", "1.5"], "fraction in [0, 1]"),
+    (["--reencode", "-0.1"], "fraction in [0, 1]"),
+    (["--jpeg-quality", "90", "30"], "--jpeg-quality must satisfy"),
+    (["--truncate", "0.5", "--truncate-keep", "0.9", "0.6"], "--truncate-keep must satisfy"),
+])
+def test_train_cli_refuses_bad_augmentation_options(data, tmp_path, capsys, opts, msg):
+    with pytest.raises(SystemExit) if "fraction" in msg else contextlib.nullcontext():
+        rc = main(["train", "--data", str(data), "--out", str(tmp_path / "m.npz"), "--no-progress", *opts])
+        assert rc == 2
+    assert msg in capsys.readouterr().err and not (tmp_path / "m.npz").exists()

@@ -10,13 +10,15 @@
 #   small scales (tools/zoom_negatives.py), and two rounds of hard negatives mined on the
 #   left half of the test images outside every annotated box.
 # Usage: bash tools/oncoming_model.sh [WORK_DIR] [OUT.npz]
+# ONCOMING_TRAIN_ARGS (environment): extra options of every `fastdet train` here, e.g.
+# "--reencode 0.5" (they replace nothing: a later --C wins over the one below).
 set -euo pipefail
 D=${FASTDET_DATA:-../shared/data}
 W=${1:-/tmp/fastdet-oncoming}
 OUT=${2:-fastdet/models/oncoming.npz}
 rm -rf "$W"
 mkdir -p "$W"
-T="--window-rows 12 36 --orientations 9 --C 0.01 --split sequence --no-progress"
+T="--window-rows 12 36 --orientations 9 --C 0.01 --split sequence --no-progress ${ONCOMING_TRAIN_ARGS:-}"
 IMG="$D/test_images/test%d.jpg"
 G=tools/test_images.gt.txt
 mine() {  # model out-dir

@@ -25,6 +25,7 @@ from ..data import data_dir
 from ..errors import DataError, FastdetError
 from ..features._hog_kernels import hog_u8_batch
 from ..io.atomic import check_output_path
+from ..train import augment
 from ..train.augment import JPEG_QUALITY
 from ..train.fit import train
 from . import _signals
@@ -63,6 +64,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "cut at a random column on the left or right, 50..87.5%% of the crop kept, the rest "
                         "filled by replicating the edge column as the detector pads windows over the frame "
                         "edge (training parts only; default 0)")
+    p.add_argument("--truncate-keep", type=fraction, nargs=2, metavar=("A", "B"),
+                   default=[augment.MIN_KEEP, augment.MAX_KEEP],
+                   help="with --truncate: a copy keeps a random fraction in [A, B] of the crop's columns "
+                        f"(default {augment.MIN_KEEP:g} {augment.MAX_KEEP:g})")
     p.add_argument("--truncate-vehicles-only", action="store_true",
                    help="with --truncate: no truncated copies of the non-vehicle crops")
     p.add_argument("--reencode", type=fraction, default=0.0, metavar="F",
@@ -144,6 +149,9 @@ def run(args: argparse.Namespace) -> int:
         check_output_path(out, "model")
     _check_inputs(Path(data), args)
     q0, q1 = args.jpeg_quality
+    k0, k1 = args.truncate_keep
+    if not 0 < k0 <= k1 <= 1:
+        raise FastdetError(f"--truncate-keep must satisfy 0 < A <= B <= 1, got {k0:g} {k1:g}")
     if not 1 <= q0 <= q1 <= 100:
         raise FastdetError(f"--jpeg-quality must satisfy 1 <= Q1 <= Q2 <= 100, got {q0} {q1}")
     announce_compile(hog_u8_batch, what="the feature kernels")
@@ -153,7 +161,7 @@ def run(args: argparse.Namespace) -> int:
                           window_top=args.window_rows[0] if args.window_rows else None,
                           positives=args.positives, truncate=args.truncate,
                           truncate_negatives=not args.truncate_vehicles_only, reencode=args.reencode,
-                          jpeg_quality=(q0, q1))
+                          jpeg_quality=(q0, q1), truncate_keep=(k0, k1))
     if model is not None:
         _signals.check()  # a stop that a library swallowed: no model
         model.metadata["training"]["command"] = f"{_command_name()} train " + " ".join(sys.argv[2:])

@@ -24,7 +24,7 @@ from tqdm import tqdm
 from ..config import FeatureConfig
 from ..features import extract_features
 from ..model import Model
-from .augment import JPEG_QUALITY, augmented_copies
+from .augment import JPEG_QUALITY, MAX_KEEP, MIN_KEEP, augmented_copies
 from .dataset import CropSet, load_crops, load_folder, random_split, sequence_split
 
 DEFAULT_C = {"linearsvc": 1e-3, "logreg": 3e-2}
@@ -129,12 +129,13 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
           max_per_folder: int | None = None, refit: bool = True, progress: bool = True,
           window_top: int | None = None, positives: list[Path] | None = None, truncate: float = 0.0,
           truncate_negatives: bool = True, reencode: float = 0.0, jpeg_quality: tuple[int, int] = JPEG_QUALITY,
-          log=print):
+          truncate_keep: tuple[float, float] = (MIN_KEEP, MAX_KEEP), log=print):
     """Train and evaluate; returns ``(model or None, report dict)``.
 
     ``truncate`` / ``reencode``: fractions of the crops that also join the training parts as
     truncated / re-encoded copies (:func:`fastdet.train.augment.augmented_copies`; truncated
-    copies of as many non-vehicles unless ``truncate_negatives`` is false).
+    copies of as many non-vehicles unless ``truncate_negatives`` is false; ``truncate_keep``: the
+    range of the fraction of columns a truncated copy keeps).
 
     For a wide-window ``config`` (``window_height`` set), ``window_top`` is the first row of
     the 64x64 crops that the window covers (default: centred)."""
@@ -163,7 +164,8 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
     x_extra_flip = None
     if extra is not None and flip and n_extra:
         x_extra_flip = features_in_chunks(_flip(extra.images[extra.labels == 1]), config, progress, "flipped")
-    aug = augmented_copies(crops.images, crops.labels, seed, truncate, truncate_negatives, reencode, jpeg_quality)
+    aug = augmented_copies(crops.images, crops.labels, seed, truncate, truncate_negatives, reencode, jpeg_quality,
+                           truncate_keep)
     x_aug = features_in_chunks(aug.images, config, progress, "augmented") if len(aug) else None
     if len(aug):
         log(f"augmented copies: {len(aug)} ({int(aug.labels.sum())} vehicles; truncate {truncate:g}"
@@ -187,6 +189,7 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
 
     report: dict[str, Any] = {"C": C, "classifier": classifier, "seed": seed, "flip": flip, "window_top": top,
                               "augment": {"truncate": truncate, "truncate_negatives": truncate_negatives,
+                                          "truncate_keep": list(truncate_keep),
                                           "reencode": reencode, "jpeg_quality": list(jpeg_quality),
                                           "copies": len(aug)},
                               "data": {"vehicles": n_pos, "non_vehicles": n_neg,
