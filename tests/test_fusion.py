@@ -51,7 +51,7 @@ class _FakeWide:
 def test_video_detector_routes_wide_windows_to_their_own_heat_map():
     vd = VideoDetector(_FakeWide(), heat=HeatConfig(threshold=5.0, n_frames=1),
                        wide_heat=HeatConfig(threshold=5.0, n_frames=1, box_mode="mean", min_height=10, max_aspect=0.8),
-                       motion=MotionGate(0))  # no motion gate: the fake has no search bands
+                       motion=MotionGate(0), refine=False)  # no motion gate: the fake has no search bands
     out = vd.update(np.zeros((720, 1280, 3), np.uint8))
     assert len(out.boxes) == 2
     left = out.boxes[out.boxes[:, 0] < 300][0]

@@ -22,6 +22,7 @@ from ..config import GuidedSearch, HeatConfig, TrackerConfig
 from ..errors import ModelError
 from ..model import DEFAULT_MODEL_PATH, ONCOMING_MODEL_PATH
 from ..video.pipeline import make_detector
+from ..video.refine import REFINE_MODEL_PATH, load_regressor
 
 #: output kind -> file name suffix after the video's output name
 SUFFIXES = {"boxes": ".boxes.txt", "json": ".boxes.jsonl", "video": ".annotated.mp4"}
@@ -55,6 +56,9 @@ class Settings:
         frame height, or ``None`` (off).
     full_search: the exact full search on every frame (``video --full-search``) instead of the
         tracking-guided search.
+    refine: the learned box refinement (the bundled regressor; ``video --no-refine``: off);
+        refine_sha256: the regressor file's hash (``""`` when off).
+    traffic: the side of the road traffic drives on (``video --traffic``).
     """
 
     model: str
@@ -67,11 +71,15 @@ class Settings:
     json: bool = False
     horizon: float | str | None = "auto"
     full_search: bool = False
+    refine: bool = True
+    refine_sha256: str = ""
+    traffic: str = "right"
 
     @classmethod
     def create(cls, model: str | os.PathLike | None = None, oncoming: str | os.PathLike | bool = True,
                heat: HeatConfig | None = None, track: bool = True, video: bool = False,
-               json: bool = False, horizon: float | str | None = "auto", full_search: bool = False) -> Settings:
+               json: bool = False, horizon: float | str | None = "auto", full_search: bool = False,
+               refine: bool = True, traffic: str = "right") -> Settings:
         """Settings for ``model`` (``None``: the bundled one) and ``oncoming`` (``True``:
         the bundled oncoming model, ``False``: none, or a path), hashing the model files."""
         main = os.path.abspath(model) if model is not None else str(DEFAULT_MODEL_PATH)
@@ -84,14 +92,18 @@ class Settings:
         for p in (main, wide):
             if p is not None and not os.path.isfile(p):
                 raise ModelError(f"{p}: model file not found")
+        if traffic not in ("right", "left", "both"):
+            raise ValueError(f"traffic must be 'right', 'left' or 'both', got {traffic!r}")
         return cls(main, file_sha256(main), wide, file_sha256(wide) if wide else "",
                    heat if heat is not None else HeatConfig(), bool(track), bool(video), bool(json), horizon,
-                   bool(full_search))
+                   bool(full_search), bool(refine), file_sha256(REFINE_MODEL_PATH) if refine else "", traffic)
 
     def check(self) -> None:
         """Load the models as a worker will: :class:`ModelError` (one line) now, before any
         work, for a file that is not a model or a wide model that is not one."""
-        make_detector(self.model, self.oncoming if self.oncoming else False)
+        make_detector(self.model, self.oncoming if self.oncoming else False, self.traffic)  # type: ignore[arg-type]
+        if self.refine:
+            load_regressor()
 
     @property
     def kinds(self) -> tuple[str, ...]:
@@ -108,6 +120,8 @@ class Settings:
             "outputs": list(self.kinds),
             "horizon": self.horizon,
             "search": "full" if self.full_search else dataclasses.asdict(GuidedSearch()),
+            "refine": self.refine_sha256 if self.refine else None,
+            "traffic": self.traffic,
             "fastdet": __version__,
         }
 

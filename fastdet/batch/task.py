@@ -71,11 +71,12 @@ class VideoTask:
 def detector_for(settings: Settings) -> Any:
     """The warmed-up detector for ``settings``, made once per process (the key includes the
     model files' hashes, so a long-lived worker notices a changed model file)."""
-    key = (settings.model, settings.model_sha256, settings.oncoming, settings.oncoming_sha256)
+    key = (settings.model, settings.model_sha256, settings.oncoming, settings.oncoming_sha256, settings.traffic)
     with _detectors_lock:
         det = _detectors.get(key)
         if det is None:
-            det = make_detector(settings.model, settings.oncoming if settings.oncoming else False)
+            det = make_detector(settings.model, settings.oncoming if settings.oncoming else False,
+                                settings.traffic)  # type: ignore[arg-type]
             det.warmup()
             _detectors[key] = det
         return det
@@ -160,7 +161,8 @@ def run_video(task: VideoTask) -> dict[str, Any]:
         (Path(task.out_dir) / PARTIAL_DIR).mkdir(exist_ok=True)
         reader = FrameReader(task.input, notify=notes.append)
         detector = detector_for(s)
-        vd = video_detector_for(reader, detector, s.heat, s.track, s.horizon, False if s.full_search else None)
+        vd = video_detector_for(reader, detector, s.heat, s.track, s.horizon, False if s.full_search else None,
+                                s.refine)
         h, w = reader.shape[:2]
         if "video" in tmps:
             sink = VideoSink(str(tmps["video"]), reader.fps, (w, h), threshold=s.heat.threshold)

@@ -69,13 +69,36 @@ def guided_arg(args: argparse.Namespace) -> Any:
 
 
 def add_oncoming_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--oncoming-model`` / ``--no-oncoming``, shared by ``video``, ``eval`` and ``bench``."""
+    """``--oncoming-model`` / ``--no-oncoming`` and ``--traffic``, shared by ``video``,
+    ``eval``, ``bench`` and ``batch``."""
     g = parser.add_mutually_exclusive_group()
     g.add_argument("--oncoming-model", metavar="WIDE.npz", default=None,
                    help="wide-window model for oncoming traffic above the median "
                         "(default: the bundled one; trained with `train --window-rows`)")
     g.add_argument("--no-oncoming", action="store_true",
                    help="no wide-window model: only the main model's square windows")
+    parser.add_argument("--traffic", choices=("right", "left", "both"), default="right",
+                        help="the side of the road traffic drives on, which puts the oncoming cars on the "
+                             "other side of the view: 'right' (default; oncoming cars on the left), 'left' "
+                             "(UK, Japan, India, Australia ...: searched on the right), 'both' (the whole "
+                             "width, about 15%% more CPU a frame)")
+
+
+def add_refine_argument(parser: argparse.ArgumentParser) -> None:
+    """``--no-refine``, shared by ``video``, ``eval``, ``bench`` and ``batch``."""
+    parser.add_argument("--no-refine", action="store_true",
+                        help="report the heat map's boxes as they are, without the learned box refinement "
+                             "(fastdet/models/refine.npz)")
+
+
+def refine_arg(args: argparse.Namespace) -> bool:
+    """The ``refine`` argument of :class:`~fastdet.VideoDetector` for parsed CLI arguments."""
+    return not getattr(args, "no_refine", False)
+
+
+def traffic_arg(args: argparse.Namespace) -> str:
+    """The ``traffic`` argument of :func:`make_detector` for parsed CLI arguments."""
+    return getattr(args, "traffic", "right")
 
 
 def oncoming_arg(args: argparse.Namespace) -> Any:

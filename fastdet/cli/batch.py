@@ -26,8 +26,8 @@ from types import ModuleType
 
 from ..errors import FastdetError
 from ..io.atomic import check_output_path
-from ._args import (add_horizon_argument, add_oncoming_arguments, add_search_argument, nonneg_int, oncoming_arg,
-                    positive_int)
+from ._args import (add_horizon_argument, add_oncoming_arguments, add_refine_argument, add_search_argument,
+                    nonneg_int, oncoming_arg, positive_int, refine_arg, traffic_arg)
 
 _INSTALL = "pip install fastdet[cluster]"
 # the packages of the ``cluster`` extra that fastdet.batch imports
@@ -43,6 +43,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="also write the boxes as JSON lines NAME.boxes.jsonl")
     parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
     add_oncoming_arguments(parser)
+    add_refine_argument(parser)
     add_horizon_argument(parser)
     add_search_argument(parser)
     parser.add_argument("--no-track", action="store_true",
@@ -89,7 +90,8 @@ def run(args: argparse.Namespace) -> int:
     videos = inputs.expand_inputs(args.inputs)
     settings = settings_mod.Settings.create(args.model, oncoming_arg(args), track=not args.no_track,
                                             video=args.video, json=args.json, horizon=args.horizon,
-                                            full_search=args.full_search)
+                                            full_search=args.full_search, refine=refine_arg(args),
+                                            traffic=traffic_arg(args))
     settings.check()
     job.prepare_out_dir(Path(args.out))
     if table is not None:  # after the output folder exists: the table may go into it

@@ -50,7 +50,8 @@ from ..errors import DataError, FastdetError
 from ..io.images import check_image
 from ..io.reader import FrameReader, check_source
 from ..video.pipeline import VideoDetector, make_detector
-from ._args import add_oncoming_arguments, add_search_argument, guided_arg, oncoming_arg, positive_int
+from ._args import (add_oncoming_arguments, add_refine_argument, add_search_argument, guided_arg, oncoming_arg,
+                    positive_int, refine_arg, traffic_arg)
 
 DEFAULT_IMAGE = Path("test_images") / "test1.jpg"
 
@@ -62,6 +63,7 @@ STAGES = (
     ("heat", "heat"),
     ("label", "label"),
     ("motion", "motion"),
+    ("refine", "refine"),
 )
 
 
@@ -77,6 +79,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="timed repeats of the N frames; the table shows the best and the median (default 3)")
     parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
     add_oncoming_arguments(parser)
+    add_refine_argument(parser)
     add_search_argument(parser)
 
 
@@ -116,7 +119,7 @@ def load_frames(path: str | os.PathLike, n: int) -> tuple[list, str, float | Non
 
 def _detector(args: argparse.Namespace) -> Any:
     try:
-        return make_detector(args.model, oncoming_arg(args))
+        return make_detector(args.model, oncoming_arg(args), traffic_arg(args))
     except FastdetError:
         raise
     except (OSError, ValueError) as exc:
@@ -182,7 +185,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         det = _detector(args)
         check_frame(det, frames[0], args.input)
-        vd = VideoDetector(det, guided=guided_arg(args))
+        vd = VideoDetector(det, guided=guided_arg(args), refine=refine_arg(args))
         t0 = time.perf_counter()
         vd.warmup()
         for frame in frames[:2]:

@@ -12,7 +12,8 @@ from ..eval.report import format_table, plot_pr
 from ..io.motfiles import Predictions, read_gt, read_predictions
 from ..io.reader import check_source
 from ..video.pipeline import iter_video_detections
-from ._args import add_horizon_argument, add_oncoming_arguments, add_search_argument, guided_arg, oncoming_arg
+from ._args import (add_horizon_argument, add_oncoming_arguments, add_refine_argument, add_search_argument, guided_arg,
+                    oncoming_arg, refine_arg, traffic_arg)
 
 # ---------------------------------------------------------------------------------------
 # CLI
@@ -39,6 +40,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                      help="run the default video pipeline on this clip and evaluate its boxes")
     parser.add_argument("--model", metavar="MODEL.npz", help="model for --video (default: the bundled one)")
     add_oncoming_arguments(parser)
+    add_refine_argument(parser)
     add_horizon_argument(parser)
     add_search_argument(parser)
     track = parser.add_mutually_exclusive_group()
@@ -53,23 +55,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _video_predictions(video: str, model: str | None, oncoming: Any = True, track: bool = True,
                        offline: bool = False, horizon: float | str | None = "auto",
-                       guided: Any = None) -> Predictions:
+                       guided: Any = None, refine: bool = True, traffic: str = "right") -> Predictions:
     check_source(video)
     frames = iter_video_detections(video, model=model, progress=True, oncoming=oncoming, tracker=track,
-                                   offline=offline, horizon=horizon, guided=guided)
+                                   offline=offline, horizon=horizon, guided=guided, refine=refine,
+                                   traffic=traffic)  # type: ignore[arg-type]
     return Predictions.from_frames(frames, source=video)
 
 
 def run(args: argparse.Namespace) -> int:
     no_track, offline = getattr(args, "no_track", False), getattr(args, "offline", False)
     if args.video is None and (args.model is not None or args.oncoming_model is not None or args.no_oncoming
-                               or no_track or offline):
-        raise FastdetError("--model, --oncoming-model, --no-oncoming, --no-track and --offline only apply "
-                           "with --video")
+                               or no_track or offline or getattr(args, "no_refine", False)
+                               or getattr(args, "traffic", "right") != "right"):
+        raise FastdetError("--model, --oncoming-model, --no-oncoming, --traffic, --no-refine, --no-track and "
+                           "--offline only apply with --video")
     gt = read_gt(args.gt)
     if args.video is not None:
         preds = _video_predictions(args.video, args.model, oncoming_arg(args), not no_track, offline,
-                                   getattr(args, "horizon", "auto"), guided_arg(args))
+                                   getattr(args, "horizon", "auto"), guided_arg(args), refine_arg(args),
+                                   traffic_arg(args))
     else:
         preds = read_predictions(args.pred)
     result = evaluate(gt, preds, iou=args.iou)

@@ -1,11 +1,14 @@
 """``python -m fastdet video``: detect vehicles in a video.
 
 ``python -m fastdet video INPUT -o OUT.mp4 [--boxes B.txt] [--json B.jsonl] [--model M.npz]
-[--oncoming-model W.npz | --no-oncoming] [--debug] [--profile] [--no-progress] [--start S] [--frames N]
+[--oncoming-model W.npz | --no-oncoming] [--traffic right|left|both] [--no-refine] [--debug] [--profile] [--no-progress] [--start S] [--frames N]
 [--no-track | --offline] [--count] [--line X1,Y1,X2,Y2] [--summary S.json]``
 
 - The bundled oncoming-traffic model runs beside the main one (see :class:`VideoDetector`);
-  ``--no-oncoming`` leaves it out, ``--oncoming-model`` replaces it.
+  ``--no-oncoming`` leaves it out, ``--oncoming-model`` replaces it, ``--traffic left``
+  looks for oncoming cars on the right of the view (left-hand traffic).
+- Each box is refined by the learned regressor (:mod:`fastdet.video.refine`); ``--no-refine``
+  reports the heat map's boxes as they are.
 
 - Decoding runs in a reader thread and drawing + encoding in a writer thread, connected to
   the detecting main thread by bounded queues: OpenCV and the numba kernels release the
@@ -72,8 +75,8 @@ from ..video.count import CountLine, VehicleCounter
 from ..video.offline import offline_pass
 from ..video.pipeline import _progress, make_detector, video_detector_for
 from . import _signals
-from ._args import (add_horizon_argument, add_oncoming_arguments, add_search_argument, guided_arg, nonneg_int,
-                    oncoming_arg, positive_int)
+from ._args import (add_horizon_argument, add_oncoming_arguments, add_refine_argument, add_search_argument,
+                    guided_arg, nonneg_int, oncoming_arg, positive_int, refine_arg, traffic_arg)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -86,6 +89,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", metavar="BOXES.jsonl", help="boxes per frame as JSON lines")
     parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
     add_oncoming_arguments(parser)
+    add_refine_argument(parser)
     parser.add_argument("--debug", action="store_true",
                         help="add panels along the top: windows by scale, heat map, thresholded blobs; "
                              "every live track's predicted box and state")
@@ -143,6 +147,7 @@ _STAGES = (
     ("motion", "motion", "main"),
     ("weak blobs", "weak", "main"),
     ("track", "track", "main"),
+    ("refine", "refine", "main"),
     ("boxes out", "boxes_out", "main"),
     ("draw", "draw", "writer"),
     ("encode", "encode", "writer"),
@@ -247,10 +252,10 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
         if offline and reader.live:
             raise FastdetError(f"{args.input}: --offline needs a video file, not a live source")
         if detector is None:
-            detector = make_detector(args.model, oncoming_arg(args))
+            detector = make_detector(args.model, oncoming_arg(args), traffic_arg(args))
         elif args.model is not None:
             raise FastdetError("--model cannot be used with an injected detector")
-        vd = video_detector_for(reader, detector, heat, track, args.horizon, guided_arg(args))
+        vd = video_detector_for(reader, detector, heat, track, args.horizon, guided_arg(args), refine_arg(args))
         vd.warmup()
         counter = VehicleCounter(line) if track else None
         done: list[tuple[int, Detections]] = []  # --offline: every frame's tracks

@@ -20,13 +20,13 @@ import os
 import sys
 import time
 from collections.abc import Iterable, Iterator, Sequence
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, Literal, Protocol, runtime_checkable
 
 import numpy as np
 from tqdm import tqdm
 
 from ..boxes import clip, overlap_fraction
-from ..config import WIDE_HEAT, GuidedSearch, HeatConfig, MotionGate, SearchBand, TrackerConfig
+from ..config import WIDE_HEAT, GuidedSearch, HeatConfig, MotionGate, SearchBand, TrackerConfig, wide_search
 from ..detect import BandGeometry, Detector, DetectStats
 from ..detect.checks import check_frame
 from ..detections import Detections
@@ -38,6 +38,7 @@ from .heatmap import HeatMap
 from .horizon import HORIZON_FRAMES, TOLERANCE, HorizonEstimator, search_horizon
 from .motion import FrameMotion, MotionMap, moving_bands, warmup_motion, window_motion
 from .offline import offline_pass
+from .refine import BoxRegressor, RefineConfig, load_regressor, refine
 from .track import LOST, Tracker
 
 ModelLike = Model | str | os.PathLike | None
@@ -69,14 +70,17 @@ class WindowDetector(Protocol):
     def geometries(self, frame_shape: tuple[int, int], part: int = 0) -> list[BandGeometry]: ...
 
 
-def make_detector(model: ModelLike = None, oncoming: ModelLike | bool = True) -> Detector:
+def make_detector(model: ModelLike = None, oncoming: ModelLike | bool = True,
+                  traffic: Literal["right", "left", "both"] = "right") -> Detector:
     """The video pipeline's :class:`fastdet.Detector`: ``model`` (a Model, a path, or
     ``None`` for the bundled model) and, as its wide-window model, ``oncoming``: ``True``
     for the bundled oncoming-traffic model, a Model or path for another, ``False`` / ``None``
-    for none. Raises :class:`~fastdet.errors.ModelError` when a model does not load."""
+    for none; ``traffic``: the side of the road traffic drives on, which decides where the
+    wide model looks for oncoming cars (:func:`fastdet.config.wide_search`). Raises
+    :class:`~fastdet.errors.ModelError` when a model does not load."""
     if oncoming is True:
         oncoming = ONCOMING_MODEL_PATH
-    return Detector(model=model, wide=oncoming or None)
+    return Detector(model=model, wide=oncoming or None, wide_search=wide_search(traffic))
 
 
 class VideoDetector:
@@ -118,6 +122,13 @@ class VideoDetector:
         or ``False`` for the full search on every frame; ``None`` (default): ``GuidedSearch()``
         with the tracker, the full search without it. Needs a detector whose ``detect``
         takes ``columns`` (a :class:`~fastdet.Detector`); others search in full.
+    refine: learned box refinement of the boxes returned (:mod:`fastdet.video.refine`: a
+        regressor from each box's context crop to its offsets, DPM-style): ``True`` / ``None``
+        (default) with ``RefineConfig()``, a :class:`~fastdet.video.refine.RefineConfig`, or
+        ``False`` for the heat map's (or tracker's) boxes as they are. Only the returned boxes
+        move; the heat map, the tracker's state and the guided search see the unrefined ones.
+    refine_model: the regressor (a :class:`~fastdet.video.refine.BoxRegressor` or a path;
+        ``None``: the bundled ``fastdet/models/refine.npz``).
 
     What :meth:`update` returns, with the tracker: the tracked vehicles of this frame (the
     confirmed tracks that found a box), each with its id and, as its score, the peak heat of
@@ -143,7 +154,9 @@ class VideoDetector:
     def __init__(self, detector: WindowDetector | None = None, heat: HeatConfig | None = None,
                  wide_heat: HeatConfig | None = None, motion: MotionGate | None = None,
                  tracker: TrackerConfig | bool | None = None, fps: float | None = None,
-                 horizon: float | str | None = "auto", guided: GuidedSearch | bool | None = None) -> None:
+                 horizon: float | str | None = "auto", guided: GuidedSearch | bool | None = None,
+                 refine: RefineConfig | bool | None = None,
+                 refine_model: BoxRegressor | str | os.PathLike | None = None) -> None:
         if detector is not None and not isinstance(detector, WindowDetector):
             raise TypeError(f"detector must provide detect(), warmup(), geometries(), score_kind and "
                             f"wide_model (a WindowDetector), got {type(detector).__name__}")
@@ -176,6 +189,15 @@ class VideoDetector:
             raise TypeError(f"guided must be a GuidedSearch or False, got {type(guided).__name__}")
         self.guided: GuidedSearch | None = None if guided is False or guided.full else guided
         self._planner = SearchPlanner(self.guided) if self.guided is not None else None
+        if refine is None or refine is True:
+            refine = RefineConfig()
+        if refine is not False and not isinstance(refine, RefineConfig):
+            raise TypeError(f"refine must be a RefineConfig or a bool, got {type(refine).__name__}")
+        self.refine: RefineConfig | None = None if refine is False else refine
+        self.refiner: BoxRegressor | None = None
+        if self.refine is not None:
+            self.refiner = (refine_model if isinstance(refine_model, BoxRegressor)
+                            else load_regressor(refine_model))
         self._horizon_est: HorizonEstimator | None = None
         self._horizon_started = False
         self.timings: dict[str, float] = {}
@@ -360,6 +382,12 @@ class VideoDetector:
             t_weak, t_track = t2 - t1, time.perf_counter() - t2
             self.last_low = low
             self.last_tracks = [(t.id, t.state, t.predicted) for t in self.tracker.tracks]
+        t_refine = 0.0
+        if self.refiner is not None and len(out):
+            t1 = time.perf_counter()
+            bgr = np.ascontiguousarray(frame[..., ::-1]) if rgb else frame
+            out = refine(bgr, out, self.refiner, self.refine)
+            t_refine = time.perf_counter() - t1
         if self._planner is not None:
             self._observe(windows)
         self.last_windows = windows
@@ -373,6 +401,8 @@ class VideoDetector:
         if self.tracker is not None:
             self.timings["weak"] = t_weak
             self.timings["track"] = t_track
+        if self.refiner is not None:
+            self.timings["refine"] = t_refine
         return out
 
     def _plan(self, det: WindowDetector, shape: tuple[int, ...]) -> dict[str, Any]:
@@ -448,7 +478,8 @@ def prime_horizon_from_file(vd: VideoDetector, path: str | os.PathLike, start: i
 
 def video_detector_for(reader: FrameReader, detector: WindowDetector, heat: HeatConfig | None = None,
                        tracker: TrackerConfig | bool | None = None, horizon: float | str | None = "auto",
-                       guided: GuidedSearch | bool | None = None) -> VideoDetector:
+                       guided: GuidedSearch | bool | None = None,
+                       refine: RefineConfig | bool | None = None) -> VideoDetector:
     """The :class:`VideoDetector` for the video ``reader`` reads, built the one way every command
     (``video``, ``eval --video``, ``batch``) builds it, so they all give the same boxes: the
     first frame checked against the detector's search (size, colour) before any output exists,
@@ -457,7 +488,8 @@ def video_detector_for(reader: FrameReader, detector: WindowDetector, heat: Heat
     :meth:`FrameReader.peek <fastdet.io.reader.FrameReader.peek>`, when they fit in
     :data:`PRIME_BUFFER_BYTES` and the run reads at least that many)."""
     check_frame(detector, reader.first_frame, reader.path)
-    vd = VideoDetector(detector, heat, tracker=tracker, fps=reader.fps, horizon=horizon, guided=guided)
+    vd = VideoDetector(detector, heat, tracker=tracker, fps=reader.fps, horizon=horizon, guided=guided,
+                       refine=refine)
     if (vd.horizon == "auto" and reader.kind == "file" and os.path.isfile(reader.path)
             and (reader.limit is None or reader.limit >= HORIZON_FRAMES)
             and HORIZON_FRAMES * reader.first_frame.nbytes <= PRIME_BUFFER_BYTES):
@@ -474,16 +506,20 @@ def iter_video_detections(path: str | os.PathLike, model: Any = None, start: int
                           heat: HeatConfig | None = None, oncoming: Any = True,
                           tracker: TrackerConfig | bool | None = None,
                           offline: bool = False, horizon: float | str | None = "auto",
-                          guided: GuidedSearch | bool | None = None) -> Iterator[tuple[int, Detections]]:
+                          guided: GuidedSearch | bool | None = None,
+                          refine: RefineConfig | bool | None = None,
+                          traffic: Literal["right", "left", "both"] = "right") -> Iterator[tuple[int, Detections]]:
     """Vehicle boxes of every frame of a video file: yields ``(frame, Detections)``.
 
     frame: 1-based frame number in the file (``start`` frames are skipped, so the first one
         yielded is ``start + 1``). frames: at most this many frames.
     model: model for the default Detector (Model, path, or ``None`` for the bundled one);
-        oncoming: its wide-window model (see :func:`make_detector`);
+        oncoming: its wide-window model and traffic: the side of the road traffic drives on
+        (see :func:`make_detector`);
         ``detector``: use this detector instead (see :class:`VideoDetector`).
     tracker: as :class:`VideoDetector` (default: tracking on, ``ids`` filled); guided,
-        horizon: as :class:`VideoDetector` (``guided=False``: the full search on every frame).
+        horizon, refine: as :class:`VideoDetector` (``guided=False``: the full search on every
+        frame; ``refine=False``: the boxes unrefined).
     offline: run the offline pass over the whole file's tracks first
         (:func:`fastdet.video.offline.offline_pass`: gap interpolation, extension back); the
         first frame is then yielded only after the last one was read. Needs the tracker.
@@ -498,8 +534,8 @@ def iter_video_detections(path: str | os.PathLike, model: Any = None, start: int
     reader = FrameReader(path, start, frames)
     try:
         if detector is None:
-            detector = make_detector(model, oncoming)
-        vd = video_detector_for(reader, detector, heat, tracker, horizon, guided)
+            detector = make_detector(model, oncoming, traffic)
+        vd = video_detector_for(reader, detector, heat, tracker, horizon, guided, refine)
         vd.warmup()
         done: list[tuple[int, Detections]] = []
         with _progress(reader.expected, progress, os.path.basename(reader.path)) as bar:

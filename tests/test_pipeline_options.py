@@ -1,0 +1,94 @@
+"""The video pipeline's per-run options: the learned box refinement (on by default,
+``refine=False`` / ``--no-refine``) and the side of the road traffic drives on
+(``make_detector(traffic=...)`` / ``--traffic``), through the API, the CLI and batch settings."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fastdet.cli import eval as eval_cmd
+from fastdet.cli.main import build_parser
+from fastdet.config import wide_search
+from fastdet.errors import FastdetError
+from fastdet.io.reader import FrameReader
+from fastdet.video.pipeline import VideoDetector, make_detector
+from fastdet.video.refine import BoxRegressor, RefineConfig, load_regressor, refine
+
+
+def test_make_detector_puts_the_oncoming_search_on_the_side_traffic_comes_from():
+    for side in ("right", "left", "both"):
+        det = make_detector(traffic=side)
+        assert det.scorers[1].search == wide_search(side)
+    assert make_detector().scorers[1].search == wide_search("right")
+    left = make_detector(traffic="left").scorers[1].search.bands
+    right = make_detector(traffic="right").scorers[1].search.bands
+    assert left != right
+    with pytest.raises(ValueError, match="traffic"):
+        make_detector(traffic="middle")  # type: ignore[arg-type]
+
+
+def test_refinement_is_on_by_default_and_can_be_turned_off():
+    assert isinstance(VideoDetector().refiner, BoxRegressor)
+    assert VideoDetector().refine == RefineConfig()
+    off = VideoDetector(refine=False)
+    assert off.refiner is None and off.refine is None
+    two = VideoDetector(refine=RefineConfig(iterations=2))
+    assert two.refine.iterations == 2
+    zero = BoxRegressor.zero()
+    assert VideoDetector(refine_model=zero).refiner is zero
+    with pytest.raises(TypeError, match="refine"):
+        VideoDetector(refine="yes")  # type: ignore[arg-type]
+
+
+def test_refined_boxes_are_the_unrefined_run_refined(data: Path):
+    """Refinement only moves the returned boxes: a run with it equals a run without it whose
+    boxes are refined afterwards (same ids, same count), and it is timed."""
+    reader = FrameReader(data / "videos" / "test_video.mp4", 0, 12)
+    det = make_detector()
+    on, off = VideoDetector(det, horizon=None), VideoDetector(det, horizon=None, refine=False)
+    reg = load_regressor()
+    moved = 0
+    try:
+        for _, frame, _ in reader:
+            a, b = on.update(frame), off.update(frame)
+            expect = refine(frame, b, reg, RefineConfig())
+            np.testing.assert_array_equal(a.boxes, expect.boxes)
+            np.testing.assert_array_equal(a.ids, b.ids)
+            np.testing.assert_array_equal(on.last_boxes.boxes, off.last_boxes.boxes)
+            assert "refine" in on.timings and "refine" not in off.timings
+            moved += int(np.any(a.boxes != b.boxes))
+    finally:
+        reader.close()
+    assert moved > 0  # the regressor does move the boxes of real cars
+
+
+def test_cli_options_parse_and_eval_refuses_them_without_video(tmp_path: Path):
+    p = build_parser()
+    a = p.parse_args(["video", "x.mp4", "--traffic", "left", "--no-refine"])
+    assert a.traffic == "left" and a.no_refine
+    a = p.parse_args(["video", "x.mp4"])
+    assert a.traffic == "right" and not a.no_refine
+    with pytest.raises(SystemExit):
+        p.parse_args(["video", "x.mp4", "--traffic", "middle"])
+    gt = tmp_path / "gt.txt"
+    gt.write_text("1,1,10,10,50,50,1,1,1\n")
+    for extra in (["--no-refine"], ["--traffic", "left"]):
+        args = p.parse_args(["eval", "--gt", str(gt), "--pred", str(gt), *extra])
+        with pytest.raises(FastdetError, match="only apply with --video"):
+            eval_cmd.run(args)
+
+
+def test_batch_settings_record_refinement_and_traffic():
+    pytest.importorskip("distributed")
+    from fastdet.batch.settings import Settings
+
+    base = Settings.create()
+    assert base.refine and base.refine_sha256 and base.traffic == "right"
+    off = Settings.create(refine=False)
+    left = Settings.create(traffic="left")
+    assert len({base.digest(), off.digest(), left.digest()}) == 3
+    assert base.record()["refine"] == base.refine_sha256 and off.record()["refine"] is None
+    with pytest.raises(ValueError, match="traffic"):
+        Settings.create(traffic="middle")
