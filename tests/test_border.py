@@ -8,7 +8,7 @@ import pytest
 from tests.reference import classic_band_scores, sklearn_pair
 from fastdet.config import SearchBand
 from fastdet.detect import Detector
-from fastdet.detect.bands import BORDER_MODES, band_geometry, scaled_band, window_boxes
+from fastdet.detect.bands import BORDER_MODES, band_geometry, pad_frame, scaled_band, window_boxes
 
 
 @pytest.fixture(scope="module")
@@ -76,3 +76,23 @@ def test_default_search_boxes_stay_in_the_frame(frame, detector):
                                                                                  indexing="ij")], detector.config)
                                 for g in geos])
     assert geo_boxes[:, 0].min() == 0 and geo_boxes[:, 2].max() == frame.shape[1]
+
+
+@pytest.mark.parametrize("mode", sorted(BORDER_MODES))
+def test_shared_padded_frame_gives_the_same_scaled_bands(frame, detector, mode):
+    """Bands cut from one pad_frame copy (the widest padding, all their rows) equal the bands
+    padded one by one, bit for bit: reflect-101 and replicate padding of a column does not
+    depend on the padding's width. Bands with one padded side, or none, included."""
+    h, w = frame.shape[:2]
+    cfg = detector.config
+    bands = [SearchBand(s, y, y + int(64 * s) + 8 * k, x0, x1)
+             for k, (s, y, x0, x1) in enumerate([(1.0, 380, None, None), (1.25, 400, None, 900),
+                                                 (1.5, 390, 300, None), (2.0, 410, None, None),
+                                                 (3.0, 400, None, None), (0.75, 420, 100, 600)])]
+    geos = [band_geometry(b, (h, w), cfg, 2, border=1.0, border_mode=mode) for b in bands]
+    padded = pad_frame(frame, geos)
+    assert padded is not None and padded.pad == max(g.pad_left for g in geos)
+    for g in geos:
+        assert not (g.pad_left or g.pad_right) or padded.covers(g)
+        np.testing.assert_array_equal(scaled_band(frame, g, padded), scaled_band(frame, g))
+    assert pad_frame(frame, geos[:1]) is None

@@ -181,10 +181,12 @@ def hist_weight_integral(image, lut, g, out):
 
     image: (H, W, C) uint8; lut: (C, 256) float64, each channel's histogram weight of every
     value (``w_hist[c, v >> shift]``); out: (H//g + 1, W//g + 1) float64, overwritten.
-    The windows sit on the cell grid, so ``g`` = the cell size serves them: one row of
-    per-pixel weights at a time (look-ups by an unsigned byte, no chain between pixels),
-    then sums of ``g`` values (0.54 -> 0.17 ms for a 1344x96 band against the
-    pixel-resolution integral image with its add chain through every pixel).
+    The windows sit on the cell grid, so ``g`` = the cell size serves them: the per-pixel
+    weights of a row of cells are summed column by column into one buffer (look-ups by an
+    unsigned byte, no chain between pixels; three channels in one pass), then each cell's
+    ``g`` columns once, and the running sum along the row (0.54 ms for a 1344x96 band with
+    the pixel-resolution integral image -> 0.17 ms with one weight row and ``g`` sums per
+    image row -> 0.12 ms like this; the sums are reordered, ~1e-15 apart).
     """
     nr, nq = out.shape[0] - 1, out.shape[1] - 1
     c = image.shape[2]
@@ -192,27 +194,30 @@ def hist_weight_integral(image, lut, g, out):
     v = np.empty(w)
     for q in range(nq + 1):
         out[0, q] = 0.0
+    l0 = lut[0]
     for r in range(nr):
-        row = out[r + 1]
-        for q in range(nq + 1):
-            row[q] = 0.0
+        for x in range(w):
+            v[x] = 0.0
         for y in range(r * g, r * g + g):
             px = image[y]
-            lc = lut[0]
-            for x in range(w):
-                v[x] = lc[px[x, 0]]
-            for ch in range(1, c):
-                lc = lut[ch]
+            if c == 3:
+                l1 = lut[1]
+                l2 = lut[2]
                 for x in range(w):
-                    v[x] += lc[px[x, ch]]
-            for q in range(nq):
-                t = v[q * g: q * g + g]
-                acc = 0.0
-                for x in range(g):
-                    acc += t[x]
-                row[q + 1] += acc
-        run = 0.0
+                    v[x] += (l0[px[x, 0]] + l1[px[x, 1]]) + l2[px[x, 2]]
+            else:
+                for ch in range(c):
+                    lc = lut[ch]
+                    for x in range(w):
+                        v[x] += lc[px[x, ch]]
+        row = out[r + 1]
         prev = out[r]
-        for q in range(nq + 1):
-            run += row[q]
-            row[q] = prev[q] + run
+        row[0] = prev[0]
+        run = 0.0
+        for q in range(nq):
+            t = v[q * g: q * g + g]
+            acc = 0.0
+            for x in range(g):
+                acc += t[x]
+            run += acc
+            row[q + 1] = prev[q + 1] + run

@@ -77,12 +77,53 @@ def band_geometry(band: SearchBand, frame_shape: tuple[int, int], config: Featur
     return BandGeometry(band, x0, y0, x1, y1, sw, sh, nx, ny, cells_per_step, pl, pr, border_mode)
 
 
-def scaled_band(frame: np.ndarray, geo: BandGeometry) -> np.ndarray:
+@dataclass(frozen=True)
+class PaddedFrame:
+    """Frame rows ``[y0, y0 + len(pixels))`` with ``pad`` columns added on each side as
+    ``border_mode`` says: ``pixels (rows, W + 2*pad, 3) uint8``. Made once per frame
+    (:func:`pad_frame`) for all the bands that run past the frame edge: a band's padded crop
+    is a view of it, as the padding of column ``-k`` (``W - 1 + k``) does not depend on how
+    wide the padding is."""
+
+    pixels: np.ndarray
+    y0: int
+    pad: int
+    border_mode: str
+
+    def covers(self, geo: BandGeometry) -> bool:
+        """Whether ``geo``'s padded crop is a view of this."""
+        return (geo.border_mode == self.border_mode and geo.y0 >= self.y0
+                and geo.y1 <= self.y0 + self.pixels.shape[0]
+                and max(geo.pad_left, geo.pad_right) <= self.pad)
+
+
+def pad_frame(frame: np.ndarray, geos: list[BandGeometry]) -> PaddedFrame | None:
+    """One :class:`PaddedFrame` for the bands of ``geos`` that run past the frame edge (those
+    of the first such band's border mode): their rows, their widest padding. ``None`` when
+    fewer than two bands would share it (then :func:`scaled_band` pads each band itself)."""
+    padded = [g for g in geos if g.pad_left or g.pad_right]
+    if len(padded) < 2:
+        return None
+    mode = padded[0].border_mode
+    padded = [g for g in padded if g.border_mode == mode]
+    if len(padded) < 2:
+        return None
+    y0, y1 = min(g.y0 for g in padded), max(g.y1 for g in padded)
+    pad = max(max(g.pad_left, g.pad_right) for g in padded)
+    pixels = cv2.copyMakeBorder(frame[y0:y1], 0, 0, pad, pad, BORDER_MODES[mode])
+    return PaddedFrame(pixels, y0, pad, mode)
+
+
+def scaled_band(frame: np.ndarray, geo: BandGeometry, padded: PaddedFrame | None = None) -> np.ndarray:
     """The band's pixels resized by ``1/scale``: ``(scaled_h, scaled_w, 3) uint8`` (with the
-    columns past the frame edge filled as ``geo.border_mode`` says)."""
-    roi = frame[geo.y0: geo.y1, geo.x0 + geo.pad_left: geo.x1 - geo.pad_right]
-    if geo.pad_left or geo.pad_right:
-        roi = cv2.copyMakeBorder(roi, 0, 0, geo.pad_left, geo.pad_right, BORDER_MODES[geo.border_mode])
+    columns past the frame edge filled as ``geo.border_mode`` says: cut from ``padded`` (a
+    :func:`pad_frame` of this frame) when it covers the band, else padded here)."""
+    if (geo.pad_left or geo.pad_right) and padded is not None and padded.covers(geo):
+        roi = padded.pixels[geo.y0 - padded.y0: geo.y1 - padded.y0, padded.pad + geo.x0: padded.pad + geo.x1]
+    else:
+        roi = frame[geo.y0: geo.y1, geo.x0 + geo.pad_left: geo.x1 - geo.pad_right]
+        if geo.pad_left or geo.pad_right:
+            roi = cv2.copyMakeBorder(roi, 0, 0, geo.pad_left, geo.pad_right, BORDER_MODES[geo.border_mode])
     if geo.scaled_w == roi.shape[1] and geo.scaled_h == roi.shape[0]:
         return np.ascontiguousarray(roi)
     return cv2.resize(roi, (geo.scaled_w, geo.scaled_h), interpolation=cv2.INTER_LINEAR)

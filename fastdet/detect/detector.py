@@ -40,7 +40,7 @@ from ..features import (
 )
 from ..features._hog_kernels import hog_u8_fast
 from ..model import Model, load_model
-from .bands import BandGeometry, band_geometry, scaled_band, window_boxes
+from .bands import BandGeometry, PaddedFrame, band_geometry, pad_frame, scaled_band, window_boxes
 from .scoring import KERNELS as SCORE_KERNELS
 from .scoring import dense_scores, hist_weight_integral, weight_table
 
@@ -89,14 +89,16 @@ class _Scorer:
                 for b in search.bands]
 
     def band_scores(self, frame: np.ndarray, geo: BandGeometry, timings: dict[str, float] | None,
-                    serial: bool = False, spans: Sequence[tuple[int, int]] | None = None) -> np.ndarray:
+                    serial: bool = False, spans: Sequence[tuple[int, int]] | None = None,
+                    padded: PaddedFrame | None = None) -> np.ndarray:
         """Decision values of the band's windows (``spans``: only the window columns
-        ``j0 <= j < j1`` of each ``(j0, j1)``, the others -inf; see :meth:`Detector.detect`)."""
+        ``j0 <= j < j1`` of each ``(j0, j1)``, the others -inf; see :meth:`Detector.detect`;
+        ``padded``: the frame's :func:`~fastdet.detect.bands.pad_frame`, if made)."""
         cfg = self.config
         if spans is not None and not any(min(j1, geo.nx) > max(j0, 0) for j0, j1 in spans):
             return np.full((geo.ny, geo.nx), -np.inf)  # nothing to score: not even the resize
         t0 = time.perf_counter()
-        img = convert_color(scaled_band(frame, geo), cfg.color_space)
+        img = convert_color(scaled_band(frame, geo, padded), cfg.color_space)
         t1 = time.perf_counter()
         t_hog = t_score = 0.0
         if spans is None:
@@ -247,8 +249,14 @@ class Detector:
         n_threads = numba.get_num_threads()
         spans = list(spans) if spans is not None else []
         spans += [None] * (len(geos) - len(spans))
+        # the bands past the frame edge cut their padded crops from one padded copy of the
+        # frame (not every band its own): the scaled bands are the same, bit for bit
+        t0 = time.perf_counter()
+        padded = pad_frame(frame, [g for i, (_, g) in enumerate(geos) if self._needs_pixels(g, spans[i])])
+        timings["resize_colour"] = timings.get("resize_colour", 0.0) + (time.perf_counter() - t0)
         if n_threads < 2 or len(geos) < 2:
-            return [self.scorers[p].band_scores(frame, g, timings, spans=sp) for (p, g), sp in zip(geos, spans)]
+            return [self.scorers[p].band_scores(frame, g, timings, spans=sp, padded=padded)
+                    for (p, g), sp in zip(geos, spans)]
         helpers = n_threads - 1  # the calling thread takes jobs too
         with self._pool_lock:
             if self._pool_size != helpers:
@@ -282,7 +290,8 @@ class Detector:
                         nxt[0] += 1
                     t: dict[str, float] = {}
                     p, g = geos[i]
-                    results[i] = (self.scorers[p].band_scores(frame, g, t, serial=True, spans=spans[i]), t)
+                    results[i] = (self.scorers[p].band_scores(frame, g, t, serial=True, spans=spans[i],
+                                                              padded=padded), t)
             finally:
                 numba.set_num_threads(before)
 
@@ -296,6 +305,11 @@ class Detector:
                 timings[k] = timings.get(k, 0.0) + v
             out.append(dec)
         return out
+
+    @staticmethod
+    def _needs_pixels(geo: BandGeometry, spans: Sequence[tuple[int, int]] | None) -> bool:
+        """Whether :meth:`_Scorer.band_scores` will cut the band (some window to score)."""
+        return spans is None or any(min(j1, geo.nx) > max(j0, 0) for j0, j1 in spans)
 
     def close(self) -> None:
         """Stop the band threads (also done when the Detector is garbage-collected)."""
