@@ -115,17 +115,83 @@ class Model:
     # ---- files -------------------------------------------------------------------------
     def save(self, path: str | os.PathLike) -> Path:
         """Write the model to ``path`` (``.npz``), via a temporary file and a rename."""
-        path = Path(path)
         meta = dict(self.metadata)
         meta.update(format_version=FORMAT_VERSION, feature_config=self.config.to_dict(),
                     classifier=self.classifier, fastdet_version=__version__)
-        blob = np.frombuffer(json.dumps(meta, sort_keys=True).encode("utf-8"), dtype=np.uint8)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_path(path) as tmp:
-            with open(tmp, "wb") as fh:
-                np.savez_compressed(fh, coef=self.coef, intercept=np.float64(self.intercept),
-                                    mean=self.mean, scale=self.scale, metadata=blob)
-        return path
+        return write_npz(path, {"coef": self.coef, "intercept": np.float64(self.intercept), "mean": self.mean,
+                                "scale": self.scale}, meta)
+
+
+def write_npz(path: str | os.PathLike, arrays: dict[str, np.ndarray], meta: dict[str, Any]) -> Path:
+    """Write ``arrays`` and ``meta`` (as the ``metadata`` array: UTF-8 JSON bytes, ``uint8``) to
+    ``path`` (``.npz``), via a temporary file and a rename (:func:`fastdet.io.atomic.atomic_path`):
+    the format of model files and of the box regressor."""
+    path = Path(path)
+    blob = np.frombuffer(json.dumps(meta, sort_keys=True).encode("utf-8"), dtype=np.uint8)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez_compressed(fh, **arrays, metadata=blob)
+    return path
+
+
+def read_npz(path: Path, names: tuple[str, ...], what: str = "model",
+             version: int = FORMAT_VERSION) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """The arrays ``names`` (``metadata`` among them) and the parsed metadata of a file written
+    by :func:`write_npz`, read with ``allow_pickle=False``. ``what`` names the kind of file in
+    the messages (``'model'``, ``'box regressor'``).
+
+    Raises :class:`~fastdet.errors.ModelError` naming the problem when the file is missing, a
+    folder, unreadable, not an ``.npz``, truncated, holds pickled objects, lacks an array, has
+    metadata that is not a JSON object or of another ``format_version`` than ``version``, or an
+    array other than the metadata holds non-numbers."""
+    if not path.exists():
+        raise ModelError(f"{what} file {path} not found")
+    if path.is_dir():
+        raise ModelError(f"{what} path {path} is a folder, not a file (an .npz is expected)")
+    try:
+        with open(path, "rb") as fh:
+            magic = fh.read(4)
+    except OSError as exc:
+        raise ModelError(f"{what} file {path}: cannot read ({exc.strerror or exc})") from None
+    if magic != b"PK\x03\x04":
+        raise ModelError(f"{path} is not a fastdet {what}: not an .npz (zip) archive"
+                         + (" (empty file)" if not magic else ""))
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            if not isinstance(npz, np.lib.npyio.NpzFile):
+                raise ModelError(f"{path} is a single .npy array, not a fastdet {what} (.npz)")
+            missing = [k for k in names if k not in npz.files]
+            if missing:
+                raise ModelError(f"{path} is not a fastdet {what}: missing array(s) {', '.join(missing)}")
+            arrays = {k: npz[k] for k in names}
+    except ModelError:
+        raise
+    except ValueError as exc:
+        if "pickle" in str(exc):
+            raise ModelError(f"{path} holds a pickled object array; fastdet {what}s hold plain numeric "
+                             "arrays only and are never unpickled") from None
+        raise ModelError(f"{path} is not a readable .npz {what} file (truncated or another format): {exc}") from None
+    except OSError as exc:
+        raise ModelError(f"{what} file {path}: cannot read ({exc.strerror or exc})") from None
+    except (zipfile.BadZipFile, EOFError, KeyError) as exc:
+        raise ModelError(f"{path} is not a readable .npz {what} file (truncated or another format): {exc}") from None
+    try:
+        meta = json.loads(arrays["metadata"].astype(np.uint8).tobytes().decode("utf-8"))
+        if not isinstance(meta, dict):
+            raise ValueError("not a JSON object")
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise ModelError(f"{path}: metadata is not valid JSON: {exc}") from None
+    found = meta.get("format_version")
+    if found != version or isinstance(found, bool):
+        if not isinstance(found, int) or isinstance(found, bool):
+            raise ModelError(f"{path}: the {what}'s format version must be the number {version}, "
+                             f"got {type(found).__name__} {json.dumps(found)}")
+        raise ModelError(f"{path}: {what} format version {found}, this fastdet reads version {version}")
+    for name in names:
+        if name != "metadata" and arrays[name].dtype.kind not in "fiu":
+            raise ModelError(f"{path}: '{name}' holds {arrays[name].dtype} values, expected numbers")
+    return arrays, meta
 
 
 def load_model(path: str | os.PathLike | None = None, expected_config: FeatureConfig | None = None) -> Model:
@@ -136,52 +202,7 @@ def load_model(path: str | os.PathLike | None = None, expected_config: FeatureCo
     feature configuration (or ``expected_config`` when given).
     """
     path = Path(path) if path is not None else DEFAULT_MODEL_PATH
-    if not path.exists():
-        raise ModelError(f"model file {path} not found")
-    if path.is_dir():
-        raise ModelError(f"model path {path} is a folder, not an .npz file")
-    try:
-        with open(path, "rb") as fh:
-            magic = fh.read(4)
-    except OSError as exc:
-        raise ModelError(f"model file {path}: cannot read ({exc.strerror or exc})") from None
-    if magic != b"PK\x03\x04":
-        raise ModelError(f"{path} is not a fastdet model: not an .npz (zip) archive"
-                         + (" (empty file)" if not magic else ""))
-    try:
-        with np.load(path, allow_pickle=False) as npz:
-            if not isinstance(npz, np.lib.npyio.NpzFile):
-                raise ModelError(f"{path} is a single .npy array, not a fastdet model (.npz)")
-            missing = [k for k in _ARRAYS if k not in npz.files]
-            if missing:
-                raise ModelError(f"{path} is not a fastdet model: missing array(s) {', '.join(missing)}")
-            arrays = {k: npz[k] for k in _ARRAYS}
-    except ModelError:
-        raise
-    except ValueError as exc:
-        if "pickle" in str(exc):
-            raise ModelError(f"{path} holds a pickled object array; fastdet models hold plain numeric "
-                             "arrays only and are never unpickled") from None
-        raise ModelError(f"{path} is not a readable .npz model file (truncated or another format): {exc}") from None
-    except OSError as exc:
-        raise ModelError(f"model file {path}: cannot read ({exc.strerror or exc})") from None
-    except (zipfile.BadZipFile, EOFError, KeyError) as exc:
-        raise ModelError(f"{path} is not a readable .npz model file (truncated or another format): {exc}") from None
-    try:
-        meta = json.loads(arrays["metadata"].astype(np.uint8).tobytes().decode("utf-8"))
-        if not isinstance(meta, dict):
-            raise ValueError("not a JSON object")
-    except (ValueError, UnicodeDecodeError) as exc:
-        raise ModelError(f"{path}: metadata is not valid JSON: {exc}") from None
-    version = meta.get("format_version")
-    if version != FORMAT_VERSION or isinstance(version, bool):
-        if not isinstance(version, int) or isinstance(version, bool):
-            raise ModelError(f"{path}: the model's format version must be the number {FORMAT_VERSION}, "
-                             f"got {type(version).__name__} {json.dumps(version)}")
-        raise ModelError(f"{path}: model format version {version}, this fastdet reads version {FORMAT_VERSION}")
-    for name in ("coef", "intercept", "mean", "scale"):
-        if arrays[name].dtype.kind not in "fiu":
-            raise ModelError(f"{path}: '{name}' holds {arrays[name].dtype} values, expected numbers")
+    arrays, meta = read_npz(path, _ARRAYS, "model")
     try:
         config = FeatureConfig.from_dict(meta["feature_config"])
     except (KeyError, TypeError, ValueError) as exc:

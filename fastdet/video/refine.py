@@ -38,10 +38,8 @@ array            shape, dtype                  meaning
 """
 from __future__ import annotations
 
-import json
 import math
 import os
-import zipfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -54,7 +52,7 @@ from ..config import FeatureConfig
 from ..detections import Detections
 from ..errors import ModelError
 from ..features import extract_features
-from ..io.atomic import atomic_path
+from ..model import read_npz, write_npz
 
 FORMAT_VERSION = 1
 #: the bundled regressor (``tools/refine_eval.py --ship``)
@@ -232,17 +230,11 @@ class BoxRegressor:
     # ---- files ------------------------------------------------------------------------
     def save(self, path: str | os.PathLike) -> Path:
         """Write to ``path`` (``.npz``), via a temporary file and a rename."""
-        path = Path(path)
         meta = dict(self.metadata)
         meta.update(format_version=FORMAT_VERSION, kind="box_regressor", feature_config=self.config.to_dict(),
                     contexts=list(self.contexts), fastdet_version=__version__)
-        blob = np.frombuffer(json.dumps(meta, sort_keys=True).encode("utf-8"), dtype=np.uint8)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_path(path) as tmp:
-            with open(tmp, "wb") as fh:
-                np.savez_compressed(fh, coef=self.coef, intercept=self.intercept, mean=self.mean,
-                                    scale=self.scale, metadata=blob)
-        return path
+        return write_npz(path, {"coef": self.coef, "intercept": self.intercept, "mean": self.mean,
+                                "scale": self.scale}, meta)
 
 
 def load_regressor(path: str | os.PathLike | None = None) -> BoxRegressor:
@@ -253,45 +245,9 @@ def load_regressor(path: str | os.PathLike | None = None) -> BoxRegressor:
     an array, has bad metadata or another format version, or its arrays do not fit its
     features."""
     path = Path(path) if path is not None else REFINE_MODEL_PATH
-    if not path.is_file():
-        raise ModelError(f"box regressor {path} not found" if not path.exists()
-                         else f"box regressor path {path} is not a file")
-    try:
-        with open(path, "rb") as fh:
-            magic = fh.read(4)
-        if magic != b"PK\x03\x04":
-            raise ModelError(f"{path} is not a box regressor: not an .npz (zip) archive"
-                             + (" (empty file)" if not magic else ""))
-        with np.load(path, allow_pickle=False) as npz:
-            missing = [k for k in _ARRAYS if k not in npz.files]
-            if missing:
-                raise ModelError(f"{path} is not a box regressor: missing array(s) {', '.join(missing)}")
-            arrays = {k: npz[k] for k in _ARRAYS}
-    except ModelError:
-        raise
-    except ValueError as exc:
-        if "pickle" in str(exc):
-            raise ModelError(f"{path} holds a pickled object array; box regressors hold plain numeric "
-                             "arrays only and are never unpickled") from None
-        raise ModelError(f"{path} is not a readable .npz box regressor: {exc}") from None
-    except OSError as exc:
-        raise ModelError(f"box regressor {path}: cannot read ({exc.strerror or exc})") from None
-    except (zipfile.BadZipFile, EOFError, KeyError) as exc:
-        raise ModelError(f"{path} is not a readable .npz box regressor (truncated?): {exc}") from None
-    try:
-        meta = json.loads(arrays["metadata"].astype(np.uint8).tobytes().decode("utf-8"))
-        if not isinstance(meta, dict):
-            raise ValueError("not a JSON object")
-    except (ValueError, UnicodeDecodeError) as exc:
-        raise ModelError(f"{path}: metadata is not valid JSON: {exc}") from None
+    arrays, meta = read_npz(path, _ARRAYS, "box regressor", FORMAT_VERSION)
     if meta.get("kind") != "box_regressor":
         raise ModelError(f"{path} is not a box regressor (metadata kind {meta.get('kind')!r})")
-    if meta.get("format_version") != FORMAT_VERSION or isinstance(meta.get("format_version"), bool):
-        raise ModelError(f"{path}: box regressor format version {meta.get('format_version')!r}, "
-                         f"this fastdet reads version {FORMAT_VERSION}")
-    for name in ("coef", "intercept", "mean", "scale"):
-        if arrays[name].dtype.kind not in "fiu":
-            raise ModelError(f"{path}: '{name}' holds {arrays[name].dtype} values, expected numbers")
     try:
         config = FeatureConfig.from_dict(meta["feature_config"])
         contexts = tuple(float(c) for c in meta["contexts"])
