@@ -377,11 +377,35 @@ PLANES_MIN_CELLS = 64
 
 
 @njit(**_JIT)
+def _image_row_index(img, y, idx):
+    """:func:`_lut_index_row` of image row ``y`` of a uint8 ``(rows, cols, C)`` C-contiguous
+    image into ``idx (cols * C,)``, with skimage's zero g_row on the first and last rows."""
+    n = img.shape[1] * img.shape[2]
+    cur = img[y].reshape(n)
+    if y == 0 or y == img.shape[0] - 1:
+        _lut_index_row(cur, cur, cur, img.shape[2], idx)
+    else:
+        _lut_index_row(img[y + 1].reshape(n), img[y - 1].reshape(n), cur, img.shape[2], idx)
+
+
+@njit(**_JIT)
+def _store_cell_row(acc, area, ci, hist):
+    """Cell row ``ci`` of ``hist (n_cells_row, n_cells_col, n_channels, orientations)`` from
+    its float32 totals ``acc`` laid out ``(cell, channel, bin)``, each divided by the cell
+    ``area`` in float32 (skimage's ``total / (cell_rows * cell_columns)``)."""
+    p = 0
+    for cx in range(hist.shape[1]):
+        for k in range(hist.shape[2]):
+            for o in range(hist.shape[3]):
+                hist[ci, cx, k, o] = np.float64(acc[p] / area)
+                p += 1
+
+
+@njit(**_JIT)
 def _cell_row_interleaved(img, chans, ci, c_row, c_col, bin_lut, mag_lut, hist):
     """As :func:`_cell_rows_planes` for one cell row, straight from the interleaved
     image: LUT indices of every sample of an image row, totals ``(cell, channel, bin)``
     (faster on narrow images, e.g. 64x64 training crops)."""
-    n_rows = img.shape[0]
     n_cols = img.shape[1]
     n_img_ch = img.shape[2]
     n_cells_col = hist.shape[1]
@@ -393,11 +417,7 @@ def _cell_row_interleaved(img, chans, ci, c_row, c_col, bin_lut, mag_lut, hist):
     stride = n_ch * n_or
     step = c_col * n_img_ch
     for y in range(ci * c_row, ci * c_row + c_row):
-        cur = img[y].reshape(n)
-        if y == 0 or y == n_rows - 1:
-            _lut_index_row(cur, cur, cur, n_img_ch, idx)
-        else:
-            _lut_index_row(img[y + 1].reshape(n), img[y - 1].reshape(n), cur, n_img_ch, idx)
+        _image_row_index(img, y, idx)
         # channel, then column offset, then cell: consecutive updates hit different cells
         # (independent float32 chains); unsigned indices skip wraparound checks
         for k in range(n_ch):
@@ -410,13 +430,7 @@ def _cell_row_interleaved(img, chans, ci, c_row, c_col, bin_lut, mag_lut, hist):
                     acc[a] = np.float32(acc[a] + mag_lut[t])
                     j += step
                     a0 += stride
-    area = np.float32(c_row * c_col)
-    p = 0
-    for cx in range(n_cells_col):
-        for k in range(n_ch):
-            for o in range(n_or):
-                hist[ci, cx, k, o] = np.float64(acc[p] / area)
-                p += 1
+    _store_cell_row(acc, np.float32(c_row * c_col), ci, hist)
 
 
 @njit(**_JIT)
@@ -511,7 +525,6 @@ def _cell_row_max_channel(img, chans, ci, c_row, c_col, bin_lut, mag_lut, hist):
     """skimage's multichannel histograms of cell row ``ci`` into ``hist[ci, :, 0]``: per
     pixel the channel of ``chans`` with the largest gradient magnitude (first on ties)
     votes."""
-    n_rows = img.shape[0]
     n_cols = img.shape[1]
     n_img_ch = img.shape[2]
     n_cells_col = hist.shape[1]
@@ -523,11 +536,7 @@ def _cell_row_max_channel(img, chans, ci, c_row, c_col, bin_lut, mag_lut, hist):
     idx = np.empty(n, dtype=np.int32)
     stride = n_ch * n_or
     for y in range(ci * c_row, ci * c_row + c_row):
-        cur = img[y].reshape(n)
-        if y == 0 or y == n_rows - 1:
-            _lut_index_row(cur, cur, cur, n_img_ch, idx)
-        else:
-            _lut_index_row(img[y + 1].reshape(n), img[y - 1].reshape(n), cur, n_img_ch, idx)
+        _image_row_index(img, y, idx)
         for xo in range(c_col):
             for cx in range(n_cells_col):
                 j = (cx * c_col + xo) * n_img_ch
@@ -542,13 +551,7 @@ def _cell_row_max_channel(img, chans, ci, c_row, c_col, bin_lut, mag_lut, hist):
                         t = tk
                 a = cx * stride + bin_lut[t]
                 acc[a] = np.float32(acc[a] + best)
-    area = np.float32(c_row * c_col)
-    p = 0
-    for cx in range(n_cells_col):
-        for k in range(n_ch):
-            for o in range(n_or):
-                hist[ci, cx, k, o] = np.float64(acc[p] / area)
-                p += 1
+    _store_cell_row(acc, np.float32(c_row * c_col), ci, hist)
 
 
 @njit(**_JIT)
