@@ -32,6 +32,17 @@ def positive_float(s: str) -> float:
     return v
 
 
+def fraction(s: str) -> float:
+    """argparse type: a number in [0, 1]."""
+    try:
+        v = float(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a fraction in [0, 1], got {s!r}") from None
+    if not 0 <= v <= 1:
+        raise argparse.ArgumentTypeError(f"expected a fraction in [0, 1], got {s!r}")
+    return v
+
+
 def horizon_value(s: str) -> float | str | None:
     """argparse type of ``--horizon``: ``auto`` (estimate it from the video), ``off`` (the
     search bands as configured, for 1280x720 footage with the horizon at 0.585 of the height)
@@ -39,12 +50,10 @@ def horizon_value(s: str) -> float | str | None:
     if s in ("auto", "off"):
         return None if s == "off" else "auto"
     try:
-        v = float(s)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'auto', 'off' or a fraction of the frame height, got {s!r}") from None
-    if not 0.0 <= v <= 1.0:
-        raise argparse.ArgumentTypeError(f"a fraction of the frame height is between 0 and 1, got {v}")
-    return v
+        return fraction(s)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"'auto', 'off' or a fraction of the frame height in [0, 1], "
+                                         f"got {s!r}") from None
 
 
 def add_horizon_argument(parser: argparse.ArgumentParser) -> None:

@@ -29,18 +29,7 @@ from ..train import augment
 from ..train.augment import JPEG_QUALITY
 from ..train.fit import train
 from . import _signals
-from ._args import nonneg_int, positive_float, positive_int
-
-
-def fraction(s: str) -> float:
-    """argparse type: a number in [0, 1]."""
-    try:
-        v = float(s)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a fraction in [0, 1], got {s!r}") from None
-    if not 0 <= v <= 1:
-        raise argparse.ArgumentTypeError(f"expected a fraction in [0, 1], got {s!r}")
-    return v
+from ._args import fraction, nonneg_int, positive_float, positive_int
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
