@@ -10,6 +10,7 @@ from ..errors import FastdetError
 from ..eval.metrics import evaluate
 from ..eval.report import format_table, plot_pr
 from ..io.motfiles import Predictions, read_gt, read_predictions
+from ..io.paths import bundled_models, check_paths
 from ..io.reader import check_source
 from ..video.pipeline import iter_video_detections
 from ._args import (add_horizon_argument, add_oncoming_arguments, add_refine_argument, add_search_argument, guided_arg,
@@ -70,6 +71,12 @@ def run(args: argparse.Namespace) -> int:
                                or getattr(args, "traffic", "right") != "right"):
         raise FastdetError("--model, --oncoming-model, --no-oncoming, --traffic, --no-refine, --no-track and "
                            "--offline only apply with --video")
+    check_paths([("--gt", args.gt), ("--pred", args.pred), ("--video", args.video), ("--model", args.model),
+                 ("--oncoming-model", getattr(args, "oncoming_model", None)),
+                 *(bundled_models() if args.video is not None else [])],
+                [("--plot", args.plot, "PNG")])
+    if args.video is not None:
+        check_source(args.video)
     gt = read_gt(args.gt)
     if args.video is not None:
         preds = _video_predictions(args.video, args.model, oncoming_arg(args), not no_track, offline,

@@ -343,7 +343,11 @@ def _mot_metrics(
         warnings.simplefilter("ignore")
         acc = mm.MOTAccumulator(auto_id=False)
         empty = np.zeros(0, np.int64)
-        for f in range(1, F + 1):
+        # frames with no box add nothing to any of these metrics: time and memory follow the
+        # boxes in the files, not the largest frame number
+        for f in sorted(set(g_groups) | set(p_groups)):
+            if not 1 <= f <= F:
+                continue
             gidx = g_groups.get(f, empty)
             gidx = gidx[gt.consider[gidx]]
             pidx = p_groups.get(f, empty)
