@@ -115,3 +115,33 @@ def test_image_of_one_pixel_row(tmp_path, capsys):
     cv2.imwrite(str(img), (255 * __import__("numpy").random.default_rng(0).random((1, 1000, 3))).astype("uint8"))
     assert main(["image", str(img), "-o", str(tmp_path / "o.jpg")]) == 2
     assert "frames of 1000x1 are too small" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_two_runs_onto_the_same_outputs_never_share_a_temporary_file(tmp_path):
+    """Two ``video`` runs writing the same files at once: each writes its own temporary files
+    (pid + token), so both end well and the last rename wins whole -- no video cut short, no
+    box file mixing two runs."""
+    import subprocess
+    import time
+
+    from tests.media import fastdet_cmd
+
+    clip = write_video(tmp_path / "c.mp4", 90, w=480, h=270)
+    solo = tmp_path / "solo.txt"
+    subprocess.run(fastdet_cmd("video", clip, "--boxes", solo, "--no-progress"), check=True, capture_output=True)
+    out, boxes = tmp_path / "same.mp4", tmp_path / "same.txt"
+    cmd = fastdet_cmd("video", clip, "-o", out, "--boxes", boxes, "--no-progress")
+    first = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(2.0)
+    second = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    for p in (first, second):
+        _, err = p.communicate(timeout=300)
+        assert p.returncode == 0, err
+    assert boxes.read_bytes() == solo.read_bytes()
+    cap = cv2.VideoCapture(str(out))
+    n = 0
+    while cap.read()[0]:
+        n += 1
+    cap.release()
+    assert n == 90 and not leftovers(tmp_path)
