@@ -6,7 +6,7 @@ runs the same building blocks, in the same way, as ``python -m fastdet video``:
 (a fresh one per video: heat map and motion state start empty) →
 :class:`~fastdet.io.motfiles.MotWriter` / :class:`~fastdet.io.motfiles.JsonLinesWriter` /
 :class:`~fastdet.io.sink.VideoSink`, so the boxes are byte-identical to ``video --boxes``
-(``tests/test_batch.py`` checks it).
+(``tests/batch/test_job.py`` checks it).
 
 - The detector (models loaded, kernels warmed up) is made once per worker process and
   settings (:func:`detector_for`), and every task runs the kernels on one Numba thread:

@@ -5,7 +5,7 @@ map and histogram-weight integral image once; then one numba kernel gives the de
 value of every window position (``fastdet.detect.scoring.dense_scores``). The result equals
 the classic per-window pipeline (skimage HOG of the scaled band, the window's blocks sliced
 out, the window's own spatial and histogram features, ``scaler.transform``,
-``decision_function``) to floating-point rounding; ``tests/test_detector.py`` checks every
+``decision_function``) to floating-point rounding; ``tests/detect/test_detector.py`` checks every
 window of every default band.
 
 Training crops are 64x64 images whose HOG has zeroed gradients on the crop's border; in

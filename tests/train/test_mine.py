@@ -66,7 +66,7 @@ def test_mine_image_sequence_with_annotations(data, tmp_path, capsys):
     from fastdet.model import ONCOMING_MODEL_PATH
     from fastdet.io.motfiles import read_gt
 
-    gt_path = Path(__file__).resolve().parents[1] / "tools" / "test_images.gt.txt"
+    gt_path = Path(__file__).resolve().parents[2] / "tools" / "test_images.gt.txt"
     out = tmp_path / "neg"
     rc = main(["mine-negatives", str(data / "test_images" / "test%d.jpg"), "--gt", str(gt_path), "--out", str(out),
                "--part", "wide", "--wide-model", str(ONCOMING_MODEL_PATH), "--threshold", "-1",
