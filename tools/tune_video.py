@@ -105,8 +105,8 @@ def replay(clip: CachedClip, thr: float, heat: HeatConfig, wide_heat: HeatConfig
     """The boxes :class:`fastdet.VideoDetector` (``heat``, ``wide_heat``, ``motion``,
     ``tracker``: its arguments) gives on the clip's frames from its cached windows, for frames
     ``first`` (1-based) on."""
-    vd = VideoDetector(ReplayDetector(replayed_windows(clip, thr, thr_wide), like=clip.detector), heat=heat, wide_heat=wide_heat, motion=motion,
-                       tracker=tracker)
+    vd = VideoDetector(ReplayDetector(replayed_windows(clip, thr, thr_wide), like=clip.detector), heat=heat,
+                       wide_heat=wide_heat, motion=motion, tracker=tracker)
     frames = [(i, d) for i, d in enumerate(map(vd.update, frames_of(clip.video)), start=1) if i >= first]
     if vd.detector.frame != len(clip):
         raise RuntimeError(f"{clip.video}: {vd.detector.frame} frames decoded, {len(clip)} cached")

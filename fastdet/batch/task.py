@@ -18,8 +18,9 @@ runs the same building blocks, in the same way, as ``python -m fastdet video``:
 - A video that cannot be used (:class:`~fastdet.errors.FastdetError`: not a video, frames
   too small or grey, a failed write) is returned as ``status: "failed"`` with the one-line
   reason and ``permanent: True``: retrying would fail again (a rerun skips it while the
-  file is unchanged). Any other exception propagates, and Dask retries the task. The reader's notes (damaged frames skipped, a frame count other than the header's)
-  are returned in ``notes`` instead of being printed on the worker.
+  file is unchanged). Any other exception propagates, and Dask retries the task. The reader's
+  notes (damaged frames skipped, a frame count other than the header's) are returned in
+  ``notes`` instead of being printed on the worker.
 - Progress: while it runs, the task sends ``{"name", "token", "frames", "expected"}``
   events on the Dask topic ``task.topic`` (:meth:`distributed.Worker.log_event`) at most
   every :data:`PROGRESS_EVERY` seconds, and once at the end.

@@ -18,6 +18,8 @@ from fastdet.io import draw
 from fastdet.video import detect_image
 from tests.fakes import BlobsDetector
 
+FAKE = BlobsDetector(score=2.0, scales=True)  # windows around each bright rectangle
+
 
 @pytest.fixture
 def image(tmp_path) -> Path:
@@ -35,7 +37,7 @@ def parse(*argv):
 
 def test_image_boxes_windows_heat(image, tmp_path, capsys):
     out = tmp_path / "out.jpg"
-    assert imagecmd.run(parse(image, "-o", out, "--windows", "--heat"), detector=BlobsDetector(score=2.0, scales=True)) == 0
+    assert imagecmd.run(parse(image, "-o", out, "--windows", "--heat"), detector=FAKE) == 0
     assert "1 vehicle(s) from 10 positive window(s)" in capsys.readouterr().out
     res = cv2.imread(str(out))
     heat = cv2.imread(str(tmp_path / "out.heat.jpg"))
@@ -50,20 +52,20 @@ def test_image_boxes_windows_heat(image, tmp_path, capsys):
 def test_detect_image_single_frame_threshold(image):
     frame = cv2.imread(str(image))
     cfg = HeatConfig().single_frame()
-    windows, hm, boxes = detect_image(frame, BlobsDetector(score=2.0, scales=True), cfg)
+    windows, hm, boxes = detect_image(frame, FAKE, cfg)
     assert hm.config.n_frames == 1 and hm.config.threshold == cfg.single_frame_threshold
     assert len(windows) == 10 and windows.scale.tolist() == [1.0, 1.5, 2.0, 2.5, 3.0] * 2
     assert len(hm.blobs.boxes) == 2 and len(boxes.boxes) == 1  # the pole is filtered out
     x1, y1, x2, y2 = boxes.boxes[0]
     assert abs(x1 - 40) <= 4 and abs(x2 - 120) <= 4 and abs(y1 - 100) <= 4 and abs(y2 - 160) <= 4
     # a threshold above every heat value leaves nothing
-    _, _, none = detect_image(frame, BlobsDetector(score=2.0, scales=True), HeatConfig().single_frame(1e6))
+    _, _, none = detect_image(frame, FAKE, HeatConfig().single_frame(1e6))
     assert len(none.boxes) == 0
 
 
 def test_threshold_option(image, tmp_path, capsys):
     out = tmp_path / "o.png"
-    assert imagecmd.run(parse(image, "-o", out, "--threshold", "1000"), detector=BlobsDetector(score=2.0, scales=True)) == 0
+    assert imagecmd.run(parse(image, "-o", out, "--threshold", "1000"), detector=FAKE) == 0
     assert "0 vehicle(s)" in capsys.readouterr().out
     assert cv2.imread(str(out)).shape == (240, 320, 3)
 
@@ -91,7 +93,7 @@ def test_bad_inputs(image, tmp_path, capsys):
 
 def test_unwritable_extension(image, tmp_path):
     with pytest.raises(DataError, match="cannot write an image"):
-        imagecmd.run(parse(image, "-o", tmp_path / "o.unknownext"), detector=BlobsDetector(score=2.0, scales=True))
+        imagecmd.run(parse(image, "-o", tmp_path / "o.unknownext"), detector=FAKE)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.png"]
 
 

@@ -41,7 +41,8 @@ def test_mine_video_with_gt_finds_few(data, tmp_path, capsys):
 
 
 def test_mine_user_errors(tmp_path, capsys):
-    assert main(["mine-negatives", str(tmp_path / "none.mp4"), "--out", str(tmp_path / "o"), "--x-range", "0", "9"]) == 2
+    assert main(["mine-negatives", str(tmp_path / "none.mp4"), "--out", str(tmp_path / "o"),
+                 "--x-range", "0", "9"]) == 2
     assert "not found" in capsys.readouterr().err
     assert main(["mine-negatives", str(tmp_path / "none.mp4"), "--out", str(tmp_path / "o")]) == 2
     assert "say where there are no vehicles" in capsys.readouterr().err

@@ -139,7 +139,8 @@ def test_two_touching_cars_keep_two_boxes_and_two_ids():
 
 def test_iter_video_detections_offline_yields_every_frame(clip):
     live = list(iter_video_detections(clip, detector=BlobsDetector(), progress=False, heat=HEAT, refine=False))
-    off = list(iter_video_detections(clip, detector=BlobsDetector(), progress=False, heat=HEAT, refine=False, offline=True))
+    off = list(iter_video_detections(clip, detector=BlobsDetector(), progress=False, heat=HEAT, refine=False,
+                                     offline=True))
     assert [f for f, _ in off] == [f for f, _ in live] == list(range(1, 25))
     for (_, a), (_, b) in zip(live, off):  # nothing to fill on a clean clip
         assert a.ids.tolist() == b.ids.tolist()
