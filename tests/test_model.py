@@ -155,8 +155,10 @@ def _replace_member(path, name, data: bytes):
     return path
 
 
-@pytest.mark.parametrize("data", [np.random.default_rng(0).bytes(500), b"\x80\x04\x95\x05\x00\x00\x00\x00\x00\x00\x00N."],
-                         ids=["random-bytes", "pickle-stream"])
+PICKLE_NONE = b"\x80\x04\x95\x05\x00\x00\x00\x00\x00\x00\x00N."
+
+
+@pytest.mark.parametrize("data", [np.random.default_rng(0).bytes(500), PICKLE_NONE], ids=["random-bytes", "pickle"])
 def test_array_member_that_is_not_npy_is_one_line(tmp_path, data):
     p = _replace_member(_rewrite(tmp_path), "coef.npy", data)
     with pytest.raises(ModelError, match="'coef' is not a valid .npy array"):

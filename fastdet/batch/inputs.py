@@ -71,7 +71,7 @@ def _folder_videos(folder: Path, writes: Writes = _never) -> list[Path]:
     for root, dirs, files in os.walk(folder):
         dirs[:] = sorted(d for d in dirs if not d.startswith("."))
         found.extend(p for p in (Path(root) / f for f in files if not f.startswith(".") and is_video_name(f))
-                     if not writes(p))
+                     if p.is_file() and not writes(p))  # not a pipe or a device named like a video
     return sorted(found, key=lambda p: p.relative_to(folder).parts)
 
 

@@ -22,7 +22,7 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from ..errors import DataError
-from .atomic import folder_writable
+from .atomic import folder_writable, partial_name
 
 #: the folder of the model files shipped with fastdet
 MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
@@ -58,6 +58,14 @@ def _is_file_input(path: str) -> bool:
     return source_kind(path) == "file"
 
 
+def _name_max(folder: str) -> int:
+    """The longest file name the file system of ``folder`` takes (255 when it cannot say)."""
+    try:
+        return int(os.pathconf(folder, "PC_NAME_MAX"))
+    except (OSError, ValueError):
+        return 255
+
+
 def _a(what: str) -> str:
     return f"{'an' if what[:1] in 'aeiou' else 'a'} {what}"
 
@@ -71,6 +79,13 @@ def check_output(path: str | os.PathLike[str], what: str, label: str | None = No
         raise DataError(f"{shown}: expected {_a(what)} file name")
     if os.path.isdir(name):
         raise DataError(f"{shown}: is a folder, expected {_a(what)} file name")
+    if os.path.exists(name) and not os.path.isfile(name):
+        # a device (/dev/null), a pipe, a socket: the finished output is renamed onto its
+        # name, which would put a plain file in its place
+        raise DataError(f"{shown}: is not a regular file (a device or a pipe); fastdet writes {_a(what)} "
+                        f"file by renaming it into place: give a file name")
+    if len(os.fsencode(os.path.basename(partial_name(name)))) > _name_max(os.path.dirname(os.path.abspath(name))):
+        raise DataError(f"{shown}: the file name is too long (its temporary name would not fit the file system)")
     parent = os.path.dirname(os.path.abspath(name))
     if not os.path.isdir(parent):
         raise DataError(f"{shown}: output folder {parent} does not exist")

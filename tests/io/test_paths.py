@@ -17,7 +17,7 @@ def test_distinct_files_pass_and_nothing_is_made(tmp_path):
     assert sorted(tmp_path.iterdir()) == [inp]
 
 
-def test_output_that_is_an_input(tmp_path):
+def test_output_that_is_an_input(tmp_path, monkeypatch):
     gt, pred = tmp_path / "g.txt", tmp_path / "p.txt"
     gt.write_text("1,1,1,1,5,5")
     pred.write_text("")
@@ -25,7 +25,7 @@ def test_output_that_is_an_input(tmp_path):
         with pytest.raises(DataError, match=f"--plot {out}: would overwrite the input {label} {out}"):
             check_paths([("--gt", gt), ("--pred", pred)], [("--plot", out, "PNG")])
     # the same file under another name: a relative path, a symlink, a hard link, '..'
-    os.chdir(tmp_path)
+    monkeypatch.chdir(tmp_path)
     link = tmp_path / "link.txt"
     link.symlink_to(gt)
     hard = tmp_path / "hard.txt"
@@ -74,3 +74,19 @@ def test_output_locations(tmp_path):
                 check_output(ro / "o.mp4", "video")
         finally:
             ro.chmod(0o700)
+
+
+def test_output_that_is_a_device_or_a_pipe(tmp_path):
+    fifo = tmp_path / "p.txt"
+    os.mkfifo(fifo)
+    with pytest.raises(DataError, match="is not a regular file"):
+        check_output(fifo, "box")
+    with pytest.raises(DataError, match="is not a regular file"):
+        check_output("/dev/null", "box")  # a rename onto it would replace the device with a file
+    assert os.path.exists("/dev/null") and not os.path.isfile("/dev/null")
+
+
+def test_output_name_too_long_for_its_temporary_name(tmp_path):
+    check_output(tmp_path / ("a" * 200 + ".txt"), "box")
+    with pytest.raises(DataError, match="file name is too long"):
+        check_output(tmp_path / ("a" * 240 + ".txt"), "box")

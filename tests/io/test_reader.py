@@ -266,10 +266,14 @@ def test_named_pipe_nobody_writes_to_is_bounded_and_a_stop_ends_it(tmp_path, mon
         with pytest.raises(signals.Stopped):
             FrameReader(fifo)
         timer.join()
-    # the helper threads blocked in OpenCV's open are daemons; let them go
-    for _ in range(2):
+    # the helper threads left blocked in OpenCV's open hold OpenCV's FFmpeg lock: a writer
+    # that opens and closes the pipe lets them go before any other test opens a video
+    import time
+    end = time.monotonic() + 60
+    while any(t.name == "fastdet-open" for t in threading.enumerate()) and time.monotonic() < end:
         try:
-            fd = os.open(fifo, os.O_WRONLY | os.O_NONBLOCK)
-            os.close(fd)
+            os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
         except OSError:
             pass
+        time.sleep(0.05)
+    assert not any(t.name == "fastdet-open" for t in threading.enumerate())
