@@ -51,6 +51,9 @@ import numpy as np
 
 from ._heat_kernels import add_rects
 from ._label_kernels import extent_boxes, label_blobs
+
+#: the numba kernels of a heat map (compiled ahead of time: fastdet._numba.ensure_compiled)
+KERNELS = (add_rects, label_blobs, extent_boxes)
 from ..config import HeatConfig
 from ..detections import Detections
 
