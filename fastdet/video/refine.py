@@ -59,7 +59,7 @@ from ..model import read_npz, write_npz
 KERNELS = FEATURE_KERNELS
 
 FORMAT_VERSION = 1
-#: the bundled regressor (``tools/refine_eval.py --ship``)
+#: the bundled regressor (``tools/scripts/refine_model.py``)
 REFINE_MODEL_PATH = Path(__file__).resolve().parents[1] / "models" / "refine.npz"
 _ARRAYS = ("coef", "intercept", "mean", "scale", "metadata")
 #: the regressor's default features: HOG of the luma channel (9 orientations, 8-px cells) and
