@@ -17,7 +17,8 @@ orientations)``, i.e. the normalised ``(b_row, b_col, orientations)`` block of e
 contiguous.
 
 The kernels Python calls (:data:`SIGNATURES`, each compiled for exactly the argument types
-listed there) work on a range of rows -- cell rows, block rows -- on the calling thread: the wrappers in :mod:`fastdet.features._hog` spread the ranges over threads
+listed there) work on a range of rows -- cell rows, block rows -- on the calling thread: the
+wrappers in :mod:`fastdet.features._hog` spread the ranges over threads
 (:func:`fastdet._numba.split_range`) when that pays, so one compiled kernel serves one thread
 and many, and none is a ``parallel=True`` kernel (those compile several times slower).
 """

@@ -103,8 +103,8 @@ def main(argv: list[str] | None = None) -> int:
         rows = rows[:args.top]
     print(f"{'start s':>8} {'incl s':>7} {'excl s':>7} {'CPU s':>7}  {'phase':8} {'thread':14} kernel(signature)")
     for r in rows:
-        print(f"{r['start']:8.2f} {r['incl']:7.2f} {r['excl']:7.2f} {r['cpu']:7.2f}  {r['phase']:8} {r['thread'][:14]:14} "
-              f"{'  ' * r['depth']}{r['kernel']}({r['sig']})")
+        print(f"{r['start']:8.2f} {r['incl']:7.2f} {r['excl']:7.2f} {r['cpu']:7.2f}  {r['phase']:8} "
+              f"{r['thread'][:14]:14} {'  ' * r['depth']}{r['kernel']}({r['sig']})")
     per_kernel: dict[str, list] = {}
     for r in records:
         k = per_kernel.setdefault(r["kernel"], [0, 0.0, 0.0])
