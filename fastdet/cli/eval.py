@@ -52,7 +52,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="one report over every annotated clip of the data folder (annotations/CLIP.gt.txt "
                              "with videos/CLIP.mp4): runs the video pipeline on each (or reads --pred-dir) and "
                              "prints a markdown table, P / R / F1 / AP / false alarms per frame / recall by width")
-    parser.add_argument("--data", metavar="DIR", help="--all: the data folder (default: $FASTDET_DATA or ../shared/data)")
+    parser.add_argument("--data", metavar="DIR",
+                        help="--all: the data folder (default: $FASTDET_DATA or ../shared/data)")
     parser.add_argument("--clips", metavar="A,B", help="--all: only these clips (comma-separated names)")
     parser.add_argument("--pred-dir", metavar="DIR",
                         help="--all: read each clip's predictions from DIR/CLIP.txt (or DIR/CLIP.jsonl) instead of "
@@ -114,7 +115,8 @@ def _clip_predictions(pred_dir: str, name: str) -> Predictions:
 def _run_all(args: argparse.Namespace) -> int:
     if args.gt is not None or args.pred is not None or args.video is not None or args.keyframes is not None \
             or args.plot is not None:
-        raise FastdetError("--all scores every annotated clip: it takes no --gt, --pred, --video, --keyframes or --plot")
+        raise FastdetError("--all scores every annotated clip: "
+                           "it takes no --gt, --pred, --video, --keyframes or --plot")
     if args.pred_dir is not None and (args.model is not None or args.oncoming_model is not None or args.no_oncoming
                                       or args.no_track or args.offline or getattr(args, "no_refine", False)
                                       or getattr(args, "traffic", "right") != "right"):

@@ -130,7 +130,8 @@ def test_annotated_clips_finds_videos_with_ground_truth(tmp_path):
 
 def test_every_shared_clip_scores_its_own_ground_truth_perfectly(data):
     clips = annotated_clips(data)
-    assert {"test_small1", "test_video", "highway_640", "boston_street", "motorcycle_highway"} <= {c.name for c in clips}
+    names = {c.name for c in clips}
+    assert {"test_small1", "test_video", "highway_640", "boston_street", "motorcycle_highway"} <= names
     for clip in clips:
         gt, kf = clip.gt(), clip.keyframes()
         c = gt.consider
