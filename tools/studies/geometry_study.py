@@ -9,7 +9,7 @@ and, unless ``--fixed-ratio``, the ratio estimated from the tracked boxes as the
 ratio and the main search's cost (HOG cells of the scaled bands per frame, relative to
 today's bands at the same horizon).
 
-    python -m tools.geometry_study [--ratio 1.9] [--slack 0.05] [--fixed-ratio]
+    python -m tools.studies.geometry_study [--ratio 1.9] [--slack 0.05] [--fixed-ratio]
         [--horizon auto|off|F|+D] [--clips A,B] [--out R.json] [--baseline]
 """
 from __future__ import annotations
