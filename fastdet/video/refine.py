@@ -52,10 +52,14 @@ from ..config import FeatureConfig
 from ..detections import Detections
 from ..errors import ModelError
 from ..features import extract_features
+from ..features.window import KERNELS as FEATURE_KERNELS
 from ..model import read_npz, write_npz
 
+#: the numba kernels of the refinement (those of the window features)
+KERNELS = FEATURE_KERNELS
+
 FORMAT_VERSION = 1
-#: the bundled regressor (``tools/refine_eval.py --ship``)
+#: the bundled regressor (``tools/scripts/refine_model.py``)
 REFINE_MODEL_PATH = Path(__file__).resolve().parents[1] / "models" / "refine.npz"
 _ARRAYS = ("coef", "intercept", "mean", "scale", "metadata")
 #: the regressor's default features: HOG of the luma channel (9 orientations, 8-px cells) and
