@@ -7,6 +7,7 @@ Public API (the heavy parts are imported lazily, so ``import fastdet`` is cheap)
     from fastdet import Detector, VideoDetector      # one frame / a stream of frames
     from fastdet import load_model, Model            # the bundled or a trained model
     from fastdet import Detections                   # boxes + per-box columns (scores, scale, part, ids)
+    from fastdet import PipelineConfig               # every setting of the video pipeline (fastdet.config)
     from fastdet import FeatureConfig, SearchConfig, SearchBand, HeatConfig, MotionGate, TrackerConfig
 
 Sub-packages, one per pipeline stage (layers point down): ``features`` (HOG, colour
@@ -27,7 +28,15 @@ from typing import TYPE_CHECKING, Any
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 from ._version import __version__
-from .config import FeatureConfig, HeatConfig, MotionGate, SearchBand, SearchConfig, TrackerConfig
+from .config import (
+    FeatureConfig,
+    HeatConfig,
+    MotionGate,
+    PipelineConfig,
+    SearchBand,
+    SearchConfig,
+    TrackerConfig,
+)
 from .detections import Detections
 from .errors import DataError, FastdetError, ModelError
 
@@ -55,7 +64,8 @@ _LAZY = {
 }
 
 __all__ = [
-    "__version__", "FeatureConfig", "HeatConfig", "MotionGate", "SearchBand", "SearchConfig", "TrackerConfig",
+    "__version__", "FeatureConfig", "HeatConfig", "MotionGate", "PipelineConfig", "SearchBand", "SearchConfig",
+    "TrackerConfig",
     "Detections",
     "FastdetError", "ModelError", "DataError", *_LAZY,
 ]

@@ -417,7 +417,7 @@ def test_default_pipeline_accuracy_on_the_annotated_clips(data):
     """The README's accuracy table, defaults row: `python -m fastdet eval --video CLIP` with
     the bundled models. Guards against accuracy regressions (the figures the README gives,
     less a small margin: F1 0.90 / 1.00, FP per frame 0.05 / 0.00)."""
-    from fastdet.video.pipeline import iter_video_detections
+    from fastdet.video import iter_video_detections
 
     floors = {"test_video": (0.99, 0.01), "test_small1": (0.88, 0.08)}  # min F1, max FP per frame
     for name, (min_f1, max_fp) in floors.items():

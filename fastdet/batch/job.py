@@ -48,6 +48,7 @@ import cv2
 from distributed import Client, LocalCluster, WorkerPlugin, as_completed
 from distributed.scheduler import KilledWorker
 
+from ..config.batch import BatchOptions
 from ..errors import DataError, FastdetError
 from .inputs import output_names
 from .manifest import Manifest, input_stat
@@ -71,23 +72,6 @@ class BatchInterrupted(Exception):
         super().__init__(f"stopped by {signal.Signals(signum).name}")
         self.signum = signum
         self.done = done
-
-
-@dataclass(frozen=True)
-class BatchOptions:
-    """How to run a batch. ``workers``: local worker processes (default: the usable cores);
-    ``scheduler``: address of a running Dask scheduler (then ``workers`` is unused);
-    ``overwrite``: redo finished videos (default: skip them); ``retries``: extra attempts of a
-    task that raised; ``table``: path of the combined table or ``None``; ``progress``: a bar."""
-
-    out_dir: Path
-    settings: Settings
-    workers: int | None = None
-    scheduler: str | None = None
-    overwrite: bool = False
-    retries: int = 2
-    table: Path | None = None
-    progress: bool = True
 
 
 @dataclass

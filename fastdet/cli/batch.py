@@ -24,10 +24,18 @@ import sys
 from pathlib import Path
 from types import ModuleType
 
+from ..config.batch import BatchOptions
 from ..errors import FastdetError
 from ..io.atomic import check_output_path
-from ._args import (add_horizon_argument, add_oncoming_arguments, add_refine_argument, add_search_argument,
-                    nonneg_int, oncoming_arg, positive_int, refine_arg, traffic_arg)
+from ._args import (
+    add_horizon_argument,
+    add_oncoming_arguments,
+    add_refine_argument,
+    add_search_argument,
+    nonneg_int,
+    pipeline_config,
+    positive_int,
+)
 
 _INSTALL = "pip install fastdet[cluster]"
 # the packages of the ``cluster`` extra that fastdet.batch imports
@@ -88,15 +96,12 @@ def run(args: argparse.Namespace) -> int:
     if table is not None:
         table_mod.table_format(table)
     videos = inputs.expand_inputs(args.inputs)
-    settings = settings_mod.Settings.create(args.model, oncoming_arg(args), track=not args.no_track,
-                                            video=args.video, json=args.json, horizon=args.horizon,
-                                            full_search=args.full_search, refine=refine_arg(args),
-                                            traffic=traffic_arg(args))
-    settings.check()
+    settings = settings_mod.Settings.create(pipeline_config(args), video=args.video, json=args.json)
+    settings_mod.check(settings)
     job.prepare_out_dir(Path(args.out))
     if table is not None:  # after the output folder exists: the table may go into it
         check_output_path(table, "table")
-    opts = job.BatchOptions(out_dir=Path(args.out), settings=settings, workers=args.workers, scheduler=scheduler,
+    opts = BatchOptions(out_dir=Path(args.out), settings=settings, workers=args.workers, scheduler=scheduler,
                             overwrite=args.overwrite, retries=args.retries, table=table,
                             progress=not args.no_progress)
     try:

@@ -4,16 +4,20 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from typing import Any
 
 from ..errors import FastdetError
 from ..eval.metrics import evaluate
 from ..eval.report import format_table, plot_pr
 from ..io.motfiles import Predictions, read_gt, read_predictions
 from ..io.reader import check_source
-from ..video.pipeline import iter_video_detections
-from ._args import (add_horizon_argument, add_oncoming_arguments, add_refine_argument, add_search_argument, guided_arg,
-                    oncoming_arg, refine_arg, traffic_arg)
+from ..video.run import iter_video_detections
+from ._args import (
+    add_horizon_argument,
+    add_oncoming_arguments,
+    add_refine_argument,
+    add_search_argument,
+    pipeline_config,
+)
 
 # ---------------------------------------------------------------------------------------
 # CLI
@@ -53,14 +57,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plot", metavar="PR.png", help="write the precision-recall curve as a PNG")
 
 
-def _video_predictions(video: str, model: str | None, oncoming: Any = True, track: bool = True,
-                       offline: bool = False, horizon: float | str | None = "auto",
-                       guided: Any = None, refine: bool = True, traffic: str = "right") -> Predictions:
-    check_source(video)
-    frames = iter_video_detections(video, model=model, progress=True, oncoming=oncoming, tracker=track,
-                                   offline=offline, horizon=horizon, guided=guided, refine=refine,
-                                   traffic=traffic)  # type: ignore[arg-type]
-    return Predictions.from_frames(frames, source=video)
+def _video_predictions(args: argparse.Namespace) -> Predictions:
+    check_source(args.video)
+    frames = iter_video_detections(args.video, pipeline_config(args), progress=True,
+                                   offline=getattr(args, "offline", False))
+    return Predictions.from_frames(frames, source=args.video)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -72,9 +73,7 @@ def run(args: argparse.Namespace) -> int:
                            "--offline only apply with --video")
     gt = read_gt(args.gt)
     if args.video is not None:
-        preds = _video_predictions(args.video, args.model, oncoming_arg(args), not no_track, offline,
-                                   getattr(args, "horizon", "auto"), guided_arg(args), refine_arg(args),
-                                   traffic_arg(args))
+        preds = _video_predictions(args)
     else:
         preds = read_predictions(args.pred)
     result = evaluate(gt, preds, iou=args.iou)

@@ -29,7 +29,8 @@ from ..errors import DataError, FastdetError
 from ..io import draw
 from ..io.atomic import check_output_path
 from ..io.images import read_image, write_image
-from ..video.pipeline import detect_image, make_detector
+from ..video.detector import make_detector
+from ..video.heatmap import detect_image
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -73,7 +74,7 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
         raise FastdetError(f"--threshold: {exc}") from None
     frame = read_image(inp)
     if detector is None:
-        detector = make_detector(args.model, oncoming=False)  # its gate needs motion: video only
+        detector = make_detector(PipelineConfig(model=args.model, oncoming=False))  # its gate needs motion: video only
     elif args.model is not None:
         raise FastdetError("--model cannot be used with an injected detector")
     check_frame(detector, frame, inp)
