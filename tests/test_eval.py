@@ -377,8 +377,8 @@ def test_video_option_uses_pipeline(files, tmp_path, monkeypatch, capsys):
     clip.write_bytes(b"")
     calls = {}
 
-    def fake_iter(path, model=None, progress=True, oncoming=True, **kw):
-        calls.update(path=path, model=model, oncoming=oncoming)
+    def fake_iter(path, config, progress=True, **kw):
+        calls.update(path=path, model=config.model, oncoming=config.oncoming)
         for f in (1, 2):
             rows = [r for r in GT_ROWS if r[0] == f and r[6] == 1]
             boxes = np.array([[l, t, l + w, t + h] for (_, _, l, t, w, h, _) in rows], np.int32)

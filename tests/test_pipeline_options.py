@@ -90,6 +90,6 @@ def test_batch_settings_record_refinement_and_traffic():
     left = Settings.create(PipelineConfig(traffic="left"))
     assert len({base.digest(), off.digest(), left.digest()}) == 3
     assert base.record()["refine_sha256"] == base.refine_sha256 and off.record()["refine_sha256"] == ""
-    assert off.record()["pipeline"]["refine"] is None
+    assert off.record()["refine"] is None and base.record()["refine"] == RefineConfig().to_dict()
     with pytest.raises(ValueError, match="traffic"):
         Settings.create(PipelineConfig(traffic="middle"))  # type: ignore[arg-type]

@@ -23,7 +23,7 @@ from typing import Any
 
 import cv2
 
-from ..config import HeatConfig
+from ..config import HeatConfig, PipelineConfig
 from ..detect.checks import check_frame
 from ..errors import DataError, FastdetError
 from ..io import draw

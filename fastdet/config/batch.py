@@ -80,8 +80,9 @@ class Settings:
         return ("boxes",) + (("json",) if self.json else ()) + (("video",) if self.video else ())
 
     def record(self) -> dict[str, Any]:
-        """The settings as JSON-able values (what the manifest records)."""
-        return {"pipeline": self.pipeline.to_dict(), "outputs": list(self.kinds),
+        """The settings as JSON-able values (what the manifest records): the pipeline's
+        (:meth:`PipelineConfig.to_dict`), the outputs, the model files' hashes and the version."""
+        return {**self.pipeline.to_dict(), "outputs": list(self.kinds),
                 "model_sha256": self.model_sha256, "oncoming_sha256": self.oncoming_sha256,
                 "refine_sha256": self.refine_sha256, "fastdet": __version__}
 
@@ -90,7 +91,7 @@ class Settings:
         are left out (their contents count), so moving a model file does not redo work."""
         rec = self.record()
         for k in ("model", "oncoming", "refine_model"):
-            rec["pipeline"][k] = rec["pipeline"][k] is not False and rec["pipeline"][k] is not None
+            rec[k] = rec[k] is not False and rec[k] is not None  # on or off; the hashes say which file
         text = json.dumps(rec, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 

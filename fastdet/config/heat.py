@@ -25,7 +25,7 @@ class HeatConfig(Config):
         Default 0.8: a car moving across the image leaves a short trail, not a long smear.
     threshold: a pixel belongs to a vehicle blob when its heat is strictly greater than this.
         Default 4: more than one confident window (heat ``w_max`` = 4) on the same pixels,
-        frame after frame (docs/accuracy.md, "Heat map").
+        frame after frame (docs/accuracy.md).
     single_frame_threshold: ``threshold`` used by :meth:`single_frame` (one image, no
         temporal averaging to suppress false alarms, hence a stricter default: 8).
     score_lo, score_hi: a window's heat is linear in its score, from 1 at ``score_lo`` to
@@ -41,7 +41,7 @@ class HeatConfig(Config):
     extent: a blob's box is the bounding box of its cells with heat >= ``extent`` x the
         blob's peak heat (0 = the whole blob). Square windows that fire a little above,
         below and beside a car make a blob wider and much taller than the car; its
-        "width at 40% of the peak" fits the car far better (docs/accuracy.md, "Heat map").
+        "width at 40% of the peak" fits the car far better (docs/accuracy.md).
     split_gap: ``0`` (default) = one box per blob. Otherwise a blob is first split by its
         windows of this frame (those whose centre lies in it): sorted by the x of their
         centres, they fall into groups wherever two neighbours are more than ``split_gap``

@@ -17,8 +17,8 @@ class MotionGate(Config):
     the gate, ``max(min_motion, noise_factor x noise)`` where ``noise`` is the median
     absolute difference over the whole region the oncoming search covers (what the picture
     moves, or its noise, everywhere). The oncoming search itself only runs over the columns
-    of each band that hold such a window. How the defaults were measured: docs/accuracy.md,
-    "Motion gate".
+    of each band that hold such a window. How the defaults were measured:
+    docs/accuracy.md.
 
     Frame rate (:meth:`lag`): at ``fps`` frames per second the frame compared with is
     ``round(fps / reference_fps)`` frames back (at least 1), so a 50 fps video (or one

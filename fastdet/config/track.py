@@ -49,7 +49,7 @@ class TrackerConfig(Config):
         linear interpolation (StrongSORT's gap interpolation, Du et al., 2023).
     extend_back: ``--offline`` only: each track is extended this many frames back from its
         first box with its starting velocity, while the box stays in the picture. Default 0
-        (docs/tracking.md).
+        (docs/accuracy.md).
     """
 
     low_heat: float = 0.5
