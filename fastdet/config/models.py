@@ -10,7 +10,7 @@ from pathlib import Path
 MODELS_DIR = Path(__file__).resolve().parents[1] / "models"
 #: the bundled main model (64x64 windows)
 DEFAULT_MODEL_PATH = MODELS_DIR / "default.npz"
-#: the bundled wide-window model for oncoming traffic above the median (``tools/oncoming_model.sh``)
+#: the bundled wide-window model for oncoming traffic above the median (``tools/scripts/oncoming_model.sh``)
 ONCOMING_MODEL_PATH = MODELS_DIR / "oncoming.npz"
 #: the bundled box regressor (:mod:`fastdet.video.refine`)
 REFINE_MODEL_PATH = MODELS_DIR / "refine.npz"

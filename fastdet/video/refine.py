@@ -50,7 +50,7 @@ import numpy as np
 from .._version import __version__
 from ..config import FeatureConfig, RefineConfig
 from ..config.models import (
-    REFINE_MODEL_PATH,  # the bundled regressor (tools/refine_eval.py --ship)
+    REFINE_MODEL_PATH,  # the bundled regressor (tools/scripts/refine_model.py)
 )
 from ..detections import Detections
 from ..errors import ModelError

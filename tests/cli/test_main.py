@@ -1,0 +1,201 @@
+"""The command dispatcher (fastdet.cli.main): which errors become one line, which show a
+traceback, the exit statuses, and that only the chosen command's module is imported."""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import types
+from pathlib import Path
+
+import pytest
+
+import fastdet
+from fastdet.cli.main import SUBCOMMANDS, build_parser, main
+from fastdet.errors import DataError, FastdetError, ModelError
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def _python(code: str, **env) -> subprocess.CompletedProcess:
+    """Run ``code`` in a fresh interpreter from the project root."""
+    full_env = {k: v for k, v in os.environ.items() if k != "FASTDET_DEBUG"}
+    full_env.update(PYTHONPATH=str(REPO), **env)
+    return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True,
+                          env=full_env, cwd=REPO, timeout=120)
+
+
+@pytest.fixture
+def fake_command(monkeypatch):
+    """A command ``fake`` whose run() does what the test sets in ``box['run']``."""
+    box = {}
+    mod = types.ModuleType("fake_fastdet_command")
+    mod.add_arguments = lambda p: p.add_argument("--n", type=int, default=1)
+    mod.run = lambda args: box["run"](args)
+    monkeypatch.setitem(sys.modules, mod.__name__, mod)
+    monkeypatch.setitem(SUBCOMMANDS, "fake", (mod.__name__, "a command for the tests"))
+    monkeypatch.delenv("FASTDET_DEBUG", raising=False)
+    return box
+
+
+def _raise(exc):
+    def run(args):
+        raise exc
+    return run
+
+
+def test_run_status_and_arguments(fake_command):
+    seen = {}
+    fake_command["run"] = lambda args: seen.update(n=args.n) or 3
+    assert main(["fake", "--n", "7"]) == 3 and seen == {"n": 7}
+    fake_command["run"] = lambda args: None
+    assert main(["fake"]) == 0
+
+
+@pytest.mark.parametrize("exc", [FastdetError("the input is bad"), DataError("x.mp4: not a video"),
+                                 ModelError("m.npz: not a model")])
+def test_fastdet_errors_are_one_line_and_exit_2(fake_command, capsys, exc):
+    fake_command["run"] = _raise(exc)
+    assert main(["fake"]) == 2
+    err = capsys.readouterr().err
+    assert err == f"fastdet fake: error: {exc}\n"
+
+
+def test_fastdet_debug_shows_the_traceback_of_user_errors(fake_command, monkeypatch):
+    fake_command["run"] = _raise(DataError("bad"))
+    monkeypatch.setenv("FASTDET_DEBUG", "1")
+    with pytest.raises(DataError, match="bad"):
+        main(["fake"])
+    monkeypatch.setenv("FASTDET_DEBUG", "0")
+    assert main(["fake"]) == 2
+
+
+@pytest.mark.parametrize("exc", [RuntimeError("a bug"), ValueError("a bug"), OSError(5, "a bug"),
+                                 ZeroDivisionError("a bug"), AssertionError("a bug")])
+def test_other_exceptions_are_bugs_and_propagate(fake_command, capsys, exc):
+    fake_command["run"] = _raise(exc)
+    with pytest.raises(type(exc)):
+        main(["fake"])
+    assert "error:" not in capsys.readouterr().err
+
+
+def test_ctrl_c_exits_130_with_one_line(fake_command, capsys):
+    def run(args):
+        os.kill(os.getpid(), signal.SIGINT)  # a real Ctrl-C, delivered to the main thread
+        signal.pause() if hasattr(signal, "pause") else None
+        raise AssertionError("the signal did not stop the command")
+
+    fake_command["run"] = run
+    before = signal.getsignal(signal.SIGINT)
+    assert main(["fake"]) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("fastdet fake: interrupted"), err
+    assert signal.getsignal(signal.SIGINT) is before  # the test runner's handler is back
+
+
+def test_no_command_prints_help(capsys):
+    assert main([]) == 0
+    out = capsys.readouterr().out
+    assert "usage:" in out and all(name in out for name in SUBCOMMANDS)
+
+
+def test_unknown_command_and_bad_arguments_exit_2(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["no-such-command"])
+    assert exc.value.code == 2 and "invalid choice" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        main(["image", "in.jpg", "-o", "out.jpg", "--no-such-option"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "--no-such-option" in err and "image" in err
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0 and capsys.readouterr().out.strip() == f"fastdet {fastdet.__version__}"
+
+
+def test_every_command_has_help():
+    parser = build_parser()  # every command's arguments
+    for name in SUBCOMMANDS:
+        with pytest.raises(SystemExit) as exc:
+            parser.parse_args([name, "--help"])
+        assert exc.value.code == 0
+
+
+# --------------------------------------------------------------------------- real processes
+
+
+def test_real_process_user_error_bug_and_interrupt():
+    """In a fresh interpreter: a FastdetError gives one line and status 2, a bug a
+    traceback and status 1, a SIGINT status 130."""
+    code = """
+        import os, signal, sys, types
+        from fastdet.cli.main import SUBCOMMANDS, main
+        from fastdet.errors import DataError
+        mod = types.ModuleType("fake_cmd")
+        mod.add_arguments = lambda p: None
+        def run(args):
+            kind = os.environ["KIND"]
+            if kind == "user":
+                raise DataError("in.mp4: not a video")
+            if kind == "bug":
+                return 1 // 0
+            os.kill(os.getpid(), signal.SIGINT)
+            signal.pause()
+        mod.run = run
+        sys.modules["fake_cmd"] = mod
+        SUBCOMMANDS["fake"] = ("fake_cmd", "test")
+        sys.exit(main(["fake"]))
+    """
+    r = _python(code, KIND="user")
+    assert (r.returncode, r.stderr) == (2, "fastdet fake: error: in.mp4: not a video\n")
+    r = _python(code, KIND="bug")
+    assert r.returncode == 1 and "Traceback" in r.stderr and "ZeroDivisionError" in r.stderr
+    r = _python(code, KIND="interrupt")
+    assert r.returncode == 130 and r.stderr.startswith("fastdet fake: interrupted") and "Traceback" not in r.stderr
+
+
+_IMPORTED = """
+    import json, sys
+    from fastdet.cli.main import main
+    try:
+        main([{name!r}, "--help"])
+    except SystemExit:
+        pass
+    print(json.dumps(sorted(sys.modules)))
+"""
+
+
+def _modules_after_help(name: str) -> set[str]:
+    r = _python(_IMPORTED.format(name=name))
+    assert r.returncode == 0, r.stderr
+    return set(json.loads(r.stdout.strip().splitlines()[-1]))
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=() if n == "video" else pytest.mark.slow)
+                                  for n in SUBCOMMANDS])
+def test_only_the_chosen_command_module_is_imported(name):
+    mods = _modules_after_help(name)
+    commands = {m for m, _ in SUBCOMMANDS.values()}
+    assert commands & mods == {SUBCOMMANDS[name][0]}
+    if name in ("video", "image"):  # the detection commands do not pay for training or clusters
+        assert not {"sklearn", "dask", "distributed"} & mods
+
+
+def test_nothing_outside_cli_imports_cli():
+    """``import fastdet`` and its public names do not load the CLI."""
+    r = _python("""
+        import json, sys
+        import fastdet
+        for name in fastdet.__all__:
+            getattr(fastdet, name)
+        print(json.dumps(sorted(m for m in sys.modules if m.startswith("fastdet"))))
+    """)
+    assert r.returncode == 0, r.stderr
+    mods = json.loads(r.stdout.strip().splitlines()[-1])
+    assert "fastdet.video" in mods and not [m for m in mods if m.startswith("fastdet.cli")]

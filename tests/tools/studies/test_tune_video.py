@@ -1,0 +1,65 @@
+"""tools/studies/tune_video.py replays the real VideoDetector: its boxes over cached windows are the
+boxes (and track ids) of the video pipeline itself with the full search (``--full-search``:
+the cache holds every window of every band; the tracking-guided search scores a subset)."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from fastdet import Detector, HeatConfig, MotionGate, VideoDetector
+from fastdet.config import WIDE_HEAT, WIDE_SEARCH, PipelineConfig
+from fastdet.io.motfiles import Predictions
+from fastdet.io.reader import FrameReader
+from fastdet.video import iter_video_detections, make_detector
+from tools.studies.tune_video import cache_windows, replay
+
+pytestmark = pytest.mark.slow  # each runs the video pipeline over a clip twice
+
+
+@pytest.fixture(scope="module")
+def clip(data):
+    return data / "videos" / "test_video.mp4"
+
+
+@pytest.fixture(scope="module")
+def cached(clip):
+    det = make_detector()  # the bundled main and oncoming models, as `fastdet video`
+    return det, cache_windows(det, clip, low=-1.0)
+
+
+def _same(a: Predictions, b: Predictions) -> None:
+    assert len(a.frames) > 0
+    np.testing.assert_array_equal(a.frames, b.frames)
+    np.testing.assert_array_equal(a.boxes, b.boxes)
+    np.testing.assert_allclose(a.scores, b.scores, rtol=0, atol=1e-5)
+    np.testing.assert_array_equal(a.ids, b.ids)
+
+
+def test_replay_of_the_defaults_is_the_video_pipeline(clip, cached):
+    det, windows = cached
+    got = replay(windows, det.search.threshold, HeatConfig(), WIDE_HEAT, MotionGate())
+    want = Predictions.from_frames(iter_video_detections(clip, PipelineConfig(guided=None), progress=False))
+    _same(got, want)
+    assert (got.ids >= 1).all()  # tracked, as the pipeline
+    untracked = replay(windows, det.search.threshold, HeatConfig(), WIDE_HEAT, MotionGate(), tracker=False)
+    _same(untracked, Predictions.from_frames(iter_video_detections(clip, PipelineConfig(tracker=None, guided=None), progress=False)))
+
+
+def test_replay_of_other_settings_is_video_detector_with_them(clip, cached):
+    det, windows = cached
+    heat = HeatConfig(threshold=2.0, n_frames=4)
+    wide_heat = HeatConfig(threshold=5.0, n_frames=1, extent=0.3, min_height=10, max_aspect=0.8)
+    thr = 0.5
+    got = replay(windows, thr, heat, wide_heat, MotionGate(30.0), thr_wide=0.5)
+    # the same settings, run for real: the window thresholds are the searches' own
+    real = Detector(search=replace(det.search, threshold=thr),
+                    wide=det.wide_model, wide_search=replace(WIDE_SEARCH, threshold=0.5))
+    vd = VideoDetector(real, PipelineConfig(heat=heat, oncoming_heat=wide_heat, motion=MotionGate(30.0), guided=None))
+    reader = FrameReader(clip)
+    try:
+        want = Predictions.from_frames((f, vd.update(frame)) for f, frame, _ in reader)
+    finally:
+        reader.close()
+    _same(got, want)
