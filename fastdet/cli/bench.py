@@ -16,7 +16,8 @@ per stage and the frames per second they allow.
   narrows and gates the oncoming-traffic model's search), the rest of each stage of
   :mod:`fastdet.video.stages` under its name (``detect (rest)``: band geometry, thresholding,
   window boxes; ``oncoming heat``: the oncoming model's heat map and the merge of its boxes)
-  -- :attr:`VideoDetector.timings` -- and ``other``: the rest of ``update`` (Python glue). As ``video``, the bundled oncoming-traffic model runs unless
+  -- :attr:`VideoDetector.timings` -- and ``other``: the rest of ``update`` (Python glue).
+  As ``video``, the bundled oncoming-traffic model runs unless
   ``--no-oncoming``; on an image (the same frame N times) nothing moves, so it searches nothing.
 - One repeat = N frames through one ``VideoDetector`` whose heat map was reset first;
   the kernels are loaded and two frames processed before the first repeat (warm-up). The

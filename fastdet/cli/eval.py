@@ -5,7 +5,6 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Any
 
 from ..errors import DataError, FastdetError
 from ..eval.clips import annotated_clips, markdown_table, report_json, score_clip

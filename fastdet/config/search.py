@@ -24,7 +24,8 @@ def check_traffic(traffic: str) -> str:
 
 @dataclass(frozen=True)
 class SearchBand(Config):
-    """One search band: windows of ``scale x`` the model's window width (64 px by default) in frame rows [y_start, y_stop)
+    """One search band: windows of ``scale x`` the model's window width (64 px by default) in
+    frame rows [y_start, y_stop)
     and columns [x_start, x_stop) (``None`` = frame edge)."""
 
     scale: float

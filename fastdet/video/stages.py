@@ -53,7 +53,7 @@ def planner_for(config: PipelineConfig, detector: WindowDetector) -> SearchPlann
 
 def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | None, tracker: Tracker | None,
                  regressor: BoxRegressor | None) -> list[Stage]:
-    """The stages for ``config`` and ``detector``, in the order they run (module docstring of :mod:`fastdet.video.stages`)."""
+    """The stages for ``config`` and ``detector``, in the order they run (this module's docstring)."""
     stages: list[Stage] = []
     if config.horizon is not None and isinstance(detector, MovableHorizon):
         stages.append(HorizonStage(detector, config.horizon))

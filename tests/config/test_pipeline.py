@@ -11,7 +11,8 @@ from fastdet.config import (FeatureConfig, GuidedSearch, HeatConfig, JitterConfi
                             RefineConfig, SearchBand, SearchConfig, TrackerConfig, oncoming_search)
 
 CONFIGS = [FeatureConfig(), FeatureConfig(window_height=24, hog_channels=(0,)), SearchConfig(),
-           SearchConfig(horizon=0.5, reference_shape=None), oncoming_search("left"), HeatConfig(score_lo=0.1, score_hi=2),
+           SearchConfig(horizon=0.5, reference_shape=None), oncoming_search("left"),
+           HeatConfig(score_lo=0.1, score_hi=2),
            MotionGate(30.0), TrackerConfig(output="filtered"), GuidedSearch(scales=(0.5, 1.5)),
            RefineConfig(parts=(0, 1)), JitterConfig(), PipelineConfig(),
            PipelineConfig(oncoming=False, tracker=None, guided=None, refine=None, horizon=None, traffic="both"),
@@ -29,7 +30,8 @@ def test_every_config_round_trips_through_json(config):
 def test_digest_is_stable_and_tells_configs_apart():
     base = PipelineConfig()
     assert base.digest() == PipelineConfig().digest() and len(base.digest()) == 16
-    others = [PipelineConfig(traffic="left"), PipelineConfig(tracker=None), PipelineConfig(heat=HeatConfig(threshold=5)),
+    others = [PipelineConfig(traffic="left"), PipelineConfig(tracker=None),
+              PipelineConfig(heat=HeatConfig(threshold=5)),
               PipelineConfig(search=replace(SearchConfig(), bands=(SearchBand(1.0, 400, 500),)))]
     assert len({base.digest(), *(c.digest() for c in others)}) == 1 + len(others)
 

@@ -47,7 +47,8 @@ def test_refined_boxes_are_the_unrefined_run_refined(data: Path):
     boxes are refined afterwards (same ids, same count), and it is timed."""
     reader = FrameReader(data / "videos" / "test_video.mp4", 0, 12)
     det = make_detector()
-    on, off = VideoDetector(det, PipelineConfig(horizon=None)), VideoDetector(det, PipelineConfig(horizon=None, refine=None))
+    on = VideoDetector(det, PipelineConfig(horizon=None))
+    off = VideoDetector(det, PipelineConfig(horizon=None, refine=None))
     reg = load_regressor()
     moved = 0
     try:

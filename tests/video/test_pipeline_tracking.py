@@ -146,7 +146,8 @@ def test_iter_video_detections_offline_yields_every_frame(clip):
     for (_, a), (_, b) in zip(live, off):  # nothing to fill on a clean clip
         assert a.ids.tolist() == b.ids.tolist()
     with pytest.raises(ValueError):
-        list(iter_video_detections(clip, PipelineConfig(tracker=None), detector=BlobsDetector(), progress=False, offline=True))
+        list(iter_video_detections(clip, PipelineConfig(tracker=None), detector=BlobsDetector(), progress=False,
+                                   offline=True))
 
 
 # ------------------------------------------------------------------------- CLI

@@ -44,7 +44,8 @@ def test_replay_of_the_defaults_is_the_video_pipeline(clip, cached):
     _same(got, want)
     assert (got.ids >= 1).all()  # tracked, as the pipeline
     untracked = replay(windows, det.search.threshold, HeatConfig(), WIDE_HEAT, MotionGate(), tracker=False)
-    _same(untracked, Predictions.from_frames(iter_video_detections(clip, PipelineConfig(tracker=None, guided=None), progress=False)))
+    untracked_config = PipelineConfig(tracker=None, guided=None)
+    _same(untracked, Predictions.from_frames(iter_video_detections(clip, untracked_config, progress=False)))
 
 
 def test_replay_of_other_settings_is_video_detector_with_them(clip, cached):
