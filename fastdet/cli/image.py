@@ -23,6 +23,7 @@ from typing import Any
 
 import cv2
 
+from .._numba import ensure_compiled
 from ..config import HeatConfig, PipelineConfig
 from ..detect.checks import check_frame
 from ..errors import DataError, FastdetError
@@ -30,6 +31,7 @@ from ..io import draw
 from ..io.atomic import check_output_path
 from ..io.images import read_image, write_image
 from ..video.detector import make_detector
+from ..video.heatmap import KERNELS as HEAT_KERNELS
 from ..video.heatmap import detect_image
 
 
@@ -78,7 +80,9 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
     elif args.model is not None:
         raise FastdetError("--model cannot be used with an injected detector")
     check_frame(detector, frame, inp)
-    detector.warmup()  # compiles on a first run, after saying so
+    # every kernel the image needs at once (on a first run on every core, after saying so)
+    ensure_compiled((*getattr(detector, "kernels", ()), *HEAT_KERNELS))
+    detector.warmup()
 
     windows, hm, boxes = detect_image(frame, detector, heat)
     img = frame.copy()

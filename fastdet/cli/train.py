@@ -19,11 +19,11 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from .._numba import announce_compile
+from .._numba import ensure_compiled
 from ..config import COLOR_SPACES, FeatureConfig
 from ..data import data_dir
 from ..errors import DataError, FastdetError
-from ..features._hog_kernels import hog_u8_batch
+from ..features.window import KERNELS as FEATURE_KERNELS
 from ..io.atomic import check_output_path
 from ..train import augment
 from ..train.augment import JPEG_QUALITY
@@ -143,7 +143,7 @@ def run(args: argparse.Namespace) -> int:
         raise FastdetError(f"--truncate-keep must satisfy 0 < A <= B <= 1, got {k0:g} {k1:g}")
     if not 1 <= q0 <= q1 <= 100:
         raise FastdetError(f"--jpeg-quality must satisfy 1 <= Q1 <= Q2 <= 100, got {q0} {q1}")
-    announce_compile(hog_u8_batch, what="the feature kernels")
+    ensure_compiled(FEATURE_KERNELS, what="the feature kernels")
     progress = not args.no_progress and sys.stderr.isatty()
     model, report = train(data, config, args.classifier, args.C, args.split, args.seed, args.negatives,
                           not args.no_flip, args.max_per_folder, not args.no_refit, progress,

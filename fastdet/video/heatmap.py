@@ -54,6 +54,9 @@ from ..detections import Detections
 from ._heat_kernels import add_rects
 from ._label_kernels import extent_boxes, label_blobs
 
+#: the numba kernels of a heat map (compiled ahead of time: fastdet._numba.ensure_compiled)
+KERNELS = (add_rects, label_blobs, extent_boxes)
+
 _REANCHOR_EVERY = 64
 
 

@@ -20,11 +20,15 @@ from collections.abc import Iterable
 
 import numpy as np
 
+from .._numba import ensure_compiled
 from ..config import PipelineConfig
 from ..detections import Detections
 from .detector import MovableHorizon, WindowDetector, make_detector
+from .heatmap import KERNELS as HEAT_KERNELS
 from .heatmap import HeatMap
+from .motion import KERNELS as MOTION_KERNELS
 from .motion import warmup_motion
+from .refine import KERNELS as REFINE_KERNELS
 from .refine import BoxRegressor, load_regressor
 from .stages import (
     FrameDebug,
@@ -142,7 +146,11 @@ class VideoDetector:
         return det.horizon if isinstance(det, MovableHorizon) else None
 
     def warmup(self) -> None:
-        """Compile / load the numba kernels now, not on the first frame."""
+        """Compile / load the numba kernels now, not on the first frame: every kernel the
+        frames will run, at once (on a first run on every core, after saying so), then each
+        run once."""
+        ensure_compiled((*getattr(self.detector, "kernels", ()), *HEAT_KERNELS, *MOTION_KERNELS,
+                         *(REFINE_KERNELS if self.refiner is not None else ())))
         self.detector.warmup()
         HeatMap((8, 8), self.config.heat).warmup()
         warmup_motion()
