@@ -61,7 +61,8 @@ def video_detector_for(reader: FrameReader, detector: WindowDetector,
     seconds (:func:`prime_horizon_from_file`; the frames come from ``reader`` itself,
     :meth:`FrameReader.peek <fastdet.io.reader.FrameReader.peek>`, when they fit in
     :data:`PRIME_BUFFER_BYTES` and the run reads at least that many)."""
-    check_frame(detector, reader.first_frame, reader.path)
+    config = config if config is not None else PipelineConfig()
+    check_frame(detector, reader.first_frame, reader.path, horizon=config.horizon)
     vd = VideoDetector(detector, config, fps=reader.fps)
     if (vd.config.horizon == "auto" and reader.kind == "file" and os.path.isfile(reader.path)
             and (reader.limit is None or reader.limit >= HORIZON_FRAMES)
