@@ -18,7 +18,7 @@ import argparse
 import json
 from dataclasses import replace
 
-from fastdet.config import SearchBand, SearchConfig
+from fastdet.config import PipelineConfig, SearchBand, SearchConfig
 from fastdet.detect.bands import band_geometry
 from fastdet.detect.geometry import (
     GeometricSearch,
@@ -30,7 +30,7 @@ from fastdet.eval.clips import annotated_clips, markdown_table, report_json, sco
 from fastdet.io.motfiles import Predictions
 from fastdet.io.reader import FrameReader
 from fastdet.video.horizon import HORIZON_FRAMES, estimate_horizon
-from fastdet.video.pipeline import iter_video_detections, make_detector
+from fastdet.video import iter_video_detections, make_detector
 
 
 def cells(search: SearchConfig, shape: tuple[int, int], config) -> int:
@@ -103,7 +103,8 @@ def main() -> None:
         h0 = None
         frames = []
         shape = None
-        for fno, dets in iter_video_detections(clip.video, detector=det, progress=False, horizon=horizon):
+        config = PipelineConfig(horizon=horizon)
+        for fno, dets in iter_video_detections(clip.video, config, detector=det, progress=False):
             frames.append((fno, dets))
             if shape is None:
                 r = FrameReader(clip.video)
