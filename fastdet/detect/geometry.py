@@ -210,20 +210,24 @@ class PerspectiveEstimator:
     horizon ``h0`` (the flow estimate or the user's) and the prior ratio.
 
     For each candidate ``h`` (``h0 +- reach`` in steps of ``grid``, fractions of the height)
-    the ratio is the median over the tracks of their boxes' median ``w / (bottom - h)``;
-    the cost is the sum over the tracks of the mean over their boxes of
-    ``min((r / sigma_r)^2, clip^2)``, ``r`` a box's log-residual from that ratio (a track
-    whose boxes are mostly not below ``h`` counts ``clip^2``), plus
+    the ratio is the median over the tracks of their boxes' median ``w / (bottom - h)``.
+    The cost: per track, the mean over its boxes of ``min((r / sigma_box)^2, clip^2)``, ``r``
+    a box's log-ratio less the track's median (one vehicle's boxes agree only at the right
+    horizon, when they are at several depths), plus ``min((m / sigma_r)^2, clip^2)``, ``m``
+    the track's median less the common ratio (vehicles differ in width); a track whose boxes
+    are mostly not below ``h`` counts ``clip^2``; plus
     ``((h - h0) / sigma_h)^2`` and ``(log(k / ratio0) / sigma_k)^2``. :meth:`estimate` is
     ``(h, k)`` of the lowest cost once ``min_tracks`` tracks have ``min_boxes`` boxes each,
     else ``None``.
     """
 
     def __init__(self, min_boxes: int = 5, min_tracks: int = 2, reach: float = 0.08, grid: float = 0.0025,
-                 sigma_h: float = 0.04, sigma_k: float = 0.5, sigma_r: float = 0.15, clip: float = 3.0) -> None:
+                 sigma_h: float = 0.04, sigma_k: float = 0.5, sigma_r: float = 0.15, sigma_box: float = 0.05,
+                 clip: float = 3.0) -> None:
         self.min_boxes, self.min_tracks = min_boxes, min_tracks
         self.reach, self.grid, self.sigma_h, self.sigma_k, self.sigma_r, self.clip = reach, grid, sigma_h, sigma_k, \
             sigma_r, clip
+        self.sigma_box = sigma_box
         self._per_track: dict[int, list[tuple[float, float]]] = {}
 
     def update(self, boxes: np.ndarray, ids: np.ndarray, rows: int) -> None:
@@ -255,9 +259,13 @@ class PerspectiveEstimator:
                 logs.append(np.log(t[ok, 1] / depth[ok]))
             if not logs:
                 continue
-            logk = float(np.median([np.median(v) for v in logs]))
-            # each track's boxes: how far their ratios are from the common one (mean over the track)
-            fit = sum(float(np.minimum(((v - logk) / self.sigma_r) ** 2, self.clip ** 2).mean()) for v in logs)
+            meds = np.array([np.median(v) for v in logs])
+            logk = float(np.median(meds))
+            # one vehicle keeps its width: its boxes' ratios agree (to sigma_box) only at the right
+            # horizon; vehicles differ in width (sigma_r) around the common ratio
+            within = sum(float(np.minimum(((v - m) / self.sigma_box) ** 2, self.clip ** 2).mean())
+                         for v, m in zip(logs, meds))
+            fit = within + float(np.minimum(((meds - logk) / self.sigma_r) ** 2, self.clip ** 2).sum())
             cost = fit + bad * self.clip ** 2 \
                 + ((h - h0) / self.sigma_h) ** 2 + ((logk - math.log(ratio0)) / self.sigma_k) ** 2
             if best is None or cost < best[0]:

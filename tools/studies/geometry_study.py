@@ -30,6 +30,7 @@ from fastdet.eval.clips import annotated_clips, markdown_table, report_json, sco
 from fastdet.io.motfiles import Predictions
 from fastdet.io.reader import FrameReader
 from fastdet.video.horizon import HORIZON_FRAMES, estimate_horizon
+from fastdet.video.perspective import PerspectiveConfig, PerspectiveUpdater
 from fastdet.video.pipeline import iter_video_detections, make_detector
 
 
@@ -60,6 +61,7 @@ def main() -> None:
     ap.add_argument("--slack", type=float, default=0.05)
     ap.add_argument("--fixed-ratio", action="store_true")
     ap.add_argument("--joint", action="store_true", help="estimate the horizon and the ratio together")
+    ap.add_argument("--min-tracks", type=int, default=2, help="--joint: tracks before there is an estimate")
     ap.add_argument("--settled-slack", type=float, default=0.0, help="--joint: the slack once there is an estimate")
     ap.add_argument("--min-score", type=float, default=10.0)
     ap.add_argument("--horizon", default="auto", help="auto, off, F or +D / -D (the estimate moved by D)")
@@ -99,8 +101,7 @@ def main() -> None:
                 "bands", "cells_per_step", "threshold", "reference_shape", "reference_horizon", "horizon", "border",
                 "border_mode")}, geometry=geo)
         est = RatioEstimator()
-        pest = PerspectiveEstimator()
-        h0 = None
+        updater = None
         frames = []
         shape = None
         for fno, dets in iter_video_detections(clip.video, detector=det, progress=False, horizon=horizon):
@@ -114,14 +115,11 @@ def main() -> None:
             h = det.horizon if det.horizon is not None else base_search.reference_horizon
             keep = dets.scores >= args.min_score
             if args.joint:
-                if h0 is None:
-                    h0 = h  # the flow estimate (primed from the first seconds) or the user's horizon: the prior
-                pest.update(dets.boxes[keep], dets.ids[keep], shape[0])
-                hk = pest.estimate(h0 if h0 is not None else h, args.ratio)
-                if hk is not None:
-                    det.set_horizon(hk[0])
-                    det.scorers[0].search = replace(det.scorers[0].search, ratio=hk[1],
-                                                    geometry=replace(geo, slack=args.settled_slack))
+                if updater is None:
+                    updater = PerspectiveUpdater(det, PerspectiveConfig(
+                        geometry=geo, settled_slack=args.settled_slack, min_tracks=args.min_tracks,
+                        min_score=args.min_score))
+                updater.update(dets, shape[0])
                 continue
             est.update(dets.boxes[keep], dets.ids[keep], h, shape[0])
             r = est.estimate
