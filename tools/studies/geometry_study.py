@@ -23,7 +23,6 @@ from fastdet.detect.bands import band_geometry
 from fastdet.detect.geometry import (
     GeometricSearch,
     GeometryConfig,
-    PerspectiveEstimator,
     RatioEstimator,
 )
 from fastdet.eval.clips import annotated_clips, markdown_table, report_json, score_clip
