@@ -217,14 +217,15 @@ class PerspectiveEstimator:
     the track's median less the common ratio (vehicles differ in width); a track whose boxes
     are mostly not below ``h`` counts ``clip^2``; plus
     ``((h - h0) / sigma_h)^2`` and ``(log(k / ratio0) / sigma_k)^2``. :meth:`estimate` is
-    ``(h, k)`` of the lowest cost once ``min_tracks`` tracks have ``min_boxes`` boxes each,
-    else ``None``.
+    ``(h, k)`` of the lowest cost once ``min_tracks`` tracks have ``min_boxes`` boxes each
+    (or one track has ``long_track`` boxes: one vehicle followed a while), else ``None``.
     """
 
-    def __init__(self, min_boxes: int = 5, min_tracks: int = 2, reach: float = 0.08, grid: float = 0.0025,
+    def __init__(self, min_boxes: int = 5, min_tracks: int = 2, long_track: int = 25, reach: float = 0.08,
+                 grid: float = 0.0025,
                  sigma_h: float = 0.04, sigma_k: float = 0.5, sigma_r: float = 0.15, sigma_box: float = 0.05,
                  clip: float = 3.0) -> None:
-        self.min_boxes, self.min_tracks = min_boxes, min_tracks
+        self.min_boxes, self.min_tracks, self.long_track = min_boxes, min_tracks, long_track
         self.reach, self.grid, self.sigma_h, self.sigma_k, self.sigma_r, self.clip = reach, grid, sigma_h, sigma_k, \
             sigma_r, clip
         self.sigma_box = sigma_box
@@ -245,7 +246,7 @@ class PerspectiveEstimator:
 
     def estimate(self, h0: float, ratio0: float) -> tuple[float, float] | None:
         tracks = [np.asarray(v) for v in self._per_track.values() if len(v) >= self.min_boxes]
-        if len(tracks) < self.min_tracks:
+        if len(tracks) < self.min_tracks and not any(len(t) >= self.long_track for t in tracks):
             return None
         best: tuple[float, float, float] | None = None
         for h in np.arange(h0 - self.reach, h0 + self.reach + 1e-9, self.grid):

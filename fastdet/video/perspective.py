@@ -29,8 +29,8 @@ class PerspectiveConfig:
         until there is an estimate.
     settled_slack: the slack once there is one (fraction of the frame height).
     min_score: the score a tracked box needs to count (the heat map's peak).
-    min_boxes, min_tracks: tracks of at least ``min_boxes`` such boxes, at least
-        ``min_tracks`` of them, before there is an estimate.
+    min_boxes, min_tracks, long_track: tracks of at least ``min_boxes`` such boxes, at least
+        ``min_tracks`` of them, or one track of ``long_track`` boxes, before there is an estimate.
     sigma_h: how far (fraction of the height) the estimate may pull the horizon from the
         prior without cost (one standard deviation of the prior).
     sigma_ratio: the same for the ratio, in log units.
@@ -40,7 +40,8 @@ class PerspectiveConfig:
     settled_slack: float = 0.0
     min_score: float = 10.0
     min_boxes: int = 5
-    min_tracks: int = 1
+    min_tracks: int = 2
+    long_track: int = 25
     sigma_h: float = 0.04
     sigma_ratio: float = 0.5
 
@@ -66,8 +67,8 @@ class PerspectiveUpdater:
         self.detector = detector
         self.config = config if config is not None else PerspectiveConfig()
         c = self.config
-        self.estimator = PerspectiveEstimator(min_boxes=c.min_boxes, min_tracks=c.min_tracks, sigma_h=c.sigma_h,
-                                              sigma_k=c.sigma_ratio)
+        self.estimator = PerspectiveEstimator(min_boxes=c.min_boxes, min_tracks=c.min_tracks, long_track=c.long_track,
+                                              sigma_h=c.sigma_h, sigma_k=c.sigma_ratio)
         self.prior: float | None = None  # the horizon before the vehicles had their say
         self.estimate: tuple[float, float] | None = None
         self._applied: float | None = None  # the horizon this updater last gave the search
