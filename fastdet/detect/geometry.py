@@ -46,8 +46,8 @@ from ..config import SearchBand, SearchConfig
 class GeometryConfig:
     """How search bands follow the camera's geometry (module docstring).
 
-    reference_ratio: the ratio of the camera the reference bands were tuned on (the Udacity
-        dashcam: 1.9, the median over the tracked vehicles of its two clips).
+    reference_ratio: the ratio of the camera the reference bands were tuned on (1.9; how it
+        was measured: docs/geometry.md).
     ratio: the prior ratio, used until the video's own vehicles give one.
     slack: rows added above and below every band, a fraction of the frame height: the
         horizon error a band survives without losing a window that finds a vehicle.
@@ -218,10 +218,11 @@ class PerspectiveEstimator:
     are mostly not below ``h`` counts ``clip^2``; plus
     ``((h - h0) / sigma_h)^2`` and ``(log(k / ratio0) / sigma_k)^2``. :meth:`estimate` is
     ``(h, k)`` of the lowest cost once ``min_tracks`` tracks have ``min_boxes`` boxes each
-    (or one track has ``long_track`` boxes: one vehicle followed a while), else ``None``.
+    (or, with ``long_track`` set, one track has that many boxes), else ``None``. One vehicle
+    at one depth says little about the horizon, so by default one track is never enough.
     """
 
-    def __init__(self, min_boxes: int = 5, min_tracks: int = 2, long_track: int = 25, reach: float = 0.08,
+    def __init__(self, min_boxes: int = 5, min_tracks: int = 2, long_track: int | None = None, reach: float = 0.08,
                  grid: float = 0.0025,
                  sigma_h: float = 0.04, sigma_k: float = 0.5, sigma_r: float = 0.15, sigma_box: float = 0.05,
                  clip: float = 3.0) -> None:
@@ -246,7 +247,8 @@ class PerspectiveEstimator:
 
     def estimate(self, h0: float, ratio0: float) -> tuple[float, float] | None:
         tracks = [np.asarray(v) for v in self._per_track.values() if len(v) >= self.min_boxes]
-        if len(tracks) < self.min_tracks and not any(len(t) >= self.long_track for t in tracks):
+        long_enough = self.long_track is not None and any(len(t) >= self.long_track for t in tracks)
+        if len(tracks) < self.min_tracks and not long_enough:
             return None
         best: tuple[float, float, float] | None = None
         for h in np.arange(h0 - self.reach, h0 + self.reach + 1e-9, self.grid):

@@ -30,7 +30,8 @@ class PerspectiveConfig:
     settled_slack: the slack once there is one (fraction of the frame height).
     min_score: the score a tracked box needs to count (the heat map's peak).
     min_boxes, min_tracks, long_track: tracks of at least ``min_boxes`` such boxes, at least
-        ``min_tracks`` of them, or one track of ``long_track`` boxes, before there is an estimate.
+        ``min_tracks`` of them (or one track of ``long_track`` boxes; ``None``: never), before
+        there is an estimate.
     sigma_h: how far (fraction of the height) the estimate may pull the horizon from the
         prior without cost (one standard deviation of the prior).
     sigma_ratio: the same for the ratio, in log units.
@@ -41,7 +42,7 @@ class PerspectiveConfig:
     min_score: float = 10.0
     min_boxes: int = 5
     min_tracks: int = 2
-    long_track: int = 25
+    long_track: int | None = None
     sigma_h: float = 0.04
     sigma_ratio: float = 0.5
 
