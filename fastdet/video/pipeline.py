@@ -495,7 +495,7 @@ def video_detector_for(reader: FrameReader, detector: WindowDetector, heat: Heat
     seconds (:func:`prime_horizon_from_file`; the frames come from ``reader`` itself,
     :meth:`FrameReader.peek <fastdet.io.reader.FrameReader.peek>`, when they fit in
     :data:`PRIME_BUFFER_BYTES` and the run reads at least that many)."""
-    check_frame(detector, reader.first_frame, reader.path)
+    check_frame(detector, reader.first_frame, reader.path, horizon=horizon)
     vd = VideoDetector(detector, heat, tracker=tracker, fps=reader.fps, horizon=horizon, guided=guided,
                        refine=refine)
     if (vd.horizon == "auto" and reader.kind == "file" and os.path.isfile(reader.path)
