@@ -20,12 +20,11 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
-import signal
-import sys
 from pathlib import Path
 from types import ModuleType
 
 from ..errors import FastdetError
+from ..signals import Stopped
 from ..io.paths import check_paths
 from ..config.batch import BatchOptions
 from ._args import (add_horizon_argument, add_oncoming_arguments, add_refine_argument, add_search_argument,
@@ -108,11 +107,9 @@ def run(args: argparse.Namespace) -> int:
                         overwrite=args.overwrite, retries=args.retries, table=table, progress=not args.no_progress)
     try:
         report = job.run_batch(videos, opts)
-    except job.BatchInterrupted as exc:
-        name = signal.Signals(exc.signum).name
-        print(f"fastdet batch: stopped by {name}: {exc.done} video(s) done in this run, {exc.stopped} stopped "
-              f"(no output kept); run the same command again to do the rest", file=sys.stderr, flush=True)
-        return 128 + exc.signum
+    except job.BatchInterrupted as exc:  # the dispatcher's one line, with what was done
+        raise Stopped(exc.signum, f"{exc.done} video(s) done in this run, {exc.stopped} stopped (no output kept); "
+                                  f"run the same command again to do the rest") from None
     print(job.format_summary(report), flush=True)
     if report.table_rows is not None:
         print(f"table: {table} ({report.table_rows} boxes)", flush=True)

@@ -466,7 +466,7 @@ def test_real_cluster_worker_killed_mid_task_nothing_lost(long_clips, tmp_path: 
 
         running = wait_for(two_running, 120, "two running tasks")
         in_progress = {m["name"]: m["token"] for m in
-                       (re.match(r"^(?P<name>c\d)\.boxes\.(?P<token>[0-9a-f]{16})", p.name) for p in running)}
+                       (re.match(r"^\.?(?P<name>c\d)\.boxes\.(?P<token>[0-9a-f]{16})", p.name) for p in running)}
         workers[0].send_signal(signal.SIGKILL)
         workers[0].wait(timeout=30)
         _, stderr = b.communicate(timeout=TIMEOUT)
