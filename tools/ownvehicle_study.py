@@ -1,0 +1,237 @@
+"""Study of the own-vehicle mask and of heat-blob splitting on the five annotated clips
+(run by hand).
+
+Runs the default video pipeline (``python -m fastdet eval --video`` builds the same one)
+over every annotated clip with a variant's VideoDetector, scores the returned boxes at IoU
+0.5 on the annotated frames only (the keyframes of a sparsely annotated clip: ``CLIP.frames``;
+predictions elsewhere are neither hits nor false alarms) and prints one markdown row per
+clip: P / R / F1 / false alarms per scored frame / CPU ms per frame (process time of the
+whole run, horizon priming included). ``--save DIR`` keeps each run's boxes (pickle) for a
+closer look.
+
+    python tools/ownvehicle_study.py VARIANT [VARIANT ...] [--clips a,b] [--save /tmp/ov]
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import pickle
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from fastdet.data import data_dir
+from fastdet.detections import Detections
+from fastdet.eval import evaluate
+from fastdet.io.motfiles import GroundTruth, Predictions, read_gt
+from fastdet.io.reader import FrameReader
+from fastdet.video.blobsplit import split_boxes
+from fastdet.video.heatmap import HeatMap
+from fastdet.video.ownvehicle import OwnVehicleConfig, OwnVehicleEstimator, window_fraction
+from fastdet.detect.checks import check_frame
+from fastdet.video.pipeline import HORIZON_FRAMES, VideoDetector, make_detector, video_detector_for
+
+CLIPS = ("test_small1", "test_video", "highway_640", "boston_street", "motorcycle_highway")
+
+
+#: where clips not in the data folder (synthetic variants) are looked for: CLIP.mp4, CLIP.gt.txt
+EXTRA = Path(os.environ.get("OWNVEHICLE_EXTRA", "/tmp/ov/synth"))
+
+
+def _video(clip: str) -> Path:
+    p = data_dir() / "videos" / f"{clip}.mp4"
+    return p if p.is_file() else EXTRA / f"{clip}.mp4"
+
+
+def _annotation(clip: str, ext: str) -> Path:
+    p = data_dir() / "annotations" / f"{clip}.{ext}"
+    return p if p.is_file() or (data_dir() / "videos" / f"{clip}.mp4").is_file() else EXTRA / f"{clip}.{ext}"
+
+
+def keyframes(clip: str) -> np.ndarray | None:
+    p = _annotation(clip, "frames")
+    if not p.is_file():
+        return None
+    return np.array([int(x) for x in p.read_text().split()], np.int64)
+
+
+def score(clip: str, preds: Predictions, iou: float = 0.5) -> dict[str, float]:
+    """P / R / F1 / false alarms per scored frame of ``preds`` on ``clip``'s annotated frames."""
+    gt = read_gt(_annotation(clip, "gt.txt"))
+    kf = keyframes(clip)
+    if kf is None:
+        n_frames = gt.num_frames
+        r = evaluate(gt, preds, iou=iou, tracking=False)
+    else:
+        g = np.isin(gt.frames, kf)
+        gt = GroundTruth(gt.frames[g], gt.ids[g], gt.boxes[g], gt.consider[g], gt.source)
+        p = np.isin(preds.frames, kf)
+        preds = Predictions(preds.frames[p], preds.ids[p], preds.boxes[p], preds.scores[p], preds.source)
+        n_frames = len(kf)
+        r = evaluate(gt, preds, iou=iou, num_frames=int(kf.max()), tracking=False)
+    return {"P": r.precision, "R": r.recall, "F1": r.f1, "tp": r.tp, "fp": r.fp, "fn": r.fn,
+            "fa": r.fp / n_frames, "frames": n_frames}
+
+
+Factory = Callable[[FrameReader], VideoDetector]
+
+
+def default_factory(reader: FrameReader) -> VideoDetector:
+    return video_detector_for(reader, make_detector())
+
+
+def run_clip(clip: str, factory: Factory) -> tuple[Predictions, list[dict], float]:
+    """The boxes of every frame of ``clip`` and per-frame debug (heat boxes, windows), and the
+    CPU seconds per frame of the whole run."""
+    path = _video(clip)
+    _warm()
+    t0 = time.process_time()  # priming counted, numba compilation not
+    reader = FrameReader(path)
+    debug: list[dict] = []
+    out: list[tuple[int, Detections]] = []
+    try:
+        vd = factory(reader)
+        for fno, frame, _ in reader:
+            d = vd.update(frame)
+            out.append((fno, d))
+            debug.append({"frame": fno, "heat_boxes": vd.last_boxes, "windows": vd.last_windows})
+        if hasattr(vd, "dropped"):
+            print(f"<!-- {clip}: {vd.dropped} windows dropped on the own vehicle -->")
+    finally:
+        reader.close()
+    cpu = (time.process_time() - t0) / max(len(out), 1)
+    return Predictions.from_frames(out, source=clip), debug, cpu
+
+
+_WARM: list[bool] = []
+
+
+def _warm() -> None:
+    if not _WARM:
+        VideoDetector(make_detector()).warmup()
+        _WARM.append(True)
+
+
+VARIANTS: dict[str, Factory] = {"base": default_factory}
+
+
+def register(name: str) -> Callable[[Factory], Factory]:
+    def deco(f: Factory) -> Factory:
+        VARIANTS[name] = f
+        return f
+    return deco
+
+
+class OwnVehicleVD(VideoDetector):
+    """VideoDetector that drops the positive windows lying mostly on the own vehicle."""
+
+    def __init__(self, *a, own: OwnVehicleConfig | None = None, **kw) -> None:
+        super().__init__(*a, **kw)
+        self.own = own if own is not None else OwnVehicleConfig()
+        self._own_est = OwnVehicleEstimator(self.own, self.fps)
+        self._own_integral: np.ndarray | None = None
+        self.dropped = 0
+        det = self.detector
+        inner = det.detect
+
+        def detect(frame, *args, **kwargs):
+            w = inner(frame, *args, **kwargs)
+            if not self._own_est.done:
+                self._own_est.update(frame)
+                self._own_integral = None
+            region = self._own_est.region()
+            if region is None or not len(w):
+                return w
+            if self._own_integral is None:
+                self._own_integral = cv2.integral(region.astype(np.uint8))
+            keep = window_fraction(region, w.boxes, self._own_integral) < self.own.max_fraction
+            self.dropped += int((~keep).sum())
+            return w if keep.all() else w[keep]
+
+        det.detect = detect  # type: ignore[method-assign]
+
+    def prime_horizon(self, frames):
+        def tee():
+            for f in frames:
+                self._own_est.update(np.asarray(f))
+                yield f
+        return super().prime_horizon(tee())
+
+
+def own_factory(own: OwnVehicleConfig | None = None) -> Factory:
+    def f(reader: FrameReader) -> VideoDetector:
+        det = make_detector()
+        check_frame(det, reader.first_frame, reader.path)
+        vd = OwnVehicleVD(det, fps=reader.fps, own=own)
+        vd.prime_horizon(reader.peek(max(HORIZON_FRAMES, vd._own_est.max_frames)))
+        return vd
+    return f
+
+
+VARIANTS["own"] = own_factory()
+
+
+class SplitHeatMap(HeatMap):
+    """HeatMap whose boxes are split at deep valleys of their blob's heat."""
+
+    ratio = 0.7
+
+    def boxes(self) -> Detections:
+        out = super().boxes()
+        cfg = self.config
+        c = int(cfg.cell)
+        d = split_boxes(out, self.heat, self.labels, c, self.frame_shape, self.ratio,
+                        max(1, math.ceil(cfg.min_width / c)), float(cfg.extent))
+        return d if d is out else d[self._shape_ok(d.boxes)]
+
+
+def split_factory(ratio: float) -> Factory:
+    class VD(VideoDetector):
+        def _heatmap_for(self, shape):
+            hw = (int(shape[0]), int(shape[1]))
+            if self.heatmap is None or self.heatmap.frame_shape != hw:
+                super()._heatmap_for(shape)
+                hm = SplitHeatMap(hw, self.heat_config, score_kind=self.detector.score_kind)
+                hm.ratio = ratio
+                self.heatmap = hm
+            return self.heatmap
+
+    def f(reader: FrameReader) -> VideoDetector:
+        det = make_detector()
+        check_frame(det, reader.first_frame, reader.path)
+        vd = VD(det, fps=reader.fps)
+        vd.prime_horizon(reader.peek(HORIZON_FRAMES))
+        return vd
+    return f
+
+
+for _r in (0.5, 0.6, 0.7, 0.8, 0.9):
+    VARIANTS[f"split{round(_r * 100)}"] = split_factory(_r)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("variants", nargs="+")
+    ap.add_argument("--clips", default=",".join(CLIPS))
+    ap.add_argument("--save", default=None)
+    a = ap.parse_args()
+    print("| variant | clip | P | R | F1 | TP | FP | FN | FA/frame | CPU ms/frame |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for v in a.variants:
+        for clip in a.clips.split(","):
+            preds, debug, cpu = run_clip(clip, VARIANTS[v])
+            s = score(clip, preds)
+            print(f"| {v} | {clip} | {s['P']:.3f} | {s['R']:.3f} | {s['F1']:.3f} | {s['tp']} | {s['fp']} | "
+                  f"{s['fn']} | {s['fa']:.2f} | {1000 * cpu:.1f} |", flush=True)
+            if a.save:
+                os.makedirs(a.save, exist_ok=True)
+                with open(Path(a.save) / f"{v}_{clip}.pkl", "wb") as fh:
+                    pickle.dump({"preds": preds, "debug": debug}, fh)
+
+
+if __name__ == "__main__":
+    main()
