@@ -14,7 +14,6 @@ closer look.
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import pickle
 import time
@@ -98,7 +97,11 @@ def run_clip(clip: str, factory: Factory) -> tuple[Predictions, list[dict], floa
         for fno, frame, _ in reader:
             d = vd.update(frame)
             out.append((fno, d))
-            debug.append({"frame": fno, "heat_boxes": vd.last_boxes, "windows": vd.last_windows})
+            debug.append({"frame": fno, "heat_boxes": vd.last_boxes, "windows": vd.last_windows,
+                          "heat": vd.last_heat.astype(np.float32), "labels": vd.last_labels})
+        if getattr(vd.heatmap, "splits", None):
+            print(f"<!-- {clip}: {len(vd.heatmap.splits)} frames with a split blob -->")
+            debug.append({"splits": vd.heatmap.splits})
         if hasattr(vd, "dropped"):
             print(f"<!-- {clip}: {vd.dropped} windows dropped on the own vehicle -->")
     finally:
@@ -176,27 +179,28 @@ VARIANTS["own"] = own_factory()
 
 
 class SplitHeatMap(HeatMap):
-    """HeatMap whose boxes are split at deep valleys of their blob's heat."""
+    """HeatMap whose wide boxes are split between the modes of their windows."""
 
-    ratio = 0.7
+    split: dict = {}
 
     def boxes(self) -> Detections:
         out = super().boxes()
         cfg = self.config
-        c = int(cfg.cell)
-        d = split_boxes(out, self.heat, self.labels, c, self.frame_shape, self.ratio,
-                        max(1, math.ceil(cfg.min_width / c)), float(cfg.extent))
+        d = split_boxes(out, self.heat, self.labels, int(cfg.cell), self.frame_shape, self._cur[0], self._cur[1],
+                        float(cfg.extent), **self.split)
+        if d is not out:
+            self.splits = getattr(self, "splits", []) + [(out.boxes.copy(), d.boxes.copy())]
         return d if d is out else d[self._shape_ok(d.boxes)]
 
 
-def split_factory(ratio: float) -> Factory:
+def split_factory(**split) -> Factory:
     class VD(VideoDetector):
         def _heatmap_for(self, shape):
             hw = (int(shape[0]), int(shape[1]))
             if self.heatmap is None or self.heatmap.frame_shape != hw:
                 super()._heatmap_for(shape)
                 hm = SplitHeatMap(hw, self.heat_config, score_kind=self.detector.score_kind)
-                hm.ratio = ratio
+                hm.split = split
                 self.heatmap = hm
             return self.heatmap
 
@@ -209,8 +213,13 @@ def split_factory(ratio: float) -> Factory:
     return f
 
 
-for _r in (0.5, 0.6, 0.7, 0.8, 0.9):
-    VARIANTS[f"split{round(_r * 100)}"] = split_factory(_r)
+VARIANTS["split"] = split_factory()
+for _a in (1.4, 1.6, 2.0, 2.5):
+    VARIANTS[f"split_a{_a}"] = split_factory(min_aspect=_a)
+for _m in (0.25, 0.75):
+    VARIANTS[f"split_w{_m}"] = split_factory(min_weight=_m)
+for _b in (0.15, 0.35):
+    VARIANTS[f"split_b{_b}"] = split_factory(bandwidth=_b)
 
 
 def main() -> None:

@@ -62,6 +62,8 @@ class OwnVehicleConfig:
         sampled frame, every pixel of it).
     max_fraction: a positive window with at least this fraction of its area in the region
         is dropped.
+    max_area: a region larger than this fraction of the frame is not the own vehicle (a
+        camera that stood still while a few vehicles moved through): no region.
     """
 
     enabled: bool = True
@@ -71,20 +73,21 @@ class OwnVehicleConfig:
     frames_s: float = 3.0
     min_gradient: float = 24.0
     max_change: float = 8.0
-    min_moving: float = 0.3
+    min_moving: float = 0.15
     min_pairs: int = 5
     cells: int = 40
     min_texture: float = 0.05
     min_still: float = 0.8
     bar_level: float = 20.0
     max_fraction: float = 0.5
+    max_area: float = 0.5
 
     def __post_init__(self) -> None:
         if self.work_rows < 16 or self.every < 1 or self.min_pairs < 1 or self.cells < 4:
             raise ValueError("work_rows >= 16, every >= 1, min_pairs >= 1 and cells >= 4 are needed")
         if not (self.gap_s > 0 and self.frames_s > 0):
             raise ValueError("gap_s and frames_s must be > 0")
-        for name in ("min_moving", "min_texture", "min_still", "max_fraction"):
+        for name in ("min_moving", "min_texture", "min_still", "max_fraction", "max_area"):
             v = getattr(self, name)
             if not 0 <= v <= 1:
                 raise ValueError(f"{name} must be in [0, 1], got {v}")
@@ -128,11 +131,10 @@ def _touches_border(labels: np.ndarray, n: int) -> np.ndarray:
     return out[1:]
 
 
-def fixed_region(still: np.ndarray, textured: np.ndarray, pairs: int, config: OwnVehicleConfig,
-                 bars: np.ndarray | None = None) -> np.ndarray:
+def fixed_region(still: np.ndarray, textured: np.ndarray, pairs: int, config: OwnVehicleConfig) -> np.ndarray:
     """The own-vehicle region on the cell grid (``(gh, gw) bool``) from per-cell sums over
     ``pairs`` counted pairs: ``still`` and ``textured`` ``(gh, gw)`` (mean per pixel of the
-    cell, summed over pairs); ``bars``: letterbox cells to add (module docstring)."""
+    cell, summed over pairs) (module docstring; letterbox bars are added by the caller)."""
     gh, gw = still.shape
     region = np.zeros((gh, gw), bool)
     if pairs >= config.min_pairs:
@@ -158,8 +160,6 @@ def fixed_region(still: np.ndarray, textured: np.ndarray, pairs: int, config: Ow
                     y -= 1
                 if top >= 0:
                     region[top:, x] = True
-    if bars is not None:
-        region |= bars
     return region
 
 
@@ -266,21 +266,25 @@ class OwnVehicleEstimator:
         work = self._dark.shape
         cs = self._cell_px(work)
         gh, gw = -(-work[0] // cs), -(-work[1] // cs)
-        bars = _bar_cells(self._dark, cs, (gh, gw)) if self._n >= 2 else None
-        if self._still is None or self.pairs < c.min_pairs:
-            if bars is None or not bars.any():
-                return None
-            cells = bars
-        else:
-            assert self._tex is not None
-            cells = fixed_region(self._still, self._tex, self.pairs, c, bars)
-        if not cells.any():
-            return None
         h, w = self._shape
-        # cell (i, j) covers work rows i*cs .. (i+1)*cs: frame rows scaled by h / work rows
-        ys = np.minimum((np.arange(h) + 0.5) * work[0] / h // cs, gh - 1).astype(np.int64)
-        xs = np.minimum((np.arange(w) + 0.5) * work[1] / w // cs, gw - 1).astype(np.int64)
-        return cells[ys[:, None], xs[None, :]]
+        out = np.zeros((h, w), bool)
+        if self._still is not None and self.pairs >= c.min_pairs:
+            assert self._tex is not None
+            cells = fixed_region(self._still, self._tex, self.pairs, c)
+            # cell (i, j) covers work rows i*cs .. (i+1)*cs: frame rows scaled by h / work rows
+            ys = np.minimum((np.arange(h) + 0.5) * work[0] / h // cs, gh - 1).astype(np.int64)
+            xs = np.minimum((np.arange(w) + 0.5) * work[1] / w // cs, gw - 1).astype(np.int64)
+            out = cells[ys[:, None], xs[None, :]]
+        if self._n >= 2:
+            top, bottom, left, right = bar_widths(self._dark)
+            fy, fx = h / work[0], w / work[1]
+            out[:int(top * fy)] = True
+            out[h - int(bottom * fy):] = True
+            out[:, :int(left * fx)] = True
+            out[:, w - int(right * fx):] = True
+        if not out.any() or out.mean() > c.max_area:
+            return None  # nothing, or not the own vehicle (a camera that stood still, a dark video)
+        return out
 
 
 def _cell_mean(m: np.ndarray, cs: int, grid: tuple[int, int]) -> np.ndarray:
@@ -297,28 +301,21 @@ def _cell_mean(m: np.ndarray, cs: int, grid: tuple[int, int]) -> np.ndarray:
     return s / np.maximum(n, 1)
 
 
-def _bar_cells(dark: np.ndarray, cs: int, grid: tuple[int, int]) -> np.ndarray:
-    """Cells wholly inside a letterbox bar: runs of border rows (top, bottom) or columns
-    (left, right) whose every pixel was dark on every frame."""
-    h, w = dark.shape
+def bar_widths(dark: np.ndarray) -> tuple[int, int, int, int]:
+    """Letterbox bars of a ``(h, w) bool`` map of pixels dark on every frame: the number of
+    whole dark rows at the top and at the bottom and of whole dark columns at the left and at
+    the right, ``(top, bottom, left, right)`` (an all-dark map: all its rows at the top)."""
     rows = dark.all(1)
     cols = dark.all(0)
-    px = np.zeros((h, w), bool)
-    for line, n, axis in ((rows, h, 0), (cols, w, 1)):
-        k = 0
-        while k < n and line[k]:
-            k += 1
-        m = n
-        while m > k and line[m - 1]:
-            m -= 1
-        if axis == 0:
-            px[:k] = True
-            px[m:] = True
-        else:
-            px[:, :k] = True
-            px[:, m:] = True
-    gh, gw = grid
-    return _cell_mean(px, cs, grid) >= 1.0 - 1e-9 if px.any() else np.zeros((gh, gw), bool)
+
+    def run(line: np.ndarray) -> int:
+        nz = np.flatnonzero(~line)
+        return int(nz[0]) if len(nz) else len(line)
+
+    top, left = run(rows), run(cols)
+    bottom = run(rows[::-1]) if top < len(rows) else 0
+    right = run(cols[::-1]) if left < len(cols) else 0
+    return top, bottom, left, right
 
 
 def window_fraction(region: np.ndarray, boxes: np.ndarray, integral: np.ndarray | None = None) -> np.ndarray:
