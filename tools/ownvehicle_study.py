@@ -14,6 +14,7 @@ closer look.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import pickle
 import time
@@ -222,12 +223,106 @@ for _b in (0.15, 0.35):
     VARIANTS[f"split_b{_b}"] = split_factory(bandwidth=_b)
 
 
+def make_synthetic(out: Path) -> None:
+    """A rigid dash on every frame: the motorcycle clip's first frame, rows 468-720 (its
+    windscreen, dash and mirrors) scaled to the width, pasted over the bottom 35% of every
+    frame of test_small1, test_video and highway_640 (``CLIP_dash35.mp4``, mp4v), with their
+    ground truth (targets at least half under the dash become ignore regions) and keyframes."""
+    out.mkdir(parents=True, exist_ok=True)
+    r = FrameReader(data_dir() / "videos" / "motorcycle_highway.mp4", 0, 1, notify=lambda _n: None)
+    dash = next(iter(r))[1][468:720]
+    r.close()
+    for clip in ("test_small1", "test_video", "highway_640"):
+        r = FrameReader(data_dir() / "videos" / f"{clip}.mp4", notify=lambda _n: None)
+        writer = None
+        y0 = 0
+        for _, f, _ in r:
+            h, w = f.shape[:2]
+            d = cv2.resize(dash, (w, round(dash.shape[0] * w / 1280)))
+            y0 = h - d.shape[0]
+            f = f.copy()
+            f[y0:] = d
+            if writer is None:
+                writer = cv2.VideoWriter(str(out / f"{clip}_dash35.mp4"), cv2.VideoWriter_fourcc(*"mp4v"), r.fps or 25,
+                                         (w, h))
+            writer.write(f)
+        assert writer is not None
+        writer.release()
+        r.close()
+        lines = []
+        for line in (data_dir() / "annotations" / f"{clip}.gt.txt").read_text().splitlines():
+            v = line.strip().split(",")
+            top, hh = float(v[3]), float(v[5])
+            if v[6] == "1" and top + hh - y0 > 0.5 * hh:
+                v[6] = "0"
+            lines.append(",".join(v))
+        (out / f"{clip}_dash35.gt.txt").write_text("\n".join(lines) + "\n")
+        kf = data_dir() / "annotations" / f"{clip}.frames"
+        if kf.is_file():
+            (out / f"{clip}_dash35.frames").write_text(kf.read_text())
+
+
+def cost() -> None:
+    """CPU of the own-vehicle estimator over the first 75 frames of test_small1 (1280x720) and
+    of the window test per frame, and of split_boxes per frame on three clips."""
+    from fastdet.video import blobsplit
+    r = FrameReader(data_dir() / "videos" / "test_small1.mp4", 0, 75, notify=lambda _n: None)
+    frames = [f for _, f, _ in r]
+    r.close()
+    best = math.inf
+    for _ in range(3):
+        est = OwnVehicleEstimator(fps=25)
+        t = time.process_time()
+        for f in frames:
+            est.update(f)
+        est.region()
+        best = min(best, time.process_time() - t)
+    print(f"own-vehicle estimator: {1000 * best / len(frames):.2f} ms a frame over the first {len(frames)} frames "
+          f"of 1280x720 ({1000 * best:.0f} ms)")
+    region = np.zeros((720, 1280), bool)
+    region[600:] = True
+    t = time.process_time()
+    integral = cv2.integral(region.astype(np.uint8))
+    t_int = time.process_time() - t
+    boxes = np.array([[x, 400, x + 128, 528] for x in range(0, 1152, 16)])
+    t = time.process_time()
+    for _ in range(1000):
+        window_fraction(region, boxes, integral)
+    print(f"window test: {t_int * 1000:.2f} ms once per region, {(time.process_time() - t):.3f} ms a frame "
+          f"({len(boxes)} windows)")
+    tot = [0.0, 0]
+    orig = blobsplit.split_boxes
+
+    def timed(*a, **k):
+        t0 = time.process_time()
+        r = orig(*a, **k)
+        tot[0] += time.process_time() - t0
+        tot[1] += 1
+        return r
+    globals()["split_boxes"] = timed
+    try:
+        for clip in ("test_video", "test_small1", "highway_640"):
+            tot[:] = [0.0, 0]
+            run_clip(clip, VARIANTS["split"])
+            print(f"split_boxes on {clip}: {1000 * tot[0] / max(tot[1], 1):.3f} ms a frame ({tot[1]} frames)")
+    finally:
+        globals()["split_boxes"] = orig
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("variants", nargs="+")
+    ap.add_argument("variants", nargs="*")
+    ap.add_argument("--make-synthetic", metavar="DIR", help="write the rigid-dash copies of three clips to DIR")
+    ap.add_argument("--cost", action="store_true", help="time the estimator, the window test and the split")
     ap.add_argument("--clips", default=",".join(CLIPS))
     ap.add_argument("--save", default=None)
     a = ap.parse_args()
+    if a.make_synthetic:
+        make_synthetic(Path(a.make_synthetic))
+    if a.cost:
+        cost()
+    if not a.variants:
+        return
     print("| variant | clip | P | R | F1 | TP | FP | FN | FA/frame | CPU ms/frame |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for v in a.variants:

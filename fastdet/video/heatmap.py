@@ -114,6 +114,15 @@ class HeatMap:
         return len(self._ring)
 
     @property
+    def current_windows(self) -> tuple[np.ndarray, np.ndarray]:
+        """The last frame's windows: ``(boxes (N, 4) float64 frame px, heat (N,) float64)``,
+        each window's heat as :meth:`window_heat` gives it (read-only views)."""
+        b, w = self._cur
+        b, w = b.view(), w.view()
+        b.flags.writeable = w.flags.writeable = False
+        return b, w
+
+    @property
     def weight_sum(self) -> float:
         """``sum_k decay**k`` over the frames in the ring (the normaliser)."""
         return self._wsum[len(self._ring)]
