@@ -21,9 +21,9 @@ import os
 from typing import TYPE_CHECKING, Any
 
 # numba's OpenMP workers busy-wait between parallel regions by default; on 2 cores shared with
-# the video reader/writer threads (or anything else) that spinning cost 5-8x in throughput.
-# Sleeping workers fix it (10 fps instead of 65 with `video --boxes` while other jobs ran). Set
-# here, before any submodule can load numba's OpenMP layer; a user's own setting wins.
+# the video reader/writer threads (or anything else) that spinning takes the cores the others
+# need, so the workers sleep instead (docs/benchmarks.md, *OpenMP wait policy*). Set here,
+# before any submodule can load numba's OpenMP layer; a user's own setting wins.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 from ._version import __version__

@@ -19,8 +19,8 @@ from typing import Any
 
 from .console import note
 
-#: measured wall time of the first run's compilation of the detection kernels (HOG 12.6 s,
-#: scoring 2.3 s on 2 cores of a busy machine; README "first run")
+#: about how long the first run's compilation of the detection kernels takes, in seconds (the
+#: measurement: docs/reliability.md, "first run")
 COMPILE_SECONDS = 15
 
 EXACT: dict[str, Any] = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")

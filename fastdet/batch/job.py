@@ -120,9 +120,9 @@ def _glibc_malloc_defaults() -> None:
     """Undo the ``MALLOC_TRIM_THRESHOLD_=65536`` that Dask's nanny puts in its workers'
     environment (``distributed.nanny.pre-spawn-environ``): setting it turns off glibc's
     adaptive mmap threshold, so every array of a frame's size is a fresh ``mmap`` whose pages
-    fault in again: ``video`` on one thread ran at 27 instead of 40 fps with it, with 7x
-    the system time. These are the values glibc's adaptive threshold reaches by itself (the
-    maximum mmap threshold on 64 bits, twice that for trimming). No-op without glibc."""
+    fault in again (what that cost: docs/batch.md). These are the values glibc's adaptive
+    threshold reaches by itself (the maximum mmap threshold on 64 bits, twice that for
+    trimming). No-op without glibc."""
     try:
         libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
         mallopt = libc.mallopt

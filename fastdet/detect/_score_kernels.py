@@ -16,11 +16,8 @@ The innermost loop indexes slices from 0 (no negative-index wraparound test, whi
 LLVM emit gathers for the old per-window loop), so it compiles to packed AVX2 / AVX-512
 ``vfmadd231pd`` with memory operands (checked with ``inspect_asm``). float64 throughout:
 float32 products summed in float32 miss the classic reference by up to 3e-6 on the test
-frames, above the 1e-6 the exactness test demands.
-
-Measured on the six windowed bands of a 1280x720 frame, one core: 6.9 ms (per-window loop,
-gathers, ~1.9 G multiply-adds/s) -> 0.9 ms (~15 G/s; OpenBLAS dgemm on the same sizes:
-17-21 G/s before the shifted sums an FFLD-style product would need).
+frames, above the 1e-6 the exactness test demands. What this layout gained, and why not BLAS:
+docs/benchmarks.md (*Where a frame's detection time goes*).
 """
 from __future__ import annotations
 
@@ -184,9 +181,8 @@ def hist_weight_integral(image, lut, g, out):
     The windows sit on the cell grid, so ``g`` = the cell size serves them: the per-pixel
     weights of a row of cells are summed column by column into one buffer (look-ups by an
     unsigned byte, no chain between pixels; three channels in one pass), then each cell's
-    ``g`` columns once, and the running sum along the row (0.54 ms for a 1344x96 band with
-    the pixel-resolution integral image -> 0.17 ms with one weight row and ``g`` sums per
-    image row -> 0.12 ms like this; the sums are reordered, ~1e-15 apart).
+    ``g`` columns once, and the running sum along the row (the sums are reordered, ~1e-15
+    apart; the measurements: docs/benchmarks.md, *Kernel notes*).
     """
     nr, nq = out.shape[0] - 1, out.shape[1] - 1
     c = image.shape[2]
