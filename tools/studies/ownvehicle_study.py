@@ -9,7 +9,7 @@ clip: P / R / F1 / false alarms per scored frame / CPU ms per frame (process tim
 whole run, horizon priming included). ``--save DIR`` keeps each run's boxes (pickle) for a
 closer look.
 
-    python tools/ownvehicle_study.py VARIANT [VARIANT ...] [--clips a,b] [--save /tmp/ov]
+    python -m tools.studies.ownvehicle_study VARIANT [VARIANT ...] [--clips a,b] [--save /tmp/ov]
 """
 from __future__ import annotations
 
@@ -27,7 +27,7 @@ import numpy as np
 from fastdet.data import data_dir
 from fastdet.detections import Detections
 from fastdet.eval import evaluate
-from fastdet.io.motfiles import GroundTruth, Predictions, read_gt
+from fastdet.io.motfiles import Predictions, read_gt
 from fastdet.io.reader import FrameReader
 from fastdet.video.blobsplit import split_boxes
 from fastdet.video.heatmap import HeatMap
@@ -60,21 +60,12 @@ def keyframes(clip: str) -> np.ndarray | None:
 
 
 def score(clip: str, preds: Predictions, iou: float = 0.5) -> dict[str, float]:
-    """P / R / F1 / false alarms per scored frame of ``preds`` on ``clip``'s annotated frames."""
+    """P / R / F1 / false alarms per scored frame of ``preds`` on ``clip``'s annotated frames
+    (:func:`fastdet.eval.evaluate` with the clip's keyframes, as ``fastdet eval --all``)."""
     gt = read_gt(_annotation(clip, "gt.txt"))
-    kf = keyframes(clip)
-    if kf is None:
-        n_frames = gt.num_frames
-        r = evaluate(gt, preds, iou=iou, tracking=False)
-    else:
-        g = np.isin(gt.frames, kf)
-        gt = GroundTruth(gt.frames[g], gt.ids[g], gt.boxes[g], gt.consider[g], gt.source)
-        p = np.isin(preds.frames, kf)
-        preds = Predictions(preds.frames[p], preds.ids[p], preds.boxes[p], preds.scores[p], preds.source)
-        n_frames = len(kf)
-        r = evaluate(gt, preds, iou=iou, num_frames=int(kf.max()), tracking=False)
+    r = evaluate(gt, preds, iou=iou, keyframes=keyframes(clip), tracking=False)
     return {"P": r.precision, "R": r.recall, "F1": r.f1, "tp": r.tp, "fp": r.fp, "fn": r.fn,
-            "fa": r.fp / n_frames, "frames": n_frames}
+            "fa": r.fp_per_frame, "frames": r.frames}
 
 
 Factory = Callable[[FrameReader], VideoDetector]
