@@ -7,6 +7,7 @@ Public API (the heavy parts are imported lazily, so ``import fastdet`` is cheap)
     from fastdet import Detector, VideoDetector      # one frame / a stream of frames
     from fastdet import load_model, Model            # the bundled or a trained model
     from fastdet import Detections                   # boxes + per-box columns (scores, scale, part, ids)
+    from fastdet import PipelineConfig               # every setting of the video pipeline (fastdet.config)
     from fastdet import FeatureConfig, SearchConfig, SearchBand, HeatConfig, MotionGate, TrackerConfig
 
 Sub-packages, one per pipeline stage (layers point down): ``features`` (HOG, colour
@@ -27,11 +28,17 @@ from typing import TYPE_CHECKING, Any
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 from ._version import __version__
-from .config import FeatureConfig, HeatConfig, MotionGate, SearchBand, SearchConfig, TrackerConfig
-from .detections import Detections
 from .errors import DataError, FastdetError, ModelError
 
 if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers and IDEs
+    from .config import FeatureConfig as FeatureConfig
+    from .config import HeatConfig as HeatConfig
+    from .config import MotionGate as MotionGate
+    from .config import PipelineConfig as PipelineConfig
+    from .config import SearchBand as SearchBand
+    from .config import SearchConfig as SearchConfig
+    from .config import TrackerConfig as TrackerConfig
+    from .detections import Detections as Detections
     from .detect import Detector as Detector
     from .features import extract_features as extract_features
     from .features import hog as hog
@@ -42,7 +49,17 @@ if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers and
     from .video import HeatMap as HeatMap
     from .video import VideoDetector as VideoDetector
 
+# everything that imports NumPy is lazy: ``python -m fastdet`` imports this package before
+# its first line of its own runs, and installs its stop-signal handlers right after
 _LAZY = {
+    "FeatureConfig": "fastdet.config",
+    "HeatConfig": "fastdet.config",
+    "MotionGate": "fastdet.config",
+    "PipelineConfig": "fastdet.config",
+    "SearchBand": "fastdet.config",
+    "SearchConfig": "fastdet.config",
+    "TrackerConfig": "fastdet.config",
+    "Detections": "fastdet.detections",
     "hog": "fastdet.features",
     "hog_channels": "fastdet.features",
     "hog_channels_batch": "fastdet.features",
@@ -54,11 +71,7 @@ _LAZY = {
     "Model": "fastdet.model",
 }
 
-__all__ = [
-    "__version__", "FeatureConfig", "HeatConfig", "MotionGate", "SearchBand", "SearchConfig", "TrackerConfig",
-    "Detections",
-    "FastdetError", "ModelError", "DataError", *_LAZY,
-]
+__all__ = ["__version__", "FastdetError", "ModelError", "DataError", *_LAZY]
 
 
 def __getattr__(name: str) -> Any:

@@ -23,12 +23,13 @@ import time
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
+from typing import Any, ClassVar
 
 import numba
 import numpy as np
 
-from .._numba import announce_compile
-from ..config import WIDE_SEARCH, SearchBand, SearchConfig
+from .._numba import ensure_compiled
+from ..config import ONCOMING_SEARCH, SearchBand, SearchConfig
 from ..detections import MAIN_PART, WIDE_PART, Detections
 from ..errors import ModelError
 from ..features import (
@@ -38,11 +39,16 @@ from ..features import (
     spatial_factor,
     spatial_map,
 )
-from ..features._hog_kernels import hog_u8_fast
+from ..features import _hog_kernels
 from ..model import Model, load_model
 from .bands import BandGeometry, PaddedFrame, band_geometry, pad_frame, scaled_band, window_boxes
-from .scoring import KERNELS as SCORE_KERNELS
+from . import _score_kernels
 from .scoring import dense_scores, hist_weight_integral, weight_table
+
+
+#: the numba kernels :meth:`Detector.detect` runs (each in the signatures its module lists)
+KERNELS = (_hog_kernels.cell_hists_u8, _hog_kernels.normalize_blocks_fast, _score_kernels.dense_scores,
+           _score_kernels.hist_weight_integral)
 
 
 @dataclass
@@ -84,7 +90,7 @@ class _Scorer:
         self.bias = b
 
     def geometries(self, frame_shape: tuple[int, int]) -> list[BandGeometry]:
-        search = self.search.for_frame(frame_shape)
+        search = self.search.for_frame(frame_shape, self.config.win_w, self.config.pixels_per_cell)
         return [band_geometry(b, frame_shape, self.config, search.cells_per_step, search.border, search.border_mode)
                 for b in search.bands]
 
@@ -164,7 +170,7 @@ class Detector:
         behind a barrier, e.g. oncoming traffic above the median; ``None`` (default) = off.
         The bundled one is ``fastdet.model.ONCOMING_MODEL_PATH``; :class:`fastdet.VideoDetector`
         runs it by default, searching only where the picture moves (:mod:`fastdet.video.motion`).
-    wide_search: its search bands (default :data:`fastdet.config.WIDE_SEARCH`).
+    wide_search: its search bands (default :data:`fastdet.config.ONCOMING_SEARCH`).
     horizon: the horizon row of the frames, a fraction of their height, for both searches
         (:attr:`SearchConfig.horizon <fastdet.config.SearchConfig>`: the bands move with it);
         ``None`` keeps the searches' own. Change it later with :meth:`set_horizon`.
@@ -173,6 +179,11 @@ class Detector:
     wide model's search); :class:`fastdet.VideoDetector` turns them into one box per vehicle
     with a heat map over recent frames.
     """
+
+    #: ``detect`` takes ``columns`` (:class:`fastdet.video.detector.ColumnSearch`)
+    column_search = True
+    #: the numba kernels :meth:`detect` runs (what a warm-up compiles / loads)
+    kernels: ClassVar[tuple[Any, ...]] = KERNELS
 
     def __init__(self, model: Model | str | os.PathLike | None = None, search: SearchConfig | None = None,
                  wide: Model | str | os.PathLike | None = None, wide_search: SearchConfig | None = None,
@@ -198,7 +209,7 @@ class Detector:
                 raise ModelError(f"{name}: a {self.wide_model.classifier} model gives {self.wide_model.score_kind} "
                                  f"scores, the main model {self.model.score_kind} scores; train both with the "
                                  f"same --classifier")
-            self.scorers.append(_Scorer(self.wide_model, wide_search if wide_search is not None else WIDE_SEARCH))
+            self.scorers.append(_Scorer(self.wide_model, wide_search if wide_search is not None else ONCOMING_SEARCH))
         if horizon is not None:
             self.set_horizon(horizon)
         self.score_kind = self.model.score_kind
@@ -219,10 +230,10 @@ class Detector:
             sc.search = replace(sc.search, horizon=None if horizon is None else float(horizon))
 
     def warmup(self) -> None:
-        """Load (or compile) the numba kernels now rather than on the first frame: the
-        multi-threaded scoring kernel and the serial one the band threads run. On a first
-        run this says once that it compiles (:func:`fastdet._numba.announce_compile`)."""
-        announce_compile(hog_u8_fast, *SCORE_KERNELS)
+        """Load (or compile) the numba kernels now rather than on the first frame (a first
+        run compiles them on every core, after saying so: :func:`fastdet._numba.ensure_compiled`),
+        then run them once on a small image."""
+        ensure_compiled(KERNELS)
         for sc in self.scorers:
             cfg = sc.config
             tiny = np.zeros((cfg.win_h * 2, cfg.win_w * 2, 3), np.uint8)
