@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..config import HeatConfig, PipelineConfig
+from ..config import HeatConfig, NeighbourSplit, OwnVehicleConfig, PipelineConfig
 from ..errors import FastdetError
 
 
@@ -97,13 +97,25 @@ def add_refine_argument(parser: argparse.ArgumentParser) -> None:
                              "(fastdet/models/refine.npz)")
 
 
+def add_camera_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--own-vehicle`` and ``--split-neighbours``: the optional stages for other cameras."""
+    parser.add_argument("--own-vehicle", action="store_true",
+                        help="drop the windows lying on the own vehicle (hood, dashboard, mirrors, letterbox bars: "
+                             "what stays fixed at the picture's border while the scene moves in the first 3 s); "
+                             "off by default")
+    parser.add_argument("--split-neighbours", action="store_true",
+                        help="split a wide heat blob between the modes of its windows, one box per vehicle side "
+                             "by side; off by default")
+
+
 def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
     """The :class:`~fastdet.config.PipelineConfig` of parsed CLI arguments, for every command
     that runs the pipeline (``video``, ``eval --video``, ``bench``, ``batch``); an option a
     command does not have takes its default. ``--no-track``: no tracker (and so the full
     search); ``--full-search``: no guided search; ``--no-refine``: no refinement;
     ``--heat-frames`` / ``--heat-decay`` / ``--heat-threshold``: the main heat map (a bad
-    value: :class:`~fastdet.errors.FastdetError`)."""
+    value: :class:`~fastdet.errors.FastdetError`); ``--own-vehicle``, ``--split-neighbours``:
+    those stages on with their defaults."""
     d = HeatConfig()
     try:
         heat = HeatConfig(n_frames=getattr(args, "heat_frames", d.n_frames), decay=getattr(args, "heat_decay", d.decay),
@@ -114,7 +126,9 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
                             oncoming=False if getattr(args, "no_oncoming", False)
                             else (getattr(args, "oncoming_model", None) or True),
                             traffic=getattr(args, "traffic", "right"), horizon=getattr(args, "horizon", "auto"),
-                            heat=heat)
+                            heat=heat,
+                            own_vehicle=OwnVehicleConfig() if getattr(args, "own_vehicle", False) else None,
+                            split=NeighbourSplit() if getattr(args, "split_neighbours", False) else None)
     off = [name for name, flag in (("tracker", "no_track"), ("guided", "full_search"), ("refine", "no_refine"))
            if getattr(args, flag, False)]
     return config.without(*off)  # type: ignore[arg-type]

@@ -17,6 +17,7 @@ from ..io.paths import bundled_models, check_paths
 from ..io.reader import check_source
 from ..video.run import iter_video_detections
 from ._args import (
+    add_camera_arguments,
     add_horizon_argument,
     add_oncoming_arguments,
     add_refine_argument,
@@ -65,6 +66,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", metavar="MODEL.npz", help="model for --video (default: the bundled one)")
     add_oncoming_arguments(parser)
     add_refine_argument(parser)
+    add_camera_arguments(parser)
     add_horizon_argument(parser)
     add_search_argument(parser)
     track = parser.add_mutually_exclusive_group()

@@ -7,6 +7,8 @@ comparable, JSON round-trip through one :meth:`~fastdet.config.Config.to_dict` /
   oncoming-traffic search by traffic side, :func:`oncoming_search`);
 - :mod:`.heat`: how the heat map makes boxes (:class:`HeatConfig`, :data:`ONCOMING_HEAT`);
 - :mod:`.motion`: the oncoming model's motion gate (:class:`MotionGate`);
+- :mod:`.ownvehicle`: the own vehicle's region and the windows dropped there (:class:`OwnVehicleConfig`);
+- :mod:`.split`: heat blobs over vehicles side by side split (:class:`NeighbourSplit`);
 - :mod:`.track`: the tracker (:class:`TrackerConfig`);
 - :mod:`.guided`: the search between full scans (:class:`GuidedSearch`);
 - :mod:`.refine`: the box refinement (:class:`RefineConfig`) and its training boxes
@@ -25,6 +27,7 @@ from .guided import GuidedSearch
 from .heat import ONCOMING_HEAT, WIDE_HEAT, BoxMode, HeatConfig, ScoreKind
 from .models import DEFAULT_MODEL_PATH, ONCOMING_MODEL_PATH, REFINE_MODEL_PATH
 from .motion import MotionGate
+from .ownvehicle import OwnVehicleConfig
 from .pipeline import Horizon, PipelineConfig
 from .refine import JitterConfig, RefineConfig
 from .search import (
@@ -40,10 +43,12 @@ from .search import (
                      oncoming_search,
                      wide_search,
 )
+from .split import NeighbourSplit
 from .track import TrackerConfig
 
 __all__ = ["CELL", "COLOR_SPACES", "DEFAULT_MODEL_PATH", "ONCOMING_HEAT", "ONCOMING_MODEL_PATH", "ONCOMING_SEARCH",
            "REFERENCE_HORIZON", "REFERENCE_SHAPE", "REFINE_MODEL_PATH", "TRAFFIC_SIDES", "WIDE_HEAT", "WIDE_SEARCH",
            "WINDOW", "BoxMode", "ColorSpace", "Config", "FeatureConfig", "GuidedSearch", "HeatConfig", "Horizon",
-           "JitterConfig", "MotionGate", "PipelineConfig", "RefineConfig", "ScoreKind", "SearchBand", "SearchConfig",
-           "TrackerConfig", "Traffic", "check_traffic", "oncoming_search", "wide_search"]
+           "JitterConfig", "MotionGate", "NeighbourSplit", "OwnVehicleConfig", "PipelineConfig", "RefineConfig",
+           "ScoreKind", "SearchBand", "SearchConfig", "TrackerConfig", "Traffic", "check_traffic", "oncoming_search",
+           "wide_search"]

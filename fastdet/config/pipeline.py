@@ -9,8 +9,10 @@ from ._base import Config
 from .guided import GuidedSearch
 from .heat import ONCOMING_HEAT, HeatConfig
 from .motion import MotionGate
+from .ownvehicle import OwnVehicleConfig
 from .refine import RefineConfig
 from .search import SearchConfig, Traffic, check_traffic
+from .split import NeighbourSplit
 from .track import TrackerConfig
 
 #: where the search bands go: ``'auto'`` (estimated from the video), a fraction of the frame
@@ -49,7 +51,15 @@ class PipelineConfig(Config):
         on every frame. Needs the tracker: without it the search is full (:attr:`planned`).
     refine: the learned box refinement; ``None``: the boxes as the heat map (or the tracker)
         gives them.
+    own_vehicle: drop the positive windows lying on the own vehicle (hood, dashboard,
+        mirrors, letterbox bars) found in the first seconds (:mod:`fastdet.video.ownvehicle`);
+        ``None`` (default): off.
+    split: split the main heat map's wide boxes between the modes of their windows, one box
+        per vehicle side by side (:mod:`fastdet.video.blobsplit`); ``None`` (default): off.
     """
+
+    #: off by default: a dict written before these stages existed is the same dict
+    _OMIT_NONE = ("own_vehicle", "split")
 
     model: str | None = None
     oncoming: str | bool = True
@@ -63,6 +73,8 @@ class PipelineConfig(Config):
     tracker: TrackerConfig | None = TrackerConfig()
     guided: GuidedSearch | None = GuidedSearch()
     refine: RefineConfig | None = RefineConfig()
+    own_vehicle: OwnVehicleConfig | None = None
+    split: NeighbourSplit | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "model", _path(self.model, "model"))
@@ -78,7 +90,8 @@ class PipelineConfig(Config):
         for name, cls, optional in (("search", SearchConfig, False), ("heat", HeatConfig, False),
                                     ("oncoming_heat", HeatConfig, False), ("motion", MotionGate, False),
                                     ("tracker", TrackerConfig, True), ("guided", GuidedSearch, True),
-                                    ("refine", RefineConfig, True)):
+                                    ("refine", RefineConfig, True), ("own_vehicle", OwnVehicleConfig, True),
+                                    ("split", NeighbourSplit, True)):
             v = getattr(self, name)
             if not (isinstance(v, cls) or (optional and v is None)):
                 allowed = f"a {cls.__name__}" + (" or None" if optional else "")

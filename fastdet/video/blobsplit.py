@@ -21,7 +21,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..config import NeighbourSplit
 from ..detections import Detections
+from .state import FrameState, Stage
 
 
 def window_modes(boxes: np.ndarray, weights: np.ndarray, bandwidth: float = 0.25,
@@ -214,3 +216,26 @@ def _split_one(b, heat, labels, cell, frame_hw, grid_hw, wins, wts, ccx, ccy, ex
                         min((x0 + a + xs.max() + 1) * cell, w), min((y0 + ys.max() + 1) * cell, h)], np.int32)
         parts.append((box, pk))
     return parts if len(parts) > 1 else None
+
+
+class SplitStage(Stage):
+    """The main heat map's wide boxes split between the modes of their windows
+    (:func:`split_boxes`); parts that fail the heat map's shape filter are dropped."""
+
+    name = "split"
+
+    def __init__(self, config: NeighbourSplit) -> None:
+        self.config = config
+
+    def __call__(self, s: FrameState) -> FrameState:
+        hm = s.heatmap
+        if hm is None or not len(s.boxes):
+            return s
+        c = self.config
+        wins, heat = hm.current_windows
+        out = split_boxes(s.boxes, hm.heat, hm.labels, int(hm.config.cell), hm.frame_shape, wins, heat,
+                          float(hm.config.extent), c.min_aspect, c.min_weight, c.bandwidth, c.scale_bandwidth,
+                          c.inside, c.max_overlap)
+        if out is not s.boxes:
+            s.boxes = s.out = out[hm.shape_ok(out.boxes)]
+        return s

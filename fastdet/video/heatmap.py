@@ -231,8 +231,12 @@ class HeatMap:
         n = int(label_blobs(heat, threshold, labels, bbox, peak))
         return labels, n, bbox[:n], peak[:n]
 
+    def shape_ok(self, boxes: np.ndarray) -> np.ndarray:
+        """``(N,) bool``: the boxes ``(N, 4)`` (frame px) that pass the shape filter (module
+        docstring, step 5)."""
+        return self._shape_ok(np.asarray(boxes).reshape(-1, 4))
+
     def _shape_ok(self, boxes: np.ndarray) -> np.ndarray:
-        """``(N,) bool``: the boxes that pass the shape filter (module docstring, step 5)."""
         cfg = self.config
         bw = boxes[:, 2] - boxes[:, 0]
         bh = boxes[:, 3] - boxes[:, 1]

@@ -33,72 +33,13 @@ still in the picture.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Iterator
 
 import cv2
 import numpy as np
 
-
-@dataclass(frozen=True)
-class OwnVehicleConfig:
-    """Where the own vehicle is and what is dropped there (module docstring).
-
-    enabled: look for the own vehicle and drop the windows on it.
-    work_rows: frames are shrunk to this many rows (grey) for the estimate.
-    gap_s: seconds between the two frames of a pair (0.3: 8 frames at 25 fps; the scene must
-        move by a pixel or more in that time for a car at highway or city speed).
-    every: one pair per this many frames.
-    frames_s: seconds of video the estimate is made from (then fixed).
-    min_gradient: grey levels per work pixel for a textured pixel.
-    max_change: grey levels a still pixel may change by between the pair's frames
-        (compression noise, flicker).
-    min_moving: fraction of the textured pixels that must change for the pair to count.
-    min_pairs: fewest counted pairs for an estimate (fewer: no region).
-    cells: cells across the width (the region's resolution).
-    min_texture: a cell decides only when on average at least this fraction of its pixels
-        was textured over the counted pairs.
-    min_still: fraction of a cell's textured pixels that were still for a fixed cell.
-    bar_level: grey level below which a border row or column is a letterbox bar (on every
-        sampled frame, every pixel of it).
-    max_fraction: a positive window with at least this fraction of its area in the region
-        is dropped.
-    max_area: a region larger than this fraction of the frame is not the own vehicle (a
-        camera that stood still while a few vehicles moved through): no region.
-    """
-
-    enabled: bool = True
-    work_rows: int = 180
-    gap_s: float = 0.3
-    every: int = 3
-    frames_s: float = 3.0
-    min_gradient: float = 24.0
-    max_change: float = 8.0
-    min_moving: float = 0.15
-    min_pairs: int = 5
-    cells: int = 40
-    min_texture: float = 0.05
-    min_still: float = 0.8
-    bar_level: float = 20.0
-    max_fraction: float = 0.5
-    max_area: float = 0.5
-
-    def __post_init__(self) -> None:
-        if self.work_rows < 16 or self.every < 1 or self.min_pairs < 1 or self.cells < 4:
-            raise ValueError("work_rows >= 16, every >= 1, min_pairs >= 1 and cells >= 4 are needed")
-        if not (self.gap_s > 0 and self.frames_s > 0):
-            raise ValueError("gap_s and frames_s must be > 0")
-        for name in ("min_moving", "min_texture", "min_still", "max_fraction", "max_area"):
-            v = getattr(self, name)
-            if not 0 <= v <= 1:
-                raise ValueError(f"{name} must be in [0, 1], got {v}")
-
-    def gap(self, fps: float | None) -> int:
-        """Frames between a pair's two frames at ``fps`` (``None``: 25)."""
-        return max(1, round(self.gap_s * (fps or 25.0)))
-
-    def n_frames(self, fps: float | None) -> int:
-        """Frames the estimate is made from at ``fps`` (``None``: 25)."""
-        return max(2, round(self.frames_s * (fps or 25.0)))
+from ..config import OwnVehicleConfig
+from .state import FrameState, Stage
 
 
 def _grey(frame: np.ndarray, rows: int) -> np.ndarray:
@@ -332,3 +273,59 @@ def window_fraction(region: np.ndarray, boxes: np.ndarray, integral: np.ndarray 
     a = (b[:, 2] - b[:, 0]) * (b[:, 3] - b[:, 1])
     return np.where(a > 0, inside / np.maximum(a, 1), 0.0)
 
+
+class OwnVehicleStage(Stage):
+    """Drop the positive windows lying mostly on the own vehicle: at least
+    ``config.max_fraction`` of their area in the region :class:`OwnVehicleEstimator` finds in
+    the first ``config.frames_s`` seconds (:meth:`prime` gives them ahead of time)."""
+
+    name = "ownvehicle"
+
+    def __init__(self, config: OwnVehicleConfig, fps: float | None) -> None:
+        self.config = config
+        self.estimator = OwnVehicleEstimator(config, fps)
+        self._region: np.ndarray | None = None
+        self._integral: np.ndarray | None = None
+        self.dropped = 0  # windows dropped so far
+
+    def tee(self, frames: Iterator[np.ndarray]) -> Iterator[np.ndarray]:
+        """``frames`` passed on, each also fed to the estimate (while it takes more)."""
+        for f in frames:
+            if not self.estimator.done:
+                self.estimator.update(np.asarray(f))
+            yield f
+
+    def prime(self, frames: Iterator[np.ndarray]) -> None:
+        """Feed the first frames of the video (those :meth:`tee` has not fed; at most what the
+        estimate takes) before :meth:`__call__` sees any frame; the frames fed after are not
+        paired with these."""
+        for f in frames:
+            if self.estimator.done:
+                break
+            self.estimator.update(np.asarray(f))
+        self.estimator.cut()
+
+    @property
+    def region(self) -> np.ndarray | None:
+        """``(H, W) bool``: the region windows are dropped on (``None``: none yet)."""
+        return self.estimator.region()
+
+    def __call__(self, s: FrameState) -> FrameState:
+        est = self.estimator
+        if not est.done:
+            est.update(s.bgr)
+            if not est.done:
+                return s  # no region while it is being estimated
+        region = est.region()
+        if region is None or not len(s.windows):
+            return s
+        if region is not self._region:
+            self._region, self._integral = region, cv2.integral(region.astype(np.uint8))
+        keep = window_fraction(region, s.windows.boxes, self._integral) < self.config.max_fraction
+        if not keep.all():
+            self.dropped += int((~keep).sum())
+            s.windows = s.windows[keep]
+        return s
+
+    def reset(self) -> None:
+        self.estimator.cut()  # the camera stays: keep the region, pair no frames across a cut

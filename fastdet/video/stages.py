@@ -9,7 +9,9 @@ In the order they run (:func:`build_stages`; a stage whose setting is off is lef
 ``motion``     where the picture moves: the oncoming bands to search (:class:`MotionStage`)
 ``detect``     the positive windows of both models (:class:`DetectStage`)
 ``motion``     drop the oncoming windows that did not move enough (:class:`GateStage`)
+``ownvehicle`` drop the windows on the own vehicle (off by default, :class:`OwnVehicleStage`)
 ``heatmap``    the main heat map's boxes (:class:`HeatStage`)
+``split``      wide boxes split between vehicles side by side (off by default, :class:`SplitStage`)
 ``fusion``     the oncoming heat map's boxes where the main one found none (:class:`FusionStage`)
 ``weak``       the weak blobs the tracker may keep a track alive with (:class:`WeakStage`)
 ``track``      track ids (:class:`TrackStage`)
@@ -29,16 +31,19 @@ ones is a field of :class:`FrameState`.
 from __future__ import annotations
 
 from ..config import GuidedSearch, PipelineConfig
+from .blobsplit import SplitStage
 from .box_stages import ClipStage, FusionStage, HeatStage, ObserveStage, RefineStage, TrackStage, WeakStage
 from .detector import ColumnSearch, MovableHorizon, WindowDetector
 from .guided import SearchPlanner
+from .ownvehicle import OwnVehicleStage
 from .refine import BoxRegressor
 from .search_stages import DetectStage, GateStage, HorizonStage, MotionStage, PlanStage
 from .state import FrameDebug, FrameState, Stage, TrackView
 from .track import Tracker
 
 __all__ = ["ClipStage", "DetectStage", "FrameDebug", "FrameState", "FusionStage", "GateStage", "HeatStage",
-           "HorizonStage", "MotionStage", "ObserveStage", "PlanStage", "RefineStage", "Stage", "TrackStage",
+           "HorizonStage", "MotionStage", "ObserveStage", "OwnVehicleStage", "PlanStage", "RefineStage",
+           "SplitStage", "Stage", "TrackStage",
            "TrackView", "WeakStage", "build_stages", "planner_for"]
 
 
@@ -67,6 +72,8 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
     stages.append(DetectStage(detector))
     if gated:
         stages.append(GateStage())
+    if config.own_vehicle is not None:
+        stages.append(OwnVehicleStage(config.own_vehicle, fps))
 
     def new_size(first: bool) -> None:  # another picture: its tracks and search plan do not continue
         if tracker is not None and not first:
@@ -75,9 +82,12 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
             planner.reset()
 
     heat: list[HeatStage | FusionStage] = [HeatStage(detector, config.heat, oncoming, new_size)]
+    stages.append(heat[0])
+    if config.split is not None:
+        stages.append(SplitStage(config.split))
     if oncoming:
         heat.append(FusionStage(detector, config.oncoming_heat))
-    stages += heat
+        stages.append(heat[-1])
     if tracker is not None:
         stages += [WeakStage(tracker.config.low_heat, heat), TrackStage(tracker)]
         if tracker.config.output == "filtered":

@@ -1,6 +1,8 @@
 """Heat blobs over vehicles side by side split between the modes of their windows."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -112,3 +114,21 @@ def test_split_boxes_keeps_a_narrow_blob_and_a_single_wide_vehicle():
     # fewer than two windows: nothing to split by
     out = split_boxes(boxes, hm.heat, hm.labels, 4, hm.frame_shape, wins[:1], np.ones(1), hm.config.extent)
     assert out is boxes
+
+
+def test_the_pipeline_splits_two_cars_in_a_row():
+    from fastdet.config import NeighbourSplit, PipelineConfig
+    from fastdet.video.pipeline import VideoDetector
+    from tests.fakes import FixedDetector
+
+    wins = np.vstack([_cluster(100, 200, 40), _cluster(146, 200, 40)]).astype(np.int32)
+    dets = Detections(wins, np.full(len(wins), 2.0, np.float32))
+    frame = np.zeros((360, 640, 3), np.uint8)
+    base = PipelineConfig(tracker=None, refine=None, horizon=None,
+                          heat=HeatConfig(n_frames=1, threshold=1.5, min_width=0, min_height=0, reference_rows=None))
+    vd = VideoDetector(FixedDetector(dets), base)
+    assert len(vd.update(frame)) == 1
+    vd = VideoDetector(FixedDetector(dets), replace(base, split=NeighbourSplit()))
+    assert [s.name for s in vd.stages] == ["detect", "heatmap", "split"]
+    out = vd.update(frame)
+    assert len(out) == 2 and len(vd.debug.boxes) == 2

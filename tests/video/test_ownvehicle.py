@@ -143,3 +143,62 @@ def test_window_fraction_matches_the_reference(seed, raw):
     got = window_fraction(region, boxes)
     want = [ref_box_fraction(region, b) for b in boxes]
     np.testing.assert_allclose(got, want, atol=1e-12)
+
+
+# ------------------------------------------------------------------ in the video pipeline
+
+def _pipeline(primed: bool):
+    from fastdet.config import PipelineConfig
+    from fastdet.detections import Detections
+    from fastdet.video.pipeline import VideoDetector
+    from tests.fakes import FixedDetector
+
+    # a window mostly on the dash (rows 290-360, columns 160-480) and one on the scene
+    dets = Detections(np.array([[200, 280, 264, 344], [40, 60, 104, 124]], np.int32),
+                      np.array([2.0, 2.0], np.float32))
+    cfg = PipelineConfig(tracker=None, refine=None, horizon=None, own_vehicle=SHORT)
+    vd = VideoDetector(FixedDetector(dets), cfg, fps=25)
+    frames = _video()
+    if primed:
+        vd.prime_horizon(frames)
+    return vd, frames
+
+
+def test_the_pipeline_drops_the_windows_on_the_own_vehicle_once_it_is_known():
+    from fastdet.video.ownvehicle import OwnVehicleStage
+
+    vd, frames = _pipeline(primed=False)
+    assert [s.name for s in vd.stages] == ["detect", "ownvehicle", "heatmap"]
+    kept = []
+    for f in frames:
+        vd.update(f)
+        kept.append(len(vd.debug.windows))
+    stage = vd.stage(OwnVehicleStage)
+    assert isinstance(stage, OwnVehicleStage) and stage.region is not None
+    assert kept[0] == 2 and kept[-1] == 1  # live: both windows until the estimate is done
+    # primed from the file's first frames: the dash window is dropped from the first frame on
+    vd, frames = _pipeline(primed=True)
+    vd.update(frames[0])
+    assert len(vd.debug.windows) == 1
+    assert vd.debug.windows.boxes[0].tolist() == [40, 60, 104, 124]
+    stage = vd.stage(OwnVehicleStage)
+    assert stage.dropped == 1
+    vd.reset()  # a cut: the region stays
+    vd.update(frames[1])
+    assert len(vd.debug.windows) == 1
+
+
+def test_the_cli_turns_the_stages_on(tmp_path):
+    import argparse
+
+    from fastdet.cli._args import add_camera_arguments, pipeline_config
+    from fastdet.config import NeighbourSplit, OwnVehicleConfig, PipelineConfig
+
+    p = argparse.ArgumentParser()
+    add_camera_arguments(p)
+    on = pipeline_config(p.parse_args(["--own-vehicle", "--split-neighbours"]))
+    assert on.own_vehicle == OwnVehicleConfig() and on.split == NeighbourSplit()
+    off = pipeline_config(p.parse_args([]))
+    assert off.own_vehicle is None and off.split is None
+    assert off.to_dict() == PipelineConfig().to_dict() and "own_vehicle" not in off.to_dict()
+    assert PipelineConfig.from_dict(on.to_dict()) == on

@@ -18,22 +18,22 @@ import math
 import os
 import pickle
 import time
-from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from fastdet.config import NeighbourSplit, OwnVehicleConfig, PipelineConfig
 from fastdet.data import data_dir
 from fastdet.detections import Detections
 from fastdet.eval import evaluate
 from fastdet.io.motfiles import Predictions, read_gt
 from fastdet.io.reader import FrameReader
-from fastdet.video.blobsplit import split_boxes
-from fastdet.video.heatmap import HeatMap
-from fastdet.video.ownvehicle import OwnVehicleConfig, OwnVehicleEstimator, window_fraction
-from fastdet.detect.checks import check_frame
-from fastdet.video.pipeline import HORIZON_FRAMES, VideoDetector, make_detector, video_detector_for
+from fastdet.video.detector import make_detector
+from fastdet.video.ownvehicle import OwnVehicleEstimator, OwnVehicleStage, window_fraction
+from fastdet.video.pipeline import VideoDetector
+from fastdet.video.run import video_detector_for
 
 CLIPS = ("test_small1", "test_video", "highway_640", "boston_street", "motorcycle_highway")
 
@@ -68,34 +68,28 @@ def score(clip: str, preds: Predictions, iou: float = 0.5) -> dict[str, float]:
             "fa": r.fp_per_frame, "frames": r.frames}
 
 
-Factory = Callable[[FrameReader], VideoDetector]
-
-
-def default_factory(reader: FrameReader) -> VideoDetector:
-    return video_detector_for(reader, make_detector())
-
-
-def run_clip(clip: str, factory: Factory) -> tuple[Predictions, list[dict], float]:
-    """The boxes of every frame of ``clip`` and per-frame debug (heat boxes, windows), and the
-    CPU seconds per frame of the whole run."""
-    path = _video(clip)
+def run_clip(clip: str, config: PipelineConfig) -> tuple[Predictions, list[dict], float]:
+    """The boxes of every frame of ``clip`` with the pipeline of ``config`` (built as every
+    command builds it: :func:`fastdet.video.run.video_detector_for`), per-frame debug (the heat
+    maps' boxes, the windows, the heat and its labels) and the CPU seconds per frame of the
+    whole run (priming counted, numba compilation not)."""
     _warm()
-    t0 = time.process_time()  # priming counted, numba compilation not
-    reader = FrameReader(path)
+    t0 = time.process_time()
+    reader = FrameReader(_video(clip))
     debug: list[dict] = []
     out: list[tuple[int, Detections]] = []
     try:
-        vd = factory(reader)
+        vd = video_detector_for(reader, make_detector(config), config)
         for fno, frame, _ in reader:
-            d = vd.update(frame)
-            out.append((fno, d))
-            debug.append({"frame": fno, "heat_boxes": vd.last_boxes, "windows": vd.last_windows,
-                          "heat": vd.last_heat.astype(np.float32), "labels": vd.last_labels})
-        if getattr(vd.heatmap, "splits", None):
-            print(f"<!-- {clip}: {len(vd.heatmap.splits)} frames with a split blob -->")
-            debug.append({"splits": vd.heatmap.splits})
-        if hasattr(vd, "dropped"):
-            print(f"<!-- {clip}: {vd.dropped} windows dropped on the own vehicle -->")
+            out.append((fno, vd.update(frame)))
+            d = vd.debug
+            debug.append({"frame": fno, "heat_boxes": d.boxes, "windows": d.windows,
+                          "heat": d.heat.astype(np.float32), "labels": d.labels})
+        own = vd.stage(OwnVehicleStage)
+        if isinstance(own, OwnVehicleStage):
+            region = own.region
+            print(f"<!-- {clip}: own-vehicle region {0 if region is None else region.mean():.3f} of the frame, "
+                  f"{own.dropped} windows dropped -->")
     finally:
         reader.close()
     cpu = (time.process_time() - t0) / max(len(out), 1)
@@ -111,107 +105,21 @@ def _warm() -> None:
         _WARM.append(True)
 
 
-VARIANTS: dict[str, Factory] = {"base": default_factory}
-
-
-def register(name: str) -> Callable[[Factory], Factory]:
-    def deco(f: Factory) -> Factory:
-        VARIANTS[name] = f
-        return f
-    return deco
-
-
-class OwnVehicleVD(VideoDetector):
-    """VideoDetector that drops the positive windows lying mostly on the own vehicle."""
-
-    def __init__(self, *a, own: OwnVehicleConfig | None = None, **kw) -> None:
-        super().__init__(*a, **kw)
-        self.own = own if own is not None else OwnVehicleConfig()
-        self._own_est = OwnVehicleEstimator(self.own, self.fps)
-        self._own_integral: np.ndarray | None = None
-        self.dropped = 0
-        det = self.detector
-        inner = det.detect
-
-        def detect(frame, *args, **kwargs):
-            w = inner(frame, *args, **kwargs)
-            if not self._own_est.done:
-                self._own_est.update(frame)
-                self._own_integral = None
-            region = self._own_est.region()
-            if region is None or not len(w):
-                return w
-            if self._own_integral is None:
-                self._own_integral = cv2.integral(region.astype(np.uint8))
-            keep = window_fraction(region, w.boxes, self._own_integral) < self.own.max_fraction
-            self.dropped += int((~keep).sum())
-            return w if keep.all() else w[keep]
-
-        det.detect = detect  # type: ignore[method-assign]
-
-    def prime_horizon(self, frames):
-        def tee():
-            for f in frames:
-                self._own_est.update(np.asarray(f))
-                yield f
-        return super().prime_horizon(tee())
-
-
-def own_factory(own: OwnVehicleConfig | None = None) -> Factory:
-    def f(reader: FrameReader) -> VideoDetector:
-        det = make_detector()
-        check_frame(det, reader.first_frame, reader.path)
-        vd = OwnVehicleVD(det, fps=reader.fps, own=own)
-        vd.prime_horizon(reader.peek(max(HORIZON_FRAMES, vd._own_est.max_frames)))
-        return vd
-    return f
-
-
-VARIANTS["own"] = own_factory()
-
-
-class SplitHeatMap(HeatMap):
-    """HeatMap whose wide boxes are split between the modes of their windows."""
-
-    split: dict = {}
-
-    def boxes(self) -> Detections:
-        out = super().boxes()
-        cfg = self.config
-        d = split_boxes(out, self.heat, self.labels, int(cfg.cell), self.frame_shape, self._cur[0], self._cur[1],
-                        float(cfg.extent), **self.split)
-        if d is not out:
-            self.splits = getattr(self, "splits", []) + [(out.boxes.copy(), d.boxes.copy())]
-        return d if d is out else d[self._shape_ok(d.boxes)]
-
-
-def split_factory(**split) -> Factory:
-    class VD(VideoDetector):
-        def _heatmap_for(self, shape):
-            hw = (int(shape[0]), int(shape[1]))
-            if self.heatmap is None or self.heatmap.frame_shape != hw:
-                super()._heatmap_for(shape)
-                hm = SplitHeatMap(hw, self.heat_config, score_kind=self.detector.score_kind)
-                hm.split = split
-                self.heatmap = hm
-            return self.heatmap
-
-    def f(reader: FrameReader) -> VideoDetector:
-        det = make_detector()
-        check_frame(det, reader.first_frame, reader.path)
-        vd = VD(det, fps=reader.fps)
-        vd.prime_horizon(reader.peek(HORIZON_FRAMES))
-        return vd
-    return f
-
-
-VARIANTS["split"] = split_factory()
+BASE = PipelineConfig()
+VARIANTS: dict[str, PipelineConfig] = {
+    "base": BASE,
+    "own": replace(BASE, own_vehicle=OwnVehicleConfig()),
+    "split": replace(BASE, split=NeighbourSplit()),
+    "both": replace(BASE, own_vehicle=OwnVehicleConfig(), split=NeighbourSplit()),
+}
 for _a in (1.4, 1.6, 2.0, 2.5):
-    VARIANTS[f"split_a{_a}"] = split_factory(min_aspect=_a)
+    VARIANTS[f"split_a{_a}"] = replace(BASE, split=NeighbourSplit(min_aspect=_a))
 for _m in (0.25, 0.75):
-    VARIANTS[f"split_w{_m}"] = split_factory(min_weight=_m)
+    VARIANTS[f"split_w{_m}"] = replace(BASE, split=NeighbourSplit(min_weight=_m))
 for _b in (0.15, 0.35):
-    VARIANTS[f"split_b{_b}"] = split_factory(bandwidth=_b)
+    VARIANTS[f"split_b{_b}"] = replace(BASE, split=NeighbourSplit(bandwidth=_b))
+for _s in (0.6, 0.9):
+    VARIANTS[f"own_s{_s}"] = replace(BASE, own_vehicle=OwnVehicleConfig(min_still=_s))
 
 
 def make_synthetic(out: Path) -> None:
@@ -290,14 +198,14 @@ def cost() -> None:
         tot[0] += time.process_time() - t0
         tot[1] += 1
         return r
-    globals()["split_boxes"] = timed
+    blobsplit.split_boxes = timed  # type: ignore[assignment]
     try:
         for clip in ("test_video", "test_small1", "highway_640"):
             tot[:] = [0.0, 0]
             run_clip(clip, VARIANTS["split"])
             print(f"split_boxes on {clip}: {1000 * tot[0] / max(tot[1], 1):.3f} ms a frame ({tot[1]} frames)")
     finally:
-        globals()["split_boxes"] = orig
+        blobsplit.split_boxes = orig  # type: ignore[assignment]
 
 
 def main() -> None:
