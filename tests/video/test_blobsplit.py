@@ -25,14 +25,14 @@ def windows(draw, max_n: int = 12):
     return b, np.array(wt)
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=40, deadline=None)
 @given(windows(), st.sampled_from([0.15, 0.25, 0.4]), st.sampled_from([0.2, 0.3, 0.6]))
 def test_shift_points_match_the_reference(wb, bw, sbw):
     b, wt = wb
     np.testing.assert_allclose(shift_points(b, wt, bw, sbw, 30), ref_mean_shift(b, wt, bw, sbw, 30), atol=1e-6)
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=40, deadline=None)
 @given(windows())
 def test_modes_partition_the_windows(wb):
     b, wt = wb

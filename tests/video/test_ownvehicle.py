@@ -1,6 +1,8 @@
 """The own vehicle's region: fixed, textured and at the border while the scene flows."""
 from __future__ import annotations
 
+import functools
+
 import cv2
 import numpy as np
 import pytest
@@ -23,12 +25,16 @@ def _texture(h: int, w: int, seed: int) -> np.ndarray:
 SHORT = OwnVehicleConfig(frames_s=1.6)
 
 
+@functools.lru_cache(maxsize=8)
 def _video(n: int = 40, shift: int = 3, dash: bool = True, ahead: bool = True, bars: int = 0,
-           noise: int = 2) -> list[np.ndarray]:
+           noise: int = 2) -> tuple[np.ndarray, ...]:
     """``n`` frames: a textured scene panning ``shift`` px a frame; a fixed textured 'dash' at
     the bottom border (rows 290-360, columns 160-480), a fixed textured 'car ahead' in the
-    middle (rows 150-210, columns 280-360), black bars of ``bars`` rows at top and bottom."""
+    middle (rows 150-210, columns 280-360), black bars of ``bars`` rows at top and bottom;
+    noise of +-``noise`` grey levels (one of 7 noise fields a frame: no two frames of a pair
+    0.3 s apart share one). Kept (read-only) for the tests that ask again."""
     rng = np.random.default_rng(1)
+    fields = rng.integers(-noise, noise + 1, (7, H, W, 3)).astype(np.int16)
     scene = _texture(H, W + shift * n + 8, 2)
     dash_px = _texture(70, 320, 3)
     car_px = _texture(60, 80, 4)
@@ -39,15 +45,16 @@ def _video(n: int = 40, shift: int = 3, dash: bool = True, ahead: bool = True, b
             f[290:360, 160:480] = dash_px
         if ahead:
             f[150:210, 280:360] = car_px
-        f = np.clip(f.astype(np.int16) + rng.integers(-noise, noise + 1, f.shape), 0, 255).astype(np.uint8)
+        f = np.clip(f.astype(np.int16) + fields[i % 7], 0, 255).astype(np.uint8)
         if bars:
             f[:bars] = 0
             f[H - bars:] = 0
+        f.flags.writeable = False
         out.append(f)
-    return out
+    return tuple(out)
 
 
-def _region(frames: list[np.ndarray], config: OwnVehicleConfig | None = None) -> np.ndarray | None:
+def _region(frames: tuple[np.ndarray, ...], config: OwnVehicleConfig | None = None) -> np.ndarray | None:
     est = OwnVehicleEstimator(config or SHORT, fps=25)
     for f in frames:
         est.update(f)
