@@ -5,7 +5,6 @@ import functools
 
 import cv2
 import numpy as np
-import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -102,15 +101,6 @@ def test_a_cut_pairs_no_frames_across_it_and_a_new_size_restarts():
     assert est.pairs == pairs
     est.update(cv2.resize(frames[0], (320, 180)))
     assert est.pairs == 0 and est.region() is None
-
-
-def test_config_checks():
-    with pytest.raises(ValueError):
-        OwnVehicleConfig(min_still=1.5)
-    with pytest.raises(ValueError):
-        OwnVehicleConfig(gap_s=0)
-    assert OwnVehicleConfig(gap_s=0.3).gap(25) == 8 and OwnVehicleConfig().gap(None) == 8
-    assert OwnVehicleConfig(frames_s=3).n_frames(30) == 90
 
 
 @settings(max_examples=40, deadline=None)
