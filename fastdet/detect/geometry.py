@@ -39,7 +39,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..config import SearchBand, SearchConfig
+from ..config import CELL, WINDOW, SearchBand, SearchConfig
 
 
 @dataclass(frozen=True)
@@ -77,13 +77,13 @@ def window_bottoms(ref_first: float, ref_last: float, ref_horizon: float, horizo
 
 def band_on_grid(scale: float, first_bottom: float, last_bottom: float, anchor: float, step: float,
                  rows: int, x_start: int | None = None, x_stop: int | None = None,
-                 tail: float = 0.0) -> SearchBand | None:
-    """The band of ``scale`` (frame pixels: window side ``64 x scale``) whose windows sit on
+                 tail: float = 0.0, window: int = WINDOW) -> SearchBand | None:
+    """The band of ``scale`` (frame pixels: window side ``window x scale``) whose windows sit on
     the rows ``anchor + n x step`` (window tops) and have their bottoms in
     ``[first_bottom, last_bottom]`` to half a step, clipped to a frame of ``rows`` rows;
     ``None`` when no window fits. ``tail``: rows the band runs on below its last window
     (HOG sees them: a window on a band's last rows is scored a little differently)."""
-    side = 64.0 * scale
+    side = float(window) * scale
     n0 = math.ceil((first_bottom - side - anchor) / step - 0.5 - 1e-9)
     n1 = math.floor((last_bottom - side - anchor) / step + 0.5 + 1e-9)
     n0 = max(n0, math.ceil((-0.5 - anchor) / step - 1e-9))  # tops inside the frame (to rounding)
@@ -99,13 +99,14 @@ def band_on_grid(scale: float, first_bottom: float, last_bottom: float, anchor: 
 
 
 def geometric_bands(frame_shape: tuple[int, int], horizon: float, ratio: float, config: GeometryConfig,
-                    reference: SearchConfig) -> tuple[SearchBand, ...]:
+                    reference: SearchConfig, window: int = WINDOW, cell: int = CELL) -> tuple[SearchBand, ...]:
     """The main search's bands for frames of ``frame_shape = (H, W)`` whose horizon is at
     ``horizon x H`` and whose vehicles have the ``ratio`` (module docstring): each band of
     ``reference`` (rescaled to the frame as :meth:`SearchConfig.for_frame` does) searches
     the window bottoms it searches at its ``reference_horizon``, at distances below the
     horizon stretched by ``config.reference_ratio / ratio``, plus ``config.slack``; on the
-    reference band's window grid. Bands in frame pixels."""
+    reference band's window grid (``window`` / ``cell``: the model's window width and HOG cell,
+    px at scale 1). Bands in frame pixels."""
     h, w = (int(v) for v in frame_shape[:2])
     rh, rw = reference.reference_shape if reference.reference_shape is not None else (h, w)
     fy, fx = h / rh, w / rw
@@ -113,8 +114,8 @@ def geometric_bands(frame_shape: tuple[int, int], horizon: float, ratio: float, 
     out = []
     for b in reference.bands:
         scale = b.scale * fy
-        step = reference.cells_per_step * 8 * scale
-        side = 64.0 * scale
+        step = reference.cells_per_step * cell * scale
+        side = float(window) * scale
         anchor = b.y_start * fy
         n_ref = max(math.floor(((b.y_stop - b.y_start) * fy - side) / step + 1e-6), 0)
         last_ref = anchor + side + n_ref * step
@@ -123,7 +124,7 @@ def geometric_bands(frame_shape: tuple[int, int], horizon: float, ratio: float, 
         band = band_on_grid(scale, first, last, anchor, step, h,
                             None if b.x_start is None else min(int(round(b.x_start * fx)), w),
                             None if b.x_stop is None else min(int(round(b.x_stop * fx)), w),
-                            tail=b.y_stop * fy - last_ref)
+                            tail=b.y_stop * fy - last_ref, window=window)
         if band is not None:
             out.append(band)
     if not out:
@@ -147,10 +148,10 @@ class GeometricSearch(SearchConfig):
         if self.ratio is not None and not self.ratio > 0:
             raise ValueError(f"ratio must be > 0 or None, got {self.ratio!r}")
 
-    def for_frame(self, frame_shape: tuple[int, int]) -> SearchConfig:
+    def for_frame(self, frame_shape: tuple[int, int], window: int = WINDOW, cell: int = CELL) -> SearchConfig:
         horizon = self.horizon if self.horizon is not None else self.reference_horizon
         ratio = self.ratio if self.ratio is not None else self.geometry.ratio
-        bands = geometric_bands(frame_shape, horizon, ratio, self.geometry, self)
+        bands = geometric_bands(frame_shape, horizon, ratio, self.geometry, self, window, cell)
         return SearchConfig(bands=bands, cells_per_step=self.cells_per_step, threshold=self.threshold,
                             reference_shape=None, reference_horizon=self.reference_horizon, horizon=None,
                             border=self.border, border_mode=self.border_mode)
