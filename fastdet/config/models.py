@@ -12,7 +12,7 @@ MODELS_DIR = Path(__file__).resolve().parents[1] / "models"
 DEFAULT_MODEL_PATH = MODELS_DIR / "default.npz"
 #: the bundled wide-window model for oncoming traffic above the median (``tools/scripts/oncoming_model.sh``)
 ONCOMING_MODEL_PATH = MODELS_DIR / "oncoming.npz"
-#: the bundled box regressor (:mod:`fastdet.video.refine`)
+#: the bundled box regressor (:mod:`fastdet.detect.regressor`)
 REFINE_MODEL_PATH = MODELS_DIR / "refine.npz"
 
 
