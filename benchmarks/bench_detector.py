@@ -256,7 +256,8 @@ def test_fastdet(benchmark, frames, kind, n_threads):
             det.detect(f)
         benchmark.group = GROUP
         benchmark.extra_info.update(pipeline=f"fastdet {kind}", models=models_label(det), threads=n_threads,
-                                    bands=sum(len(det.geometries((720, 1280), part)) for part in range(1 + (det.wide_model is not None))),
+                                    bands=sum(len(det.geometries((720, 1280), part))
+                                              for part in range(1 + (det.wide_model is not None))),
                                     frame="test_images/*.jpg (cycled)",
                                     omp_wait_policy=os.environ.get("OMP_WAIT_POLICY"),
                                     threading_layer=numba.threading_layer())

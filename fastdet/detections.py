@@ -99,8 +99,9 @@ class Detections:
         """Rows selected by a boolean mask, an index array or a slice (an int gives one row)."""
         if isinstance(index, (int, np.integer)):
             index = [int(index)]
-        cols = {f.name: getattr(self, f.name) for f in fields(self)}
-        return Detections(**{k: (v[index] if v is not None else None) for k, v in cols.items()})
+        cols: dict[str, Any] = {f.name: getattr(self, f.name) for f in fields(self)}
+        rows: dict[str, Any] = {k: (v[index] if v is not None else None) for k, v in cols.items()}
+        return Detections(**rows)
 
     def __iter__(self) -> Iterator[np.ndarray]:
         warnings.warn("unpacking Detections as (boxes, scores) is deprecated; use .boxes and .scores",

@@ -122,7 +122,7 @@ class Model:
                                 "scale": self.scale}, meta)
 
 
-def write_npz(path: str | os.PathLike, arrays: dict[str, np.ndarray], meta: dict[str, Any]) -> Path:
+def write_npz(path: str | os.PathLike, arrays: dict[str, np.ndarray | np.generic], meta: dict[str, Any]) -> Path:
     """Write ``arrays`` and ``meta`` (as the ``metadata`` array: UTF-8 JSON bytes, ``uint8``) to
     ``path`` (``.npz``), via a temporary file and a rename (:func:`fastdet.io.atomic.atomic_path`):
     the format of model files and of the box regressor."""
@@ -131,7 +131,8 @@ def write_npz(path: str | os.PathLike, arrays: dict[str, np.ndarray], meta: dict
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as fh:
-            np.savez_compressed(fh, **arrays, metadata=blob)
+            payload: dict[str, Any] = {**arrays, "metadata": blob}
+            np.savez_compressed(fh, **payload)
     return path
 
 

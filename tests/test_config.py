@@ -1,5 +1,5 @@
 """The configuration dataclasses: validation, derived sizes, dict round trips, frame rescaling.
-(HeatConfig's validation is tested beside the heat map, in test_heatmap.py.)"""
+(HeatConfig's validation is tested beside the heat map, in tests/video/test_heatmap.py.)"""
 from __future__ import annotations
 
 import dataclasses

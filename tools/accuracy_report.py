@@ -12,7 +12,7 @@ project root)::
 
 ``classic.npz``: ``python -m fastdet train --classifier linearsvc --C 1 --orientations 9
 --no-flip --out classic.npz`` (the classic recipe). Scores of the classic per-window
-pipeline equal fastdet's dense scores to 1e-6 (tests/test_detector.py), so its rows use
+pipeline equal fastdet's dense scores to 1e-6 (tests/detect/test_detector.py), so its rows use
 the fast scorer on the same bands.
 """
 from __future__ import annotations

@@ -85,7 +85,8 @@ def detector_section(args: argparse.Namespace, thread_counts: list[int]) -> None
     c_best, c_med = 1e3 * min(ctimes), 1e3 * statistics.median(ctimes)
 
     print(f"### Detector: ms per 1280x720 frame\n\n`{this_command(args, 'detector')}`  \n"
-          "(pytest-benchmark: `python -m pytest benchmarks/bench_detector.py --benchmark-only -k 'classic or fastdet'`)\n")
+          "(pytest-benchmark: `python -m pytest benchmarks/bench_detector.py --benchmark-only "
+          "-k 'classic or fastdet'`)\n")
     print("| pipeline | models | threads | best ms | median ms | resize/colour ms | HOG ms | scoring ms "
           "| speed-up vs classic |")
     print("|---|---|---:|---:|---:|---:|---:|---:|---:|")
@@ -140,7 +141,8 @@ def opencv_section(args: argparse.Namespace, thread_counts: list[int]) -> None:
             best, med, cpu = res[(label, n)]
             ref_best, ref_med, _ = res[("OpenCV stride 8", n)]
             name = {"fastdet": "fastdet `Detector(wide=None)` (default search)",
-                    "fastdet stride 8": "fastdet, `SearchConfig(cells_per_step=1)`"}.get(label, "OpenCV `detectMultiScale`")
+                    "fastdet stride 8": "fastdet, `SearchConfig(cells_per_step=1)`"
+                    }.get(label, "OpenCV `detectMultiScale`")
             print(f"| {name} | {stride} px | {windows[label]:,} | {n} | {best:.2f} | {med:.2f}{_flag(best, med)} "
                   f"| {cpu:.2f} | {ref_best / best:.2f}x | {ref_med / med:.2f}x |")
     print(f"\n{calls} calls per row over {rounds} interleaved rounds, cycling through the {len(frames)} test "

@@ -49,6 +49,7 @@ from fastdet.eval.sizes import WIDTH_EDGES, recall_by_width
 from fastdet.eval.variants import Variant, standard_variants, transform_gt
 from fastdet.io.motfiles import Predictions, read_gt
 from fastdet.video.pipeline import VideoDetector, make_detector
+from tests.fakes import RecordingDetector
 
 # ---------------------------------------------------------------------------------------
 # frames
@@ -110,37 +111,6 @@ def variant_frames(src: list[np.ndarray], variant: Variant, clip: str, tmp: Path
 # detector windows, recorded or replayed
 
 
-class Recorder:
-    """A WindowDetector that passes through to ``det`` and keeps every ``detect`` result."""
-
-    def __init__(self, det: Any, replay: list[Detections] | None = None):
-        self.det, self.replay = det, replay
-        self.score_kind, self.wide_model = det.score_kind, det.wide_model
-        self.record: list[Detections] = []
-
-    def detect(self, frame, rgb=False, wide_bands=None, stats=None) -> Detections:
-        if self.replay is not None:
-            d = self.replay[len(self.record)]
-        else:
-            d = self.det.detect(frame, rgb=rgb, wide_bands=wide_bands, stats=stats)
-        self.record.append(d)
-        return d
-
-    def warmup(self) -> None:
-        if self.replay is None:
-            self.det.warmup()
-
-    def geometries(self, frame_shape, part=0):
-        return self.det.geometries(frame_shape, part)
-
-    @property
-    def horizon(self):
-        return self.det.horizon
-
-    def set_horizon(self, horizon) -> None:
-        self.det.set_horizon(horizon)
-
-
 def save_windows(path: Path, dets: list[Detections]) -> None:
     n = np.array([len(d) for d in dets])
     cat = Detections.concat(dets) if len(dets) else Detections.empty()
@@ -169,7 +139,7 @@ def run_clip(det: Any, frames: list[np.ndarray], heat: HeatConfig, cache: Path |
     ``'auto'`` primed with the clip's first frames, as ``iter_video_detections`` does for a
     file), and the seconds per frame."""
     replay = load_windows(cache) if cache is not None and cache.exists() else None
-    rec = Recorder(det, replay)
+    rec = RecordingDetector(det, replay)
     if horizon is None:
         det.set_horizon(None)
     vd = VideoDetector(rec, heat, horizon=horizon)

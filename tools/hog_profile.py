@@ -176,7 +176,8 @@ def main(argv=None) -> None:
                 times["new"].append(detect_round(False, clock))
             o_b, n_b = min(times["old"]), min(times["new"])
             what = "thread CPU" if n_threads == 1 else "wall"
-            print(f"Detector().detect, {n_threads} thread(s), {what} ms per frame (best / median of {args.rounds} rounds "
+            print(f"Detector().detect, {n_threads} thread(s), {what} ms per frame "
+                  f"(best / median of {args.rounds} rounds "
                   f"of {len(frames)} frames): old {o_b:.2f} / {statistics.median(times['old']):.2f}  "
                   f"new {n_b:.2f} / {statistics.median(times['new']):.2f}  ({o_b / n_b:.2f}x)")
         det.close()

@@ -57,7 +57,8 @@ TEST_IMAGES_GT = Path(__file__).resolve().parent / "test_images.gt.txt"
 # ---------------------------------------------------------------------------------------- data
 
 
-def annotated(frames: list[np.ndarray], gt: GroundTruth, group_base: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+def annotated(frames: list[np.ndarray], gt: GroundTruth,
+              group_base: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """``(frame, vehicle boxes (M, 4), groups (M,))`` of every frame with a ``consider = 1`` box."""
     out = []
     for f in np.unique(gt.frames[gt.consider]):
@@ -202,7 +203,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--cache", default=os.path.join(tempfile.gettempdir(), "fastdet_refine_eval"))
     ap.add_argument("--json", default=None)
-    ap.add_argument("--ship", default=None, help="also fit on --ship-clips + the test images and write the regressor here")
+    ap.add_argument("--ship", default=None,
+                    help="also fit on --ship-clips + the test images and write the regressor here")
     ap.add_argument("--ship-clips", default="test_video",
                     help="clips the --ship regressor is fitted on, comma-separated (default: test_video, "
                          "so that test_small1 stays held out)")

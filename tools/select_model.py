@@ -61,7 +61,8 @@ def main() -> None:
                     scaler, clf = fit_classifier(xt, yt, clf_name, C, seed)
                     m = metrics(crops.labels[te], clf.predict(scaler.transform(x[te])))
                     row += [f"{m['accuracy']:.4f}", f"{m['precision']:.4f}", f"{m['recall']:.4f}"]
-                print(f"| {name} | {clf_name} | {C:g} | {seed} | " + " | ".join(row) + f" |  ({time.perf_counter() - t0:.0f} s)",
+                print(f"| {name} | {clf_name} | {C:g} | {seed} | " + " | ".join(row)
+                      + f" |  ({time.perf_counter() - t0:.0f} s)",
                       flush=True)
 
 

@@ -4,7 +4,7 @@
 Detection is the expensive part and does not depend on what comes after it, so each clip's
 windows are detected once (:func:`cache_windows`: every window with a decision value above
 ``--low``). Then, for every setting, the real :class:`fastdet.VideoDetector` runs over the
-clip's frames with a :class:`ReplayDetector` in place of the Detector (:func:`replay`): it
+clip's frames with a :class:`tests.fakes.ReplayDetector` in place of the Detector (:func:`replay`): it
 returns the cached windows above the setting's window thresholds, scored as
 :meth:`fastdet.Detector.detect` scores them. Everything after detection -- the main and the
 wide heat map, the wide model's motion gate, the fusion of the two -- is VideoDetector's own
@@ -14,10 +14,10 @@ markdown row per setting.
 The replay returns the wide model's windows of its whole search when VideoDetector asks for
 some ``wide_bands`` (the parts of the search where the picture moved) and none when it asks
 for none; VideoDetector then keeps the wide windows that moved enough, which are exactly the
-windows of the narrowed search, with the same scores to 1e-6 (``tests/test_motion.py``
+windows of the narrowed search, with the same scores to 1e-6 (``tests/video/test_motion.py``
 checks both).
 
-    python tools/tune_video.py [--model M.npz] [--wide W.npz | --wide bundled] [--thr 0,0.5,1] ...
+    python -m tools.tune_video [--model M.npz] [--wide W.npz | --wide bundled] [--thr 0,0.5,1] ...
 """
 from __future__ import annotations
 
@@ -38,6 +38,7 @@ from fastdet.eval import evaluate
 from fastdet.io.motfiles import GroundTruth, Predictions, read_gt
 from fastdet.io.reader import FrameReader
 from fastdet.model import ONCOMING_MODEL_PATH
+from tests.fakes import ReplayDetector
 
 
 @dataclass
@@ -84,34 +85,18 @@ def cache_windows(det: Detector, video: str | os.PathLike, low: float) -> Cached
     return CachedClip(Path(video), det, windows, decisions)
 
 
-class ReplayDetector:
-    """A :class:`fastdet.video.WindowDetector` that returns a :class:`CachedClip`'s windows,
-    one frame per :meth:`detect` call: those above ``thr`` (main model) or ``thr_wide`` (wide
+def replayed_windows(clip: CachedClip, thr: float, thr_wide: float) -> list[Detections]:
+    """Per frame, the clip's cached windows above ``thr`` (main model) or ``thr_wide`` (wide
     model), with the scores :meth:`fastdet.Detector.detect` gives them (the probability for
     logistic-regression models, the decision value for LinearSVC)."""
-
-    def __init__(self, clip: CachedClip, thr: float, thr_wide: float):
-        self.clip, self.thr, self.thr_wide = clip, thr, thr_wide
-        self.score_kind = clip.detector.score_kind
-        self.wide_model = clip.detector.wide_model
-        self.frame = 0
-
-    def warmup(self) -> None:
-        pass
-
-    def geometries(self, frame_shape, part=0):
-        return self.clip.detector.geometries(frame_shape, part)
-
-    def detect(self, frame, rgb=False, wide_bands=None, stats=None) -> Detections:
-        windows, dec = self.clip.windows[self.frame], self.clip.decisions[self.frame]
-        self.frame += 1
-        keep = np.where(windows.is_wide, dec > self.thr_wide, dec > self.thr)
-        if wide_bands is not None and len(wide_bands) == 0:  # nothing moved (or the first frame)
-            keep &= ~windows.is_wide
+    out = []
+    for windows, dec in zip(clip.windows, clip.decisions):
+        keep = np.where(windows.is_wide, dec > thr_wide, dec > thr)
         score = dec[keep]
-        if self.score_kind == "probability":
+        if clip.detector.score_kind == "probability":
             score = 1.0 / (1.0 + np.exp(-score))
-        return replace(windows[keep], scores=score.astype(np.float32))
+        out.append(replace(windows[keep], scores=score.astype(np.float32)))
+    return out
 
 
 def replay(clip: CachedClip, thr: float, heat: HeatConfig, wide_heat: HeatConfig | None = None,
@@ -120,8 +105,8 @@ def replay(clip: CachedClip, thr: float, heat: HeatConfig, wide_heat: HeatConfig
     """The boxes :class:`fastdet.VideoDetector` (``heat``, ``wide_heat``, ``motion``,
     ``tracker``: its arguments) gives on the clip's frames from its cached windows, for frames
     ``first`` (1-based) on."""
-    vd = VideoDetector(ReplayDetector(clip, thr, thr_wide), heat=heat, wide_heat=wide_heat, motion=motion,
-                       tracker=tracker)
+    vd = VideoDetector(ReplayDetector(replayed_windows(clip, thr, thr_wide), like=clip.detector), heat=heat,
+                       wide_heat=wide_heat, motion=motion, tracker=tracker)
     frames = [(i, d) for i, d in enumerate(map(vd.update, frames_of(clip.video)), start=1) if i >= first]
     if vd.detector.frame != len(clip):
         raise RuntimeError(f"{clip.video}: {vd.detector.frame} frames decoded, {len(clip)} cached")

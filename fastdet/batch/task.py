@@ -6,7 +6,7 @@ runs the same building blocks, in the same way, as ``python -m fastdet video``:
 (a fresh one per video: heat map and motion state start empty) →
 :class:`~fastdet.io.motfiles.MotWriter` / :class:`~fastdet.io.motfiles.JsonLinesWriter` /
 :class:`~fastdet.io.sink.VideoSink`, so the boxes are byte-identical to ``video --boxes``
-(``tests/test_batch.py`` checks it).
+(``tests/batch/test_job.py`` checks it).
 
 - The detector (models loaded, kernels warmed up) is made once per worker process and
   settings (:func:`detector_for`), and every task runs the kernels on one Numba thread:
@@ -18,8 +18,9 @@ runs the same building blocks, in the same way, as ``python -m fastdet video``:
 - A video that cannot be used (:class:`~fastdet.errors.FastdetError`: not a video, frames
   too small or grey, a failed write) is returned as ``status: "failed"`` with the one-line
   reason and ``permanent: True``: retrying would fail again (a rerun skips it while the
-  file is unchanged). Any other exception propagates, and Dask retries the task. The reader's notes (damaged frames skipped, a frame count other than the header's)
-  are returned in ``notes`` instead of being printed on the worker.
+  file is unchanged). Any other exception propagates, and Dask retries the task. The reader's
+  notes (damaged frames skipped, a frame count other than the header's) are returned in
+  ``notes`` instead of being printed on the worker.
 - Progress: while it runs, the task sends ``{"name", "token", "frames", "expected"}``
   events on the Dask topic ``task.topic`` (:meth:`distributed.Worker.log_event`) at most
   every :data:`PROGRESS_EVERY` seconds, and once at the end.

@@ -7,7 +7,8 @@
 - INPUT: video files, folders (searched recursively for videos), quoted glob patterns, or
   ``.txt`` list files of paths (:mod:`fastdet.batch.inputs`).
 - For each video, in DIR: ``NAME.boxes.txt`` (MOTChallenge with track ids, byte-identical to
-  ``fastdet video --boxes``; ``--no-track`` as ``video --no-track``), with ``--json`` ``NAME.boxes.jsonl``, with ``--video`` ``NAME.annotated.mp4``;
+  ``fastdet video --boxes``; ``--no-track`` as ``video --no-track``), with ``--json``
+  ``NAME.boxes.jsonl``, with ``--video`` ``NAME.annotated.mp4``;
   ``DIR/manifest.jsonl`` records every finished video.
 - Exit status: 0 when every video is done (or was already), 1 when some failed (listed in
   the summary), 2 for bad arguments (one line), 128 + N after signal N (the finished videos

@@ -1,4 +1,5 @@
-"""``python -m fastdet bench [INPUT] [--frames N] [--threads T] [--repeat R] [--model M.npz] [--oncoming-model W.npz | --no-oncoming]``
+"""``python -m fastdet bench [INPUT] [--frames N] [--threads T] [--repeat R] [--model M.npz]
+[--oncoming-model W.npz | --no-oncoming]``
 
 Times the stages of :class:`~fastdet.VideoDetector` (what ``python -m fastdet video``
 runs on its main thread for every frame) on a video or an image, and prints ms per frame

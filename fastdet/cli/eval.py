@@ -4,16 +4,28 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 from typing import Any
 
-from ..errors import FastdetError
+from ..errors import DataError, FastdetError
+from ..eval.clips import annotated_clips, markdown_table, report_json, score_clip
 from ..eval.metrics import evaluate
 from ..eval.report import format_table, plot_pr
+from ..io.atomic import check_output_path, write_bytes
+from ..io.keyframes import keyframes_for, keyframes_path, read_keyframes
 from ..io.motfiles import Predictions, read_gt, read_predictions
 from ..io.reader import check_source
 from ..video.pipeline import iter_video_detections
-from ._args import (add_horizon_argument, add_oncoming_arguments, add_refine_argument, add_search_argument, guided_arg,
-                    oncoming_arg, refine_arg, traffic_arg)
+from ._args import (
+    add_horizon_argument,
+    add_oncoming_arguments,
+    add_refine_argument,
+    add_search_argument,
+    guided_arg,
+    oncoming_arg,
+    refine_arg,
+    traffic_arg,
+)
 
 # ---------------------------------------------------------------------------------------
 # CLI
@@ -30,9 +42,24 @@ def _iou_arg(s: str) -> float:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--gt", required=True, metavar="GT.txt",
-                        help="MOTChallenge ground truth: frame,id,left,top,width,height,consider,class,visibility")
-    src = parser.add_mutually_exclusive_group(required=True)
+    parser.add_argument("--gt", metavar="GT.txt",
+                        help="MOTChallenge ground truth: frame,id,left,top,width,height,consider,class,visibility; "
+                             "when CLIP.frames lies beside CLIP.gt.txt, only the keyframes it lists are scored")
+    parser.add_argument("--keyframes", metavar="FILE",
+                        help="score only the frames listed in FILE, one frame number a line (default: the "
+                             "CLIP.frames beside CLIP.gt.txt if there is one, else every frame)")
+    parser.add_argument("--all", action="store_true",
+                        help="one report over every annotated clip of the data folder (annotations/CLIP.gt.txt "
+                             "with videos/CLIP.mp4): runs the video pipeline on each (or reads --pred-dir) and "
+                             "prints a markdown table, P / R / F1 / AP / false alarms per frame / recall by width")
+    parser.add_argument("--data", metavar="DIR",
+                        help="--all: the data folder (default: $FASTDET_DATA or ../shared/data)")
+    parser.add_argument("--clips", metavar="A,B", help="--all: only these clips (comma-separated names)")
+    parser.add_argument("--pred-dir", metavar="DIR",
+                        help="--all: read each clip's predictions from DIR/CLIP.txt (or DIR/CLIP.jsonl) instead of "
+                             "running the pipeline")
+    parser.add_argument("--out", metavar="REPORT.json", help="--all: also write the report as JSON to this file")
+    src = parser.add_mutually_exclusive_group()
     src.add_argument("--pred", metavar="PRED.txt",
                      help="predictions: MOTChallenge lines frame,id,left,top,width,height,conf,... "
                           "(or the JSON lines of `fastdet video`, *.jsonl)")
@@ -63,7 +90,92 @@ def _video_predictions(video: str, model: str | None, oncoming: Any = True, trac
     return Predictions.from_frames(frames, source=video)
 
 
+def _frame_rows(video: str | Path) -> int:
+    """A video's height in pixels (from its header)."""
+    import cv2
+
+    cap = cv2.VideoCapture(str(video))
+    try:
+        rows = int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT)) if cap.isOpened() else 0
+    finally:
+        cap.release()
+    if rows <= 0:
+        raise DataError(f"{video}: cannot read the frame size")
+    return rows
+
+
+def _clip_predictions(pred_dir: str, name: str) -> Predictions:
+    for ext in (".txt", ".jsonl"):
+        p = Path(pred_dir) / f"{name}{ext}"
+        if p.is_file():
+            return read_predictions(p)
+    raise DataError(f"{pred_dir}: no predictions for clip {name} ({name}.txt or {name}.jsonl)")
+
+
+def _run_all(args: argparse.Namespace) -> int:
+    if args.gt is not None or args.pred is not None or args.video is not None or args.keyframes is not None \
+            or args.plot is not None:
+        raise FastdetError("--all scores every annotated clip: "
+                           "it takes no --gt, --pred, --video, --keyframes or --plot")
+    if args.pred_dir is not None and (args.model is not None or args.oncoming_model is not None or args.no_oncoming
+                                      or args.no_track or args.offline or getattr(args, "no_refine", False)
+                                      or getattr(args, "traffic", "right") != "right"):
+        raise FastdetError("--model, --oncoming-model, --no-oncoming, --traffic, --no-refine, --no-track and "
+                           "--offline only apply when --all runs the pipeline (not with --pred-dir)")
+    if args.out is not None:
+        check_output_path(args.out, "report")
+    clips = annotated_clips(args.data)
+    if args.clips is not None:
+        want = [c.strip() for c in args.clips.split(",") if c.strip()]
+        unknown = sorted(set(want) - {c.name for c in clips})
+        if unknown or not want:
+            have = ", ".join(c.name for c in clips) or "none"
+            raise FastdetError(f"--clips: no annotated clip named {', '.join(unknown) or '(empty)'} (have: {have})")
+        clips = [c for c in clips if c.name in want]
+    if not clips:
+        from ..data import data_dir
+
+        raise DataError(f"{args.data or data_dir()}: no annotated clips (annotations/CLIP.gt.txt with videos/CLIP.mp4)")
+    scores = []
+    for clip in clips:
+        gt, kf = clip.gt(), clip.keyframes()
+        if args.pred_dir is not None:
+            preds = _clip_predictions(args.pred_dir, clip.name)
+        else:
+            preds = _video_predictions(str(clip.video), args.model, oncoming_arg(args), not args.no_track,
+                                       args.offline, getattr(args, "horizon", "auto"), guided_arg(args),
+                                       refine_arg(args), traffic_arg(args))
+        scores.append(score_clip(clip.name, gt, preds, _frame_rows(clip.video), kf, iou=args.iou))
+    settings = {"iou": args.iou}
+    if args.pred_dir is not None:
+        settings["pred_dir"] = args.pred_dir
+    else:
+        settings.update(model=args.model or "bundled", oncoming=args.oncoming_model or not args.no_oncoming,
+                        traffic=traffic_arg(args), refine=refine_arg(args), track=not args.no_track,
+                        offline=args.offline, horizon=getattr(args, "horizon", "auto"),
+                        full_search=guided_arg(args) is False)
+    report = report_json(scores, settings)
+    text = json.dumps(report, indent=1, allow_nan=False) + "\n"
+    if args.out is not None:
+        write_bytes(args.out, text.encode())
+    if args.json:
+        print(text, end="")
+    else:
+        print(markdown_table(scores))
+        if args.out is not None:
+            print(f"report written to {args.out}")
+    sys.stdout.flush()
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
+    if getattr(args, "all", False):
+        return _run_all(args)
+    if getattr(args, "pred_dir", None) is not None or getattr(args, "out", None) is not None \
+            or getattr(args, "clips", None) is not None or getattr(args, "data", None) is not None:
+        raise FastdetError("--data, --clips, --pred-dir and --out only apply with --all")
+    if args.gt is None or (args.pred is None and args.video is None):
+        raise FastdetError("give --gt GT.txt and one of --pred PRED.txt or --video CLIP.mp4 (or --all)")
     no_track, offline = getattr(args, "no_track", False), getattr(args, "offline", False)
     if args.video is None and (args.model is not None or args.oncoming_model is not None or args.no_oncoming
                                or no_track or offline or getattr(args, "no_refine", False)
@@ -71,17 +183,21 @@ def run(args: argparse.Namespace) -> int:
         raise FastdetError("--model, --oncoming-model, --no-oncoming, --traffic, --no-refine, --no-track and "
                            "--offline only apply with --video")
     gt = read_gt(args.gt)
+    kf_file = getattr(args, "keyframes", None)
+    keyframes = read_keyframes(kf_file) if kf_file is not None else keyframes_for(args.gt)
     if args.video is not None:
         preds = _video_predictions(args.video, args.model, oncoming_arg(args), not no_track, offline,
                                    getattr(args, "horizon", "auto"), guided_arg(args), refine_arg(args),
                                    traffic_arg(args))
     else:
         preds = read_predictions(args.pred)
-    result = evaluate(gt, preds, iou=args.iou)
+    result = evaluate(gt, preds, iou=args.iou, keyframes=keyframes)
     if args.plot:
         plot_pr(result, args.plot)
     if args.json:
         out = {"gt": args.gt, ("video" if args.video else "pred"): args.video or args.pred, **result.to_dict()}
+        if keyframes is not None:
+            out["keyframes_file"] = str(kf_file if kf_file is not None else keyframes_path(args.gt))
         if args.plot:
             out["plot"] = args.plot
         print(json.dumps(out, allow_nan=False))

@@ -1,7 +1,8 @@
 """``python -m fastdet video``: detect vehicles in a video.
 
 ``python -m fastdet video INPUT -o OUT.mp4 [--boxes B.txt] [--json B.jsonl] [--model M.npz]
-[--oncoming-model W.npz | --no-oncoming] [--traffic right|left|both] [--no-refine] [--debug] [--profile] [--no-progress] [--start S] [--frames N]
+[--oncoming-model W.npz | --no-oncoming] [--traffic right|left|both] [--no-refine] [--debug] [--profile]
+[--no-progress] [--start S] [--frames N]
 [--no-track | --offline] [--count] [--line X1,Y1,X2,Y2] [--summary S.json]``
 
 - The bundled oncoming-traffic model runs beside the main one (see :class:`VideoDetector`);

@@ -5,7 +5,7 @@ map and histogram-weight integral image once; then one numba kernel gives the de
 value of every window position (``fastdet.detect.scoring.dense_scores``). The result equals
 the classic per-window pipeline (skimage HOG of the scaled band, the window's blocks sliced
 out, the window's own spatial and histogram features, ``scaler.transform``,
-``decision_function``) to floating-point rounding; ``tests/test_detector.py`` checks every
+``decision_function``) to floating-point rounding; ``tests/detect/test_detector.py`` checks every
 window of every default band.
 
 Training crops are 64x64 images whose HOG has zeroed gradients on the crop's border; in
@@ -187,7 +187,7 @@ class Detector:
                  components: Sequence[tuple[Model | str | os.PathLike, SearchConfig]] = ()):
         self.model = model if isinstance(model, Model) else load_model(model)
         if self.model.config.window_height is not None:
-            name = "the main model" if isinstance(model, Model) else os.fspath(model)
+            name = "the main model" if model is None or isinstance(model, Model) else os.fspath(model)
             cfg = self.model.config
             raise ModelError(f"{name}: a wide-window model ({cfg.win_w}x{cfg.win_h} windows) cannot be the "
                              f"main model, whose windows are square; give it as the oncoming (wide) model")
@@ -219,7 +219,7 @@ class Detector:
         if horizon is not None:
             self.set_horizon(horizon)
         self.score_kind = self.model.score_kind
-        self._pool = None  # band threads, made on the first multi-threaded detect
+        self._pool: ThreadPoolExecutor | None = None  # band threads, made on the first multi-threaded detect
         self._pool_size = 0
         self._pool_lock = threading.Lock()
 
@@ -289,7 +289,7 @@ class Detector:
                     for (p, g), sp in zip(geos, spans)]
         helpers = n_threads - 1  # the calling thread takes jobs too
         with self._pool_lock:
-            if self._pool_size != helpers:
+            if self._pool is None or self._pool_size != helpers:
                 if self._pool is not None:
                     self._pool.shutdown(wait=False)
                 self._pool = ThreadPoolExecutor(max_workers=helpers, thread_name_prefix="fastdet-band")

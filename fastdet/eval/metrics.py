@@ -23,6 +23,13 @@ range with no ground-truth line is a frame without vehicles: its predictions are
 positives. Predictions on frames after ``F`` are not evaluated (we do not know what is
 there); they are counted in ``num_outside`` and the table says so.
 
+Keyframes. A sparsely annotated clip gives ``keyframes``, the frames that were annotated
+(:mod:`fastdet.io.keyframes`). Then the evaluated frames are exactly those: a keyframe
+without ground-truth lines has no vehicle, a prediction on any other frame is counted in
+``num_outside`` and nowhere else (neither hit nor false alarm), ``frames`` is the number of
+keyframes, and the MOT metrics see the keyframes only, in order (an id switch is counted
+at keyframe granularity). Ground truth on a frame that is not a keyframe is an error.
+
 Matching, per frame. Ground-truth boxes with ``consider = 1`` are targets, those with
 ``consider = 0`` are ignore regions. Predictions are taken by descending confidence (ties in
 file order); each takes, among the targets not matched yet, the one with the highest IoU,
@@ -162,7 +169,9 @@ class EvalResult:
 
     num_gt: targets (``consider = 1`` boxes); num_ignore: ignore regions.
     num_pred: predictions on evaluated frames (including dropped ones); num_dropped: those
-    dropped on ignore regions; num_outside: predictions on frames after the last GT frame.
+    dropped on ignore regions; num_outside: predictions on frames not evaluated (after the
+    last GT frame, or not a keyframe). keyframes: True when only listed keyframes were
+    evaluated (``frames`` is then their number).
     pr_scores / pr_recall / pr_precision: ``(K,)`` arrays over the ranked non-dropped
     predictions (K = TP + FP): the confidence and the precision/recall after each rank.
     mota, motp, idf1, id_switches, fragmentations, hota, deta, assa: None unless the
@@ -195,6 +204,7 @@ class EvalResult:
     hota: float | None = None
     deta: float | None = None
     assa: float | None = None
+    keyframes: bool = False
 
     @property
     def has_tracking(self) -> bool:
@@ -236,20 +246,36 @@ def evaluate(
     iou: float = 0.5,
     num_frames: int | None = None,
     tracking: bool | None = None,
+    keyframes: np.ndarray | None = None,
 ) -> EvalResult:
     """Score ``preds`` against ``gt`` at IoU threshold ``iou`` (see the module docstring).
 
     num_frames: evaluate frames ``1..num_frames`` (default: the last GT frame).
     tracking: compute MOT metrics; default when the predictions carry ids.
+    keyframes: ``(K,)`` frame numbers: evaluate those frames only (module docstring,
+    "Keyframes"; not together with ``num_frames``).
     """
     if not (0.0 < iou <= 1.0):
         raise ValueError(f"iou threshold must be in (0, 1], got {iou}")
-    F = gt.num_frames if num_frames is None else int(num_frames)
-    if F < 0:
-        raise ValueError(f"num_frames must be >= 0, got {num_frames}")
-
-    g_in = gt.frames <= F
-    p_in = preds.frames <= F
+    if keyframes is not None:
+        if num_frames is not None:
+            raise ValueError("give num_frames or keyframes, not both")
+        scored = np.unique(np.asarray(keyframes, dtype=np.int64).reshape(-1))
+        if scored.size == 0 or scored[0] < 1:
+            raise ValueError("keyframes must be frame numbers >= 1, at least one")
+        g_in = np.isin(gt.frames, scored)
+        if not g_in.all():
+            f = int(gt.frames[~g_in][0])
+            raise DataError(f"{gt.source}: ground truth on frame {f}, which is not one of the keyframes")
+        p_in = np.isin(preds.frames, scored)
+        F = int(scored.size)
+    else:
+        F = gt.num_frames if num_frames is None else int(num_frames)
+        if F < 0:
+            raise ValueError(f"num_frames must be >= 0, got {num_frames}")
+        scored = np.arange(1, F + 1, dtype=np.int64)
+        g_in = gt.frames <= F
+        p_in = preds.frames <= F
     num_outside = int((~p_in).sum())
     g_groups = _frame_groups(np.where(g_in, gt.frames, 0))
     p_groups = _frame_groups(np.where(p_in, preds.frames, 0))
@@ -285,7 +311,7 @@ def evaluate(
     if tracking is None:
         tracking = preds.has_ids
     if tracking:
-        mot = _mot_metrics(gt, preds, g_groups, p_groups, dropped, iou, F)
+        mot = _mot_metrics(gt, preds, g_groups, p_groups, dropped, iou, scored)
 
     return EvalResult(
         iou_threshold=float(iou),
@@ -306,6 +332,7 @@ def evaluate(
         pr_scores=preds.scores[kept].copy(),
         pr_recall=rec,
         pr_precision=prec,
+        keyframes=keyframes is not None,
         **mot,
     )
 
@@ -323,7 +350,7 @@ def _mot_metrics(
     p_groups: dict[int, np.ndarray],
     dropped: np.ndarray,
     iou: float,
-    F: int,
+    scored: np.ndarray,
 ) -> dict[str, Any]:
     try:
         import warnings
@@ -343,7 +370,7 @@ def _mot_metrics(
         warnings.simplefilter("ignore")
         acc = mm.MOTAccumulator(auto_id=False)
         empty = np.zeros(0, np.int64)
-        for f in range(1, F + 1):
+        for f in scored.tolist():
             gidx = g_groups.get(f, empty)
             gidx = gidx[gt.consider[gidx]]
             pidx = p_groups.get(f, empty)

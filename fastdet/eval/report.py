@@ -23,7 +23,7 @@ def format_table(result: EvalResult) -> str:
     r = result
     rows: list[tuple[str, str]] = [
         ("IoU threshold", f"{r.iou_threshold:g}"),
-        ("frames", str(r.frames)),
+        ("frames", f"{r.frames} keyframes" if r.keyframes else str(r.frames)),
         ("GT boxes", f"{r.num_gt}  (+ {r.num_ignore} ignore regions)"),
         ("predictions", f"{r.num_pred}  ({r.num_dropped} dropped on ignore regions)"),
         ("TP", str(r.tp)),
@@ -48,7 +48,9 @@ def format_table(result: EvalResult) -> str:
         ]
     width = max(len(k) for k, _ in rows)
     lines = [f"{k:<{width}}  {v}" for k, v in rows]
-    if r.num_outside:
+    if r.num_outside and r.keyframes:
+        lines.append(f"({r.num_outside} predictions on frames that are not keyframes were not evaluated)")
+    elif r.num_outside:
         lines.append(f"({r.num_outside} predictions after the last GT frame {r.frames} were not evaluated)")
     return "\n".join(lines)
 

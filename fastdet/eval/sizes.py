@@ -17,6 +17,8 @@ from .metrics import match_frame
 
 #: default bin edges (reference pixels): 40-60, 60-80, 80-100, 100+
 WIDTH_EDGES: tuple[float, ...] = (40.0, 60.0, 80.0, 100.0, float("inf"))
+#: the bins of the per-clip report: small (< 60), middle (60-120), large (>= 120)
+REPORT_EDGES: tuple[float, ...] = (0.0, 60.0, 120.0, float("inf"))
 
 
 @dataclass(frozen=True)
@@ -34,19 +36,23 @@ class WidthBin:
 
     @property
     def label(self) -> str:
-        return f"{self.lo:g}+" if self.hi == float("inf") else f"{self.lo:g}-{self.hi:g}"
+        if self.hi == float("inf"):
+            return f">={self.lo:g}"
+        return f"<{self.hi:g}" if self.lo <= 0 else f"{self.lo:g}-{self.hi:g}"
 
 
 def recall_by_width(gt: GroundTruth, preds: Predictions, frame_rows: int, iou: float = 0.5,
                     edges: tuple[float, ...] = WIDTH_EDGES, ref_rows: int = 720,
-                    num_frames: int | None = None) -> list[WidthBin]:
+                    num_frames: int | None = None, keyframes: np.ndarray | None = None) -> list[WidthBin]:
     """Matched targets per width bin (module docstring); targets narrower than ``edges[0]``
-    or in frames after ``num_frames`` (default: the last ground-truth frame) are not counted."""
+    or in frames after ``num_frames`` (default: the last ground-truth frame) or, when
+    ``keyframes`` are given, on frames that are not keyframes, are not counted."""
     last = gt.num_frames if num_frames is None else int(num_frames)
     factor = ref_rows / float(frame_rows)
     found = np.zeros(len(edges) - 1, np.int64)
     total = np.zeros(len(edges) - 1, np.int64)
-    for f in np.unique(gt.frames[gt.consider & (gt.frames <= last)]):
+    scored = gt.frames <= last if keyframes is None else np.isin(gt.frames, np.asarray(keyframes, np.int64))
+    for f in np.unique(gt.frames[gt.consider & scored]):
         g = np.flatnonzero(gt.frames == f)
         tgt = g[gt.consider[g]]
         p = np.flatnonzero(preds.frames == f)

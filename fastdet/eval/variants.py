@@ -243,7 +243,8 @@ def transform_gt(gt: GroundTruth, variant: Variant, shape: tuple[int, int], min_
     ref_w = cw * ref_rows / variant.out_shape(shape)[0]
     tol = 1e-9  # a resize must not turn a 40.0-px car into 39.999...
     consider = gt.consider & (visible >= min_visible - tol) & (ref_w >= min_width - tol)
-    return GroundTruth(gt.frames[keep], gt.ids[keep], clipped[keep], consider[keep], source=f"{gt.source}#{variant.name}")
+    return GroundTruth(gt.frames[keep], gt.ids[keep], clipped[keep], consider[keep],
+                       source=f"{gt.source}#{variant.name}")
 
 
 @dataclass(frozen=True)

@@ -116,7 +116,8 @@ class FrameReader:
         if not cap.isOpened():
             cap.release()
             what = {"camera": "camera that can be opened", "url": "stream OpenCV can open (check the address)"}
-            raise DataError(f"{name}: not a {what.get(self.kind, 'video OpenCV can read (not a video file, damaged, or no frames)')}")
+            default = "video OpenCV can read (not a video file, damaged, or no frames)"
+            raise DataError(f"{name}: not a {what.get(self.kind, default)}")
         n = cap.get(cv2.CAP_PROP_FRAME_COUNT)
         self.frame_count = int(n) if math.isfinite(n) and n > 0 and not self.live else None
         fps = cap.get(cv2.CAP_PROP_FPS)
@@ -197,7 +198,8 @@ class FrameReader:
                 return
             if bad:
                 frames = f"frames {fno + 1}-{fno + bad}" if bad > 1 else f"frame {fno + 1}"
-                msg = f"{self.path}: {frames} could not be decoded (damaged); skipped, the frames after keep their numbers"
+                msg = (f"{self.path}: {frames} could not be decoded (damaged); skipped, "
+                       "the frames after keep their numbers")
                 self._put(("note", msg))
                 self._put(("skipped", (fno + 1, fno + bad)))
                 fno += bad

@@ -174,6 +174,7 @@ def augmented_copies(images: np.ndarray, labels: np.ndarray, seed: int, truncate
         parts_img.append(reencode_batch(images[src], rng, jpeg_quality))
         parts_src.append(src)
     if not parts_src:
-        return Augmented(np.zeros((0, *images.shape[1:]), images.dtype), np.zeros(0, labels.dtype), np.zeros(0, np.int64))
+        return Augmented(np.zeros((0, *images.shape[1:]), images.dtype), np.zeros(0, labels.dtype),
+                         np.zeros(0, np.int64))
     source = np.concatenate(parts_src)
     return Augmented(np.concatenate(parts_img), labels[source], source)

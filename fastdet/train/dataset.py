@@ -117,7 +117,8 @@ def random_split(labels: np.ndarray, seed: int, test_size: float = 0.2) -> tuple
     return np.sort(tr), np.sort(te)
 
 
-def sequence_split(groups: np.ndarray, order: np.ndarray, seed: int, n_blocks: int = 5) -> tuple[np.ndarray, np.ndarray]:
+def sequence_split(groups: np.ndarray, order: np.ndarray, seed: int,
+                   n_blocks: int = 5) -> tuple[np.ndarray, np.ndarray]:
     """Leak-free split: each folder, in time order, is cut into ``n_blocks`` contiguous
     blocks and block ``seed % n_blocks`` of every folder is the test part."""
     test = np.zeros(len(groups), bool)

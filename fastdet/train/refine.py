@@ -55,7 +55,8 @@ class JitterConfig:
     per_box: int = 16
 
 
-def jitter_boxes(target: np.ndarray, n: int, rng: np.random.Generator, config: JitterConfig = JitterConfig()) -> np.ndarray:
+def jitter_boxes(target: np.ndarray, n: int, rng: np.random.Generator,
+                 config: JitterConfig = JitterConfig()) -> np.ndarray:
     """``n`` random boxes ``(n, 4) float64`` about ``target (4,)`` x1, y1, x2, y2 whose IoU
     with it is at least ``config.min_iou`` (drawn in rounds until there are ``n``)."""
     t = np.asarray(target, np.float64).reshape(4)
@@ -126,7 +127,8 @@ def frame_samples(frame: np.ndarray, targets: np.ndarray, groups: np.ndarray, rn
         parts.append(Samples(coder.features(img, b), coder.encode(b, tt), b, tt,
                              np.concatenate(grp)))
     if not parts:
-        return Samples(np.zeros((0, coder.n_features)), np.zeros((0, 4)), np.zeros((0, 4)), np.zeros((0, 4)), np.zeros(0, np.int64))
+        return Samples(np.zeros((0, coder.n_features)), np.zeros((0, 4)), np.zeros((0, 4)), np.zeros((0, 4)),
+                       np.zeros(0, np.int64))
     return Samples.concat(parts)
 
 

@@ -3,7 +3,7 @@ heat grid in one go (what ``scipy.ndimage.label`` + ``find_objects`` + a loop ov
 did, at a tenth of the cost on a 180 x 320 grid, and without importing SciPy).
 
 Labels are those of ``scipy.ndimage.label`` with its default (4-connected) structure:
-numbered 1, 2, ... in raster order of each blob's first cell (``tests/test_heatmap.py``
+numbered 1, 2, ... in raster order of each blob's first cell (``tests/video/test_heatmap.py``
 checks them against SciPy and against a flood fill).
 """
 from __future__ import annotations

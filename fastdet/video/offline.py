@@ -14,7 +14,8 @@ corrections that need the future:
    half in the picture. (Extrapolating the size as well measured worse: two boxes' sizes
    are too noisy to extrapolate.)
 
-An added box that overlaps a box of its frame (IoU > 0.3) is left out. Added boxes carry the track's id and score 0 (no heat was seen for them in that frame).
+An added box that overlaps a box of its frame (IoU > 0.3) is left out. Added boxes carry the
+track's id and score 0 (no heat was seen for them in that frame).
 """
 from __future__ import annotations
 

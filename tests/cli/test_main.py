@@ -17,7 +17,7 @@ import fastdet
 from fastdet.cli.main import SUBCOMMANDS, build_parser, main
 from fastdet.errors import DataError, FastdetError, ModelError
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 def _python(code: str, **env) -> subprocess.CompletedProcess:

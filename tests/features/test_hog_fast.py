@@ -1,5 +1,5 @@
 """``hog_channels(..., exact=False)`` (the detector's block map) equals the exact path (skimage
-to the last bit, tests/test_hog.py) to an ulp or two: random uint8 images, every block norm,
+to the last bit, tests/features/test_hog.py) to an ulp or two: random uint8 images, every block norm,
 block and cell shapes, channel selections, one and two threads; real frames. The uint8 cell
 histograms (both kernels) equal the float path's (NumPy's hypot / arctan2, skimage's float32
 sums) bit for bit."""

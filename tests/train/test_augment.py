@@ -40,7 +40,8 @@ def test_truncate_is_edge_padding(keep):
     np.testing.assert_array_equal(left, np.pad(crop[:, 64 - keep:], ((0, 0), (64 - keep, 0), (0, 0)), mode="edge"))
     np.testing.assert_array_equal(right[:, :keep], crop[:, :keep])
     np.testing.assert_array_equal(left[:, 64 - keep:], crop[:, 64 - keep:])
-    assert (right[:, keep:] == crop[:, keep - 1: keep]).all() and (left[:, :64 - keep] == crop[:, 64 - keep: 65 - keep]).all()
+    assert (right[:, keep:] == crop[:, keep - 1: keep]).all()
+    assert (left[:, :64 - keep] == crop[:, 64 - keep: 65 - keep]).all()
 
 
 def test_truncate_rejects_bad_arguments():

@@ -17,10 +17,10 @@ from fastdet import cli
 from fastdet.cli import video
 from fastdet.cli.main import build_parser
 from fastdet.config import HeatConfig
-from fastdet.detections import Detections
 from fastdet.errors import DataError
 from fastdet.io.atomic import partial_name
 from fastdet.video.pipeline import VideoDetector, iter_video_detections, make_detector
+from tests.fakes import BrightBoxDetector
 
 W, H = 320, 240
 RECT_W, RECT_H = 80, 60
@@ -51,41 +51,6 @@ def write_video(path: Path, n: int, fourcc: str = "mp4v") -> Path:
         w.write(synth_frame(i))
     w.release()
     return path
-
-
-class FakeDetector:
-    """A WindowDetector (the protocol VideoDetector needs): five windows around the bounding
-    box of the pixels brighter than 200 (the box itself and shifted by 4 px), scales 1..3."""
-
-    score_kind = "decision"
-    wide_model = None
-
-    def __init__(self, on_frame=None):
-        self.calls = 0
-        self.rgb_args: list[bool] = []
-        self.warmed = False
-        self.on_frame = on_frame
-
-    def warmup(self) -> None:
-        self.warmed = True
-
-    def geometries(self, frame_shape, part=0):
-        return []
-
-    def detect(self, frame: np.ndarray, rgb: bool = False, wide_bands=None, stats=None) -> Detections:
-        self.calls += 1
-        self.rgb_args.append(rgb)
-        if self.on_frame is not None:
-            self.on_frame(self.calls)
-        if stats is not None:
-            stats.timings.update({"resize_colour": 1e-4, "hog": 2e-4, "score": 3e-4})
-        ys, xs = np.nonzero(frame.max(axis=2) > 200)
-        if len(xs) == 0:
-            return Detections.empty()
-        x1, y1, x2, y2 = xs.min(), ys.min(), xs.max() + 1, ys.max() + 1
-        offs = [(0, 0), (4, 0), (-4, 0), (0, 4), (0, -4)]
-        boxes = np.array([[x1 + dx, y1 + dy, x2 + dx, y2 + dy] for dx, dy in offs], np.int32)
-        return Detections(boxes, np.full(5, 1.0, np.float32), scale=np.array([1, 1.5, 2, 2.5, 3], np.float32))
 
 
 def iou(a, b) -> float:
@@ -122,7 +87,7 @@ def clip(tmp_path_factory) -> Path:
 
 
 def test_video_detector_follows_the_rectangle():
-    fake = FakeDetector()
+    fake = BrightBoxDetector()
     vd = VideoDetector(fake, HEAT, refine=False)
     for i in range(20):
         out = vd.update(synth_frame(i))
@@ -145,13 +110,13 @@ def test_video_detector_follows_the_rectangle():
 
 
 def test_iter_video_detections_numbers_frames_from_the_file(clip):
-    out = list(iter_video_detections(clip, detector=FakeDetector(), progress=False, heat=HEAT, refine=False))
+    out = list(iter_video_detections(clip, detector=BrightBoxDetector(), progress=False, heat=HEAT, refine=False))
     assert [f for f, _ in out] == list(range(1, 31))
     assert all(len(d.boxes) == 1 and iou(d.boxes[0], rect_at(f - 1)) > 0.8 for f, d in out)
-    out = list(iter_video_detections(clip, start=3, frames=5, detector=FakeDetector(), progress=False))
+    out = list(iter_video_detections(clip, start=3, frames=5, detector=BrightBoxDetector(), progress=False))
     assert [f for f, _ in out] == [4, 5, 6, 7, 8]
     with pytest.raises(DataError, match="past the end"):
-        list(iter_video_detections(clip, start=30, detector=FakeDetector(), progress=False))
+        list(iter_video_detections(clip, start=30, detector=BrightBoxDetector(), progress=False))
 
 
 # ------------------------------------------------------------------------- CLI end to end
@@ -159,7 +124,7 @@ def test_iter_video_detections_numbers_frames_from_the_file(clip):
 
 def test_cli_end_to_end(clip, tmp_path, capsys):
     out, boxes, js = tmp_path / "out.mp4", tmp_path / "boxes.txt", tmp_path / "boxes.jsonl"
-    fake = FakeDetector()
+    fake = BrightBoxDetector()
     rc = video.run(parse(clip, "-o", out, "--boxes", boxes, "--json", js, "--debug", "--profile",
                          "--no-progress", "--start", 5, "--frames", 20, *HEAT_ARGS), detector=fake)
     assert rc == 0 and fake.warmed
@@ -189,7 +154,7 @@ def test_boxes_only_and_empty_frames(tmp_path, capsys):
         w.write(np.zeros((H, W, 3), np.uint8))
     w.release()
     boxes, js = tmp_path / "b.txt", tmp_path / "b.jsonl"
-    assert video.run(parse(path, "--boxes", boxes, "--json", js, "--no-progress"), detector=FakeDetector()) == 0
+    assert video.run(parse(path, "--boxes", boxes, "--json", js, "--no-progress"), detector=BrightBoxDetector()) == 0
     assert boxes.read_text() == ""
     assert [json.loads(x)["boxes"] for x in js.read_text().splitlines()] == [[]] * 4
 
@@ -201,7 +166,7 @@ def test_output_written_under_temporary_name_then_renamed(clip, tmp_path):
     def check(k):
         seen.append((partial_name(out).exists(), out.exists()))
 
-    video.run(parse(clip, "-o", out, "--no-progress", "--frames", 6), detector=FakeDetector(on_frame=check))
+    video.run(parse(clip, "-o", out, "--no-progress", "--frames", 6), detector=BrightBoxDetector(on_frame=check))
     assert partial_name(out) == tmp_path / ".o.partial.mp4"
     assert seen and all(s == (True, False) for s in seen)
     assert out.exists() and not partial_name(out).exists()
@@ -215,7 +180,7 @@ def test_ctrl_c_keeps_a_playable_video_and_complete_boxes(clip, tmp_path):
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        video.run(parse(clip, "-o", out, "--boxes", boxes, "--no-progress"), detector=FakeDetector(interrupt))
+        video.run(parse(clip, "-o", out, "--boxes", boxes, "--no-progress"), detector=BrightBoxDetector(interrupt))
     assert count_frames(out) == 10
     assert not partial_name(out).exists()
     assert [int(r[0]) for r in read_mot(boxes)] == list(range(1, 11))
@@ -229,7 +194,7 @@ def test_truncated_video_ends_where_decoding_ends(tmp_path, capsys):
     bad = tmp_path / "bad.avi"
     bad.write_bytes(data[: len(data) // 2])  # truncated: the header still says 20 frames
     out, boxes = tmp_path / "o.mp4", tmp_path / "b.txt"
-    assert video.run(parse(bad, "-o", out, "--boxes", boxes, "--no-progress"), detector=FakeDetector()) == 0
+    assert video.run(parse(bad, "-o", out, "--boxes", boxes, "--no-progress"), detector=BrightBoxDetector()) == 0
     n = count_frames(out)
     assert 0 < n < 20
     assert [int(r[0]) for r in read_mot(boxes)] == list(range(1, n + 1))
@@ -287,14 +252,14 @@ def test_output_folder_not_writable(clip, tmp_path, capsys):
 
 def test_unwritable_extension_leaves_nothing(clip, tmp_path, capsys):
     with pytest.raises(DataError, match="cannot write a video"):
-        video.run(parse(clip, "-o", tmp_path / "o.xyz", "--no-progress"), detector=FakeDetector())
+        video.run(parse(clip, "-o", tmp_path / "o.xyz", "--no-progress"), detector=BrightBoxDetector())
     assert list(tmp_path.iterdir()) == []
 
 
 def test_bad_model_exits_2_without_traceback(clip, tmp_path):
     bad = tmp_path / "model.npz"
     bad.write_text("not a model")
-    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parent.parent)}
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
     r = subprocess.run([sys.executable, "-m", "fastdet", "video", str(clip), "--boxes", str(tmp_path / "b.txt"),
                         "--model", str(bad), "--no-progress"], capture_output=True, text=True, env=env, timeout=120)
     assert r.returncode == 2, r.stderr

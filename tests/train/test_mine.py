@@ -41,7 +41,8 @@ def test_mine_video_with_gt_finds_few(data, tmp_path, capsys):
 
 
 def test_mine_user_errors(tmp_path, capsys):
-    assert main(["mine-negatives", str(tmp_path / "none.mp4"), "--out", str(tmp_path / "o"), "--x-range", "0", "9"]) == 2
+    assert main(["mine-negatives", str(tmp_path / "none.mp4"), "--out", str(tmp_path / "o"),
+                 "--x-range", "0", "9"]) == 2
     assert "not found" in capsys.readouterr().err
     assert main(["mine-negatives", str(tmp_path / "none.mp4"), "--out", str(tmp_path / "o")]) == 2
     assert "say where there are no vehicles" in capsys.readouterr().err
@@ -66,7 +67,7 @@ def test_mine_image_sequence_with_annotations(data, tmp_path, capsys):
     from fastdet.model import ONCOMING_MODEL_PATH
     from fastdet.io.motfiles import read_gt
 
-    gt_path = Path(__file__).resolve().parents[1] / "tools" / "test_images.gt.txt"
+    gt_path = Path(__file__).resolve().parents[2] / "tools" / "test_images.gt.txt"
     out = tmp_path / "neg"
     rc = main(["mine-negatives", str(data / "test_images" / "test%d.jpg"), "--gt", str(gt_path), "--out", str(out),
                "--part", "wide", "--wide-model", str(ONCOMING_MODEL_PATH), "--threshold", "-1",

@@ -1,6 +1,6 @@
 """``fastdet.hog`` as a drop-in for ``skimage.feature.hog`` (issue 14, item 8): the kinds of
 case scikit-image's own ``test_hog.py`` checks, written here with expectations worked out by
-hand (not copied, not compared with skimage: ``tests/test_hog.py`` does that)."""
+hand (not copied, not compared with skimage: ``tests/features/test_hog.py`` does that)."""
 from __future__ import annotations
 
 import numpy as np

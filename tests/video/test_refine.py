@@ -18,8 +18,8 @@ from fastdet.detections import Detections
 from fastdet.errors import FastdetError, ModelError
 from fastdet.io.motfiles import read_gt
 from fastdet.train.refine import JitterConfig, collect_samples, jitter_boxes, paired_iou
-from fastdet.video.refine import (REFINE_FEATURES, REFINE_MODEL_PATH, BoxFeatures, BoxRegressor, RefineConfig, box_features,
-                                  decode_offsets, encode_offsets, load_regressor, refine, refine_boxes,
+from fastdet.video.refine import (REFINE_FEATURES, REFINE_MODEL_PATH, BoxFeatures, BoxRegressor, RefineConfig,
+                                  box_features, decode_offsets, encode_offsets, load_regressor, refine, refine_boxes,
                                   region_crops)
 
 SMALL = FeatureConfig(color_space="YCrCb", hog_channels=(0,), orientations=4, pixels_per_cell=16,

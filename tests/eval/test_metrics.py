@@ -242,7 +242,8 @@ def test_malformed_predictions_and_missing_files(tmp_path):
 
 def test_mot_and_jsonl_writers_round_trip(tmp_path):
     frames = [
-        (1, Detections(np.array([[10, 20, 60, 70], [100, 100, 140, 130]], np.int32), np.array([0.9, 0.25], np.float32))),
+        (1, Detections(np.array([[10, 20, 60, 70], [100, 100, 140, 130]], np.int32),
+                       np.array([0.9, 0.25], np.float32))),
         (2, Detections.empty()),
         (3, Detections(np.array([[5, 5, 15, 25]], np.int32), np.array([1.5], np.float32))),
     ]
@@ -258,7 +259,8 @@ def test_mot_and_jsonl_writers_round_trip(tmp_path):
     assert lines[-1] == "4,7,0,0,10,10,0.5,-1,-1,-1"
     objs = [json.loads(s) for s in jl.read_text().splitlines()]
     assert [o["frame"] for o in objs] == [1, 2, 3, 4]
-    assert objs[0] == {"frame": 1, "boxes": [[10, 20, 60, 70], [100, 100, 140, 130]], "scores": [0.9, 0.25], "ids": [-1, -1]}
+    assert objs[0] == {"frame": 1, "boxes": [[10, 20, 60, 70], [100, 100, 140, 130]], "scores": [0.9, 0.25],
+                       "ids": [-1, -1]}
     for path in (mot, jl):
         p = read_predictions(path)
         assert p.frames.tolist() == [1, 1, 3, 4]

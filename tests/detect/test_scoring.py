@@ -1,6 +1,6 @@
 """The dense-scoring kernels (fastdet.detect.scoring) against a plain loop over windows and
 products, on random inputs of every shape the kernels branch on (8-, 4- and 1-window runs,
-parallel chunks of a row), and their checks. Real frames: tests/test_detector.py."""
+parallel chunks of a row), and their checks. Real frames: tests/detect/test_detector.py."""
 from __future__ import annotations
 
 import re

@@ -8,6 +8,7 @@ from fastdet.detections import MAIN_PART, WIDE_PART, Detections
 from fastdet.boxes import overlap_fraction
 from fastdet.video.fusion import merge_wide
 from fastdet.video.pipeline import VideoDetector
+from tests.fakes import FixedDetector
 
 
 def test_overlap_fraction_by_hand():
@@ -26,30 +27,15 @@ def test_merge_wide_keeps_only_new_places():
     assert merge_wide(main, Detections.empty()) is main
 
 
-class _FakeWide:
-    """Main windows: three overlapping on a car ahead; wide windows: on that car (must be
-    dropped) and on a small car on the left (must be kept)."""
-
-    score_kind = "decision"
-    wide_model = object()  # not None: VideoDetector routes WIDE_PART windows to the wide heat map
-
-    def warmup(self):
-        pass
-
-    def geometries(self, frame_shape, part=0):
-        raise AssertionError("no motion gate: the wide search's bands are not needed")
-
-    def detect(self, frame, rgb=False, wide_bands=None, stats=None):
-        assert wide_bands is None  # no motion gate: the full wide search
-        main = [[600, 400, 664, 464], [608, 400, 672, 464], [600, 408, 664, 472]]
-        wide = [[610, 420, 674, 444], [100, 430, 164, 454], [104, 430, 168, 454]]
-        part = [MAIN_PART] * 3 + [WIDE_PART] * 3
-        return Detections(np.array(main + wide, np.int32), np.full(6, 3.0, np.float32),
-                          scale=np.ones(6, np.float32), part=np.array(part, np.int8))
-
-
 def test_video_detector_routes_wide_windows_to_their_own_heat_map():
-    vd = VideoDetector(_FakeWide(), heat=HeatConfig(threshold=5.0, n_frames=1),
+    # main windows: three overlapping on a car ahead; wide windows: on that car (must be
+    # dropped) and on a small car on the left (must be kept)
+    main = [[600, 400, 664, 464], [608, 400, 672, 464], [600, 408, 664, 472]]
+    wide = [[610, 420, 674, 444], [100, 430, 164, 454], [104, 430, 168, 454]]
+    part = [MAIN_PART] * 3 + [WIDE_PART] * 3
+    windows = Detections(np.array(main + wide, np.int32), np.full(6, 3.0, np.float32),
+                         scale=np.ones(6, np.float32), part=np.array(part, np.int8))
+    vd = VideoDetector(FixedDetector(windows, wide_model=object()), heat=HeatConfig(threshold=5.0, n_frames=1),
                        wide_heat=HeatConfig(threshold=5.0, n_frames=1, box_mode="mean", min_height=10, max_aspect=0.8),
                        motion=MotionGate(0), refine=False)  # no motion gate: the fake has no search bands
     out = vd.update(np.zeros((720, 1280, 3), np.uint8))

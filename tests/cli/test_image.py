@@ -16,33 +16,9 @@ from fastdet.detections import WIDE_PART, Detections
 from fastdet.errors import DataError
 from fastdet.io import draw
 from fastdet.video import detect_image
+from tests.fakes import BlobsDetector
 
-
-class FakeDetector:
-    """A WindowDetector: windows around each bright rectangle (itself and shifted 4 px)."""
-
-    score_kind = "decision"
-    wide_model = None
-
-    def warmup(self) -> None:
-        pass
-
-    def geometries(self, frame_shape, part=0):
-        return []
-
-    def detect(self, frame, rgb=False, wide_bands=None, stats=None):
-        n, labels, cc, _ = cv2.connectedComponentsWithStats((frame.max(axis=2) > 200).astype(np.uint8))
-        boxes, scales = [], []
-        for x, y, w, h, _ in cc[1:]:
-            for i, (dx, dy) in enumerate([(0, 0), (4, 0), (-4, 0), (0, 4), (0, -4)]):
-                boxes.append([x + dx, y + dy, x + w + dx, y + h + dy])
-                scales.append(1.0 + 0.5 * i)
-        if stats is not None:
-            stats.timings.update({"resize_colour": 0.0, "hog": 0.0, "score": 0.0})
-        if not boxes:
-            return Detections.empty()
-        return Detections(np.array(boxes, np.int32), np.full(len(boxes), 2.0, np.float32),
-                          scale=np.array(scales, np.float32))
+FAKE = BlobsDetector(score=2.0, scales=True)  # windows around each bright rectangle
 
 
 @pytest.fixture
@@ -61,7 +37,7 @@ def parse(*argv):
 
 def test_image_boxes_windows_heat(image, tmp_path, capsys):
     out = tmp_path / "out.jpg"
-    assert imagecmd.run(parse(image, "-o", out, "--windows", "--heat"), detector=FakeDetector()) == 0
+    assert imagecmd.run(parse(image, "-o", out, "--windows", "--heat"), detector=FAKE) == 0
     assert "1 vehicle(s) from 10 positive window(s)" in capsys.readouterr().out
     res = cv2.imread(str(out))
     heat = cv2.imread(str(tmp_path / "out.heat.jpg"))
@@ -76,20 +52,20 @@ def test_image_boxes_windows_heat(image, tmp_path, capsys):
 def test_detect_image_single_frame_threshold(image):
     frame = cv2.imread(str(image))
     cfg = HeatConfig().single_frame()
-    windows, hm, boxes = detect_image(frame, FakeDetector(), cfg)
+    windows, hm, boxes = detect_image(frame, FAKE, cfg)
     assert hm.config.n_frames == 1 and hm.config.threshold == cfg.single_frame_threshold
     assert len(windows) == 10 and windows.scale.tolist() == [1.0, 1.5, 2.0, 2.5, 3.0] * 2
     assert len(hm.blobs.boxes) == 2 and len(boxes.boxes) == 1  # the pole is filtered out
     x1, y1, x2, y2 = boxes.boxes[0]
     assert abs(x1 - 40) <= 4 and abs(x2 - 120) <= 4 and abs(y1 - 100) <= 4 and abs(y2 - 160) <= 4
     # a threshold above every heat value leaves nothing
-    _, _, none = detect_image(frame, FakeDetector(), HeatConfig().single_frame(1e6))
+    _, _, none = detect_image(frame, FAKE, HeatConfig().single_frame(1e6))
     assert len(none.boxes) == 0
 
 
 def test_threshold_option(image, tmp_path, capsys):
     out = tmp_path / "o.png"
-    assert imagecmd.run(parse(image, "-o", out, "--threshold", "1000"), detector=FakeDetector()) == 0
+    assert imagecmd.run(parse(image, "-o", out, "--threshold", "1000"), detector=FAKE) == 0
     assert "0 vehicle(s)" in capsys.readouterr().out
     assert cv2.imread(str(out)).shape == (240, 320, 3)
 
@@ -117,7 +93,7 @@ def test_bad_inputs(image, tmp_path, capsys):
 
 def test_unwritable_extension(image, tmp_path):
     with pytest.raises(DataError, match="cannot write an image"):
-        imagecmd.run(parse(image, "-o", tmp_path / "o.unknownext"), detector=FakeDetector())
+        imagecmd.run(parse(image, "-o", tmp_path / "o.unknownext"), detector=FAKE)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.png"]
 
 

@@ -9,16 +9,15 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from scipy import ndimage
 
 from fastdet.cli import video
 from fastdet.cli.main import build_parser
 from fastdet.config import HeatConfig, TrackerConfig
-from fastdet.detections import Detections
 from fastdet.errors import FastdetError
 from fastdet.eval.metrics import evaluate
 from fastdet.io.motfiles import GroundTruth, read_predictions
 from fastdet.video.pipeline import VideoDetector, iter_video_detections
+from tests.fakes import BlobsDetector
 
 W, H = 480, 240
 HEAT = HeatConfig(n_frames=1, threshold=8.0, min_width=20, min_height=20)
@@ -55,30 +54,6 @@ def write_video(path: Path, n: int, merge: bool = False) -> Path:
         w.write(frame_of(i, merge))
     w.release()
     return path
-
-
-class BlobsDetector:
-    """A WindowDetector: five windows (heat 2.5 each) around every connected bright region."""
-
-    score_kind = "decision"
-    wide_model = None
-
-    def warmup(self) -> None:
-        pass
-
-    def geometries(self, frame_shape, part=0):
-        return []
-
-    def detect(self, frame, rgb=False, wide_bands=None, stats=None) -> Detections:
-        labels, _ = ndimage.label(frame.max(axis=2) > 200)
-        boxes = []
-        for sl in ndimage.find_objects(labels):
-            y1, y2, x1, x2 = sl[0].start, sl[0].stop, sl[1].start, sl[1].stop
-            for dx, dy in ((0, 0), (4, 0), (-4, 0), (0, 4), (0, -4)):
-                boxes.append([x1 + dx, y1 + dy, x2 + dx, y2 + dy])
-        if not boxes:
-            return Detections.empty()
-        return Detections(np.array(boxes, np.int32), np.full(len(boxes), 1.0, np.float32))
 
 
 def iou(a, b) -> float:
@@ -164,7 +139,8 @@ def test_two_touching_cars_keep_two_boxes_and_two_ids():
 
 def test_iter_video_detections_offline_yields_every_frame(clip):
     live = list(iter_video_detections(clip, detector=BlobsDetector(), progress=False, heat=HEAT, refine=False))
-    off = list(iter_video_detections(clip, detector=BlobsDetector(), progress=False, heat=HEAT, refine=False, offline=True))
+    off = list(iter_video_detections(clip, detector=BlobsDetector(), progress=False, heat=HEAT, refine=False,
+                                     offline=True))
     assert [f for f, _ in off] == [f for f, _ in live] == list(range(1, 25))
     for (_, a), (_, b) in zip(live, off):  # nothing to fill on a clean clip
         assert a.ids.tolist() == b.ids.tolist()

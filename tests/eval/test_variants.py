@@ -133,7 +133,7 @@ def test_recall_by_width_matches_evaluate():
                         np.array([[0, 0, 50, 30], [300, 0, 420, 60], [100, 0, 190, 40]], float), np.ones(3))
     bins = recall_by_width(gt, preds, frame_rows=720)
     assert [(b.label, b.found, b.total) for b in bins] == [("40-60", 1, 2), ("60-80", 0, 1), ("80-100", 1, 1),
-                                                          ("100+", 1, 1)]
+                                                          (">=100", 1, 1)]
     assert sum(b.found for b in bins) == evaluate(gt, preds).tp
     # the same boxes in a 360-row frame are twice as wide in reference pixels
     bins = recall_by_width(gt, preds, frame_rows=360)
