@@ -4,7 +4,7 @@ Numba cold / warm start of ``Detector().detect``.
 Run::
 
     python -m pytest benchmarks/bench_detector.py --benchmark-only
-    python -m tools.bench_report                 # the same figures as markdown tables
+    python -m tools.studies.bench_report                 # the same figures as markdown tables
 
 Frames: ``test_images/*.jpg`` (six 1280x720 dashcam frames). Model and search are the same
 for both pipelines: the bundled main model (``fastdet.model.load_model()``) and the default
@@ -64,7 +64,7 @@ CLASSIC_FRAME = "test1.jpg"
 
 
 # --------------------------------------------------------------------------------------
-# helpers (also used by tools/bench_report.py)
+# helpers (also used by tools/studies/bench_report.py)
 # --------------------------------------------------------------------------------------
 def load_frames(data: Path | None = None) -> dict[str, np.ndarray]:
     """``{name: frame}`` for ``test_images/*.jpg`` (BGR uint8), sorted by name."""

@@ -4,7 +4,7 @@ Numba start-up cost.
 Run::
 
     python -m pytest benchmarks/bench_hog.py --benchmark-only
-    python -m tools.bench_hog_report             # the same figures as a markdown table
+    python -m tools.studies.bench_hog_report             # the same figures as a markdown table
 
 The band is the 1280x256 ROI ``y in [400, 656)`` of ``test_images/test1.jpg`` in LUV; all
 three channels, 9 orientations, 8x8-pixel cells, 2x2-cell blocks:
@@ -18,7 +18,7 @@ three channels, 9 orientations, 8x8-pixel cells, 2x2-cell blocks:
 
 Detector bands: ``hog_channels(..., exact=False)`` (the detector's HOG) on the 7 scaled
 YCrCb bands the default ``Detector()`` feeds it for test1.jpg (16 orientations, 2x2-cell
-blocks), at 1 thread; ``python -m tools.hog_profile`` splits this into cell histograms and
+blocks), at 1 thread; ``python -m tools.studies.hog_profile`` splits this into cell histograms and
 block normalisation and compares it with another git revision.
 
 Start-up: a fresh interpreter imports fastdet and calls ``hog_channels`` once, with
@@ -52,7 +52,7 @@ REPO = Path(__file__).resolve().parent.parent
 
 
 # --------------------------------------------------------------------------------------
-# helpers (also used by tools/bench_hog_report.py)
+# helpers (also used by tools/studies/bench_hog_report.py)
 # --------------------------------------------------------------------------------------
 def load_roi(data: Path | None = None) -> np.ndarray:
     """The search band of test1.jpg in LUV, ``(256, 1280, 3)`` uint8, C-contiguous."""
@@ -196,7 +196,7 @@ def test_skimage_hog(benchmark, roi):
 
 def band_images(det, frame: np.ndarray) -> list[np.ndarray]:
     """The scaled, colour-converted band images ``det.detect(frame)`` runs HOG on (also used
-    by tools/hog_profile.py)."""
+    by tools/studies/hog_profile.py)."""
     import fastdet.detect.detector as detector_module
 
     seen = []

@@ -3,7 +3,7 @@
 Run::
 
     python -m pytest benchmarks/bench_opencv.py --benchmark-only
-    python -m tools.bench_report --only opencv        # the same figures as a markdown table
+    python -m tools.studies.bench_report --only opencv        # the same figures as a markdown table
 
 What is compared, on the six ``test_images/*.jpg`` 1280x720 frames (cycled, one per call):
 

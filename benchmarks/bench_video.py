@@ -3,7 +3,7 @@
 Run::
 
     python -m pytest benchmarks/bench_video.py --benchmark-only
-    python -m tools.bench_report --only video    # the same figures as a markdown table
+    python -m tools.studies.bench_report --only video    # the same figures as a markdown table
 
 Each case runs the CLI in a fresh process with ``NUMBA_NUM_THREADS`` = 1 or 2, on
 ``videos/test_video.mp4`` (38 frames) or ``videos/test_small1.mp4`` (88 frames), both
@@ -50,7 +50,7 @@ _STAGE = re.compile(r"^(\S[^\n]*?)\s{2,}([\d.]+)\s{2}(reader|main|writer|\d+ ban
 
 
 # --------------------------------------------------------------------------------------
-# helpers (also used by tools/bench_report.py)
+# helpers (also used by tools/studies/bench_report.py)
 # --------------------------------------------------------------------------------------
 def video_args(clip: Path, mode: str, out_dir: Path, frames: int | None = None) -> list[str]:
     """Arguments after ``python -m fastdet``."""

@@ -37,7 +37,7 @@ from .io.atomic import atomic_path
 FORMAT_VERSION = 1
 CLASSIFIERS = ("linearsvc", "logreg")
 DEFAULT_MODEL_PATH = Path(__file__).resolve().parent / "models" / "default.npz"
-#: the bundled wide-window model for oncoming traffic above the median (``tools/oncoming_model.sh``)
+#: the bundled wide-window model for oncoming traffic above the median (``tools/scripts/oncoming_model.sh``)
 ONCOMING_MODEL_PATH = Path(__file__).resolve().parent / "models" / "oncoming.npz"
 _ARRAYS = ("coef", "intercept", "mean", "scale", "metadata")
 

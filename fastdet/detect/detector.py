@@ -12,7 +12,7 @@ Training crops are 64x64 images whose HOG has zeroed gradients on the crop's bor
 the band, a window's edge pixels see their real neighbours. So search features differ from
 training features in the outermost pixel ring: the classic pipeline has the same mismatch,
 and it is what HOG sub-sampling buys its speed with. Measured on the test images
-(``tools/crop_vs_band.py``): band decision values are about 1.1 higher than those of the same
+(``tools/studies/crop_vs_band.py``): band decision values are about 1.1 higher than those of the same
 windows as crops, and the sign differs on 0.6% of windows.
 """
 from __future__ import annotations

@@ -17,7 +17,7 @@ geometric steps, applied in order:
 - :class:`Mirror`: flipped left-right (traffic on the other side of the road).
 
 Re-encoding (``Variant.codec``) changes pixels only; the tool that runs the suite
-(``tools/camera_shift.py``) does it, since it needs an encoder.
+(``tools/studies/camera_shift.py``) does it, since it needs an encoder.
 
 Ground-truth rules (:func:`transform_gt`), the annotation rules of ``../shared/data``
 re-applied to the transformed picture:
@@ -188,7 +188,7 @@ class Variant:
     """A named camera shift: geometric ``steps`` applied in order, then an optional re-encode.
 
     codec: ``None``, ``'x264'`` (libx264 at ``crf``) or ``'mp4v'`` (OpenCV's MPEG-4 writer);
-        applied by whoever writes the frames (``tools/camera_shift.py``), not here.
+        applied by whoever writes the frames (``tools/studies/camera_shift.py``), not here.
     """
 
     name: str

@@ -55,7 +55,7 @@ from ..features import extract_features
 from ..model import read_npz, write_npz
 
 FORMAT_VERSION = 1
-#: the bundled regressor (``tools/refine_eval.py --ship``)
+#: the bundled regressor (``tools/scripts/refine_model.py``)
 REFINE_MODEL_PATH = Path(__file__).resolve().parents[1] / "models" / "refine.npz"
 _ARRAYS = ("coef", "intercept", "mean", "scale", "metadata")
 #: the regressor's default features: HOG of the luma channel (9 orientations, 8-px cells) and

@@ -227,7 +227,7 @@ def test_shipped_regressor_loads_and_tightens_boxes(data: Path) -> None:
 def test_cross_clip_regressor_tightens_held_out_boxes(data: Path) -> None:
     """A regressor fitted on test_video + the test images, never on test_small1, does not
     lower the IoU of boxes about test_small1's vehicles (it raises it)."""
-    from tools.refine_eval import annotated, fit_box_regressor, test_images
+    from tools.scripts.refine_model import annotated, fit_box_regressor, test_images
 
     frames, gt = _clip(data, "test_video")
     spec = BoxFeatures(REFINE_FEATURES, (1.5,))

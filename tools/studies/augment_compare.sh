@@ -5,7 +5,7 @@
 # x264 CRF 18 (imageio-ffmpeg's binary; copies under $TMPDIR, never the repo), the same with
 # --no-oncoming, and the camera-shift suite on variants original, cut_right12, cut_right25,
 # mirror, x264, mp4v, mjpg (pooled rows; JSON per model in the work folder).
-# Usage: bash tools/augment_compare.sh WORK_DIR MODEL.npz [MODEL.npz ...]
+# Usage: bash tools/studies/augment_compare.sh WORK_DIR MODEL.npz [MODEL.npz ...]
 set -euo pipefail
 D=${FASTDET_DATA:-../shared/data}
 W=$1; shift
@@ -51,6 +51,6 @@ for M in "$@"; do
     one mjpg "$G" "$COPIES/test_small1.mjpg.avi" "$M" $extra
     one x264 "$G" "$COPIES/test_small1.x264.mp4" "$M" $extra
   done
-  python -m tools.camera_shift --variants original,cut_right12,cut_right25,mirror,x264,mp4v,mjpg \
+  python -m tools.studies.camera_shift --variants original,cut_right12,cut_right25,mirror,x264,mp4v,mjpg \
     --model "$M" --json "$W/camera_shift.$name.json" 2>/dev/null | grep -E "^\| (variant|[a-z0-9_]+ \| (test_small1|all)) "
 done

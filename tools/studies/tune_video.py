@@ -17,7 +17,7 @@ for none; VideoDetector then keeps the wide windows that moved enough, which are
 windows of the narrowed search, with the same scores to 1e-6 (``tests/video/test_motion.py``
 checks both).
 
-    python -m tools.tune_video [--model M.npz] [--wide W.npz | --wide bundled] [--thr 0,0.5,1] ...
+    python -m tools.studies.tune_video [--model M.npz] [--wide W.npz | --wide bundled] [--thr 0,0.5,1] ...
 """
 from __future__ import annotations
 

@@ -5,7 +5,7 @@ narrower than ``--max-width``), writes ``--jitter`` crops: the box's centre and 
 small random shifts and scale changes, the window's aspect ratio (``--height`` of 64), resized
 to 64 x height. ``fastdet train --positives DIR`` then adds them as vehicles. Usage::
 
-    python tools/gt_crops.py CLIP.mp4 CLIP.gt.txt OUT_DIR --frames 1 66 --height 24
+    python -m tools.scripts.gt_crops CLIP.mp4 CLIP.gt.txt OUT_DIR --frames 1 66 --height 24
 """
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ import numpy as np
 from fastdet.io.motfiles import read_gt
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("video", type=Path)
     ap.add_argument("gt", type=Path)
@@ -28,7 +28,7 @@ def main() -> None:
     ap.add_argument("--max-width", type=float, default=100.0)
     ap.add_argument("--jitter", type=int, default=8, help="crops per box (the first unjittered)")
     ap.add_argument("--seed", type=int, default=0)
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     gt = read_gt(args.gt)
     args.out.mkdir(parents=True, exist_ok=True)
     cap = cv2.VideoCapture(str(args.video))  # a video, or an image sequence such as test%d.jpg

@@ -4,11 +4,11 @@ Every row runs a detector over every frame of every annotated clip in
 ``$FASTDET_DATA/annotations`` and evaluates at IoU 0.5 exactly as ``python -m fastdet
 eval`` does. Each detector's windows are cached once per clip, then every row runs the real
 ``fastdet.VideoDetector`` over the clip with the row's settings on those windows
-(``tools/tune_video.py``: ``cache_windows``, ``replay``); the defaults row runs
+(``tools/studies/tune_video.py``: ``cache_windows``, ``replay``); the defaults row runs
 ``iter_video_detections``, the code behind ``python -m fastdet video``. Usage (from the
 project root)::
 
-    python -m tools.accuracy_report --classic-model classic.npz
+    python -m tools.studies.accuracy_report --classic-model classic.npz
 
 ``classic.npz``: ``python -m fastdet train --classifier linearsvc --C 1 --orientations 9
 --no-flip --out classic.npz`` (the classic recipe). Scores of the classic per-window
@@ -26,7 +26,7 @@ from fastdet.data import data_dir
 from fastdet.eval import evaluate
 from fastdet.io.motfiles import Predictions, read_gt
 from fastdet.video import iter_video_detections, make_detector
-from tools.tune_video import cache_windows, replay
+from tools.studies.tune_video import cache_windows, replay
 
 #: the classic write-ups' heat map: +1 per positive window, summed over 8 frames, threshold
 #: 6, the whole blob, boxes < 40 px wide or taller than 1.5 x width dropped. HeatMap keeps

@@ -2,7 +2,8 @@
 
 For each held-out clip E of ``$FASTDET_DATA`` (``test_small1``, ``test_video``), a box
 regressor is fitted (:mod:`fastdet.train.refine`) on the annotated vehicles of the *other*
-clip and the six test images (``tools/test_images.gt.txt``) -- never on E. The default video
+clip and the six test images (``tools/test_images.gt.txt``) -- never on E
+(:mod:`tools.scripts.refine_model`, which builds the bundled regressor). The default video
 pipeline (``VideoDetector``: main + oncoming model, heat maps, tracker, horizon primed from
 the clip, as ``iter_video_detections``) runs on E (and on camera-shift variants of it,
 ``--variants``, :mod:`fastdet.eval.variants`), each frame's boxes are refined, and both are
@@ -11,12 +12,13 @@ IoU of *paired* boxes: each vehicle (``consider = 1``) paired with the pipeline 
 overlaps it most if that IoU >= 0.3 (greedy, one box per vehicle), the IoU of the same box
 with the same vehicle before and after refinement (median, fraction >= 0.5 and >= 0.7).
 
-    python -m tools.refine_eval [--clips test_small1,test_video] [--variants original,960x540,wide0.8]
+    python -m tools.studies.refine_eval [--clips test_small1,test_video] [--variants original,960x540,wide0.8]
         [--contexts 1.5] [--iterations 1] [--parts 0,1] [--per-box 16] [--hog-channels 0]
         [--cache DIR] [--json OUT.json] [--ship fastdet/models/refine.npz]
 
 ``--ship PATH`` also fits one regressor on the clips ``--ship-clips`` names (default
-``test_video``) and the six test images, and writes it to PATH. The bundled
+``test_video``) and the six test images (:mod:`tools.scripts.refine_model`), and writes it to
+PATH with this run's measurement in its metadata. The bundled
 ``fastdet/models/refine.npz`` is fitted that way, never on ``test_small1``: it is exactly the
 regressor that ``--clips test_small1`` measures held out, and ``eval`` on ``test_small1``
 stays a held-out figure (on ``test_video`` it is in-sample). Pipeline boxes are cached under ``--cache`` (default
@@ -35,55 +37,25 @@ import time
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 
-from fastdet.config import FeatureConfig
 from fastdet.data import data_dir
 from fastdet.detections import Detections
 from fastdet.eval import evaluate
 from fastdet.eval.variants import Variant, standard_variants, transform_gt
 from fastdet.io.motfiles import GroundTruth, Predictions, read_gt
-from fastdet.train.refine import JitterConfig, Samples, collect_samples, fit_ridge, paired_iou
+from fastdet.train.refine import paired_iou
 from fastdet.video.pipeline import VideoDetector, make_detector
-from fastdet.video.refine import BoxFeatures, BoxRegressor, RefineConfig, refine
+from fastdet.video.refine import BoxRegressor, RefineConfig, refine
+from tools.scripts.refine_model import (CLIPS, add_feature_arguments, check_clips, clip_vehicles, fit_box_regressor,
+                                        samples, spec_of)
 
 from .camera_shift import read_frames, variant_frames
-
-CLIPS = ("test_small1", "test_video")
-TEST_IMAGES_GT = Path(__file__).resolve().parent / "test_images.gt.txt"
-
-
-# ---------------------------------------------------------------------------------------- data
-
-
-def annotated(frames: list[np.ndarray], gt: GroundTruth,
-              group_base: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """``(frame, vehicle boxes (M, 4), groups (M,))`` of every frame with a ``consider = 1`` box."""
-    out = []
-    for f in np.unique(gt.frames[gt.consider]):
-        sel = (gt.frames == f) & gt.consider
-        if 1 <= f <= len(frames):
-            out.append((frames[int(f) - 1], gt.boxes[sel], group_base + gt.ids[sel]))
-    return out
-
-
-def test_images() -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    gt = read_gt(TEST_IMAGES_GT)
-    imgs = [cv2.imread(str(data_dir() / "test_images" / f"test{i}.jpg")) for i in range(1, 7)]
-    return annotated(imgs, gt, 900_000)  # ids are unique over the six images
 
 
 def clip_data(clip: str) -> tuple[list[np.ndarray], GroundTruth]:
     root = data_dir()
     return read_frames(root / "videos" / f"{clip}.mp4"), read_gt(root / "annotations" / f"{clip}.gt.txt")
-
-
-def fit_box_regressor(samples: Samples, spec: BoxFeatures, metadata: dict[str, Any] | None = None) -> BoxRegressor:
-    """:func:`fastdet.train.refine.fit_ridge` on ``samples`` (made with ``spec``), as a
-    regressor whose metadata holds the fit's report (``"fit"``) and ``metadata``."""
-    arrays, report = fit_ridge(samples, spec)
-    return BoxRegressor.from_fit(spec, *arrays, metadata={**(metadata or {}), "fit": report})
 
 
 # ---------------------------------------------------------------------------------------- pipeline boxes
@@ -192,15 +164,9 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--clips", default=",".join(CLIPS))
     ap.add_argument("--variants", default="original")
-    ap.add_argument("--contexts", default="1.5", help="context factors of the feature crops, comma-separated")
     ap.add_argument("--iterations", type=int, default=1)
     ap.add_argument("--parts", default=None, help="refine only these parts (0 main, 1 oncoming), e.g. 1")
-    ap.add_argument("--per-box", type=int, default=16, help="jittered samples per vehicle box (and as many mirrored)")
-    ap.add_argument("--hog-channels", default="0", help="HOG channels of YCrCb, e.g. 0 or 0,1,2")
-    ap.add_argument("--orientations", type=int, default=9)
-    ap.add_argument("--cell", type=int, default=8, help="HOG pixels per cell")
-    ap.add_argument("--spatial", type=int, default=8, help="spatial-bin side (0: none)")
-    ap.add_argument("--seed", type=int, default=0)
+    add_feature_arguments(ap)
     ap.add_argument("--cache", default=os.path.join(tempfile.gettempdir(), "fastdet_refine_eval"))
     ap.add_argument("--json", default=None)
     ap.add_argument("--ship", default=None,
@@ -210,26 +176,20 @@ def main(argv: list[str] | None = None) -> int:
                          "so that test_small1 stays held out)")
     a = ap.parse_args(argv)
 
-    fcfg = FeatureConfig(color_space="YCrCb", hog_channels=tuple(int(c) for c in a.hog_channels.split(",")),
-                         orientations=a.orientations, pixels_per_cell=a.cell, cells_per_block=2,
-                         spatial_size=a.spatial, hist_bins=0)
-    contexts = tuple(float(c) for c in a.contexts.split(","))
-    spec = BoxFeatures(fcfg, contexts)
+    spec = spec_of(a)
+    fcfg, contexts = spec.config, spec.contexts
     rcfg = RefineConfig(iterations=a.iterations,
                         parts=None if a.parts is None else tuple(int(p) for p in a.parts.split(",")))
-    jitter = JitterConfig(per_box=a.per_box)
     clips = [c for c in a.clips.split(",") if c]
     by_name = {v.name: v for v in standard_variants()}
     variants: list[Variant] = [by_name[n] for n in a.variants.split(",") if n]
     cache = Path(a.cache)
 
     data = {c: clip_data(c) for c in CLIPS}
-    imgs = test_images()
-    train_frames = {c: annotated(data[c][0], data[c][1], 1000 * (k + 1)) for k, c in enumerate(CLIPS)}
+    train_frames = {c: clip_vehicles(c, data[c]) for c in CLIPS}
 
-    def samples_for(names: list[str]) -> Samples:
-        src = [fr for n in names for fr in train_frames[n]] + imgs
-        return collect_samples(src, spec, seed=a.seed, jitter=jitter)
+    def samples_for(names: list[str]):
+        return samples([fr for n in names for fr in train_frames[n]], spec, a.seed, a.per_box)
 
     det = make_detector()
     rows: list[dict[str, Any]] = []
@@ -263,13 +223,11 @@ def main(argv: list[str] | None = None) -> int:
                       f"\n[{clip} {v.name}] refinement {ms:.2f} ms/frame ({nbox:.2f} boxes/frame)", flush=True)
     if a.ship:
         ship_clips = [c for c in a.ship_clips.split(",") if c]
-        unknown = sorted(set(ship_clips) - set(CLIPS))
-        if unknown:
-            raise SystemExit(f"refine_eval: error: unknown clip(s) {unknown}; choose from {list(CLIPS)}")
+        check_clips(ship_clips)
         smp = samples_for(ship_clips)
         reg = fit_box_regressor(smp, spec, metadata={
             "trained_on": ship_clips + ["test_images"], "settings": settings,
-            "command": "python -m tools.refine_eval " + " ".join(argv if argv is not None else sys.argv[1:]),
+            "command": "python -m tools.studies.refine_eval " + " ".join(argv if argv is not None else sys.argv[1:]),
             "held_out": rows})
         reg.save(a.ship)
         print(f"wrote {a.ship}: fitted on {'+'.join(ship_clips)}+test_images, alpha {reg.metadata['fit']['alpha']:g}")

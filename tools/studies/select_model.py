@@ -3,7 +3,7 @@
 For each FeatureConfig in the grid, features are extracted once (plus mirrored copies for
 the training parts); each classifier/C is fitted on the training part of the leak-free
 sequence split and of the random split and scored on the test parts. Prints a markdown
-table. Usage: ``python tools/select_model.py [--quick]``.
+table. Usage: ``python -m tools.studies.select_model [--quick]``.
 """
 from __future__ import annotations
 

@@ -1,6 +1,7 @@
 """Print the detector, video and start-up benchmarks as markdown tables (the README figures).
 
-    python -m tools.bench_report [--quick] [--only detector|opencv|wait-policy|video|start-up ...] [--wide W.npz]
+    python -m tools.studies.bench_report [--quick] [--wide W.npz]
+        [--only detector|opencv|wait-policy|video|start-up ...]
 
 All figures are measured in this one run (setups as in ``benchmarks/bench_detector.py`` and
 ``benchmarks/bench_video.py``):
@@ -55,7 +56,7 @@ NOISY = 1.25  # median / best above this: flagged as noisy
 
 
 def this_command(args: argparse.Namespace, section: str) -> str:
-    cmd = ["python", "-m", "tools.bench_report", "--only", section]
+    cmd = ["python", "-m", "tools.studies.bench_report", "--only", section]
     if args.quick:
         cmd.append("--quick")
     if args.wide and section == "detector":

@@ -5,13 +5,15 @@
 # behind the median barrier. It uses no frame of the annotated clips:
 # - positives: the vehicle crops' rows 12..36, plus the three oncoming cars that
 #   tools/test_images.gt.txt marks in the six test images (hand-annotated for fastdet),
-#   40 jittered crops each (tools/gt_crops.py);
+#   40 jittered crops each (tools/scripts/gt_crops.py);
 # - negatives: the non-vehicle crops' row bands, sub-windows of them at the wide search's
-#   small scales (tools/zoom_negatives.py), and two rounds of hard negatives mined on the
+#   small scales (tools/scripts/zoom_negatives.py), and two rounds of hard negatives mined on the
 #   left half of the test images outside every annotated box.
-# Usage: bash tools/oncoming_model.sh [WORK_DIR] [OUT.npz]
+# Usage (from the repository root): bash tools/scripts/oncoming_model.sh [WORK_DIR] [OUT.npz]
 # ONCOMING_TRAIN_ARGS (environment): extra options of every `fastdet train` here, e.g.
 # "--reencode 0.5" (they replace nothing: a later --C wins over the one below).
+# ONCOMING_ZOOM_ARGS (environment): extra options of zoom_negatives, e.g. "--limit 50" (the
+# smoke test runs the whole script on a few crops that way).
 set -euo pipefail
 D=${FASTDET_DATA:-../shared/data}
 W=${1:-/tmp/fastdet-oncoming}
@@ -25,11 +27,18 @@ mine() {  # model out-dir
   python -m fastdet mine-negatives "$IMG" --gt "$G" --out "$2" --part wide --wide-model "$1" \
     --threshold -0.5 --x-range 0 660 --y-range 380 520 --no-progress
 }
-python tools/gt_crops.py "$IMG" "$G" "$W/pos" --height 24 --jitter 40
-python tools/zoom_negatives.py "$W/zoom"
+negatives() {  # NEG: --negatives DIR for each DIR given that holds crops (a mining round may find none)
+  NEG=()
+  for d in "$@"; do
+    if compgen -G "$d/*.png" > /dev/null; then NEG+=(--negatives "$d"); fi
+  done
+}
+python -m tools.scripts.gt_crops "$IMG" "$G" "$W/pos" --height 24 --jitter 40
+python -m tools.scripts.zoom_negatives "$W/zoom" ${ONCOMING_ZOOM_ARGS:-}
 python -m fastdet train $T --positives "$W/pos" --out "$W/w0.npz"
 mine "$W/w0.npz" "$W/neg0"
-python -m fastdet train $T --positives "$W/pos" --negatives "$W/neg0" --out "$W/w1.npz"
+negatives "$W/neg0"
+python -m fastdet train $T --positives "$W/pos" "${NEG[@]}" --out "$W/w1.npz"
 mine "$W/w1.npz" "$W/neg1"
-python -m fastdet train $T --positives "$W/pos" --negatives "$W/neg0" --negatives "$W/neg1" \
-  --negatives "$W/zoom" --out "$OUT"
+negatives "$W/neg0" "$W/neg1" "$W/zoom"
+python -m fastdet train $T --positives "$W/pos" "${NEG[@]}" --out "$OUT"

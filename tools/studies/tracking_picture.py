@@ -1,6 +1,6 @@
 """The README's tracking picture: one frame of a clip with each vehicle's id and trail.
 
-    python tools/tracking_picture.py [--video ../shared/data/videos/test_small1.mp4]
+    python -m tools.studies.tracking_picture [--video ../shared/data/videos/test_small1.mp4]
         [--frame 86] [--crop 0,360,1100,520] [--out docs/tracking.jpg]
 
 Runs the default video pipeline (tracker on) up to ``--frame`` (1-based), draws that

@@ -1,6 +1,6 @@
 """Print the HOG benchmark as a markdown table (the figures in the README).
 
-    python -m tools.bench_hog_report [--repeat 30] [--no-start-up]     (from the project root)
+    python -m tools.studies.bench_hog_report [--repeat 30] [--no-start-up]     (from the project root)
 
 Times the 1280x256 LUV search band of test_images/test1.jpg, 3 channels, 9 orientations,
 8x8 cells, 2x2 blocks (see benchmarks/bench_hog.py for the exact setup): fastdet's

@@ -1,4 +1,4 @@
-"""tools/tune_video.py replays the real VideoDetector: its boxes over cached windows are the
+"""tools/studies/tune_video.py replays the real VideoDetector: its boxes over cached windows are the
 boxes (and track ids) of the video pipeline itself with the full search (``--full-search``:
 the cache holds every window of every band; the tracking-guided search scores a subset)."""
 from __future__ import annotations
@@ -13,7 +13,7 @@ from fastdet.config import WIDE_HEAT, WIDE_SEARCH
 from fastdet.io.motfiles import Predictions
 from fastdet.io.reader import FrameReader
 from fastdet.video import iter_video_detections, make_detector
-from tools.tune_video import cache_windows, replay
+from tools.studies.tune_video import cache_windows, replay
 
 pytestmark = pytest.mark.slow  # each runs the video pipeline over a clip twice
 

@@ -1,6 +1,6 @@
 """HOG and ``Detector.detect`` time, this working tree against another git revision, interleaved.
 
-    python -m tools.hog_profile [--against HEAD] [--rounds 15] [--frames 6]
+    python -m tools.studies.hog_profile [--against HEAD] [--rounds 15] [--frames 6]
 
 The HOG kernels of ``--against`` (``fastdet/features/_hog.py`` and ``_hog_kernels.py`` as
 committed there) are loaded beside the working tree's as a separate module; then, in one

@@ -12,7 +12,7 @@ heat maps and tracker, the horizon estimated from the clip's first frames as
 recall / false positives per frame per variant per clip, and recall by box width in
 reference (1280x720) pixels.
 
-    python -m tools.camera_shift [--variants original,960x540,...] [--clips test_small1]
+    python -m tools.studies.camera_shift [--variants original,960x540,...] [--clips test_small1]
         [--json OUT.json] [--cache DIR --tag NAME] [--heat split_gap=0.5 ...]
         [--horizon auto|reference|oracle] [--band S,Y0,Y1[,X0,X1]] [--border F] [--no-oncoming]
         [--model MAIN.npz] [--oncoming-model WIDE.npz]
