@@ -190,6 +190,9 @@ def _default_bands() -> tuple[SearchBand, ...]:
     )
 
 
+#: size ``(H, W)`` of the frames the default bands are written for (the Udacity clips)
+REFERENCE_SHAPE = (720, 1280)
+
 #: horizon row of the frames the default bands are written for (the Udacity clips, 1280x720),
 #: a fraction of the frame height: 421 px, the median focus of expansion of their optical flow
 #: (:mod:`fastdet.video.horizon`; their lane lines meet at about 419 px)
@@ -317,6 +320,35 @@ def wide_search(traffic: Literal["right", "left", "both"] = "right") -> SearchCo
 #: :class:`~fastdet.VideoDetector` narrows it each frame to where the picture moves
 #: (:class:`MotionGate`).
 WIDE_SEARCH = wide_search("right")
+
+
+#: the side-view component's windows: 64 x 32 px (:data:`fastdet.train.components.SIDE_RECIPE`)
+SIDE_WINDOW = (64, 32)
+#: window widths of the side-view component's bands, in 64-px units at the reference frame
+#: (80 .. 448 px of 1280: parked cars seen from the side, close cars at an angle)
+SIDE_SCALES = (1.25, 1.75, 2.5, 3.5, 5.0, 7.0)
+
+
+def _side_bands(scales: tuple[float, ...] = SIDE_SCALES, slack: float = 0.05) -> tuple[SearchBand, ...]:
+    # A vehicle seen from the side with its top near the horizon (the camera about as high as
+    # the vehicle) and its bottom about its height below: each window size is searched from
+    # 0.45 to 1.15 window heights around the reference horizon, plus ``slack`` x H above and
+    # below for cameras whose horizon or height differs.
+    rows, hz = REFERENCE_SHAPE[0], REFERENCE_HORIZON * REFERENCE_SHAPE[0]
+    out = []
+    for s in scales:
+        h = SIDE_WINDOW[1] * s
+        y1 = min(rows, int(hz + 1.15 * h + slack * rows))
+        y0 = max(0, min(int(hz - 0.45 * h - slack * rows), y1 - int(-(-h // 1))))
+        out.append(SearchBand(s, y0, y1))
+    return tuple(out)
+
+
+def side_search() -> SearchConfig:
+    """The default search of the side-view component (:class:`fastdet.Detector`
+    ``components=``): :data:`SIDE_SCALES` over the whole width, a window two HOG cells from
+    the next, positive above decision value 0 (probability 0.5)."""
+    return SearchConfig(bands=_side_bands(), cells_per_step=2, threshold=0.0)
 
 
 @dataclass(frozen=True)
@@ -529,6 +561,11 @@ class HeatConfig:
 #: peak heat, wider than tall
 WIDE_HEAT = HeatConfig(n_frames=1, threshold=8.0, extent=0.3, box_mode="extent", split_gap=0.5, min_height=10,
                        max_aspect=0.8)
+
+
+#: heat map of the side-view component's windows (VideoDetector): the main heat map's memory
+#: and threshold, boxes wider than tall; its boxes join the main ones where those found nothing
+SIDE_HEAT = HeatConfig(max_aspect=1.0, min_height=10)
 
 
 @dataclass(frozen=True)
