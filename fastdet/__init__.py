@@ -21,17 +21,22 @@ import os
 from typing import TYPE_CHECKING, Any
 
 # numba's OpenMP workers busy-wait between parallel regions by default; on 2 cores shared with
-# the video reader/writer threads (or anything else) that spinning cost 5-8x in throughput.
-# Sleeping workers fix it (10 fps instead of 65 with `video --boxes` while other jobs ran). Set
-# here, before any submodule can load numba's OpenMP layer; a user's own setting wins.
+# the video reader/writer threads (or anything else) that spinning takes the cores the others
+# need, so the workers sleep instead (docs/benchmarks.md, *OpenMP wait policy*). Set here,
+# before any submodule can load numba's OpenMP layer; a user's own setting wins.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 from ._version import __version__
-from .config import FeatureConfig, HeatConfig, MotionGate, SearchBand, SearchConfig, TrackerConfig
-from .detections import Detections
 from .errors import DataError, FastdetError, ModelError
 
 if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers and IDEs
+    from .config import FeatureConfig as FeatureConfig
+    from .config import HeatConfig as HeatConfig
+    from .config import MotionGate as MotionGate
+    from .config import SearchBand as SearchBand
+    from .config import SearchConfig as SearchConfig
+    from .config import TrackerConfig as TrackerConfig
+    from .detections import Detections as Detections
     from .detect import Detector as Detector
     from .features import extract_features as extract_features
     from .features import hog as hog
@@ -42,7 +47,16 @@ if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers and
     from .video import HeatMap as HeatMap
     from .video import VideoDetector as VideoDetector
 
+# everything that imports NumPy is lazy: ``python -m fastdet`` imports this package before
+# its first line of its own runs, and installs its stop-signal handlers right after
 _LAZY = {
+    "FeatureConfig": "fastdet.config",
+    "HeatConfig": "fastdet.config",
+    "MotionGate": "fastdet.config",
+    "SearchBand": "fastdet.config",
+    "SearchConfig": "fastdet.config",
+    "TrackerConfig": "fastdet.config",
+    "Detections": "fastdet.detections",
     "hog": "fastdet.features",
     "hog_channels": "fastdet.features",
     "hog_channels_batch": "fastdet.features",
@@ -54,11 +68,7 @@ _LAZY = {
     "Model": "fastdet.model",
 }
 
-__all__ = [
-    "__version__", "FeatureConfig", "HeatConfig", "MotionGate", "SearchBand", "SearchConfig", "TrackerConfig",
-    "Detections",
-    "FastdetError", "ModelError", "DataError", *_LAZY,
-]
+__all__ = ["__version__", "FastdetError", "ModelError", "DataError", *_LAZY]
 
 
 def __getattr__(name: str) -> Any:

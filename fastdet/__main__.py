@@ -1,6 +1,31 @@
-"""``python -m fastdet`` → :func:`fastdet.cli.main`."""
+"""``python -m fastdet`` -> :func:`fastdet.cli.main.main`.
+
+A stop signal (Ctrl-C, SIGTERM, SIGHUP) that comes while the command's modules are still
+being imported -- before the dispatcher installs its handlers -- ends the process with one
+line and status 128 + the signal, not a ``KeyboardInterrupt`` traceback: nothing has been
+written yet.
+"""
+import os
+import signal
 import sys
 
-from .cli.main import main
 
-sys.exit(main())
+def _early_stop(signum: int, frame: object) -> None:
+    try:
+        os.write(2, f"fastdet: interrupted ({signal.Signals(signum).name}) while starting\n".encode())
+    finally:
+        os._exit(128 + signum)
+
+
+def run() -> int:
+    """The console script's and ``python -m fastdet``'s entry point."""
+    for s in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None)):
+        if s is not None and signal.getsignal(s) in (signal.default_int_handler, signal.SIG_DFL):
+            signal.signal(s, _early_stop)
+    from .cli.main import main
+
+    return main()
+
+
+if __name__ == "__main__":
+    sys.exit(run())

@@ -261,8 +261,8 @@ class SearchConfig:
             if y1 > y0 and ((y0, y1) == (a, z) or y1 - y0 >= 64 * b.scale * fy):
                 bands.append(SearchBand(b.scale * fy, y0, y1, col(b.x_start), col(b.x_stop)))
         if not bands:
-            raise ValueError(f"the horizon at {self.horizon:g} of the height leaves no search band "
-                             f"in a {w}x{h} frame")
+            where = f"the horizon at {self.horizon:g} of the height" if moved else "the frame size"
+            raise ValueError(f"{where} leaves no search band in a {w}x{h} frame")
         return replace(self, bands=tuple(bands), reference_shape=None, horizon=None)
 
     def __post_init__(self) -> None:

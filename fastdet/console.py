@@ -4,6 +4,8 @@
   the CLI chose a command, ``fastdet COMMAND`` (:func:`set_prog`); with ``once=KEY`` a
   note is printed only the first time in a process (the kernel-compile notice, a grey
   input).
+- :func:`status` shows a line that changes as work goes on (the kernel compile's
+  progress): rewritten in place on a terminal; elsewhere only its final state is printed.
 - :func:`quiet_native_stderr` silences what C libraries write straight to file descriptor 2
   (libjpeg's "Premature end of JPEG file", FFmpeg's encoder list for an unknown codec)
   for the duration of a call: fastdet reports those cases itself, in one line.
@@ -59,6 +61,19 @@ def note(message: str, once: str | None = None) -> None:
     try:
         print(f"{_prog}: {message}", file=sys.stderr, flush=True)
     except (OSError, ValueError):  # stderr closed (a hung-up terminal): nothing to tell
+        pass
+
+
+def status(message: str, final: bool = False) -> None:
+    """``PROG: message`` as a progress line on stderr: on a terminal each call rewrites the
+    line (``final`` ends it); elsewhere (a log, a pipe) only the ``final`` message is printed."""
+    try:
+        tty = sys.stderr.isatty()
+        if tty:
+            print(f"\r{_prog}: {message}\x1b[K", end="\n" if final else "", file=sys.stderr, flush=True)
+        elif final:
+            print(f"{_prog}: {message}", file=sys.stderr, flush=True)
+    except (OSError, ValueError):  # stderr closed: nothing to tell
         pass
 
 

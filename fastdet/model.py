@@ -158,6 +158,7 @@ def read_npz(path: Path, names: tuple[str, ...], what: str = "model",
     if magic != b"PK\x03\x04":
         raise ModelError(f"{path} is not a fastdet {what}: not an .npz (zip) archive"
                          + (" (empty file)" if not magic else ""))
+    _check_members(path, names, what)
     try:
         with np.load(path, allow_pickle=False) as npz:
             if not isinstance(npz, np.lib.npyio.NpzFile):
@@ -192,7 +193,46 @@ def read_npz(path: Path, names: tuple[str, ...], what: str = "model",
     for name in names:
         if name != "metadata" and arrays[name].dtype.kind not in "fiu":
             raise ModelError(f"{path}: '{name}' holds {arrays[name].dtype} values, expected numbers")
+        if name != "metadata" and not np.all(np.isfinite(arrays[name])):
+            raise ModelError(f"{path}: '{name}' holds values that are not finite numbers (NaN or infinity)")
     return arrays, meta
+
+
+def _check_members(path: Path, names: tuple[str, ...], what: str) -> None:
+    """Each array ``names`` of the archive has a valid ``.npy`` header of a plain dtype whose
+    shape fits the bytes stored (a header may claim any shape: reading it would allocate
+    that much before noticing). ``ModelError`` otherwise; a damaged archive is left to
+    ``np.load``'s own checks."""
+    try:
+        zf = zipfile.ZipFile(path)
+    except (zipfile.BadZipFile, OSError, EOFError, ValueError):
+        return
+    with zf:
+        for name in names:
+            try:
+                info = zf.getinfo(f"{name}.npy")
+            except KeyError:
+                continue  # reported as missing by the caller
+            try:
+                with zf.open(info) as fh:
+                    version = np.lib.format.read_magic(fh)
+                    if version == (1, 0):
+                        shape, fortran, dtype = np.lib.format.read_array_header_1_0(fh)
+                    elif version == (2, 0):
+                        shape, fortran, dtype = np.lib.format.read_array_header_2_0(fh)
+                    else:
+                        raise ValueError(f"unsupported .npy version {version}")
+                    header = fh.tell()
+            except (ValueError, OSError, EOFError, zipfile.BadZipFile, SyntaxError, TypeError) as exc:
+                raise ModelError(f"{path} is not a fastdet {what}: '{name}' is not a valid .npy array "
+                                 f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})") from None
+            if dtype.hasobject:
+                raise ModelError(f"{path} holds a pickled object array; fastdet {what}s hold plain numeric "
+                                 "arrays only and are never unpickled")
+            need = int(np.prod(shape, dtype=object)) * dtype.itemsize
+            if need > info.file_size - header:
+                raise ModelError(f"{path} is not a readable .npz {what} file: '{name}' claims shape {shape} "
+                                 f"({need} bytes) but holds {info.file_size - header} bytes")
 
 
 def load_model(path: str | os.PathLike | None = None, expected_config: FeatureConfig | None = None) -> Model:

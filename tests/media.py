@@ -134,6 +134,12 @@ def run_limited(cmd: Sequence[str], max_bytes: int, **kw) -> subprocess.Complete
                           timeout=kw.pop("timeout", 300), **kw)
 
 
+def partials_of(path: Path) -> list[Path]:
+    """The temporary files of the output ``path`` that any process is writing or left
+    (``.NAME.partial.PID-TOKEN.EXT``, :func:`fastdet.io.atomic.partial_name`)."""
+    return sorted(path.parent.glob(f".{path.stem}.partial.*{path.suffix}"))
+
+
 def leftovers(folder: Path) -> list[str]:
     """Temporary (``.partial``) files left in ``folder``."""
     return sorted(p.name for p in folder.iterdir() if ".partial" in p.name)

@@ -129,3 +129,46 @@ def test_bundled_default_model_loads():
     m = load_model()
     assert m.config == FeatureConfig()
     assert m.metadata["training"]["sequence_split"]["accuracy"] > 0.98
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_non_finite_intercept_is_refused(tmp_path, bad):
+    with pytest.raises(ModelError, match="'intercept' holds values that are not finite"):
+        load_model(_rewrite(tmp_path, intercept=np.float64(bad)))
+
+
+def test_non_finite_weight_is_refused(tmp_path):
+    coef = _model().coef.copy()
+    coef[3] = np.nan
+    with pytest.raises(ModelError, match="'coef' holds values that are not finite"):
+        load_model(_rewrite(tmp_path, coef=coef))
+
+
+def _replace_member(path, name, data: bytes):
+    import zipfile
+    with zipfile.ZipFile(path) as zf:
+        members = {i.filename: zf.read(i) for i in zf.infolist()}
+    members[name] = data
+    with zipfile.ZipFile(path, "w") as zf:
+        for k, v in members.items():
+            zf.writestr(k, v)
+    return path
+
+
+PICKLE_NONE = b"\x80\x04\x95\x05\x00\x00\x00\x00\x00\x00\x00N."
+
+
+@pytest.mark.parametrize("data", [np.random.default_rng(0).bytes(500), PICKLE_NONE], ids=["random-bytes", "pickle"])
+def test_array_member_that_is_not_npy_is_one_line(tmp_path, data):
+    p = _replace_member(_rewrite(tmp_path), "coef.npy", data)
+    with pytest.raises(ModelError, match="'coef' is not a valid .npy array"):
+        load_model(p)
+
+
+def test_npy_header_claiming_a_huge_shape_allocates_nothing(tmp_path):
+    import io
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buf, {"descr": "<f8", "fortran_order": False, "shape": (10**12,)})
+    p = _replace_member(_rewrite(tmp_path), "coef.npy", buf.getvalue() + b"\0" * 64)
+    with pytest.raises(ModelError, match=r"claims shape \(1000000000000,\)"):
+        load_model(p)

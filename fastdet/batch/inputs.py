@@ -14,6 +14,11 @@ Videos are kept in the order given (the videos of a folder or a glob sorted by p
 file once. An
 INPUT that does not exist or matches nothing raises :class:`~fastdet.errors.DataError`
 before anything runs.
+
+A batch never reads what it writes: with ``writes`` (:func:`batch_writes`), a file the batch
+writes or could write (``NAME.annotated.mp4`` and the other outputs in the output folder,
+whatever the options) found in a folder or by a glob is left out, and one named as an INPUT
+(or in a list file) is refused.
 """
 from __future__ import annotations
 
@@ -21,7 +26,7 @@ import glob
 import os
 import re
 import zlib
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 from ..errors import DataError
@@ -38,34 +43,60 @@ def is_video_name(path: str | os.PathLike) -> bool:
     return Path(path).suffix.lower() in VIDEO_EXTENSIONS
 
 
-def _folder_videos(folder: Path) -> list[Path]:
+Writes = Callable[[Path], bool]
+
+
+def batch_writes(out_dir: str | os.PathLike, suffixes: Iterable[str],
+                 names: Iterable[str | os.PathLike] = ()) -> Writes:
+    """A test ``writes(path)``: True for a file a batch into ``out_dir`` writes or could write
+    -- one in ``out_dir`` whose name ends with one of ``suffixes``, or one of ``names``
+    (the manifest, the table). Real paths are compared."""
+    out = os.path.realpath(out_dir)
+    ends = tuple(suffixes)
+    exact = {os.path.realpath(n) for n in names}
+
+    def writes(path: Path) -> bool:
+        real = os.path.realpath(path)
+        return real in exact or (os.path.dirname(real) == out and os.path.basename(real).endswith(ends))
+
+    return writes
+
+
+def _never(path: Path) -> bool:
+    return False
+
+
+def _folder_videos(folder: Path, writes: Writes = _never) -> list[Path]:
     found: list[Path] = []
     for root, dirs, files in os.walk(folder):
         dirs[:] = sorted(d for d in dirs if not d.startswith("."))
-        found.extend(Path(root) / f for f in files if not f.startswith(".") and is_video_name(f))
+        found.extend(p for p in (Path(root) / f for f in files if not f.startswith(".") and is_video_name(f))
+                     if p.is_file() and not writes(p))  # not a pipe or a device named like a video
     return sorted(found, key=lambda p: p.relative_to(folder).parts)
 
 
-def _expand_one(arg: str, base: Path | None, depth: int) -> list[Path]:
+def _expand_one(arg: str, base: Path | None, depth: int, writes: Writes = _never) -> list[Path]:
     where = f"{arg} (listed in {base})" if base is not None else arg
     p = Path(arg).expanduser()
     if base is not None and not p.is_absolute():
         p = base / p
     if p.is_dir():
-        return _folder_videos(p)
+        return _folder_videos(p, writes)
     if p.is_file():
+        if writes(p):
+            raise DataError(f"{where}: is a file this batch writes (an output in --out); it cannot be an input")
         if p.suffix.lower() in LIST_EXTENSIONS:
             if depth > 0:
                 raise DataError(f"{where}: a list file inside a list file is not supported")
-            return _read_list(p)
+            return _read_list(p, writes)
         return [p]
     if _GLOB_CHARS.search(arg):
         hits = sorted(Path(h) for h in glob.glob(str(p), recursive=True))
         videos: list[Path] = []
         for h in hits:
             if h.is_dir():
-                videos.extend(_folder_videos(h))
-            elif h.is_file() and is_video_name(h):
+                videos.extend(_folder_videos(h, writes))
+            elif h.is_file() and is_video_name(h) and not writes(h):
                 videos.append(h)
         if not videos:
             raise DataError(f"{where}: the pattern matches no video")
@@ -75,7 +106,7 @@ def _expand_one(arg: str, base: Path | None, depth: int) -> list[Path]:
     raise DataError(f"{where}: file not found")
 
 
-def _read_list(path: Path) -> list[Path]:
+def _read_list(path: Path, writes: Writes = _never) -> list[Path]:
     try:
         text = path.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError:
@@ -86,18 +117,19 @@ def _read_list(path: Path) -> list[Path]:
     for line in text.splitlines():
         line = line.strip()
         if line and not line.startswith("#"):
-            videos.extend(_expand_one(line, path.parent, 1))
+            videos.extend(_expand_one(line, path.parent, 1, writes))
     return videos
 
 
-def expand_inputs(inputs: Sequence[str]) -> list[Path]:
+def expand_inputs(inputs: Sequence[str], writes: Writes = _never) -> list[Path]:
     """The video files named by ``inputs`` (see the module docstring): absolute paths, in
-    order, each file once. :class:`DataError` for an input that names nothing, or when
-    there is no video at all."""
+    order, each file once; files that ``writes`` says the batch writes are left out of
+    folders and globs and refused when named. :class:`DataError` for an input that names
+    nothing, or when there is no video at all."""
     seen: set[str] = set()
     videos: list[Path] = []
     for arg in inputs:
-        for v in _expand_one(arg, None, 0):
+        for v in _expand_one(arg, None, 0, writes):
             v = Path(os.path.abspath(v))
             key = os.path.realpath(v)
             if key not in seen:

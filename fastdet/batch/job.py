@@ -19,11 +19,26 @@
 4. As each video ends, one manifest line; at the end the combined ``table`` (if asked) and
    a summary (:func:`~fastdet.batch.summary.format_summary`).
 
-SIGINT, SIGTERM and SIGHUP stop the batch cleanly: the first one cancels the tasks, closes
-the client (and the local cluster, whose worker processes end), removes the temporary files
-of the unfinished videos, and raises :class:`BatchInterrupted`; the outputs and manifest
-lines of the finished videos stay, so a rerun does the rest. A second signal while that
-runs is ignored (the clean-up is bounded by timeouts).
+Temporary files: each batch run writes into its own folder ``OUT/.partial/HOST-PID-RANDOM``
+(:func:`run_id`) and removes only that folder at its end; at start-up it also removes the
+folders of runs on this host whose process is gone (killed outright), never those of a run
+still going. The tasks leave their outputs under temporary names; this process renames them
+(:func:`~fastdet.batch.task.commit_outputs`) as it records each video, so a video has final
+names exactly when it has a manifest line.
+
+Failures: a video that cannot be used is recorded ``permanent`` and not run again while it
+is unchanged; a failed write (a full disk, a temporary file that vanished), a lost worker or
+a model that did not load are not properties of the video and are tried again by the next
+run.
+
+SIGINT, SIGTERM and SIGHUP (:mod:`fastdet.signals`) stop the batch cleanly: the first one
+ends the wait for results; results that arrive after it get no final names; the tasks are
+cancelled, the client (and the local cluster, whose worker processes end) closed, this run's
+temporary folder removed, and :class:`BatchInterrupted` says how many videos were done and
+how many stopped; the outputs and manifest lines of the finished videos stay, so a rerun
+does the rest. A second signal while that runs is ignored (the clean-up is bounded by
+timeouts). Connecting to a scheduler waits at most :data:`CONNECT_TIMEOUT_S` and wakes on a
+stop signal.
 """
 from __future__ import annotations
 
@@ -33,13 +48,15 @@ import ctypes.util
 import logging
 import os
 import re
+import shutil
 import signal
+import socket
 import sys
 import threading
 import time
 import uuid
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
@@ -48,14 +65,16 @@ import cv2
 from distributed import Client, LocalCluster, WorkerPlugin, as_completed
 from distributed.scheduler import KilledWorker
 
-from ..errors import DataError, FastdetError
+from .. import signals
+from ..errors import DataError, FastdetError, WriteError, one_line
+from ..io.atomic import process_token
 from .inputs import output_names
 from .manifest import Manifest, input_stat
 from .progress import BatchProgress
-from .settings import MANIFEST_NAME, SUFFIXES, Settings, output_paths
+from .settings import MANIFEST_NAME, Settings, output_paths
 from .summary import format_summary as _format_summary
 from .table import write_table
-from .task import PARTIAL_DIR, VideoTask, run_video
+from .task import PARTIAL_DIR, VideoTask, commit_outputs, discard_outputs, run_video
 
 POLL_S = 0.2  # how often the main thread looks at finished tasks and redraws the bar
 CONNECT_TIMEOUT_S = 20
@@ -65,12 +84,14 @@ WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_WAIT_POLICY": "PASSIVE"}
 
 
 class BatchInterrupted(Exception):
-    """The batch was stopped by signal ``signum`` (after cleaning up)."""
+    """The batch was stopped by signal ``signum`` (after cleaning up): ``done`` videos were
+    finished in this run, ``stopped`` were left for the next run."""
 
-    def __init__(self, signum: int, done: int) -> None:
+    def __init__(self, signum: int, done: int, stopped: int = 0) -> None:
         super().__init__(f"stopped by {signal.Signals(signum).name}")
         self.signum = signum
         self.done = done
+        self.stopped = stopped
 
 
 @dataclass(frozen=True)
@@ -120,9 +141,9 @@ def _glibc_malloc_defaults() -> None:
     """Undo the ``MALLOC_TRIM_THRESHOLD_=65536`` that Dask's nanny puts in its workers'
     environment (``distributed.nanny.pre-spawn-environ``): setting it turns off glibc's
     adaptive mmap threshold, so every array of a frame's size is a fresh ``mmap`` whose pages
-    fault in again: ``video`` on one thread ran at 27 instead of 40 fps with it, with 7x
-    the system time. These are the values glibc's adaptive threshold reaches by itself (the
-    maximum mmap threshold on 64 bits, twice that for trimming). No-op without glibc."""
+    fault in again (what that cost: docs/batch.md). These are the values glibc's adaptive
+    threshold reaches by itself (the maximum mmap threshold on 64 bits, twice that for
+    trimming). No-op without glibc."""
     try:
         libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
         mallopt = libc.mallopt
@@ -145,36 +166,6 @@ class _WorkerSetup(WorkerPlugin):
         _glibc_malloc_defaults()
 
 
-class _Signals:
-    """While active, SIGINT / SIGTERM / SIGHUP are recorded in ``signum`` instead of ending
-    the process; :meth:`check` raises at a safe point. No-op outside the main thread."""
-
-    SIGNALS = tuple(s for s in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None)) if s is not None)
-
-    def __init__(self) -> None:
-        self.signum: int | None = None
-        self._old: dict[int, Any] = {}
-
-    def _handler(self, signum: int, frame: Any) -> None:
-        if self.signum is None:
-            self.signum = signum
-
-    def __enter__(self) -> _Signals:
-        if threading.current_thread() is threading.main_thread():
-            for s in self.SIGNALS:
-                self._old[s] = signal.signal(s, self._handler)
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        for s, old in self._old.items():
-            signal.signal(s, old)
-        self._old.clear()
-
-    def check(self, done: int) -> None:
-        if self.signum is not None:
-            raise BatchInterrupted(self.signum, done)
-
-
 @contextlib.contextmanager
 def _client(opts: BatchOptions) -> Iterator[tuple[Client, int]]:
     """A client on the local cluster or on ``opts.scheduler``, closed (with the local
@@ -182,11 +173,7 @@ def _client(opts: BatchOptions) -> Iterator[tuple[Client, int]]:
     cluster = None
     try:
         if opts.scheduler:
-            try:
-                client = Client(opts.scheduler, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
-            except (OSError, TimeoutError, ValueError) as exc:
-                raise FastdetError(f"cannot connect to the Dask scheduler at {opts.scheduler}: "
-                                   f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
+            client = _connect(opts.scheduler)
         else:
             n = opts.workers or default_workers()
             env = {k: os.environ.get(k, v) for k, v in WORKER_ENV.items()}
@@ -218,35 +205,96 @@ def _client(opts: BatchOptions) -> Iterator[tuple[Client, int]]:
                 cluster.close(timeout=CLOSE_TIMEOUT_S)
 
 
-def _partial_pattern(names: Sequence[str]) -> re.Pattern[str]:
-    exts = "|".join(re.escape(s.rsplit(".", 1)[1]) for s in SUFFIXES.values())
-    kinds = "|".join(re.escape(s.rsplit(".", 1)[0].lstrip(".")) for s in SUFFIXES.values())
-    alts = "|".join(re.escape(n) for n in sorted(set(names), key=len, reverse=True))
-    return re.compile(rf"^\.?(?:{alts})\.(?:{kinds})\.[0-9a-f]{{16}}(?:\.partial)?\.(?:{exts})$")
+def check_address(address: str) -> None:
+    """``FastdetError`` for a scheduler address that is not ``scheme://host:port`` (checked
+    before a client exists: a client half made from a bad address hangs when collected)."""
+    from distributed.comm.addressing import parse_address, parse_host_port
 
-
-def remove_partials(out_dir: Path, names: Sequence[str]) -> None:
-    """Remove the temporary files of ``names`` left by stopped or killed attempts, and the
-    ``.partial`` folder when it is empty."""
-    d = out_dir / PARTIAL_DIR
-    if not names or not d.is_dir():
-        return
-    pat = _partial_pattern(names)
     try:
-        for p in d.iterdir():
-            if pat.match(p.name):
-                p.unlink(missing_ok=True)
-        if not any(d.iterdir()):
-            d.rmdir()
+        scheme, loc = parse_address(address, strict=True)
+        if scheme in ("tcp", "tls", "ws", "wss", "ucx"):
+            parse_host_port(loc)
+    except (ValueError, TypeError) as exc:
+        raise FastdetError(f"--scheduler {address!r} is not a scheduler address such as tcp://host:8786 "
+                           f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})") from None
+
+
+def _connect(address: str, timeout: float | None = None) -> Client:
+    """A client of the scheduler at ``address``, made in a helper thread: the wait is
+    bounded by ``timeout`` (default :data:`CONNECT_TIMEOUT_S`) and ends at a stop signal.
+    Something at that address that is not a Dask scheduler (an HTTP server) keeps a
+    client's handshake waiting for ever: the helper thread is then left behind (a daemon)."""
+    check_address(address)
+    limit = CONNECT_TIMEOUT_S if timeout is None else timeout
+    box: dict[str, Any] = {}
+
+    def connect() -> None:
+        try:
+            box["client"] = Client(address, timeout=limit, set_as_default=False)
+        except BaseException as exc:  # noqa: BLE001 - reported by the waiting thread
+            box["error"] = exc
+
+    t = threading.Thread(target=connect, name="fastdet-connect", daemon=True)
+    t.start()
+    finished = signals.wait(lambda: not t.is_alive(), limit + 1)
+    if not finished:
+        if signals.stop_requested():
+            raise BatchInterrupted(signals.received() or signal.SIGINT, 0)
+        raise FastdetError(f"cannot connect to the Dask scheduler at {address}: no answer in {limit:g} s "
+                           f"(is it a Dask scheduler?)")
+    if "error" in box:
+        exc = box["error"]
+        raise FastdetError(f"cannot connect to the Dask scheduler at {address}: "
+                           f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
+    return box["client"]
+
+
+def run_id() -> str:
+    """``HOST-PID-RANDOM``: this batch run's temporary folder name (unique to the process)."""
+    host = re.sub(r"[^A-Za-z0-9.]+", "_", socket.gethostname()) or "host"
+    return f"{host}-{process_token()}"
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
+def remove_run(out_dir: Path, run: str) -> None:
+    """Remove run ``run``'s temporary folder, and ``.partial`` when it is then empty."""
+    d = out_dir / PARTIAL_DIR
+    shutil.rmtree(d / run, ignore_errors=True)
+    with contextlib.suppress(OSError):
+        d.rmdir()  # only when empty
+
+
+def remove_stale_runs(out_dir: Path) -> list[str]:
+    """Remove the temporary folders of batch runs on this host whose process is gone (a run
+    killed outright); the folders of live runs and of other hosts stay. Returns the names."""
+    d = out_dir / PARTIAL_DIR
+    host = run_id().rsplit("-", 2)[0]
+    gone: list[str] = []
+    try:
+        entries = list(d.iterdir())
     except OSError:
-        pass
+        return gone
+    for p in entries:
+        m = re.fullmatch(r"(?P<host>.+)-(?P<pid>\d+)-[0-9a-f]{8}", p.name)
+        if p.is_dir() and m and m["host"] == host and not _pid_alive(int(m["pid"])):
+            shutil.rmtree(p, ignore_errors=True)
+            gone.append(p.name)
+    return gone
 
 
 def _one_line(exc: BaseException) -> str:
     if isinstance(exc, KilledWorker):
         return "its worker died every time it ran it (Dask KilledWorker)"
-    text = str(exc).strip()
-    return f"{type(exc).__name__}: {text.splitlines()[0]}" if text else type(exc).__name__
+    return one_line(exc)
 
 
 def _now() -> str:
@@ -267,8 +315,26 @@ def _entry(summary: dict[str, Any], task: VideoTask, stat: dict[str, int], setti
     return e
 
 
+def _record(summary: dict[str, Any], task: VideoTask, opts: BatchOptions, stats: dict[str, dict[str, int]],
+            manifest: Manifest, report: BatchReport, progress: BatchProgress) -> None:
+    """A finished task: its outputs renamed (all or none), then its manifest line."""
+    if summary.get("status") == "done":
+        try:
+            commit_outputs(summary, opts.out_dir)
+        except WriteError as exc:
+            discard_outputs(summary)
+            summary = {**summary, "status": "failed", "error": one_line(exc), "permanent": False}
+    summary = {k: v for k, v in summary.items() if k != "partials"}
+    entry = _entry(summary, task, stats[task.input], opts.settings)
+    manifest.append(entry)
+    (report.done if entry["status"] == "done" else report.failed).append(entry)
+    progress.finished(entry)
+
+
 def _run_tasks(client: Client, tasks: list[VideoTask], stats: dict[str, dict[str, int]], opts: BatchOptions,
-               manifest: Manifest, report: BatchReport, signals: _Signals) -> None:
+               manifest: Manifest, report: BatchReport) -> None:
+    """Submit the tasks and record each as it ends, until all ended or a stop signal came
+    (then the results still to come, and any that arrive, get no final names)."""
     progress = BatchProgress([t.name for t in tasks], opts.progress)
     job = tasks[0].topic or "fastdet-batch"
     futures: dict[Any, VideoTask] = {}
@@ -277,8 +343,7 @@ def _run_tasks(client: Client, tasks: list[VideoTask], stats: dict[str, dict[str
         for t in tasks:
             futures[client.submit(run_video, t, key=f"{job}-{t.name}", retries=opts.retries, pure=False)] = t
         ac = as_completed(list(futures), loop=client.loop)
-        while not ac.is_empty():
-            signals.check(len(report.done))
+        while not ac.is_empty() and not signals.stop_requested():
             for fut in ac.next_batch(block=False):
                 task = futures.pop(fut)
                 try:
@@ -286,12 +351,12 @@ def _run_tasks(client: Client, tasks: list[VideoTask], stats: dict[str, dict[str
                 except Exception as exc:  # noqa: BLE001 - the task raised on every attempt, or its workers died
                     summary = {"status": "failed", "error": _one_line(exc), "frames": 0}
                 fut.release()
-                entry = _entry(summary, task, stats[task.input], opts.settings)
-                manifest.append(entry)
-                (report.done if entry["status"] == "done" else report.failed).append(entry)
-                progress.finished(entry)
+                if signals.stop_requested():  # came while this result arrived: no final names now
+                    discard_outputs(summary)
+                    continue
+                _record(summary, task, opts, stats, manifest, report, progress)
             if not ac.has_ready():
-                time.sleep(POLL_S)
+                signals.wait(ac.has_ready, POLL_S)
                 progress.refresh()
     finally:
         # clean-up after a stop: the client may already be broken, and its error must not
@@ -319,6 +384,11 @@ def prepare_out_dir(out_dir: Path) -> None:
 def run_batch(videos: Sequence[Path], opts: BatchOptions) -> BatchReport:
     """Run the batch of ``videos`` (absolute paths, see :func:`~fastdet.batch.inputs.expand_inputs`)
     and return what happened; raises :class:`BatchInterrupted` after a signal (cleaned up)."""
+    with signals.handled():  # a no-op under the CLI's dispatcher, which has them already
+        return _run_batch(videos, opts)
+
+
+def _run_batch(videos: Sequence[Path], opts: BatchOptions) -> BatchReport:
     t0 = time.perf_counter()
     out_dir = Path(os.path.abspath(opts.out_dir))
     prepare_out_dir(out_dir)
@@ -326,6 +396,7 @@ def run_batch(videos: Sequence[Path], opts: BatchOptions) -> BatchReport:
     settings = opts.settings
     digest = settings.digest()
     topic = f"fastdet-batch-{uuid.uuid4().hex[:12]}"
+    run = run_id()
     report = BatchReport()
     names = output_names(videos)
     tasks: list[VideoTask] = []
@@ -349,28 +420,28 @@ def run_batch(videos: Sequence[Path], opts: BatchOptions) -> BatchReport:
             manifest.append(entry)
             report.failed.append(entry)
             continue
-        tasks.append(VideoTask(path, name, str(out_dir), settings, topic))
+        tasks.append(VideoTask(path, name, str(out_dir), settings, topic, run))
 
-    todo = [t.name for t in tasks]
-    with _Signals() as signals:
+    opts = replace(opts, out_dir=out_dir)
+    with signals.deferred(repeats=False, raise_on_exit=False):
         if tasks:
-            remove_partials(out_dir, todo)
+            remove_stale_runs(out_dir)
             try:
-                signals.check(0)
-                with _client(opts) as (client, workers):
-                    report.workers = workers
-                    signals.check(0)
-                    _run_tasks(client, tasks, stats, opts, manifest, report, signals)
-            except BatchInterrupted:
+                if not signals.stop_requested():
+                    with _client(opts) as (client, workers):
+                        report.workers = workers
+                        if not signals.stop_requested():
+                            _run_tasks(client, tasks, stats, opts, manifest, report)
+            finally:
                 # the client and the local cluster are closed: no attempt of ours still writes
-                # (on a remote cluster a running task may: its files are left to the next run)
-                if not opts.scheduler:
-                    remove_partials(out_dir, todo)
-                raise
-            except KeyboardInterrupt:  # a signal before the handlers were in place
-                raise BatchInterrupted(signal.SIGINT, len(report.done)) from None
-            remove_partials(out_dir, todo)
-        signals.check(len(report.done))
+                # (on a remote cluster a running task may: remove_stale_runs of a later run
+                # takes what it leaves)
+                remove_run(out_dir, run)
+        stop = signals.received()
+        if stop is not None:
+            ran = {t.input for t in tasks}
+            recorded = sum(1 for e in report.done + report.failed if e.get("input") in ran and not e.get("earlier"))
+            raise BatchInterrupted(stop, len(report.done), len(tasks) - recorded)
         if opts.table is not None:
             order = {str(v): i for i, v in enumerate(videos)}
             ok = sorted(report.done + report.skipped, key=lambda e: order.get(e["input"], 0))

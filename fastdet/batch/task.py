@@ -11,16 +11,21 @@ runs the same building blocks, in the same way, as ``python -m fastdet video``:
 - The detector (models loaded, kernels warmed up) is made once per worker process and
   settings (:func:`detector_for`), and every task runs the kernels on one Numba thread:
   the batch gets its parallelism from the tasks (throughput), not from threads in a frame.
-- Every output is written under a temporary name unique to this attempt
-  (``OUT/.partial/NAME.boxes.<token>.txt``) and renamed to its final name only when the
-  whole video is done; a retried task (its worker was killed) writes its own files, and a
-  failed or killed attempt leaves nothing under a final name.
+- Every output is written under a temporary name unique to this attempt, in the folder of
+  this batch run (``OUT/.partial/RUN/NAME.boxes.<token>.txt``, :func:`run_dir`), and the
+  task returns their names (``partials``) without renaming them: the batch's main process
+  gives them their final names (:func:`commit_outputs`) when it records the video, so after
+  a stop signal no video gets a final name without a manifest line. A retried task (its
+  worker was killed) writes its own files, and a failed or killed attempt leaves nothing
+  under a final name.
 - A video that cannot be used (:class:`~fastdet.errors.FastdetError`: not a video, frames
-  too small or grey, a failed write) is returned as ``status: "failed"`` with the one-line
-  reason and ``permanent: True``: retrying would fail again (a rerun skips it while the
-  file is unchanged). Any other exception propagates, and Dask retries the task. The reader's
-  notes (damaged frames skipped, a frame count other than the header's) are returned in
-  ``notes`` instead of being printed on the worker.
+  too small or grey) is returned as ``status: "failed"`` with the one-line reason and
+  ``permanent: True``: retrying would fail again (a rerun skips it while the file is
+  unchanged). A failed write (:class:`~fastdet.errors.WriteError`: a full disk, a vanished
+  temporary file) or a model that does not load is ``permanent: False``: not a property of
+  the video, so the next run tries it again. Any other exception propagates, and Dask
+  retries the task. The reader's notes (damaged frames skipped, a frame count other than
+  the header's) are returned in ``notes`` instead of being printed on the worker.
 - Progress: while it runs, the task sends ``{"name", "token", "frames", "expected"}``
   events on the Dask topic ``task.topic`` (:meth:`distributed.Worker.log_event`) at most
   every :data:`PROGRESS_EVERY` seconds, and once at the end.
@@ -41,8 +46,8 @@ from typing import Any
 import numba
 from distributed import get_worker
 
-from ..errors import FastdetError
-from ..io.atomic import commit
+from ..errors import FastdetError, ModelError, WriteError, one_line
+from ..io.atomic import OutputSet, process_token
 from ..io.motfiles import JsonLinesWriter, MotWriter
 from ..io.reader import FrameReader
 from ..io.sink import VideoSink
@@ -59,14 +64,22 @@ _detectors_lock = threading.Lock()
 @dataclass(frozen=True)
 class VideoTask:
     """One video: ``input`` (absolute path), its output ``name``, the output folder
-    ``out_dir`` (absolute), the :class:`Settings`, and the Dask event ``topic`` for progress
-    (``None``: no progress events)."""
+    ``out_dir`` (absolute), the :class:`Settings`, the Dask event ``topic`` for progress
+    (``None``: no progress events) and the ``run`` id of the batch (its temporary folder,
+    :func:`run_dir`; default: this process's :func:`~fastdet.io.atomic.process_token`)."""
 
     input: str
     name: str
     out_dir: str
     settings: Settings
     topic: str | None = None
+    run: str = ""
+
+
+def run_dir(out_dir: str | os.PathLike, run: str) -> Path:
+    """The temporary folder of batch run ``run``: ``OUT/.partial/HOST-PID-RANDOM`` (see
+    :func:`fastdet.batch.job.run_id`)."""
+    return Path(out_dir) / PARTIAL_DIR / run
 
 
 def detector_for(settings: Settings) -> Any:
@@ -83,11 +96,34 @@ def detector_for(settings: Settings) -> Any:
         return det
 
 
-def partial_path(out_dir: str | os.PathLike, final: Path, token: str) -> Path:
-    """Temporary name of ``final`` for the attempt ``token``: ``OUT/.partial/STEM.TOKEN.EXT``."""
+def partial_path(folder: str | os.PathLike, final: Path, token: str) -> Path:
+    """Temporary name of ``final`` for the attempt ``token`` in ``folder`` (the run's
+    :func:`run_dir`): ``FOLDER/STEM.TOKEN.EXT``."""
     name = final.name
     stem, dot, ext = name.rpartition(".")
-    return Path(out_dir) / PARTIAL_DIR / (f"{stem}.{token}.{ext}" if dot else f"{name}.{token}")
+    return Path(folder) / (f"{stem}.{token}.{ext}" if dot else f"{name}.{token}")
+
+
+def commit_outputs(summary: dict[str, Any], out_dir: str | os.PathLike) -> None:
+    """Give a done video's temporary files (``summary["partials"]``) their final names in
+    ``out_dir``, all or none (:class:`~fastdet.io.atomic.OutputSet`);
+    :class:`~fastdet.errors.WriteError` when one is missing or cannot be renamed."""
+    pairs = [(Path(tmp), Path(out_dir) / summary["outputs"][kind]) for kind, tmp in summary["partials"].items()]
+    outs = OutputSet()
+    for tmp, final in pairs:
+        outs.add(tmp, final)
+    missing = [final for tmp, final in pairs if not tmp.exists()]
+    if missing:
+        outs.discard()
+        raise WriteError(f"{missing[0]}: its temporary file vanished before the rename")
+    outs.commit()
+
+
+def discard_outputs(summary: dict[str, Any]) -> None:
+    """Remove a video's temporary files (a stop came before they were committed)."""
+    for tmp in (summary.get("partials") or {}).values():
+        with contextlib.suppress(OSError):
+            Path(tmp).unlink(missing_ok=True)
 
 
 def _reporter(task: VideoTask, token: str) -> Callable[[int, int | None, bool], None]:
@@ -110,11 +146,6 @@ def _reporter(task: VideoTask, token: str) -> Callable[[int, int | None, bool], 
                                       "expected": expected})
 
     return report
-
-
-def _one_line(exc: BaseException) -> str:
-    text = str(exc).strip()
-    return text.splitlines()[0] if text else type(exc).__name__
 
 
 def _quietly(fn: Callable[[], None]) -> None:
@@ -143,7 +174,8 @@ def run_video(task: VideoTask) -> dict[str, Any]:
     token = secrets.token_hex(8)
     s = task.settings
     finals = output_paths(task.out_dir, task.name, s)
-    tmps = {k: partial_path(task.out_dir, p, token) for k, p in finals.items()}
+    folder = run_dir(task.out_dir, task.run or process_token())
+    tmps = {k: partial_path(folder, p, token) for k, p in finals.items()}
     summary: dict[str, Any] = {"input": task.input, "name": task.name, "host": socket.gethostname(),
                                "token": token, "frames": 0}
     report = _reporter(task, token)
@@ -153,13 +185,14 @@ def run_video(task: VideoTask) -> dict[str, Any]:
     writers: list[Any] = []
 
     def close_outputs(discard: bool) -> None:
-        """Close the writers: renamed to this attempt's names, or removed with ``discard``."""
+        """Close the writers: their files get this attempt's temporary names (in the run's
+        folder; the batch renames them), or are removed with ``discard``."""
         for wr in (*writers, sink):
             if wr is not None:
                 wr.close(discard=discard)
 
     try:
-        (Path(task.out_dir) / PARTIAL_DIR).mkdir(exist_ok=True)
+        folder.mkdir(parents=True, exist_ok=True)
         reader = FrameReader(task.input, notify=notes.append)
         detector = detector_for(s)
         vd = video_detector_for(reader, detector, s.heat, s.track, s.horizon, False if s.full_search else None,
@@ -183,14 +216,14 @@ def run_video(task: VideoTask) -> dict[str, Any]:
             n += 1
             n_boxes += len(dets)
             report(n, reader.expected)
-        close_outputs(discard=False)
-        for kind in s.kinds:  # all complete: give them their final names
-            commit(tmps[kind], finals[kind])
+        close_outputs(discard=False)  # all complete: the batch renames them (commit_outputs)
         report(n, n, True)
     except FastdetError as exc:
         _quietly(lambda: close_outputs(discard=True))
         _unlink(list(tmps.values()))
-        summary.update(status="failed", error=_one_line(exc), permanent=True, frames=n,
+        # a failed write or a model that does not load says nothing about the video
+        permanent = not isinstance(exc, (WriteError, ModelError))
+        summary.update(status="failed", error=one_line(exc), permanent=permanent, frames=n,
                        seconds=time.perf_counter() - t0,
                        notes=notes)
         return summary
@@ -204,5 +237,6 @@ def run_video(task: VideoTask) -> dict[str, Any]:
     summary.update(status="done", frames=n, boxes=n_boxes, seconds=time.perf_counter() - t0,
                    skipped_frames=reader.n_skipped, notes=notes,
                    outputs={k: p.name for k, p in finals.items()},
-                   sizes={p.name: p.stat().st_size for p in finals.values()})
+                   partials={k: str(p) for k, p in tmps.items()},
+                   sizes={finals[k].name: p.stat().st_size for k, p in tmps.items()})
     return summary

@@ -26,7 +26,7 @@ from pathlib import Path
 from types import ModuleType
 
 from ..errors import FastdetError
-from ..io.atomic import check_output_path
+from ..io.paths import check_paths
 from ._args import (add_horizon_argument, add_oncoming_arguments, add_refine_argument, add_search_argument,
                     nonneg_int, oncoming_arg, positive_int, refine_arg, traffic_arg)
 
@@ -88,15 +88,24 @@ def run(args: argparse.Namespace) -> int:
     table = Path(args.table) if args.table else None
     if table is not None:
         table_mod.table_format(table)
-    videos = inputs.expand_inputs(args.inputs)
+    out_dir = Path(args.out)
+    writes = inputs.batch_writes(out_dir, settings_mod.SUFFIXES.values(),
+                                 [out_dir / settings_mod.MANIFEST_NAME, *([table] if table is not None else [])])
+    videos = inputs.expand_inputs(args.inputs, writes)
     settings = settings_mod.Settings.create(args.model, oncoming_arg(args), track=not args.no_track,
                                             video=args.video, json=args.json, horizon=args.horizon,
                                             full_search=args.full_search, refine=refine_arg(args),
                                             traffic=traffic_arg(args))
     settings.check()
-    job.prepare_out_dir(Path(args.out))
+    if scheduler:
+        job.check_address(scheduler)
+    job.prepare_out_dir(out_dir)
     if table is not None:  # after the output folder exists: the table may go into it
-        check_output_path(table, "table")
+        check_paths([("--model", args.model), ("--oncoming-model", args.oncoming_model),
+                     *[("INPUT", v) for v in videos]], [("--table", table, "table")])
+        if os.path.realpath(table.parent) == os.path.realpath(out_dir) \
+                and table.name.endswith(tuple(settings_mod.SUFFIXES.values())):
+            raise FastdetError(f"--table {table}: is a name the batch gives a video's outputs; choose another")
     opts = job.BatchOptions(out_dir=Path(args.out), settings=settings, workers=args.workers, scheduler=scheduler,
                             overwrite=args.overwrite, retries=args.retries, table=table,
                             progress=not args.no_progress)
@@ -104,8 +113,8 @@ def run(args: argparse.Namespace) -> int:
         report = job.run_batch(videos, opts)
     except job.BatchInterrupted as exc:
         name = signal.Signals(exc.signum).name
-        print(f"fastdet batch: stopped by {name} after {exc.done} video(s) done in this run; "
-              f"run the same command again to do the rest", file=sys.stderr, flush=True)
+        print(f"fastdet batch: stopped by {name}: {exc.done} video(s) done in this run, {exc.stopped} stopped "
+              f"(no output kept); run the same command again to do the rest", file=sys.stderr, flush=True)
         return 128 + exc.signum
     print(job.format_summary(report), flush=True)
     if report.table_rows is not None:

@@ -11,9 +11,10 @@ from ..errors import DataError, FastdetError
 from ..eval.clips import annotated_clips, markdown_table, report_json, score_clip
 from ..eval.metrics import evaluate
 from ..eval.report import format_table, plot_pr
-from ..io.atomic import check_output_path, write_bytes
+from ..io.atomic import write_bytes
 from ..io.keyframes import keyframes_for, keyframes_path, read_keyframes
 from ..io.motfiles import Predictions, read_gt, read_predictions
+from ..io.paths import bundled_models, check_paths
 from ..io.reader import check_source
 from ..video.pipeline import iter_video_detections
 from ._args import (
@@ -122,8 +123,6 @@ def _run_all(args: argparse.Namespace) -> int:
                                       or getattr(args, "traffic", "right") != "right"):
         raise FastdetError("--model, --oncoming-model, --no-oncoming, --traffic, --no-refine, --no-track and "
                            "--offline only apply when --all runs the pipeline (not with --pred-dir)")
-    if args.out is not None:
-        check_output_path(args.out, "report")
     clips = annotated_clips(args.data)
     if args.clips is not None:
         want = [c.strip() for c in args.clips.split(",") if c.strip()]
@@ -136,6 +135,11 @@ def _run_all(args: argparse.Namespace) -> int:
         from ..data import data_dir
 
         raise DataError(f"{args.data or data_dir()}: no annotated clips (annotations/CLIP.gt.txt with videos/CLIP.mp4)")
+    preds_in = [("--pred-dir", Path(args.pred_dir) / f"{c.name}{ext}") for c in clips for ext in (".txt", ".jsonl")
+                ] if args.pred_dir is not None else []
+    check_paths([("--model", args.model), ("--oncoming-model", args.oncoming_model), *bundled_models(),
+                 *[(f"clip {c.name}", p) for c in clips for p in (c.video, c.gt_path)], *preds_in],
+                [("--out", args.out, "report")])
     scores = []
     for clip in clips:
         gt, kf = clip.gt(), clip.keyframes()
@@ -182,6 +186,13 @@ def run(args: argparse.Namespace) -> int:
                                or getattr(args, "traffic", "right") != "right"):
         raise FastdetError("--model, --oncoming-model, --no-oncoming, --traffic, --no-refine, --no-track and "
                            "--offline only apply with --video")
+    check_paths([("--gt", args.gt), ("--pred", args.pred), ("--video", args.video), ("--model", args.model),
+                 ("--oncoming-model", getattr(args, "oncoming_model", None)),
+                 ("--keyframes", getattr(args, "keyframes", None) or keyframes_path(args.gt)),
+                 *(bundled_models() if args.video is not None else [])],
+                [("--plot", args.plot, "PNG")])
+    if args.video is not None:
+        check_source(args.video)
     gt = read_gt(args.gt)
     kf_file = getattr(args, "keyframes", None)
     keyframes = read_keyframes(kf_file) if kf_file is not None else keyframes_for(args.gt)

@@ -23,12 +23,14 @@ from typing import Any
 
 import cv2
 
+from .._numba import ensure_compiled
 from ..config import HeatConfig
 from ..detect.checks import check_frame
 from ..errors import DataError, FastdetError
 from ..io import draw
-from ..io.atomic import check_output_path
 from ..io.images import read_image, write_image
+from ..io.paths import bundled_models, check_paths
+from ..video.heatmap import KERNELS as HEAT_KERNELS
 from ..video.pipeline import detect_image, make_detector
 
 
@@ -59,14 +61,13 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
     if os.path.isdir(inp):
         raise DataError(f"{inp}: is a folder, not an image")
     out = Path(args.output)
-    for p in (out, heat_path(out) if args.heat else None):
+    hout = heat_path(out) if args.heat else None
+    check_paths([("INPUT", inp), ("--model", args.model), *bundled_models()],
+                [("-o", out, "image"), ("--heat", hout, "image")])
+    for p in (out, hout):
         if p is not None and not cv2.haveImageWriter(str(p)):
             raise DataError(f"{p}: cannot write an image there (extension {p.suffix or '(none)'!r} "
                             f"not supported? use .jpg or .png)")
-    check_output_path(out, "image", inp)
-    hout = heat_path(out) if args.heat else None
-    if hout is not None:
-        check_output_path(hout, "image", inp)
     try:
         heat = HeatConfig().single_frame(args.threshold)
     except ValueError as exc:
@@ -77,7 +78,9 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
     elif args.model is not None:
         raise FastdetError("--model cannot be used with an injected detector")
     check_frame(detector, frame, inp)
-    detector.warmup()  # compiles on a first run, after saying so
+    # every kernel the image needs at once (on a first run on every core, after saying so)
+    ensure_compiled((*getattr(detector, "kernels", ()), *HEAT_KERNELS))
+    detector.warmup()
 
     windows, hm, boxes = detect_image(frame, detector, heat)
     img = frame.copy()

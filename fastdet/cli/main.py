@@ -7,7 +7,7 @@ is imported (so ``fastdet video`` does not pay for scikit-learn or Dask).
 Errors: a :class:`~fastdet.errors.FastdetError` (bad input, a model that does not load, a
 write that failed) becomes one line ``fastdet COMMAND: error: MESSAGE`` on stderr and exit
 status 2. Anything else is a bug in fastdet and shows its traceback (exit 1). Ctrl-C,
-SIGTERM and SIGHUP (:mod:`fastdet.cli._signals`) print ``fastdet COMMAND: interrupted
+SIGTERM and SIGHUP (:mod:`fastdet.signals`) print ``fastdet COMMAND: interrupted
 (SIGTERM)`` and exit with 128 + the signal's number (130 for Ctrl-C), whatever exception
 the interrupted code then raised. ``FASTDET_DEBUG=1`` shows the traceback of user errors too.
 An argument the command does not know is reported with the command's own usage.
@@ -23,7 +23,7 @@ from collections.abc import Sequence
 from .. import console
 from .._version import __version__
 from ..errors import FastdetError
-from . import _signals
+from .. import signals as _signals
 
 # name -> (module, one-line help)
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
@@ -34,6 +34,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "mine-negatives": ("fastdet.cli.mine", "save the windows the detector wrongly fires on as hard negatives"),
     "bench": ("fastdet.cli.bench", "time the pipeline stages on a video or image"),
     "batch": ("fastdet.cli.batch", "many videos in parallel on Dask (local or a cluster): boxes, manifest, resume"),
+    "warmup": ("fastdet.cli.warmup", "compile every numba kernel now (for images, CI and cluster workers)"),
 }
 
 

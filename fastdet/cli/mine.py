@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import math
+import os
 import sys
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -13,12 +16,13 @@ from tqdm import tqdm
 
 from ..detect import Detector
 from ..detect.checks import check_frame
-from ..errors import DataError, FastdetError
+from ..errors import DataError, FastdetError, WriteError
 from ..io.atomic import folder_writable
 from ..io.images import check_image, write_image
 from ..io.motfiles import read_gt
 from ..io.reader import FrameReader, source_kind
 from ..train.mine import hard_negatives
+from .. import signals as _signals
 from ._args import nonneg_int, positive_int
 
 
@@ -60,9 +64,25 @@ def _check_out(out: Path) -> None:
         raise DataError(f"--out {out}: cannot create the folder ({parent} is not writable)")
 
 
+def _check_options(args: argparse.Namespace) -> None:
+    """Numbers and names in their domain, before any work."""
+    for flag, rng in (("--x-range", args.x_range), ("--y-range", args.y_range)):
+        if rng is not None and not 0 <= rng[0] < rng[1]:
+            raise FastdetError(f"{flag} A B needs 0 <= A < B, got {rng[0]} {rng[1]}")
+    if args.margin < 0:
+        raise FastdetError(f"--margin must be >= 0 px, got {args.margin}")
+    if args.threshold is not None and not math.isfinite(args.threshold):
+        raise FastdetError(f"--threshold must be a finite number, got {args.threshold}")
+    if args.prefix is not None:
+        if args.prefix in ("", ".", "..") or "/" in args.prefix or os.sep in args.prefix \
+                or (os.altsep and os.altsep in args.prefix) or "\0" in args.prefix:
+            raise FastdetError(f"--prefix must be a plain file name part (no folder), got {args.prefix!r}")
+
+
 def run(args: argparse.Namespace) -> int:
     if args.x_range is None and args.y_range is None and args.gt is None:
         raise FastdetError("say where there are no vehicles: --x-range/--y-range and/or --gt")
+    _check_options(args)
     if args.part == "wide" and args.wide_model is None:
         raise FastdetError("--part wide needs --wide-model")
     if source_kind(str(args.video)) == "file" and not args.video.exists():
@@ -89,28 +109,47 @@ def run(args: argparse.Namespace) -> int:
         if not args.no_progress and sys.stderr.isatty():
             bar = tqdm(total=reader.expected, desc="mining", unit="frame")
         saved = done = 0
-        for frame_no, frame, _ in reader:  # 1-based frame numbers, as in MOTChallenge files
-            done += 1
-            if bar:
-                bar.update()
-            if (done - 1) % args.every:
-                continue
-            gt_boxes = None
-            if gt is not None:
-                gb = gt.boxes[gt.frames == frame_no]
-                gt_boxes = gb + np.array([-args.margin, -args.margin, args.margin, args.margin])
-            for (x1, y1, x2, y2), crop in hard_negatives(det, frame, args.part, win_cfg, args.x_range,
-                                                         args.y_range, gt_boxes):
-                path = args.out / f"{prefix}_f{frame_no:05d}_{x1}_{y1}_{x2 - x1}.png"
-                try:
-                    write_image(path, crop)
-                except DataError:
-                    raise DataError(f"{path}: could not write the crop (disk full or no permission?); "
-                                    f"{saved} crops were written before it") from None
-                saved += 1
+        written: list[Path] = []  # this run's crops: removed again if the run fails
+        failed = True
+        try:
+            saved, done = _mine(args, det, reader, gt, win_cfg, prefix, bar, written)
+            failed = False
+        finally:
+            if failed and not _signals.stop_requested():
+                for p in written:
+                    p.unlink(missing_ok=True)
         if bar:
             bar.close()
     finally:
         reader.close()
     print(f"mined {saved} false-positive windows from {done} frames into {args.out}")
     return 0
+
+
+def _mine(args: argparse.Namespace, det: Detector, reader: FrameReader, gt: Any, win_cfg: Any, prefix: str,
+          bar: Any, written: list[Path]) -> tuple[int, int]:
+    """The frame loop: ``(crops saved, frames read)``; each new crop's path joins ``written``."""
+    saved = done = 0
+    for frame_no, frame, _ in reader:  # 1-based frame numbers, as in MOTChallenge files
+        done += 1
+        if bar:
+            bar.update()
+        if (done - 1) % args.every:
+            continue
+        gt_boxes = None
+        if gt is not None:
+            gb = gt.boxes[gt.frames == frame_no]
+            gt_boxes = gb + np.array([-args.margin, -args.margin, args.margin, args.margin])
+        for (x1, y1, x2, y2), crop in hard_negatives(det, frame, args.part, win_cfg, args.x_range,
+                                                     args.y_range, gt_boxes):
+            path = args.out / f"{prefix}_f{frame_no:05d}_{x1}_{y1}_{x2 - x1}.png"
+            new = not path.exists()  # a crop an earlier run wrote is not this run's to remove
+            try:
+                write_image(path, crop)
+            except DataError:
+                raise WriteError(f"{path}: could not write the crop (disk full or no permission?); "
+                                 f"the crops this run wrote before it were removed") from None
+            if new:
+                written.append(path)
+            saved += 1
+    return saved, done

@@ -19,17 +19,23 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from .._numba import announce_compile
+from .._numba import ensure_compiled
 from ..config import COLOR_SPACES, FeatureConfig
 from ..data import data_dir
 from ..errors import DataError, FastdetError
-from ..features._hog_kernels import hog_u8_batch
-from ..io.atomic import check_output_path
+from ..features.window import KERNELS as FEATURE_KERNELS
+from ..io.paths import check_output
 from ..train import augment
 from ..train.augment import JPEG_QUALITY
 from ..train.fit import train
-from . import _signals
+from .. import signals as _signals
 from ._args import fraction, nonneg_int, positive_float, positive_int
+
+
+#: upper bounds of the feature options (beyond them a 64x64 crop has no more to give, and
+#: the feature vector would not fit in memory)
+MAX_ORIENTATIONS = 64
+MAX_HIST_BINS = 256
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -89,6 +95,11 @@ def _command_name() -> str:
 def feature_config_from_args(args: argparse.Namespace) -> FeatureConfig:
     cfg = FeatureConfig()
     changes: dict[str, Any] = {}
+    for flag, value, top in (("--orientations", args.orientations, MAX_ORIENTATIONS),
+                             ("--spatial-size", args.spatial_size, cfg.window),
+                             ("--hist-bins", args.hist_bins, MAX_HIST_BINS)):
+        if value is not None and value > top:
+            raise FastdetError(f"{flag} must be at most {top}, got {value}")
     if args.color_space:
         changes["color_space"] = args.color_space
     if args.orientations is not None:
@@ -116,6 +127,8 @@ def feature_config_from_args(args: argparse.Namespace) -> FeatureConfig:
 
 def _check_inputs(data: Path, args: argparse.Namespace) -> None:
     """The data folders exist (before any of them is loaded)."""
+    if data.exists() and not data.is_dir():
+        raise DataError(f"--data {data}: is a file, expected a folder with vehicles/ and non-vehicles/")
     if not data.is_dir():
         raise DataError(f"data folder {data} not found (give --data or set FASTDET_DATA)")
     for sub in ("vehicles", "non-vehicles"):
@@ -123,6 +136,8 @@ def _check_inputs(data: Path, args: argparse.Namespace) -> None:
             raise DataError(f"data folder {data} has no {sub}/ folder")
     for flag, folders in (("--negatives", args.negatives), ("--positives", args.positives)):
         for f in folders:
+            if f.exists() and not f.is_dir():
+                raise DataError(f"{flag} {f}: is a file, expected a folder of crops")
             if not f.is_dir():
                 raise DataError(f"{flag} {f}: folder not found")
 
@@ -135,7 +150,7 @@ def run(args: argparse.Namespace) -> int:
     config = feature_config_from_args(args)
     # everything checked before the data is loaded (minutes of work)
     if not args.no_refit:
-        check_output_path(out, "model")
+        check_output(out, "model", "--out")
     _check_inputs(Path(data), args)
     q0, q1 = args.jpeg_quality
     k0, k1 = args.truncate_keep
@@ -143,7 +158,7 @@ def run(args: argparse.Namespace) -> int:
         raise FastdetError(f"--truncate-keep must satisfy 0 < A <= B <= 1, got {k0:g} {k1:g}")
     if not 1 <= q0 <= q1 <= 100:
         raise FastdetError(f"--jpeg-quality must satisfy 1 <= Q1 <= Q2 <= 100, got {q0} {q1}")
-    announce_compile(hog_u8_batch, what="the feature kernels")
+    ensure_compiled(FEATURE_KERNELS, what="the feature kernels")
     progress = not args.no_progress and sys.stderr.isatty()
     model, report = train(data, config, args.classifier, args.C, args.split, args.seed, args.negatives,
                           not args.no_flip, args.max_per_folder, not args.no_refit, progress,

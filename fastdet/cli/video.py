@@ -34,7 +34,7 @@
   frames in the middle are skipped with a note (:mod:`fastdet.io.reader`).
 - Every output is written under a temporary name in its folder (``.OUT.partial.mp4``,
   ``.BOXES.partial.txt``; the extension is kept: it picks the container) and renamed when
-  the run ends -- also when Ctrl-C, SIGTERM or SIGHUP stops it (:mod:`fastdet.cli._signals`:
+  the run ends -- also when Ctrl-C, SIGTERM or SIGHUP stops it (:mod:`fastdet.signals`:
   the current frame is finished, the outputs then hold the same frames, and the exit
   status is 128 + the signal), because the video is then a complete, playable video of the
   frames done. A run that fails (exit 2: a failed write, a frame of another size) keeps
@@ -55,6 +55,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import time
@@ -67,15 +68,16 @@ import numba
 from ..config import HeatConfig
 from ..console import process_seconds, prog
 from ..detections import Detections
-from ..errors import DataError, FastdetError
-from ..io.atomic import check_output_path, write_bytes
+from ..errors import DataError, FastdetError, WriteError
+from ..io.atomic import OutputSet, partial_name
 from ..io.motfiles import JsonLinesWriter, MotWriter
+from ..io.paths import bundled_models, check_paths
 from ..io.reader import FrameReader, check_source
 from ..io.sink import VideoSink, check_video_path
 from ..video.count import CountLine, VehicleCounter
 from ..video.offline import offline_pass
 from ..video.pipeline import _progress, make_detector, video_detector_for
-from . import _signals
+from .. import signals as _signals
 from ._args import (add_horizon_argument, add_oncoming_arguments, add_refine_argument, add_search_argument,
                     guided_arg, nonneg_int, oncoming_arg, positive_int, refine_arg, traffic_arg)
 
@@ -170,28 +172,35 @@ def _profile_table(totals: dict[str, float], n: int, wall: float, main_busy: flo
     return "\n".join(lines)
 
 
-def close_outputs(sink: VideoSink | None, writers: Sequence[Any], discard: bool) -> list[str]:
-    """Close the box files and the video: renamed to their final names (returned, video
-    first), or all removed with ``discard`` -- and when one of them fails to close (a
-    failed write: :class:`~fastdet.errors.DataError`, raised after the others were removed)."""
-    done: dict[int, Path] = {}
+def close_outputs(sink: VideoSink | None, writers: Sequence[Any], discard: bool,
+                  outputs: OutputSet | None = None) -> OutputSet:
+    """Close the box files and the video into ``outputs`` (their temporary files, renamed
+    together by :meth:`OutputSet.commit`, video first), or remove them all with ``discard``
+    -- and when one of them fails to close (a failed write:
+    :class:`~fastdet.errors.DataError`, raised after the others were removed)."""
+    done = outputs if outputs is not None else OutputSet()
+    found: dict[int, tuple[Path, Path]] = {}
     error: DataError | None = None
     outs = (sink, *writers)
     for i in (*range(1, len(outs)), 0):  # the box files first: the video's check takes longest
         if outs[i] is None:
             continue
         try:
-            p = outs[i].close(discard=discard or error is not None)
+            p = outs[i].close(discard=discard or error is not None, rename=False)
         except DataError as exc:
             error = error or exc
             continue
         if p is not None:
-            done[i] = Path(p)
+            final = outs[i].path if outs[i] is sink else Path(outs[i].name)
+            found[i] = (Path(p), Path(final))
     if error is not None:
-        for p in done.values():
-            p.unlink(missing_ok=True)
+        for tmp, _ in found.values():
+            tmp.unlink(missing_ok=True)
+        done.discard()
         raise error
-    return [str(done[i]) for i in sorted(done)]
+    for i in sorted(found):
+        done.add(*found[i])
+    return done
 
 
 def _emit(fno: int, dets: Detections, mot: MotWriter | None, jsl: JsonLinesWriter | None,
@@ -236,19 +245,18 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
                            "--summary S.json and/or --count")
     if counting and not track:
         raise FastdetError("--count and --line need the tracker: leave out --no-track")
-    named = [p for p in (out, boxes_path, json_path, summary_path) if p]
-    if len({os.path.abspath(p) for p in named}) != len(named):
-        raise FastdetError("the outputs must be different files")
     heat = _heat_config(args)
     check_source(args.input)
-    for p, what in ((out, "video"), (boxes_path, "boxes"), (json_path, "JSON"), (summary_path, "summary")):
-        if p:
-            check_output_path(p, what, args.input)
+    check_paths([("INPUT", args.input), ("--model", args.model),
+                 ("--oncoming-model", getattr(args, "oncoming_model", None)), *bundled_models()],
+                [("-o", out, "video"), ("--boxes", boxes_path, "box"), ("--json", json_path, "JSON"),
+                 ("--summary", summary_path, "summary")])
     if out:
         check_video_path(out)  # .webm and the like: refused before any work
 
     reader = FrameReader(args.input, args.start, args.frames)
     sink = mot = jsl = None
+    pending: OutputSet | None = None
     try:
         if offline and reader.live:
             raise FastdetError(f"{args.input}: --offline needs a video file, not a live source")
@@ -314,17 +322,20 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
             raise
         finally:
             bar.close()
-            outs = close_outputs(sink, (mot, jsl), discard=failed)
+            pending = close_outputs(sink, (mot, jsl), discard=failed)
             wall = time.perf_counter() - t_start
             if sink is not None:
                 totals["draw"], totals["encode"] = sink.draw_s, sink.encode_s
             if n and not failed:
+                outs = [str(p) for p in pending.finals()]
                 if summary_path:
                     info: dict[str, Any] = {"input": str(args.input), "frames": n, "fps": round(n / wall, 2),
                                             "outputs": list(outs)}
                     if counter is not None:
                         info.update(counter.summary())
-                    outs.append(str(write_bytes(summary_path, (json.dumps(info) + "\n").encode())))
+                    _write_summary(pending, summary_path, info)
+                    outs.append(str(summary_path))
+                pending.commit()  # every output under its final name, or none (a failed rename)
                 summary = (f"{n} frames in {wall:.2f} s, {n / wall:.1f} fps "
                            f"({process_seconds():.1f} s in all, start-up included)"
                            + (f"; {reader.n_skipped} damaged frames skipped" if reader.n_skipped else "")
@@ -340,4 +351,22 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
     finally:
         reader.close()
         close_outputs(sink, (mot, jsl), discard=True)  # no-op for outputs closed above
+        if pending is not None:
+            pending.discard()  # no-op once committed
     return 0
+
+
+def _write_summary(pending: OutputSet, path: str, info: dict[str, Any]) -> None:
+    """``--summary``: the JSON object to its temporary file, renamed with the other outputs."""
+    tmp = partial_name(path)
+    try:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(json.dumps(info) + "\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)
+        pending.discard()
+        raise WriteError(f"{path}: cannot write ({exc.strerror or exc})") from None
+    pending.add(tmp, path)

@@ -16,29 +16,22 @@ The innermost loop indexes slices from 0 (no negative-index wraparound test, whi
 LLVM emit gathers for the old per-window loop), so it compiles to packed AVX2 / AVX-512
 ``vfmadd231pd`` with memory operands (checked with ``inspect_asm``). float64 throughout:
 float32 products summed in float32 miss the classic reference by up to 3e-6 on the test
-frames, above the 1e-6 the exactness test demands.
-
-Measured on the six windowed bands of a 1280x720 frame, one core: 6.9 ms (per-window loop,
-gathers, ~1.9 G multiply-adds/s) -> 0.9 ms (~15 G/s; OpenBLAS dgemm on the same sizes:
-17-21 G/s before the shifted sums an FFLD-style product would need).
+frames, above the 1e-6 the exactness test demands. What this layout gained, and why not BLAS:
+docs/benchmarks.md (*Where a frame's detection time goes*).
 """
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
-from .._numba import REASSOC, REASSOC_INLINE, REASSOC_PARALLEL
+from .._numba import REASSOC
 
 # fastmath: only "reassoc" and "contract", so LLVM may vectorise the dot products (split
 # them into SIMD lanes and fuse multiply-adds). That changes the rounding of a sum of ~12k
 # products by ~1e-13, far inside the 1e-6 the exactness tests demand; no nan/inf assumptions.
 # (fastdet._numba.REASSOC)
 
-#: windows of one row a task of the parallel kernel scores (a weight row is reused along them)
-CHUNK = 32
-
-
-@njit(**REASSOC_INLINE)
+@njit(**REASSOC)
 def _dots4(r, wr, sk, n, out):
     """``out[j] += r[j*sk : j*sk + len(wr)] @ wr`` for ``j < n``, four windows at a time."""
     L = wr.shape[0]
@@ -71,7 +64,7 @@ def _dots4(r, wr, sk, n, out):
         j += 1
 
 
-@njit(**REASSOC_INLINE)
+@njit(**REASSOC)
 def _dots(r, wr, sk, n, out):
     """``out[j] += r[j*sk : j*sk + len(wr)] @ wr`` for ``j < n``: eight windows at a time
     (one load of each weight, eight packed FMAs), the rest four and one at a time."""
@@ -111,7 +104,7 @@ def _dots(r, wr, sk, n, out):
         _dots4(r[j * sk:], wr, sk, n - j, out[j:])
 
 
-@njit(**REASSOC_INLINE)
+@njit(**REASSOC)
 def _score_span(block_rows, w_hog, k, spat_rows, w_sp, sp_off, integ, hg, win_h, win_w, cell, step, bias,
                 i, j0, j1, out):
     """``out[i, j0:j1]``: the windows of window row ``i``, columns ``j0 .. j1-1``."""
@@ -138,10 +131,12 @@ def _score_span(block_rows, w_hog, k, spat_rows, w_sp, sp_off, integ, hg, win_h,
             orow[j] += bot[x0 + ww] - top[x0 + ww] - bot[x0] + top[x0]
 
 
-@njit(**REASSOC_PARALLEL)
-def dense_scores(block_rows, w_hog, k, spat_rows, w_sp, sp_off, integ, hg, win_h, win_w, cell, step, bias, out):
-    """Scores of every window of one band, spans of :data:`CHUNK` windows of a row spread
-    over Numba's threads.
+@njit(**REASSOC)
+def dense_scores(block_rows, w_hog, k, spat_rows, w_sp, sp_off, integ, hg, win_h, win_w, cell, step, bias, i0, i1,
+                 out):
+    """Scores of the windows of window rows ``i0 <= i < i1`` of one band into ``out[i0:i1]``,
+    on the calling thread: a whole window row per weight-row pass (the wrapper spreads the
+    rows over threads when asked).
 
     block_rows: (R, Cb*k) float64, the HOG block map with one row of blocks contiguous
         (k = values per block position, all channels).
@@ -151,25 +146,10 @@ def dense_scores(block_rows, w_hog, k, spat_rows, w_sp, sp_off, integ, hg, win_h
     integ: (H/hg+1, W/hg+1) float64 integral image of the histogram-weight map sampled every
         ``hg`` pixels (``hg`` divides cell, win_h, win_w); (1, 1) when unused.
     win_h, win_w, cell, step: window and cell size in pixels, stride in cells.
-    out: (ny, nx) float64, overwritten: out[i, j] is the window at block (i*step, j*step).
+    out: (ny, nx) float64: out[i, j] is the window at block (i*step, j*step).
     """
-    ny, nx = out.shape
-    nc = (nx + CHUNK - 1) // CHUNK
-    for t in prange(ny * nc):
-        i = t // nc
-        c = t - i * nc
-        j0 = c * CHUNK
-        _score_span(block_rows, w_hog, k, spat_rows, w_sp, sp_off, integ, hg, win_h, win_w, cell, step, bias,
-                    i, j0, min(j0 + CHUNK, nx), out)
-
-
-@njit(**REASSOC)
-def dense_scores_serial(block_rows, w_hog, k, spat_rows, w_sp, sp_off, integ, hg, win_h, win_w, cell, step, bias,
-                        out):
-    """:func:`dense_scores` on the calling thread only (for bands run in parallel threads):
-    a whole window row per weight-row pass."""
-    ny, nx = out.shape
-    for i in range(ny):
+    nx = out.shape[1]
+    for i in range(i0, i1):
         _score_span(block_rows, w_hog, k, spat_rows, w_sp, sp_off, integ, hg, win_h, win_w, cell, step, bias,
                     i, 0, nx, out)
 
@@ -184,9 +164,8 @@ def hist_weight_integral(image, lut, g, out):
     The windows sit on the cell grid, so ``g`` = the cell size serves them: the per-pixel
     weights of a row of cells are summed column by column into one buffer (look-ups by an
     unsigned byte, no chain between pixels; three channels in one pass), then each cell's
-    ``g`` columns once, and the running sum along the row (0.54 ms for a 1344x96 band with
-    the pixel-resolution integral image -> 0.17 ms with one weight row and ``g`` sums per
-    image row -> 0.12 ms like this; the sums are reordered, ~1e-15 apart).
+    ``g`` columns once, and the running sum along the row (the sums are reordered, ~1e-15
+    apart; the measurements: docs/benchmarks.md, *Kernel notes*).
     """
     nr, nq = out.shape[0] - 1, out.shape[1] - 1
     c = image.shape[2]
@@ -221,3 +200,17 @@ def hist_weight_integral(image, lut, g, out):
                 acc += t[x]
             run += acc
             row[q + 1] = prev[q + 1] + run
+
+
+# --------------------------------------------------------------------------------------
+# what the package calls, compiled ahead of time (fastdet._numba.ensure_compiled)
+# --------------------------------------------------------------------------------------
+#: argument types of every call the package makes to each kernel: exactly the types of the
+#: calls (C-contiguous arrays, Python ints as int64), so a call finds its machine code
+SIGNATURES: dict[str, tuple[str, ...]] = {
+    "dense_scores": ("float64[:, ::1], float64[:, ::1], int64, float64[:, ::1], float64[:, ::1], int64, "
+                     "float64[:, ::1], int64, int64, int64, int64, int64, float64, int64, int64, float64[:, ::1]",),
+    "hist_weight_integral": ("uint8[:, :, ::1], float64[:, ::1], int64, float64[:, ::1]",),
+}
+#: CPU seconds to compile each, reference machine (docs/benchmarks.md)
+COMPILE_SECONDS: dict[str, float] = {"dense_scores": 3.6, "hist_weight_integral": 0.85}

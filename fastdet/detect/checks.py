@@ -14,6 +14,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -116,7 +117,37 @@ def check_colour(detector: Any, frame: np.ndarray, source: str) -> None:
                         f"vehicles in grey pictures: give it the colour original")
 
 
-def check_frame(detector: Any, frame: np.ndarray, source: str) -> None:
-    """Both checks on a first frame: size (:func:`check_frame_size`), then colour."""
+def _horizon_fits(detector: Any, shape: tuple[int, int], horizon: float) -> bool:
+    """Every model's search keeps a band in frames of ``shape`` with the horizon there."""
+    for sc in detector.scorers:
+        try:
+            replace(sc.search, horizon=horizon).for_frame(shape)
+        except ValueError:
+            return False
+    return True
+
+
+def check_horizon(detector: Any, shape: tuple[int, ...], horizon: Any, source: str) -> None:
+    """``DataError`` when a fixed ``horizon`` (a fraction of the frame height) leaves some
+    model of ``detector`` no search band in frames of ``shape``; the message gives the
+    horizons that do. ``'auto'`` / ``None`` and detectors without ``scorers`` pass."""
+    if isinstance(horizon, bool) or not isinstance(horizon, (int, float)) or not hasattr(detector, "scorers"):
+        return
+    h, w = int(shape[0]), int(shape[1])
+    if not (math.isfinite(horizon) and 0 <= horizon < 1):
+        raise DataError(f"--horizon must be a fraction of the frame height in [0, 1), got {horizon!r}")
+    if _horizon_fits(detector, (h, w), float(horizon)):
+        return
+    ok = [k / 200 for k in range(200) if _horizon_fits(detector, (h, w), k / 200)]
+    room = (f"the search bands need it between {min(ok):g} and {max(ok):g} of the height" if ok
+            else "no horizon leaves room for them")
+    raise DataError(f"{source}: --horizon {horizon:g} leaves no room for a search band below it in "
+                    f"{w}x{h} frames; {room}")
+
+
+def check_frame(detector: Any, frame: np.ndarray, source: str, horizon: Any = None) -> None:
+    """The checks on a first frame: size (:func:`check_frame_size`), colour, and a fixed
+    ``horizon`` that leaves room for the search bands (:func:`check_horizon`)."""
     check_frame_size(detector, frame.shape, source)
     check_colour(detector, frame, source)
+    check_horizon(detector, frame.shape, horizon, source)

@@ -23,11 +23,12 @@ import time
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
+from typing import Any, ClassVar
 
 import numba
 import numpy as np
 
-from .._numba import announce_compile
+from .._numba import ensure_compiled
 from ..config import WIDE_SEARCH, SearchBand, SearchConfig
 from ..detections import FIRST_COMPONENT_PART, MAIN_PART, WIDE_PART, Detections
 from ..errors import ModelError
@@ -38,11 +39,16 @@ from ..features import (
     spatial_factor,
     spatial_map,
 )
-from ..features._hog_kernels import hog_u8_fast
+from ..features import _hog_kernels
 from ..model import Model, load_model
 from .bands import BandGeometry, PaddedFrame, band_geometry, pad_frame, scaled_band, window_boxes
-from .scoring import KERNELS as SCORE_KERNELS
+from . import _score_kernels
 from .scoring import dense_scores, hist_weight_integral, weight_table
+
+
+#: the numba kernels :meth:`Detector.detect` runs (each in the signatures its module lists)
+KERNELS = (_hog_kernels.cell_hists_u8, _hog_kernels.normalize_blocks_fast, _score_kernels.dense_scores,
+           _score_kernels.hist_weight_integral)
 
 
 @dataclass
@@ -181,6 +187,9 @@ class Detector:
     with a heat map over recent frames.
     """
 
+    #: the numba kernels :meth:`detect` runs (what a warm-up compiles / loads)
+    kernels: ClassVar[tuple[Any, ...]] = KERNELS
+
     def __init__(self, model: Model | str | os.PathLike | None = None, search: SearchConfig | None = None,
                  wide: Model | str | os.PathLike | None = None, wide_search: SearchConfig | None = None,
                  horizon: float | None = None,
@@ -249,10 +258,10 @@ class Detector:
             sc.search = replace(sc.search, horizon=None if horizon is None else float(horizon))
 
     def warmup(self) -> None:
-        """Load (or compile) the numba kernels now rather than on the first frame: the
-        multi-threaded scoring kernel and the serial one the band threads run. On a first
-        run this says once that it compiles (:func:`fastdet._numba.announce_compile`)."""
-        announce_compile(hog_u8_fast, *SCORE_KERNELS)
+        """Load (or compile) the numba kernels now rather than on the first frame (a first
+        run compiles them on every core, after saying so: :func:`fastdet._numba.ensure_compiled`),
+        then run them once on a small image."""
+        ensure_compiled(KERNELS)
         for sc in self.scorers:
             cfg = sc.config
             tiny = np.zeros((cfg.win_h * 2, cfg.win_w * 2, 3), np.uint8)

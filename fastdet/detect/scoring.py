@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._score_kernels import dense_scores as _dense_parallel
-from ._score_kernels import dense_scores_serial as _dense_serial
-from ._score_kernels import hist_weight_integral as _hist_integral
+import numba
 
-#: the kernels, for warm-up and the compile notice (fastdet._numba.announce_compile)
-KERNELS = (_dense_parallel, _dense_serial, _hist_integral)
+from .._numba import split_range
+from ._score_kernels import dense_scores as _dense
+from ._score_kernels import hist_weight_integral as _hist_integral
 
 
 def _f64_rows(name: str, a: np.ndarray) -> None:
@@ -38,7 +37,8 @@ def dense_scores(block_rows: np.ndarray, w_hog: np.ndarray, k: int, out: np.ndar
       ``hist_step`` divides ``cell``, ``win_h`` and ``win_w``): the sum over the
       ``win_h x win_w`` pixels at ``(i, j)*step*cell``.
 
-    ``parallel``: spread the windows over Numba's threads (else the calling thread only).
+    ``parallel``: spread the window rows over Numba's thread count of threads (else the
+    calling thread only; the scores are the same to the last bit).
     ``ValueError`` when an array has the wrong type or is too small for ``out``'s windows.
     """
     _f64_rows("block_rows", block_rows)
@@ -81,8 +81,10 @@ def dense_scores(block_rows: np.ndarray, w_hog: np.ndarray, k: int, out: np.ndar
             raise ValueError(f"integ {integ.shape} too small for {ny}x{nx} windows of {win_h}x{win_w} px "
                              f"(hist_step {hg})")
     if ny and nx:
-        kernel = _dense_parallel if parallel else _dense_serial
-        kernel(block_rows, w_hog, k, spat_rows, w_sp, sp_off, integ, hg, win_h, win_w, cell, step, float(bias), out)
+        bias = float(bias)
+        split_range(lambda i0, i1: _dense(block_rows, w_hog, k, spat_rows, w_sp, sp_off, integ, hg, win_h, win_w,
+                                          cell, step, bias, i0, i1, out),
+                    ny, numba.get_num_threads() if parallel else 1)
     return out
 
 

@@ -273,7 +273,6 @@ def evaluate(
         F = gt.num_frames if num_frames is None else int(num_frames)
         if F < 0:
             raise ValueError(f"num_frames must be >= 0, got {num_frames}")
-        scored = np.arange(1, F + 1, dtype=np.int64)
         g_in = gt.frames <= F
         p_in = preds.frames <= F
     num_outside = int((~p_in).sum())
@@ -311,7 +310,10 @@ def evaluate(
     if tracking is None:
         tracking = preds.has_ids
     if tracking:
-        mot = _mot_metrics(gt, preds, g_groups, p_groups, dropped, iou, scored)
+        # a scored frame with no box adds nothing to any of these metrics: only the frames
+        # with boxes are visited (time and memory follow the files, not the largest frame number)
+        visit = np.array(sorted(set(g_groups) | set(p_groups)), dtype=np.int64)
+        mot = _mot_metrics(gt, preds, g_groups, p_groups, dropped, iou, visit)
 
     return EvalResult(
         iou_threshold=float(iou),

@@ -249,7 +249,7 @@ def transform_gt(gt: GroundTruth, variant: Variant, shape: tuple[int, int], min_
 
 @dataclass(frozen=True)
 class SuiteSpec:
-    """Parameters of :func:`standard_variants` (defaults: issue 12's camera-shift suite)."""
+    """Parameters of :func:`standard_variants` (defaults: the camera-shift suite of docs/accuracy.md)."""
 
     resolutions: tuple[tuple[int, int], ...] = ((960, 540), (640, 360), (1920, 1080))
     zooms: tuple[float, ...] = (0.8, 0.6)

@@ -23,6 +23,7 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .._numba import split_range
 from . import _hog_kernels as _k
 
 __all__ = ["hog", "hog_channels", "hog_channels_batch"]
@@ -164,33 +165,50 @@ def _geometry(shape, ppc, cpb, name="image"):
 # --------------------------------------------------------------------------------------
 # the two computation paths
 # --------------------------------------------------------------------------------------
-def _blocks_u8(img, chans, max_channel, ppc, cpb, orientations, method, n_cells, n_blocks):
-    """uint8 ``(rows, cols, C)`` C-contiguous image -> (hist, blocks) via the LUT kernel."""
+def _cells_u8(img, chans, max_channel, ppc, orientations, n_cells, n_out_ch):
+    """Cell histograms ``ht (n_cells_row, n_out_ch, n_cells_col, orientations)`` of a uint8
+    ``(rows, cols, C)`` C-contiguous image; cell rows spread over threads for a big image."""
     bin_lut, mag_lut = _luts(orientations)
-    n_out_ch = 1 if max_channel else len(chans)
-    hist = np.empty((n_cells[0], n_cells[1], n_out_ch, orientations))
+    ht = np.empty((n_cells[0], n_out_ch, n_cells[1], orientations))
+    parts = _parts(img.shape[0] * img.shape[1] * len(chans), n_cells[0])
+    split_range(lambda lo, hi: _k.cell_hists_u8(img, chans, max_channel, lo, hi, ppc[0], ppc[1], bin_lut, mag_lut,
+                                                ht), n_cells[0], parts)
+    return ht
+
+
+def _parts(samples: int, rows: int) -> int:
+    """Threads worth using for ``samples`` pixel-channels in ``rows`` rows: one below
+    :data:`_PARALLEL_MIN_SAMPLES` (waking threads costs more than it saves), else Numba's
+    thread count (1 in a band thread of the detector)."""
+    if samples < _PARALLEL_MIN_SAMPLES or rows < 2:
+        return 1
+    return min(numba.get_num_threads(), rows)
+
+
+def _normalize(kernel, ht, cpb, method, n_blocks, n_out_ch, orientations, parts):
+    """Block map ``(n_blocks_row, n_blocks_col, n_out_ch, block size)`` of ``ht`` by ``kernel``
+    (:func:`~._hog_kernels.normalize_blocks` or ``normalize_blocks_fast``), block rows spread
+    over ``parts`` threads."""
     out = np.empty((n_blocks[0], n_blocks[1], n_out_ch, cpb[0] * cpb[1] * orientations))
-    samples = img.shape[0] * img.shape[1] * len(chans)
-    kernel = _k.hog_u8
-    if samples >= _PARALLEL_MIN_SAMPLES and n_cells[0] > 1 and numba.get_num_threads() > 1:
-        kernel = _k.hog_u8_parallel
-    kernel(img, chans, max_channel, ppc[0], ppc[1], cpb[0], cpb[1], bin_lut, mag_lut,
-           method, hist, out)
-    return hist, out
+    split_range(lambda lo, hi: kernel(ht, lo, hi, cpb[0], cpb[1], method, out), n_blocks[0],
+                min(parts, n_blocks[0]))
+    return out
+
+
+def _blocks_u8(img, chans, max_channel, ppc, cpb, orientations, method, n_cells, n_blocks):
+    """uint8 ``(rows, cols, C)`` C-contiguous image -> (ht, blocks) via the LUT kernel."""
+    n_out_ch = 1 if max_channel else len(chans)
+    ht = _cells_u8(img, chans, max_channel, ppc, orientations, n_cells, n_out_ch)
+    parts = _parts(img.shape[0] * img.shape[1] * len(chans), n_cells[0])
+    return ht, _normalize(_k.normalize_blocks, ht, cpb, method, n_blocks, n_out_ch, orientations, parts)
 
 
 def _blocks_u8_fast(img, chans, ppc, cpb, orientations, method, n_cells, n_blocks):
     """uint8 ``(rows, cols, C)`` C-contiguous image -> per-channel blocks, normalised to
     within an ulp of skimage (:func:`hog_channels` ``exact=False``)."""
-    bin_lut, mag_lut = _luts(orientations)
-    ht = np.empty((n_cells[0], len(chans), n_cells[1], orientations))
-    out = np.empty((n_blocks[0], n_blocks[1], len(chans), cpb[0] * cpb[1] * orientations))
-    kernel = _k.hog_u8_fast
-    if img.shape[0] * img.shape[1] * len(chans) >= _PARALLEL_MIN_SAMPLES and n_cells[0] > 1 \
-            and numba.get_num_threads() > 1:
-        kernel = _k.hog_u8_fast_parallel
-    kernel(img, chans, ppc[0], ppc[1], cpb[0], cpb[1], bin_lut, mag_lut, method, ht, out)
-    return out
+    ht = _cells_u8(img, chans, False, ppc, orientations, n_cells, len(chans))
+    parts = _parts(img.shape[0] * img.shape[1] * len(chans), n_cells[0])
+    return _normalize(_k.normalize_blocks_fast, ht, cpb, method, n_blocks, len(chans), orientations, parts)
 
 
 def _gradients(channel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -206,14 +224,14 @@ def _gradients(channel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _blocks_float(img, chans, max_channel, ppc, cpb, orientations, method, n_cells,
                   n_blocks):
     """Float ``(rows, cols, C)`` image (already in skimage's working dtype, already
-    square-rooted if asked) -> (hist, blocks).
+    square-rooted if asked) -> (cell histograms, blocks).
 
     Gradient magnitude and orientation use NumPy's ``hypot``/``arctan2`` exactly as
     skimage does (NumPy's SIMD versions differ from libm's by an ulp now and then, which
     could flip a bin), then the kernels bin, accumulate and normalise.
     """
     n_out_ch = 1 if max_channel else len(chans)
-    hist = np.empty((n_cells[0], n_cells[1], n_out_ch, orientations))
+    ht = np.empty((n_cells[0], n_out_ch, n_cells[1], orientations))
     if max_channel:
         # skimage's steps verbatim: per-channel gradients and magnitudes in an
         # (rows, cols, C) array, argmax over channels (first on ties), then gather
@@ -234,14 +252,13 @@ def _blocks_float(img, chans, max_channel, ppc, cpb, orientations, method, n_cel
         g_col = np.ascontiguousarray(g_col, dtype=np.float64)
         magnitude = np.hypot(g_col, g_row)
         orientation = np.rad2deg(np.arctan2(g_row, g_col)) % 180
-        _k.cell_hist_float(magnitude, orientation, ppc[0], ppc[1], k, hist)
-    out = np.empty((n_blocks[0], n_blocks[1], n_out_ch, cpb[0] * cpb[1] * orientations))
-    _k.normalize_blocks(hist, cpb[0], cpb[1], method, out)
-    return hist, out
+        _k.cell_hist_float(magnitude, orientation, ppc[0], ppc[1], k, ht)
+    return ht, _normalize(_k.normalize_blocks, ht, cpb, method, n_blocks, n_out_ch, orientations, 1)
 
 
 def _compute(img3, chans, max_channel, ppc, cpb, orientations, method, transform_sqrt):
-    """Dispatch on dtype. ``img3`` is ``(rows, cols, C)``; returns (hist, blocks, dtype)."""
+    """Dispatch on dtype. ``img3`` is ``(rows, cols, C)``; returns (cell histograms ``(rows,
+    channels, cols, orientations)``, blocks, dtype)."""
     float_dtype = _float_dtype(img3.dtype)
     n_cells, n_blocks = _geometry(img3.shape[:2], ppc, cpb)
     if transform_sqrt:
@@ -250,24 +267,24 @@ def _compute(img3, chans, max_channel, ppc, cpb, orientations, method, transform
                              "image has negative values")
     chans = np.asarray(chans, dtype=np.int64)
     if img3.dtype == np.uint8 and not transform_sqrt:
-        hist, out = _blocks_u8(np.ascontiguousarray(img3), chans, max_channel, ppc, cpb,
-                               orientations, method, n_cells, n_blocks)
+        ht, out = _blocks_u8(np.ascontiguousarray(img3), chans, max_channel, ppc, cpb,
+                             orientations, method, n_cells, n_blocks)
     else:
         work = img3.astype(float_dtype, copy=False)
         if transform_sqrt:
             work = np.sqrt(work)
-        hist, out = _blocks_float(work, chans, max_channel, ppc, cpb, orientations, method,
-                                  n_cells, n_blocks)
-    return hist, out, float_dtype
+        ht, out = _blocks_float(work, chans, max_channel, ppc, cpb, orientations, method,
+                                n_cells, n_blocks)
+    return ht, out, float_dtype
 
 
-def _hog_image(hist, ppc, orientations, shape, float_dtype):
+def _hog_image(ht, ppc, orientations, shape, float_dtype):
     radius = min(ppc) // 2 - 1
     midpoints = np.pi * (np.arange(orientations) + 0.5) / orientations
     dr_arr = np.ascontiguousarray(radius * np.sin(midpoints), dtype=np.float64)
     dc_arr = np.ascontiguousarray(radius * np.cos(midpoints), dtype=np.float64)
     image = np.zeros(shape, dtype=float_dtype)
-    _k.draw_hog_image(hist, ppc[0], ppc[1], dr_arr, dc_arr, image)
+    _k.draw_hog_image(ht, ppc[0], ppc[1], dr_arr, dc_arr, image)
     return image
 
 
@@ -372,15 +389,15 @@ def hog(image: ArrayLike, orientations: int = 9, pixels_per_cell: IntPair = (8, 
         img3 = np.moveaxis(arr, axis, -1)
         chans = list(range(img3.shape[2]))
         max_channel = True
-    hist, out, float_dtype = _compute(img3, chans, max_channel, ppc, cpb, orientations,
-                                      method, bool(transform_sqrt))
+    ht, out, float_dtype = _compute(img3, chans, max_channel, ppc, cpb, orientations,
+                                    method, bool(transform_sqrt))
     blocks = out.reshape(out.shape[0], out.shape[1], cpb[0], cpb[1], orientations)
     if float_dtype is not np.float64:
         blocks = blocks.astype(float_dtype)
     if feature_vector:
         blocks = blocks.ravel()
     if visualize:
-        return blocks, _hog_image(hist, ppc, orientations, img3.shape[:2], float_dtype)
+        return blocks, _hog_image(ht, ppc, orientations, img3.shape[:2], float_dtype)
     return blocks
 
 
@@ -467,12 +484,12 @@ def hog_channels(image: ArrayLike, orientations: int = 9, pixels_per_cell: int |
 
 def hog_channels_batch(images: ArrayLike, orientations: int = 9, pixels_per_cell: int | IntPair = 8,
                        cells_per_block: int | IntPair = 2, block_norm: BlockNorm = "L2-Hys",
-                       channels: Sequence[int] | None = None) -> np.ndarray:
+                       channels: Sequence[int] | None = None, *, threads: int | None = None) -> np.ndarray:
     """:func:`hog_channels` of every image of an ``(N, H, W, C)`` stack (or ``(N, H, W)``).
 
-    For a uint8 stack (e.g. 64x64 training crops) one kernel runs the whole stack,
-    threaded over images; other dtypes fall back to one :func:`hog_channels` call per
-    image.
+    For a uint8 stack (e.g. 64x64 training crops) the uint8 kernels run image after image,
+    the images spread over ``threads`` Python threads (``None``: Numba's thread count); other
+    dtypes fall back to one :func:`hog_channels` call per image.
 
     Returns
     -------
@@ -503,8 +520,20 @@ def hog_channels_batch(images: ArrayLike, orientations: int = 9, pixels_per_cell
     bin_lut, mag_lut = _luts(orientations)
     out = np.empty((shape[0], n_blocks[0], n_blocks[1], len(chans),
                     cpb[0] * cpb[1] * orientations))
-    if arr.shape[0]:
-        _k.hog_u8_batch(np.ascontiguousarray(arr), np.asarray(chans, dtype=np.int64),
-                        ppc[0], ppc[1], cpb[0], cpb[1], n_cells[0], n_cells[1],
-                        bin_lut, mag_lut, method, out)
+    imgs = np.ascontiguousarray(arr)
+    chans_arr = np.asarray(chans, dtype=np.int64)
+
+    ncr, nbr = n_cells[0], n_blocks[0]
+
+    def run(lo: int, hi: int) -> None:
+        """Images ``lo <= i < hi``, on this thread: two kernel calls per image (a few µs of
+        dispatch against ~0.1 ms of work) -- a kernel looping over the images would be one
+        more kernel to compile, with copies of both."""
+        ht = np.empty((ncr, len(chans), n_cells[1], orientations))  # scratch, one per thread
+        for i in range(lo, hi):
+            _k.cell_hists_u8(imgs[i], chans_arr, False, 0, ncr, ppc[0], ppc[1], bin_lut, mag_lut, ht)
+            _k.normalize_blocks(ht, 0, nbr, cpb[0], cpb[1], method, out[i])
+
+    n_threads = numba.get_num_threads() if threads is None else int(threads)
+    split_range(run, arr.shape[0], min(n_threads, arr.shape[0] // 4 + 1))
     return out.reshape(shape)

@@ -9,17 +9,25 @@ results agree to the last bit on the same machine:
 * block sums reproduce NumPy's pairwise summation (``np.sum`` over a contiguous block);
 * normalisation divides (never multiplies by a reciprocal), with ``eps = 1e-5``.
 
-Conventions: an image is ``(rows, cols, channels)``; a cell-histogram map ``hist`` is
-``(n_cells_row, n_cells_col, n_channels, orientations)`` float64; a block map ``out`` is
-``(n_blocks_row, n_blocks_col, n_channels, b_row * b_col * orientations)``, i.e. the
-normalised ``(b_row, b_col, orientations)`` block of each channel is contiguous.
+Conventions: an image is ``(rows, cols, channels)``; a cell-histogram map ``ht`` is
+``(n_cells_row, n_channels, n_cells_col, orientations)`` float64, channel-major within a cell
+row (a block row of one channel, ``b_col`` cells of ``orientations`` bins, is one contiguous
+run); a block map ``out`` is ``(n_blocks_row, n_blocks_col, n_channels, b_row * b_col *
+orientations)``, i.e. the normalised ``(b_row, b_col, orientations)`` block of each channel is
+contiguous.
+
+The kernels Python calls (:data:`SIGNATURES`, each compiled for exactly the argument types
+listed there) work on a range of rows -- cell rows, block rows -- on the calling thread: the
+wrappers in :mod:`fastdet.features._hog` spread the ranges over threads
+(:func:`fastdet._numba.split_range`) when that pays, so one compiled kernel serves one thread
+and many, and none is a ``parallel=True`` kernel (those compile several times slower).
 """
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
-from .._numba import EXACT, EXACT_PARALLEL, REASSOC
+from .._numba import EXACT, REASSOC
 
 # block_norm codes (see _hog.BLOCK_NORMS)
 NORM_L1 = 0
@@ -38,7 +46,6 @@ LUT_SIDE = 511
 # error_model="numpy": x / 0 gives inf/nan as in NumPy instead of a Python-style check,
 # which also lets LLVM vectorise the division loops (5x faster normalisation).
 _JIT = EXACT
-_PJIT = EXACT_PARALLEL
 
 
 # --------------------------------------------------------------------------------------
@@ -170,8 +177,9 @@ def _lane_sums(x, size, r, res):
 
 
 @njit(**_JIT)
-def _normalize_range(hist, g_start, g_stop, b_row, b_col, method, out):
-    """Normalise blocks ``g_start <= g < g_stop`` into ``out``, where block
+def _normalize_range(ht, g_start, g_stop, b_row, b_col, method, out):
+    """Normalise blocks ``g_start <= g < g_stop`` of the cell histograms ``ht`` into ``out``,
+    where block
     ``g = (bi * n_blocks_col + bj) * n_channels + k`` is block ``(bi, bj)`` of channel
     ``k``, i.e. ``out.reshape(-1)[g * size:(g + 1) * size]``.
 
@@ -183,8 +191,8 @@ def _normalize_range(hist, g_start, g_stop, b_row, b_col, method, out):
     n_blocks_col = out.shape[1]
     n_ch = out.shape[2]
     size = out.shape[3]
-    n_cells_col = hist.shape[1]
-    n_or = hist.shape[3]
+    n_cells_col = ht.shape[2]
+    n_or = ht.shape[3]
     n = size * L
     v = np.zeros(n)
     w = np.empty(n)
@@ -192,9 +200,9 @@ def _normalize_range(hist, g_start, g_stop, b_row, b_col, method, out):
     r = np.empty(8 * L)
     den = np.empty(L)
     flat = out.reshape(out.size)
-    src = hist.reshape(hist.size)
-    cell_step = n_ch * n_or  # next cell along a row
-    row_step = n_cells_col * cell_step  # next cell row
+    src = ht.reshape(ht.size)
+    ch_step = n_cells_col * n_or  # the same cell of the next channel
+    row_step = n_ch * ch_step  # next cell row
     for g0 in range(g_start, g_stop, L):
         g1 = min(g0 + L, g_stop)
         # gather: lane b <- block g0 + b
@@ -204,10 +212,10 @@ def _normalize_range(hist, g_start, g_stop, b_row, b_col, method, out):
             bi = bk // n_blocks_col
             bj = bk - bi * n_blocks_col
             q = np.uint64(g - g0)
-            base = bi * row_step + bj * cell_step + k * n_or
+            base = bi * row_step + k * ch_step + bj * n_or
             for i in range(b_row):
                 for j in range(b_col):
-                    c0 = base + i * row_step + j * cell_step
+                    c0 = base + i * row_step + j * n_or
                     for o in range(n_or):
                         v[q] = src[np.uint64(c0 + o)]
                         q += np.uint64(L)
@@ -256,10 +264,11 @@ def _normalize_range(hist, g_start, g_stop, b_row, b_col, method, out):
 
 
 @njit(**_JIT)
-def normalize_blocks(hist, b_row, b_col, method, out):
-    """Serial block normalisation of a whole cell-histogram map into ``out``."""
-    _normalize_range(hist, 0, out.shape[0] * out.shape[1] * out.shape[2], b_row, b_col,
-                     method, out)
+def normalize_blocks(ht, bi0, bi1, b_row, b_col, method, out):
+    """Block rows ``bi0 <= bi < bi1`` of ``out`` from the cell histograms ``ht``, to the last
+    bit as skimage normalises them (NumPy's pairwise sums, divisions)."""
+    per_row = out.shape[1] * out.shape[2]
+    _normalize_range(ht, bi0 * per_row, bi1 * per_row, b_row, b_col, method, out)
 
 
 # --------------------------------------------------------------------------------------
@@ -389,28 +398,28 @@ def _image_row_index(img, y, idx):
 
 
 @njit(**_JIT)
-def _store_cell_row(acc, area, ci, hist):
-    """Cell row ``ci`` of ``hist (n_cells_row, n_cells_col, n_channels, orientations)`` from
+def _store_cell_row(acc, area, ci, ht):
+    """Cell row ``ci`` of ``ht (n_cells_row, n_channels, n_cells_col, orientations)`` from
     its float32 totals ``acc`` laid out ``(cell, channel, bin)``, each divided by the cell
     ``area`` in float32 (skimage's ``total / (cell_rows * cell_columns)``)."""
     p = 0
-    for cx in range(hist.shape[1]):
-        for k in range(hist.shape[2]):
-            for o in range(hist.shape[3]):
-                hist[ci, cx, k, o] = np.float64(acc[p] / area)
+    for cx in range(ht.shape[2]):
+        for k in range(ht.shape[1]):
+            for o in range(ht.shape[3]):
+                ht[ci, k, cx, o] = np.float64(acc[p] / area)
                 p += 1
 
 
 @njit(**_JIT)
-def _cell_row_interleaved(img, chans, ci, c_row, c_col, bin_lut, mag_lut, hist):
+def _cell_row_interleaved(img, chans, ci, c_row, c_col, bin_lut, mag_lut, ht):
     """As :func:`_cell_rows_planes` for one cell row, straight from the interleaved
     image: LUT indices of every sample of an image row, totals ``(cell, channel, bin)``
     (faster on narrow images, e.g. 64x64 training crops)."""
     n_cols = img.shape[1]
     n_img_ch = img.shape[2]
-    n_cells_col = hist.shape[1]
-    n_ch = hist.shape[2]
-    n_or = hist.shape[3]
+    n_ch = ht.shape[1]
+    n_cells_col = ht.shape[2]
+    n_or = ht.shape[3]
     n = n_cols * n_img_ch
     acc = np.zeros(n_cells_col * n_ch * n_or, dtype=np.float32)
     idx = np.empty(n, dtype=np.int32)
@@ -430,14 +439,14 @@ def _cell_row_interleaved(img, chans, ci, c_row, c_col, bin_lut, mag_lut, hist):
                     acc[a] = np.float32(acc[a] + mag_lut[t])
                     j += step
                     a0 += stride
-    _store_cell_row(acc, np.float32(c_row * c_col), ci, hist)
+    _store_cell_row(acc, np.float32(c_row * c_col), ci, ht)
 
 
 @njit(**_JIT)
-def _cell_rows_planes(img, chans, ci0, ci1, c_row, c_col, bin_lut, mag_lut, hist):
+def _cell_rows_planes(img, chans, ci0, ci1, c_row, c_col, bin_lut, mag_lut, ht):
     """Per-channel histograms of cell rows ``ci0 <= ci < ci1`` of a uint8 ``(rows, cols,
-    C)`` C-contiguous image into ``hist[ci] (n_cells_col, n_channels, orientations)``:
-    channel ``chans[k]`` into ``hist[ci, :, k]``.
+    C)`` C-contiguous image into ``ht[ci] (n_channels, n_cells_col, orientations)``:
+    channel ``chans[k]`` into ``ht[ci, k]``.
 
     Per cell row, its image rows (and the one above and below) are first de-interleaved
     into channel planes; then per image row and channel: the LUT indices of the row's
@@ -452,9 +461,9 @@ def _cell_rows_planes(img, chans, ci0, ci1, c_row, c_col, bin_lut, mag_lut, hist
     """
     n_rows = img.shape[0]
     n_cols = img.shape[1]
-    n_cells_col = hist.shape[1]
-    n_ch = hist.shape[2]
-    n_or = hist.shape[3]
+    n_ch = ht.shape[1]
+    n_cells_col = ht.shape[2]
+    n_or = ht.shape[3]
     n_x = n_cells_col * c_col
     buf = np.empty((img.shape[2], c_row + 2, n_cols), dtype=np.uint8)
     idx = np.empty(max(n_x, 1), dtype=np.int32)
@@ -485,51 +494,20 @@ def _cell_rows_planes(img, chans, ci0, ci1, c_row, c_col, bin_lut, mag_lut, hist
                         acc[a] = np.float32(acc[a] + mag_lut[t])
                         j += np.uint64(c_col)
                         a0 += np.uint64(n_or)
-        for k in range(n_ch):
-            p = k * n_cells_col * n_or
-            for cx in range(n_cells_col):
-                for o in range(n_or):
-                    hist[ci, cx, k, o] = np.float64(acc[p] / area)
-                    p += 1
+        row = ht[ci].reshape(n_ch * n_cells_col * n_or)  # (channel, cell, bin), as acc
+        for p in range(n_ch * n_cells_col * n_or):
+            row[p] = np.float64(acc[p] / area)
 
 
 @njit(**_JIT)
-def _cell_rows_u8(img, chans, max_channel, ci0, ci1, c_row, c_col, bin_lut, mag_lut, hist):
-    """Histograms of cell rows ``ci0 <= ci < ci1`` of a uint8 ``(rows, cols, C)``
-    C-contiguous image into ``hist[ci]``.
-
-    ``max_channel=False``: one histogram per channel ``chans[k]`` (``hist[ci, :, k]``),
-    by :func:`_cell_rows_planes` for images of at least :data:`PLANES_MIN_CELLS` cells
-    across, else by :func:`_cell_row_interleaved`. ``max_channel=True``: per pixel the
-    channel with the largest gradient magnitude (first on ties) votes into
-    ``hist[ci, :, 0]`` (skimage's multichannel HOG).
-    """
-    if max_channel:
-        for ci in range(ci0, ci1):
-            _cell_row_max_channel(img, chans, ci, c_row, c_col, bin_lut, mag_lut, hist)
-    elif hist.shape[1] >= PLANES_MIN_CELLS:
-        _cell_rows_planes(img, chans, ci0, ci1, c_row, c_col, bin_lut, mag_lut, hist)
-    else:
-        for ci in range(ci0, ci1):
-            _cell_row_interleaved(img, chans, ci, c_row, c_col, bin_lut, mag_lut, hist)
-
-
-@njit(**_JIT)
-def _cell_row_u8(img, chans, max_channel, ci, c_row, c_col, bin_lut, mag_lut, hist):
-    """:func:`_cell_rows_u8` of the one cell row ``ci``."""
-    _cell_rows_u8(img, chans, max_channel, ci, ci + 1, c_row, c_col, bin_lut, mag_lut, hist)
-
-
-@njit(**_JIT)
-def _cell_row_max_channel(img, chans, ci, c_row, c_col, bin_lut, mag_lut, hist):
-    """skimage's multichannel histograms of cell row ``ci`` into ``hist[ci, :, 0]``: per
-    pixel the channel of ``chans`` with the largest gradient magnitude (first on ties)
-    votes."""
+def _cell_row_max_channel(img, chans, ci, c_row, c_col, bin_lut, mag_lut, ht):
+    """skimage's multichannel histograms of cell row ``ci`` into ``ht[ci, 0]``: per pixel
+    the channel of ``chans`` with the largest gradient magnitude (first on ties) votes."""
     n_cols = img.shape[1]
     n_img_ch = img.shape[2]
-    n_cells_col = hist.shape[1]
-    n_ch = hist.shape[2]
-    n_or = hist.shape[3]
+    n_ch = ht.shape[1]
+    n_cells_col = ht.shape[2]
+    n_or = ht.shape[3]
     n_sel = chans.shape[0]
     n = n_cols * n_img_ch
     acc = np.zeros(n_cells_col * n_ch * n_or, dtype=np.float32)
@@ -551,40 +529,28 @@ def _cell_row_max_channel(img, chans, ci, c_row, c_col, bin_lut, mag_lut, hist):
                         t = tk
                 a = cx * stride + bin_lut[t]
                 acc[a] = np.float32(acc[a] + best)
-    _store_cell_row(acc, np.float32(c_row * c_col), ci, hist)
+    _store_cell_row(acc, np.float32(c_row * c_col), ci, ht)
 
 
 @njit(**_JIT)
-def hog_u8(img, chans, max_channel, c_row, c_col, b_row, b_col, bin_lut, mag_lut, method,
-           hist, out):
-    """Whole uint8 HOG, single thread: cell histograms into ``hist``, blocks into ``out``."""
-    _cell_rows_u8(img, chans, max_channel, 0, hist.shape[0], c_row, c_col, bin_lut, mag_lut, hist)
-    normalize_blocks(hist, b_row, b_col, method, out)
+def cell_hists_u8(img, chans, max_channel, ci0, ci1, c_row, c_col, bin_lut, mag_lut, ht):
+    """Histograms of cell rows ``ci0 <= ci < ci1`` of a uint8 ``(rows, cols, C)``
+    C-contiguous image into ``ht[ci] (n_channels, n_cells_col, orientations)``.
 
-
-@njit(**_PJIT)
-def hog_u8_parallel(img, chans, max_channel, c_row, c_col, b_row, b_col, bin_lut, mag_lut,
-                    method, hist, out):
-    """As :func:`hog_u8`, threads over cell rows, then over block rows."""
-    for ci in prange(hist.shape[0]):
-        _cell_row_u8(img, chans, max_channel, ci, c_row, c_col, bin_lut, mag_lut, hist)
-    per_row = out.shape[1] * out.shape[2]
-    for bi in prange(out.shape[0]):
-        _normalize_range(hist, bi * per_row, (bi + 1) * per_row, b_row, b_col, method, out)
-
-
-@njit(**_PJIT)
-def hog_u8_batch(imgs, chans, c_row, c_col, b_row, b_col, n_cells_row, n_cells_col,
-                 bin_lut, mag_lut, method, out):
-    """Per-channel HOG of each image of a ``(N, rows, cols, C)`` uint8 stack, threads
-    over images; ``out`` is ``(N, n_blocks_row, n_blocks_col, n_channels, block size)``."""
-    n_img = imgs.shape[0]
-    n_ch = chans.shape[0]
-    n_or = out.shape[4] // (b_row * b_col)
-    for n in prange(n_img):
-        hist = np.empty((n_cells_row, n_cells_col, n_ch, n_or))
-        hog_u8(imgs[n], chans, False, c_row, c_col, b_row, b_col, bin_lut, mag_lut, method,
-               hist, out[n])
+    ``max_channel=False``: one histogram per channel ``chans[k]`` (``ht[ci, k]``), by
+    :func:`_cell_rows_planes` for images of at least :data:`PLANES_MIN_CELLS` cells across,
+    else by :func:`_cell_row_interleaved`. ``max_channel=True``: per pixel the channel with
+    the largest gradient magnitude (first on ties) votes into ``ht[ci, 0]`` (skimage's
+    multichannel HOG). ``bin_lut``, ``mag_lut``: :func:`fastdet.features._hog._luts`.
+    """
+    if max_channel:
+        for ci in range(ci0, ci1):
+            _cell_row_max_channel(img, chans, ci, c_row, c_col, bin_lut, mag_lut, ht)
+    elif ht.shape[2] >= PLANES_MIN_CELLS:
+        _cell_rows_planes(img, chans, ci0, ci1, c_row, c_col, bin_lut, mag_lut, ht)
+    else:
+        for ci in range(ci0, ci1):
+            _cell_row_interleaved(img, chans, ci, c_row, c_col, bin_lut, mag_lut, ht)
 
 
 # --------------------------------------------------------------------------------------
@@ -592,12 +558,12 @@ def hog_u8_batch(imgs, chans, c_row, c_col, b_row, b_col, n_cells_row, n_cells_c
 # --------------------------------------------------------------------------------------
 # The detector needs every block value to ~1e-15 relative, not to the last bit: NumPy's
 # pairwise order and the lane transposes of _normalize_range cost 60% of its HOG time. Here
-# the cell histograms (still skimage's exact float32 sums) are kept channel-major within a
-# cell row, ``ht[r, k, c, o]``, so a block row of one channel, ``b_col`` cells of ``n_or``
-# bins, is one contiguous run: a block is ``b_row`` runs, read in place, summed in any order
-# and scaled by a reciprocal (5x faster than the exact path).
+# the same cell histograms (skimage's exact float32 sums, channel-major within a cell row,
+# ``ht[r, k, c, o]``: a block row of one channel, ``b_col`` cells of ``n_or`` bins, is one
+# contiguous run) are normalised block by block: a block is ``b_row`` runs, read in place,
+# summed in any order and scaled by a reciprocal (5x faster than the exact path).
 @njit(**REASSOC)
-def _normalize_rows_fast(ht, bi0, bi1, b_row, b_col, method, out):
+def normalize_blocks_fast(ht, bi0, bi1, b_row, b_col, method, out):
     """Normalise block rows ``bi0 <= bi < bi1`` of ``ht (rows, n_ch, cols, n_or)`` into
     ``out (n_blocks_row, n_blocks_col, n_ch, b_row * b_col * n_or)`` (C-contiguous).
 
@@ -682,41 +648,22 @@ def _normalize_rows_fast(ht, bi0, bi1, b_row, b_col, method, out):
                             dst[d + p] = src[q + p] * iv
 
 
-@njit(**_JIT)
-def hog_u8_fast(img, chans, c_row, c_col, b_row, b_col, bin_lut, mag_lut, method, ht, out):
-    """Per-channel uint8 HOG for the detector, one thread: skimage's cell histograms into
-    ``ht (n_cells_row, n_ch, n_cells_col, n_or)``, blocks by :func:`_normalize_rows_fast`."""
-    hist = ht.transpose(0, 2, 1, 3)  # (rows, cols, n_ch, n_or) view: what _cell_rows_u8 fills
-    _cell_rows_u8(img, chans, False, 0, ht.shape[0], c_row, c_col, bin_lut, mag_lut, hist)
-    _normalize_rows_fast(ht, 0, out.shape[0], b_row, b_col, method, out)
-
-
-@njit(**_PJIT)
-def hog_u8_fast_parallel(img, chans, c_row, c_col, b_row, b_col, bin_lut, mag_lut, method, ht, out):
-    """As :func:`hog_u8_fast`, threads over cell rows, then over block rows."""
-    hist = ht.transpose(0, 2, 1, 3)
-    for ci in prange(ht.shape[0]):
-        _cell_row_u8(img, chans, False, ci, c_row, c_col, bin_lut, mag_lut, hist)
-    for bi in prange(out.shape[0]):
-        _normalize_rows_fast(ht, bi, bi + 1, b_row, b_col, method, out)
-
-
 # --------------------------------------------------------------------------------------
 # float images: magnitude and orientation come from NumPy (bit-identical to skimage);
 # the kernels bin, accumulate and normalise
 # --------------------------------------------------------------------------------------
 @njit(**_JIT)
-def cell_hist_float(mag, orient, c_row, c_col, k, hist):
-    """Hard-binned cell histograms of one channel into ``hist[:, :, k]``.
+def cell_hist_float(mag, orient, c_row, c_col, k, ht):
+    """Hard-binned cell histograms of one channel into ``ht[:, k]``.
 
     ``mag`` and ``orient`` (degrees in [0, 180]) are float64 maps covering at least the
     whole cells. A pixel votes into bin ``i`` when ``180/n*i <= orient < 180/n*(i+1)``;
     like skimage, a NaN orientation votes into every bin and an orientation at or above
     the last edge into none.
     """
-    n_cells_row = hist.shape[0]
-    n_cells_col = hist.shape[1]
-    n_or = hist.shape[3]
+    n_cells_row = ht.shape[0]
+    n_cells_col = ht.shape[2]
+    n_or = ht.shape[3]
     per180 = 180.0 / n_or
     edges = np.empty(n_or + 1)
     for i in range(n_or + 1):
@@ -747,7 +694,7 @@ def cell_hist_float(mag, orient, c_row, c_col, k, hist):
                     acc[cx, b] = np.float32(acc[cx, b] + m)
         for cx in range(n_cells_col):
             for o2 in range(n_or):
-                hist[ci, cx, k, o2] = np.float64(acc[cx, o2] / area)
+                ht[ci, k, cx, o2] = np.float64(acc[cx, o2] / area)
 
 
 # --------------------------------------------------------------------------------------
@@ -797,16 +744,38 @@ def _add_line(img, r0, c0, r1, c1, value):
 
 
 @njit(**_JIT)
-def draw_hog_image(hist, c_row, c_col, dr_arr, dc_arr, out):
+def draw_hog_image(ht, c_row, c_col, dr_arr, dc_arr, out):
     """skimage's HOG picture: per cell and bin, a line through the cell centre
-    perpendicular to the bin's mid angle, brightness = the cell's histogram value."""
-    n_or = hist.shape[3]
-    for r in range(hist.shape[0]):
-        for c in range(hist.shape[1]):
+    perpendicular to the bin's mid angle, brightness = the cell's histogram value
+    (``ht[:, 0]``, the one channel of skimage's HOG)."""
+    n_or = ht.shape[3]
+    for r in range(ht.shape[0]):
+        for c in range(ht.shape[2]):
             centre_r = r * c_row + c_row // 2
             centre_c = c * c_col + c_col // 2
             for o in range(n_or):
                 dr = dr_arr[o]
                 dc = dc_arr[o]
                 _add_line(out, int(centre_r - dc), int(centre_c + dr),
-                          int(centre_r + dc), int(centre_c - dr), hist[r, c, 0, o])
+                          int(centre_r + dc), int(centre_c - dr), ht[r, 0, c, o])
+
+
+# --------------------------------------------------------------------------------------
+# what the package calls, compiled ahead of time (fastdet._numba.ensure_compiled)
+# --------------------------------------------------------------------------------------
+#: argument types of every call the package makes to each kernel: exactly the types of the
+#: calls (C-contiguous arrays, Python ints as int64), so a call finds its machine code
+SIGNATURES: dict[str, tuple[str, ...]] = {
+    "cell_hists_u8": ("uint8[:, :, ::1], int64[::1], boolean, int64, int64, int64, int64, int8[::1], float64[::1], "
+                      "float64[:, :, :, ::1]",),
+    "normalize_blocks": ("float64[:, :, :, ::1], int64, int64, int64, int64, int64, float64[:, :, :, ::1]",),
+    "normalize_blocks_fast": ("float64[:, :, :, ::1], int64, int64, int64, int64, int64, float64[:, :, :, ::1]",),
+    "cell_hist_float": ("float64[:, ::1], float64[:, ::1], int64, int64, int64, float64[:, :, :, ::1]",),
+    "draw_hog_image": ("float64[:, :, :, ::1], int64, int64, float64[::1], float64[::1], float64[:, ::1]",
+                       "float64[:, :, :, ::1], int64, int64, float64[::1], float64[::1], float32[:, ::1]"),
+}
+#: CPU seconds to compile each (all its signatures), reference machine (docs/benchmarks.md)
+COMPILE_SECONDS: dict[str, float] = {
+    "cell_hists_u8": 8.1, "normalize_blocks": 6.9, "normalize_blocks_fast": 2.0, "cell_hist_float": 1.4,
+    "draw_hog_image": 1.6,
+}

@@ -16,11 +16,18 @@ check every part against the plain reference above.
 from __future__ import annotations
 
 import cv2
+import numba
 import numpy as np
 
+from .._numba import split_range
 from ..config import FeatureConfig
+from . import _hog_kernels
 from ._hog import hog_channels_batch
 from ._window_kernels import color_hist_batch, hog_to_features, spatial_batch
+
+#: the numba kernels of :func:`extract_features` (compiled ahead of time: fastdet._numba.ensure_compiled)
+KERNELS = (_hog_kernels.cell_hists_u8, _hog_kernels.normalize_blocks, hog_to_features, spatial_batch,
+           color_hist_batch)
 
 _CONVERSIONS = {
     "RGB": cv2.COLOR_BGR2RGB,
@@ -57,7 +64,7 @@ def spatial_map(image: np.ndarray, factor: int) -> np.ndarray:
     ``factor/2 - 1`` and ``factor/2`` (factor 1: the pixel itself). Because windows start on
     the 8-px cell grid (a multiple of ``factor``), a window's spatial bins are a crop of
     this map, so the detector computes it once per band: ``cv2.resize`` of the aligned part
-    (18x faster than the same sum in NumPy: 0.03 against 0.56 ms for a 1344x96 band).
+    (faster than the same sum in NumPy: docs/benchmarks.md, *Kernel notes*).
     """
     if factor == 1:
         return np.ascontiguousarray(image)
@@ -87,7 +94,8 @@ def extract_features(crops: np.ndarray, config: FeatureConfig | None = None) -> 
 
     crops: ``(N, win_h, win_w, 3) uint8`` BGR (or a single ``(win_h, win_w, 3)`` crop).
     Returns ``(N, config.n_features) float64`` (``(n_features,)`` for a single crop), in the
-    order documented in this module. HOG and histograms run in parallel numba kernels.
+    order documented in this module. Chunks of the stack are spread over Numba's thread count
+    of threads (the kernels release the GIL).
     """
 
     config = config or FeatureConfig()
@@ -105,20 +113,29 @@ def extract_features(crops: np.ndarray, config: FeatureConfig | None = None) -> 
     # colour conversion of the whole stack at once: (N*wh, ww, 3) is one image to OpenCV
     conv = convert_color(np.ascontiguousarray(crops).reshape(n * wh, ww, 3), config.color_space)
     conv = conv.reshape(n, wh, ww, 3)
-    # 1. HOG: (n, br, bc, nch, cpb, cpb, o) → channel-major feature order, in chunks small
-    #    enough that the kernel's output is still in cache when it is reordered into `out`
-    for s in range(0, n, _CHUNK):
-        hog = hog_channels_batch(conv[s: s + _CHUNK], config.orientations, config.pixels_per_cell,
-                                 config.cells_per_block, channels=list(config.hog_channels))
-        hog_to_features(hog.reshape(hog.shape[:4] + (-1,)), out[s: s + _CHUNK])
-    pos = config.n_hog
-    # 2. spatial bins (the same pixels as spatial_map / cv2.resize; tested)
-    if config.spatial_size:
-        spatial_batch(conv, spatial_factor(config), out, pos)
-        pos += config.n_spatial
-    # 3. colour histograms
-    if config.hist_bins:
-        hist = np.empty((n, config.n_hist), np.float64)
-        color_hist_batch(conv, hist_bin_shift(config), config.hist_bins, hist)
-        out[:, pos: pos + config.n_hist] = hist
+    hist_shift = hist_bin_shift(config) if config.hist_bins else 0
+    sp_factor = spatial_factor(config) if config.spatial_size else 1
+    sp_pos = config.n_hog
+    hist_pos = sp_pos + (config.n_spatial if config.spatial_size else 0)
+
+    def chunks(c0: int, c1: int) -> None:
+        """Feature rows of chunks ``c0 <= c < c1`` of :data:`_CHUNK` crops, on this thread."""
+        for s in range(c0 * _CHUNK, min(c1 * _CHUNK, n), _CHUNK):
+            e = min(s + _CHUNK, n)
+            part, rows = conv[s:e], out[s:e]
+            # 1. HOG: (n, br, bc, nch, cpb, cpb, o) -> channel-major feature order, a chunk small
+            #    enough that the kernel's output is still in cache when it is reordered
+            hog = hog_channels_batch(part, config.orientations, config.pixels_per_cell,
+                                     config.cells_per_block, channels=list(config.hog_channels), threads=1)
+            hog_to_features(hog.reshape(hog.shape[:4] + (-1,)), rows)
+            # 2. spatial bins (the same pixels as spatial_map / cv2.resize; tested)
+            if config.spatial_size:
+                spatial_batch(part, sp_factor, rows, sp_pos)
+            # 3. colour histograms
+            if config.hist_bins:
+                hist = np.empty((e - s, config.n_hist), np.float64)
+                color_hist_batch(part, hist_shift, config.hist_bins, hist)
+                rows[:, hist_pos: hist_pos + config.n_hist] = hist
+
+    split_range(chunks, -(-n // _CHUNK), numba.get_num_threads())
     return out[0] if single else out

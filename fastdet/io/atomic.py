@@ -4,23 +4,41 @@ Every file fastdet writes (models, videos, images, box files, plots, manifests) 
 a hidden temporary name in the destination folder (:func:`partial_name`) and renamed with
 ``os.replace`` (atomic on POSIX within one file system) when it is complete. A run that
 fails or is stopped leaves no file under the final name that looks complete.
+
+The temporary name holds the process id and a random token (:func:`process_token`), so two
+runs writing the same output never share a temporary file: each writes its own, the last
+rename wins whole, and a run removes only its own temporary files. :class:`OutputSet`
+renames a run's outputs together, after all of them were written, or removes them all.
 """
 from __future__ import annotations
 
 import os
+import secrets
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from ..errors import DataError
+from ..errors import DataError, WriteError
+
+_token: tuple[int, str] | None = None
+
+
+def process_token() -> str:
+    """``PID-RANDOM``: unique to this process (made anew in a forked child)."""
+    global _token
+    pid = os.getpid()
+    if _token is None or _token[0] != pid:
+        _token = (pid, f"{pid}-{secrets.token_hex(4)}")
+    return _token[1]
 
 
 def partial_name(path: str | os.PathLike) -> Path:
-    """Temporary name of an output while it is written: ``dir/.NAME.partial.EXT`` (the
-    extension is kept: OpenCV picks the container / image format from it)."""
+    """Temporary name of an output while this process writes it:
+    ``dir/.NAME.partial.PID-RANDOM.EXT`` (:func:`process_token`; the extension is kept:
+    OpenCV picks the container / image format from it)."""
     p = Path(path)
-    return p.with_name(f".{p.stem}.partial{p.suffix}")
+    return p.with_name(f".{p.stem}.partial.{process_token()}{p.suffix}")
 
 
 def _unlink_quietly(p: Path) -> None:
@@ -40,7 +58,7 @@ def commit(tmp: str | os.PathLike, path: str | os.PathLike, mode: int | None = 0
         os.replace(tmp, path)
     except OSError as exc:
         _unlink_quietly(tmp)
-        raise DataError(f"{path}: cannot write ({exc.strerror or exc})") from None
+        raise WriteError(f"{path}: cannot write ({exc.strerror or exc})") from None
     return path
 
 
@@ -57,12 +75,12 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         yield tmp
     except OSError as exc:
         _unlink_quietly(tmp)
-        raise DataError(f"{path}: cannot write ({exc.strerror or exc})") from None
+        raise WriteError(f"{path}: cannot write ({exc.strerror or exc})") from None
     except BaseException:
         _unlink_quietly(tmp)
         raise
     if not tmp.exists():
-        raise DataError(f"{path}: nothing was written")
+        raise WriteError(f"{path}: nothing was written")
     commit(tmp, path)
 
 
@@ -88,16 +106,45 @@ def folder_writable(folder: str | os.PathLike) -> bool:
     return True
 
 
-def check_output_path(path: str | os.PathLike, what: str, inp: str | os.PathLike | None = None) -> None:
-    """Refuse an output location before any work: folder missing or not writable, a folder
-    given as a file name, or the output being the input itself."""
-    path = os.fspath(path)
-    parent = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(parent):
-        raise DataError(f"{path}: output folder {parent} does not exist")
-    if not folder_writable(parent):
-        raise DataError(f"{path}: output folder {parent} is not writable")
-    if os.path.isdir(path):
-        raise DataError(f"{path}: is a folder, expected a {what} file name")
-    if inp is not None and os.path.exists(path) and os.path.exists(inp) and os.path.samefile(path, inp):
-        raise DataError(f"{path}: the {what} would overwrite the input")
+class OutputSet:
+    """A run's outputs, renamed together when all are complete.
+
+    ``add(tmp, final)`` records a finished temporary file; :meth:`commit` gives every one its
+    final name (in the order added) and :meth:`discard` removes them all. A failed rename
+    removes the temporary files not yet renamed and the outputs this set already renamed,
+    so a failed run keeps none of its outputs (a file an earlier run left under a final
+    name that this run had not yet replaced stays).
+    """
+
+    def __init__(self) -> None:
+        self._pending: list[tuple[Path, Path]] = []
+
+    def add(self, tmp: str | os.PathLike, final: str | os.PathLike) -> None:
+        self._pending.append((Path(tmp), Path(final)))
+
+    def __len__(self) -> int:
+        return len(self._pending)
+
+    def finals(self) -> list[Path]:
+        return [f for _, f in self._pending]
+
+    def commit(self) -> list[Path]:
+        """Rename all; ``WriteError`` (and nothing of this set left) when one fails."""
+        done: list[Path] = []
+        pending, self._pending = self._pending, []
+        for k, (tmp, final) in enumerate(pending):
+            try:
+                commit(tmp, final)
+            except DataError:
+                for t, _ in pending[k + 1:]:
+                    _unlink_quietly(t)
+                for f in done:
+                    _unlink_quietly(f)
+                raise
+            done.append(final)
+        return done
+
+    def discard(self) -> None:
+        pending, self._pending = self._pending, []
+        for tmp, _ in pending:
+            _unlink_quietly(tmp)

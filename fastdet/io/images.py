@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 
 from ..console import quiet_native_stderr
-from ..errors import DataError
+from ..errors import DataError, WriteError
 from .atomic import atomic_path
 
 _SOI, _SOS, _EOI = b"\xff\xd8", b"\xff\xda", b"\xff\xd9"
@@ -77,7 +77,7 @@ def write_image(path: str | os.PathLike, img: np.ndarray) -> Path:
             ok = False
         if not ok or not _readable(tmp):
             tmp.unlink(missing_ok=True)
-            raise DataError(f"{path}: writing the image failed (disk full or a file-size limit?)")
+            raise WriteError(f"{path}: writing the image failed (disk full or a file-size limit?)")
     return path
 
 

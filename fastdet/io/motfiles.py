@@ -41,7 +41,7 @@ from typing import IO, Any, Iterable, Iterator, Sequence, Union
 import numpy as np
 
 from ..boxes import ltwh_to_xyxy, xyxy_to_ltwh
-from ..errors import DataError
+from ..errors import DataError, WriteError
 from .atomic import commit, partial_name
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -208,6 +208,29 @@ def _read_text(path: PathLike) -> tuple[str, str]:
         raise DataError(f"{name}: cannot read ({exc.strerror or exc})") from None
 
 
+#: largest frame number and largest id magnitude a box file may hold (int32: a video of
+#: 2**31 frames runs 2.7 years at 25 fps; larger numbers are a damaged file)
+MAX_FRAME = 2**31 - 1
+MAX_ID = 2**31 - 1
+
+
+def _check_range(where: str, frame: float, tid: float) -> None:
+    """``DataError`` for a frame past :data:`MAX_FRAME` or an id beyond +-:data:`MAX_ID`."""
+    if frame > MAX_FRAME:
+        raise DataError(f"{where}: frame {frame:.15g} is out of range (at most {MAX_FRAME})")
+    if abs(tid) > MAX_ID:
+        raise DataError(f"{where}: id {tid:.15g} is out of range (-{MAX_ID} to {MAX_ID})")
+
+
+def _whole(name: str, v: Any) -> int:
+    """A JSON number that is a whole number (``777.0`` yes, ``777.5`` no, ``true`` no)."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise ValueError(f"{name} must be a whole number, got {v!r}")
+    if isinstance(v, float) and not (math.isfinite(v) and v.is_integer()):
+        raise ValueError(f"{name} must be a whole number, got {v!r}")
+    return int(v)
+
+
 def _parse_rows(text: str, source: str, min_cols: int, kind: str) -> tuple[np.ndarray, list[int]]:
     """Numeric rows of a MOT file -> ``(N, 10)`` float64 (missing columns NaN), line numbers."""
     rows: list[list[float]] = []
@@ -239,6 +262,7 @@ def _parse_rows(text: str, source: str, min_cols: int, kind: str) -> tuple[np.nd
             raise DataError(f"{where}: frame and id must be whole numbers, got {fields[0]!r}, {fields[1]!r}")
         if frame < 1:
             raise DataError(f"{where}: frame must be >= 1 (frames are 1-based), got {fields[0]}")
+        _check_range(where, frame, tid)
         if w < 0 or h < 0:
             raise DataError(f"{where}: negative box size width={fields[4]} height={fields[5]}")
         vals.extend([math.nan] * (MAX_COLUMNS - len(vals)))
@@ -296,6 +320,8 @@ def parse_jsonl_predictions(text: str, source: str = "<string>") -> Predictions:
             frame = obj["frame"]
             if isinstance(frame, bool) or not isinstance(frame, int) or frame < 1:
                 raise ValueError(f"frame must be an integer >= 1, got {frame!r}")
+            if frame > MAX_FRAME:
+                raise ValueError(f"frame {frame} is out of range (at most {MAX_FRAME})")
             boxes = np.asarray(obj["boxes"], dtype=np.float64)
             if boxes.size == 0:
                 boxes = np.zeros((0, 4))
@@ -306,7 +332,15 @@ def parse_jsonl_predictions(text: str, source: str = "<string>") -> Predictions:
             if scores.shape[0] != n:
                 raise ValueError(f"{n} boxes but {scores.shape[0]} scores")
             ids_raw = obj.get("ids")
-            ids = np.full(n, -1, np.int64) if ids_raw is None else np.asarray(ids_raw, dtype=np.int64).reshape(-1)
+            if ids_raw is None:
+                ids = np.full(n, -1, np.int64)
+            else:
+                if not isinstance(ids_raw, list):
+                    raise ValueError(f"ids must be a list of whole numbers, got {ids_raw!r}"[:120])
+                ids = np.array([_whole("an id", v) for v in ids_raw], dtype=object)
+                if ids.size and np.any(np.abs(ids) > MAX_ID):
+                    raise ValueError(f"an id is out of range (-{MAX_ID} to {MAX_ID})")
+                ids = ids.astype(np.int64).reshape(-1)
             if ids.shape[0] != n:
                 raise ValueError(f"{n} boxes but {ids.shape[0]} ids")
             if not (np.isfinite(boxes).all() and np.isfinite(scores).all()):
@@ -388,7 +422,7 @@ class _FrameWriter:
             try:
                 self._f = open(self._tmp, "w", encoding="utf-8", newline="\n")
             except OSError as exc:
-                raise DataError(f"{self.name}: cannot write ({exc.strerror or exc})") from None
+                raise WriteError(f"{self.name}: cannot write ({exc.strerror or exc})") from None
             self._owns = True
         self.frames_written = 0
         self._failed = False
@@ -421,7 +455,7 @@ class _FrameWriter:
             self._f.flush()
         except OSError as exc:
             self._failed = True
-            raise DataError(f"{self.name}: cannot write ({exc.strerror or exc}); "
+            raise WriteError(f"{self.name}: cannot write ({exc.strerror or exc}); "
                             f"{self.frames_written} frames were written before it") from None
         self.frames_written += 1
 
@@ -432,13 +466,23 @@ class _FrameWriter:
     def _format(self, frame: int, b: np.ndarray, s: np.ndarray, i: np.ndarray) -> str:
         raise NotImplementedError
 
-    def close(self, discard: bool = False) -> Path | None:
+    @property
+    def tmp(self) -> Path | None:
+        """The temporary file written (``None`` for a stream)."""
+        return self._tmp
+
+    def close(self, discard: bool = False, rename: bool = True) -> Path | None:
         """Close the file and give it its final name (the path); with ``discard`` (or after
-        a failed write) remove it instead (``None``). A stream is only flushed."""
+        a failed write) remove it instead (``None``). With ``rename=False`` the closed
+        temporary file is left for the caller to rename (:class:`~fastdet.io.atomic.OutputSet`)
+        and its path returned. A stream is only flushed."""
         if not self._owns:
             self._f.flush()
             return None
         if self._f.closed:
+            if discard and self._result is not None and self._result == self._tmp:
+                self._tmp.unlink(missing_ok=True)
+                self._result = None
             return self._result
         tmp = self._tmp
         assert tmp is not None
@@ -448,11 +492,11 @@ class _FrameWriter:
             self._failed = True
             if not discard:
                 tmp.unlink(missing_ok=True)
-                raise DataError(f"{self.name}: cannot write ({exc.strerror or exc})") from None
+                raise WriteError(f"{self.name}: cannot write ({exc.strerror or exc})") from None
         if discard or self._failed:
             tmp.unlink(missing_ok=True)
             return None
-        self._result = commit(tmp, self.name)
+        self._result = commit(tmp, self.name) if rename else tmp
         return self._result
 
     def __enter__(self):

@@ -34,10 +34,15 @@ from typing import Any
 import cv2
 import numpy as np
 
+from .. import signals
 from ..console import note, quiet_opencv
 from ..errors import DataError, FastdetError
 
 QUEUE_SIZE = 8
+#: seconds a live source (pipe, stream, camera) may take to open
+OPEN_TIMEOUT_S = 30.0
+#: seconds :meth:`FrameReader.close` waits for the decoding thread
+CLOSE_TIMEOUT_S = 10.0
 #: failed reads in a row after which a file's stream counts as ended (damage in the middle
 #: is reported when a frame decodes again within this many reads; reads at the true end
 #: of a file fail at once, so trying costs nothing there)
@@ -83,6 +88,31 @@ def check_source(source: str | os.PathLike | int) -> str:
     return kind
 
 
+def _open_capture(name: str, kind: str, timeout: float | None = None) -> Any:
+    """``cv2.VideoCapture`` of a live source, opened in a helper thread: a pipe nobody writes
+    to or a stream that does not answer blocks inside OpenCV, where no signal reaches. The
+    wait is bounded by ``timeout`` (default :data:`OPEN_TIMEOUT_S`) and a stop signal ends
+    it (:mod:`fastdet.signals`); the helper is then left behind (a daemon thread)."""
+    limit = OPEN_TIMEOUT_S if timeout is None else timeout
+    box: dict[str, Any] = {}
+
+    def open_it() -> None:
+        try:
+            box["cap"] = cv2.VideoCapture(int(name)) if kind == "camera" else cv2.VideoCapture(name)
+        except BaseException as exc:  # noqa: BLE001 - reported by the waiting thread
+            box["error"] = exc
+
+    t = threading.Thread(target=open_it, name="fastdet-open", daemon=True)
+    t.start()
+    if not signals.wait(lambda: not t.is_alive(), limit):
+        signals.check()  # a stop signal: Stopped
+        raise DataError(f"{name}: the source did not open within {limit:g} s (a pipe nobody writes to, "
+                        f"a stream that does not answer?)")
+    if "error" in box:
+        raise DataError(f"{name}: cannot open ({box['error']})")
+    return box["cap"]
+
+
 class FrameReader:
     """Frames of a video, decoded in a background thread.
 
@@ -108,11 +138,12 @@ class FrameReader:
         if frames is not None and frames < 1:
             raise FastdetError(f"frames must be >= 1, got {frames}")
         self.kind = check_source(source)
-        self.live = self.kind in ("url", "camera")
         self.path = name = str(source) if self.kind == "camera" else os.fspath(source)
+        # a named pipe or a device is a stream too: read once, never reopened
+        self.live = self.kind in ("url", "camera") or (self.kind == "file" and not os.path.isfile(name))
         self.notify = notify if notify is not None else note
         quiet_opencv()
-        cap = cv2.VideoCapture(int(name)) if self.kind == "camera" else cv2.VideoCapture(name)
+        cap = _open_capture(name, self.kind) if self.live else cv2.VideoCapture(name)
         if not cap.isOpened():
             cap.release()
             what = {"camera": "camera that can be opened", "url": "stream OpenCV can open (check the address)"}
@@ -230,6 +261,8 @@ class FrameReader:
             except queue.Empty:
                 if not self._thread.is_alive() and self._q.empty():
                     return
+                if signals.stop_requested():  # a stalled stream: the stop ends it
+                    return
                 continue
             if item is _END:
                 self._thread.join()
@@ -289,12 +322,14 @@ class FrameReader:
         self._held.clear()
         self._stop.set()
         if self._started:
-            while self._thread.is_alive():
+            end = time.monotonic() + CLOSE_TIMEOUT_S
+            while self._thread.is_alive() and time.monotonic() < end:
                 try:
                     self._q.get(timeout=0.05)
                 except queue.Empty:
                     pass
-            self._thread.join()
+            # a decoder blocked in a read of a stalled stream is left behind (a daemon thread)
+            self._thread.join(timeout=0.1)
         else:
             self._cap.release()
 

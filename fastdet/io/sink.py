@@ -14,12 +14,13 @@ import queue
 import resource
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
 
-from ..console import quiet_native_stderr, quiet_opencv
-from ..errors import DataError
+from ..console import note, quiet_native_stderr, quiet_opencv
+from ..errors import DataError, WriteError
 from . import draw
 from .atomic import commit, partial_name
 from .reader import QUEUE_SIZE
@@ -69,14 +70,21 @@ class VideoSink:
     predicted box (:func:`fastdet.io.draw.draw_track_states`)."""
 
     def __init__(self, path: str, fps: float, size: tuple[int, int], debug: bool = False,
-                 threshold: float | None = None) -> None:
+                 threshold: float | None = None, notify: Callable[[str], None] | None = None) -> None:
         self.path = Path(path)
         self.tmp = partial_name(path)
         self.debug = debug
         self.threshold = threshold
+        w, h = int(size[0]), int(size[1])
+        # MPEG-4 takes even sizes only: FFmpeg would silently cut an odd one by a pixel
+        self._pad = (w % 2, h % 2)
+        if any(self._pad):
+            (notify or note)(f"{path}: frames of {w}x{h} are written as {w + w % 2}x{h + h % 2} "
+                             f"(one black column / row added: MPEG-4 video has even sizes)")
         quiet_opencv()
         with quiet_native_stderr():  # FFmpeg lists what a container takes: we say it in one line
-            self._writer = cv2.VideoWriter(str(self.tmp), cv2.VideoWriter_fourcc(*FOURCC), fps, size)
+            self._writer = cv2.VideoWriter(str(self.tmp), cv2.VideoWriter_fourcc(*FOURCC), fps,
+                                           (w + w % 2, h + h % 2))
         if not self._writer.isOpened():
             self._writer.release()
             self.tmp.unlink(missing_ok=True)
@@ -95,6 +103,7 @@ class VideoSink:
         self._thread = threading.Thread(target=self._run, name="fastdet-encode", daemon=True)
         self._thread.start()
         self._closed = False
+        self._result: Path | None = None
 
     def put(self, item: tuple) -> None:
         while True:
@@ -127,6 +136,8 @@ class VideoSink:
                 else:
                     draw.draw_boxes(frame, boxes.boxes, boxes.scores)
                 t1 = time.perf_counter()
+                if any(self._pad):
+                    frame = cv2.copyMakeBorder(frame, 0, self._pad[1], 0, self._pad[0], cv2.BORDER_CONSTANT, value=0)
                 self._writer.write(frame)
                 t2 = time.perf_counter()
                 self.draw_s += t1 - t0
@@ -146,7 +157,7 @@ class VideoSink:
         if size == self._size or size < 0:
             why = _disk_full(self.tmp) if size >= 0 else "the file disappeared"
             if why:
-                raise DataError(f"{self.path}: writing the video failed after {self.frames} frames: {why}")
+                raise WriteError(f"{self.path}: writing the video failed after {self.frames} frames: {why}")
         self._size = size
 
     def _verify(self) -> None:
@@ -161,18 +172,23 @@ class VideoSink:
             cap.release()
         if not ok:
             why = _disk_full(self.tmp) or "the written file does not open"
-            raise DataError(f"{self.path}: writing the video failed: {why}; no video was kept")
+            raise WriteError(f"{self.path}: writing the video failed: {why}; no video was kept")
         if n and n > 0 and int(n) != self.frames:
             why = _disk_full(self.tmp) or "the file was cut short"
-            raise DataError(f"{self.path}: writing the video failed: it holds {int(n)} of the "
+            raise WriteError(f"{self.path}: writing the video failed: it holds {int(n)} of the "
                             f"{self.frames} frames written ({why}); no video was kept")
 
-    def close(self, discard: bool = False) -> Path | None:
+    def close(self, discard: bool = False, rename: bool = True) -> Path | None:
         """Finish the queued frames, close the file, check it (:meth:`_verify`) and give it
         its final name (``None`` and no file when no frame was written, or with
-        ``discard``). ``DataError`` (and no file) when the writes failed."""
+        ``discard``). ``DataError`` (and no file) when the writes failed. With
+        ``rename=False`` the checked temporary file is left for the caller to rename and
+        its path returned."""
         if self._closed:
-            return self.path if self.frames and not self.error and not discard else None
+            if discard and self._result is not None and self._result == self.tmp:
+                self.tmp.unlink(missing_ok=True)
+                self._result = None
+            return self._result
         self._closed = True
         if self._thread.is_alive():
             while True:
@@ -195,7 +211,7 @@ class VideoSink:
             self.error = exc
             self.tmp.unlink(missing_ok=True)
             raise
-        commit(self.tmp, self.path)
-        return self.path
+        self._result = commit(self.tmp, self.path) if rename else self.tmp
+        return self._result
 
 

@@ -49,10 +49,13 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ._heat_kernels import add_rects
-from ._label_kernels import extent_boxes, label_blobs
 from ..config import HeatConfig
 from ..detections import Detections
+from ._heat_kernels import add_rects
+from ._label_kernels import extent_boxes, label_blobs
+
+#: the numba kernels of a heat map (compiled ahead of time: fastdet._numba.ensure_compiled)
+KERNELS = (add_rects, label_blobs, extent_boxes)
 
 _REANCHOR_EVERY = 64
 

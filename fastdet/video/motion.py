@@ -24,6 +24,9 @@ from ..config import FeatureConfig, SearchBand
 from ..detect.bands import BandGeometry
 from ._motion_kernels import moving_columns
 
+#: the numba kernels of the motion gate (compiled ahead of time: fastdet._numba.ensure_compiled)
+KERNELS = (moving_columns,)
+
 
 class MotionMap(NamedTuple):
     """Integral image ``(h + 1, w + 1) float64`` of ``|gray - previous gray|`` over the frame
@@ -161,6 +164,8 @@ def moving_bands(geo: BandGeometry, config: FeatureConfig, motion: MotionMap,
 
 
 def warmup_motion() -> None:
-    """Compile (or load from cache) the numba kernel of :func:`moving_bands`."""
-    e = np.zeros(1, np.int64)
-    moving_columns(np.zeros((2, 2), np.float64), 0, 0, e, e, e + 1, e + 1, 1.0, np.empty(1, bool))
+    """Compile (or load from cache) the numba kernel of :func:`moving_bands`, for the
+    read-only window edges it is called with."""
+    e, e1 = np.zeros(1, np.int64), np.ones(1, np.int64)
+    e.flags.writeable = e1.flags.writeable = False
+    moving_columns(np.zeros((2, 2), np.float64), 0, 0, e, e, e1, e1, 1.0, np.empty(1, bool))

@@ -11,8 +11,8 @@ corrections that need the future:
    map is weakest (it needs a few frames of evidence). Each track with at least two boxes is
    extended up to ``extend_back`` frames before its first box: the first box's size, moved
    back at the velocity of the centres of its first two boxes, while the box stays at least
-   half in the picture. (Extrapolating the size as well measured worse: two boxes' sizes
-   are too noisy to extrapolate.)
+   half in the picture; the size is not extrapolated (two boxes' sizes are too noisy:
+   docs/tracking.md).
 
 An added box that overlaps a box of its frame (IoU > 0.3) is left out. Added boxes carry the
 track's id and score 0 (no heat was seen for them in that frame).

@@ -25,6 +25,7 @@ from typing import Any, Literal, Protocol, runtime_checkable
 import numpy as np
 from tqdm import tqdm
 
+from .._numba import ensure_compiled
 from ..boxes import clip, overlap_fraction
 from ..config import WIDE_HEAT, GuidedSearch, HeatConfig, MotionGate, SearchBand, TrackerConfig, wide_search
 from ..detect import BandGeometry, Detector, DetectStats
@@ -34,10 +35,13 @@ from ..io.reader import FrameReader
 from ..model import ONCOMING_MODEL_PATH, Model
 from .fusion import merge_wide
 from .guided import SearchPlanner
+from .heatmap import KERNELS as HEAT_KERNELS
 from .heatmap import HeatMap
 from .horizon import HORIZON_FRAMES, TOLERANCE, HorizonEstimator, search_horizon
+from .motion import KERNELS as MOTION_KERNELS
 from .motion import FrameMotion, MotionMap, moving_bands, warmup_motion, window_motion
 from .offline import offline_pass
+from .refine import KERNELS as REFINE_KERNELS
 from .refine import BoxRegressor, RefineConfig, load_regressor, refine
 from .track import LOST, Tracker
 
@@ -279,7 +283,11 @@ class VideoDetector:
         return det.horizon  # type: ignore[attr-defined]
 
     def warmup(self) -> None:
-        """Compile / load the numba kernels now, not on the first frame."""
+        """Compile / load the numba kernels now, not on the first frame: every kernel the
+        frames will run, at once (on a first run on every core, after saying so), then each
+        run once."""
+        ensure_compiled((*getattr(self.detector, "kernels", ()), *HEAT_KERNELS, *MOTION_KERNELS,
+                         *(REFINE_KERNELS if self.refiner is not None else ())))
         self.detector.warmup()
         HeatMap((8, 8), self.heat_config).warmup()
         warmup_motion()
@@ -487,7 +495,7 @@ def video_detector_for(reader: FrameReader, detector: WindowDetector, heat: Heat
     seconds (:func:`prime_horizon_from_file`; the frames come from ``reader`` itself,
     :meth:`FrameReader.peek <fastdet.io.reader.FrameReader.peek>`, when they fit in
     :data:`PRIME_BUFFER_BYTES` and the run reads at least that many)."""
-    check_frame(detector, reader.first_frame, reader.path)
+    check_frame(detector, reader.first_frame, reader.path, horizon=horizon)
     vd = VideoDetector(detector, heat, tracker=tracker, fps=reader.fps, horizon=horizon, guided=guided,
                        refine=refine)
     if (vd.horizon == "auto" and reader.kind == "file" and os.path.isfile(reader.path)

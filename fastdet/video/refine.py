@@ -52,7 +52,11 @@ from ..config import FeatureConfig
 from ..detections import Detections
 from ..errors import ModelError
 from ..features import extract_features
+from ..features.window import KERNELS as FEATURE_KERNELS
 from ..model import read_npz, write_npz
+
+#: the numba kernels of the refinement (those of the window features)
+KERNELS = FEATURE_KERNELS
 
 FORMAT_VERSION = 1
 #: the bundled regressor (``tools/scripts/refine_model.py``)

@@ -20,14 +20,16 @@ pytest.importorskip("distributed")
 pyarrow = pytest.importorskip("pyarrow")
 import pyarrow.parquet as pq
 
-from fastdet.batch.inputs import expand_inputs, output_names
-from fastdet.batch.job import remove_partials
+from fastdet.batch.inputs import batch_writes, expand_inputs, output_names
+from fastdet.batch import job
+from fastdet.batch.job import BatchInterrupted, remove_run, remove_stale_runs, run_id
 from fastdet.batch.manifest import Manifest, input_stat
 from fastdet.batch.progress import BatchProgress
-from fastdet.batch.settings import Settings, output_paths
-from fastdet.batch.task import PARTIAL_DIR, VideoTask, partial_path, run_video
+from fastdet.batch.settings import MANIFEST_NAME, SUFFIXES, Settings, output_paths
+from fastdet.batch.task import PARTIAL_DIR, VideoTask, commit_outputs, partial_path, run_dir, run_video
 from fastdet.cli.main import main
-from fastdet.errors import DataError
+from fastdet.errors import DataError, FastdetError, WriteError
+from fastdet.io.atomic import process_token
 from fastdet.io.motfiles import read_predictions
 
 FASTDET = [sys.executable, "-m", "fastdet"]
@@ -65,8 +67,18 @@ def manifest_lines(out: Path) -> list[dict]:
 
 
 def partials(out: Path) -> list[Path]:
+    """Every file and folder under ``OUT/.partial`` (the temporary files of all runs)."""
     d = out / PARTIAL_DIR
-    return sorted(d.iterdir()) if d.is_dir() else []
+    return sorted(d.rglob("*")) if d.is_dir() else []
+
+
+def run_and_commit(task: VideoTask) -> dict:
+    """A task run here, its outputs given their final names as the batch's main process does."""
+    summary = run_video(task)
+    if summary["status"] == "done":
+        commit_outputs(summary, task.out_dir)
+        remove_run(Path(task.out_dir), task.run or process_token())
+    return summary
 
 
 # ------------------------------------------------------------------------------------------
@@ -138,15 +150,114 @@ def test_progress_counts_a_retried_attempt_once() -> None:
     p.close()
 
 
-def test_remove_partials_only_of_the_named_videos(tmp_path: Path) -> None:
+def test_stale_runs_removed_live_ones_kept(tmp_path: Path) -> None:
+    """A run removes only its own temporary folder, and at start-up the folders of runs on
+    this host whose process is gone -- never those of a run still going (another batch)."""
     s = Settings.create(video=True)
-    mine = [partial_path(tmp_path, p, "0123456789abcdef") for p in output_paths(tmp_path, "a", s).values()]
-    other = partial_path(tmp_path, output_paths(tmp_path, "a.b", s)["boxes"], "0123456789abcdef")
-    (tmp_path / PARTIAL_DIR).mkdir()
-    for p in [*mine, other, tmp_path / PARTIAL_DIR / ".a.annotated.0123456789abcdef.partial.mp4"]:
-        p.write_bytes(b"")
-    remove_partials(tmp_path, ["a"])
-    assert partials(tmp_path) == [other]
+    host, _, _ = run_id().rpartition("-")[0].rpartition("-")
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    runs = {"mine": run_id(), "live": f"{host}-{os.getppid()}-0123abcd", "dead": f"{host}-{dead.pid}-0123abcd",
+            "other-host": f"elsewhere-{dead.pid}-0123abcd"}
+    for r in runs.values():
+        for p in output_paths(tmp_path, "a", s).values():
+            partial_path(run_dir(tmp_path, r), p, "0123456789abcdef").parent.mkdir(parents=True, exist_ok=True)
+            partial_path(run_dir(tmp_path, r), p, "0123456789abcdef").write_bytes(b"x")
+    assert remove_stale_runs(tmp_path) == [runs["dead"]]
+    left = {p.name for p in (tmp_path / PARTIAL_DIR).iterdir()}
+    assert left == {runs["mine"], runs["live"], runs["other-host"]}
+    remove_run(tmp_path, runs["mine"])
+    assert {p.name for p in (tmp_path / PARTIAL_DIR).iterdir()} == {runs["live"], runs["other-host"]}
+
+
+def test_batch_never_reads_what_it_writes(tmp_path: Path) -> None:
+    d = tmp_path / "d"
+    d.mkdir()
+    for n in ("a.mp4", "a.annotated.mp4", "b.mov"):
+        (d / n).write_bytes(b"v")
+    writes = batch_writes(d, SUFFIXES.values(), [d / MANIFEST_NAME])
+    # a folder (or glob) holding the batch's own outputs: they are left out
+    assert [p.name for p in expand_inputs([str(d)], writes)] == ["a.mp4", "b.mov"]
+    assert [p.name for p in expand_inputs([str(d / "*.mp4")], writes)] == ["a.mp4"]
+    # named as an input (directly, through a symlink, in a list file): refused in one line
+    (tmp_path / "link.mp4").symlink_to(d / "a.annotated.mp4")
+    (tmp_path / "list.txt").write_text(f"{d / 'a.mp4'}\n{d / 'a.annotated.mp4'}\n")
+    for arg in (d / "a.annotated.mp4", tmp_path / "link.mp4", tmp_path / "list.txt"):
+        with pytest.raises(DataError, match="is a file this batch writes"):
+            expand_inputs([str(d / "a.mp4"), str(arg)], writes)
+    # the same folder as input with the output folder elsewhere: every video is an input
+    assert len(expand_inputs([str(d)], batch_writes(tmp_path / "o", SUFFIXES.values()))) == 3
+
+
+def test_cli_refuses_an_output_as_input_before_any_work(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    d = tmp_path / "d"
+    d.mkdir()
+    (d / "a.mp4").write_bytes(b"v")
+    (d / "a.annotated.mp4").write_bytes(b"keep")
+    assert main(["batch", str(d / "a.mp4"), str(d / "a.annotated.mp4"), "--out", str(d), "--video"]) == 2
+    assert "a.annotated.mp4: is a file this batch writes" in capsys.readouterr().err
+    assert (d / "a.annotated.mp4").read_bytes() == b"keep" and sorted(p.name for p in d.iterdir()) == [
+        "a.annotated.mp4", "a.mp4"]
+
+
+@pytest.mark.parametrize("address", ["not a url", "tcp://", "tcp://host-without-port", "http//x:1"])
+def test_scheduler_address_that_is_not_one(tmp_path: Path, capsys: pytest.CaptureFixture, address: str) -> None:
+    (tmp_path / "a.mp4").write_bytes(b"v")
+    assert main(["batch", str(tmp_path / "a.mp4"), "--out", str(tmp_path / "o"), "--scheduler", address]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "is not a scheduler address" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_scheduler_that_never_answers_is_given_up_and_a_stop_wakes_the_wait(tmp_path: Path) -> None:
+    """An HTTP server where the scheduler should be: a Dask client's handshake waits there for
+    ever. The connection is given up after its timeout, and a stop signal ends the wait."""
+    from fastdet import signals
+    from tests.media import http_server
+
+    with http_server(tmp_path) as url:
+        addr = "tcp://" + url.split("://", 1)[1]
+        with pytest.raises(FastdetError, match="no answer in 1 s"):
+            job._connect(addr, timeout=1)
+        with signals.handled():
+            threading_timer = __import__("threading").Timer(0.5, os.kill, (os.getpid(), signal.SIGTERM))
+            threading_timer.start()
+            with signals.deferred(repeats=False, raise_on_exit=False), pytest.raises(BatchInterrupted) as stop:
+                job._connect(addr, timeout=120)
+            threading_timer.join()
+        assert stop.value.signum == signal.SIGTERM
+
+
+def test_a_failed_write_is_not_a_property_of_the_video(tmp_path: Path, data: Path, monkeypatch) -> None:
+    """A full disk (a write that fails), a temporary file that vanished: recorded as failed
+    but not ``permanent``, so the next run tries the video again."""
+    clip = cut(data / "videos" / "test_small1.mp4", tmp_path / "c.mp4", 0, 3)
+    s = Settings.create()
+    from fastdet.io.motfiles import MotWriter
+
+    def full(self, *a, **kw):
+        raise WriteError(f"{self.name}: cannot write (No space left on device)")
+
+    with monkeypatch.context() as m:
+        m.setattr(MotWriter, "write", full)
+        summary = run_video(VideoTask(str(clip), "c", str(tmp_path / "o1"), s, None, "r1"))
+    assert summary["status"] == "failed" and summary["permanent"] is False and "No space" in summary["error"]
+    # a done task whose temporary file vanished before the batch renamed it
+    (tmp_path / "o2").mkdir()
+    summary = run_video(VideoTask(str(clip), "c", str(tmp_path / "o2"), s, None, "r2"))
+    assert summary["status"] == "done" and not (tmp_path / "o2" / "c.boxes.txt").exists()  # not renamed yet
+    Path(summary["partials"]["boxes"]).unlink()
+    with pytest.raises(WriteError, match="vanished"):
+        commit_outputs(summary, tmp_path / "o2")
+    man = Manifest(tmp_path / "m.jsonl")
+    man.append({"input": str(clip), "name": "c", "status": "failed", "permanent": False, "settings_hash": s.digest(),
+                **input_stat(clip)})
+    assert man.known_failure(clip, "c", s.digest()) is None  # tried again next run
+    # a bad video is permanent
+    bad = tmp_path / "bad.mp4"
+    bad.write_bytes(b"not a video" * 50)
+    summary = run_video(VideoTask(str(bad), "bad", str(tmp_path / "o3"), s, None, "r3"))
+    assert summary["status"] == "failed" and summary["permanent"] is True
 
 
 def test_without_dask_says_how_to_get_it(tmp_path: Path) -> None:
@@ -307,7 +418,7 @@ def long_clips(tmp_path_factory: pytest.TempPathFactory, data: Path) -> tuple[Pa
     s = Settings.create()
     want = {}
     for k in range(5):
-        summary = run_video(VideoTask(str(d / f"c{k}.mp4"), f"c{k}", str(ref), s))
+        summary = run_and_commit(VideoTask(str(d / f"c{k}.mp4"), f"c{k}", str(ref), s))
         assert summary["status"] == "done", summary
         want[f"c{k}"] = (ref / f"c{k}.boxes.txt").read_bytes()
     return d, want
@@ -355,7 +466,7 @@ def test_real_cluster_worker_killed_mid_task_nothing_lost(long_clips, tmp_path: 
 
         running = wait_for(two_running, 120, "two running tasks")
         in_progress = {m["name"]: m["token"] for m in
-                       (re.match(r"^\.?(?P<name>c\d)\.boxes\.(?P<token>[0-9a-f]{16})", p.name) for p in running)}
+                       (re.match(r"^(?P<name>c\d)\.boxes\.(?P<token>[0-9a-f]{16})", p.name) for p in running)}
         workers[0].send_signal(signal.SIGKILL)
         workers[0].wait(timeout=30)
         _, stderr = b.communicate(timeout=TIMEOUT)
@@ -403,9 +514,14 @@ def test_sigterm_leaves_no_incomplete_output_and_a_rerun_finishes(long_clips, tm
     assert "SIGTERM" in last and "Traceback" not in stderr
     done_before = {e["name"] for e in manifest_lines(out) if e["status"] == "done"}
     assert done_before and len(done_before) < len(want)
-    # whatever has a final name is complete; nothing half-written is left behind
+    # the truth: as many done as the manifest says, the rest stopped
+    m = re.search(r"(\d+) video\(s\) done in this run, (\d+) stopped", last)
+    assert m and int(m[1]) == len(done_before) and int(m[2]) == len(want) - len(done_before), last
+    # whatever has a final name is complete and has its manifest line (none got one after
+    # the signal); nothing half-written is left behind
     for f in out.glob("*.boxes.txt"):
         assert f.read_bytes() == want[f.name.split(".")[0]], f.name
+    assert {f.name.split(".")[0] for f in out.glob("*.boxes.txt")} == done_before
     assert not partials(out)
 
     r = batch(clips, "--out", out, "--workers", "2", "--no-progress")

@@ -12,14 +12,14 @@ import json
 import os
 import signal
 import subprocess
+import sys
 import time
 from pathlib import Path
 
 import cv2
 import pytest
 
-from fastdet.io.atomic import partial_name
-from tests.media import fastdet_cmd, frames, leftovers, write_video
+from tests.media import fastdet_cmd, frames, leftovers, partials_of, write_video
 
 
 @pytest.fixture(scope="module")
@@ -39,10 +39,10 @@ def _start(clip: Path, out: Path, env: dict | None = None) -> tuple[subprocess.P
 
 def _wait_for_frames(p: subprocess.Popen, js: Path, n: int = 3) -> None:
     """Until the run has written ``n`` frames to its (temporary) JSON-lines file."""
-    tmp = partial_name(js)
     while True:
         assert p.poll() is None, p.communicate()
-        if tmp.exists() and tmp.read_text().count("\n") >= n:
+        tmps = partials_of(js)  # the run's own temporary name (its pid and token)
+        if tmps and tmps[0].read_text().count("\n") >= n:
             return
         time.sleep(0.05)
 
@@ -79,7 +79,10 @@ def test_sigkill_leaves_only_temporary_names(long_clip, tmp_path):
     p.kill()
     p.communicate(timeout=60)
     assert not any(path.exists() for path in paths.values())  # nothing looks complete
-    assert set(leftovers(tmp_path)) >= {partial_name(paths["json"]).name, partial_name(paths["boxes"]).name}
+    left = set(leftovers(tmp_path))
+    assert len(partials_of(paths["json"])) == 1 and len(partials_of(paths["boxes"])) == 1
+    assert left >= {partials_of(paths["json"])[0].name, partials_of(paths["boxes"])[0].name}
+    assert all(f".{p.pid}-" in name for name in left)  # named after the process that wrote them
 
 
 def test_ctrl_c_while_compiling_is_one_line_exit_130(tmp_path):
@@ -99,3 +102,29 @@ def test_ctrl_c_while_compiling_is_one_line_exit_130(tmp_path):
     lines = rest.strip().splitlines()
     assert len(lines) == 1 and "interrupted (SIGINT)" in lines[0], rest
     assert not (tmp_path / "out.jpg").exists() and leftovers(tmp_path) == []
+
+
+@pytest.fixture(scope="module")
+def python_start() -> float:
+    """Seconds the interpreter itself takes to start here (site packages included): a signal
+    before that reaches Python's own start-up, not fastdet."""
+    t0 = time.monotonic()
+    subprocess.run([sys.executable, "-c", "pass"], check=True)
+    return time.monotonic() - t0
+
+
+@pytest.mark.parametrize("after", [0.1, 0.3, 0.6])
+@pytest.mark.parametrize("command", ["video", "train"])
+def test_stop_while_starting_is_one_line(tmp_path, command, after, python_start):
+    """A signal while the command's modules are still being imported (before the dispatcher's
+    handlers): one line and 128 + the signal, never a KeyboardInterrupt traceback."""
+    args = ([str(tmp_path / "missing.mp4"), "--boxes", str(tmp_path / "b.txt")] if command == "video"
+            else ["--out", str(tmp_path / "m.npz"), "--data", str(tmp_path)])
+    p = subprocess.Popen(fastdet_cmd(command, *args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(python_start + after)
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=120)
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
+    # the run was stopped, or had already ended with its own one-line error
+    assert (p.returncode == 130 and "interrupted (SIGINT)" in err) or p.returncode == 2, (p.returncode, err)
+    assert len(err.strip().splitlines()) == 1, err

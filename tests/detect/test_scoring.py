@@ -68,14 +68,21 @@ def test_dense_scores_equal_a_plain_loop(c):
     np.testing.assert_allclose(out, ref, rtol=1e-12, atol=1e-11)
 
 
-def test_serial_and_parallel_agree_on_a_wide_row():
+def test_serial_and_parallel_agree_bit_for_bit():
+    """``parallel=True`` runs the same kernel on rows spread over threads: the same bits."""
     rng = np.random.default_rng(5)
-    k, nx = 192, 81  # a default band's row: 10 runs of 8, chunks of 32 in parallel
-    rows, w = rng.random((7, (2 * (nx - 1) + 7) * k)), rng.normal(size=(7, 7 * k))
-    a = dense_scores(rows, w, k, np.empty((1, nx)), step=2, cell=8, win_h=64, win_w=64, bias=0.5)
-    b = dense_scores(rows, w, k, np.empty((1, nx)), step=2, cell=8, win_h=64, win_w=64, bias=0.5, parallel=True)
-    np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(a, loop_dense_scores(rows, w, k, 1, nx, 2, 8, 64, 64, 0.5), rtol=0, atol=1e-10)
+    k, nx, ny = 192, 81, 5  # a default band's row: 10 runs of 8 windows and one
+    rows, w = rng.random((2 * (ny - 1) + 7, (2 * (nx - 1) + 7) * k)), rng.normal(size=(7, 7 * k))
+    a = dense_scores(rows, w, k, np.empty((ny, nx)), step=2, cell=8, win_h=64, win_w=64, bias=0.5)
+    before = numba.get_num_threads()
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    try:
+        b = dense_scores(rows, w, k, np.empty((ny, nx)), step=2, cell=8, win_h=64, win_w=64, bias=0.5,
+                         parallel=True)
+    finally:
+        numba.set_num_threads(before)
+    np.testing.assert_array_equal(a, b)
+    np.testing.assert_allclose(a, loop_dense_scores(rows, w, k, ny, nx, 2, 8, 64, 64, 0.5), rtol=0, atol=1e-10)
 
 
 def test_checks():
@@ -146,12 +153,13 @@ def _cpu_flags() -> set[str]:
 
 @pytest.mark.skipif(not {"avx2", "fma"} <= _cpu_flags(), reason="an x86-64 CPU with AVX2 and FMA")
 def test_inner_loop_is_packed_fma_without_gathers():
-    """The serial kernel compiles to packed fused multiply-adds on ymm/zmm registers and no
+    """The kernel compiles to packed fused multiply-adds on ymm/zmm registers and no
     gathers (the per-window loop it replaced indexed with a possibly negative offset and got
     vgatherqpd). Compiled afresh: Numba does not show the assembly of cached code."""
-    fresh = numba.njit(**dict(REASSOC, cache=False))(_score_kernels.dense_scores_serial.py_func)
+    fresh = numba.njit(**dict(REASSOC, cache=False))(_score_kernels.dense_scores.py_func)
     rows, w = np.zeros((7, 7 * 12)), np.zeros((7, 7 * 12))
-    fresh(rows, w, 12, np.zeros((0, 0)), np.zeros((0, 0)), 1, np.zeros((1, 1)), 1, 64, 64, 8, 2, 0.0, np.empty((1, 1)))
+    fresh(rows, w, 12, np.zeros((0, 0)), np.zeros((0, 0)), 1, np.zeros((1, 1)), 1, 64, 64, 8, 2, 0.0, 0, 1,
+          np.empty((1, 1)))
     asm = fresh.inspect_asm(fresh.signatures[0])
     assert re.search(r"vfmadd\d+pd\s+[^\n]*%[yz]mm", asm), "no packed FMA in the scoring kernel"
     assert "gather" not in asm

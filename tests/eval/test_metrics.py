@@ -416,8 +416,8 @@ def test_real_annotations_against_themselves(data):
 
 
 def test_default_pipeline_accuracy_on_the_annotated_clips(data):
-    """The README's accuracy table, defaults row: `python -m fastdet eval --video CLIP` with
-    the bundled models. Guards against accuracy regressions (the figures the README gives,
+    """The accuracy table's defaults row (docs/accuracy.md): `python -m fastdet eval --video CLIP`
+    with the bundled models. Guards against accuracy regressions (the figures it gives,
     less a small margin: F1 0.90 / 1.00, FP per frame 0.05 / 0.00)."""
     from fastdet.video.pipeline import iter_video_detections
 

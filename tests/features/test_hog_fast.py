@@ -12,6 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from fastdet._numba import split_range
 from fastdet.features import _hog, hog_channels
 from fastdet.features import _hog_kernels as _k
 
@@ -65,21 +66,22 @@ def test_other_inputs_take_the_exact_path():
 # skimage's steps)
 # --------------------------------------------------------------------------------------
 def _float_hist(img, chans, ppc, orientations):
+    """(n_cells_row, n_ch, n_cells_col, n_or) cell histograms by NumPy's float steps."""
     n_cells, n_blocks = _hog._geometry(img.shape[:2], ppc, (1, 1))
-    hist, _ = _hog._blocks_float(img.astype(np.float64), chans, False, ppc, (1, 1), orientations,
-                                 _k.NORM_L2, n_cells, n_blocks)
-    return hist
+    ht, _ = _hog._blocks_float(img.astype(np.float64), chans, False, ppc, (1, 1), orientations,
+                               _k.NORM_L2, n_cells, n_blocks)
+    return ht
 
 
 def _fast_hist(img, chans, ppc, orientations, parallel):
-    """The detector's kernel: (n_cells_row, n_cells_col, n_ch, n_or) cell histograms."""
+    """The uint8 kernel's cell histograms (the detector's and the exact path's), all cell rows
+    at once or cut in two ranges run on two threads at once."""
     bin_lut, mag_lut = _hog._luts(orientations)
     n_cells, n_blocks = _hog._geometry(img.shape[:2], ppc, (1, 1))
     ht = np.full((n_cells[0], len(chans), n_cells[1], orientations), np.nan)
-    out = np.empty((n_blocks[0], n_blocks[1], len(chans), orientations))
-    kernel = _k.hog_u8_fast_parallel if parallel else _k.hog_u8_fast
-    kernel(img, chans, ppc[0], ppc[1], 1, 1, bin_lut, mag_lut, _k.NORM_L2, ht, out)
-    return ht.transpose(0, 2, 1, 3)
+    split_range(lambda lo, hi: _k.cell_hists_u8(img, chans, False, lo, hi, ppc[0], ppc[1], bin_lut, mag_lut, ht),
+                n_cells[0], 2 if parallel else 1)
+    return ht
 
 
 @settings(max_examples=120, deadline=None)
@@ -99,13 +101,9 @@ def test_cell_histograms_equal_the_float_path_bit_for_bit(n_ch, p_row, p_col, ex
     chans = np.asarray(rng.permutation(n_ch)[: rng.integers(1, n_ch + 1)], dtype=np.int64)
     ref = _float_hist(img, chans, (p_row, p_col), orientations)
     np.testing.assert_array_equal(_fast_hist(img, chans, (p_row, p_col), orientations, parallel), ref)
-    bin_lut, mag_lut = _hog._luts(orientations)  # the exact path's kernel (hog, hog_channels, batch)
+    bin_lut, mag_lut = _hog._luts(orientations)
     hist = np.full(ref.shape, np.nan)
-    out = np.empty(ref.shape[:2] + (len(chans), orientations))
-    _k.hog_u8(img, chans, False, p_row, p_col, 1, 1, bin_lut, mag_lut, _k.NORM_L2, hist, out)
-    np.testing.assert_array_equal(hist, ref)
     # both implementations, whatever the width (the kernels pick one by PLANES_MIN_CELLS)
-    hist[...] = np.nan
     _k._cell_rows_planes(img, chans, 0, ref.shape[0], p_row, p_col, bin_lut, mag_lut, hist)
     np.testing.assert_array_equal(hist, ref)
     hist[...] = np.nan

@@ -7,13 +7,66 @@ from pathlib import Path
 import pytest
 
 from fastdet.errors import DataError
-from fastdet.io.atomic import atomic_path, check_output_path, commit, partial_name, write_bytes
+from fastdet.io.atomic import OutputSet, atomic_path, commit, partial_name, process_token, write_bytes
 
 
 def test_partial_name_keeps_the_folder_and_extension():
-    assert partial_name("/a/b/out.mp4") == Path("/a/b/.out.partial.mp4")
-    assert partial_name("boxes.txt") == Path(".boxes.partial.txt")
-    assert partial_name(Path("x/model")) == Path("x/.model.partial")
+    tok = process_token()
+    assert tok.startswith(f"{os.getpid()}-") and len(tok.split("-")[1]) == 8
+    assert partial_name("/a/b/out.mp4") == Path(f"/a/b/.out.partial.{tok}.mp4")
+    assert partial_name("boxes.txt") == Path(f".boxes.partial.{tok}.txt")
+    assert partial_name(Path("x/model")) == Path(f"x/.model.partial.{tok}")
+
+
+def test_partial_names_differ_between_processes():
+    import subprocess
+    import sys
+    code = "from fastdet.io.atomic import partial_name; print(partial_name('/o/x.mp4'))"
+    names = {subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+             for _ in range(2)}
+    names.add(str(partial_name("/o/x.mp4")) + "\n")
+    assert len(names) == 3
+
+
+def test_partial_name_is_new_in_a_forked_child():
+    r, w = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child
+        os.write(w, str(partial_name("/o/x.mp4")).encode())
+        os._exit(0)
+    os.waitpid(pid, 0)
+    child = os.read(r, 4096).decode()
+    assert child != str(partial_name("/o/x.mp4")) and f".{pid}-" in child
+
+
+def test_output_set_renames_all_or_none(tmp_path):
+    outs = OutputSet()
+    for name in ("a.txt", "b.txt"):
+        tmp = partial_name(tmp_path / name)
+        tmp.write_text(name)
+        outs.add(tmp, tmp_path / name)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in (partial_name(tmp_path / "a.txt"),
+                                                                                 partial_name(tmp_path / "b.txt")))
+    assert outs.commit() == [tmp_path / "a.txt", tmp_path / "b.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "b.txt"]
+    # the second rename fails (a non-empty folder in the way): the first output goes too
+    blocker = tmp_path / "d.txt"
+    blocker.mkdir()
+    (blocker / "keep").write_text("k")
+    outs = OutputSet()
+    for name in ("c.txt", "d.txt", "e.txt"):
+        tmp = partial_name(tmp_path / name)
+        tmp.write_text(name)
+        outs.add(tmp, tmp_path / name)
+    with pytest.raises(DataError, match="d.txt: cannot write"):
+        outs.commit()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "b.txt", "d.txt"]
+    outs = OutputSet()
+    tmp = partial_name(tmp_path / "f.txt")
+    tmp.write_text("f")
+    outs.add(tmp, tmp_path / "f.txt")
+    outs.discard()
+    assert not tmp.exists() and not (tmp_path / "f.txt").exists()
 
 
 def test_atomic_path_renames_on_success(tmp_path):
@@ -90,29 +143,3 @@ def test_commit_failure_removes_the_temporary_file(tmp_path):
     ok = tmp_path / ".p.partial.txt"
     ok.write_text("z")
     assert commit(ok, tmp_path / "p.txt", mode=None) == tmp_path / "p.txt"
-
-
-def test_check_output_path(tmp_path):
-    inp = tmp_path / "in.mp4"
-    inp.write_bytes(b"v")
-    check_output_path(tmp_path / "out.mp4", "video", inp)  # fine: nothing raised, nothing made
-    assert sorted(tmp_path.iterdir()) == [inp]
-    with pytest.raises(DataError, match="does not exist"):
-        check_output_path(tmp_path / "nowhere" / "o.mp4", "video")
-    with pytest.raises(DataError, match="is a folder"):
-        check_output_path(tmp_path, "video")
-    with pytest.raises(DataError, match="overwrite the input"):
-        check_output_path(inp, "video", inp)
-    link = tmp_path / "link.mp4"
-    link.symlink_to(inp)
-    with pytest.raises(DataError, match="overwrite the input"):
-        check_output_path(link, "video", inp)
-    if os.geteuid() != 0:  # root ignores permissions
-        ro = tmp_path / "ro"
-        ro.mkdir()
-        ro.chmod(0o500)
-        try:
-            with pytest.raises(DataError, match="not writable"):
-                check_output_path(ro / "o.mp4", "video")
-        finally:
-            ro.chmod(0o700)

@@ -210,3 +210,70 @@ def test_image_sequence_is_a_video(tmp_path, capsys):
     stdout, err = _err_lines(capsys)
     assert "4 frames in" in stdout and not err
     assert read_predictions(boxes).frames.max(initial=0) <= 4
+
+
+# ------------------------------------------------------------------------------------------
+# named pipes: a stream, read once
+
+
+def _feed_fifo(fifo, data: bytes):
+    import threading
+
+    def feed():
+        with open(fifo, "wb") as fh:
+            fh.write(data)
+
+    t = threading.Thread(target=feed, daemon=True)
+    t.start()
+    return t
+
+
+def test_named_pipe_is_live_and_offline_refused_at_once(tmp_path, capsys):
+    import os
+    clip = write_video(tmp_path / "c.avi", 8, ("-c:v", "mjpeg", "-q:v", "4"), w=480, h=270)
+    fifo = tmp_path / "pipe.avi"
+    os.mkfifo(fifo)
+    t = _feed_fifo(fifo, clip.read_bytes())
+    # was: the offline pass reopened the pipe and waited for ever, deaf to SIGINT and SIGTERM
+    assert main(["video", str(fifo), "--offline", "--boxes", str(tmp_path / "b.txt"), "--no-progress"]) == 2
+    assert "--offline needs a video file, not a live source" in capsys.readouterr().err
+    t.join(timeout=30)
+    assert not t.is_alive() and not (tmp_path / "b.txt").exists()
+    t = _feed_fifo(fifo, clip.read_bytes())
+    assert main(["video", str(fifo), "--boxes", str(tmp_path / "b.txt"), "--no-progress", "--no-refine"]) == 0
+    t.join(timeout=30)
+    assert "8 frames" in capsys.readouterr().out
+
+
+def test_named_pipe_nobody_writes_to_is_bounded_and_a_stop_ends_it(tmp_path, monkeypatch):
+    import os
+    import signal
+    import threading
+
+    import fastdet.io.reader as reader_mod
+    from fastdet import signals
+    from fastdet.errors import DataError
+
+    fifo = tmp_path / "pipe.mp4"
+    os.mkfifo(fifo)
+    monkeypatch.setattr(reader_mod, "OPEN_TIMEOUT_S", 1.0)
+    with pytest.raises(DataError, match="did not open within 1 s"):
+        FrameReader(fifo)
+    monkeypatch.setattr(reader_mod, "OPEN_TIMEOUT_S", 300.0)
+    with signals.handled():
+        timer = threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGTERM))
+        timer.start()
+        with pytest.raises(signals.Stopped):
+            FrameReader(fifo)
+        timer.join()
+    # the helper threads left blocked in OpenCV's open hold OpenCV's FFmpeg lock: a writer
+    # that opens and closes the pipe lets them go before any other test opens a video
+    import time
+    end = time.monotonic() + 60
+    while any(t.name == "fastdet-open" for t in threading.enumerate()) and time.monotonic() < end:
+        try:
+            os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+        except OSError:
+            pass
+        time.sleep(0.05)
+    assert not any(t.name == "fastdet-open" for t in threading.enumerate())

@@ -1,6 +1,6 @@
-"""The tracker (fastdet.video.track, kalman, offline, count) on hand-made tracks, and its
-parts against plain references: the batched Kalman filter against the textbook equations
-one track at a time, the Hungarian assignment against trying every matching."""
+"""The tracker (fastdet.video.track) on hand-made tracks, and its parts against plain
+references: the Hungarian assignment against trying every matching. The Kalman filter, the
+offline pass and counting: test_kalman.py, test_offline.py, test_count.py beside this file."""
 from __future__ import annotations
 
 import itertools
@@ -12,10 +12,7 @@ from hypothesis import strategies as st
 
 from fastdet.config import HeatConfig, TrackerConfig
 from fastdet.detections import Detections
-from fastdet.video.count import CountLine, VehicleCounter
 from fastdet.video.heatmap import HeatMap
-from fastdet.video.kalman import BoxKalman, cxcywh_to_xyxy, xyxy_to_cxcywh
-from fastdet.video.offline import extend_back, interpolate_gaps, offline_pass
 from fastdet.video.track import LOST, TRACKED, Tracker, assign, buffered, split_merged
 
 
@@ -35,76 +32,6 @@ def ids_of(out: Detections) -> list[int]:
 
 
 # ------------------------------------------------------------------ references
-
-
-def kalman_reference(z_seq: list[np.ndarray | None], p: float, v: float, v0: float) -> list[np.ndarray]:
-    """The textbook constant-velocity Kalman filter of one track, explicit matrices: the mean
-    after each frame (``None``: no measurement, predict only)."""
-    F = np.eye(8)
-    for i in range(4):
-        F[i, i + 4] = 1.0
-    H = np.zeros((4, 8))
-    H[:4, :4] = np.eye(4)
-    z0 = z_seq[0]
-    x = np.concatenate([z0, np.zeros(4)])
-    w, h = z0[2], z0[3]
-    P = np.diag(np.array([2 * p * w, 2 * p * h, 2 * p * w, 2 * p * h, v0 * w, v0 * h, v0 * w, v0 * h]) ** 2)
-    out = [x.copy()]
-    for z in z_seq[1:]:
-        w, h = max(x[2], 1.0), max(x[3], 1.0)
-        Q = np.diag(np.array([p * w, p * h, p * w, p * h, v * w, v * h, v * w, v * h]) ** 2)
-        x = F @ x
-        P = F @ P @ F.T + Q
-        if z is not None:
-            w, h = max(x[2], 1.0), max(x[3], 1.0)
-            R = np.diag(np.array([p * w, p * h, p * w, p * h]) ** 2)
-            S = H @ P @ H.T + R
-            K = P @ H.T @ np.linalg.inv(S)
-            x = x + K @ (z - H @ x)
-            P = P - K @ S @ K.T
-        out.append(x.copy())
-    return out
-
-
-def test_batched_kalman_matches_the_textbook_filter_per_track():
-    rng = np.random.default_rng(3)
-    kf = BoxKalman(1 / 20, 1 / 160, 0.25)
-    n, T = 4, 12
-    truth = [np.array([100 + 50 * i, 200, 40 + 10 * i, 20 + 5 * i], float) for i in range(n)]
-    vel = [np.array([rng.uniform(-15, 15), rng.uniform(-3, 3), 0.5, 0.2]) for _ in range(n)]
-    seen = rng.random((T, n)) < 0.75  # which track has a measurement in which frame
-    seen[0] = True
-    zs = [[truth[i] + t * vel[i] + rng.normal(0, 1, 4) for t in range(T)] for i in range(n)]
-    mean, cov = kf.initiate(np.stack([zs[i][0] for i in range(n)]))
-    got = [mean.copy()]
-    for t in range(1, T):
-        mean, cov = kf.predict(mean, cov)
-        rows = np.flatnonzero(seen[t])
-        if len(rows):
-            mean[rows], cov[rows] = kf.update(mean[rows], cov[rows], np.stack([zs[i][t] for i in rows]))
-        got.append(mean.copy())
-    for i in range(n):
-        ref = kalman_reference([zs[i][0]] + [zs[i][t] if seen[t, i] else None for t in range(1, T)],
-                               1 / 20, 1 / 160, 0.25)
-        np.testing.assert_allclose(np.stack([g[i] for g in got]), np.stack(ref), rtol=1e-9, atol=1e-9)
-
-
-def test_kalman_learns_a_constant_velocity():
-    kf = BoxKalman(1 / 20, 1 / 160, 0.25)
-    mean, cov = kf.initiate(np.array([[100.0, 50, 40, 20]]))
-    for t in range(1, 15):
-        mean, cov = kf.predict(mean, cov)
-        mean, cov = kf.update(mean, cov, np.array([[100.0 + 12 * t, 50, 40, 20]]))
-    assert mean[0, 4] == pytest.approx(12.0, abs=0.2)
-    pred, _ = kf.predict(mean, cov)
-    assert pred[0, 0] == pytest.approx(100 + 12 * 15, abs=1.0)
-
-
-def test_box_conversions_round_trip():
-    b = np.array([[10.0, 20, 50, 40], [0, 0, 1, 3]])
-    np.testing.assert_allclose(xyxy_to_cxcywh(b), [[30, 30, 40, 20], [0.5, 1.5, 1, 3]])
-    np.testing.assert_allclose(cxcywh_to_xyxy(xyxy_to_cxcywh(b)), b)
-    assert cxcywh_to_xyxy(np.zeros((0, 8))).shape == (0, 4)
 
 
 def brute_force_assign(ious: np.ndarray, min_iou: float) -> float:
@@ -239,18 +166,6 @@ def test_occlusion_of_a_few_frames_keeps_the_id():
         assert ids_of(o) == ([] if 10 <= f < 14 else [1]), f
 
 
-def test_offline_pass_fills_the_occlusion():
-    frames = [dets(car(0, f)) if not 10 <= f < 14 else dets() for f in range(25)]
-    out = offline_pass(list(enumerate(run(frames), start=1)), (480, 640))
-    for f, (fno, o) in enumerate(out):
-        assert fno == f + 1 and ids_of(o) == [1], f
-        if 10 <= f < 14:
-            assert o.scores[0] == 0.0  # added by the offline pass
-            np.testing.assert_array_equal(o.boxes[0], np.round(car(0, f)))
-        else:
-            assert o.scores[0] == 10.0
-
-
 def test_a_new_car_gets_the_next_id_and_the_first_keeps_its_own():
     frames = [dets(*([car(0, f)] + ([car(300, f, -5)] if f >= 10 else []))) for f in range(20)]
     out = run(frames)
@@ -342,86 +257,6 @@ def test_tracker_config_is_checked():
     with pytest.raises(TypeError):
         Tracker(HeatConfig())
     assert TrackerConfig.from_dict(TrackerConfig().to_dict()) == TrackerConfig()
-
-
-# ------------------------------------------------------------------ offline pass
-
-
-def test_interpolate_gaps_linear_and_bounded():
-    tr = [(1, np.array([0.0, 0, 10, 10])), (4, np.array([30.0, 0, 40, 10])), (20, np.array([0.0, 0, 10, 10]))]
-    got = interpolate_gaps(tr, max_gap=5)
-    assert [f for f, _ in got] == [2, 3]
-    np.testing.assert_allclose(got[0][1], [10, 0, 20, 10])
-    np.testing.assert_allclose(got[1][1], [20, 0, 30, 10])
-
-
-def test_extend_back_moves_the_first_box_at_the_starting_velocity():
-    tr = [(10, np.array([100.0, 50, 140, 70])), (11, np.array([90.0, 50, 134, 72]))]
-    # centre velocity (-8, +1) per frame; the first box's size is kept
-    got = extend_back(tr, 3, first_frame=1, frame_shape=(480, 640))
-    assert [f for f, _ in got] == [7, 8, 9]
-    np.testing.assert_allclose(got[-1][1], [108, 49, 148, 69])
-    np.testing.assert_allclose(got[0][1], [124, 47, 164, 67])
-    assert [f for f, _ in extend_back(tr, 3, first_frame=9, frame_shape=(480, 640))] == [9]
-    # stops where less than half the box would be in the picture
-    tr = [(10, np.array([0.0, 50, 40, 70])), (11, np.array([30.0, 50, 70, 70]))]
-    assert extend_back(tr, 3, 1, (480, 640)) == []
-
-
-def test_offline_pass_keeps_frames_and_adds_nothing_without_ids():
-    frames = [(1, dets(car(0, 0))), (2, Detections.empty())]
-    assert [len(d) for _, d in offline_pass(frames, (480, 640))] == [1, 0]
-    assert offline_pass([], (480, 640)) == []
-
-
-# ------------------------------------------------------------------ counting
-
-
-def test_count_line_sides_and_crossings():
-    ln = CountLine(0, 100, 200, 100)  # drawn left to right: its right side is below it
-    assert ln.side(np.array([[50, 150], [50, 50]])).tolist() == [10000.0, -10000.0]
-    assert ln.crossed(np.array([50, 90]), np.array([50, 110])) == 1  # downwards: left -> right
-    assert ln.crossed(np.array([50, 110]), np.array([50, 90])) == -1
-    assert ln.crossed(np.array([250, 90]), np.array([250, 110])) == 0  # past the segment's end
-    assert ln.crossed(np.array([50, 90]), np.array([60, 95])) == 0
-    assert ln.crossed(np.array([50, 90]), np.array([50, 100])) == 0  # touching is not crossing
-    assert CountLine.parse(" 1, 2,3,4") == CountLine(1, 2, 3, 4)
-    for bad in ("1,2,3", "a,b,c,d", "1,2,1,2", "1,2,3,inf"):
-        with pytest.raises(ValueError):
-            CountLine.parse(bad)
-
-
-def test_vehicle_counter_counts_ids_and_crossings_once_per_direction():
-    # car 1 moves right across a vertical line at x = 200 (bottom centre from x = 130);
-    # car 2 waits left of it; car 3 goes right then comes back
-    line = CountLine(200, 0, 200, 480)  # drawn downwards: its right side is the picture's left
-    c = VehicleCounter(line)
-    for f in range(20):
-        b1 = car(100, f, 10)
-        b2 = car(0, 0, 0)
-        x3 = 150 + (10 * f if f < 10 else 10 * (20 - f))
-        c.update(Detections(np.array([b1, b2, [x3, 300, x3 + 40, 330]], np.int32), np.ones(3, np.float32),
-                            ids=np.array([1, 2, 3])))
-    assert c.vehicles == 3
-    s = c.summary()
-    assert s["line"]["right_to_left"] == 2  # cars 1 and 3 went left -> right in the picture
-    assert s["line"]["left_to_right"] == 1  # car 3 came back
-    assert "3 vehicles" in c.text() and "2 right to left" in c.text()
-    assert VehicleCounter().summary() == {"vehicles": 0}
-
-
-def test_vehicle_counter_leaves_out_glimpses():
-    # id 1 seen in 5 frames, id 2 in 2 (crossing the line meanwhile): only id 1 counts
-    c = VehicleCounter(CountLine(0, 100, 200, 100), min_frames=3)
-    for f in range(5):
-        boxes = [[10, 50, 50, 80]] + ([[100, 60 + 40 * f, 140, 90 + 40 * f]] if f < 2 else [])
-        c.update(Detections(np.array(boxes, np.int32), np.ones(len(boxes), np.float32),
-                            ids=np.arange(1, len(boxes) + 1)))
-    assert c.vehicles == 1 and c.ids == {1}
-    assert c.crossed["left_to_right"] == {2} and c.crossings() == {"left_to_right": 0, "right_to_left": 0}
-    assert VehicleCounter(min_frames=1).min_frames == 1
-    with pytest.raises(ValueError):
-        VehicleCounter(min_frames=0)
 
 
 # ------------------------------------------------------------------ weak boxes of the heat map

@@ -1,4 +1,5 @@
-"""The README accuracy table: the classic pipeline, fastdet's defaults, and the ablations.
+"""The accuracy table of docs/accuracy.md (*The Udacity clips, step by step*): the classic
+pipeline, fastdet's defaults, and the ablations.
 
 Every row runs a detector over every frame of every annotated clip in
 ``$FASTDET_DATA/annotations`` and evaluates at IoU 0.5 exactly as ``python -m fastdet

@@ -1,4 +1,4 @@
-"""Print the HOG benchmark as a markdown table (the figures in the README).
+"""Print the HOG benchmark as a markdown table (the figures in docs/benchmarks.md).
 
     python -m tools.studies.bench_hog_report [--repeat 30] [--no-start-up]     (from the project root)
 

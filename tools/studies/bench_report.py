@@ -1,4 +1,4 @@
-"""Print the detector, video and start-up benchmarks as markdown tables (the README figures).
+"""Print the detector, video and start-up benchmarks as markdown tables (docs/benchmarks.md).
 
     python -m tools.studies.bench_report [--quick] [--wide W.npz]
         [--only detector|opencv|wait-policy|video|start-up ...]

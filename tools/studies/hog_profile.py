@@ -56,6 +56,9 @@ def load_old(rev: str, folder: Path):
                               capture_output=True, text=True).stdout
 
     kern = show("fastdet/features/_hog_kernels.py").replace("from .._numba import", "from fastdet._numba import")
+    # revisions with parallel=True kernels import options fastdet._numba no longer has
+    kern = kern.replace("from fastdet._numba import EXACT, EXACT_PARALLEL, REASSOC",
+                        "from fastdet._numba import EXACT, REASSOC\nEXACT_PARALLEL = dict(EXACT, parallel=True)")
     hog = show("fastdet/features/_hog.py").replace("from . import _hog_kernels as _k",
                                                    "import old_hog_kernels as _k")
     (folder / "old_hog_kernels.py").write_text(kern)
@@ -93,13 +96,17 @@ def hog_split(hog_mod, k, bands, cfg, rounds: int) -> dict[str, float]:
         out = np.empty((n_cells[0] - b + 1, n_cells[1] - b + 1, 3, b * b * o))
         hist = ht.transpose(0, 2, 1, 3)
 
-        def cells(img=img, hist=hist, n_rows=n_cells[0]):
-            for ci in range(n_rows):
+        def cells(img=img, ht=ht, hist=hist, n_rows=n_cells[0]):
+            if hasattr(k, "cell_hists_u8"):  # one kernel over a range of cell rows
+                k.cell_hists_u8(img, chans, False, 0, n_rows, c, c, bin_lut, mag_lut, ht)
+                return
+            for ci in range(n_rows):  # revisions before it
                 k._cell_row_u8(img, chans, False, ci, c, c, bin_lut, mag_lut, hist)
 
+        normalize = getattr(k, "normalize_blocks_fast", None) or k._normalize_rows_fast
         fns = {"hog": lambda img=img: hog_mod.hog_channels(img, o, c, b, channels=[0, 1, 2], exact=False),
                "cells": cells,
-               "blocks": lambda ht=ht, out=out: k._normalize_rows_fast(ht, 0, out.shape[0], b, b, method, out)}
+               "blocks": lambda ht=ht, out=out: normalize(ht, 0, out.shape[0], b, b, method, out)}
         for f in fns.values():
             f()
         for name, f in fns.items():

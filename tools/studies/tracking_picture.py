@@ -1,4 +1,4 @@
-"""The README's tracking picture: one frame of a clip with each vehicle's id and trail.
+"""The tracking picture of docs/tracking.md: one frame of a clip with each vehicle's id and trail.
 
     python -m tools.studies.tracking_picture [--video ../shared/data/videos/test_small1.mp4]
         [--frame 86] [--crop 0,360,1100,520] [--out docs/tracking.jpg]

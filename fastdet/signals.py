@@ -1,4 +1,5 @@
-"""Every way a process is told to stop: Ctrl-C (SIGINT), SIGTERM, SIGHUP.
+"""Every way a process is told to stop: Ctrl-C (SIGINT), SIGTERM, SIGHUP -- one module for
+the commands and the batch.
 
 ``timeout``, ``kill``, closing the terminal, ``docker stop`` and systemd all send SIGTERM
 or SIGHUP; they are handled like Ctrl-C. The dispatcher (:mod:`fastdet.cli.main`) runs
@@ -14,6 +15,10 @@ every command inside :func:`handled`; a command then only decides *where* it may
 - A long step that may swallow an exception (third-party code) is followed by
   :func:`check`, which raises :class:`Stopped` when a signal came meanwhile.
 
+Batches (:mod:`fastdet.batch.job`) use the same module: ``deferred(repeats=False)`` keeps a
+second signal from interrupting their bounded clean-up, and :func:`wait` is every wait that
+must wake on a stop (a scheduler that does not answer, a closing client).
+
 The dispatcher turns :class:`Stopped` -- and any other exception raised after a signal
 came, e.g. from inside a compiler that was interrupted -- into one line
 ``fastdet COMMAND: interrupted (SIGTERM)[; detail]`` and exit status ``128 + signal``
@@ -27,7 +32,8 @@ from __future__ import annotations
 
 import signal
 import threading
-from collections.abc import Iterator
+import time
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from types import FrameType
 
@@ -37,6 +43,8 @@ STOP_SIGNALS: tuple[int, ...] = tuple(s for s in (signal.SIGINT, signal.SIGTERM,
 
 _received: int | None = None
 _deferring = 0
+_patient = 0  # deferred blocks in which repeated signals are ignored too
+_active = 0  # handled() blocks entered (nested ones are no-ops)
 
 
 class Stopped(KeyboardInterrupt):
@@ -62,8 +70,8 @@ def _handler(signum: int, frame: FrameType | None) -> None:
     first = _received is None
     if first:
         _received = signum
-    if _deferring and first:
-        return  # the loop stops after its current frame
+    if _deferring and (first or _patient):
+        return  # the loop stops after its current frame (a patient block: after its clean-up)
     raise Stopped(signum)
 
 
@@ -84,36 +92,55 @@ def check() -> None:
 
 
 @contextmanager
-def deferred() -> Iterator[None]:
+def deferred(repeats: bool = True, raise_on_exit: bool = True) -> Iterator[None]:
     """Within the block a (first) stop signal only sets :func:`stop_requested`; on leaving
-    it, :class:`Stopped` is raised if one came. Nestable; a no-op outside the main thread."""
-    global _deferring
+    it, :class:`Stopped` is raised if one came (unless ``raise_on_exit`` is False: the caller
+    reports the stop itself). ``repeats=False``: later signals are ignored as well (a
+    clean-up that must finish; it is bounded by its own timeouts). Nestable; a no-op
+    outside the main thread."""
+    global _deferring, _patient
     _deferring += 1
+    _patient += 0 if repeats else 1
     try:
         yield
     finally:
         _deferring -= 1
-    check()
+        _patient -= 0 if repeats else 1
+    if raise_on_exit:
+        check()
+
+
+def wait(done: Callable[[], bool], timeout: float, step: float = 0.1) -> bool:
+    """Poll ``done()`` every ``step`` seconds until it is true (``True``), ``timeout`` seconds
+    pass or a stop signal came (``False``): a bounded wait that wakes on a stop."""
+    end = time.monotonic() + timeout
+    while not done():
+        if stop_requested() or time.monotonic() >= end:
+            return False
+        time.sleep(min(step, max(end - time.monotonic(), 0.0)))
+    return True
 
 
 @contextmanager
 def handled() -> Iterator[None]:
     """Run a command with the stop signals turned into :class:`Stopped` (see the module
     docstring); restores the previous handlers afterwards."""
-    global _received, _deferring
-    if threading.current_thread() is not threading.main_thread():
-        yield
+    global _received, _deferring, _patient, _active
+    if threading.current_thread() is not threading.main_thread() or _active:
+        yield  # another thread, or inside a handled() block already (a batch run by the CLI)
         return
     previous = {s: signal.getsignal(s) for s in STOP_SIGNALS}
-    _received, _deferring = None, 0
+    _received, _deferring, _patient = None, 0, 0
     for s in STOP_SIGNALS:
         signal.signal(s, _handler)
+    _active += 1
     try:
         yield
     finally:
+        _active -= 1
         for s, h in previous.items():
             signal.signal(s, h if h is not None else signal.SIG_DFL)
-        _received, _deferring = None, 0  # a stop belongs to the command it stopped
+        _received, _deferring, _patient = None, 0, 0  # a stop belongs to the command it stopped
 
 
 def reset() -> None:

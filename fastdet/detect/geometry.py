@@ -1,0 +1,265 @@
+"""Search bands from the camera's geometry: each window size on the rows where a vehicle of
+that size can stand.
+
+On a flat road a vehicle seen by a camera at height ``Hc`` above the road stands with its
+bottom edge ``dy = f Hc / Z`` pixels below the horizon and is ``w = f Wv / Z`` pixels wide
+(``Z`` its distance, ``f`` the focal length in pixels, ``Wv`` its width), so
+
+    w = ratio x dy,        ratio = Wv / Hc
+
+whatever the lens and the resolution (Hoiem, Efros & Hebert, "Putting Objects in
+Perspective", CVPR 2006). The horizon row and the ``ratio`` are all a camera needs to say
+where vehicles of each width can be. Cameras differ in both: a dashcam behind a car's
+windscreen (``Hc`` about 1.2 m) has a ratio near 1.8 for a car, a motorcycle's lower, a
+truck's higher camera a smaller one.
+
+A window of side ``L`` pixels fires on vehicles somewhat wider than itself and sits near
+their bottom edge; over all the annotated clips the windows the detector fires on a vehicle
+with (IoU >= 0.4) have their bottom ``d x L`` below the horizon with ``d x ratio`` within
+:attr:`GeometryConfig.reach` (the detector's property, not the camera's). So for a window
+side ``L`` the band holds the windows whose bottom is in
+
+    [horizon + L x reach[0] / ratio_hi - slack x H,  horizon + L x reach[1] / ratio_lo + slack x H]
+
+where ``[ratio_lo, ratio_hi]`` is the ratio's range (the prior's, or around the estimate
+from the video's own vehicles, :class:`RatioEstimator`) and ``slack`` the horizon error the
+search must survive (a fraction of the frame height ``H``). Each band's windows stay on
+the grid they have in the reference search (rows ``y_ref + n x step`` of the reference
+band, scaled to the frame), so a band moved by a few rows does not put every window
+somewhere else.
+
+All rows here are fractions of the frame height or pixels of the frame searched; window
+scales are those of :class:`~fastdet.config.SearchBand` (window side ``64 x scale`` px of
+the reference frame, rescaled by ``H / reference H`` to the frame).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..config import SearchBand, SearchConfig
+
+
+@dataclass(frozen=True)
+class GeometryConfig:
+    """How search bands follow the camera's geometry (module docstring).
+
+    reference_ratio: the ratio of the camera the reference bands were tuned on (the Udacity
+        dashcam: 1.9, the median over the tracked vehicles of its two clips).
+    ratio: the prior ratio, used until the video's own vehicles give one.
+    slack: rows added above and below every band, a fraction of the frame height: the
+        horizon error a band survives without losing a window that finds a vehicle.
+    """
+
+    reference_ratio: float = 1.9
+    ratio: float = 1.9
+    slack: float = 0.05
+
+    def __post_init__(self) -> None:
+        if not self.ratio > 0 or not self.reference_ratio > 0:
+            raise ValueError(f"ratio and reference_ratio must be > 0, got {self.ratio!r}, {self.reference_ratio!r}")
+        if not 0 <= self.slack < 1:
+            raise ValueError(f"slack must be a fraction of the frame height in [0, 1), got {self.slack!r}")
+
+
+def window_bottoms(ref_first: float, ref_last: float, ref_horizon: float, horizon: float, stretch: float,
+                   slack_rows: float) -> tuple[float, float]:
+    """Rows ``(first, last)`` (frame pixels) the bottom of a window may be on: the reference
+    band's window bottoms ``[ref_first, ref_last]`` (rows of a frame whose horizon is at row
+    ``ref_horizon``) at the same distances below the horizon times ``stretch`` (the
+    reference ratio over the camera's) from row ``horizon``, widened by ``slack_rows`` on
+    both sides."""
+    return (horizon + (ref_first - ref_horizon) * stretch - slack_rows,
+            horizon + (ref_last - ref_horizon) * stretch + slack_rows)
+
+
+def band_on_grid(scale: float, first_bottom: float, last_bottom: float, anchor: float, step: float,
+                 rows: int, x_start: int | None = None, x_stop: int | None = None,
+                 tail: float = 0.0) -> SearchBand | None:
+    """The band of ``scale`` (frame pixels: window side ``64 x scale``) whose windows sit on
+    the rows ``anchor + n x step`` (window tops) and have their bottoms in
+    ``[first_bottom, last_bottom]`` to half a step, clipped to a frame of ``rows`` rows;
+    ``None`` when no window fits. ``tail``: rows the band runs on below its last window
+    (HOG sees them: a window on a band's last rows is scored a little differently)."""
+    side = 64.0 * scale
+    n0 = math.ceil((first_bottom - side - anchor) / step - 0.5 - 1e-9)
+    n1 = math.floor((last_bottom - side - anchor) / step + 0.5 + 1e-9)
+    n0 = max(n0, math.ceil((-0.5 - anchor) / step - 1e-9))  # tops inside the frame (to rounding)
+    n1 = min(n1, math.floor((rows - side - anchor) / step + 1e-9))  # bottoms inside the frame
+    if n1 < n0:
+        return None
+    top = anchor + n0 * step
+    y0 = min(max(int(round(top)), 0), rows - 1)  # bands start on whole rows: the grid to half a pixel
+    # one window side and (n1 - n0) steps, and the reference band's rows below its last window
+    end = y0 + side + (n1 - n0) * step  # the last window's bottom
+    y1 = min(max(int(round(end + tail)), int(math.ceil(end - 1e-6))), rows)
+    return SearchBand(scale, y0, y1, x_start, x_stop)
+
+
+def geometric_bands(frame_shape: tuple[int, int], horizon: float, ratio: float, config: GeometryConfig,
+                    reference: SearchConfig) -> tuple[SearchBand, ...]:
+    """The main search's bands for frames of ``frame_shape = (H, W)`` whose horizon is at
+    ``horizon x H`` and whose vehicles have the ``ratio`` (module docstring): each band of
+    ``reference`` (rescaled to the frame as :meth:`SearchConfig.for_frame` does) searches
+    the window bottoms it searches at its ``reference_horizon``, at distances below the
+    horizon stretched by ``config.reference_ratio / ratio``, plus ``config.slack``; on the
+    reference band's window grid. Bands in frame pixels."""
+    h, w = (int(v) for v in frame_shape[:2])
+    rh, rw = reference.reference_shape if reference.reference_shape is not None else (h, w)
+    fy, fx = h / rh, w / rw
+    stretch = config.reference_ratio / ratio
+    out = []
+    for b in reference.bands:
+        scale = b.scale * fy
+        step = reference.cells_per_step * 8 * scale
+        side = 64.0 * scale
+        anchor = b.y_start * fy
+        n_ref = max(math.floor(((b.y_stop - b.y_start) * fy - side) / step + 1e-6), 0)
+        last_ref = anchor + side + n_ref * step
+        first, last = window_bottoms(anchor + side, last_ref, reference.reference_horizon * h,
+                                     horizon * h, stretch, config.slack * h)
+        band = band_on_grid(scale, first, last, anchor, step, h,
+                            None if b.x_start is None else min(int(round(b.x_start * fx)), w),
+                            None if b.x_stop is None else min(int(round(b.x_stop * fx)), w),
+                            tail=b.y_stop * fy - last_ref)
+        if band is not None:
+            out.append(band)
+    if not out:
+        raise ValueError(f"the horizon at {horizon:g} of the height leaves no search band in a {w}x{h} frame")
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class GeometricSearch(SearchConfig):
+    """A :class:`~fastdet.config.SearchConfig` whose bands come from the camera's geometry:
+    :meth:`for_frame` places each of ``geometry.scales`` from the horizon (``horizon``, or
+    ``reference_horizon`` when ``None``) and the ``ratio`` (``None``: the prior,
+    ``geometry.ratio``) with :func:`geometric_bands`. ``bands`` are the reference search's
+    (their rows give each scale's window grid)."""
+
+    geometry: GeometryConfig = field(default_factory=GeometryConfig)
+    ratio: float | None = None
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.ratio is not None and not self.ratio > 0:
+            raise ValueError(f"ratio must be > 0 or None, got {self.ratio!r}")
+
+    def for_frame(self, frame_shape: tuple[int, int]) -> SearchConfig:
+        horizon = self.horizon if self.horizon is not None else self.reference_horizon
+        ratio = self.ratio if self.ratio is not None else self.geometry.ratio
+        bands = geometric_bands(frame_shape, horizon, ratio, self.geometry, self)
+        return SearchConfig(bands=bands, cells_per_step=self.cells_per_step, threshold=self.threshold,
+                            reference_shape=None, reference_horizon=self.reference_horizon, horizon=None,
+                            border=self.border, border_mode=self.border_mode)
+
+    def with_ratio(self, ratio: float | None) -> GeometricSearch:
+        return replace(self, ratio=ratio)
+
+
+class RatioEstimator:
+    """The camera's ratio (vehicle width / how far its bottom edge is below the horizon) from
+    the vehicles a video shows (module docstring).
+
+    Feed each frame's confident boxes with :meth:`update` (``(N, 4)`` x1, y1, x2, y2 frame
+    pixels, their track ids, the horizon row as a fraction of the height, the frame height);
+    a box counts when its bottom is at least ``min_depth`` of the height below the horizon
+    (nearer the horizon a row's error is a large part of the distance). Each track gives the
+    median of its boxes' ratios; :attr:`estimate` is the median over the tracks seen with at
+    least ``min_boxes`` boxes, once there are ``min_tracks`` of them (else ``None``).
+    """
+
+    def __init__(self, min_depth: float = 0.03, min_boxes: int = 5, min_tracks: int = 2) -> None:
+        if not 0 < min_depth < 1 or min_boxes < 1 or min_tracks < 1:
+            raise ValueError("min_depth must be in (0, 1), min_boxes and min_tracks >= 1")
+        self.min_depth, self.min_boxes, self.min_tracks = min_depth, min_boxes, min_tracks
+        self._per_track: dict[int, list[float]] = {}
+
+    def update(self, boxes: np.ndarray, ids: np.ndarray, horizon: float, rows: int) -> None:
+        b = np.asarray(boxes, np.float64).reshape(-1, 4)
+        ids = np.asarray(ids).reshape(-1)
+        if len(ids) != len(b):
+            raise ValueError(f"{len(b)} boxes but {len(ids)} ids")
+        depth = b[:, 3] - horizon * rows
+        ok = (depth >= self.min_depth * rows) & (ids >= 0)
+        for r, i in zip((b[ok, 2] - b[ok, 0]) / depth[ok], ids[ok]):
+            self._per_track.setdefault(int(i), []).append(float(r))
+
+    def reset(self) -> None:
+        self._per_track.clear()
+
+    @property
+    def tracks(self) -> int:
+        """Tracks with enough boxes so far."""
+        return sum(len(v) >= self.min_boxes for v in self._per_track.values())
+
+    @property
+    def estimate(self) -> float | None:
+        meds = [float(np.median(v)) for v in self._per_track.values() if len(v) >= self.min_boxes]
+        if len(meds) < self.min_tracks:
+            return None
+        return float(np.median(meds))
+
+
+class PerspectiveEstimator:
+    """The horizon and the ratio together from the vehicles a video shows (Hoiem, Efros &
+    Hebert's joint inference, by grid search): the horizon row ``h`` and ratio ``k`` that
+    best explain the confident boxes (``w = k x (bottom - h)``), pulled towards the prior
+    horizon ``h0`` (the flow estimate or the user's) and the prior ratio.
+
+    For each candidate ``h`` (``h0 +- reach`` in steps of ``grid``, fractions of the height)
+    the ratio is the median over the tracks of their boxes' median ``w / (bottom - h)``;
+    the cost is the sum over the tracks of the mean over their boxes of
+    ``min((r / sigma_r)^2, clip^2)``, ``r`` a box's log-residual from that ratio (a track
+    whose boxes are mostly not below ``h`` counts ``clip^2``), plus
+    ``((h - h0) / sigma_h)^2`` and ``(log(k / ratio0) / sigma_k)^2``. :meth:`estimate` is
+    ``(h, k)`` of the lowest cost once ``min_tracks`` tracks have ``min_boxes`` boxes each,
+    else ``None``.
+    """
+
+    def __init__(self, min_boxes: int = 5, min_tracks: int = 2, reach: float = 0.08, grid: float = 0.0025,
+                 sigma_h: float = 0.04, sigma_k: float = 0.5, sigma_r: float = 0.15, clip: float = 3.0) -> None:
+        self.min_boxes, self.min_tracks = min_boxes, min_tracks
+        self.reach, self.grid, self.sigma_h, self.sigma_k, self.sigma_r, self.clip = reach, grid, sigma_h, sigma_k, \
+            sigma_r, clip
+        self._per_track: dict[int, list[tuple[float, float]]] = {}
+
+    def update(self, boxes: np.ndarray, ids: np.ndarray, rows: int) -> None:
+        """Add confident boxes (``(N, 4)`` frame pixels) with their track ids (``-1``: skipped)."""
+        b = np.asarray(boxes, np.float64).reshape(-1, 4)
+        ids = np.asarray(ids).reshape(-1)
+        if len(ids) != len(b):
+            raise ValueError(f"{len(b)} boxes but {len(ids)} ids")
+        for (x1, _, x2, y2), i in zip(b, ids):
+            if i >= 0:
+                self._per_track.setdefault(int(i), []).append((y2 / rows, (x2 - x1) / rows))
+
+    def reset(self) -> None:
+        self._per_track.clear()
+
+    def estimate(self, h0: float, ratio0: float) -> tuple[float, float] | None:
+        tracks = [np.asarray(v) for v in self._per_track.values() if len(v) >= self.min_boxes]
+        if len(tracks) < self.min_tracks:
+            return None
+        best: tuple[float, float, float] | None = None
+        for h in np.arange(h0 - self.reach, h0 + self.reach + 1e-9, self.grid):
+            logs, bad = [], 0
+            for t in tracks:
+                depth = t[:, 0] - h
+                ok = depth > 1e-3
+                if ok.sum() * 2 < len(t):
+                    bad += 1
+                    continue
+                logs.append(np.log(t[ok, 1] / depth[ok]))
+            if not logs:
+                continue
+            logk = float(np.median([np.median(v) for v in logs]))
+            # each track's boxes: how far their ratios are from the common one (mean over the track)
+            fit = sum(float(np.minimum(((v - logk) / self.sigma_r) ** 2, self.clip ** 2).mean()) for v in logs)
+            cost = fit + bad * self.clip ** 2 \
+                + ((h - h0) / self.sigma_h) ** 2 + ((logk - math.log(ratio0)) / self.sigma_k) ** 2
+            if best is None or cost < best[0]:
+                best = (cost, float(h), math.exp(logk))
+        return None if best is None else (best[1], best[2])

@@ -1,0 +1,124 @@
+"""Every command's files, checked together before any work: :func:`check_paths`.
+
+A command names its inputs (the video, model files, ground truth, predictions) and its
+outputs (video, box files, summary, plot, model, table). Each is resolved to its real path
+(symlinks followed, ``..`` removed) and, where the file exists, compared by device and
+inode as well (a hard link is the same file under another name). Refused in one line
+(:class:`~fastdet.errors.DataError`), before anything is read or written:
+
+- an output that is one of the inputs (``eval --plot gt.txt``, ``video --boxes model.npz``);
+- two outputs that are one file (``-o x.mp4 --summary x.mp4``);
+- an output that is a folder, whose folder does not exist or cannot be written to.
+
+Inputs that are not files (a URL, a camera index, an image sequence ``img%04d.jpg``) take
+no part. The bundled model files are inputs of every command that loads a model
+(:func:`bundled_models`): a run never writes over them unless they are its only purpose
+(``train --out``).
+"""
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable
+from pathlib import Path
+
+from ..errors import DataError
+from .atomic import folder_writable, partial_name
+
+#: the folder of the model files shipped with fastdet
+MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
+
+Named = tuple[str, "str | os.PathLike[str] | None"]
+
+
+def bundled_models() -> list[Named]:
+    """The shipped model files, as ``(label, path)`` inputs."""
+    return [("the bundled model", p) for p in sorted(MODELS_DIR.glob("*.npz"))]
+
+
+def _stat_key(path: str) -> tuple[int, int] | None:
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return st.st_dev, st.st_ino
+
+
+def _same(a: str, b: str) -> bool:
+    """``a`` and ``b`` name one file: the same real path, or the same existing inode."""
+    if os.path.realpath(a) == os.path.realpath(b):
+        return True
+    ka, kb = _stat_key(a), _stat_key(b)
+    return ka is not None and ka == kb
+
+
+def _is_file_input(path: str) -> bool:
+    """A path that names (or would name) a file: not a URL, camera index or image sequence."""
+    from .reader import source_kind  # the reader imports OpenCV: only when checking
+
+    return source_kind(path) == "file"
+
+
+def _name_max(folder: str) -> int:
+    """The longest file name the file system of ``folder`` takes (255 when it cannot say)."""
+    try:
+        return int(os.pathconf(folder, "PC_NAME_MAX"))
+    except (OSError, ValueError):
+        return 255
+
+
+def _a(what: str) -> str:
+    return f"{'an' if what[:1] in 'aeiou' else 'a'} {what}"
+
+
+def check_output(path: str | os.PathLike[str], what: str, label: str | None = None) -> None:
+    """One output location (no comparison with other files): its folder exists and is
+    writable, and the name is not a folder. ``DataError`` otherwise."""
+    name = os.fspath(path)
+    shown = f"{label} {name}" if label else name
+    if name == "" or name.endswith(os.sep):
+        raise DataError(f"{shown}: expected {_a(what)} file name")
+    if os.path.isdir(name):
+        raise DataError(f"{shown}: is a folder, expected {_a(what)} file name")
+    if os.path.exists(name) and not os.path.isfile(name):
+        # a device (/dev/null), a pipe, a socket: the finished output is renamed onto its
+        # name, which would put a plain file in its place
+        raise DataError(f"{shown}: is not a regular file (a device or a pipe); fastdet writes {_a(what)} "
+                        f"file by renaming it into place: give a file name")
+    if len(os.fsencode(os.path.basename(partial_name(name)))) > _name_max(os.path.dirname(os.path.abspath(name))):
+        raise DataError(f"{shown}: the file name is too long (its temporary name would not fit the file system)")
+    parent = os.path.dirname(os.path.abspath(name))
+    if not os.path.isdir(parent):
+        raise DataError(f"{shown}: output folder {parent} does not exist")
+    if not folder_writable(parent):
+        raise DataError(f"{shown}: output folder {parent} is not writable")
+
+
+def check_paths(inputs: Iterable[Named], outputs: Iterable[tuple[str, str | os.PathLike[str] | None, str]]) -> None:
+    """Check a command's files before any work (see the module docstring).
+
+    inputs: ``(label, path)`` pairs, e.g. ``("--model", "m.npz")``; ``None`` paths and
+        non-file sources are skipped, so are inputs that do not exist (their reader says so).
+    outputs: ``(label, path, what)`` triples, e.g. ``("--boxes", "b.txt", "box")``;
+        ``None`` paths are skipped.
+    """
+    ins = [(label, os.fspath(p)) for label, p in inputs
+           if p is not None and os.fspath(p) != "" and _is_file_input(os.fspath(p))
+           and os.path.exists(os.fspath(p))]
+    outs = [(label, os.fspath(p), what) for label, p, what in outputs if p is not None]
+    for label, out, what in outs:
+        check_output(out, what, label)
+    for label, out, what in outs:
+        for ilabel, inp in ins:
+            if not os.path.isdir(inp) and _same(out, inp):
+                raise DataError(f"{label} {out}: would overwrite the input {ilabel} {inp}; "
+                                f"give the {what} another name")
+    for i, (la, a, _) in enumerate(outs):
+        for lb, b, _ in outs[i + 1:]:
+            if _same(a, b):
+                raise DataError(f"{la} {a} and {lb} {b} are one file: give each output its own name")
+
+
+def is_inside(path: str | os.PathLike[str], folder: str | os.PathLike[str]) -> bool:
+    """``path`` is ``folder`` or lies under it (real paths)."""
+    p, f = os.path.realpath(path), os.path.realpath(folder)
+    return p == f or p.startswith(f.rstrip(os.sep) + os.sep)

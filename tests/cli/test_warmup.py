@@ -1,0 +1,28 @@
+"""``python -m fastdet warmup``: compiles every kernel signature the package lists (a cold
+cache: tests/test_numba.py, slow); on a warm cache it loads them and says so, and
+``--profile`` prints one line per signature."""
+from __future__ import annotations
+
+import subprocess
+import sys
+
+from fastdet import _numba
+
+
+def _run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "fastdet", "warmup", *args], capture_output=True, text=True,
+                          timeout=900, check=False)
+
+
+def test_warmup_then_profile():
+    r = _run()  # compiles what this machine's cache lacks (nothing, usually), then loads everything
+    assert r.returncode == 0, r.stderr
+    n = len(_numba.tasks_of(_numba.all_kernels()))
+    r = _run()
+    assert r.returncode == 0, r.stderr
+    assert f"all {n} kernel signatures already compiled" in r.stderr, r.stderr
+    r = _run("--profile")
+    assert r.returncode == 0, r.stderr
+    lines = [x for x in r.stdout.splitlines()[1:] if x.strip()]
+    assert len(lines) == n and all("[loaded from the cache]" in x for x in lines), r.stdout
+    assert f"{n} kernel signatures in" in r.stderr

@@ -1,0 +1,229 @@
+"""fastdet.detect.geometry: search bands from the horizon and the camera's ratio."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from fastdet.config import FeatureConfig, SearchBand, SearchConfig
+from fastdet.detect.bands import band_geometry
+from fastdet.detect.geometry import (
+    GeometricSearch,
+    GeometryConfig,
+    PerspectiveEstimator,
+    RatioEstimator,
+    band_on_grid,
+    geometric_bands,
+    window_bottoms,
+)
+
+CFG = FeatureConfig()
+
+
+def window_rows(band: SearchBand, shape: tuple[int, int], step_cells: int = 2) -> np.ndarray:
+    """(top, bottom) frame rows of every window row of ``band`` (what the detector searches)."""
+    g = band_geometry(band, shape, CFG, step_cells)
+    tops = band.y_start + np.arange(g.ny) * step_cells * 8 * band.scale
+    return np.stack([tops, tops + 64 * band.scale], 1)
+
+
+@settings(max_examples=200, deadline=None)
+@given(scale=st.sampled_from([0.5, 0.625, 0.75, 1.0, 1.25, 1.5, 2.0, 2.5, 3.0]),
+       anchor=st.floats(0, 500), first=st.floats(-50, 800), width=st.floats(0, 400), rows=st.integers(200, 800))
+def test_band_on_grid_covers_the_bottoms_on_the_grid(scale, anchor, first, width, rows):
+    last = first + width
+    step = 16 * scale
+    band = band_on_grid(scale, first, last, anchor, step, rows)
+    side = 64 * scale
+    # the grid windows inside the frame whose bottoms fall in [first, last] (the brute-force answer)
+    n = np.arange(-200, 200)
+    tops = anchor + n * step
+    inside = (tops >= -1e-6) & (tops + side <= rows + 1e-6)
+    want = inside & (tops + side >= first - 1e-6) & (tops + side <= last + 1e-6)
+    if band is None:
+        assert not want.any()
+        return
+    got = window_rows(band, (rows, 2000))
+    assert 0 <= band.y_start and band.y_stop <= rows
+    # every searched window is on the grid (bands start on whole rows: to half a pixel), inside the frame
+    k = (got[:, 0] - anchor) / step
+    np.testing.assert_allclose(k, np.round(k), atol=0.5 / step + 1e-9)
+    assert got[:, 1].max() <= rows + 1e-6
+    # every wanted window is searched, and at most one step of windows beyond each end
+    have = set(np.round(k).astype(int).tolist())
+    assert set(n[want].tolist()) <= have
+    if want.any():
+        assert min(have) >= n[want].min() - 1 and max(have) <= n[want].max() + 1
+
+
+def test_window_bottoms():
+    lo, hi = window_bottoms(450, 500, 420, 380, 0.5, 10)
+    assert lo == pytest.approx(380 + 30 * 0.5 - 10) and hi == pytest.approx(380 + 80 * 0.5 + 10)
+
+
+@pytest.mark.parametrize("shape", [(720, 1280), (360, 640), (450, 800), (540, 960), (1080, 1920)])
+def test_reference_camera_gets_the_reference_bands(shape):
+    """At the reference horizon and ratio, without slack: exactly today's bands."""
+    assert GeometricSearch(geometry=GeometryConfig(slack=0.0)).for_frame(shape).bands == \
+        SearchConfig().for_frame(shape).bands
+
+
+def test_config_checks():
+    with pytest.raises(ValueError, match="ratio"):
+        GeometryConfig(ratio=0)
+    with pytest.raises(ValueError, match="slack"):
+        GeometryConfig(slack=1.0)
+    with pytest.raises(ValueError, match="ratio must be > 0 or None"):
+        GeometricSearch(ratio=-1.0)
+
+
+def _rows(bands, shape):
+    return {b.scale: window_rows(b, shape) for b in bands}
+
+
+@pytest.mark.parametrize("shape", [(720, 1280), (360, 640), (450, 800), (540, 960)])
+@pytest.mark.parametrize("shift", [-0.05, -0.03, 0.02, 0.05])
+def test_slack_loses_no_window_when_the_horizon_is_off(shape, shift):
+    """The bands placed from a horizon ``shift`` away (of the height) with a slack of 0.05
+    search every window the bands at the true horizon without slack search."""
+    ref = SearchConfig()
+    true = 0.55
+    exact = geometric_bands(shape, true, 1.9, GeometryConfig(slack=0.0), ref)
+    off = geometric_bands(shape, true + shift, 1.9, GeometryConfig(slack=0.05), ref)
+    a, b = _rows(exact, shape), _rows(off, shape)
+    assert set(a) == set(b)
+    anchors = {band.scale: band.y_start for band in ref.bands}
+    fy = shape[0] / 720
+    def index(tops, s):
+        return set(np.round((tops - anchors[s / fy] * fy) / (16 * s)).astype(int).tolist())
+
+    for s, rows in a.items():
+        assert index(rows[:, 0], s) <= index(b[s][:, 0], s), s
+
+
+def test_ratio_moves_the_bands():
+    """A larger ratio (a lower camera, or wider vehicles) puts each window size nearer the horizon."""
+    ref = SearchConfig()
+    shape = (720, 1280)
+    g = GeometryConfig(slack=0.0)
+    near = geometric_bands(shape, 0.5, 3.0, g, ref)
+    far = geometric_bands(shape, 0.5, 1.2, g, ref)
+    for a, b in zip(near, far):
+        assert a.scale == b.scale and a.y_start <= b.y_start and a.y_stop < b.y_stop
+
+
+def test_same_picture_rows_at_every_resolution():
+    ref = SearchConfig()
+    g = GeometryConfig()
+    big = geometric_bands((720, 1280), 0.5, 1.9, g, ref)
+    small = geometric_bands((360, 640), 0.5, 1.9, g, ref)
+    for a, b in zip(big, small):
+        assert b.scale == pytest.approx(a.scale / 2)
+        # within one window step of the small frame (the grid rounds differently)
+        assert abs(a.y_start / 720 - b.y_start / 360) <= 16 * b.scale / 360 + 1e-9
+        assert abs(a.y_stop / 720 - b.y_stop / 360) <= 16 * b.scale / 360 + 2 / 360
+        assert (a.x_start is None) == (b.x_start is None)
+
+
+def test_grid_is_the_reference_bands_grid():
+    ref = SearchConfig()
+    bands = geometric_bands((720, 1280), 0.6, 1.9, GeometryConfig(), ref)
+    anchors = {b.scale: b.y_start for b in ref.bands}
+    for b in bands:
+        step = 16 * b.scale
+        k = (b.y_start - anchors[b.scale]) / step
+        assert k == pytest.approx(round(k), abs=0.5 / step)
+
+
+def test_a_horizon_near_the_top_or_bottom():
+    ref = SearchConfig()
+    high = geometric_bands((720, 1280), 0.05, 1.9, GeometryConfig(), ref)
+    assert all(b.y_start >= 0 for b in high)
+    low = geometric_bands((720, 1280), 0.95, 1.9, GeometryConfig(), ref)
+    assert all(b.y_stop <= 720 for b in low) and len(low) < len(ref.bands)
+    with pytest.raises(ValueError, match="leaves no search band"):
+        geometric_bands((720, 1280), 1.0, 1.9, GeometryConfig(slack=0.0), ref)
+
+
+def test_geometric_search_follows_horizon_and_ratio():
+    s = GeometricSearch()
+    f = s.for_frame((720, 1280))
+    assert type(f) is SearchConfig and f.reference_shape is None and f.horizon is None
+    assert f.bands == geometric_bands((720, 1280), s.reference_horizon, s.geometry.ratio, s.geometry, s)
+    moved = replace(s, horizon=0.45).for_frame((720, 1280))
+    assert all(a.y_start >= b.y_start for a, b in zip(f.bands, moved.bands))
+    assert moved.bands == geometric_bands((720, 1280), 0.45, s.geometry.ratio, s.geometry, s)
+    r = s.with_ratio(2.5)
+    assert r.ratio == 2.5 and r.for_frame((720, 1280)).bands == geometric_bands(
+        (720, 1280), s.reference_horizon, 2.5, s.geometry, s)
+
+
+def test_detector_searches_the_geometric_bands(test_images):
+    import cv2
+
+    from fastdet import Detector
+    from fastdet.detect import DetectStats
+
+    frame = cv2.imread(str(test_images[0]))
+    det = Detector(search=GeometricSearch())
+    det.set_horizon(0.5)
+    assert det.horizon == 0.5 and isinstance(det.scorers[0].search, GeometricSearch)
+    stats = DetectStats()
+    det.detect(frame, stats=stats)
+    want = geometric_bands(frame.shape[:2], 0.5, GeometryConfig().ratio, GeometryConfig(), SearchConfig())
+    assert [g.band for _, g, _ in stats.bands] == list(want)
+
+
+def test_ratio_estimator():
+    est = RatioEstimator(min_depth=0.03, min_boxes=3, min_tracks=2)
+    rows, horizon = 720, 0.5
+    assert est.estimate is None
+    for k, tid in ((1.8, 1), (2.2, 2), (5.0, -1)):  # untracked boxes do not count
+        for depth in (40, 60, 80, 100):
+            w = k * depth
+            est.update(np.array([[100, 0, 100 + w, 360 + depth]]), np.array([tid]), horizon, rows)
+    assert est.tracks == 2 and est.estimate == pytest.approx(2.0)
+    # boxes whose bottom is near the horizon are left out (a row's error is most of the depth)
+    est.update(np.array([[0, 0, 1000, 365]] * 5), np.array([3] * 5), horizon, rows)
+    assert est.tracks == 2
+    est.reset()
+    assert est.estimate is None
+    with pytest.raises(ValueError, match="ids"):
+        est.update(np.zeros((2, 4)), np.zeros(1), horizon, rows)
+
+
+def _tracks(horizon: float, ratio: float, rows: int = 720, n_tracks: int = 4, seed: int = 0):
+    """Boxes of ``n_tracks`` vehicles at several depths below the horizon, widths off by up to 10%."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for t in range(n_tracks):
+        for depth in np.linspace(20, 200, 8) * (1 + t / 3):
+            w = ratio * depth * rng.uniform(0.9, 1.1)
+            y2 = horizon * rows + depth
+            out.append(([300.0, y2 - 0.8 * w, 300.0 + w, y2], t))
+    return out
+
+
+@pytest.mark.parametrize("true_h, prior_h", [(0.55, 0.55), (0.55, 0.59), (0.55, 0.51), (0.42, 0.45)])
+def test_perspective_estimator_finds_horizon_and_ratio(true_h, prior_h):
+    est = PerspectiveEstimator()
+    assert est.estimate(prior_h, 1.9) is None
+    for box, tid in _tracks(true_h, 2.2):
+        est.update(np.array([box]), np.array([tid]), 720)
+    h, k = est.estimate(prior_h, 1.9)
+    assert h == pytest.approx(true_h, abs=0.01) and k == pytest.approx(2.2, rel=0.1)
+    est.reset()
+    assert est.estimate(prior_h, 1.9) is None
+
+
+def test_perspective_estimator_needs_tracks():
+    est = PerspectiveEstimator(min_boxes=5, min_tracks=2)
+    for box, tid in _tracks(0.5, 2.0, n_tracks=1):
+        est.update(np.array([box]), np.array([tid]), 720)
+    est.update(np.array([[0, 0, 50, 400]] * 9), np.array([-1] * 9), 720)  # untracked: not counted
+    assert est.estimate(0.5, 1.9) is None
+    with pytest.raises(ValueError, match="ids"):
+        est.update(np.zeros((2, 4)), np.zeros(1), 720)

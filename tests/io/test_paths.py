@@ -1,0 +1,92 @@
+"""fastdet.io.paths: a command's inputs and outputs checked together before any work."""
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from fastdet.errors import DataError
+from fastdet.io.paths import bundled_models, check_output, check_paths
+
+
+def test_distinct_files_pass_and_nothing_is_made(tmp_path):
+    inp = tmp_path / "in.mp4"
+    inp.write_bytes(b"v")
+    check_paths([("INPUT", inp), ("--model", None)], [("-o", tmp_path / "o.mp4", "video"),
+                                                      ("--boxes", tmp_path / "b.txt", "box"), ("--json", None, "JSON")])
+    assert sorted(tmp_path.iterdir()) == [inp]
+
+
+def test_output_that_is_an_input(tmp_path, monkeypatch):
+    gt, pred = tmp_path / "g.txt", tmp_path / "p.txt"
+    gt.write_text("1,1,1,1,5,5")
+    pred.write_text("")
+    for out, label in ((gt, "--gt"), (pred, "--pred")):
+        with pytest.raises(DataError, match=f"--plot {out}: would overwrite the input {label} {out}"):
+            check_paths([("--gt", gt), ("--pred", pred)], [("--plot", out, "PNG")])
+    # the same file under another name: a relative path, a symlink, a hard link, '..'
+    monkeypatch.chdir(tmp_path)
+    link = tmp_path / "link.txt"
+    link.symlink_to(gt)
+    hard = tmp_path / "hard.txt"
+    os.link(gt, hard)
+    (tmp_path / "sub").mkdir()
+    for alias in ("g.txt", str(link), str(hard), str(tmp_path / "sub" / ".." / "g.txt")):
+        with pytest.raises(DataError, match="would overwrite the input --gt"):
+            check_paths([("--gt", gt)], [("--plot", alias, "PNG")])
+
+
+def test_two_outputs_that_are_one_file(tmp_path):
+    a = tmp_path / "x.mp4"
+    with pytest.raises(DataError, match="-o .*x.mp4 and --summary .*x.mp4 are one file"):
+        check_paths([], [("-o", a, "video"), ("--summary", str(tmp_path / "." / "x.mp4"), "summary")])
+    a.write_bytes(b"old")
+    link = tmp_path / "l.mp4"
+    link.symlink_to(a)
+    with pytest.raises(DataError, match="are one file"):
+        check_paths([], [("-o", a, "video"), ("--boxes", link, "box")])
+
+
+def test_bundled_models_are_inputs(tmp_path):
+    models = bundled_models()
+    assert any(str(p).endswith("default.npz") for _, p in models)
+    _, default = next(m for m in models if str(m[1]).endswith("default.npz"))
+    with pytest.raises(DataError, match="would overwrite the input the bundled model"):
+        check_paths(models, [("--boxes", default, "box")])
+
+
+def test_live_sources_and_missing_inputs_take_no_part(tmp_path):
+    check_paths([("INPUT", "rtsp://cam/1"), ("INPUT", "0"), ("INPUT", str(tmp_path / "img%04d.jpg")),
+                 ("--gt", tmp_path / "missing.txt")], [("-o", tmp_path / "o.mp4", "video")])
+
+
+def test_output_locations(tmp_path):
+    with pytest.raises(DataError, match="does not exist"):
+        check_output(tmp_path / "nowhere" / "o.mp4", "video")
+    with pytest.raises(DataError, match="-o .*: is a folder, expected an image file name"):
+        check_output(tmp_path, "image", "-o")
+    if os.geteuid() != 0:  # root ignores permissions
+        ro = tmp_path / "ro"
+        ro.mkdir()
+        ro.chmod(0o500)
+        try:
+            with pytest.raises(DataError, match="not writable"):
+                check_output(ro / "o.mp4", "video")
+        finally:
+            ro.chmod(0o700)
+
+
+def test_output_that_is_a_device_or_a_pipe(tmp_path):
+    fifo = tmp_path / "p.txt"
+    os.mkfifo(fifo)
+    with pytest.raises(DataError, match="is not a regular file"):
+        check_output(fifo, "box")
+    with pytest.raises(DataError, match="is not a regular file"):
+        check_output("/dev/null", "box")  # a rename onto it would replace the device with a file
+    assert os.path.exists("/dev/null") and not os.path.isfile("/dev/null")
+
+
+def test_output_name_too_long_for_its_temporary_name(tmp_path):
+    check_output(tmp_path / ("a" * 200 + ".txt"), "box")
+    with pytest.raises(DataError, match="file name is too long"):
+        check_output(tmp_path / ("a" * 240 + ".txt"), "box")

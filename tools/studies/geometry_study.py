@@ -1,0 +1,149 @@
+"""Search bands from the camera's geometry (fastdet.detect.geometry) on every annotated clip,
+beside today's bands (run by hand).
+
+Runs the video pipeline (``iter_video_detections``, the code behind ``fastdet video``) on each
+clip with the main model's search replaced by a :class:`~fastdet.detect.geometry.GeometricSearch`
+and, unless ``--fixed-ratio``, the ratio estimated from the tracked boxes as the video goes
+(:class:`~fastdet.detect.geometry.RatioEstimator`, boxes whose score is at least
+``--min-score``). Prints the per-clip table of ``fastdet eval --all`` plus the estimated
+ratio and the main search's cost (HOG cells of the scaled bands per frame, relative to
+today's bands at the same horizon).
+
+    python -m tools.studies.geometry_study [--ratio 1.9] [--slack 0.05] [--fixed-ratio]
+        [--horizon auto|off|F|+D] [--clips A,B] [--out R.json] [--baseline]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+from dataclasses import replace
+
+from fastdet.config import SearchBand, SearchConfig
+from fastdet.detect.bands import band_geometry
+from fastdet.detect.geometry import (
+    GeometricSearch,
+    GeometryConfig,
+    PerspectiveEstimator,
+    RatioEstimator,
+)
+from fastdet.eval.clips import annotated_clips, markdown_table, report_json, score_clip
+from fastdet.io.motfiles import Predictions
+from fastdet.io.reader import FrameReader
+from fastdet.video.horizon import HORIZON_FRAMES, estimate_horizon
+from fastdet.video.pipeline import iter_video_detections, make_detector
+
+
+def cells(search: SearchConfig, shape: tuple[int, int], config) -> int:
+    """HOG cells of the scaled bands: what the main search costs per frame (roughly)."""
+    s = search.for_frame(shape)
+    n = 0
+    for b in s.bands:
+        g = band_geometry(b, shape, config, s.cells_per_step, s.border, s.border_mode)
+        n += (g.scaled_w // 8) * (g.scaled_h // 8)
+    return n
+
+
+def first_frames(video, n=HORIZON_FRAMES):
+    r = FrameReader(video)
+    try:
+        for i, (_, f, _) in enumerate(r):
+            if i >= n:
+                break
+            yield f
+    finally:
+        r.close()
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--ratio", type=float, default=1.9, help="the prior ratio")
+    ap.add_argument("--slack", type=float, default=0.05)
+    ap.add_argument("--fixed-ratio", action="store_true")
+    ap.add_argument("--joint", action="store_true", help="estimate the horizon and the ratio together")
+    ap.add_argument("--settled-slack", type=float, default=0.0, help="--joint: the slack once there is an estimate")
+    ap.add_argument("--min-score", type=float, default=10.0)
+    ap.add_argument("--horizon", default="auto", help="auto, off, F or +D / -D (the estimate moved by D)")
+    ap.add_argument("--baseline", action="store_true", help="today's bands (no geometry)")
+    ap.add_argument("--clips", default=None)
+    ap.add_argument("--bands", default=None,
+                    help="reference bands scale:y0:y1[:x0:x1],... (1280x720 px) instead of today's")
+    ap.add_argument("--out", default=None)
+    args = ap.parse_args()
+    geo = GeometryConfig(ratio=args.ratio, slack=args.slack)
+    clips = annotated_clips()
+    if args.clips:
+        want = args.clips.split(",")
+        clips = [c for c in clips if c.name in want]
+    scores, extra = [], {}
+    for clip in clips:
+        horizon: float | str | None = args.horizon
+        if args.horizon == "off":
+            horizon = None
+        elif args.horizon[0] in "+-":
+            est = estimate_horizon(first_frames(clip.video))
+            base = est if est is not None else SearchConfig().reference_horizon
+            horizon = min(max(base + float(args.horizon), 0.0), 1.0)
+        elif args.horizon != "auto":
+            horizon = float(args.horizon)
+        det = make_detector()
+        if args.bands:
+            bands = []
+            for item in args.bands.split(","):
+                p = item.split(":")
+                bands.append(SearchBand(float(p[0]), int(p[1]), int(p[2]), int(p[3]) if len(p) > 3 else None,
+                                        int(p[4]) if len(p) > 4 else None))
+            det.scorers[0].search = replace(det.scorers[0].search, bands=tuple(bands))
+        base_search = det.scorers[0].search
+        if not args.baseline:
+            det.scorers[0].search = GeometricSearch(**{f: getattr(base_search, f) for f in (
+                "bands", "cells_per_step", "threshold", "reference_shape", "reference_horizon", "horizon", "border",
+                "border_mode")}, geometry=geo)
+        est = RatioEstimator()
+        pest = PerspectiveEstimator()
+        h0 = None
+        frames = []
+        shape = None
+        for fno, dets in iter_video_detections(clip.video, detector=det, progress=False, horizon=horizon):
+            frames.append((fno, dets))
+            if shape is None:
+                r = FrameReader(clip.video)
+                shape = r.shape[:2]
+                r.close()
+            if args.baseline or args.fixed_ratio or dets.ids is None:
+                continue
+            h = det.horizon if det.horizon is not None else base_search.reference_horizon
+            keep = dets.scores >= args.min_score
+            if args.joint:
+                if h0 is None:
+                    h0 = h  # the flow estimate (primed from the first seconds) or the user's horizon: the prior
+                pest.update(dets.boxes[keep], dets.ids[keep], shape[0])
+                hk = pest.estimate(h0 if h0 is not None else h, args.ratio)
+                if hk is not None:
+                    det.set_horizon(hk[0])
+                    det.scorers[0].search = replace(det.scorers[0].search, ratio=hk[1],
+                                                    geometry=replace(geo, slack=args.settled_slack))
+                continue
+            est.update(dets.boxes[keep], dets.ids[keep], h, shape[0])
+            r = est.estimate
+            if r is not None:
+                det.scorers[0].search = replace(det.scorers[0].search, ratio=r)
+        preds = Predictions.from_frames(frames, source=str(clip.video))
+        s = score_clip(clip.name, clip.gt(), preds, shape[0], clip.keyframes())
+        scores.append(s)
+        h_used = det.horizon if det.horizon is not None else base_search.reference_horizon
+        ref_cells = cells(replace(base_search, horizon=det.horizon), shape, det.config)
+        extra[clip.name] = {"horizon": h_used, "ratio": getattr(det.scorers[0].search, "ratio", None),
+                            "cells": cells(det.scorers[0].search, shape, det.config), "ref_cells": ref_cells}
+        print(f"{clip.name}: F1 {s.result.f1:.3f} horizon {h_used:.3f} ratio {extra[clip.name]['ratio']} "
+              f"cost {extra[clip.name]['cells'] / ref_cells:.2f}x", flush=True)
+    print(markdown_table(scores))
+    if args.out:
+        rep = report_json(scores, vars(args))
+        for k, v in extra.items():
+            rep["clips"][k]["study"] = v
+        with open(args.out, "w") as f:
+            json.dump(rep, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
