@@ -66,6 +66,7 @@ from distributed import Client, LocalCluster, WorkerPlugin, as_completed
 from distributed.scheduler import KilledWorker
 
 from .. import signals
+from ..config.batch import BatchOptions
 from ..errors import DataError, FastdetError, WriteError, one_line
 from ..io.atomic import process_token
 from .inputs import output_names
@@ -92,23 +93,6 @@ class BatchInterrupted(Exception):
         self.signum = signum
         self.done = done
         self.stopped = stopped
-
-
-@dataclass(frozen=True)
-class BatchOptions:
-    """How to run a batch. ``workers``: local worker processes (default: the usable cores);
-    ``scheduler``: address of a running Dask scheduler (then ``workers`` is unused);
-    ``overwrite``: redo finished videos (default: skip them); ``retries``: extra attempts of a
-    task that raised; ``table``: path of the combined table or ``None``; ``progress``: a bar."""
-
-    out_dir: Path
-    settings: Settings
-    workers: int | None = None
-    scheduler: str | None = None
-    overwrite: bool = False
-    retries: int = 2
-    table: Path | None = None
-    progress: bool = True
 
 
 @dataclass

@@ -39,15 +39,15 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..config import SearchBand, SearchConfig
+from ..config import CELL, WINDOW, SearchBand, SearchConfig
 
 
 @dataclass(frozen=True)
 class GeometryConfig:
     """How search bands follow the camera's geometry (module docstring).
 
-    reference_ratio: the ratio of the camera the reference bands were tuned on (the Udacity
-        dashcam: 1.9, the median over the tracked vehicles of its two clips).
+    reference_ratio: the ratio of the camera the reference bands were tuned on (1.9; how it
+        was measured: docs/geometry.md).
     ratio: the prior ratio, used until the video's own vehicles give one.
     slack: rows added above and below every band, a fraction of the frame height: the
         horizon error a band survives without losing a window that finds a vehicle.
@@ -99,13 +99,14 @@ def band_on_grid(scale: float, first_bottom: float, last_bottom: float, anchor: 
 
 
 def geometric_bands(frame_shape: tuple[int, int], horizon: float, ratio: float, config: GeometryConfig,
-                    reference: SearchConfig) -> tuple[SearchBand, ...]:
+                    reference: SearchConfig, window: int = WINDOW, cell: int = CELL) -> tuple[SearchBand, ...]:
     """The main search's bands for frames of ``frame_shape = (H, W)`` whose horizon is at
     ``horizon x H`` and whose vehicles have the ``ratio`` (module docstring): each band of
     ``reference`` (rescaled to the frame as :meth:`SearchConfig.for_frame` does) searches
     the window bottoms it searches at its ``reference_horizon``, at distances below the
     horizon stretched by ``config.reference_ratio / ratio``, plus ``config.slack``; on the
-    reference band's window grid. Bands in frame pixels."""
+    reference band's window grid (``window`` / ``cell``: the model's window width and HOG cell,
+    px at scale 1). Bands in frame pixels."""
     h, w = (int(v) for v in frame_shape[:2])
     rh, rw = reference.reference_shape if reference.reference_shape is not None else (h, w)
     fy, fx = h / rh, w / rw
@@ -113,8 +114,8 @@ def geometric_bands(frame_shape: tuple[int, int], horizon: float, ratio: float, 
     out = []
     for b in reference.bands:
         scale = b.scale * fy
-        step = reference.cells_per_step * 8 * scale
-        side = 64.0 * scale
+        step = reference.cells_per_step * cell * scale
+        side = float(window) * scale
         anchor = b.y_start * fy
         n_ref = max(math.floor(((b.y_stop - b.y_start) * fy - side) / step + 1e-6), 0)
         last_ref = anchor + side + n_ref * step
@@ -147,10 +148,10 @@ class GeometricSearch(SearchConfig):
         if self.ratio is not None and not self.ratio > 0:
             raise ValueError(f"ratio must be > 0 or None, got {self.ratio!r}")
 
-    def for_frame(self, frame_shape: tuple[int, int]) -> SearchConfig:
+    def for_frame(self, frame_shape: tuple[int, int], window: int = WINDOW, cell: int = CELL) -> SearchConfig:
         horizon = self.horizon if self.horizon is not None else self.reference_horizon
         ratio = self.ratio if self.ratio is not None else self.geometry.ratio
-        bands = geometric_bands(frame_shape, horizon, ratio, self.geometry, self)
+        bands = geometric_bands(frame_shape, horizon, ratio, self.geometry, self, window, cell)
         return SearchConfig(bands=bands, cells_per_step=self.cells_per_step, threshold=self.threshold,
                             reference_shape=None, reference_horizon=self.reference_horizon, horizon=None,
                             border=self.border, border_mode=self.border_mode)
@@ -210,20 +211,26 @@ class PerspectiveEstimator:
     horizon ``h0`` (the flow estimate or the user's) and the prior ratio.
 
     For each candidate ``h`` (``h0 +- reach`` in steps of ``grid``, fractions of the height)
-    the ratio is the median over the tracks of their boxes' median ``w / (bottom - h)``;
-    the cost is the sum over the tracks of the mean over their boxes of
-    ``min((r / sigma_r)^2, clip^2)``, ``r`` a box's log-residual from that ratio (a track
-    whose boxes are mostly not below ``h`` counts ``clip^2``), plus
+    the ratio is the median over the tracks of their boxes' median ``w / (bottom - h)``.
+    The cost: per track, the mean over its boxes of ``min((r / sigma_box)^2, clip^2)``, ``r``
+    a box's log-ratio less the track's median (one vehicle's boxes agree only at the right
+    horizon, when they are at several depths), plus ``min((m / sigma_r)^2, clip^2)``, ``m``
+    the track's median less the common ratio (vehicles differ in width); a track whose boxes
+    are mostly not below ``h`` counts ``clip^2``; plus
     ``((h - h0) / sigma_h)^2`` and ``(log(k / ratio0) / sigma_k)^2``. :meth:`estimate` is
-    ``(h, k)`` of the lowest cost once ``min_tracks`` tracks have ``min_boxes`` boxes each,
-    else ``None``.
+    ``(h, k)`` of the lowest cost once ``min_tracks`` tracks have ``min_boxes`` boxes each
+    (or, with ``long_track`` set, one track has that many boxes), else ``None``. One vehicle
+    at one depth says little about the horizon, so by default one track is never enough.
     """
 
-    def __init__(self, min_boxes: int = 5, min_tracks: int = 2, reach: float = 0.08, grid: float = 0.0025,
-                 sigma_h: float = 0.04, sigma_k: float = 0.5, sigma_r: float = 0.15, clip: float = 3.0) -> None:
-        self.min_boxes, self.min_tracks = min_boxes, min_tracks
+    def __init__(self, min_boxes: int = 5, min_tracks: int = 2, long_track: int | None = None, reach: float = 0.08,
+                 grid: float = 0.0025,
+                 sigma_h: float = 0.04, sigma_k: float = 0.5, sigma_r: float = 0.15, sigma_box: float = 0.05,
+                 clip: float = 3.0) -> None:
+        self.min_boxes, self.min_tracks, self.long_track = min_boxes, min_tracks, long_track
         self.reach, self.grid, self.sigma_h, self.sigma_k, self.sigma_r, self.clip = reach, grid, sigma_h, sigma_k, \
             sigma_r, clip
+        self.sigma_box = sigma_box
         self._per_track: dict[int, list[tuple[float, float]]] = {}
 
     def update(self, boxes: np.ndarray, ids: np.ndarray, rows: int) -> None:
@@ -241,7 +248,8 @@ class PerspectiveEstimator:
 
     def estimate(self, h0: float, ratio0: float) -> tuple[float, float] | None:
         tracks = [np.asarray(v) for v in self._per_track.values() if len(v) >= self.min_boxes]
-        if len(tracks) < self.min_tracks:
+        long_enough = self.long_track is not None and any(len(t) >= self.long_track for t in tracks)
+        if len(tracks) < self.min_tracks and not long_enough:
             return None
         best: tuple[float, float, float] | None = None
         for h in np.arange(h0 - self.reach, h0 + self.reach + 1e-9, self.grid):
@@ -255,9 +263,13 @@ class PerspectiveEstimator:
                 logs.append(np.log(t[ok, 1] / depth[ok]))
             if not logs:
                 continue
-            logk = float(np.median([np.median(v) for v in logs]))
-            # each track's boxes: how far their ratios are from the common one (mean over the track)
-            fit = sum(float(np.minimum(((v - logk) / self.sigma_r) ** 2, self.clip ** 2).mean()) for v in logs)
+            meds = np.array([np.median(v) for v in logs])
+            logk = float(np.median(meds))
+            # one vehicle keeps its width: its boxes' ratios agree (to sigma_box) only at the right
+            # horizon; vehicles differ in width (sigma_r) around the common ratio
+            within = sum(float(np.minimum(((v - m) / self.sigma_box) ** 2, self.clip ** 2).mean())
+                         for v, m in zip(logs, meds))
+            fit = within + float(np.minimum(((meds - logk) / self.sigma_r) ** 2, self.clip ** 2).sum())
             cost = fit + bad * self.clip ** 2 \
                 + ((h - h0) / self.sigma_h) ** 2 + ((logk - math.log(ratio0)) / self.sigma_k) ** 2
             if best is None or cost < best[0]:

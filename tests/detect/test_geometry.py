@@ -227,3 +227,13 @@ def test_perspective_estimator_needs_tracks():
     assert est.estimate(0.5, 1.9) is None
     with pytest.raises(ValueError, match="ids"):
         est.update(np.zeros((2, 4)), np.zeros(1), 720)
+
+
+def test_one_vehicle_followed_long_enough_gives_an_estimate():
+    est = PerspectiveEstimator(min_boxes=5, min_tracks=2, long_track=25)
+    for depth in np.linspace(30, 150, 24):
+        est.update(np.array([[0, 0, 2.0 * depth, 360 + depth]]), np.array([7]), 720)
+    assert est.estimate(0.52, 1.9) is None  # 24 boxes of one vehicle: not yet
+    est.update(np.array([[0, 0, 2.0 * 160, 360 + 160]]), np.array([7]), 720)
+    h, k = est.estimate(0.52, 1.9)
+    assert h == pytest.approx(0.5, abs=0.01) and k == pytest.approx(2.0, rel=0.05)

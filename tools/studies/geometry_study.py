@@ -16,21 +16,22 @@ from __future__ import annotations
 
 import argparse
 import json
+import time
 from dataclasses import replace
 
-from fastdet.config import SearchBand, SearchConfig
+from fastdet.config import PipelineConfig, SearchBand, SearchConfig
 from fastdet.detect.bands import band_geometry
 from fastdet.detect.geometry import (
     GeometricSearch,
     GeometryConfig,
-    PerspectiveEstimator,
     RatioEstimator,
 )
 from fastdet.eval.clips import annotated_clips, markdown_table, report_json, score_clip
 from fastdet.io.motfiles import Predictions
 from fastdet.io.reader import FrameReader
 from fastdet.video.horizon import HORIZON_FRAMES, estimate_horizon
-from fastdet.video.pipeline import iter_video_detections, make_detector
+from fastdet.video import iter_video_detections, make_detector
+from fastdet.video.perspective import PerspectiveConfig, PerspectiveUpdater
 
 
 def cells(search: SearchConfig, shape: tuple[int, int], config) -> int:
@@ -60,6 +61,7 @@ def main() -> None:
     ap.add_argument("--slack", type=float, default=0.05)
     ap.add_argument("--fixed-ratio", action="store_true")
     ap.add_argument("--joint", action="store_true", help="estimate the horizon and the ratio together")
+    ap.add_argument("--min-tracks", type=int, default=2, help="--joint: tracks before there is an estimate")
     ap.add_argument("--settled-slack", type=float, default=0.0, help="--joint: the slack once there is an estimate")
     ap.add_argument("--min-score", type=float, default=10.0)
     ap.add_argument("--horizon", default="auto", help="auto, off, F or +D / -D (the estimate moved by D)")
@@ -99,11 +101,14 @@ def main() -> None:
                 "bands", "cells_per_step", "threshold", "reference_shape", "reference_horizon", "horizon", "border",
                 "border_mode")}, geometry=geo)
         est = RatioEstimator()
-        pest = PerspectiveEstimator()
-        h0 = None
+        updater = None
         frames = []
         shape = None
-        for fno, dets in iter_video_detections(clip.video, detector=det, progress=False, horizon=horizon):
+        cpu0 = None
+        config = PipelineConfig(horizon=horizon)
+        for fno, dets in iter_video_detections(clip.video, config, detector=det, progress=False):
+            if cpu0 is None:  # after the first frame: start-up (kernels, the horizon's flow) left out
+                cpu0 = time.process_time()
             frames.append((fno, dets))
             if shape is None:
                 r = FrameReader(clip.video)
@@ -114,28 +119,27 @@ def main() -> None:
             h = det.horizon if det.horizon is not None else base_search.reference_horizon
             keep = dets.scores >= args.min_score
             if args.joint:
-                if h0 is None:
-                    h0 = h  # the flow estimate (primed from the first seconds) or the user's horizon: the prior
-                pest.update(dets.boxes[keep], dets.ids[keep], shape[0])
-                hk = pest.estimate(h0 if h0 is not None else h, args.ratio)
-                if hk is not None:
-                    det.set_horizon(hk[0])
-                    det.scorers[0].search = replace(det.scorers[0].search, ratio=hk[1],
-                                                    geometry=replace(geo, slack=args.settled_slack))
+                if updater is None:
+                    updater = PerspectiveUpdater(det, PerspectiveConfig(
+                        geometry=geo, settled_slack=args.settled_slack, min_tracks=args.min_tracks,
+                        min_score=args.min_score))
+                updater.update(dets, shape[0])
                 continue
             est.update(dets.boxes[keep], dets.ids[keep], h, shape[0])
             r = est.estimate
             if r is not None:
                 det.scorers[0].search = replace(det.scorers[0].search, ratio=r)
+        cpu_ms = (time.process_time() - cpu0) / max(len(frames) - 1, 1) * 1e3 if cpu0 is not None else float("nan")
         preds = Predictions.from_frames(frames, source=str(clip.video))
         s = score_clip(clip.name, clip.gt(), preds, shape[0], clip.keyframes())
         scores.append(s)
         h_used = det.horizon if det.horizon is not None else base_search.reference_horizon
         ref_cells = cells(replace(base_search, horizon=det.horizon), shape, det.config)
         extra[clip.name] = {"horizon": h_used, "ratio": getattr(det.scorers[0].search, "ratio", None),
-                            "cells": cells(det.scorers[0].search, shape, det.config), "ref_cells": ref_cells}
+                            "cells": cells(det.scorers[0].search, shape, det.config), "ref_cells": ref_cells,
+                            "cpu_ms_per_frame": cpu_ms}
         print(f"{clip.name}: F1 {s.result.f1:.3f} horizon {h_used:.3f} ratio {extra[clip.name]['ratio']} "
-              f"cost {extra[clip.name]['cells'] / ref_cells:.2f}x", flush=True)
+              f"cost {extra[clip.name]['cells'] / ref_cells:.2f}x cpu {cpu_ms:.0f} ms/frame", flush=True)
     print(markdown_table(scores))
     if args.out:
         rep = report_json(scores, vars(args))
