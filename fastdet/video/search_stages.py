@@ -82,8 +82,13 @@ class PlanStage(Stage):
 
     def __call__(self, s: FrameState) -> FrameState:
         det, cfg = self.detector, self.detector.config  # type: ignore[attr-defined]
-        s.columns = self.planner.plan(det.geometries(s.shape, 0), cfg.win_w, cfg.pixels_per_cell,  # type: ignore[attr-defined]
-                                      s.shape)
+        if hasattr(det, "main_geometries"):  # the main model's and its components' bands
+            geos = det.main_geometries(s.shape)
+            widths = [det.window_width(p) for p, _ in geos]
+            s.columns = self.planner.plan([g for _, g in geos], widths, cfg.pixels_per_cell, s.shape)
+        else:
+            s.columns = self.planner.plan(det.geometries(s.shape, 0), cfg.win_w, cfg.pixels_per_cell,  # type: ignore[attr-defined]
+                                          s.shape)
         return s
 
     def reset(self) -> None:

@@ -3,20 +3,21 @@ that each take the per-frame :class:`FrameState`, do one step and return it.
 
 In the order they run (:func:`build_stages`; a stage whose setting is off is left out):
 
-=============  ===========================================================================
-``horizon``    feed the horizon estimate, move the bands (:class:`HorizonStage`)
-``plan``       which windows of the main bands to score (guided search, :class:`PlanStage`)
-``motion``     where the picture moves: the oncoming bands to search (:class:`MotionStage`)
-``detect``     the positive windows of both models (:class:`DetectStage`)
-``motion``     drop the oncoming windows that did not move enough (:class:`GateStage`)
-``heatmap``    the main heat map's boxes (:class:`HeatStage`)
-``fusion``     the oncoming heat map's boxes where the main one found none (:class:`FusionStage`)
-``weak``       the weak blobs the tracker may keep a track alive with (:class:`WeakStage`)
-``track``      track ids (:class:`TrackStage`)
-``clip``       the tracker's filtered boxes clipped to the frame (:class:`ClipStage`)
-``refine``     the learned box refinement (:class:`RefineStage`)
-``observe``    tell the guided search what this frame found (:class:`ObserveStage`)
-=============  ===========================================================================
+===============  ===========================================================================
+``horizon``      feed the horizon estimate, move the bands (:class:`HorizonStage`)
+``plan``         which windows of the main bands to score (guided search, :class:`PlanStage`)
+``motion``       where the picture moves: the oncoming bands to search (:class:`MotionStage`)
+``detect``       the positive windows of both models (:class:`DetectStage`)
+``motion``       drop the oncoming windows that did not move enough (:class:`GateStage`)
+``heatmap``      the main heat map's boxes (:class:`HeatStage`)
+``components``   the components' heat map's boxes where the main one found none (:class:`ComponentStage`)
+``fusion``       the oncoming heat map's boxes where the main one found none (:class:`FusionStage`)
+``weak``         the weak blobs the tracker may keep a track alive with (:class:`WeakStage`)
+``track``        track ids (:class:`TrackStage`)
+``clip``         the tracker's filtered boxes clipped to the frame (:class:`ClipStage`)
+``refine``       the learned box refinement (:class:`RefineStage`)
+``observe``      tell the guided search what this frame found (:class:`ObserveStage`)
+===============  ===========================================================================
 
 Each stage's seconds go to ``VideoDetector.timings`` under its name; a stage may report
 finer parts of its work (``detect``: ``resize_colour``, ``hog``, ``score``; ``heatmap``:
@@ -29,7 +30,8 @@ ones is a field of :class:`FrameState`.
 from __future__ import annotations
 
 from ..config import GuidedSearch, PipelineConfig
-from .box_stages import ClipStage, FusionStage, HeatStage, ObserveStage, RefineStage, TrackStage, WeakStage
+from .box_stages import (ClipStage, ComponentStage, FusionStage, HeatStage, ObserveStage, RefineStage, TrackStage,
+                         WeakStage)
 from .detector import ColumnSearch, MovableHorizon, WindowDetector
 from .guided import SearchPlanner
 from .refine import BoxRegressor
@@ -37,9 +39,9 @@ from .search_stages import DetectStage, GateStage, HorizonStage, MotionStage, Pl
 from .state import FrameDebug, FrameState, Stage, TrackView
 from .track import Tracker
 
-__all__ = ["ClipStage", "DetectStage", "FrameDebug", "FrameState", "FusionStage", "GateStage", "HeatStage",
-           "HorizonStage", "MotionStage", "ObserveStage", "PlanStage", "RefineStage", "Stage", "TrackStage",
-           "TrackView", "WeakStage", "build_stages", "planner_for"]
+__all__ = ["ClipStage", "ComponentStage", "DetectStage", "FrameDebug", "FrameState", "FusionStage", "GateStage",
+           "HeatStage", "HorizonStage", "MotionStage", "ObserveStage", "PlanStage", "RefineStage", "Stage",
+           "TrackStage", "TrackView", "WeakStage", "build_stages", "planner_for"]
 
 
 def planner_for(config: PipelineConfig, detector: WindowDetector) -> SearchPlanner | None:
@@ -74,7 +76,9 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
         if planner is not None:  # on the first frame too: a full scan on the second frame
             planner.reset()
 
-    heat: list[HeatStage | FusionStage] = [HeatStage(detector, config.heat, oncoming, new_size)]
+    heat: list[HeatStage | ComponentStage | FusionStage] = [HeatStage(detector, config.heat, oncoming, new_size)]
+    if getattr(detector, "components", None):
+        heat.append(ComponentStage(detector, config.side_heat))
     if oncoming:
         heat.append(FusionStage(detector, config.oncoming_heat))
     stages += heat
