@@ -108,8 +108,8 @@ class PipelineConfig(Config):
     def without(self, *stages: Literal["tracker", "guided", "refine", "oncoming", "side"]) -> PipelineConfig:
         """This config with the named optional stages off (``tracker``, ``guided``: the full
         search, ``refine``, ``oncoming``: no oncoming model, ``side``: no side-view component)."""
-        off: dict[str, object] = {s: None for s in stages if s not in ("oncoming", "side")}
-        for model in ("oncoming", "side"):
-            if model in stages:
-                off[model] = False
-        return replace(self, **off)
+        return replace(self, tracker=None if "tracker" in stages else self.tracker,
+                       guided=None if "guided" in stages else self.guided,
+                       refine=None if "refine" in stages else self.refine,
+                       oncoming=False if "oncoming" in stages else self.oncoming,
+                       side=False if "side" in stages else self.side)
