@@ -14,7 +14,7 @@ DEFAULT_MODEL_PATH = MODELS_DIR / "default.npz"
 ONCOMING_MODEL_PATH = MODELS_DIR / "oncoming.npz"
 #: the bundled side-view component, 64x32 windows (``python -m tools.scripts.side_model``; docs/components.md)
 SIDE_MODEL_PATH = MODELS_DIR / "side.npz"
-#: the bundled box regressor (:mod:`fastdet.video.refine`)
+#: the bundled box regressor (:mod:`fastdet.detect.regressor`)
 REFINE_MODEL_PATH = MODELS_DIR / "refine.npz"
 
 
