@@ -3,22 +3,23 @@ that each take the per-frame :class:`FrameState`, do one step and return it.
 
 In the order they run (:func:`build_stages`; a stage whose setting is off is left out):
 
-=============  ===========================================================================
-``horizon``    feed the horizon estimate, move the bands (:class:`HorizonStage`)
-``plan``       which windows of the main bands to score (guided search, :class:`PlanStage`)
-``motion``     where the picture moves: the oncoming bands to search (:class:`MotionStage`)
-``detect``     the positive windows of both models (:class:`DetectStage`)
-``motion``     drop the oncoming windows that did not move enough (:class:`GateStage`)
-``ownvehicle`` drop the windows on the own vehicle (off by default, :class:`OwnVehicleStage`)
-``heatmap``    the main heat map's boxes (:class:`HeatStage`)
-``split``      wide boxes split between vehicles side by side (off by default, :class:`SplitStage`)
-``fusion``     the oncoming heat map's boxes where the main one found none (:class:`FusionStage`)
-``weak``       the weak blobs the tracker may keep a track alive with (:class:`WeakStage`)
-``track``      track ids (:class:`TrackStage`)
-``clip``       the tracker's filtered boxes clipped to the frame (:class:`ClipStage`)
-``refine``     the learned box refinement (:class:`RefineStage`)
-``observe``    tell the guided search what this frame found (:class:`ObserveStage`)
-=============  ===========================================================================
+===============  ===========================================================================
+``horizon``      feed the horizon estimate, move the bands (:class:`HorizonStage`)
+``plan``         which windows of the main bands to score (guided search, :class:`PlanStage`)
+``motion``       where the picture moves: the oncoming bands to search (:class:`MotionStage`)
+``detect``       the positive windows of both models (:class:`DetectStage`)
+``motion``       drop the oncoming windows that did not move enough (:class:`GateStage`)
+``ownvehicle``   drop the windows on the own vehicle (off by default, :class:`OwnVehicleStage`)
+``heatmap``      the main heat map's boxes (:class:`HeatStage`)
+``split``        wide boxes split between vehicles side by side (off by default, :class:`SplitStage`)
+``components``   the components' heat map's boxes where the main one found none (:class:`ComponentStage`)
+``fusion``       the oncoming heat map's boxes where the main one found none (:class:`FusionStage`)
+``weak``         the weak blobs the tracker may keep a track alive with (:class:`WeakStage`)
+``track``        track ids (:class:`TrackStage`)
+``clip``         the tracker's filtered boxes clipped to the frame (:class:`ClipStage`)
+``refine``       the learned box refinement (:class:`RefineStage`)
+``observe``      tell the guided search what this frame found (:class:`ObserveStage`)
+===============  ===========================================================================
 
 Each stage's seconds go to ``VideoDetector.timings`` under its name; a stage may report
 finer parts of its work (``detect``: ``resize_colour``, ``hog``, ``score``; ``heatmap``:
@@ -32,7 +33,8 @@ from __future__ import annotations
 
 from ..config import GuidedSearch, PipelineConfig
 from .blobsplit import SplitStage
-from .box_stages import ClipStage, FusionStage, HeatStage, ObserveStage, RefineStage, TrackStage, WeakStage
+from .box_stages import (ClipStage, ComponentStage, FusionStage, HeatStage, ObserveStage, RefineStage, TrackStage,
+                         WeakStage)
 from .detector import ColumnSearch, MovableHorizon, WindowDetector
 from .guided import SearchPlanner
 from .ownvehicle import OwnVehicleStage
@@ -41,10 +43,9 @@ from .search_stages import DetectStage, GateStage, HorizonStage, MotionStage, Pl
 from .state import FrameDebug, FrameState, Stage, TrackView
 from .track import Tracker
 
-__all__ = ["ClipStage", "DetectStage", "FrameDebug", "FrameState", "FusionStage", "GateStage", "HeatStage",
-           "HorizonStage", "MotionStage", "ObserveStage", "OwnVehicleStage", "PlanStage", "RefineStage",
-           "SplitStage", "Stage", "TrackStage",
-           "TrackView", "WeakStage", "build_stages", "planner_for"]
+__all__ = ["ClipStage", "ComponentStage", "DetectStage", "FrameDebug", "FrameState", "FusionStage", "GateStage",
+           "HeatStage", "HorizonStage", "MotionStage", "ObserveStage", "OwnVehicleStage", "PlanStage", "RefineStage",
+           "SplitStage", "Stage", "TrackStage", "TrackView", "WeakStage", "build_stages", "planner_for"]
 
 
 def planner_for(config: PipelineConfig, detector: WindowDetector) -> SearchPlanner | None:
@@ -81,13 +82,15 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
         if planner is not None:  # on the first frame too: a full scan on the second frame
             planner.reset()
 
-    heat: list[HeatStage | FusionStage] = [HeatStage(detector, config.heat, oncoming, new_size)]
+    heat: list[HeatStage | ComponentStage | FusionStage] = [HeatStage(detector, config.heat, oncoming, new_size)]
     stages.append(heat[0])
-    if config.split is not None:
+    if config.split is not None:  # on the main heat map's boxes, before the others are added
         stages.append(SplitStage(config.split))
+    if getattr(detector, "components", None):
+        heat.append(ComponentStage(detector, config.side_heat))
     if oncoming:
         heat.append(FusionStage(detector, config.oncoming_heat))
-        stages.append(heat[-1])
+    stages += heat[1:]
     if tracker is not None:
         stages += [WeakStage(tracker.config.low_heat, heat), TrackStage(tracker)]
         if tracker.config.output == "filtered":
