@@ -35,6 +35,9 @@ class PerspectiveConfig:
     sigma_h: how far (fraction of the height) the estimate may pull the horizon from the
         prior without cost (one standard deviation of the prior).
     sigma_ratio: the same for the ratio, in log units.
+    prior_frames: frames the slack is kept while no estimate comes (``None``: until one
+        comes); then the bands stay at the prior without slack (a video that shows too few
+        vehicles to say where the road is does not pay for the slack for ever).
     """
 
     geometry: GeometryConfig = GeometryConfig()
@@ -45,6 +48,7 @@ class PerspectiveConfig:
     long_track: int | None = None
     sigma_h: float = 0.04
     sigma_ratio: float = 0.5
+    prior_frames: int | None = None
 
     def __post_init__(self) -> None:
         if not 0 <= self.settled_slack < 1:
@@ -53,6 +57,8 @@ class PerspectiveConfig:
             raise ValueError("min_boxes and min_tracks must be >= 1")
         if not self.sigma_h > 0 or not self.sigma_ratio > 0:
             raise ValueError("sigma_h and sigma_ratio must be > 0")
+        if self.prior_frames is not None and self.prior_frames < 0:
+            raise ValueError(f"prior_frames must be >= 0 or None, got {self.prior_frames!r}")
 
 
 class PerspectiveUpdater:
@@ -73,6 +79,7 @@ class PerspectiveUpdater:
         self.prior: float | None = None  # the horizon before the vehicles had their say
         self.estimate: tuple[float, float] | None = None
         self._applied: float | None = None  # the horizon this updater last gave the search
+        self.frames = 0
 
     def _search(self) -> SearchConfig:
         return self.detector.scorers[0].search
@@ -99,7 +106,13 @@ class PerspectiveUpdater:
         """One frame's tracked boxes (``ids`` set) of a frame of ``rows`` rows."""
         if self.prior is None:
             self.start()
+        self.frames += 1
         s = self._search()
+        limit = self.config.prior_frames
+        if self.estimate is None and limit is not None and self.frames > limit \
+                and s.geometry.slack != self.config.settled_slack:  # type: ignore[attr-defined]
+            s = replace(s, geometry=replace(self.config.geometry, slack=self.config.settled_slack))
+            self._set_search(s)
         if s.horizon != self._applied:  # the horizon estimate from the flow moved it: the new prior
             self.prior, self._applied = self._horizon(s), s.horizon
             if self.estimate is not None:

@@ -85,3 +85,18 @@ def test_config_checks():
     with pytest.raises(ValueError):
         PerspectiveConfig(sigma_h=0)
     assert PerspectiveConfig(geometry=GeometryConfig(slack=0.03)).geometry.slack == 0.03
+
+
+def test_the_slack_ends_when_no_estimate_comes():
+    det = fake_detector(horizon=0.5)
+    up = PerspectiveUpdater(det, PerspectiveConfig(prior_frames=3))
+    empty = Detections(np.zeros((0, 4), np.int32), np.zeros(0, np.float32))
+    for _ in range(3):
+        up.update(empty, 720)
+    assert det.scorers[0].search.geometry.slack == PerspectiveConfig().geometry.slack
+    up.update(empty, 720)
+    s = det.scorers[0].search
+    assert s.geometry.slack == 0.0 and s.horizon == 0.5 and s.ratio is None
+    for dets in frames_of_vehicles(0.52, 2.0):  # vehicles later still move the bands
+        up.update(dets, 720)
+    assert det.scorers[0].search.horizon == pytest.approx(0.52, abs=0.01)
