@@ -26,11 +26,11 @@ import numba
 import numpy as np
 import pytest
 
-from fastdet.config import HeatConfig, TrackerConfig
+from fastdet.config import HeatConfig, PipelineConfig, TrackerConfig
 from fastdet.io.reader import FrameReader
 from fastdet.video.heatmap import HeatMap
 from fastdet.video.offline import offline_pass
-from fastdet.video.pipeline import VideoDetector, make_detector
+from fastdet.video import VideoDetector, make_detector
 from fastdet.video.track import Tracker
 
 N_VIDEO_FRAMES = 16
@@ -47,7 +47,7 @@ def clip(data):
         for _, frame, _ in reader:
             out = vd.update(frame)
             frames.append(frame)
-            rows.append((vd.last_windows, vd.last_boxes, vd.last_low, out))
+            rows.append((vd.debug.windows, vd.debug.boxes, vd.debug.low, out))
     finally:
         reader.close()
     return frames, rows
@@ -101,7 +101,7 @@ def test_offline(benchmark, clip):
 @pytest.mark.parametrize("tracking", [True, False], ids=["tracker", "no-tracker"])
 def test_video_update(benchmark, clip, tracking):
     frames, _ = clip
-    vd = VideoDetector(make_detector(), tracker=None if tracking else False)
+    vd = VideoDetector(make_detector(), PipelineConfig(tracker=TrackerConfig() if tracking else None))
     vd.warmup()
 
     def run():

@@ -7,6 +7,7 @@ Public API (the heavy parts are imported lazily, so ``import fastdet`` is cheap)
     from fastdet import Detector, VideoDetector      # one frame / a stream of frames
     from fastdet import load_model, Model            # the bundled or a trained model
     from fastdet import Detections                   # boxes + per-box columns (scores, scale, part, ids)
+    from fastdet import PipelineConfig               # every setting of the video pipeline (fastdet.config)
     from fastdet import FeatureConfig, SearchConfig, SearchBand, HeatConfig, MotionGate, TrackerConfig
 
 Sub-packages, one per pipeline stage (layers point down): ``features`` (HOG, colour
@@ -33,6 +34,7 @@ if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers and
     from .config import FeatureConfig as FeatureConfig
     from .config import HeatConfig as HeatConfig
     from .config import MotionGate as MotionGate
+    from .config import PipelineConfig as PipelineConfig
     from .config import SearchBand as SearchBand
     from .config import SearchConfig as SearchConfig
     from .config import TrackerConfig as TrackerConfig
@@ -53,6 +55,7 @@ _LAZY = {
     "FeatureConfig": "fastdet.config",
     "HeatConfig": "fastdet.config",
     "MotionGate": "fastdet.config",
+    "PipelineConfig": "fastdet.config",
     "SearchBand": "fastdet.config",
     "SearchConfig": "fastdet.config",
     "TrackerConfig": "fastdet.config",

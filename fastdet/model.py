@@ -30,15 +30,13 @@ import numpy as np
 
 from ._version import __version__
 from .config import FeatureConfig, ScoreKind
+from .config.models import DEFAULT_MODEL_PATH, ONCOMING_MODEL_PATH  # noqa: F401  (the bundled models, named here too)
 from .errors import ModelError
 from .features import extract_features
 from .io.atomic import atomic_path
 
 FORMAT_VERSION = 1
 CLASSIFIERS = ("linearsvc", "logreg")
-DEFAULT_MODEL_PATH = Path(__file__).resolve().parent / "models" / "default.npz"
-#: the bundled wide-window model for oncoming traffic above the median (``tools/scripts/oncoming_model.sh``)
-ONCOMING_MODEL_PATH = Path(__file__).resolve().parent / "models" / "oncoming.npz"
 _ARRAYS = ("coef", "intercept", "mean", "scale", "metadata")
 
 

@@ -168,7 +168,7 @@ def test_the_graph_is_read(graph):
     """Guards the reader itself: known edges of the package are found."""
     assert len(graph) > 40
     assert "fastdet.errors" in graph["fastdet.io.atomic"]          # from ..errors import DataError
-    assert "fastdet.detect" in graph["fastdet.video.pipeline"]     # from ..detect import ...
+    assert "fastdet.detect" in graph["fastdet.video.detector"]     # from ..detect import ...
     assert "fastdet.video.heatmap" in graph["fastdet.video"]       # from .heatmap import HeatMap
     assert "fastdet.cli.main" in graph["fastdet.cli"]
     assert {"fastdet.detect", "fastdet.video"} <= graph["fastdet"]  # the TYPE_CHECKING imports count

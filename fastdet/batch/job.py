@@ -66,6 +66,8 @@ from distributed import Client, LocalCluster, WorkerPlugin, as_completed
 from distributed.scheduler import KilledWorker
 
 from .. import signals
+from .._numba import WORKERS_ENV, all_kernels, ensure_compiled
+from ..config.batch import BatchOptions
 from ..errors import DataError, FastdetError, WriteError, one_line
 from ..io.atomic import process_token
 from .inputs import output_names
@@ -80,7 +82,7 @@ POLL_S = 0.2  # how often the main thread looks at finished tasks and redraws th
 CONNECT_TIMEOUT_S = 20
 CLOSE_TIMEOUT_S = 20
 #: environment of the local cluster's worker processes (a user's own NUMBA_NUM_THREADS wins)
-WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_WAIT_POLICY": "PASSIVE"}
+WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_WAIT_POLICY": "PASSIVE", WORKERS_ENV: "1"}
 
 
 class BatchInterrupted(Exception):
@@ -92,23 +94,6 @@ class BatchInterrupted(Exception):
         self.signum = signum
         self.done = done
         self.stopped = stopped
-
-
-@dataclass(frozen=True)
-class BatchOptions:
-    """How to run a batch. ``workers``: local worker processes (default: the usable cores);
-    ``scheduler``: address of a running Dask scheduler (then ``workers`` is unused);
-    ``overwrite``: redo finished videos (default: skip them); ``retries``: extra attempts of a
-    task that raised; ``table``: path of the combined table or ``None``; ``progress``: a bar."""
-
-    out_dir: Path
-    settings: Settings
-    workers: int | None = None
-    scheduler: str | None = None
-    overwrite: bool = False
-    retries: int = 2
-    table: Path | None = None
-    progress: bool = True
 
 
 @dataclass
@@ -176,6 +161,9 @@ def _client(opts: BatchOptions) -> Iterator[tuple[Client, int]]:
             client = _connect(opts.scheduler)
         else:
             n = opts.workers or default_workers()
+            # the kernels compiled once here on every core (if the cache lacks them), not once
+            # per worker process; the workers load them
+            ensure_compiled(all_kernels(), what="the kernels")
             env = {k: os.environ.get(k, v) for k, v in WORKER_ENV.items()}
             # workers' own log lines (a heartbeat that fails while the cluster closes, a task's
             # traceback) are not for the user: every outcome is in the summary and the manifest

@@ -51,7 +51,8 @@ from ..io.atomic import OutputSet, process_token
 from ..io.motfiles import JsonLinesWriter, MotWriter
 from ..io.reader import FrameReader
 from ..io.sink import VideoSink
-from ..video.pipeline import make_detector, video_detector_for
+from ..video.detector import make_detector
+from ..video.run import video_detector_for
 from .settings import Settings, output_paths
 
 PROGRESS_EVERY = 0.5  # seconds between progress events of one task
@@ -85,12 +86,12 @@ def run_dir(out_dir: str | os.PathLike, run: str) -> Path:
 def detector_for(settings: Settings) -> Any:
     """The warmed-up detector for ``settings``, made once per process (the key includes the
     model files' hashes, so a long-lived worker notices a changed model file)."""
-    key = (settings.model, settings.model_sha256, settings.oncoming, settings.oncoming_sha256, settings.traffic)
+    p = settings.pipeline
+    key = (p.model, settings.model_sha256, p.oncoming, settings.oncoming_sha256, p.traffic, p.search)
     with _detectors_lock:
         det = _detectors.get(key)
         if det is None:
-            det = make_detector(settings.model, settings.oncoming if settings.oncoming else False,
-                                settings.traffic)  # type: ignore[arg-type]
+            det = make_detector(p)
             det.warmup()
             _detectors[key] = det
         return det
@@ -195,11 +196,10 @@ def run_video(task: VideoTask) -> dict[str, Any]:
         folder.mkdir(parents=True, exist_ok=True)
         reader = FrameReader(task.input, notify=notes.append)
         detector = detector_for(s)
-        vd = video_detector_for(reader, detector, s.heat, s.track, s.horizon, False if s.full_search else None,
-                                s.refine)
+        vd = video_detector_for(reader, detector, s.pipeline)
         h, w = reader.shape[:2]
         if "video" in tmps:
-            sink = VideoSink(str(tmps["video"]), reader.fps, (w, h), threshold=s.heat.threshold)
+            sink = VideoSink(str(tmps["video"]), reader.fps, (w, h), threshold=s.pipeline.heat.threshold)
         mot = MotWriter(tmps["boxes"])
         writers.append(mot)
         jsl = JsonLinesWriter(tmps["json"]) if "json" in tmps else None

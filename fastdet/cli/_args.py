@@ -2,7 +2,9 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any
+
+from ..config import HeatConfig, PipelineConfig
+from ..errors import FastdetError
 
 
 def positive_int(s: str) -> int:
@@ -72,11 +74,6 @@ def add_search_argument(parser: argparse.ArgumentParser) -> None:
                              "vehicles and recent detections, plus a rotating strip)")
 
 
-def guided_arg(args: argparse.Namespace) -> Any:
-    """The ``guided`` argument of :class:`~fastdet.VideoDetector` for parsed CLI arguments."""
-    return False if getattr(args, "full_search", False) else None
-
-
 def add_oncoming_arguments(parser: argparse.ArgumentParser) -> None:
     """``--oncoming-model`` / ``--no-oncoming`` and ``--traffic``, shared by ``video``,
     ``eval``, ``bench`` and ``batch``."""
@@ -100,18 +97,24 @@ def add_refine_argument(parser: argparse.ArgumentParser) -> None:
                              "(fastdet/models/refine.npz)")
 
 
-def refine_arg(args: argparse.Namespace) -> bool:
-    """The ``refine`` argument of :class:`~fastdet.VideoDetector` for parsed CLI arguments."""
-    return not getattr(args, "no_refine", False)
-
-
-def traffic_arg(args: argparse.Namespace) -> str:
-    """The ``traffic`` argument of :func:`make_detector` for parsed CLI arguments."""
-    return getattr(args, "traffic", "right")
-
-
-def oncoming_arg(args: argparse.Namespace) -> Any:
-    """The ``oncoming`` argument of :func:`make_detector` for parsed CLI arguments."""
-    if getattr(args, "no_oncoming", False):
-        return False
-    return getattr(args, "oncoming_model", None) or True
+def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
+    """The :class:`~fastdet.config.PipelineConfig` of parsed CLI arguments, for every command
+    that runs the pipeline (``video``, ``eval --video``, ``bench``, ``batch``); an option a
+    command does not have takes its default. ``--no-track``: no tracker (and so the full
+    search); ``--full-search``: no guided search; ``--no-refine``: no refinement;
+    ``--heat-frames`` / ``--heat-decay`` / ``--heat-threshold``: the main heat map (a bad
+    value: :class:`~fastdet.errors.FastdetError`)."""
+    d = HeatConfig()
+    try:
+        heat = HeatConfig(n_frames=getattr(args, "heat_frames", d.n_frames), decay=getattr(args, "heat_decay", d.decay),
+                          threshold=getattr(args, "heat_threshold", d.threshold))
+    except ValueError as exc:
+        raise FastdetError(f"heat map: {exc}") from None
+    config = PipelineConfig(model=getattr(args, "model", None),
+                            oncoming=False if getattr(args, "no_oncoming", False)
+                            else (getattr(args, "oncoming_model", None) or True),
+                            traffic=getattr(args, "traffic", "right"), horizon=getattr(args, "horizon", "auto"),
+                            heat=heat)
+    off = [name for name, flag in (("tracker", "no_track"), ("guided", "full_search"), ("refine", "no_refine"))
+           if getattr(args, flag, False)]
+    return config.without(*off)  # type: ignore[arg-type]

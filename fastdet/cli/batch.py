@@ -27,8 +27,9 @@ from types import ModuleType
 
 from ..errors import FastdetError
 from ..io.paths import check_paths
+from ..config.batch import BatchOptions
 from ._args import (add_horizon_argument, add_oncoming_arguments, add_refine_argument, add_search_argument,
-                    nonneg_int, oncoming_arg, positive_int, refine_arg, traffic_arg)
+                    nonneg_int, pipeline_config, positive_int)
 
 _INSTALL = "pip install fastdet[cluster]"
 # the packages of the ``cluster`` extra that fastdet.batch imports
@@ -92,11 +93,8 @@ def run(args: argparse.Namespace) -> int:
     writes = inputs.batch_writes(out_dir, settings_mod.SUFFIXES.values(),
                                  [out_dir / settings_mod.MANIFEST_NAME, *([table] if table is not None else [])])
     videos = inputs.expand_inputs(args.inputs, writes)
-    settings = settings_mod.Settings.create(args.model, oncoming_arg(args), track=not args.no_track,
-                                            video=args.video, json=args.json, horizon=args.horizon,
-                                            full_search=args.full_search, refine=refine_arg(args),
-                                            traffic=traffic_arg(args))
-    settings.check()
+    settings = settings_mod.Settings.create(pipeline_config(args), video=args.video, json=args.json)
+    settings_mod.check(settings)
     if scheduler:
         job.check_address(scheduler)
     job.prepare_out_dir(out_dir)
@@ -106,9 +104,8 @@ def run(args: argparse.Namespace) -> int:
         if os.path.realpath(table.parent) == os.path.realpath(out_dir) \
                 and table.name.endswith(tuple(settings_mod.SUFFIXES.values())):
             raise FastdetError(f"--table {table}: is a name the batch gives a video's outputs; choose another")
-    opts = job.BatchOptions(out_dir=Path(args.out), settings=settings, workers=args.workers, scheduler=scheduler,
-                            overwrite=args.overwrite, retries=args.retries, table=table,
-                            progress=not args.no_progress)
+    opts = BatchOptions(out_dir=Path(args.out), settings=settings, workers=args.workers, scheduler=scheduler,
+                        overwrite=args.overwrite, retries=args.retries, table=table, progress=not args.no_progress)
     try:
         report = job.run_batch(videos, opts)
     except job.BatchInterrupted as exc:

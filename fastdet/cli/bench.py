@@ -13,10 +13,11 @@ per stage and the frames per second they allow.
 - Stages: ``resize/colour`` (crop, resize, colour conversion of every band), ``HOG``
   (block maps), ``scoring`` (spatial map, histogram integral image, dense window scores),
   ``heat`` and ``label`` (heat map, blobs, boxes), ``motion`` (the frame difference that
-  narrows and gates the oncoming-traffic model's search) — :class:`~fastdet.detect.DetectStats` timings and
-  :attr:`VideoDetector.timings` — and ``other``: the rest of ``update`` (band geometry,
-  thresholding, window boxes, Python glue, the oncoming model's own heat map and the
-  merge of its boxes). As ``video``, the bundled oncoming-traffic model runs unless
+  narrows and gates the oncoming-traffic model's search), the rest of each stage of
+  :mod:`fastdet.video.stages` under its name (``detect (rest)``: band geometry, thresholding,
+  window boxes; ``oncoming heat``: the oncoming model's heat map and the merge of its boxes)
+  -- :attr:`VideoDetector.timings` -- and ``other``: the rest of ``update`` (Python glue).
+  As ``video``, the bundled oncoming-traffic model runs unless
   ``--no-oncoming``; on an image (the same frame N times) nothing moves, so it searches nothing.
 - One repeat = N frames through one ``VideoDetector`` whose heat map was reset first;
   the kernels are loaded and two frames processed before the first repeat (warm-up). The
@@ -50,21 +51,36 @@ from ..detect.checks import check_frame
 from ..errors import DataError, FastdetError
 from ..io.images import check_image
 from ..io.reader import FrameReader, check_source
-from ..video.pipeline import VideoDetector, make_detector
-from ._args import (add_oncoming_arguments, add_refine_argument, add_search_argument, guided_arg, oncoming_arg,
-                    positive_int, refine_arg, traffic_arg)
+from ..video.detector import make_detector
+from ..video.pipeline import VideoDetector
+from ._args import (
+    add_oncoming_arguments,
+    add_refine_argument,
+    add_search_argument,
+    pipeline_config,
+    positive_int,
+)
 
 DEFAULT_IMAGE = Path("test_images") / "test1.jpg"
 
 #: (label, key in VideoDetector.timings)
 STAGES = (
+    ("horizon", "horizon"),
+    ("plan", "plan"),
+    ("motion", "motion"),
     ("resize/colour", "resize_colour"),
     ("HOG", "hog"),
     ("scoring", "score"),
+    ("detect (rest)", "detect"),
     ("heat", "heat"),
     ("label", "label"),
-    ("motion", "motion"),
+    ("heat map (rest)", "heatmap"),
+    ("oncoming heat", "fusion"),
+    ("weak blobs", "weak"),
+    ("track", "track"),
+    ("clip", "clip"),
     ("refine", "refine"),
+    ("observe", "observe"),
 )
 
 
@@ -120,7 +136,7 @@ def load_frames(path: str | os.PathLike, n: int) -> tuple[list, str, float | Non
 
 def _detector(args: argparse.Namespace) -> Any:
     try:
-        return make_detector(args.model, oncoming_arg(args), traffic_arg(args))
+        return make_detector(pipeline_config(args))
     except FastdetError:
         raise
     except (OSError, ValueError) as exc:
@@ -186,7 +202,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         det = _detector(args)
         check_frame(det, frames[0], args.input)
-        vd = VideoDetector(det, guided=guided_arg(args), refine=refine_arg(args))
+        vd = VideoDetector(det, pipeline_config(args))
         t0 = time.perf_counter()
         vd.warmup()
         for frame in frames[:2]:

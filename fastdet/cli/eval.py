@@ -5,7 +5,6 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Any
 
 from ..errors import DataError, FastdetError
 from ..eval.clips import annotated_clips, markdown_table, report_json, score_clip
@@ -16,16 +15,13 @@ from ..io.keyframes import keyframes_for, keyframes_path, read_keyframes
 from ..io.motfiles import Predictions, read_gt, read_predictions
 from ..io.paths import bundled_models, check_paths
 from ..io.reader import check_source
-from ..video.pipeline import iter_video_detections
+from ..video.run import iter_video_detections
 from ._args import (
     add_horizon_argument,
     add_oncoming_arguments,
     add_refine_argument,
     add_search_argument,
-    guided_arg,
-    oncoming_arg,
-    refine_arg,
-    traffic_arg,
+    pipeline_config,
 )
 
 # ---------------------------------------------------------------------------------------
@@ -81,13 +77,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plot", metavar="PR.png", help="write the precision-recall curve as a PNG")
 
 
-def _video_predictions(video: str, model: str | None, oncoming: Any = True, track: bool = True,
-                       offline: bool = False, horizon: float | str | None = "auto",
-                       guided: Any = None, refine: bool = True, traffic: str = "right") -> Predictions:
+def _video_predictions(video: str, args: argparse.Namespace) -> Predictions:
     check_source(video)
-    frames = iter_video_detections(video, model=model, progress=True, oncoming=oncoming, tracker=track,
-                                   offline=offline, horizon=horizon, guided=guided, refine=refine,
-                                   traffic=traffic)  # type: ignore[arg-type]
+    frames = iter_video_detections(video, pipeline_config(args), progress=True, offline=getattr(args, "offline", False))
     return Predictions.from_frames(frames, source=video)
 
 
@@ -146,18 +138,16 @@ def _run_all(args: argparse.Namespace) -> int:
         if args.pred_dir is not None:
             preds = _clip_predictions(args.pred_dir, clip.name)
         else:
-            preds = _video_predictions(str(clip.video), args.model, oncoming_arg(args), not args.no_track,
-                                       args.offline, getattr(args, "horizon", "auto"), guided_arg(args),
-                                       refine_arg(args), traffic_arg(args))
+            preds = _video_predictions(str(clip.video), args)
         scores.append(score_clip(clip.name, gt, preds, _frame_rows(clip.video), kf, iou=args.iou))
     settings = {"iou": args.iou}
     if args.pred_dir is not None:
         settings["pred_dir"] = args.pred_dir
     else:
+        config = pipeline_config(args)
         settings.update(model=args.model or "bundled", oncoming=args.oncoming_model or not args.no_oncoming,
-                        traffic=traffic_arg(args), refine=refine_arg(args), track=not args.no_track,
-                        offline=args.offline, horizon=getattr(args, "horizon", "auto"),
-                        full_search=guided_arg(args) is False)
+                        traffic=config.traffic, refine=config.refine is not None, track=config.tracker is not None,
+                        offline=args.offline, horizon=config.horizon, full_search=config.guided is None)
     report = report_json(scores, settings)
     text = json.dumps(report, indent=1, allow_nan=False) + "\n"
     if args.out is not None:
@@ -197,9 +187,7 @@ def run(args: argparse.Namespace) -> int:
     kf_file = getattr(args, "keyframes", None)
     keyframes = read_keyframes(kf_file) if kf_file is not None else keyframes_for(args.gt)
     if args.video is not None:
-        preds = _video_predictions(args.video, args.model, oncoming_arg(args), not no_track, offline,
-                                   getattr(args, "horizon", "auto"), guided_arg(args), refine_arg(args),
-                                   traffic_arg(args))
+        preds = _video_predictions(args.video, args)
     else:
         preds = read_predictions(args.pred)
     result = evaluate(gt, preds, iou=args.iou, keyframes=keyframes)

@@ -24,14 +24,15 @@ from typing import Any
 import cv2
 
 from .._numba import ensure_compiled
-from ..config import HeatConfig
+from ..config import HeatConfig, PipelineConfig
 from ..detect.checks import check_frame
 from ..errors import DataError, FastdetError
 from ..io import draw
 from ..io.images import read_image, write_image
 from ..io.paths import bundled_models, check_paths
+from ..video.detector import make_detector
 from ..video.heatmap import KERNELS as HEAT_KERNELS
-from ..video.pipeline import detect_image, make_detector
+from ..video.heatmap import detect_image
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -74,7 +75,7 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
         raise FastdetError(f"--threshold: {exc}") from None
     frame = read_image(inp)
     if detector is None:
-        detector = make_detector(args.model, oncoming=False)  # its gate needs motion: video only
+        detector = make_detector(PipelineConfig(model=args.model, oncoming=False))  # its gate needs motion: video only
     elif args.model is not None:
         raise FastdetError("--model cannot be used with an injected detector")
     check_frame(detector, frame, inp)

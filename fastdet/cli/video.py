@@ -76,10 +76,11 @@ from ..io.reader import FrameReader, check_source
 from ..io.sink import VideoSink, check_video_path
 from ..video.count import CountLine, VehicleCounter
 from ..video.offline import offline_pass
-from ..video.pipeline import _progress, make_detector, video_detector_for
+from ..video.detector import make_detector
+from ..video.run import progress_bar, video_detector_for
 from .. import signals as _signals
 from ._args import (add_horizon_argument, add_oncoming_arguments, add_refine_argument, add_search_argument,
-                    guided_arg, nonneg_int, oncoming_arg, positive_int, refine_arg, traffic_arg)
+                    nonneg_int, pipeline_config, positive_int)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -131,26 +132,24 @@ def _line_arg(s: str) -> CountLine:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def _heat_config(args: argparse.Namespace) -> HeatConfig:
-    try:
-        return HeatConfig(n_frames=getattr(args, "heat_frames", HeatConfig.n_frames),
-                          decay=getattr(args, "heat_decay", HeatConfig.decay),
-                          threshold=getattr(args, "heat_threshold", HeatConfig.threshold))
-    except ValueError as exc:
-        raise FastdetError(f"heat map: {exc}") from None
-
-
 _STAGES = (
     ("decode", "decode", "reader"),
     ("resize/colour", "resize_colour", "main"),
     ("HOG", "hog", "main"),
     ("scoring", "score", "main"),
+    ("detect (rest)", "detect", "main"),
     ("heat", "heat", "main"),
     ("label", "label", "main"),
+    ("heat map (rest)", "heatmap", "main"),
+    ("oncoming heat", "fusion", "main"),
+    ("horizon", "horizon", "main"),
+    ("plan", "plan", "main"),
     ("motion", "motion", "main"),
     ("weak blobs", "weak", "main"),
     ("track", "track", "main"),
+    ("clip", "clip", "main"),
     ("refine", "refine", "main"),
+    ("observe", "observe", "main"),
     ("boxes out", "boxes_out", "main"),
     ("draw", "draw", "writer"),
     ("encode", "encode", "writer"),
@@ -245,7 +244,8 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
                            "--summary S.json and/or --count")
     if counting and not track:
         raise FastdetError("--count and --line need the tracker: leave out --no-track")
-    heat = _heat_config(args)
+    config = pipeline_config(args)
+    heat = config.heat
     check_source(args.input)
     check_paths([("INPUT", args.input), ("--model", args.model),
                  ("--oncoming-model", getattr(args, "oncoming_model", None)), *bundled_models()],
@@ -261,10 +261,10 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
         if offline and reader.live:
             raise FastdetError(f"{args.input}: --offline needs a video file, not a live source")
         if detector is None:
-            detector = make_detector(args.model, oncoming_arg(args), traffic_arg(args))
+            detector = make_detector(config)
         elif args.model is not None:
             raise FastdetError("--model cannot be used with an injected detector")
-        vd = video_detector_for(reader, detector, heat, track, args.horizon, guided_arg(args), refine_arg(args))
+        vd = video_detector_for(reader, detector, config)
         vd.warmup()
         counter = VehicleCounter(line) if track else None
         done: list[tuple[int, Detections]] = []  # --offline: every frame's tracks
@@ -281,7 +281,7 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
         n = 0
         main_busy = 0.0
         t_start = time.perf_counter()
-        bar = _progress(reader.expected, not args.no_progress, os.path.basename(args.input))
+        bar = progress_bar(reader.expected, not args.no_progress, os.path.basename(args.input))
         failed, stop = True, None
         try:
             with _signals.deferred():  # a stop signal ends the loop after the current frame
@@ -299,7 +299,8 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
                     if sink is not None and not offline:
                         dbg = None
                         if args.debug:
-                            dbg = (vd.last_windows, vd.last_heat, vd.last_labels, vd.last_mask, vd.last_tracks)
+                            d = vd.debug
+                            dbg = (d.windows, d.heat, d.labels, d.mask, d.tracks)
                         sink.put((frame, dets, dbg))
                     for k, v in vd.timings.items():
                         totals[k] = totals.get(k, 0.0) + v

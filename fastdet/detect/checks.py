@@ -36,7 +36,7 @@ def _problem(detector: Any, shape: tuple[int, int]) -> str | None:
     """Why the main search cannot run on frames of ``shape = (H, W)`` (``None``: it can)."""
     sc = detector.scorers[0]
     try:
-        search = sc.search.for_frame(shape)
+        search = sc.search.for_frame(shape, sc.config.win_w, sc.config.pixels_per_cell)
     except ValueError as exc:
         return str(exc)
     for band in search.bands:

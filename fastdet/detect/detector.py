@@ -29,7 +29,7 @@ import numba
 import numpy as np
 
 from .._numba import ensure_compiled
-from ..config import WIDE_SEARCH, SearchBand, SearchConfig
+from ..config import ONCOMING_SEARCH, SearchBand, SearchConfig
 from ..detections import MAIN_PART, WIDE_PART, Detections
 from ..errors import ModelError
 from ..features import (
@@ -90,7 +90,7 @@ class _Scorer:
         self.bias = b
 
     def geometries(self, frame_shape: tuple[int, int]) -> list[BandGeometry]:
-        search = self.search.for_frame(frame_shape)
+        search = self.search.for_frame(frame_shape, self.config.win_w, self.config.pixels_per_cell)
         return [band_geometry(b, frame_shape, self.config, search.cells_per_step, search.border, search.border_mode)
                 for b in search.bands]
 
@@ -170,7 +170,7 @@ class Detector:
         behind a barrier, e.g. oncoming traffic above the median; ``None`` (default) = off.
         The bundled one is ``fastdet.model.ONCOMING_MODEL_PATH``; :class:`fastdet.VideoDetector`
         runs it by default, searching only where the picture moves (:mod:`fastdet.video.motion`).
-    wide_search: its search bands (default :data:`fastdet.config.WIDE_SEARCH`).
+    wide_search: its search bands (default :data:`fastdet.config.ONCOMING_SEARCH`).
     horizon: the horizon row of the frames, a fraction of their height, for both searches
         (:attr:`SearchConfig.horizon <fastdet.config.SearchConfig>`: the bands move with it);
         ``None`` keeps the searches' own. Change it later with :meth:`set_horizon`.
@@ -180,6 +180,8 @@ class Detector:
     with a heat map over recent frames.
     """
 
+    #: ``detect`` takes ``columns`` (:class:`fastdet.video.detector.ColumnSearch`)
+    column_search = True
     #: the numba kernels :meth:`detect` runs (what a warm-up compiles / loads)
     kernels: ClassVar[tuple[Any, ...]] = KERNELS
 
@@ -207,7 +209,7 @@ class Detector:
                 raise ModelError(f"{name}: a {self.wide_model.classifier} model gives {self.wide_model.score_kind} "
                                  f"scores, the main model {self.model.score_kind} scores; train both with the "
                                  f"same --classifier")
-            self.scorers.append(_Scorer(self.wide_model, wide_search if wide_search is not None else WIDE_SEARCH))
+            self.scorers.append(_Scorer(self.wide_model, wide_search if wide_search is not None else ONCOMING_SEARCH))
         if horizon is not None:
             self.set_horizon(horizon)
         self.score_kind = self.model.score_kind

@@ -39,7 +39,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..config import SearchBand, SearchConfig
+from ..config import CELL, WINDOW, SearchBand, SearchConfig
 
 
 @dataclass(frozen=True)
@@ -99,13 +99,14 @@ def band_on_grid(scale: float, first_bottom: float, last_bottom: float, anchor: 
 
 
 def geometric_bands(frame_shape: tuple[int, int], horizon: float, ratio: float, config: GeometryConfig,
-                    reference: SearchConfig) -> tuple[SearchBand, ...]:
+                    reference: SearchConfig, window: int = WINDOW, cell: int = CELL) -> tuple[SearchBand, ...]:
     """The main search's bands for frames of ``frame_shape = (H, W)`` whose horizon is at
     ``horizon x H`` and whose vehicles have the ``ratio`` (module docstring): each band of
     ``reference`` (rescaled to the frame as :meth:`SearchConfig.for_frame` does) searches
     the window bottoms it searches at its ``reference_horizon``, at distances below the
     horizon stretched by ``config.reference_ratio / ratio``, plus ``config.slack``; on the
-    reference band's window grid. Bands in frame pixels."""
+    reference band's window grid (``window`` / ``cell``: the model's window width and HOG cell,
+    px at scale 1). Bands in frame pixels."""
     h, w = (int(v) for v in frame_shape[:2])
     rh, rw = reference.reference_shape if reference.reference_shape is not None else (h, w)
     fy, fx = h / rh, w / rw
@@ -113,8 +114,8 @@ def geometric_bands(frame_shape: tuple[int, int], horizon: float, ratio: float, 
     out = []
     for b in reference.bands:
         scale = b.scale * fy
-        step = reference.cells_per_step * 8 * scale
-        side = 64.0 * scale
+        step = reference.cells_per_step * cell * scale
+        side = float(window) * scale
         anchor = b.y_start * fy
         n_ref = max(math.floor(((b.y_stop - b.y_start) * fy - side) / step + 1e-6), 0)
         last_ref = anchor + side + n_ref * step
@@ -147,10 +148,10 @@ class GeometricSearch(SearchConfig):
         if self.ratio is not None and not self.ratio > 0:
             raise ValueError(f"ratio must be > 0 or None, got {self.ratio!r}")
 
-    def for_frame(self, frame_shape: tuple[int, int]) -> SearchConfig:
+    def for_frame(self, frame_shape: tuple[int, int], window: int = WINDOW, cell: int = CELL) -> SearchConfig:
         horizon = self.horizon if self.horizon is not None else self.reference_horizon
         ratio = self.ratio if self.ratio is not None else self.geometry.ratio
-        bands = geometric_bands(frame_shape, horizon, ratio, self.geometry, self)
+        bands = geometric_bands(frame_shape, horizon, ratio, self.geometry, self, window, cell)
         return SearchConfig(bands=bands, cells_per_step=self.cells_per_step, threshold=self.threshold,
                             reference_shape=None, reference_horizon=self.reference_horizon, horizon=None,
                             border=self.border, border_mode=self.border_mode)

@@ -153,7 +153,7 @@ def _lane_sums(x, size, r, res):
         for b in range(L):
             for p in range(size):
                 col[p] = x[p * L + b]
-            res[b] = _pairwise_sum(col, 0, size)
+            res[b] = _pairwise_sum(col, np.int64(0), size)  # not a literal 0: one compile of the leaf
         return
     if size < 8:
         for b in range(L):

@@ -21,6 +21,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from ..boxes import iou as box_iou
+from ..config import JitterConfig
 
 
 class BoxCoder(Protocol):
@@ -40,19 +41,6 @@ class BoxCoder(Protocol):
 
 #: ridge penalties tried by :func:`fit_ridge` (on standardised features, summed squared error)
 ALPHAS = tuple(float(a) for a in np.logspace(1, 6, 11))
-
-
-@dataclass(frozen=True)
-class JitterConfig:
-    """Random boxes about a vehicle's box (module docstring). shift: fraction of the width /
-    height; scale: ``(low, high)`` size factors (log-uniform); aspect: ``|log|`` aspect change;
-    min_iou: smallest IoU with the vehicle kept; per_box: samples per vehicle box."""
-
-    shift: float = 0.25
-    scale: tuple[float, float] = (0.7, 1.4)
-    aspect: float = 0.2
-    min_iou: float = 0.3
-    per_box: int = 16
 
 
 def jitter_boxes(target: np.ndarray, n: int, rng: np.random.Generator,

@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import time
 from collections import deque
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -325,3 +325,12 @@ class HeatMap:
         bbox, peak = np.empty((3, 4), np.int64), np.empty(3, np.float64)
         n = label_blobs(g, 0.5, labels, bbox, peak)
         extent_boxes(g, labels, n, bbox, peak, 0.5, np.empty((3, 4), np.int64))
+
+
+def detect_image(frame: np.ndarray, detector: Any, heat: HeatConfig) -> tuple[Detections, HeatMap, Detections]:
+    """One image: the positive windows of ``detector`` (a
+    :class:`~fastdet.video.detector.WindowDetector`), a single-frame heat map (``heat``, e.g.
+    ``HeatConfig().single_frame()``) and its boxes: ``(windows, heatmap, boxes)``."""
+    windows = detector.detect(frame)
+    hm = HeatMap(frame.shape, heat, score_kind=detector.score_kind)
+    return windows, hm, hm.update(windows)

@@ -48,7 +48,10 @@ import cv2
 import numpy as np
 
 from .._version import __version__
-from ..config import FeatureConfig
+from ..config import FeatureConfig, RefineConfig
+from ..config.models import (
+    REFINE_MODEL_PATH,  # the bundled regressor (tools/scripts/refine_model.py)
+)
 from ..detections import Detections
 from ..errors import ModelError
 from ..features import extract_features
@@ -59,8 +62,6 @@ from ..model import read_npz, write_npz
 KERNELS = FEATURE_KERNELS
 
 FORMAT_VERSION = 1
-#: the bundled regressor (``tools/scripts/refine_model.py``)
-REFINE_MODEL_PATH = Path(__file__).resolve().parents[1] / "models" / "refine.npz"
 _ARRAYS = ("coef", "intercept", "mean", "scale", "metadata")
 #: the regressor's default features: HOG of the luma channel (9 orientations, 8-px cells) and
 #: an 8x8 colour thumbnail, no histogram: 1956 values per context
@@ -212,12 +213,12 @@ class BoxRegressor:
 
     @classmethod
     def from_fit(cls, spec: BoxFeatures, coef: np.ndarray, intercept: np.ndarray, mean: np.ndarray,
-                 scale: np.ndarray, metadata: dict[str, Any] | None = None) -> "BoxRegressor":
+                 scale: np.ndarray, metadata: dict[str, Any] | None = None) -> BoxRegressor:
         """The regressor of ``spec``'s features with fitted arrays (:func:`fastdet.train.refine.fit_ridge`)."""
         return cls(spec.config, spec.contexts, coef, intercept, mean, scale, metadata=dict(metadata or {}))
 
     @classmethod
-    def zero(cls, config: FeatureConfig = REFINE_FEATURES, contexts: tuple[float, ...] = (1.5,)) -> "BoxRegressor":
+    def zero(cls, config: FeatureConfig = REFINE_FEATURES, contexts: tuple[float, ...] = (1.5,)) -> BoxRegressor:
         """A regressor that predicts no change (offsets 0 for every box)."""
         n = len(contexts) * config.n_features
         return cls(config, contexts, np.zeros((4, n)), np.zeros(4), np.zeros(n), np.ones(n))
@@ -265,34 +266,6 @@ def load_regressor(path: str | os.PathLike | None = None) -> BoxRegressor:
 
 
 # ---------------------------------------------------------------------------------------- refinement
-
-
-@dataclass(frozen=True)
-class RefineConfig:
-    """How :func:`refine` moves boxes.
-
-    iterations: times the regressor is applied (each from the previous result), >= 1.
-    max_shift: largest centre move per iteration, as a fraction of the box's width / height.
-    max_log_scale: largest ``|log|`` size change per iteration (``log(1.5)``: at most 1.5x
-        larger or smaller).
-    min_size: boxes narrower or lower than this (pixels) are left as they are.
-    parts: refine only boxes whose ``part`` is one of these (``None``: every box; boxes of a
-        Detections without ``part`` count as part 0).
-    """
-
-    iterations: int = 1
-    max_shift: float = 0.5
-    max_log_scale: float = math.log(1.5)
-    min_size: int = 8
-    parts: tuple[int, ...] | None = None
-
-    def __post_init__(self) -> None:
-        if self.iterations < 1:
-            raise ValueError(f"iterations must be >= 1, got {self.iterations}")
-        if not (self.max_shift >= 0 and self.max_log_scale >= 0):
-            raise ValueError("max_shift and max_log_scale must be >= 0")
-        if self.parts is not None:
-            object.__setattr__(self, "parts", tuple(int(p) for p in self.parts))
 
 
 def refine_boxes(frame: np.ndarray, boxes: np.ndarray, regressor: BoxRegressor,

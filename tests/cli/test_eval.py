@@ -83,8 +83,8 @@ def test_all_runs_the_pipeline_on_every_clip(clip, monkeypatch, capsys):
     write_video(clip / "videos" / "cam.mp4", 3, w=640, h=360)
     seen = []
 
-    def fake_iter(path, model=None, progress=True, oncoming=True, horizon="auto", **kw):
-        seen.append((path, horizon))
+    def fake_iter(path, config, progress=True, **kw):
+        seen.append((path, config.horizon))
         yield 1, Detections(np.array([[100, 100, 160, 140]], np.int32), np.array([0.9], np.float32))
 
     monkeypatch.setattr(ev, "iter_video_detections", fake_iter)

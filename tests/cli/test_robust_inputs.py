@@ -14,7 +14,8 @@ from fastdet.cli.main import main
 from fastdet.detect.checks import check_frame_size, minimum_frame_size
 from fastdet.errors import ModelError
 from fastdet.model import DEFAULT_MODEL_PATH, ONCOMING_MODEL_PATH, load_model
-from fastdet.video.pipeline import make_detector
+from fastdet.config import PipelineConfig
+from fastdet.video import make_detector
 from tests.media import write_video
 
 
@@ -32,7 +33,7 @@ def _refused(argv, capsys, match: str) -> str:
 
 def test_wide_model_as_the_main_model_is_refused(tmp_path, capsys):
     with pytest.raises(ModelError, match="wide-window model"):
-        make_detector(ONCOMING_MODEL_PATH)
+        make_detector(PipelineConfig(model=ONCOMING_MODEL_PATH))
     clip = write_video(tmp_path / "c.mp4", 3)
     _refused(["video", clip, "--boxes", tmp_path / "b.txt", "--model", ONCOMING_MODEL_PATH], capsys,
              "cannot be the main model")

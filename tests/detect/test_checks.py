@@ -6,12 +6,12 @@ import pytest
 from fastdet.cli.main import main
 from fastdet.detect.checks import check_frame_size, check_horizon
 from fastdet.errors import DataError
-from fastdet.video.pipeline import make_detector
+from fastdet.video import make_detector
 
 
 @pytest.fixture(scope="module")
 def det():
-    return make_detector(None, oncoming=True)
+    return make_detector()  # the main and the oncoming model
 
 
 @pytest.mark.parametrize("shape", [(1, 1000), (1, 1), (2, 1000), (1000, 1)])

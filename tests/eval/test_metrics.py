@@ -379,8 +379,8 @@ def test_video_option_uses_pipeline(files, tmp_path, monkeypatch, capsys):
     clip.write_bytes(b"")
     calls = {}
 
-    def fake_iter(path, model=None, progress=True, oncoming=True, **kw):
-        calls.update(path=path, model=model, oncoming=oncoming)
+    def fake_iter(path, config, progress=True, **kw):
+        calls.update(path=path, model=config.model, oncoming=config.oncoming)
         for f in (1, 2):
             rows = [r for r in GT_ROWS if r[0] == f and r[6] == 1]
             boxes = np.array([[l, t, l + w, t + h] for (_, _, l, t, w, h, _) in rows], np.int32)
@@ -419,7 +419,7 @@ def test_default_pipeline_accuracy_on_the_annotated_clips(data):
     """The accuracy table's defaults row (docs/accuracy.md): `python -m fastdet eval --video CLIP`
     with the bundled models. Guards against accuracy regressions (the figures it gives,
     less a small margin: F1 0.90 / 1.00, FP per frame 0.05 / 0.00)."""
-    from fastdet.video.pipeline import iter_video_detections
+    from fastdet.video import iter_video_detections
 
     floors = {"test_video": (0.99, 0.01), "test_small1": (0.88, 0.08)}  # min F1, max FP per frame
     for name, (min_f1, max_fp) in floors.items():

@@ -3,11 +3,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from fastdet.config import HeatConfig, MotionGate
+from fastdet.config import HeatConfig, MotionGate, PipelineConfig
 from fastdet.detections import MAIN_PART, WIDE_PART, Detections
 from fastdet.boxes import overlap_fraction
 from fastdet.video.fusion import merge_wide
-from fastdet.video.pipeline import VideoDetector
+from fastdet.video import VideoDetector
 from tests.fakes import FixedDetector
 
 
@@ -35,14 +35,15 @@ def test_video_detector_routes_wide_windows_to_their_own_heat_map():
     part = [MAIN_PART] * 3 + [WIDE_PART] * 3
     windows = Detections(np.array(main + wide, np.int32), np.full(6, 3.0, np.float32),
                          scale=np.ones(6, np.float32), part=np.array(part, np.int8))
-    vd = VideoDetector(FixedDetector(windows, wide_model=object()), heat=HeatConfig(threshold=5.0, n_frames=1),
-                       wide_heat=HeatConfig(threshold=5.0, n_frames=1, box_mode="mean", min_height=10, max_aspect=0.8),
-                       motion=MotionGate(0), refine=False)  # no motion gate: the fake has no search bands
+    vd = VideoDetector(FixedDetector(windows, wide_model=object()), PipelineConfig(
+        heat=HeatConfig(threshold=5.0, n_frames=1),
+        oncoming_heat=HeatConfig(threshold=5.0, n_frames=1, box_mode="mean", min_height=10, max_aspect=0.8),
+        motion=MotionGate(0), refine=None))  # no motion gate: the fake has no search bands
     out = vd.update(np.zeros((720, 1280, 3), np.uint8))
     assert len(out.boxes) == 2
     left = out.boxes[out.boxes[:, 0] < 300][0]
     assert left.tolist() == [102, 430, 166, 454]  # mean of the two wide windows
     right = out.boxes[out.boxes[:, 0] >= 300][0]
     assert right[0] >= 596 and right[2] <= 676  # the main box, not widened by the wide window
-    assert vd.last_windows.is_wide.sum() == 3
+    assert vd.debug.windows.is_wide.sum() == 3
     vd.reset()

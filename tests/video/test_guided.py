@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fastdet.config import GuidedSearch
+from fastdet.config import GuidedSearch, PipelineConfig
 from fastdet.detect import Detector
 from fastdet.detections import Detections
 from fastdet.eval.metrics import evaluate
@@ -17,7 +17,8 @@ from fastdet.io.motfiles import Predictions, read_gt
 from fastdet.io.reader import FrameReader
 from fastdet.video import VideoDetector
 from fastdet.video.guided import SearchPlanner, merge_spans
-from fastdet.video.pipeline import prime_horizon_from_file
+from fastdet.video import prime_horizon_from_file
+from fastdet.video.stages import PlanStage
 
 SHAPE = (720, 1280)
 
@@ -98,7 +99,7 @@ def test_columns_between_full_scans(det):
 def _run(clip, guided, data):
     path = str(data / "videos" / clip)
     reader = FrameReader(path)
-    vd = VideoDetector(guided=guided, fps=reader.fps)
+    vd = VideoDetector(config=PipelineConfig(guided=guided), fps=reader.fps)
     prime_horizon_from_file(vd, path)
     out = [(fno, vd.update(frame)) for fno, frame, _ in reader]
     return vd, out, path
@@ -107,8 +108,8 @@ def _run(clip, guided, data):
 def test_guided_video_finds_what_the_full_search_finds(data):
     clip = "test_video.mp4"
     vd, guided, path = _run(clip, GuidedSearch(), data)
-    assert 0 < vd._planner.full_scans < len(guided)
-    _, full, _ = _run(clip, False, data)
+    assert 0 < vd.stage(PlanStage).planner.full_scans < len(guided)
+    _, full, _ = _run(clip, None, data)
     gt = read_gt(str(data / "annotations" / "test_video.gt.txt"))
     a = evaluate(gt, Predictions.from_frames(guided, source=path)).to_dict()
     b = evaluate(gt, Predictions.from_frames(full, source=path)).to_dict()
@@ -117,12 +118,12 @@ def test_guided_video_finds_what_the_full_search_finds(data):
 
 
 def test_full_search_flag(data, capsys):
-    from fastdet.cli._args import guided_arg
+    from fastdet.cli._args import pipeline_config
     from fastdet.cli.main import build_parser, main
 
     for cmd in (["video", "in.mp4", "--boxes", "b.txt"], ["eval", "--gt", "g.txt", "--video", "v.mp4"], ["bench"]):
-        assert guided_arg(build_parser().parse_args([*cmd, "--full-search"])) is False
-        assert guided_arg(build_parser().parse_args(cmd)) is None
+        assert pipeline_config(build_parser().parse_args([*cmd, "--full-search"])).guided is None
+        assert pipeline_config(build_parser().parse_args(cmd)).guided == GuidedSearch()
     gt, video = data / "annotations" / "test_video.gt.txt", data / "videos" / "test_video.mp4"
     res = []
     for flag in ([], ["--full-search"]):

@@ -9,7 +9,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import fastdet.video.heatmap as heatmap_mod
-from fastdet.config import HeatConfig
+from fastdet.config import HeatConfig, PipelineConfig
 from fastdet.detections import Detections
 from fastdet.video.heatmap import HeatMap
 from tests.reference import ref_blobs, ref_heat
@@ -435,15 +435,15 @@ def test_blob_boxes_same_as_scipy_version_on_real_frames(data):
     """A few frames of the bundled clip through the video pipeline: both heat maps' labels,
     boxes and weak boxes as the SciPy-based code gave them."""
     from fastdet.io.reader import FrameReader
-    from fastdet.video.pipeline import VideoDetector
+    from fastdet.video import VideoDetector
 
     reader = FrameReader(data / "videos" / "test_small1.mp4", 0, 12, notify=lambda _n: None)
-    vd = VideoDetector(fps=reader.fps, horizon=None)
+    vd = VideoDetector(config=PipelineConfig(horizon=None), fps=reader.fps)
     checked = 0
     try:
         for _, frame, _ in reader:
             vd.update(frame)
-            for hm in (vd.heatmap, vd.wide_heatmap):
+            for hm in (vd.heatmap, vd.oncoming_heatmap):
                 if hm is None or not hm.n_seen:
                     continue
                 labels, _ = ndimage.label(hm.heat > hm.config.threshold)

@@ -5,7 +5,7 @@ import cv2
 import numpy as np
 import pytest
 
-from fastdet.config import REFERENCE_HORIZON, SearchBand, SearchConfig
+from fastdet.config import REFERENCE_HORIZON, PipelineConfig, SearchBand, SearchConfig
 from fastdet.video.horizon import (
     HorizonEstimator,
     estimate_horizon,
@@ -46,7 +46,7 @@ def test_for_frame_clips_and_drops_bands():
 
 
 def test_detector_set_horizon_moves_both_searches():
-    from fastdet.video.pipeline import make_detector
+    from fastdet.video import make_detector
 
     det = make_detector()
     before = {p: [(g.y0, g.y1) for g in det.geometries((720, 1280), p)] for p in (0, 1)}
@@ -111,24 +111,24 @@ def _zoom_frames(n: int, y0: float, shape=(360, 640)) -> list[np.ndarray]:
 
 
 def test_video_detector_horizon_settings():
-    from fastdet.video.pipeline import VideoDetector, make_detector
+    from fastdet.video import VideoDetector, make_detector
 
     det = make_detector()
     frame = _zoom_frames(1, 150)[0]
-    vd = VideoDetector(det, horizon=0.5)
+    vd = VideoDetector(det, PipelineConfig(horizon=0.5))
     vd.update(frame)
     assert det.horizon == pytest.approx(0.5)
     det.set_horizon(0.45)
-    VideoDetector(det, horizon=None).update(frame)
+    VideoDetector(det, PipelineConfig(horizon=None)).update(frame)
     assert det.horizon == pytest.approx(0.45)  # None: the detector's own search
     with pytest.raises(ValueError):
-        VideoDetector(det, horizon=1.5)
+        VideoDetector(det, PipelineConfig(horizon=1.5))
     with pytest.raises(ValueError):
-        VideoDetector(det, horizon="middle")
+        VideoDetector(det, PipelineConfig(horizon="middle"))
 
 
 def test_video_detector_estimates_the_horizon():
-    from fastdet.video.pipeline import VideoDetector, make_detector
+    from fastdet.video import VideoDetector, make_detector
 
     det = make_detector()
     frames = _zoom_frames(24, 150)  # the picture expands from row 150 of 360
@@ -144,10 +144,14 @@ def test_video_detector_estimates_the_horizon():
     for f in frames[1:]:  # online: the estimate arrives after MIN_PAIRS pairs
         vd.update(f)
     assert det.horizon == pytest.approx(150 / 360, abs=0.01)
-    n = len(vd._horizon_est.rows) if vd._horizon_est is not None else None
+    from fastdet.video.stages import HorizonStage
+
+    est = vd.stage(HorizonStage).estimator
+    n = len(est.rows) if est is not None else None
     vd.reset()
     vd.update(frames[0])  # no pair across the cut
-    assert vd._horizon_est is None or len(vd._horizon_est.rows) == n
+    est = vd.stage(HorizonStage).estimator
+    assert est is None or len(est.rows) == n
     # still pictures give no estimate: the reference bands
     vd2 = VideoDetector(det)
     assert vd2.prime_horizon([frames[0]] * 20) is None and det.horizon is None
@@ -159,8 +163,8 @@ def test_video_detector_for_primes_from_the_run_reader(data, start, monkeypatch)
     horizon as a second reader of the file gives, the file decoded once, every frame still
     yielded; over the buffer limit (or a run shorter than the priming) it decodes them again."""
     from fastdet.io.reader import FrameReader
-    from fastdet.video import pipeline
-    from fastdet.video.pipeline import VideoDetector, make_detector, prime_horizon_from_file, video_detector_for
+    from fastdet.video import run as pipeline
+    from fastdet.video import VideoDetector, make_detector, prime_horizon_from_file, video_detector_for
 
     path = data / "videos" / "test_small1.mp4"
     det = make_detector()

@@ -93,7 +93,7 @@ def oncoming_frames(data):
 
 @pytest.fixture(scope="module")
 def detector():
-    from fastdet.video.pipeline import make_detector
+    from fastdet.video import make_detector
 
     return make_detector()
 
@@ -161,14 +161,14 @@ def test_detect_with_no_wide_bands_is_the_main_model_alone(detector, oncoming_fr
 def test_video_detector_wide_windows_are_the_gated_full_search(detector, oncoming_frames):
     """VideoDetector's wide windows = the wide model's positive windows over its whole
     search, kept where the motion reaches the gate."""
-    from fastdet.video.pipeline import VideoDetector
+    from fastdet.video import VideoDetector
 
     prev, cur = oncoming_frames
     vd = VideoDetector(detector)
     vd.update(prev)
-    assert not vd.last_windows.is_wide.any(), "no previous frame: no motion, no wide windows"
+    assert not vd.debug.windows.is_wide.any(), "no previous frame: no motion, no wide windows"
     vd.update(cur)
-    got = {tuple(int(v) for v in b) for b in vd.last_windows[vd.last_windows.is_wide].boxes}
+    got = {tuple(int(v) for v in b) for b in vd.debug.windows[vd.debug.windows.is_wide].boxes}
     fm = FrameMotion()
     fm.update(prev)
     integral = fm.update(cur)
@@ -181,15 +181,15 @@ def test_video_detector_wide_windows_are_the_gated_full_search(detector, oncomin
 
 
 def test_video_detector_rgb_frames_give_the_same_boxes(detector, oncoming_frames):
-    from fastdet.video.pipeline import VideoDetector
+    from fastdet.video import VideoDetector
 
     bgr, rgb = VideoDetector(detector), VideoDetector(detector)
     for frame in oncoming_frames:
         a = bgr.update(frame)
         b = rgb.update(np.ascontiguousarray(frame[:, :, ::-1]), rgb=True)
         assert a.boxes.tolist() == b.boxes.tolist()
-        assert bgr.last_windows.boxes.tolist() == rgb.last_windows.boxes.tolist()
-    assert bgr.last_windows.is_wide.any(), "the second frame has moving oncoming cars"
+        assert bgr.debug.windows.boxes.tolist() == rgb.debug.windows.boxes.tolist()
+    assert bgr.debug.windows.is_wide.any(), "the second frame has moving oncoming cars"
 
 
 # ------------------------------------------------------------------ the moving-columns kernel

@@ -16,10 +16,10 @@ import pytest
 from fastdet import cli
 from fastdet.cli import video
 from fastdet.cli.main import build_parser
-from fastdet.config import HeatConfig
+from fastdet.config import HeatConfig, PipelineConfig
 from fastdet.errors import DataError
 from fastdet.io.atomic import partial_name
-from fastdet.video.pipeline import VideoDetector, iter_video_detections, make_detector
+from fastdet.video import VideoDetector, iter_video_detections, make_detector
 from tests.fakes import BrightBoxDetector
 
 W, H = 320, 240
@@ -88,21 +88,21 @@ def clip(tmp_path_factory) -> Path:
 
 def test_video_detector_follows_the_rectangle():
     fake = BrightBoxDetector()
-    vd = VideoDetector(fake, HEAT, refine=False)
+    vd = VideoDetector(fake, PipelineConfig(heat=HEAT, refine=None))
     for i in range(20):
         out = vd.update(synth_frame(i))
         assert len(out.boxes) == 1
         assert iou(out.boxes[0], rect_at(i)) > 0.8
-        assert len(vd.last_windows.boxes) == 5
-        assert vd.last_windows.scale.tolist() == [1, 1.5, 2, 2.5, 3]
-        assert vd.last_heat.shape == (H // 4, W // 4)
-        assert vd.last_mask.dtype == bool and vd.last_mask.any()
-        assert vd.last_labels.max() == 1
+        assert len(vd.debug.windows.boxes) == 5
+        assert vd.debug.windows.scale.tolist() == [1, 1.5, 2, 2.5, 3]
+        assert vd.debug.heat.shape == (H // 4, W // 4)
+        assert vd.debug.mask.dtype == bool and vd.debug.mask.any()
+        assert vd.debug.labels.max() == 1
         assert set(vd.timings) >= {"resize_colour", "hog", "score", "heat", "label"}
     vd.update(synth_frame(0), rgb=True)
     assert fake.rgb_args[-1] is True
     vd.reset()
-    assert vd.heatmap.n_seen == 0 and len(vd.last_windows.boxes) == 0
+    assert vd.heatmap.n_seen == 0 and len(vd.debug.windows.boxes) == 0
     out = vd.update(np.zeros((120, 160, 3), np.uint8))  # another size: a new heat map
     assert len(out.boxes) == 0 and vd.heatmap.frame_shape == (120, 160)
     with pytest.raises(ValueError):
@@ -110,7 +110,8 @@ def test_video_detector_follows_the_rectangle():
 
 
 def test_iter_video_detections_numbers_frames_from_the_file(clip):
-    out = list(iter_video_detections(clip, detector=BrightBoxDetector(), progress=False, heat=HEAT, refine=False))
+    out = list(iter_video_detections(clip, PipelineConfig(heat=HEAT, refine=None), detector=BrightBoxDetector(),
+                                     progress=False))
     assert [f for f, _ in out] == list(range(1, 31))
     assert all(len(d.boxes) == 1 and iou(d.boxes[0], rect_at(f - 1)) > 0.8 for f, d in out)
     out = list(iter_video_detections(clip, start=3, frames=5, detector=BrightBoxDetector(), progress=False))
@@ -286,16 +287,15 @@ def test_make_detector_oncoming_choices():
     from fastdet.model import ONCOMING_MODEL_PATH, load_model
 
     assert make_detector().wide_model is not None  # the bundled oncoming model
-    assert make_detector(oncoming=False).wide_model is None
-    assert make_detector(oncoming=None).wide_model is None
+    assert make_detector(PipelineConfig(oncoming=False)).wide_model is None
+    assert make_detector(PipelineConfig(oncoming=str(ONCOMING_MODEL_PATH))).wide_model is not None
     wide = load_model(ONCOMING_MODEL_PATH)
-    assert make_detector(oncoming=wide).wide_model is wide
     assert wide.config.window_height == 24 and wide.config.win_w == 64
     from fastdet.errors import ModelError
     from fastdet.model import DEFAULT_MODEL_PATH
 
     with pytest.raises(ModelError, match="not a wide-window model"):
-        make_detector(oncoming=DEFAULT_MODEL_PATH)
+        make_detector(PipelineConfig(oncoming=DEFAULT_MODEL_PATH))
 
 
 # ------------------------------------------------------------------------- the real detector
@@ -320,7 +320,7 @@ def test_real_detector_on_the_test_video(data, tmp_path):
     vd.update(cap.read()[1])
     vd.update(cap.read()[1])
     assert set(vd.timings) >= {"resize_colour", "hog", "score", "heat", "label", "motion"}
-    assert len(vd.last_windows.scale) == len(vd.last_windows.part) == len(vd.last_windows.boxes) > 0
+    assert len(vd.debug.windows.scale) == len(vd.debug.windows.part) == len(vd.debug.windows.boxes) > 0
     rows = read_mot(boxes)
     assert video.run(parse(clip, "--boxes", boxes, "--no-progress", "--start", 20, "--frames", 6,
                            "--no-oncoming")) == 0

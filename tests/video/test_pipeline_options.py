@@ -10,36 +10,36 @@ import pytest
 
 from fastdet.cli import eval as eval_cmd
 from fastdet.cli.main import build_parser
-from fastdet.config import wide_search
+from fastdet.config import PipelineConfig, wide_search
 from fastdet.errors import FastdetError
 from fastdet.io.reader import FrameReader
-from fastdet.video.pipeline import VideoDetector, make_detector
+from fastdet.video import VideoDetector, make_detector
 from fastdet.video.refine import BoxRegressor, RefineConfig, load_regressor, refine
 
 
 def test_make_detector_puts_the_oncoming_search_on_the_side_traffic_comes_from():
     for side in ("right", "left", "both"):
-        det = make_detector(traffic=side)
+        det = make_detector(PipelineConfig(traffic=side))
         assert det.scorers[1].search == wide_search(side)
     assert make_detector().scorers[1].search == wide_search("right")
-    left = make_detector(traffic="left").scorers[1].search.bands
-    right = make_detector(traffic="right").scorers[1].search.bands
+    left = make_detector(PipelineConfig(traffic="left")).scorers[1].search.bands
+    right = make_detector(PipelineConfig(traffic="right")).scorers[1].search.bands
     assert left != right
     with pytest.raises(ValueError, match="traffic"):
-        make_detector(traffic="middle")  # type: ignore[arg-type]
+        make_detector(PipelineConfig(traffic="middle"))  # type: ignore[arg-type]
 
 
 def test_refinement_is_on_by_default_and_can_be_turned_off():
     assert isinstance(VideoDetector().refiner, BoxRegressor)
-    assert VideoDetector().refine == RefineConfig()
-    off = VideoDetector(refine=False)
-    assert off.refiner is None and off.refine is None
-    two = VideoDetector(refine=RefineConfig(iterations=2))
-    assert two.refine.iterations == 2
+    assert VideoDetector().config.refine == RefineConfig()
+    off = VideoDetector(config=PipelineConfig(refine=None))
+    assert off.refiner is None and off.config.refine is None
+    two = VideoDetector(config=PipelineConfig(refine=RefineConfig(iterations=2)))
+    assert two.config.refine.iterations == 2
     zero = BoxRegressor.zero()
-    assert VideoDetector(refine_model=zero).refiner is zero
+    assert VideoDetector(refiner=zero).refiner is zero
     with pytest.raises(TypeError, match="refine"):
-        VideoDetector(refine="yes")  # type: ignore[arg-type]
+        PipelineConfig(refine="yes")  # type: ignore[arg-type]
 
 
 def test_refined_boxes_are_the_unrefined_run_refined(data: Path):
@@ -47,7 +47,8 @@ def test_refined_boxes_are_the_unrefined_run_refined(data: Path):
     boxes are refined afterwards (same ids, same count), and it is timed."""
     reader = FrameReader(data / "videos" / "test_video.mp4", 0, 12)
     det = make_detector()
-    on, off = VideoDetector(det, horizon=None), VideoDetector(det, horizon=None, refine=False)
+    on = VideoDetector(det, PipelineConfig(horizon=None))
+    off = VideoDetector(det, PipelineConfig(horizon=None, refine=None))
     reg = load_regressor()
     moved = 0
     try:
@@ -56,7 +57,7 @@ def test_refined_boxes_are_the_unrefined_run_refined(data: Path):
             expect = refine(frame, b, reg, RefineConfig())
             np.testing.assert_array_equal(a.boxes, expect.boxes)
             np.testing.assert_array_equal(a.ids, b.ids)
-            np.testing.assert_array_equal(on.last_boxes.boxes, off.last_boxes.boxes)
+            np.testing.assert_array_equal(on.debug.boxes.boxes, off.debug.boxes.boxes)
             assert "refine" in on.timings and "refine" not in off.timings
             moved += int(np.any(a.boxes != b.boxes))
     finally:
@@ -85,10 +86,11 @@ def test_batch_settings_record_refinement_and_traffic():
     from fastdet.batch.settings import Settings
 
     base = Settings.create()
-    assert base.refine and base.refine_sha256 and base.traffic == "right"
-    off = Settings.create(refine=False)
-    left = Settings.create(traffic="left")
+    assert base.pipeline.refine and base.refine_sha256 and base.pipeline.traffic == "right"
+    off = Settings.create(PipelineConfig(refine=None))
+    left = Settings.create(PipelineConfig(traffic="left"))
     assert len({base.digest(), off.digest(), left.digest()}) == 3
-    assert base.record()["refine"] == base.refine_sha256 and off.record()["refine"] is None
+    assert base.record()["refine_sha256"] == base.refine_sha256 and off.record()["refine_sha256"] == ""
+    assert off.record()["refine"] is None and base.record()["refine"] == RefineConfig().to_dict()
     with pytest.raises(ValueError, match="traffic"):
-        Settings.create(traffic="middle")
+        Settings.create(PipelineConfig(traffic="middle"))  # type: ignore[arg-type]

@@ -12,11 +12,11 @@ import pytest
 
 from fastdet.cli import video
 from fastdet.cli.main import build_parser
-from fastdet.config import HeatConfig, TrackerConfig
+from fastdet.config import HeatConfig, PipelineConfig, TrackerConfig
 from fastdet.errors import FastdetError
 from fastdet.eval.metrics import evaluate
 from fastdet.io.motfiles import GroundTruth, read_predictions
-from fastdet.video.pipeline import VideoDetector, iter_video_detections
+from fastdet.video import VideoDetector, iter_video_detections
 from tests.fakes import BlobsDetector
 
 W, H = 480, 240
@@ -82,18 +82,18 @@ def ground_truth(n: int) -> GroundTruth:
 
 
 def test_every_box_has_an_id_and_ids_start_at_1():
-    vd = VideoDetector(BlobsDetector(), HEAT, refine=False)
+    vd = VideoDetector(BlobsDetector(), PipelineConfig(heat=HEAT, refine=None))
     outs = [vd.update(frame_of(i)) for i in range(24)]
     for i, out in enumerate(outs):
         assert out.ids is not None and len(out) == len(cars_at(i)), i
         for b, tid in zip(out.boxes, out.ids):
             assert iou(b, cars_at(i)[tid - 1]) > 0.7, (i, tid)  # id 1 = car A, id 2 = car B
     assert set(vd.timings) >= {"weak", "track"}
-    assert vd.last_tracks and vd.last_tracks[0][:2] == (1, "tracked")
+    assert vd.debug.tracks and vd.debug.tracks[0][:2] == (1, "tracked")
     # reset: ids start again at 1; a new VideoDetector gives the same ids
     vd.reset()
     again = [vd.update(frame_of(i)) for i in range(24)]
-    fresh = VideoDetector(BlobsDetector(), HEAT, refine=False)
+    fresh = VideoDetector(BlobsDetector(), PipelineConfig(heat=HEAT, refine=None))
     third = [fresh.update(frame_of(i)) for i in range(24)]
     for a, b, c in zip(outs, again, third):
         assert a.ids.tolist() == b.ids.tolist() == c.ids.tolist()
@@ -102,9 +102,9 @@ def test_every_box_has_an_id_and_ids_start_at_1():
 
 def test_update_is_causal():
     # the boxes of the first k frames do not depend on the frames after them
-    full = VideoDetector(BlobsDetector(), HEAT, refine=False)
+    full = VideoDetector(BlobsDetector(), PipelineConfig(heat=HEAT, refine=None))
     a = [full.update(frame_of(i)) for i in range(24)]
-    part = VideoDetector(BlobsDetector(), HEAT, refine=False)
+    part = VideoDetector(BlobsDetector(), PipelineConfig(heat=HEAT, refine=None))
     b = [part.update(frame_of(i)) for i in range(12)]
     for x, y in zip(a[:12], b):
         np.testing.assert_array_equal(x.boxes, y.boxes)
@@ -112,21 +112,21 @@ def test_update_is_causal():
 
 
 def test_no_tracker_gives_the_heat_map_boxes_without_ids():
-    vd = VideoDetector(BlobsDetector(), HEAT, refine=False, tracker=False)
-    tracked = VideoDetector(BlobsDetector(), HEAT, refine=False)
+    vd = VideoDetector(BlobsDetector(), PipelineConfig(heat=HEAT, refine=None, tracker=None))
+    tracked = VideoDetector(BlobsDetector(), PipelineConfig(heat=HEAT, refine=None))
     for i in range(24):
         plain, out = vd.update(frame_of(i)), tracked.update(frame_of(i))
         assert plain.ids is None
         assert sorted(map(tuple, plain.boxes.tolist())) == sorted(map(tuple, out.boxes.tolist()))
     with pytest.raises(TypeError):
-        VideoDetector(BlobsDetector(), HEAT, refine=False, tracker=HEAT)
+        PipelineConfig(heat=HEAT, refine=None, tracker=HEAT)
 
 
 def test_two_touching_cars_keep_two_boxes_and_two_ids():
     # cars A and C side by side: for frames 10..14 they touch, their windows form one bright
     # region and the heat map one blob; the tracker splits it by the two tracks' predictions
-    vd = VideoDetector(BlobsDetector(), HEAT, refine=False)
-    plain = VideoDetector(BlobsDetector(), HEAT, refine=False, tracker=False)
+    vd = VideoDetector(BlobsDetector(), PipelineConfig(heat=HEAT, refine=None))
+    plain = VideoDetector(BlobsDetector(), PipelineConfig(heat=HEAT, refine=None, tracker=None))
     for i in range(20):
         out = vd.update(frame_of(i, merge=True))
         blobs = plain.update(frame_of(i, merge=True))
@@ -138,14 +138,16 @@ def test_two_touching_cars_keep_two_boxes_and_two_ids():
 
 
 def test_iter_video_detections_offline_yields_every_frame(clip):
-    live = list(iter_video_detections(clip, detector=BlobsDetector(), progress=False, heat=HEAT, refine=False))
-    off = list(iter_video_detections(clip, detector=BlobsDetector(), progress=False, heat=HEAT, refine=False,
-                                     offline=True))
+    live = list(iter_video_detections(clip, PipelineConfig(heat=HEAT, refine=None), detector=BlobsDetector(),
+                                      progress=False))
+    off = list(iter_video_detections(clip, PipelineConfig(heat=HEAT, refine=None), detector=BlobsDetector(),
+                                     progress=False, offline=True))
     assert [f for f, _ in off] == [f for f, _ in live] == list(range(1, 25))
     for (_, a), (_, b) in zip(live, off):  # nothing to fill on a clean clip
         assert a.ids.tolist() == b.ids.tolist()
     with pytest.raises(ValueError):
-        list(iter_video_detections(clip, detector=BlobsDetector(), progress=False, tracker=False, offline=True))
+        list(iter_video_detections(clip, PipelineConfig(tracker=None), detector=BlobsDetector(), progress=False,
+                                   offline=True))
 
 
 # ------------------------------------------------------------------------- CLI
@@ -196,6 +198,6 @@ def test_cli_refuses_counting_without_tracker_and_offline_with_no_track(clip, tm
 
 
 def test_tracker_config_reaches_the_video_detector():
-    vd = VideoDetector(BlobsDetector(), HEAT, refine=False, tracker=TrackerConfig(min_hits=3))
+    vd = VideoDetector(BlobsDetector(), PipelineConfig(heat=HEAT, refine=None, tracker=TrackerConfig(min_hits=3)))
     outs = [vd.update(frame_of(i)) for i in range(4)]
     assert [o.ids.tolist() for o in outs] == [[], [], [1], [1]]

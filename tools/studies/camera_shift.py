@@ -40,7 +40,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from fastdet.config import REFERENCE_HORIZON, HeatConfig, SearchBand
+from fastdet.config import REFERENCE_HORIZON, HeatConfig, PipelineConfig, SearchBand
 from fastdet.data import data_dir
 from fastdet.detect import Detector
 from fastdet.detections import Detections
@@ -48,7 +48,7 @@ from fastdet.eval import evaluate
 from fastdet.eval.sizes import WIDTH_EDGES, recall_by_width
 from fastdet.eval.variants import Variant, standard_variants, transform_gt
 from fastdet.io.motfiles import Predictions, read_gt
-from fastdet.video.pipeline import VideoDetector, make_detector
+from fastdet.video import VideoDetector, make_detector
 from tests.fakes import RecordingDetector
 
 # ---------------------------------------------------------------------------------------
@@ -142,7 +142,7 @@ def run_clip(det: Any, frames: list[np.ndarray], heat: HeatConfig, cache: Path |
     rec = RecordingDetector(det, replay)
     if horizon is None:
         det.set_horizon(None)
-    vd = VideoDetector(rec, heat, horizon=horizon)
+    vd = VideoDetector(rec, PipelineConfig(heat=heat, horizon=horizon))
     if horizon == "auto":
         vd.prime_horizon(frames)
     rec.warmup()
@@ -257,7 +257,8 @@ def main(argv: list[str] | None = None) -> int:
     heat = replace(HeatConfig(), **dict(args.heat))
     if args.no_oncoming and args.oncoming_model:
         raise SystemExit("--no-oncoming and --oncoming-model exclude each other")
-    det: Detector = make_detector(args.model, oncoming=False if args.no_oncoming else (args.oncoming_model or True))
+    det: Detector = make_detector(PipelineConfig(model=args.model,
+                                                 oncoming=False if args.no_oncoming else (args.oncoming_model or True)))
     if args.band:
         extra = tuple(SearchBand(float(f[0]), *(int(v) for v in f[1:])) for f in (b.split(",") for b in args.band))
         sc = det.scorers[0]

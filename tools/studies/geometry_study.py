@@ -19,7 +19,7 @@ import json
 import time
 from dataclasses import replace
 
-from fastdet.config import SearchBand, SearchConfig
+from fastdet.config import PipelineConfig, SearchBand, SearchConfig
 from fastdet.detect.bands import band_geometry
 from fastdet.detect.geometry import (
     GeometricSearch,
@@ -30,8 +30,8 @@ from fastdet.eval.clips import annotated_clips, markdown_table, report_json, sco
 from fastdet.io.motfiles import Predictions
 from fastdet.io.reader import FrameReader
 from fastdet.video.horizon import HORIZON_FRAMES, estimate_horizon
+from fastdet.video import iter_video_detections, make_detector
 from fastdet.video.perspective import PerspectiveConfig, PerspectiveUpdater
-from fastdet.video.pipeline import iter_video_detections, make_detector
 
 
 def cells(search: SearchConfig, shape: tuple[int, int], config) -> int:
@@ -107,7 +107,8 @@ def main() -> None:
         frames = []
         shape = None
         cpu0 = None
-        for fno, dets in iter_video_detections(clip.video, detector=det, progress=False, horizon=horizon):
+        config = PipelineConfig(horizon=horizon)
+        for fno, dets in iter_video_detections(clip.video, config, detector=det, progress=False):
             if cpu0 is None:  # after the first frame: start-up (kernels, the horizon's flow) left out
                 cpu0 = time.process_time()
             frames.append((fno, dets))

@@ -44,8 +44,9 @@ from fastdet.detections import Detections
 from fastdet.eval import evaluate
 from fastdet.eval.variants import Variant, standard_variants, transform_gt
 from fastdet.io.motfiles import GroundTruth, Predictions, read_gt
+from fastdet.config import PipelineConfig
 from fastdet.train.refine import paired_iou
-from fastdet.video.pipeline import VideoDetector, make_detector
+from fastdet.video import VideoDetector, make_detector
 from fastdet.video.refine import BoxRegressor, RefineConfig, refine
 from tools.scripts.refine_model import (CLIPS, add_feature_arguments, check_clips, clip_vehicles, fit_box_regressor,
                                         samples, spec_of)
@@ -86,14 +87,14 @@ def pipeline_boxes(det: Any, frames: list[np.ndarray], cache: Path) -> list[Dete
             out.append(Detections(z["boxes"][sl], z["scores"][sl], part=z["part"][sl], ids=z["ids"][sl]))
             i += int(k)
         return out
-    vd = VideoDetector(det, horizon="auto")
+    vd = VideoDetector(det, PipelineConfig(horizon="auto"))
     vd.prime_horizon(frames)
     vd.warmup()
     out = []
     for f in frames:
         d = vd.update(f)
         ids = d.ids if d.ids is not None else np.full(len(d), -1)
-        out.append(Detections(d.boxes, d.scores, part=_part_of(d.boxes, vd.last_windows), ids=ids))
+        out.append(Detections(d.boxes, d.scores, part=_part_of(d.boxes, vd.debug.windows), ids=ids))
     cat = Detections.concat(out)
     cache.parent.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(cache, n=np.array([len(d) for d in out]), boxes=cat.boxes, scores=cat.scores,

@@ -17,7 +17,7 @@ import cv2
 from fastdet.data import data_dir
 from fastdet.io import draw
 from fastdet.io.atomic import write_bytes
-from fastdet.video.pipeline import iter_video_detections
+from fastdet.video import iter_video_detections
 
 
 def main() -> None:

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from fastdet import Detections, Detector, HeatConfig, MotionGate, SearchBand, SearchConfig, VideoDetector
-from fastdet.config import WIDE_HEAT, WIDE_SEARCH, TrackerConfig
+from fastdet.config import WIDE_HEAT, WIDE_SEARCH, PipelineConfig, TrackerConfig
 from fastdet.data import data_dir
 from fastdet.detect import DetectStats, window_boxes
 from fastdet.detections import MAIN_PART
@@ -105,8 +105,10 @@ def replay(clip: CachedClip, thr: float, heat: HeatConfig, wide_heat: HeatConfig
     """The boxes :class:`fastdet.VideoDetector` (``heat``, ``wide_heat``, ``motion``,
     ``tracker``: its arguments) gives on the clip's frames from its cached windows, for frames
     ``first`` (1-based) on."""
-    vd = VideoDetector(ReplayDetector(replayed_windows(clip, thr, thr_wide), like=clip.detector), heat=heat,
-                       wide_heat=wide_heat, motion=motion, tracker=tracker)
+    track = TrackerConfig() if tracker is None or tracker is True else (tracker or None)
+    config = PipelineConfig(heat=heat, oncoming_heat=wide_heat if wide_heat is not None else WIDE_HEAT,
+                            motion=motion if motion is not None else MotionGate(), tracker=track)
+    vd = VideoDetector(ReplayDetector(replayed_windows(clip, thr, thr_wide), like=clip.detector), config)
     frames = [(i, d) for i, d in enumerate(map(vd.update, frames_of(clip.video)), start=1) if i >= first]
     if vd.detector.frame != len(clip):
         raise RuntimeError(f"{clip.video}: {vd.detector.frame} frames decoded, {len(clip)} cached")

@@ -1,0 +1,49 @@
+"""Every setting of fastdet, one module per pipeline stage, as frozen dataclasses (hashable,
+comparable, JSON round-trip through one :meth:`~fastdet.config.Config.to_dict` /
+:meth:`~fastdet.config.Config.from_dict`, a stable :meth:`~fastdet.config.Config.digest`):
+
+- :mod:`.features`: what a model computes of a window (:class:`FeatureConfig`);
+- :mod:`.search`: where to search (:class:`SearchBand`, :class:`SearchConfig`, the
+  oncoming-traffic search by traffic side, :func:`oncoming_search`);
+- :mod:`.heat`: how the heat map makes boxes (:class:`HeatConfig`, :data:`ONCOMING_HEAT`);
+- :mod:`.motion`: the oncoming model's motion gate (:class:`MotionGate`);
+- :mod:`.track`: the tracker (:class:`TrackerConfig`);
+- :mod:`.guided`: the search between full scans (:class:`GuidedSearch`);
+- :mod:`.refine`: the box refinement (:class:`RefineConfig`) and its training boxes
+  (:class:`JitterConfig`);
+- :mod:`.models`: the bundled model files;
+- :mod:`.pipeline`: all of the video pipeline's settings in one value (:class:`PipelineConfig`);
+- :mod:`.batch`: a batch's settings and options (:class:`Settings`, :class:`BatchOptions`).
+
+A new setting goes into its stage's dataclass (a field with a default and a check in
+``__post_init__``); a new stage gets a module here with its dataclass and a field of
+:class:`PipelineConfig`.
+"""
+from ._base import Config
+from .features import CELL, COLOR_SPACES, WINDOW, ColorSpace, FeatureConfig
+from .guided import GuidedSearch
+from .heat import ONCOMING_HEAT, WIDE_HEAT, BoxMode, HeatConfig, ScoreKind
+from .models import DEFAULT_MODEL_PATH, ONCOMING_MODEL_PATH, REFINE_MODEL_PATH
+from .motion import MotionGate
+from .pipeline import Horizon, PipelineConfig
+from .refine import JitterConfig, RefineConfig
+from .search import (
+                     ONCOMING_SEARCH,
+                     REFERENCE_HORIZON,
+                     REFERENCE_SHAPE,
+                     TRAFFIC_SIDES,
+                     WIDE_SEARCH,
+                     SearchBand,
+                     SearchConfig,
+                     Traffic,
+                     check_traffic,
+                     oncoming_search,
+                     wide_search,
+)
+from .track import TrackerConfig
+
+__all__ = ["CELL", "COLOR_SPACES", "DEFAULT_MODEL_PATH", "ONCOMING_HEAT", "ONCOMING_MODEL_PATH", "ONCOMING_SEARCH",
+           "REFERENCE_HORIZON", "REFERENCE_SHAPE", "REFINE_MODEL_PATH", "TRAFFIC_SIDES", "WIDE_HEAT", "WIDE_SEARCH",
+           "WINDOW", "BoxMode", "ColorSpace", "Config", "FeatureConfig", "GuidedSearch", "HeatConfig", "Horizon",
+           "JitterConfig", "MotionGate", "PipelineConfig", "RefineConfig", "ScoreKind", "SearchBand", "SearchConfig",
+           "TrackerConfig", "Traffic", "check_traffic", "oncoming_search", "wide_search"]

@@ -1,0 +1,87 @@
+"""One ``to_dict`` / ``from_dict`` / ``digest`` for every frozen configuration dataclass.
+
+:class:`Config` is a mixin: a frozen dataclass that inherits it round-trips through JSON
+(nested configs as dicts, tuples as lists) and refuses unknown keys when read back.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import types
+import typing
+from typing import Any, TypeVar, Union, get_args, get_origin
+
+from typing_extensions import Self
+
+C = TypeVar("C", bound="Config")
+
+
+def _encode(value: Any) -> Any:
+    if isinstance(value, Config):
+        return value.to_dict()
+    if isinstance(value, (tuple, list)):
+        return [_encode(v) for v in value]
+    return value
+
+
+def _decode(tp: Any, value: Any) -> Any:
+    """``value`` (from JSON) as the field type ``tp`` wants it: dicts of configs become the
+    config, lists become tuples; everything else is left to the dataclass's own checks."""
+    if value is None:
+        return None
+    origin = get_origin(tp)
+    if origin is Union or origin is types.UnionType:
+        for arg in get_args(tp):
+            if arg is type(None):
+                continue
+            if isinstance(value, dict) and isinstance(arg, type) and issubclass(arg, Config):
+                return arg.from_dict(value)
+            if isinstance(value, list) and get_origin(arg) is tuple:
+                return _decode(arg, value)
+        return value
+    if isinstance(tp, type) and issubclass(tp, Config) and isinstance(value, dict):
+        return tp.from_dict(value)
+    if origin is tuple and isinstance(value, (list, tuple)):
+        args = get_args(tp)
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple(_decode(args[0], v) for v in value)
+        if args and len(args) == len(value):
+            return tuple(_decode(a, v) for a, v in zip(args, value))
+        return tuple(value)
+    return value
+
+
+class Config:
+    """Mixin of the frozen configuration dataclasses: :meth:`to_dict`, :meth:`from_dict` and
+    :meth:`digest`. ``_OMIT_NONE`` names fields left out of :meth:`to_dict` while ``None``
+    (so a dict written before such a field existed is still the same dict)."""
+
+    _OMIT_NONE: typing.ClassVar[tuple[str, ...]] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        """The fields as JSON-able values: nested configs as dicts, tuples as lists."""
+        out = {}
+        for f in dataclasses.fields(self):  # type: ignore[arg-type]
+            v = getattr(self, f.name)
+            if v is None and f.name in self._OMIT_NONE:
+                continue
+            out[f.name] = _encode(v)
+        return out
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> Self:
+        """The config of ``d`` (as :meth:`to_dict` gives it; missing keys take their
+        defaults). ``ValueError`` for a key that is not a field."""
+        names = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+        unknown = set(d) - names
+        if unknown:
+            raise ValueError(f"unknown {cls.__name__} fields: {sorted(unknown)}")
+        hints = typing.get_type_hints(cls)
+        return cls(**{k: _decode(hints.get(k), v) for k, v in d.items()})
+
+    def digest(self) -> str:
+        """16 hex digits of the SHA-256 of :meth:`to_dict` as canonical JSON: equal configs
+        give equal digests, run after run."""
+        text = json.dumps(self.to_dict(), sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(text.encode()).hexdigest()[:16]

@@ -1,0 +1,101 @@
+"""Every setting of the video pipeline in one frozen value (:class:`PipelineConfig`)."""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, replace
+from typing import Literal
+
+from ._base import Config
+from .guided import GuidedSearch
+from .heat import ONCOMING_HEAT, HeatConfig
+from .motion import MotionGate
+from .refine import RefineConfig
+from .search import SearchConfig, Traffic, check_traffic
+from .track import TrackerConfig
+
+#: where the search bands go: ``'auto'`` (estimated from the video), a fraction of the frame
+#: height, or ``None`` (the bands as the search writes them)
+Horizon = float | Literal["auto"] | None
+
+
+def _path(value: object, name: str) -> str | None:
+    if value is None:
+        return None
+    if isinstance(value, (str, os.PathLike)):
+        return os.fspath(value)
+    raise TypeError(f"{name} must be a path or None, got {type(value).__name__}")
+
+
+@dataclass(frozen=True)
+class PipelineConfig(Config):
+    """The settings of :class:`~fastdet.VideoDetector` and of every command that runs it
+    (``video``, ``eval --video``, ``bench``, ``batch``), stage by stage.
+
+    model: the main model file; ``None``: the bundled one (:data:`~fastdet.config.models.DEFAULT_MODEL_PATH`).
+    oncoming: the oncoming-traffic (wide-window) model: ``True`` the bundled one, a path for
+        another, ``False`` none.
+    refine_model: the box regressor file; ``None``: the bundled one.
+    traffic: the side of the road traffic drives on (:data:`~fastdet.config.TRAFFIC_SIDES`),
+        which decides where the oncoming model searches (:func:`~fastdet.config.oncoming_search`).
+    search: the main model's search bands (:class:`SearchConfig`).
+    horizon: where the search bands go: ``'auto'`` estimates the horizon from the optical flow
+        of the first seconds (:mod:`fastdet.video.horizon`), a number is the horizon row as a
+        fraction of the frame height in [0, 1], ``None`` leaves the bands where they are written.
+    heat: the main model's heat map; oncoming_heat: the oncoming model's.
+    motion: the motion gate of the oncoming model.
+    tracker: the tracker that gives every vehicle an id; ``None``: no tracking (boxes
+        without ids).
+    guided: the search between full scans, guided by the tracks; ``None``: the full search
+        on every frame. Needs the tracker: without it the search is full (:attr:`planned`).
+    refine: the learned box refinement; ``None``: the boxes as the heat map (or the tracker)
+        gives them.
+    """
+
+    model: str | None = None
+    oncoming: str | bool = True
+    refine_model: str | None = None
+    traffic: Traffic = "right"
+    search: SearchConfig = SearchConfig()
+    horizon: Horizon = "auto"
+    heat: HeatConfig = HeatConfig()
+    oncoming_heat: HeatConfig = ONCOMING_HEAT
+    motion: MotionGate = MotionGate()
+    tracker: TrackerConfig | None = TrackerConfig()
+    guided: GuidedSearch | None = GuidedSearch()
+    refine: RefineConfig | None = RefineConfig()
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "model", _path(self.model, "model"))
+        object.__setattr__(self, "refine_model", _path(self.refine_model, "refine_model"))
+        if not isinstance(self.oncoming, bool):
+            object.__setattr__(self, "oncoming", _path(self.oncoming, "oncoming"))
+            if self.oncoming is None:
+                raise TypeError("oncoming must be True, False or a path, got None")
+        check_traffic(self.traffic)
+        h = self.horizon
+        if not (h is None or h == "auto" or (isinstance(h, (int, float)) and not isinstance(h, bool) and 0 <= h <= 1)):
+            raise ValueError(f"horizon must be 'auto', a fraction of the frame height in [0, 1] or None, got {h!r}")
+        for name, cls, optional in (("search", SearchConfig, False), ("heat", HeatConfig, False),
+                                    ("oncoming_heat", HeatConfig, False), ("motion", MotionGate, False),
+                                    ("tracker", TrackerConfig, True), ("guided", GuidedSearch, True),
+                                    ("refine", RefineConfig, True)):
+            v = getattr(self, name)
+            if not (isinstance(v, cls) or (optional and v is None)):
+                allowed = f"a {cls.__name__}" + (" or None" if optional else "")
+                raise TypeError(f"{name} must be {allowed}, got {type(v).__name__}")
+
+    @property
+    def planned(self) -> GuidedSearch | None:
+        """The guided search that runs: :attr:`guided` with the tracker and when it is not a
+        full scan on every frame; ``None``: the full search."""
+        if self.tracker is None or self.guided is None or self.guided.full:
+            return None
+        return self.guided
+
+    def without(self, *stages: Literal["tracker", "guided", "refine", "oncoming"]) -> PipelineConfig:
+        """This config with the named optional stages off (``tracker``, ``guided``: the full
+        search, ``refine``, ``oncoming``: no oncoming model)."""
+        off: dict[str, object] = {s: None for s in stages if s != "oncoming"}
+        if "oncoming" in stages:
+            off["oncoming"] = False
+        return replace(self, **off)

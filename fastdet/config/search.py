@@ -1,0 +1,204 @@
+"""Where to search: :class:`SearchBand`, :class:`SearchConfig`, the default bands of the main
+model and the oncoming-traffic model's search (:func:`oncoming_search`), which depends on the
+side of the road traffic drives on (:data:`TRAFFIC_SIDES`)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Literal
+
+from ._base import Config
+from .features import CELL, WINDOW
+
+#: the side of the road traffic drives on: ``'right'`` (oncoming cars on the left of the
+#: view), ``'left'`` (the UK, Japan, India, Australia ...) or ``'both'`` (search the whole width)
+Traffic = Literal["right", "left", "both"]
+TRAFFIC_SIDES: tuple[str, ...] = ("right", "left", "both")
+
+
+def check_traffic(traffic: str) -> str:
+    """``traffic`` if it is one of :data:`TRAFFIC_SIDES`, else ``ValueError``."""
+    if traffic not in TRAFFIC_SIDES:
+        raise ValueError(f"traffic must be 'right', 'left' or 'both', got {traffic!r}")
+    return traffic
+
+
+@dataclass(frozen=True)
+class SearchBand(Config):
+    """One search band: windows of ``scale x`` the model's window width (64 px by default) in
+    frame rows [y_start, y_stop)
+    and columns [x_start, x_stop) (``None`` = frame edge)."""
+
+    scale: float
+    y_start: int
+    y_stop: int
+    x_start: int | None = None
+    x_stop: int | None = None
+
+    def __post_init__(self) -> None:
+        if not self.scale > 0:
+            raise ValueError(f"scale must be > 0, got {self.scale}")
+        if self.y_stop <= self.y_start:
+            raise ValueError(f"y_stop must exceed y_start, got {self.y_start}..{self.y_stop}")
+        if self.x_start is not None and self.x_stop is not None and self.x_stop <= self.x_start:
+            raise ValueError(f"x_stop must exceed x_start, got {self.x_start}..{self.x_stop}")
+
+
+def _default_bands() -> tuple[SearchBand, ...]:
+    # Each window size where cars of that size stand: all bands start 21 px above the horizon
+    # (421 px, SearchConfig.reference_horizon) and reach 1.3-1.5 windows below it; 48-px
+    # windows (scale 0.75, the band upsampled before HOG) for the 45-70 px cars of a wider
+    # lens or a far lane, near the horizon only.
+    return (
+        SearchBand(0.75, 400, 460, 128, 1152),
+        SearchBand(1.0, 400, 496),
+        SearchBand(1.25, 400, 528),
+        SearchBand(1.5, 400, 560),
+        SearchBand(2.0, 400, 592),
+        SearchBand(2.5, 400, 656),
+        SearchBand(3.0, 400, 656),
+    )
+
+
+#: horizon row of the frames the default bands are written for (the Udacity clips, 1280x720),
+#: a fraction of the frame height: 421 px, the median focus of expansion of their optical flow
+#: (:mod:`fastdet.video.horizon`; their lane lines meet at about 419 px)
+REFERENCE_HORIZON = 0.585
+#: ``(H, W)`` of the frames the default bands are written for
+REFERENCE_SHAPE = (720, 1280)
+
+
+@dataclass(frozen=True)
+class SearchConfig(Config):
+    """Where and how densely to search.
+
+    bands: the search bands.
+    cells_per_step: window stride in HOG cells (of the scaled band).
+    threshold: a window is positive when its decision value exceeds this.
+    reference_shape: ``(H, W)`` of the frames the bands are written for. A frame of another
+        size gets the bands rescaled so they cover the same part of the picture: rows and
+        window scales by ``H / reference H``, columns by ``W / reference W``
+        (:meth:`for_frame`). ``None``: the bands are used as given, in pixels.
+    reference_horizon: the horizon row of those frames, a fraction of their height.
+    horizon: the horizon row of the frames searched, a fraction of their height (0 = top),
+        or ``None`` for "where the reference frames have it". :meth:`for_frame` moves every
+        band by ``(horizon - reference_horizon) x H`` rows after rescaling, so each window
+        size is searched at the same distance from the horizon, where cars of that size are
+        (a car's size and how far below the horizon it stands both scale with 1 / its
+        distance, whatever the lens). Each band moves by a whole number of its window steps
+        (``cells_per_step x cell x scale`` rows; the nearest to that shift), so its windows sit
+        on the grid they have at the reference horizon: a shift of a few rows would put every
+        window somewhere else (docs/accuracy.md). Bands are clipped to the frame; a band the clip
+        leaves lower than its window (``window x scale`` rows) is dropped.
+    border: windows may hang this fraction of their width over the left / right frame edge
+        (bands whose ``x_start`` / ``x_stop`` is ``None``), so a car cut by the border can fill
+        one; the columns past the edge are filled as ``border_mode`` says (``'reflect'``:
+        the frame mirrored at its edge, ``'replicate'``: its edge column repeated) and the
+        boxes clipped to the frame (:mod:`fastdet.detect.bands`). ``0``: windows stay inside.
+    """
+
+    bands: tuple[SearchBand, ...] = field(default_factory=_default_bands)
+    cells_per_step: int = 2
+    threshold: float = 0.0
+    reference_shape: tuple[int, int] | None = REFERENCE_SHAPE
+    reference_horizon: float = REFERENCE_HORIZON
+    horizon: float | None = None
+    border: float = 0.5
+    border_mode: Literal["reflect", "replicate"] = "replicate"
+
+    def for_frame(self, frame_shape: tuple[int, int], window: int = WINDOW, cell: int = CELL) -> SearchConfig:
+        """This config with its bands rescaled (and moved to ``horizon``) for frames of
+        ``frame_shape = (H, W)``: bands in that frame's pixels (``reference_shape`` and
+        ``horizon`` ``None``). ``window`` / ``cell``: the model's window width and HOG cell
+        in pixels at scale 1 (:attr:`FeatureConfig.win_w`, :attr:`FeatureConfig.pixels_per_cell`)."""
+        h, w = (int(v) for v in frame_shape[:2])
+        moved = self.horizon is not None and self.horizon != self.reference_horizon
+        if not moved and (self.reference_shape is None or (h, w) == tuple(self.reference_shape)):
+            return self
+        rh, rw = self.reference_shape if self.reference_shape is not None else (h, w)
+        fy, fx = h / rh, w / rw
+        dy = (self.horizon - self.reference_horizon) * h if moved else 0.0
+
+        def col(v: int | None) -> int | None:
+            return None if v is None else min(int(round(v * fx)), w)
+
+        bands = []
+        for b in self.bands:
+            step = self.cells_per_step * cell * b.scale * fy  # rows between window positions
+            d = round(dy / step) * step  # whole steps: the windows stay on the reference's grid
+            a, z = int(round(b.y_start * fy + d)), int(round(b.y_stop * fy + d))
+            y0, y1 = max(a, 0), min(z, h)
+            if y1 > y0 and ((y0, y1) == (a, z) or y1 - y0 >= window * b.scale * fy):
+                bands.append(SearchBand(b.scale * fy, y0, y1, col(b.x_start), col(b.x_stop)))
+        if not bands:
+            where = f"the horizon at {self.horizon:g} of the height" if moved else "the frame size"
+            raise ValueError(f"{where} leaves no search band in a {w}x{h} frame")
+        return replace(self, bands=tuple(bands), reference_shape=None, horizon=None)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "bands", tuple(self.bands))
+        if not self.bands:
+            raise ValueError("a SearchConfig needs at least one band")
+        if self.cells_per_step < 1:
+            raise ValueError("cells_per_step must be >= 1")
+        if self.reference_shape is not None:
+            rs = tuple(int(v) for v in self.reference_shape)
+            if len(rs) != 2 or min(rs) < 1:
+                raise ValueError(f"reference_shape must be (H, W) or None, got {self.reference_shape!r}")
+            object.__setattr__(self, "reference_shape", rs)
+        if not 0 <= self.border <= 1:
+            raise ValueError(f"border must be a fraction of the window width in [0, 1], got {self.border!r}")
+        if self.border_mode not in ("reflect", "replicate"):
+            raise ValueError(f"border_mode must be 'reflect' or 'replicate', got {self.border_mode!r}")
+        for name in ("reference_horizon", "horizon"):
+            v = getattr(self, name)
+            if v is not None and not 0 <= v <= 1:
+                raise ValueError(f"{name} must be a fraction of the frame height in [0, 1], got {v!r}")
+
+
+
+
+#: fraction of the reference width the oncoming search covers on the oncoming side of the
+#: view (704 of 1280 columns): the oncoming lanes and the median, not the own carriageway
+ONCOMING_WIDTH = 0.55
+#: scales of the oncoming model's bands: 64x24 windows 40..80 px wide, the oncoming cars seen
+#: just above the median
+ONCOMING_SCALES = (0.625, 0.75, 0.875, 1.0, 1.25)
+
+
+def _oncoming_bands(traffic: str = "right") -> tuple[SearchBand, ...]:
+    # Columns 0..704 of 1280 where traffic drives on the right (oncoming traffic is on the left
+    # of the view), 576..1280 where it drives on the left, or all. Each band is a whole number
+    # of its CELL * scale px cells wide, so that the narrowed bands of fastdet.video.motion
+    # resample exactly as the full band does.
+    width = REFERENCE_SHAPE[1]
+
+    def cols(s: float) -> tuple[int, int]:
+        cell = CELL * s
+        if traffic == "both":
+            return 0, int(width // cell * cell)
+        n = int(round(ONCOMING_WIDTH * width) // cell * cell)
+        return (0, n) if traffic == "right" else (width - n, width)
+
+    return tuple(SearchBand(s, 400, 400 + int(WINDOW * s) + 24, *cols(s)) for s in ONCOMING_SCALES)
+
+
+def oncoming_search(traffic: Traffic = "right") -> SearchConfig:
+    """The default search of the oncoming-traffic (wide-window) model for roads where traffic
+    drives on the ``'right'`` (oncoming cars on the left of the view: the default,
+    :data:`ONCOMING_SEARCH`), on the ``'left'`` (the columns mirrored) or ``'both'`` (the whole
+    width, about 15% more CPU per frame on footage whose roadside moves fast; docs/accuracy.md).
+    Give it as ``Detector(wide_search=...)``."""
+    check_traffic(traffic)
+    return SearchConfig(bands=_oncoming_bands(traffic), cells_per_step=1, threshold=1.0)
+
+
+#: default search of the oncoming-traffic model: small scales near the horizon on the left of
+#: the view, where oncoming cars half hidden behind the median barrier are seen where traffic
+#: drives on the right (:func:`oncoming_search` for the other side).
+#: :class:`~fastdet.VideoDetector` narrows it each frame to where the picture moves
+#: (:class:`~fastdet.config.MotionGate`).
+ONCOMING_SEARCH = oncoming_search("right")
+
+#: former names of :func:`oncoming_search` and :data:`ONCOMING_SEARCH`
+wide_search = oncoming_search
+WIDE_SEARCH = ONCOMING_SEARCH

@@ -1,0 +1,75 @@
+"""What :class:`~fastdet.VideoDetector` needs of a detector (:class:`WindowDetector`), the
+optional abilities it uses when a detector has them (:class:`MovableHorizon`,
+:class:`ColumnSearch`), and the pipeline's own detector (:func:`make_detector`)."""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Literal, Protocol, runtime_checkable
+
+import numpy as np
+
+from ..config import PipelineConfig, SearchBand, oncoming_search
+from ..config.models import ONCOMING_MODEL_PATH
+from ..detect import BandGeometry, Detector, DetectStats
+from ..detections import Detections
+from ..model import Model
+
+
+@runtime_checkable
+class WindowDetector(Protocol):
+    """What :class:`~fastdet.VideoDetector` needs of a detector (:class:`fastdet.Detector` is one).
+
+    ``score_kind``: ``"probability"`` or ``"decision"`` (how the heat map scales scores);
+    ``wide_model``: the oncoming-traffic (wide-window) model or ``None``; ``detect`` returns
+    the positive windows with the ``part`` column set (or no ``part``: all main-model
+    windows); ``geometries(shape, part=1)`` the oncoming model's bands (used only when
+    ``wide_model`` is not ``None``, for the motion gate).
+
+    Optional abilities, used when the detector has them: :class:`MovableHorizon` (the bands
+    follow the horizon) and :class:`ColumnSearch` (the guided search)."""
+
+    score_kind: str
+    wide_model: Model | None
+
+    def detect(self, frame: np.ndarray, rgb: bool = False, wide_bands: Sequence[SearchBand] | None = None,
+               stats: DetectStats | None = None) -> Detections: ...
+
+    def warmup(self) -> None: ...
+
+    def geometries(self, frame_shape: tuple[int, int], part: int = 0) -> list[BandGeometry]: ...
+
+
+@runtime_checkable
+class MovableHorizon(Protocol):
+    """A detector whose search bands move with the horizon: ``horizon`` (a fraction of the
+    frame height, ``None``: where the search writes it) and ``set_horizon(h)``."""
+
+    @property
+    def horizon(self) -> float | None: ...
+
+    def set_horizon(self, horizon: float | None) -> None: ...
+
+
+@runtime_checkable
+class ColumnSearch(Protocol):
+    """A detector that scores only some windows of its main bands: ``column_search`` is
+    ``True``, ``detect`` takes ``columns`` (one entry per band of ``geometries(shape, 0)``:
+    ``None`` for all, else window-column ranges ``(j0, j1)``) and ``config`` is the main
+    model's :class:`~fastdet.config.FeatureConfig` (window and cell size)."""
+
+    column_search: Literal[True]
+
+    def detect(self, frame: np.ndarray, rgb: bool = False, wide_bands: Sequence[SearchBand] | None = None,
+               stats: DetectStats | None = None,
+               columns: Sequence[Sequence[tuple[int, int]] | None] | None = None) -> Detections: ...
+
+
+def make_detector(config: PipelineConfig | None = None) -> Detector:
+    """The video pipeline's :class:`fastdet.Detector` for ``config`` (default
+    ``PipelineConfig()``): its main model and search, and its oncoming-traffic model
+    searching the side of the view :attr:`PipelineConfig.traffic` puts oncoming cars on
+    (:func:`fastdet.config.oncoming_search`). Raises :class:`~fastdet.errors.ModelError`
+    when a model does not load."""
+    c = config if config is not None else PipelineConfig()
+    oncoming = ONCOMING_MODEL_PATH if c.oncoming is True else (c.oncoming or None)
+    return Detector(model=c.model, search=c.search, wide=oncoming, wide_search=oncoming_search(c.traffic))

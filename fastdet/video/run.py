@@ -1,0 +1,118 @@
+"""Running the pipeline over a video: the :class:`~fastdet.VideoDetector` every command
+builds for a reader (:func:`video_detector_for`), the boxes of every frame of a file
+(:func:`iter_video_detections`), priming the horizon from a file's first seconds and the
+progress bar of a run (:func:`progress_bar`)."""
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Iterator
+
+import numpy as np
+from tqdm import tqdm
+
+from ..config import PipelineConfig
+from ..detect.checks import check_frame
+from ..detections import Detections
+from ..io.reader import FrameReader
+from .detector import WindowDetector, make_detector
+from .horizon import HORIZON_FRAMES
+from .offline import offline_pass
+from .pipeline import VideoDetector
+
+#: most bytes of frames :func:`video_detector_for` keeps to estimate the horizon from the
+#: run's own reader (75 frames of 1280x720: 207 MB); for larger frames the first seconds are
+#: decoded a second time instead
+PRIME_BUFFER_BYTES = 256 * 2**20
+
+
+def progress_bar(total: int | None, enabled: bool, desc: str) -> tqdm:
+    """A tqdm bar of frames on stderr, shown only when ``enabled`` and stderr is a terminal."""
+    return tqdm(total=total, unit="frame", desc=desc, file=sys.stderr, dynamic_ncols=True,
+                disable=not (enabled and sys.stderr.isatty()))
+
+
+def _first_frames(path: str, start: int) -> Iterator[np.ndarray]:
+    """The first HORIZON_FRAMES frames of a file from ``start`` (a reader of their own, quiet:
+    the reader of the run itself says what there is to say about the file)."""
+    reader = FrameReader(path, start, HORIZON_FRAMES, notify=lambda _note: None)
+    try:
+        for _, frame, _ in reader:
+            yield frame
+    finally:
+        reader.close()
+
+
+def prime_horizon_from_file(vd: VideoDetector, path: str | os.PathLike, start: int = 0) -> None:
+    """For a file (not a live source): give ``vd`` the first seconds of the video ahead of time
+    (:meth:`VideoDetector.prime_horizon`), so every frame, the first ones too, is searched at the
+    estimated horizon. Every command that reads a file does this, so ``video``, ``batch`` and
+    ``eval --video`` give the same boxes."""
+    if vd.config.horizon == "auto" and os.path.isfile(os.fspath(path)):
+        vd.prime_horizon(_first_frames(os.fspath(path), start))
+
+
+def video_detector_for(reader: FrameReader, detector: WindowDetector,
+                       config: PipelineConfig | None = None) -> VideoDetector:
+    """The :class:`VideoDetector` for the video ``reader`` reads, built the one way every command
+    (``video``, ``eval --video``, ``batch``) builds it, so they all give the same boxes: the
+    first frame checked against the detector's search (size, colour) before any output exists,
+    the motion gate at the video's frame rate, and for a file the horizon primed from its first
+    seconds (:func:`prime_horizon_from_file`; the frames come from ``reader`` itself,
+    :meth:`FrameReader.peek <fastdet.io.reader.FrameReader.peek>`, when they fit in
+    :data:`PRIME_BUFFER_BYTES` and the run reads at least that many)."""
+    config = config if config is not None else PipelineConfig()
+    check_frame(detector, reader.first_frame, reader.path, horizon=config.horizon)
+    vd = VideoDetector(detector, config, fps=reader.fps)
+    if (vd.config.horizon == "auto" and reader.kind == "file" and os.path.isfile(reader.path)
+            and (reader.limit is None or reader.limit >= HORIZON_FRAMES)
+            and HORIZON_FRAMES * reader.first_frame.nbytes <= PRIME_BUFFER_BYTES):
+        # the run's own reader decodes the first seconds ahead and yields them again: the
+        # same frames as a second reader of the file would give, decoded once
+        vd.prime_horizon(reader.peek(HORIZON_FRAMES))
+    else:
+        prime_horizon_from_file(vd, reader.path, reader.start)
+    return vd
+
+
+def iter_video_detections(path: str | os.PathLike, config: PipelineConfig | None = None, *, start: int = 0,
+                          frames: int | None = None, progress: bool = True, detector: WindowDetector | None = None,
+                          offline: bool = False) -> Iterator[tuple[int, Detections]]:
+    """Vehicle boxes of every frame of a video file: yields ``(frame, Detections)``.
+
+    frame: 1-based frame number in the file (``start`` frames are skipped, so the first one
+        yielded is ``start + 1``). frames: at most this many frames.
+    config: the pipeline's settings (:class:`~fastdet.config.PipelineConfig`; default
+        ``PipelineConfig()``: the bundled models, tracking on, ``ids`` filled).
+    detector: use this detector instead of the one ``config`` names (see :class:`VideoDetector`).
+    offline: run the offline pass over the whole file's tracks first
+        (:func:`fastdet.video.offline.offline_pass`: gap interpolation, extension back); the
+        first frame is then yielded only after the last one was read. Needs the tracker.
+    progress: a tqdm bar on stderr when it is a terminal.
+    Raises :class:`~fastdet.errors.DataError` / :class:`~fastdet.errors.ModelError` for bad
+    input (a decode failure midway raises after the frames before it were yielded).
+    """
+    config = config if config is not None else PipelineConfig()
+    if offline and config.tracker is None:
+        raise ValueError("offline needs the tracker")
+    reader = FrameReader(path, start, frames)
+    try:
+        if detector is None:
+            detector = make_detector(config)
+        vd = video_detector_for(reader, detector, config)
+        vd.warmup()
+        done: list[tuple[int, Detections]] = []
+        with progress_bar(reader.expected, progress, os.path.basename(reader.path)) as bar:
+            for fno, frame, _ in reader:
+                dets = vd.update(frame)
+                if offline:
+                    done.append((fno, dets))
+                else:
+                    yield fno, dets
+                bar.update(1)
+        shape = reader.shape
+    finally:
+        reader.close()
+    if offline:
+        assert vd.tracker is not None
+        yield from offline_pass(done, shape, vd.tracker.config)

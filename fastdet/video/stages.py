@@ -1,0 +1,89 @@
+"""The stages of :meth:`VideoDetector.update <fastdet.VideoDetector.update>`: small objects
+that each take the per-frame :class:`FrameState`, do one step and return it.
+
+In the order they run (:func:`build_stages`; a stage whose setting is off is left out):
+
+=============  ===========================================================================
+``horizon``    feed the horizon estimate, move the bands (:class:`HorizonStage`)
+``plan``       which windows of the main bands to score (guided search, :class:`PlanStage`)
+``motion``     where the picture moves: the oncoming bands to search (:class:`MotionStage`)
+``detect``     the positive windows of both models (:class:`DetectStage`)
+``motion``     drop the oncoming windows that did not move enough (:class:`GateStage`)
+``heatmap``    the main heat map's boxes (:class:`HeatStage`)
+``fusion``     the oncoming heat map's boxes where the main one found none (:class:`FusionStage`)
+``weak``       the weak blobs the tracker may keep a track alive with (:class:`WeakStage`)
+``track``      track ids (:class:`TrackStage`)
+``clip``       the tracker's filtered boxes clipped to the frame (:class:`ClipStage`)
+``refine``     the learned box refinement (:class:`RefineStage`)
+``observe``    tell the guided search what this frame found (:class:`ObserveStage`)
+=============  ===========================================================================
+
+Each stage's seconds go to ``VideoDetector.timings`` under its name; a stage may report
+finer parts of its work (``detect``: ``resize_colour``, ``hog``, ``score``; ``heatmap``:
+``heat``, ``label``), which are then not counted in its own figure, so the figures add up.
+
+A new stage: a class with ``name``, ``__call__(state) -> state`` and ``reset()``, put into
+the list :func:`build_stages` returns; what it needs from earlier stages or gives to later
+ones is a field of :class:`FrameState`.
+"""
+from __future__ import annotations
+
+from ..config import GuidedSearch, PipelineConfig
+from .box_stages import ClipStage, FusionStage, HeatStage, ObserveStage, RefineStage, TrackStage, WeakStage
+from .detector import ColumnSearch, MovableHorizon, WindowDetector
+from .guided import SearchPlanner
+from .refine import BoxRegressor
+from .search_stages import DetectStage, GateStage, HorizonStage, MotionStage, PlanStage
+from .state import FrameDebug, FrameState, Stage, TrackView
+from .track import Tracker
+
+__all__ = ["ClipStage", "DetectStage", "FrameDebug", "FrameState", "FusionStage", "GateStage", "HeatStage",
+           "HorizonStage", "MotionStage", "ObserveStage", "PlanStage", "RefineStage", "Stage", "TrackStage",
+           "TrackView", "WeakStage", "build_stages", "planner_for"]
+
+
+def planner_for(config: PipelineConfig, detector: WindowDetector) -> SearchPlanner | None:
+    """The guided search's planner, when the config plans (:attr:`PipelineConfig.planned`)
+    and the detector can score columns."""
+    guided: GuidedSearch | None = config.planned
+    if guided is None or not isinstance(detector, ColumnSearch):
+        return None
+    return SearchPlanner(guided)
+
+
+def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | None, tracker: Tracker | None,
+                 regressor: BoxRegressor | None) -> list[Stage]:
+    """The stages for ``config`` and ``detector``, in the order they run (this module's docstring)."""
+    stages: list[Stage] = []
+    if config.horizon is not None and isinstance(detector, MovableHorizon):
+        stages.append(HorizonStage(detector, config.horizon))
+    planner = planner_for(config, detector)
+    if planner is not None:
+        stages.append(PlanStage(detector, planner))  # type: ignore[arg-type]
+    oncoming = detector.wide_model is not None
+    gated = oncoming and config.motion.min_motion > 0
+    if gated:
+        stages.append(MotionStage(detector, config.motion, fps))
+    stages.append(DetectStage(detector))
+    if gated:
+        stages.append(GateStage())
+
+    def new_size(first: bool) -> None:  # another picture: its tracks and search plan do not continue
+        if tracker is not None and not first:
+            tracker.reset()
+        if planner is not None:  # on the first frame too: a full scan on the second frame
+            planner.reset()
+
+    heat: list[HeatStage | FusionStage] = [HeatStage(detector, config.heat, oncoming, new_size)]
+    if oncoming:
+        heat.append(FusionStage(detector, config.oncoming_heat))
+    stages += heat
+    if tracker is not None:
+        stages += [WeakStage(tracker.config.low_heat, heat), TrackStage(tracker)]
+        if tracker.config.output == "filtered":
+            stages.append(ClipStage())
+    if regressor is not None and config.refine is not None:
+        stages.append(RefineStage(regressor, config.refine))
+    if planner is not None:
+        stages.append(ObserveStage(planner, tracker))
+    return stages

@@ -1,0 +1,98 @@
+"""fastdet.config: one to_dict / from_dict / digest for every config, PipelineConfig's checks,
+the CLI's one builder of it and the batch settings made of it."""
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import pytest
+
+from fastdet.config import (FeatureConfig, GuidedSearch, HeatConfig, JitterConfig, MotionGate, PipelineConfig,
+                            RefineConfig, SearchBand, SearchConfig, TrackerConfig, oncoming_search)
+
+CONFIGS = [FeatureConfig(), FeatureConfig(window_height=24, hog_channels=(0,)), SearchConfig(),
+           SearchConfig(horizon=0.5, reference_shape=None), oncoming_search("left"),
+           HeatConfig(score_lo=0.1, score_hi=2),
+           MotionGate(30.0), TrackerConfig(output="filtered"), GuidedSearch(scales=(0.5, 1.5)),
+           RefineConfig(parts=(0, 1)), JitterConfig(), PipelineConfig(),
+           PipelineConfig(oncoming=False, tracker=None, guided=None, refine=None, horizon=None, traffic="both"),
+           PipelineConfig(model="a.npz", oncoming="b.npz", horizon=0.4, heat=HeatConfig(n_frames=3))]
+
+
+@pytest.mark.parametrize("config", CONFIGS, ids=lambda c: type(c).__name__)
+def test_every_config_round_trips_through_json(config):
+    d = json.loads(json.dumps(config.to_dict()))
+    back = type(config).from_dict(d)
+    assert back == config and hash(back) == hash(config)
+    assert back.digest() == config.digest()
+
+
+def test_digest_is_stable_and_tells_configs_apart():
+    base = PipelineConfig()
+    assert base.digest() == PipelineConfig().digest() and len(base.digest()) == 16
+    others = [PipelineConfig(traffic="left"), PipelineConfig(tracker=None),
+              PipelineConfig(heat=HeatConfig(threshold=5)),
+              PipelineConfig(search=replace(SearchConfig(), bands=(SearchBand(1.0, 400, 500),)))]
+    assert len({base.digest(), *(c.digest() for c in others)}) == 1 + len(others)
+
+
+def test_from_dict_refuses_unknown_keys_and_feature_dict_keeps_its_shape():
+    with pytest.raises(ValueError, match="unknown PipelineConfig fields"):
+        PipelineConfig.from_dict({"trackers": None})
+    assert "window_height" not in FeatureConfig().to_dict()  # as model files have always written it
+    assert FeatureConfig(window_height=24).to_dict()["window_height"] == 24
+
+
+@pytest.mark.parametrize("kw, err", [({"traffic": "middle"}, ValueError), ({"horizon": 1.5}, ValueError),
+                                     ({"horizon": "middle"}, ValueError), ({"horizon": True}, ValueError),
+                                     ({"tracker": HeatConfig()}, TypeError), ({"refine": "yes"}, TypeError),
+                                     ({"heat": None}, TypeError), ({"oncoming": None}, TypeError),
+                                     ({"model": 3}, TypeError)])
+def test_pipeline_config_refuses(kw, err):
+    with pytest.raises(err):
+        PipelineConfig(**kw)
+
+
+def test_guided_search_needs_the_tracker():
+    assert PipelineConfig().planned == GuidedSearch()
+    assert PipelineConfig(tracker=None).planned is None
+    assert PipelineConfig(guided=GuidedSearch(every=1)).planned is None  # a full scan every frame
+    assert PipelineConfig().without("tracker", "refine", "oncoming") == PipelineConfig(tracker=None, refine=None,
+                                                                                      oncoming=False)
+
+
+@pytest.mark.parametrize("cmd", [["video", "in.mp4", "--boxes", "b.txt"], ["eval", "--gt", "g.txt", "--video", "v.mp4"],
+                                 ["bench"], ["batch", "in.mp4", "--out", "o"]])
+def test_the_cli_builds_one_pipeline_config(cmd):
+    from fastdet.cli._args import pipeline_config
+    from fastdet.cli.main import build_parser
+
+    parse = build_parser().parse_args
+    assert pipeline_config(parse(cmd)) == PipelineConfig()
+    flags = ["--no-oncoming", "--traffic", "left", "--no-refine", "--full-search"]
+    want = PipelineConfig(oncoming=False, traffic="left", refine=None, guided=None)
+    if cmd[0] != "bench":
+        flags += ["--horizon", "off"]
+        want = replace(want, horizon=None)
+    if cmd[0] != "bench":
+        flags += ["--no-track"]
+        want = replace(want, tracker=None)
+    assert pipeline_config(parse([*cmd, *flags])) == want
+
+
+def test_batch_settings_hash_the_model_files(tmp_path):
+    pytest.importorskip("distributed")
+    from fastdet.config.batch import Settings
+    from fastdet.config.models import DEFAULT_MODEL_PATH
+    from fastdet.errors import ModelError
+
+    copy = tmp_path / "m.npz"
+    copy.write_bytes(DEFAULT_MODEL_PATH.read_bytes())
+    a = Settings.create(PipelineConfig(model=str(copy)))
+    assert a.digest() == Settings.create().digest()  # the same contents elsewhere: the same work
+    assert a.pipeline.model == str(copy) and a.record()["model_sha256"] == a.model_sha256
+    copy.write_bytes(DEFAULT_MODEL_PATH.read_bytes() + b"\0")
+    assert Settings.create(PipelineConfig(model=str(copy))).digest() != a.digest()
+    assert Settings.create(video=True).digest() != Settings.create().digest()
+    with pytest.raises(ModelError, match="not found"):
+        Settings.create(PipelineConfig(oncoming=str(tmp_path / "none.npz")))

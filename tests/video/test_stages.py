@@ -1,0 +1,103 @@
+"""VideoDetector.update as a fixed sequence of stages (fastdet.video.stages): which stages a
+config and a detector give, in which order, their timings and the FrameDebug record."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fastdet.config import PipelineConfig
+from fastdet.detections import Detections
+from fastdet.video import FrameDebug, VideoDetector, make_detector
+from fastdet.video.stages import FrameState, Stage
+
+
+class SquareDetector:
+    """A WindowDetector without optional abilities: three windows on the bright square."""
+
+    score_kind = "decision"
+    wide_model = None
+
+    def warmup(self) -> None: ...
+
+    def geometries(self, frame_shape, part=0):
+        return []
+
+    def detect(self, frame, rgb=False, wide_bands=None, stats=None) -> Detections:
+        if stats is not None:
+            stats.timings.update({"resize_colour": 0.0, "hog": 0.0, "score": 0.0})
+        ys, xs = np.nonzero(frame.max(axis=2) > 200)
+        if len(xs) == 0:
+            return Detections.empty()
+        b = [xs.min(), ys.min(), xs.max() + 1, ys.max() + 1]
+        boxes = np.array([b, [b[0] + 4, b[1], b[2] + 4, b[3]], [b[0], b[1] + 4, b[2], b[3] + 4]], np.int32)
+        return Detections(boxes, np.full(3, 2.0, np.float32), scale=np.ones(3, np.float32))
+
+
+def frame() -> np.ndarray:
+    f = np.zeros((360, 640, 3), np.uint8)
+    f[100:160, 200:280] = 255
+    return f
+
+
+def names(vd: VideoDetector) -> list[str]:
+    return [s.name for s in vd.stages]
+
+
+def test_the_default_pipeline_runs_every_stage_in_order():
+    vd = VideoDetector(make_detector())
+    assert names(vd) == ["horizon", "plan", "motion", "detect", "motion", "heatmap", "fusion", "weak", "track",
+                         "refine", "observe"]
+    off = VideoDetector(make_detector(), PipelineConfig(tracker=None, refine=None, horizon=None))
+    assert names(off) == ["motion", "detect", "motion", "heatmap", "fusion"]  # no tracker: the full search
+
+
+def test_a_detector_without_abilities_gets_no_horizon_or_plan_stage():
+    vd = VideoDetector(SquareDetector(), PipelineConfig(refine=None))
+    assert names(vd) == ["detect", "heatmap", "weak", "track"]
+    from fastdet.config import TrackerConfig
+
+    vd = VideoDetector(SquareDetector(), PipelineConfig(refine=None, tracker=TrackerConfig(output="filtered")))
+    assert names(vd)[-1] == "clip"
+
+
+def test_timings_name_every_stage_and_its_parts():
+    vd = VideoDetector(SquareDetector(), PipelineConfig(refine=None))
+    vd.update(frame())
+    assert set(vd.timings) == {"detect", "resize_colour", "hog", "score", "heatmap", "heat", "label", "weak", "track"}
+    assert all(v >= 0 for v in vd.timings.values())
+
+
+def test_frame_debug_is_a_new_record_every_frame_and_reset_clears_it():
+    vd = VideoDetector(SquareDetector(), PipelineConfig(refine=None, heat=PipelineConfig().heat.single_frame(1.0)))
+    assert isinstance(vd.debug, FrameDebug) and len(vd.debug.windows) == 0
+    out = vd.update(frame())
+    first = vd.debug
+    assert len(first.windows) == 3 and first.heat.shape == (90, 160) and first.mask.any()
+    assert first.labels.max() == 1 and len(first.boxes) == 1
+    assert [t[:2] for t in first.tracks] == [(1, "tracked")] and out.ids.tolist() == [1]
+    vd.update(frame())
+    assert vd.debug is not first and len(first.windows) == 3
+    vd.reset()
+    assert len(vd.debug.windows) == 0 and vd.debug.heat.shape == (0, 0)
+
+
+def test_a_stage_added_to_the_list_runs_on_the_state():
+    class DropAll(Stage):
+        name = "drop"
+
+        def __call__(self, s: FrameState) -> FrameState:
+            s.out = Detections.empty()
+            return s
+
+    vd = VideoDetector(SquareDetector(), PipelineConfig(refine=None, tracker=None,
+                                                        heat=PipelineConfig().heat.single_frame(1.0)))
+    assert len(vd.update(frame())) == 1
+    vd.stages.append(DropAll())
+    assert len(vd.update(frame())) == 0 and "drop" in vd.timings
+
+
+def test_video_detector_refuses_what_is_not_a_config_or_detector():
+    with pytest.raises(TypeError, match="PipelineConfig"):
+        VideoDetector(SquareDetector(), PipelineConfig().heat)  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="WindowDetector"):
+        VideoDetector(object())  # type: ignore[arg-type]
