@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..config import HeatConfig, PipelineConfig
+from ..config import HeatConfig, PerspectiveConfig, PipelineConfig
 from ..errors import FastdetError
 
 
@@ -64,6 +64,10 @@ def add_horizon_argument(parser: argparse.ArgumentParser) -> None:
                         help="where the search bands go: 'auto' (default) follows the horizon estimated "
                              "from the first seconds of the video; F: the horizon row as a fraction of the "
                              "frame height (another camera's known horizon); 'off': bands as configured")
+    parser.add_argument("--perspective", action="store_true",
+                        help="the search bands follow the horizon and the camera's ratio (vehicle width / how "
+                             "far below the horizon it stands) that the tracked vehicles show (off by default; "
+                             "docs/geometry.md)")
 
 
 def add_search_argument(parser: argparse.ArgumentParser) -> None:
@@ -114,7 +118,7 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
                             oncoming=False if getattr(args, "no_oncoming", False)
                             else (getattr(args, "oncoming_model", None) or True),
                             traffic=getattr(args, "traffic", "right"), horizon=getattr(args, "horizon", "auto"),
-                            heat=heat)
+                            heat=heat, perspective=PerspectiveConfig() if getattr(args, "perspective", False) else None)
     off = [name for name, flag in (("tracker", "no_track"), ("guided", "full_search"), ("refine", "no_refine"))
            if getattr(args, flag, False)]
     return config.without(*off)  # type: ignore[arg-type]

@@ -112,9 +112,10 @@ def _run_all(args: argparse.Namespace) -> int:
                            "it takes no --gt, --pred, --video, --keyframes or --plot")
     if args.pred_dir is not None and (args.model is not None or args.oncoming_model is not None or args.no_oncoming
                                       or args.no_track or args.offline or getattr(args, "no_refine", False)
-                                      or getattr(args, "traffic", "right") != "right"):
-        raise FastdetError("--model, --oncoming-model, --no-oncoming, --traffic, --no-refine, --no-track and "
-                           "--offline only apply when --all runs the pipeline (not with --pred-dir)")
+                                      or getattr(args, "traffic", "right") != "right"
+                                      or getattr(args, "perspective", False)):
+        raise FastdetError("--model, --oncoming-model, --no-oncoming, --traffic, --no-refine, --no-track, "
+                           "--offline and --perspective only apply when --all runs the pipeline (not with --pred-dir)")
     clips = annotated_clips(args.data)
     if args.clips is not None:
         want = [c.strip() for c in args.clips.split(",") if c.strip()]
@@ -147,7 +148,8 @@ def _run_all(args: argparse.Namespace) -> int:
         config = pipeline_config(args)
         settings.update(model=args.model or "bundled", oncoming=args.oncoming_model or not args.no_oncoming,
                         traffic=config.traffic, refine=config.refine is not None, track=config.tracker is not None,
-                        offline=args.offline, horizon=config.horizon, full_search=config.guided is None)
+                        offline=args.offline, horizon=config.horizon, full_search=config.guided is None,
+                        perspective=config.perspective is not None)
     report = report_json(scores, settings)
     text = json.dumps(report, indent=1, allow_nan=False) + "\n"
     if args.out is not None:
@@ -173,9 +175,9 @@ def run(args: argparse.Namespace) -> int:
     no_track, offline = getattr(args, "no_track", False), getattr(args, "offline", False)
     if args.video is None and (args.model is not None or args.oncoming_model is not None or args.no_oncoming
                                or no_track or offline or getattr(args, "no_refine", False)
-                               or getattr(args, "traffic", "right") != "right"):
-        raise FastdetError("--model, --oncoming-model, --no-oncoming, --traffic, --no-refine, --no-track and "
-                           "--offline only apply with --video")
+                               or getattr(args, "traffic", "right") != "right" or getattr(args, "perspective", False)):
+        raise FastdetError("--model, --oncoming-model, --no-oncoming, --traffic, --no-refine, --no-track, "
+                           "--offline and --perspective only apply with --video")
     check_paths([("--gt", args.gt), ("--pred", args.pred), ("--video", args.video), ("--model", args.model),
                  ("--oncoming-model", getattr(args, "oncoming_model", None)),
                  ("--keyframes", getattr(args, "keyframes", None) or keyframes_path(args.gt)),

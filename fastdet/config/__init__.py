@@ -11,6 +11,8 @@ comparable, JSON round-trip through one :meth:`~fastdet.config.Config.to_dict` /
 - :mod:`.guided`: the search between full scans (:class:`GuidedSearch`);
 - :mod:`.refine`: the box refinement (:class:`RefineConfig`) and its training boxes
   (:class:`JitterConfig`);
+- :mod:`.perspective`: bands from the camera's geometry (:class:`GeometryConfig`) and the
+  perspective learnt from the tracked vehicles (:class:`PerspectiveConfig`);
 - :mod:`.models`: the bundled model files;
 - :mod:`.pipeline`: all of the video pipeline's settings in one value (:class:`PipelineConfig`);
 - :mod:`.batch`: a batch's settings and options (:class:`Settings`, :class:`BatchOptions`).
@@ -25,6 +27,7 @@ from .guided import GuidedSearch
 from .heat import ONCOMING_HEAT, WIDE_HEAT, BoxMode, HeatConfig, ScoreKind
 from .models import DEFAULT_MODEL_PATH, ONCOMING_MODEL_PATH, REFINE_MODEL_PATH
 from .motion import MotionGate
+from .perspective import GeometryConfig, PerspectiveConfig
 from .pipeline import Horizon, PipelineConfig
 from .refine import JitterConfig, RefineConfig
 from .search import (
@@ -44,6 +47,7 @@ from .track import TrackerConfig
 
 __all__ = ["CELL", "COLOR_SPACES", "DEFAULT_MODEL_PATH", "ONCOMING_HEAT", "ONCOMING_MODEL_PATH", "ONCOMING_SEARCH",
            "REFERENCE_HORIZON", "REFERENCE_SHAPE", "REFINE_MODEL_PATH", "TRAFFIC_SIDES", "WIDE_HEAT", "WIDE_SEARCH",
-           "WINDOW", "BoxMode", "ColorSpace", "Config", "FeatureConfig", "GuidedSearch", "HeatConfig", "Horizon",
-           "JitterConfig", "MotionGate", "PipelineConfig", "RefineConfig", "ScoreKind", "SearchBand", "SearchConfig",
-           "TrackerConfig", "Traffic", "check_traffic", "oncoming_search", "wide_search"]
+           "WINDOW", "BoxMode", "ColorSpace", "Config", "FeatureConfig", "GeometryConfig", "GuidedSearch",
+           "HeatConfig", "Horizon", "JitterConfig", "MotionGate", "PerspectiveConfig", "PipelineConfig",
+           "RefineConfig", "ScoreKind", "SearchBand", "SearchConfig", "TrackerConfig", "Traffic", "check_traffic",
+           "oncoming_search", "wide_search"]

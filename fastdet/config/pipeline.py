@@ -9,6 +9,7 @@ from ._base import Config
 from .guided import GuidedSearch
 from .heat import ONCOMING_HEAT, HeatConfig
 from .motion import MotionGate
+from .perspective import PerspectiveConfig
 from .refine import RefineConfig
 from .search import SearchConfig, Traffic, check_traffic
 from .track import TrackerConfig
@@ -49,6 +50,10 @@ class PipelineConfig(Config):
         on every frame. Needs the tracker: without it the search is full (:attr:`planned`).
     refine: the learned box refinement; ``None``: the boxes as the heat map (or the tracker)
         gives them.
+    perspective: the main search follows the horizon and the ratio (vehicle width / how far
+        below the horizon it stands) the tracked vehicles show (:mod:`fastdet.video.perspective`);
+        ``None`` (the default): the bands stay at the horizon above. Needs the tracker and a
+        horizon (not ``None``).
     """
 
     model: str | None = None
@@ -63,6 +68,7 @@ class PipelineConfig(Config):
     tracker: TrackerConfig | None = TrackerConfig()
     guided: GuidedSearch | None = GuidedSearch()
     refine: RefineConfig | None = RefineConfig()
+    perspective: PerspectiveConfig | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "model", _path(self.model, "model"))
@@ -78,7 +84,7 @@ class PipelineConfig(Config):
         for name, cls, optional in (("search", SearchConfig, False), ("heat", HeatConfig, False),
                                     ("oncoming_heat", HeatConfig, False), ("motion", MotionGate, False),
                                     ("tracker", TrackerConfig, True), ("guided", GuidedSearch, True),
-                                    ("refine", RefineConfig, True)):
+                                    ("refine", RefineConfig, True), ("perspective", PerspectiveConfig, True)):
             v = getattr(self, name)
             if not (isinstance(v, cls) or (optional and v is None)):
                 allowed = f"a {cls.__name__}" + (" or None" if optional else "")

@@ -3,20 +3,21 @@ that each take the per-frame :class:`FrameState`, do one step and return it.
 
 In the order they run (:func:`build_stages`; a stage whose setting is off is left out):
 
-=============  ===========================================================================
-``horizon``    feed the horizon estimate, move the bands (:class:`HorizonStage`)
-``plan``       which windows of the main bands to score (guided search, :class:`PlanStage`)
-``motion``     where the picture moves: the oncoming bands to search (:class:`MotionStage`)
-``detect``     the positive windows of both models (:class:`DetectStage`)
-``motion``     drop the oncoming windows that did not move enough (:class:`GateStage`)
-``heatmap``    the main heat map's boxes (:class:`HeatStage`)
-``fusion``     the oncoming heat map's boxes where the main one found none (:class:`FusionStage`)
-``weak``       the weak blobs the tracker may keep a track alive with (:class:`WeakStage`)
-``track``      track ids (:class:`TrackStage`)
-``clip``       the tracker's filtered boxes clipped to the frame (:class:`ClipStage`)
-``refine``     the learned box refinement (:class:`RefineStage`)
-``observe``    tell the guided search what this frame found (:class:`ObserveStage`)
-=============  ===========================================================================
+===============  ===========================================================================
+``horizon``      feed the horizon estimate, move the bands (:class:`HorizonStage`)
+``plan``         which windows of the main bands to score (guided search, :class:`PlanStage`)
+``motion``       where the picture moves: the oncoming bands to search (:class:`MotionStage`)
+``detect``       the positive windows of both models (:class:`DetectStage`)
+``motion``       drop the oncoming windows that did not move enough (:class:`GateStage`)
+``heatmap``      the main heat map's boxes (:class:`HeatStage`)
+``fusion``       the oncoming heat map's boxes where the main one found none (:class:`FusionStage`)
+``weak``         the weak blobs the tracker may keep a track alive with (:class:`WeakStage`)
+``track``        track ids (:class:`TrackStage`)
+``clip``         the tracker's filtered boxes clipped to the frame (:class:`ClipStage`)
+``refine``       the learned box refinement (:class:`RefineStage`)
+``perspective``  the tracked boxes move the main search (:class:`PerspectiveStage`; off by default)
+``observe``      tell the guided search what this frame found (:class:`ObserveStage`)
+===============  ===========================================================================
 
 Each stage's seconds go to ``VideoDetector.timings`` under its name; a stage may report
 finer parts of its work (``detect``: ``resize_colour``, ``hog``, ``score``; ``heatmap``:
@@ -29,17 +30,19 @@ ones is a field of :class:`FrameState`.
 from __future__ import annotations
 
 from ..config import GuidedSearch, PipelineConfig
+from ..detect import Detector
 from .box_stages import ClipStage, FusionStage, HeatStage, ObserveStage, RefineStage, TrackStage, WeakStage
 from .detector import ColumnSearch, MovableHorizon, WindowDetector
 from .guided import SearchPlanner
+from .perspective import PerspectiveStage, PerspectiveUpdater
 from .refine import BoxRegressor
 from .search_stages import DetectStage, GateStage, HorizonStage, MotionStage, PlanStage
 from .state import FrameDebug, FrameState, Stage, TrackView
 from .track import Tracker
 
 __all__ = ["ClipStage", "DetectStage", "FrameDebug", "FrameState", "FusionStage", "GateStage", "HeatStage",
-           "HorizonStage", "MotionStage", "ObserveStage", "PlanStage", "RefineStage", "Stage", "TrackStage",
-           "TrackView", "WeakStage", "build_stages", "planner_for"]
+           "HorizonStage", "MotionStage", "ObserveStage", "PerspectiveStage", "PlanStage", "RefineStage", "Stage",
+           "TrackStage", "TrackView", "WeakStage", "build_stages", "planner_for"]
 
 
 def planner_for(config: PipelineConfig, detector: WindowDetector) -> SearchPlanner | None:
@@ -84,6 +87,9 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
             stages.append(ClipStage())
     if regressor is not None and config.refine is not None:
         stages.append(RefineStage(regressor, config.refine))
+    if config.perspective is not None and tracker is not None and config.horizon is not None \
+            and isinstance(detector, Detector):
+        stages.append(PerspectiveStage(PerspectiveUpdater(detector, config.perspective)))
     if planner is not None:
         stages.append(ObserveStage(planner, tracker))
     return stages
