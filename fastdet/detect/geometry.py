@@ -65,11 +65,13 @@ def band_on_grid(scale: float, first_bottom: float, last_bottom: float, anchor: 
     n0 = math.ceil((first_bottom - side - anchor) / step - 0.5 - 1e-9)
     n1 = math.floor((last_bottom - side - anchor) / step + 0.5 + 1e-9)
     n0 = max(n0, math.ceil((-0.5 - anchor) / step - 1e-9))  # tops inside the frame (to rounding)
-    n1 = min(n1, math.floor((rows - side - anchor) / step + 1e-9))  # bottoms inside the frame
     if n1 < n0:
         return None
     top = anchor + n0 * step
     y0 = min(max(int(round(top)), 0), rows - 1)  # bands start on whole rows: the grid to half a pixel
+    n1 = min(n1, n0 + math.floor((rows - side - y0) / step + 1e-9))  # bottoms inside the frame
+    if n1 < n0:
+        return None
     # one window side and (n1 - n0) steps, and the reference band's rows below its last window
     end = y0 + side + (n1 - n0) * step  # the last window's bottom
     y1 = min(max(int(round(end + tail)), int(math.ceil(end - 1e-6))), rows)
