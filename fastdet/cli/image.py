@@ -30,7 +30,7 @@ from ..errors import DataError, FastdetError
 from ..io import draw
 from ..io.images import read_image, write_image
 from ..io.paths import bundled_models, check_paths
-from ..video.detector import make_detector
+from ..video.detector import detector_kernels, make_detector
 from ..video.heatmap import KERNELS as HEAT_KERNELS
 from ..video.heatmap import detect_image
 
@@ -80,7 +80,7 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
         raise FastdetError("--model cannot be used with an injected detector")
     check_frame(detector, frame, inp)
     # every kernel the image needs at once (on a first run on every core, after saying so)
-    ensure_compiled((*getattr(detector, "kernels", ()), *HEAT_KERNELS))
+    ensure_compiled((*detector_kernels(detector), *HEAT_KERNELS))
     detector.warmup()
 
     windows, hm, boxes = detect_image(frame, detector, heat)

@@ -92,7 +92,7 @@ class HeatConfig(Config):
                 raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
         if (self.score_lo is None) != (self.score_hi is None):
             raise ValueError("give both score_lo and score_hi, or neither")
-        if self.score_lo is not None and not self.score_hi > self.score_lo:
+        if self.score_lo is not None and self.score_hi is not None and not self.score_hi > self.score_lo:
             raise ValueError(f"score_hi must exceed score_lo, got {self.score_lo}..{self.score_hi}")
         if not 1 <= self.w_max < float("inf"):
             raise ValueError(f"w_max must be a finite number >= 1, got {self.w_max!r}")

@@ -101,7 +101,7 @@ class PipelineConfig(Config):
     def without(self, *stages: Literal["tracker", "guided", "refine", "oncoming"]) -> PipelineConfig:
         """This config with the named optional stages off (``tracker``, ``guided``: the full
         search, ``refine``, ``oncoming``: no oncoming model)."""
-        off: dict[str, object] = {s: None for s in stages if s != "oncoming"}
-        if "oncoming" in stages:
-            off["oncoming"] = False
-        return replace(self, **off)
+        return replace(self, tracker=None if "tracker" in stages else self.tracker,
+                       guided=None if "guided" in stages else self.guided,
+                       refine=None if "refine" in stages else self.refine,
+                       oncoming=False if "oncoming" in stages else self.oncoming)

@@ -116,7 +116,7 @@ class SearchConfig(Config):
             return self
         rh, rw = self.reference_shape if self.reference_shape is not None else (h, w)
         fy, fx = h / rh, w / rw
-        dy = (self.horizon - self.reference_horizon) * h if moved else 0.0
+        dy = (self.horizon - self.reference_horizon) * h if self.horizon is not None and moved else 0.0
 
         def col(v: int | None) -> int | None:
             return None if v is None else min(int(round(v * fx)), w)

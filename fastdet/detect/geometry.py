@@ -55,13 +55,13 @@ def window_bottoms(ref_first: float, ref_last: float, ref_horizon: float, horizo
 
 def band_on_grid(scale: float, first_bottom: float, last_bottom: float, anchor: float, step: float,
                  rows: int, x_start: int | None = None, x_stop: int | None = None,
-                 tail: float = 0.0) -> SearchBand | None:
-    """The band of ``scale`` (frame pixels: window side ``64 x scale``) whose windows sit on
+                 tail: float = 0.0, window: int = WINDOW) -> SearchBand | None:
+    """The band of ``scale`` (frame pixels: window side ``window x scale``) whose windows sit on
     the rows ``anchor + n x step`` (window tops) and have their bottoms in
     ``[first_bottom, last_bottom]`` to half a step, clipped to a frame of ``rows`` rows;
     ``None`` when no window fits. ``tail``: rows the band runs on below its last window
     (HOG sees them: a window on a band's last rows is scored a little differently)."""
-    side = 64.0 * scale
+    side = float(window) * scale
     n0 = math.ceil((first_bottom - side - anchor) / step - 0.5 - 1e-9)
     n1 = math.floor((last_bottom - side - anchor) / step + 0.5 + 1e-9)
     n0 = max(n0, math.ceil((-0.5 - anchor) / step - 1e-9))  # tops inside the frame (to rounding)
@@ -104,7 +104,7 @@ def geometric_bands(frame_shape: tuple[int, int], horizon: float, ratio: float, 
         band = band_on_grid(scale, first, last, anchor, step, h,
                             None if b.x_start is None else min(int(round(b.x_start * fx)), w),
                             None if b.x_stop is None else min(int(round(b.x_stop * fx)), w),
-                            tail=b.y_stop * fy - last_ref)
+                            tail=b.y_stop * fy - last_ref, window=window)
         if band is not None:
             out.append(band)
     if not out:

@@ -4,7 +4,7 @@ map, the motion gate of the oncoming model, the fusion of the two models' boxes,
 (:class:`Tracker`), running a file (:mod:`.run`), the offline pass over a file's tracks
 (:func:`offline_pass`) and counting (:class:`VehicleCounter`)."""
 from .count import CountLine, VehicleCounter
-from .detector import ColumnSearch, MovableHorizon, WindowDetector, make_detector
+from .detector import ColumnSearch, HasKernels, MovableHorizon, WindowDetector, make_detector
 from .heatmap import HeatMap, detect_image
 from .offline import offline_pass
 from .pipeline import VideoDetector
@@ -12,6 +12,6 @@ from .run import iter_video_detections, prime_horizon_from_file, progress_bar, v
 from .stages import FrameDebug
 from .track import Tracker
 
-__all__ = ["ColumnSearch", "CountLine", "FrameDebug", "HeatMap", "MovableHorizon", "Tracker", "VehicleCounter",
-           "VideoDetector", "WindowDetector", "detect_image", "iter_video_detections", "make_detector",
-           "offline_pass", "prime_horizon_from_file", "progress_bar", "video_detector_for"]
+__all__ = ["ColumnSearch", "CountLine", "FrameDebug", "HasKernels", "HeatMap", "MovableHorizon", "Tracker",
+           "VehicleCounter", "VideoDetector", "WindowDetector", "detect_image", "iter_video_detections",
+           "make_detector", "offline_pass", "prime_horizon_from_file", "progress_bar", "video_detector_for"]

@@ -4,7 +4,7 @@ optional abilities it uses when a detector has them (:class:`MovableHorizon`,
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Literal, Protocol, runtime_checkable
+from typing import Any, Literal, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -26,10 +26,14 @@ class WindowDetector(Protocol):
     ``wide_model`` is not ``None``, for the motion gate).
 
     Optional abilities, used when the detector has them: :class:`MovableHorizon` (the bands
-    follow the horizon) and :class:`ColumnSearch` (the guided search)."""
+    follow the horizon), :class:`ColumnSearch` (the guided search) and :class:`HasKernels`
+    (its numba kernels compiled with the pipeline's at warm-up)."""
 
-    score_kind: str
-    wide_model: Model | None
+    @property
+    def score_kind(self) -> str: ...
+
+    @property
+    def wide_model(self) -> Model | None: ...
 
     def detect(self, frame: np.ndarray, rgb: bool = False, wide_bands: Sequence[SearchBand] | None = None,
                stats: DetectStats | None = None) -> Detections: ...
@@ -62,6 +66,20 @@ class ColumnSearch(Protocol):
     def detect(self, frame: np.ndarray, rgb: bool = False, wide_bands: Sequence[SearchBand] | None = None,
                stats: DetectStats | None = None,
                columns: Sequence[Sequence[tuple[int, int]] | None] | None = None) -> Detections: ...
+
+
+@runtime_checkable
+class HasKernels(Protocol):
+    """A detector that names the numba kernels its ``detect`` runs (``kernels``), so a
+    warm-up compiles them at once with the rest of the pipeline's
+    (:func:`fastdet._numba.ensure_compiled`)."""
+
+    kernels: tuple[Any, ...]
+
+
+def detector_kernels(detector: object) -> tuple[Any, ...]:
+    """The numba kernels of ``detector`` (:class:`HasKernels`; none for another detector)."""
+    return tuple(detector.kernels) if isinstance(detector, HasKernels) else ()
 
 
 def make_detector(config: PipelineConfig | None = None) -> Detector:

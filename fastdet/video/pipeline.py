@@ -23,7 +23,7 @@ import numpy as np
 from .._numba import ensure_compiled
 from ..config import PipelineConfig
 from ..detections import Detections
-from .detector import MovableHorizon, WindowDetector, make_detector
+from .detector import MovableHorizon, WindowDetector, detector_kernels, make_detector
 from .heatmap import KERNELS as HEAT_KERNELS
 from .heatmap import HeatMap
 from .motion import KERNELS as MOTION_KERNELS
@@ -149,7 +149,7 @@ class VideoDetector:
         """Compile / load the numba kernels now, not on the first frame: every kernel the
         frames will run, at once (on a first run on every core, after saying so), then each
         run once."""
-        ensure_compiled((*getattr(self.detector, "kernels", ()), *HEAT_KERNELS, *MOTION_KERNELS,
+        ensure_compiled((*detector_kernels(self.detector), *HEAT_KERNELS, *MOTION_KERNELS,
                          *(REFINE_KERNELS if self.refiner is not None else ())))
         self.detector.warmup()
         HeatMap((8, 8), self.config.heat).warmup()

@@ -13,7 +13,7 @@ from .heatmap import HeatMap
 from .motion import MotionMap
 
 #: one live track: ``(id, state, predicted box)``, id -1 while tentative
-TrackView = tuple[int, str, np.ndarray]
+TrackView = tuple[int, str, np.ndarray | None]
 
 
 @dataclass
