@@ -79,8 +79,8 @@ def add_search_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def add_oncoming_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--oncoming-model`` / ``--no-oncoming`` and ``--traffic``, shared by ``video``,
-    ``eval``, ``bench`` and ``batch``."""
+    """``--oncoming-model`` / ``--no-oncoming``, ``--traffic`` and ``--side`` / ``--side-model``,
+    shared by ``video``, ``eval``, ``bench`` and ``batch``."""
     g = parser.add_mutually_exclusive_group()
     g.add_argument("--oncoming-model", metavar="WIDE.npz", default=None,
                    help="wide-window model for oncoming traffic above the median "
@@ -92,6 +92,13 @@ def add_oncoming_arguments(parser: argparse.ArgumentParser) -> None:
                              "other side of the view: 'right' (default; oncoming cars on the left), 'left' "
                              "(UK, Japan, India, Australia ...: searched on the right), 'both' (the whole "
                              "width, about 15%% more CPU a frame)")
+    s = parser.add_mutually_exclusive_group()
+    s.add_argument("--side", action="store_true",
+                   help="add the bundled side-view component (fastdet/models/side.npz: 64x32 windows for "
+                        "vehicles wider than tall, parked cars seen from the side; docs/components.md); off "
+                        "by default")
+    s.add_argument("--side-model", metavar="SIDE.npz", default=None,
+                   help="add this side-view component (built by `python -m tools.scripts.side_model`)")
 
 
 def add_refine_argument(parser: argparse.ArgumentParser) -> None:
@@ -117,6 +124,7 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
     config = PipelineConfig(model=getattr(args, "model", None),
                             oncoming=False if getattr(args, "no_oncoming", False)
                             else (getattr(args, "oncoming_model", None) or True),
+                            side=getattr(args, "side_model", None) or bool(getattr(args, "side", False)),
                             traffic=getattr(args, "traffic", "right"), horizon=getattr(args, "horizon", "auto"),
                             heat=heat, perspective=PerspectiveConfig() if getattr(args, "perspective", False) else None)
     off = [name for name, flag in (("tracker", "no_track"), ("guided", "full_search"), ("refine", "no_refine"))

@@ -10,6 +10,7 @@ In the order they run (:func:`build_stages`; a stage whose setting is off is lef
 ``detect``       the positive windows of both models (:class:`DetectStage`)
 ``motion``       drop the oncoming windows that did not move enough (:class:`GateStage`)
 ``heatmap``      the main heat map's boxes (:class:`HeatStage`)
+``components``   the components' heat map's boxes where the main one found none (:class:`ComponentStage`)
 ``fusion``       the oncoming heat map's boxes where the main one found none (:class:`FusionStage`)
 ``weak``         the weak blobs the tracker may keep a track alive with (:class:`WeakStage`)
 ``track``        track ids (:class:`TrackStage`)
@@ -31,7 +32,8 @@ from __future__ import annotations
 
 from ..config import GuidedSearch, PipelineConfig
 from ..detect import Detector
-from .box_stages import ClipStage, FusionStage, HeatStage, ObserveStage, RefineStage, TrackStage, WeakStage
+from .box_stages import (ClipStage, ComponentStage, FusionStage, HeatStage, ObserveStage, RefineStage, TrackStage,
+                         WeakStage)
 from .detector import ColumnSearch, MovableHorizon, WindowDetector
 from .guided import SearchPlanner
 from .perspective import PerspectiveStage, PerspectiveUpdater
@@ -40,9 +42,9 @@ from .search_stages import DetectStage, GateStage, HorizonStage, MotionStage, Pl
 from .state import FrameDebug, FrameState, Stage, TrackView
 from .track import Tracker
 
-__all__ = ["ClipStage", "DetectStage", "FrameDebug", "FrameState", "FusionStage", "GateStage", "HeatStage",
-           "HorizonStage", "MotionStage", "ObserveStage", "PerspectiveStage", "PlanStage", "RefineStage", "Stage",
-           "TrackStage", "TrackView", "WeakStage", "build_stages", "planner_for"]
+__all__ = ["ClipStage", "ComponentStage", "DetectStage", "FrameDebug", "FrameState", "FusionStage", "GateStage",
+           "HeatStage", "HorizonStage", "MotionStage", "ObserveStage", "PerspectiveStage", "PlanStage", "RefineStage",
+           "Stage", "TrackStage", "TrackView", "WeakStage", "build_stages", "planner_for"]
 
 
 def planner_for(config: PipelineConfig, detector: WindowDetector) -> SearchPlanner | None:
@@ -77,7 +79,9 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
         if planner is not None:  # on the first frame too: a full scan on the second frame
             planner.reset()
 
-    heat: list[HeatStage | FusionStage] = [HeatStage(detector, config.heat, oncoming, new_size)]
+    heat: list[HeatStage | ComponentStage | FusionStage] = [HeatStage(detector, config.heat, oncoming, new_size)]
+    if getattr(detector, "components", None):
+        heat.append(ComponentStage(detector, config.side_heat))
     if oncoming:
         heat.append(FusionStage(detector, config.oncoming_heat))
     stages += heat
