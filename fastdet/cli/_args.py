@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..config import HeatConfig, NeighbourSplit, OwnVehicleConfig, PipelineConfig
+from ..config import HeatConfig, NeighbourSplit, OwnVehicleConfig, PerspectiveConfig, PipelineConfig
 from ..errors import FastdetError
 
 
@@ -64,6 +64,10 @@ def add_horizon_argument(parser: argparse.ArgumentParser) -> None:
                         help="where the search bands go: 'auto' (default) follows the horizon estimated "
                              "from the first seconds of the video; F: the horizon row as a fraction of the "
                              "frame height (another camera's known horizon); 'off': bands as configured")
+    parser.add_argument("--perspective", action="store_true",
+                        help="the search bands follow the horizon and the camera's ratio (vehicle width / how "
+                             "far below the horizon it stands) that the tracked vehicles show (off by default; "
+                             "docs/geometry.md)")
 
 
 def add_search_argument(parser: argparse.ArgumentParser) -> None:
@@ -134,7 +138,7 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
                             else (getattr(args, "oncoming_model", None) or True),
                             side=getattr(args, "side_model", None) or bool(getattr(args, "side", False)),
                             traffic=getattr(args, "traffic", "right"), horizon=getattr(args, "horizon", "auto"),
-                            heat=heat,
+                            heat=heat, perspective=PerspectiveConfig() if getattr(args, "perspective", False) else None,
                             own_vehicle=OwnVehicleConfig() if getattr(args, "own_vehicle", False) else None,
                             split=NeighbourSplit() if getattr(args, "split_neighbours", False) else None)
     off = [name for name, flag in (("tracker", "no_track"), ("guided", "full_search"), ("refine", "no_refine"))

@@ -15,6 +15,8 @@ comparable, JSON round-trip through one :meth:`~fastdet.config.Config.to_dict` /
 - :mod:`.guided`: the search between full scans (:class:`GuidedSearch`);
 - :mod:`.refine`: the box refinement (:class:`RefineConfig`) and its training boxes
   (:class:`JitterConfig`);
+- :mod:`.perspective`: bands from the camera's geometry (:class:`GeometryConfig`) and the
+  perspective learnt from the tracked vehicles (:class:`PerspectiveConfig`);
 - :mod:`.models`: the bundled model files;
 - :mod:`.pipeline`: all of the video pipeline's settings in one value (:class:`PipelineConfig`);
 - :mod:`.batch`: a batch's settings and options (:class:`Settings`, :class:`BatchOptions`).
@@ -30,6 +32,7 @@ from .heat import ONCOMING_HEAT, SIDE_HEAT, WIDE_HEAT, BoxMode, HeatConfig, Scor
 from .models import DEFAULT_MODEL_PATH, ONCOMING_MODEL_PATH, REFINE_MODEL_PATH, SIDE_MODEL_PATH
 from .motion import MotionGate
 from .ownvehicle import OwnVehicleConfig
+from .perspective import GeometryConfig, PerspectiveConfig
 from .pipeline import Horizon, PipelineConfig
 from .refine import JitterConfig, RefineConfig
 from .search import (
@@ -50,10 +53,10 @@ from .search import (
 from .split import NeighbourSplit
 from .track import TrackerConfig
 
-__all__ = ["CELL", "COLOR_SPACES", "DEFAULT_MODEL_PATH", "ONCOMING_HEAT", "ONCOMING_MODEL_PATH", "ONCOMING_SEARCH",
-           "REFERENCE_HORIZON", "REFERENCE_SHAPE", "REFINE_MODEL_PATH", "SIDE_HEAT", "SIDE_MODEL_PATH", "SIDE_SEARCH",
-           "TRAFFIC_SIDES", "WIDE_HEAT", "WIDE_SEARCH",
-           "WINDOW", "BoxMode", "ColorSpace", "Config", "FeatureConfig", "GuidedSearch", "HeatConfig", "Horizon",
-           "JitterConfig", "MotionGate", "NeighbourSplit", "OwnVehicleConfig", "PipelineConfig", "RefineConfig",
-           "ScoreKind", "SearchBand", "SearchConfig", "TrackerConfig", "Traffic", "check_traffic", "oncoming_search",
+__all__ = ["BoxMode", "CELL", "COLOR_SPACES", "ColorSpace", "Config", "DEFAULT_MODEL_PATH", "FeatureConfig",
+           "GeometryConfig", "GuidedSearch", "HeatConfig", "Horizon", "JitterConfig", "MotionGate", "NeighbourSplit",
+           "ONCOMING_HEAT", "ONCOMING_MODEL_PATH", "ONCOMING_SEARCH", "OwnVehicleConfig", "PerspectiveConfig",
+           "PipelineConfig", "REFERENCE_HORIZON", "REFERENCE_SHAPE", "REFINE_MODEL_PATH", "RefineConfig",
+           "SIDE_HEAT", "SIDE_MODEL_PATH", "SIDE_SEARCH", "ScoreKind", "SearchBand", "SearchConfig", "TRAFFIC_SIDES",
+           "TrackerConfig", "Traffic", "WIDE_HEAT", "WIDE_SEARCH", "WINDOW", "check_traffic", "oncoming_search",
            "side_search", "wide_search"]

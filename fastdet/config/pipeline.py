@@ -10,6 +10,7 @@ from .guided import GuidedSearch
 from .heat import ONCOMING_HEAT, SIDE_HEAT, HeatConfig
 from .motion import MotionGate
 from .ownvehicle import OwnVehicleConfig
+from .perspective import PerspectiveConfig
 from .refine import RefineConfig
 from .search import SIDE_SEARCH, SearchConfig, Traffic, check_traffic
 from .split import NeighbourSplit
@@ -56,6 +57,10 @@ class PipelineConfig(Config):
         on every frame. Needs the tracker: without it the search is full (:attr:`planned`).
     refine: the learned box refinement; ``None``: the boxes as the heat map (or the tracker)
         gives them.
+    perspective: the main search follows the horizon and the ratio (vehicle width / how far
+        below the horizon it stands) the tracked vehicles show (:mod:`fastdet.video.perspective`);
+        ``None`` (the default): the bands stay at the horizon above. Needs the tracker and a
+        horizon (not ``None``).
     own_vehicle: drop the positive windows lying on the own vehicle (hood, dashboard,
         mirrors, letterbox bars) found in the first seconds (:mod:`fastdet.video.ownvehicle`);
         ``None`` (default): off.
@@ -81,6 +86,7 @@ class PipelineConfig(Config):
     tracker: TrackerConfig | None = TrackerConfig()
     guided: GuidedSearch | None = GuidedSearch()
     refine: RefineConfig | None = RefineConfig()
+    perspective: PerspectiveConfig | None = None
     own_vehicle: OwnVehicleConfig | None = None
     split: NeighbourSplit | None = None
 
@@ -103,8 +109,8 @@ class PipelineConfig(Config):
                                     ("oncoming_heat", HeatConfig, False), ("side_search", SearchConfig, False),
                                     ("side_heat", HeatConfig, False), ("motion", MotionGate, False),
                                     ("tracker", TrackerConfig, True), ("guided", GuidedSearch, True),
-                                    ("refine", RefineConfig, True), ("own_vehicle", OwnVehicleConfig, True),
-                                    ("split", NeighbourSplit, True)):
+                                    ("refine", RefineConfig, True), ("perspective", PerspectiveConfig, True),
+                                    ("own_vehicle", OwnVehicleConfig, True), ("split", NeighbourSplit, True)):
             v = getattr(self, name)
             if not (isinstance(v, cls) or (optional and v is None)):
                 allowed = f"a {cls.__name__}" + (" or None" if optional else "")

@@ -47,9 +47,9 @@ def _default_bands() -> tuple[SearchBand, ...]:
     # Each window size where cars of that size stand: all bands start 21 px above the horizon
     # (421 px, SearchConfig.reference_horizon) and reach 1.3-1.5 windows below it; 48-px
     # windows (scale 0.75, the band upsampled before HOG) for the 45-70 px cars of a wider
-    # lens or a far lane, near the horizon only.
+    # lens, a far lane or the other carriageway, near the horizon only, across the whole width.
     return (
-        SearchBand(0.75, 400, 460, 128, 1152),
+        SearchBand(0.75, 400, 460),
         SearchBand(1.0, 400, 496),
         SearchBand(1.25, 400, 528),
         SearchBand(1.5, 400, 560),

@@ -9,15 +9,16 @@ In the order they run (:func:`build_stages`; a stage whose setting is off is lef
 ``motion``       where the picture moves: the oncoming bands to search (:class:`MotionStage`)
 ``detect``       the positive windows of both models (:class:`DetectStage`)
 ``motion``       drop the oncoming windows that did not move enough (:class:`GateStage`)
-``ownvehicle``   drop the windows on the own vehicle (off by default, :class:`OwnVehicleStage`)
+``ownvehicle``   drop the windows on the own vehicle (:class:`OwnVehicleStage`; off by default)
 ``heatmap``      the main heat map's boxes (:class:`HeatStage`)
-``split``        wide boxes split between vehicles side by side (off by default, :class:`SplitStage`)
+``split``        wide boxes split between vehicles side by side (:class:`SplitStage`; off by default)
 ``components``   the components' heat map's boxes where the main one found none (:class:`ComponentStage`)
 ``fusion``       the oncoming heat map's boxes where the main one found none (:class:`FusionStage`)
 ``weak``         the weak blobs the tracker may keep a track alive with (:class:`WeakStage`)
 ``track``        track ids (:class:`TrackStage`)
 ``clip``         the tracker's filtered boxes clipped to the frame (:class:`ClipStage`)
 ``refine``       the learned box refinement (:class:`RefineStage`)
+``perspective``  the tracked boxes move the main search (:class:`PerspectiveStage`; off by default)
 ``observe``      tell the guided search what this frame found (:class:`ObserveStage`)
 ===============  ===========================================================================
 
@@ -32,20 +33,23 @@ ones is a field of :class:`FrameState`.
 from __future__ import annotations
 
 from ..config import GuidedSearch, PipelineConfig
+from ..detect import Detector
 from .blobsplit import SplitStage
 from .box_stages import (ClipStage, ComponentStage, FusionStage, HeatStage, ObserveStage, RefineStage, TrackStage,
                          WeakStage)
 from .detector import ColumnSearch, MovableHorizon, WindowDetector
 from .guided import SearchPlanner
 from .ownvehicle import OwnVehicleStage
+from .perspective import PerspectiveStage, PerspectiveUpdater
 from .refine import BoxRegressor
 from .search_stages import DetectStage, GateStage, HorizonStage, MotionStage, PlanStage
 from .state import FrameDebug, FrameState, Stage, TrackView
 from .track import Tracker
 
 __all__ = ["ClipStage", "ComponentStage", "DetectStage", "FrameDebug", "FrameState", "FusionStage", "GateStage",
-           "HeatStage", "HorizonStage", "MotionStage", "ObserveStage", "OwnVehicleStage", "PlanStage", "RefineStage",
-           "SplitStage", "Stage", "TrackStage", "TrackView", "WeakStage", "build_stages", "planner_for"]
+           "HeatStage", "HorizonStage", "MotionStage", "ObserveStage", "OwnVehicleStage", "PerspectiveStage",
+           "PlanStage", "RefineStage", "SplitStage", "Stage", "TrackStage", "TrackView", "WeakStage", "build_stages",
+           "planner_for"]
 
 
 def planner_for(config: PipelineConfig, detector: WindowDetector) -> SearchPlanner | None:
@@ -97,6 +101,9 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
             stages.append(ClipStage())
     if regressor is not None and config.refine is not None:
         stages.append(RefineStage(regressor, config.refine))
+    if config.perspective is not None and tracker is not None and config.horizon is not None \
+            and isinstance(detector, Detector):
+        stages.append(PerspectiveStage(PerspectiveUpdater(detector, config.perspective)))
     if planner is not None:
         stages.append(ObserveStage(planner, tracker))
     return stages
