@@ -19,6 +19,7 @@ import importlib
 import os
 import sys
 from collections.abc import Sequence
+from typing import Any
 
 from .. import console
 from .._version import __version__
@@ -87,6 +88,12 @@ def _interrupted(name: str, signum: int, detail: str = "") -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     command = _chosen(argv)
+    threads = os.environ.get("NUMBA_NUM_THREADS")
+    if threads is not None and not (threads.strip().isdigit() and int(threads) >= 1):
+        # Numba would raise a ValueError traceback while the command's modules are imported
+        _say(f"fastdet{' ' + command if command else ''}: error: NUMBA_NUM_THREADS must be a whole number >= 1, "
+             f"got {threads!r}")
+        return 2
     parser = build_parser(command) if command is not None else build_parser("")
     args, extra = parser.parse_known_args(argv)
     if extra:
@@ -99,6 +106,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     debug = os.environ.get("FASTDET_DEBUG", "") not in ("", "0")
     name = args._name
     console.set_prog(f"fastdet {name}")
+    stdout = sys.stdout
+    if stdout is not None:
+        sys.stdout = _GuardedStdout(stdout)  # type: ignore[assignment]
+    try:
+        return _dispatch(args, name, debug)
+    finally:
+        if isinstance(sys.stdout, _GuardedStdout):
+            try:
+                sys.stdout.flush()
+            except (OSError, StdoutError):
+                pass
+            sys.stdout = stdout
+
+
+def _dispatch(args: argparse.Namespace, name: str, debug: bool) -> int:
+    """Run the command inside the stop-signal handlers (see the module docstring)."""
     with _signals.handled():
         try:
             status = int(args._module.run(args) or 0)
@@ -120,6 +143,46 @@ def main(argv: Sequence[str] | None = None) -> int:
         if _signals.received() is not None:  # swallowed by a library: still a stop
             return _interrupted(name, _signals.received())
         return status
+
+
+class StdoutError(FastdetError):
+    """Standard output cannot be written (a full disk, a closed pipe)."""
+
+
+class _GuardedStdout:
+    """Standard output whose failed writes raise :class:`StdoutError` (one line, exit 2)
+    instead of an ``OSError`` traceback; after a failure it writes to ``/dev/null``, so the
+    interpreter's own flush at exit does not fail again."""
+
+    def __init__(self, stream: Any) -> None:
+        self._stream = stream
+
+    def _fail(self, exc: OSError) -> StdoutError:
+        try:
+            self._stream = open(os.devnull, "w")  # noqa: SIM115 - lives until the process ends
+        except OSError:
+            pass
+        return StdoutError(f"cannot write the results to standard output ({exc.strerror or exc}); "
+                           f"the output files, if any, are complete")
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            raise
+        except OSError as exc:
+            raise self._fail(exc) from None
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            raise
+        except OSError as exc:
+            raise self._fail(exc) from None
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stream, name)
 
 
 def _subparser(parser: argparse.ArgumentParser, name: str | None) -> argparse.ArgumentParser | None:

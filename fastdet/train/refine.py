@@ -1,11 +1,11 @@
-"""Fitting the box regressor of :mod:`fastdet.video.refine` from annotated frames.
+"""Fitting the box regressor (:mod:`fastdet.detect.regressor`) from annotated frames.
 
 Samples: for every annotated vehicle box (``consider = 1``) of every training frame, random
 *jittered* boxes about it (:func:`jitter_boxes`: centre moved by up to ``shift`` x the size,
 size scaled by ``0.7 .. 1.4``, aspect changed by up to ``exp(+-aspect)``, kept when their IoU
 with the vehicle is at least ``min_iou``), each with the features of its region
-(``coder.features``, :class:`fastdet.video.refine.BoxFeatures`) and, as its target, the
-offsets that take it to the vehicle's box (``coder.encode``); the frame mirrored
+(:class:`~fastdet.detect.regressor.BoxFeatures`) and, as its target, the offsets that take
+it to the vehicle's box (:func:`~fastdet.detect.regressor.encode_offsets`); the frame mirrored
 left-right gives as many again. A ridge regression on standardised features
 (:func:`fit_ridge`) predicts the four offsets; its ``alpha`` is chosen by cross-validation
 over folds that keep each vehicle (``group``) on one side, by the mean IoU of the decoded
@@ -16,28 +16,14 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
 from ..boxes import iou as box_iou
 from ..config import JitterConfig
+from ..detect.regressor import BoxFeatures, decode_offsets, encode_offsets
 
-
-class BoxCoder(Protocol):
-    """What fitting needs to know of a regressor's inputs and outputs
-    (:class:`fastdet.video.refine.BoxFeatures` is one; the video layer is not imported here):
-    ``features(frame, boxes (N, 4)) -> (N, n_features)``, ``encode(boxes, targets) -> (N, 4)``
-    offsets and ``decode(boxes, offsets) -> (N, 4)`` boxes."""
-
-    @property
-    def n_features(self) -> int: ...
-
-    def features(self, frame: np.ndarray, boxes: np.ndarray) -> np.ndarray: ...
-
-    def encode(self, boxes: np.ndarray, targets: np.ndarray) -> np.ndarray: ...
-
-    def decode(self, boxes: np.ndarray, offsets: np.ndarray) -> np.ndarray: ...
 
 #: ridge penalties tried by :func:`fit_ridge` (on standardised features, summed squared error)
 ALPHAS = tuple(float(a) for a in np.logspace(1, 6, 11))
@@ -89,7 +75,7 @@ class Samples:
 
 
 def frame_samples(frame: np.ndarray, targets: np.ndarray, groups: np.ndarray, rng: np.random.Generator,
-                  coder: BoxCoder, jitter: JitterConfig = JitterConfig(), flip: bool = True) -> Samples:
+                  coder: BoxFeatures, jitter: JitterConfig = JitterConfig(), flip: bool = True) -> Samples:
     """Samples of one frame ``(H, W, 3) uint8 BGR`` with vehicle boxes ``targets (M, 4)``
     and their groups ``(M,)``; ``flip``: the mirrored frame too."""
     targets = np.asarray(targets, np.float64).reshape(-1, 4)
@@ -112,7 +98,7 @@ def frame_samples(frame: np.ndarray, targets: np.ndarray, groups: np.ndarray, rn
         if not boxes:
             continue
         b, tt = np.concatenate(boxes), np.concatenate(tgs)
-        parts.append(Samples(coder.features(img, b), coder.encode(b, tt), b, tt,
+        parts.append(Samples(coder.features(img, b), encode_offsets(b, tt), b, tt,
                              np.concatenate(grp)))
     if not parts:
         return Samples(np.zeros((0, coder.n_features)), np.zeros((0, 4)), np.zeros((0, 4)), np.zeros((0, 4)),
@@ -120,7 +106,7 @@ def frame_samples(frame: np.ndarray, targets: np.ndarray, groups: np.ndarray, rn
     return Samples.concat(parts)
 
 
-def collect_samples(frames: Iterable[tuple[np.ndarray, np.ndarray, np.ndarray]], coder: BoxCoder, seed: int = 0,
+def collect_samples(frames: Iterable[tuple[np.ndarray, np.ndarray, np.ndarray]], coder: BoxFeatures, seed: int = 0,
                     jitter: JitterConfig = JitterConfig(), flip: bool = True) -> Samples:
     """:func:`frame_samples` of every ``(frame, targets (M, 4), groups (M,))``, one random
     stream seeded by ``seed``."""
@@ -159,9 +145,9 @@ def _standardise(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return (x - mean) / scale, mean, scale
 
 
-def mean_iou(boxes: np.ndarray, offsets: np.ndarray, targets: np.ndarray, coder: BoxCoder) -> float:
+def mean_iou(boxes: np.ndarray, offsets: np.ndarray, targets: np.ndarray, coder: BoxFeatures) -> float:
     """Mean IoU of ``boxes (N, 4)`` moved by ``offsets (N, 4)`` with ``targets (N, 4)``."""
-    return float(np.mean(paired_iou(coder.decode(boxes, offsets), targets))) if len(boxes) else math.nan
+    return float(np.mean(paired_iou(decode_offsets(boxes, offsets), targets))) if len(boxes) else math.nan
 
 
 def paired_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -175,7 +161,7 @@ def paired_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.where(union > 0, inter / np.where(union > 0, union, 1.0), 0.0)
 
 
-def fit_ridge(samples: Samples, coder: BoxCoder, alphas: Sequence[float] = ALPHAS, folds: int = 4,
+def fit_ridge(samples: Samples, coder: BoxFeatures, alphas: Sequence[float] = ALPHAS, folds: int = 4,
               max_offset: float = 1.0) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], dict[str, Any]]:
     """Fit offsets on features with ridge regression; ``alpha`` by ``folds``-fold
     cross-validation over groups (each vehicle wholly in one fold; fewer folds when there
@@ -183,7 +169,7 @@ def fit_ridge(samples: Samples, coder: BoxCoder, alphas: Sequence[float] = ALPHA
     are clipped to ``+-max_offset`` for fitting (an outlier's log-size is not learnt as is).
 
     Returns ``((coef (4, F), intercept (4,), mean (F,), scale (F,)), report)``, refitted on
-    all samples (:meth:`fastdet.video.refine.BoxRegressor.from_fit` makes the regressor of
+    all samples (:meth:`fastdet.detect.regressor.BoxRegressor.from_fit` makes the regressor of
     them), the report holding: the alphas, the cross-validated mean
     IoU of each, the chosen alpha, the mean IoU of the jittered boxes as they were."""
     x, y = samples.x, np.clip(samples.t, -max_offset, max_offset)

@@ -199,3 +199,27 @@ def test_nothing_outside_cli_imports_cli():
     assert r.returncode == 0, r.stderr
     mods = json.loads(r.stdout.strip().splitlines()[-1])
     assert "fastdet.video" in mods and not [m for m in mods if m.startswith("fastdet.cli")]
+
+
+def test_results_to_a_full_standard_output_are_one_line(tmp_path):
+    """``fastdet eval ... > /dev/full``: one line and exit 2, not an OSError traceback."""
+    import subprocess
+    import sys
+    gt, pred = tmp_path / "g.txt", tmp_path / "p.txt"
+    gt.write_text("1,1,10,10,40,30\n")
+    pred.write_text("1,1,10,10,40,30,0.9\n")
+    with open("/dev/full", "w") as full:
+        r = subprocess.run([sys.executable, "-m", "fastdet", "eval", "--gt", str(gt), "--pred", str(pred)],
+                           stdout=full, stderr=subprocess.PIPE, text=True, timeout=120)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert r.stderr.strip().splitlines() == [
+        "fastdet eval: error: cannot write the results to standard output (No space left on device); "
+        "the output files, if any, are complete"]
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "two"])
+def test_bad_numba_thread_count_is_one_line(value, capsys, monkeypatch):
+    monkeypatch.setenv("NUMBA_NUM_THREADS", value)
+    assert main(["image", "in.jpg", "-o", "out.jpg"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"fastdet image: error: NUMBA_NUM_THREADS must be a whole number >= 1, got {value!r}")

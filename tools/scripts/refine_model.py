@@ -28,7 +28,7 @@ from fastdet.data import data_dir
 from fastdet.io.motfiles import GroundTruth, read_gt
 from fastdet.io.reader import FrameReader
 from fastdet.train.refine import JitterConfig, Samples, collect_samples, fit_ridge
-from fastdet.video.refine import BoxFeatures, BoxRegressor
+from fastdet.detect.regressor import BoxFeatures, BoxRegressor
 
 #: the annotated clips a regressor can be fitted on (``$FASTDET_DATA/videos``)
 CLIPS = ("test_small1", "test_video")

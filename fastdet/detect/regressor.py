@@ -1,0 +1,250 @@
+"""The box regressor's model: a linear regressor from a box's appearance to the offsets that
+move it onto the vehicle (as DPM's and R-CNN's box regression) -- its features, its offsets,
+its file. Fitting (:mod:`fastdet.train.refine`) and refining a stream's boxes
+(:mod:`fastdet.video.refine`) both import it from here.
+
+A box ``x1, y1, x2, y2`` (frame pixels) with centre ``cx, cy`` and size ``w, h`` and the
+vehicle's box with ``cx', cy', w', h'`` differ by the offsets (:func:`encode_offsets`)::
+
+    tx = (cx' - cx) / w    ty = (cy' - cy) / h    tw = log(w' / w)    th = log(h' / h)
+
+:class:`BoxRegressor` predicts ``(tx, ty, tw, th)`` from features of the box's region: for
+each context factor ``c`` of :attr:`RefineConfig.contexts`, the region of ``c x`` the box's
+width and height about its centre (parts outside the frame replicate the border pixels),
+resized to the feature window (64x64) and described by :func:`fastdet.features.extract_features`
+with the regressor's :class:`~fastdet.config.FeatureConfig`. A context above 1 lets it see
+where the vehicle continues beyond the box. The prediction is a ridge regression on
+standardised features: ``t = ((x - mean) / scale) @ coef.T + intercept``.
+
+File format (``.npz``, read with ``allow_pickle=False``; written atomically)
+
+===============  ============================  =========================================
+array            shape, dtype                  meaning
+===============  ============================  =========================================
+``coef``         ``(4, F) float64``            ridge weights on standardised features
+``intercept``    ``(4,) float64``              offsets of the mean feature vector
+``mean``         ``(F,) float64``              feature means (training set)
+``scale``        ``(F,) float64``              feature standard deviations (> 0)
+``metadata``     ``(n,) uint8``                UTF-8 JSON: format version, FeatureConfig,
+                                               contexts, training data and figures
+===============  ============================  =========================================
+
+``F = len(contexts) * feature_config.n_features``. :mod:`fastdet.train.refine` fits the arrays
+(given a :class:`BoxFeatures`), :meth:`BoxRegressor.from_fit` makes the regressor of them.
+"""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from .._version import __version__
+from ..config import FeatureConfig
+from ..config.models import REFINE_MODEL_PATH
+from ..errors import ModelError
+from ..features import extract_features
+from ..features.window import KERNELS as FEATURE_KERNELS
+from ..model import read_npz, write_npz
+
+KERNELS = FEATURE_KERNELS
+
+FORMAT_VERSION = 1
+_ARRAYS = ("coef", "intercept", "mean", "scale", "metadata")
+#: the regressor's default features: HOG of the luma channel (9 orientations, 8-px cells) and
+#: an 8x8 colour thumbnail, no histogram: 1956 values per context
+REFINE_FEATURES = FeatureConfig(color_space="YCrCb", hog_channels=(0,), orientations=9, pixels_per_cell=8,
+                                cells_per_block=2, spatial_size=8, hist_bins=0)
+
+
+# ---------------------------------------------------------------------------------------- offsets
+
+
+def encode_offsets(boxes: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """Offsets ``(N, 4) float64`` ``(tx, ty, tw, th)`` that take ``boxes (N, 4)`` to
+    ``targets (N, 4)`` (both ``x1, y1, x2, y2`` pixels, positive width and height; module
+    docstring)."""
+    b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    g = np.asarray(targets, np.float64).reshape(-1, 4)
+    w, h = b[:, 2] - b[:, 0], b[:, 3] - b[:, 1]
+    gw, gh = g[:, 2] - g[:, 0], g[:, 3] - g[:, 1]
+    if np.any(w <= 0) or np.any(h <= 0) or np.any(gw <= 0) or np.any(gh <= 0):
+        raise ValueError("encode_offsets: every box needs a positive width and height")
+    return np.stack([(g[:, 0] + 0.5 * gw - b[:, 0] - 0.5 * w) / w, (g[:, 1] + 0.5 * gh - b[:, 1] - 0.5 * h) / h,
+                     np.log(gw / w), np.log(gh / h)], axis=1)
+
+
+def decode_offsets(boxes: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """The boxes ``(N, 4) float64`` that ``offsets (N, 4)`` ``(tx, ty, tw, th)`` make of
+    ``boxes (N, 4)`` (``x1, y1, x2, y2`` pixels); the inverse of :func:`encode_offsets`."""
+    b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    t = np.asarray(offsets, np.float64).reshape(-1, 4)
+    w, h = b[:, 2] - b[:, 0], b[:, 3] - b[:, 1]
+    cx, cy = b[:, 0] + 0.5 * w + t[:, 0] * w, b[:, 1] + 0.5 * h + t[:, 1] * h
+    nw, nh = w * np.exp(t[:, 2]), h * np.exp(t[:, 3])
+    return np.stack([cx - 0.5 * nw, cy - 0.5 * nh, cx + 0.5 * nw, cy + 0.5 * nh], axis=1)
+
+
+# ---------------------------------------------------------------------------------------- features
+
+
+def region_crops(frame: np.ndarray, boxes: np.ndarray, context: float, size: tuple[int, int]) -> np.ndarray:
+    """The regions of ``context x`` each box's width and height about its centre, resized to
+    ``size = (height, width)``: ``(N, height, width, 3) uint8`` (same channel order as
+    ``frame (H, W, 3) uint8``). Pixels outside the frame replicate its border; shrinking uses
+    ``cv2.INTER_AREA``, enlarging ``cv2.INTER_LINEAR``."""
+    b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    H, W = frame.shape[:2]
+    oh, ow = size
+    out = np.empty((len(b), oh, ow, 3), np.uint8)
+    for i, (x1, y1, x2, y2) in enumerate(b):
+        cx, cy = 0.5 * (x1 + x2), 0.5 * (y1 + y2)
+        hw, hh = 0.5 * context * max(x2 - x1, 1.0), 0.5 * context * max(y2 - y1, 1.0)
+        a, c = int(math.floor(cx - hw)), int(math.ceil(cx + hw))
+        r, d = int(math.floor(cy - hh)), int(math.ceil(cy + hh))
+        # stay within one frame of padding either side (a box far outside is junk anyway)
+        a, c = max(a, -W), min(max(c, a + 1), 2 * W)
+        r, d = max(r, -H), min(max(d, r + 1), 2 * H)
+        ia, ic, ir, id_ = max(a, 0), min(c, W), max(r, 0), min(d, H)
+        if ic <= ia or id_ <= ir:  # wholly outside: the nearest border pixel
+            ia, ic = min(max(ia, 0), W - 1), min(max(ia, 0), W - 1) + 1
+            ir, id_ = min(max(ir, 0), H - 1), min(max(ir, 0), H - 1) + 1
+        reg = frame[ir:id_, ia:ic]
+        pads = (ir - r, d - id_, ia - a, c - ic)
+        if any(p > 0 for p in pads):
+            reg = cv2.copyMakeBorder(reg, *(max(p, 0) for p in pads), cv2.BORDER_REPLICATE)
+        interp = cv2.INTER_AREA if reg.shape[0] >= oh and reg.shape[1] >= ow else cv2.INTER_LINEAR
+        out[i] = cv2.resize(reg, (ow, oh), interpolation=interp)
+    return out
+
+
+def box_features(frame: np.ndarray, boxes: np.ndarray, config: FeatureConfig,
+                 contexts: tuple[float, ...]) -> np.ndarray:
+    """Features of ``boxes (N, 4)`` in ``frame (H, W, 3) uint8 BGR``: for each context factor,
+    :func:`extract_features` of :func:`region_crops`, concatenated:
+    ``(N, len(contexts) * config.n_features) float64``."""
+    n = len(np.asarray(boxes).reshape(-1, 4))
+    if n == 0:
+        return np.zeros((0, len(contexts) * config.n_features), np.float64)
+    return np.concatenate([extract_features(region_crops(frame, boxes, c, (config.win_h, config.win_w)), config)
+                           for c in contexts], axis=1)
+
+
+@dataclass(frozen=True)
+class BoxFeatures:
+    """The regressor's inputs: :func:`box_features` with ``config`` and ``contexts``. Fitting
+    (:mod:`fastdet.train.refine`) and refining (:mod:`fastdet.video.refine`) both take it from
+    here, so they compute the same features (and the same offsets, :func:`encode_offsets`)."""
+
+    config: FeatureConfig = REFINE_FEATURES
+    contexts: tuple[float, ...] = (1.5,)
+
+    @property
+    def n_features(self) -> int:
+        return len(self.contexts) * self.config.n_features
+
+    def features(self, frame: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+        """``(N, n_features) float64`` of ``boxes (N, 4)`` in ``frame (H, W, 3) uint8 BGR``."""
+        return box_features(frame, boxes, self.config, self.contexts)
+
+
+# ---------------------------------------------------------------------------------------- the model
+
+
+@dataclass(frozen=True, eq=False)
+class BoxRegressor:
+    """A linear box regressor (module docstring).
+
+    config: the features of each context crop; contexts: the context factors (> 0);
+    coef ``(4, F)``, intercept ``(4,)``, mean ``(F,)``, scale ``(F,)`` float64 with
+    ``F = len(contexts) * config.n_features``; metadata: what training recorded.
+    """
+
+    config: FeatureConfig
+    contexts: tuple[float, ...]
+    coef: np.ndarray
+    intercept: np.ndarray
+    mean: np.ndarray
+    scale: np.ndarray
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        ctx = tuple(float(c) for c in self.contexts)
+        if not ctx or any(not (math.isfinite(c) and c > 0) for c in ctx):
+            raise ModelError(f"contexts must be positive numbers, got {self.contexts!r}")
+        object.__setattr__(self, "contexts", ctx)
+        n = len(ctx) * self.config.n_features
+        shapes = {"coef": (4, n), "intercept": (4,), "mean": (n,), "scale": (n,)}
+        for name, shape in shapes.items():
+            arr = np.ascontiguousarray(getattr(self, name), dtype=np.float64)
+            if arr.shape != shape:
+                raise ModelError(f"box regressor: '{name}' has shape {arr.shape}, the features "
+                                 f"({len(ctx)} contexts x {self.config.n_features}) imply {shape}")
+            if not np.all(np.isfinite(arr)):
+                raise ModelError(f"box regressor: '{name}' holds non-finite values")
+            object.__setattr__(self, name, arr)
+        if np.any(self.scale <= 0):
+            raise ModelError("box regressor: 'scale' must be positive")
+
+    @property
+    def n_features(self) -> int:
+        return len(self.contexts) * self.config.n_features
+
+    @classmethod
+    def from_fit(cls, spec: BoxFeatures, coef: np.ndarray, intercept: np.ndarray, mean: np.ndarray,
+                 scale: np.ndarray, metadata: dict[str, Any] | None = None) -> BoxRegressor:
+        """The regressor of ``spec``'s features with fitted arrays (:func:`fastdet.train.refine.fit_ridge`)."""
+        return cls(spec.config, spec.contexts, coef, intercept, mean, scale, metadata=dict(metadata or {}))
+
+    @classmethod
+    def zero(cls, config: FeatureConfig = REFINE_FEATURES, contexts: tuple[float, ...] = (1.5,)) -> BoxRegressor:
+        """A regressor that predicts no change (offsets 0 for every box)."""
+        n = len(contexts) * config.n_features
+        return cls(config, contexts, np.zeros((4, n)), np.zeros(4), np.zeros(n), np.ones(n))
+
+    def predict_features(self, x: np.ndarray) -> np.ndarray:
+        """Offsets ``(N, 4) float64`` ``(tx, ty, tw, th)`` of feature rows ``x (N, F)``."""
+        x = np.asarray(x, np.float64).reshape(-1, self.n_features)
+        return ((x - self.mean) / self.scale) @ self.coef.T + self.intercept
+
+    def predict(self, frame: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+        """Offsets ``(N, 4) float64`` for ``boxes (N, 4)`` of ``frame (H, W, 3) uint8 BGR``."""
+        return self.predict_features(box_features(frame, boxes, self.config, self.contexts))
+
+    # ---- files ------------------------------------------------------------------------
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write to ``path`` (``.npz``), via a temporary file and a rename."""
+        meta = dict(self.metadata)
+        meta.update(format_version=FORMAT_VERSION, kind="box_regressor", feature_config=self.config.to_dict(),
+                    contexts=list(self.contexts), fastdet_version=__version__)
+        return write_npz(path, {"coef": self.coef, "intercept": self.intercept, "mean": self.mean,
+                                "scale": self.scale}, meta)
+
+
+def load_regressor(path: str | os.PathLike | None = None) -> BoxRegressor:
+    """Load a box regressor (``None``: the bundled :data:`REFINE_MODEL_PATH`).
+
+    Raises :class:`~fastdet.errors.ModelError` (a :class:`~fastdet.errors.FastdetError`)
+    naming the problem when the file is missing, not an ``.npz``, holds pickled objects, lacks
+    an array, has bad metadata or another format version, or its arrays do not fit its
+    features."""
+    path = Path(path) if path is not None else REFINE_MODEL_PATH
+    arrays, meta = read_npz(path, _ARRAYS, "box regressor", FORMAT_VERSION)
+    if meta.get("kind") != "box_regressor":
+        raise ModelError(f"{path} is not a box regressor (metadata kind {meta.get('kind')!r})")
+    try:
+        config = FeatureConfig.from_dict(meta["feature_config"])
+        contexts = tuple(float(c) for c in meta["contexts"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ModelError(f"{path}: bad feature configuration in metadata: {exc}") from None
+    try:
+        return BoxRegressor(config, contexts, arrays["coef"], arrays["intercept"], arrays["mean"], arrays["scale"],
+                            metadata=meta)
+    except ModelError as exc:
+        raise ModelError(f"{path}: {exc}") from None
+
+

@@ -1,0 +1,117 @@
+"""fastdet.detect.regressor: the box regressor's offsets, features and file."""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+
+from fastdet.detect.regressor import (
+    BoxRegressor,
+    box_features,
+    decode_offsets,
+    encode_offsets,
+    load_regressor,
+    region_crops,
+)
+from fastdet.errors import FastdetError, ModelError
+from fastdet.video.refine import refine_boxes
+from tests.video.test_refine import SMALL, _frame, boxes, small_offset  # the refinement tests' helpers
+
+
+@settings(max_examples=200, deadline=None)
+@given(boxes(), boxes())
+def test_encode_decode_round_trip(b: np.ndarray, g: np.ndarray) -> None:
+    t = encode_offsets(b, g)
+    np.testing.assert_allclose(decode_offsets(b, t), g, rtol=1e-9, atol=1e-6)
+
+
+@settings(max_examples=200, deadline=None)
+@given(boxes(), small_offset, small_offset, small_offset, small_offset)
+def test_decode_encode_round_trip(b: np.ndarray, tx: float, ty: float, tw: float, th: float) -> None:
+    t = np.array([[tx, ty, tw, th]])
+    np.testing.assert_allclose(encode_offsets(b, decode_offsets(b, t)), t, rtol=1e-7, atol=1e-7)
+
+
+def test_offsets_known_values() -> None:
+    b = np.array([[0, 0, 100, 50]])
+    g = np.array([[10, -5, 210, 45]])  # centre +60 x, -5 y; twice as wide, as high
+    np.testing.assert_allclose(encode_offsets(b, g), [[0.6, -0.1, math.log(2), 0.0]])
+    np.testing.assert_allclose(decode_offsets(b, np.zeros((1, 4))), b)
+    with pytest.raises(ValueError):
+        encode_offsets(np.array([[0, 0, 0, 10]]), g)
+
+
+def test_region_crops_and_features() -> None:
+    frame = _frame()
+    b = np.array([[0, 0, 64, 64], [-30, -30, 30, 30], [100, 50, 140, 90]], np.float64)
+    crops = region_crops(frame, b, 1.0, (64, 64))
+    assert crops.shape == (3, 64, 64, 3) and crops.dtype == np.uint8
+    np.testing.assert_array_equal(crops[0], frame[:64, :64])  # same size: the pixels themselves
+    assert crops[1][0, 0].tolist() == frame[0, 0].tolist()  # replicated border
+    x = box_features(frame, b, SMALL, (1.0, 2.0))
+    assert x.shape == (3, 2 * SMALL.n_features)
+    assert box_features(frame, np.zeros((0, 4)), SMALL, (1.0,)).shape == (0, SMALL.n_features)
+
+
+def test_save_load_round_trip(tmp_path: Path) -> None:
+    rng = np.random.default_rng(0)
+    reg0 = BoxRegressor.zero(SMALL, (1.0, 1.5))
+    reg = BoxRegressor(SMALL, (1.0, 1.5), rng.normal(size=reg0.coef.shape), rng.normal(size=4),
+                       rng.normal(size=reg0.n_features), rng.uniform(0.5, 2, reg0.n_features), metadata={"note": "x"})
+    p = reg.save(tmp_path / "r.npz")
+    back = load_regressor(p)
+    assert back.config == SMALL and back.contexts == (1.0, 1.5) and back.metadata["note"] == "x"
+    for k in ("coef", "intercept", "mean", "scale"):
+        np.testing.assert_array_equal(getattr(back, k), getattr(reg, k))
+    frame = _frame(3)
+    bx = np.array([[20.0, 30.0, 120.0, 90.0]])
+    np.testing.assert_array_equal(refine_boxes(frame, bx, back), refine_boxes(frame, bx, reg))
+    assert not list(tmp_path.glob(".*partial*"))
+
+
+def _write_npz(path: Path, **arrays: np.ndarray) -> Path:
+    with open(path, "wb") as fh:
+        np.savez(fh, **arrays)
+    return path
+
+
+def test_bad_files_raise_clear_errors(tmp_path: Path) -> None:
+    good = BoxRegressor.zero(SMALL).save(tmp_path / "good.npz")
+    with np.load(good, allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    meta = json.loads(arrays["metadata"].tobytes().decode())
+
+    def blob(m: dict) -> np.ndarray:
+        return np.frombuffer(json.dumps(m).encode(), np.uint8)
+
+    cases = {
+        "missing.npz": None,
+        "text.npz": "not a zip",
+        "empty.npz": "",
+        "truncated.npz": good.read_bytes()[:200],
+        "noarray.npz": {k: v for k, v in arrays.items() if k != "coef"},
+        "pickled.npz": {**arrays, "coef": np.array([object()], dtype=object)},
+        "badjson.npz": {**arrays, "metadata": np.frombuffer(b"{nope", np.uint8)},
+        "version.npz": {**arrays, "metadata": blob({**meta, "format_version": 99})},
+        "kind.npz": {**arrays, "metadata": blob({**meta, "kind": "classifier"})},
+        "shape.npz": {**arrays, "coef": arrays["coef"][:, :-1]},
+        "nan.npz": {**arrays, "scale": np.full_like(arrays["scale"], np.nan)},
+    }
+    for name, content in cases.items():
+        p = tmp_path / name
+        if isinstance(content, dict):
+            _write_npz(p, **content)
+        elif isinstance(content, str):
+            p.write_text(content)
+        elif isinstance(content, bytes):
+            p.write_bytes(content)
+        with pytest.raises(ModelError) as ei:
+            load_regressor(p)
+        assert isinstance(ei.value, FastdetError)
+        assert str(p) in str(ei.value) and "\n" not in str(ei.value), name
+    with pytest.raises(ModelError, match="not a file"):
+        load_regressor(tmp_path)
