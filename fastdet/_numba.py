@@ -324,9 +324,12 @@ def _compile(missing: list[Task], est: Estimate) -> dict[str, float]:
     try:
         # the first share here (its code is then loaded already), the others in worker processes
         for plan in est.plan[1:]:
-            p = subprocess.Popen([sys.executable, "-c", "from fastdet._numba import _worker; _worker()", *plan],
-                                 stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                                 text=True, env=env, start_new_session=True)
+            try:
+                p = subprocess.Popen([sys.executable, "-c", "from fastdet._numba import _worker; _worker()", *plan],
+                                     stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                                     text=True, env=env, start_new_session=True)
+            except OSError:  # no process to be had: its share compiles here afterwards
+                continue
             procs.append(p)
             threading.Thread(target=_read_worker, args=(p, done), daemon=True).start()
         threading.Thread(target=_compile_here, args=(est.plan[0], done), daemon=True).start()

@@ -11,6 +11,8 @@ import numpy as np
 #: ``Detections.part`` values: which model a window came from.
 MAIN_PART = 0
 WIDE_PART = 1
+#: component ``i`` of a :class:`fastdet.Detector` (``components=``) tags its windows ``FIRST_COMPONENT_PART + i``
+FIRST_COMPONENT_PART = 2
 
 _OPTIONAL = ("scale", "part", "ids")
 _DTYPES = {"boxes": np.int32, "scores": np.float32, "scale": np.float32, "part": np.int8, "ids": np.int64}
@@ -28,7 +30,8 @@ class Detections:
     scale: ``(N,) float32`` or ``None``: the search band's scale of each window (a window
         is ``64 * scale`` frame pixels for 64-px windows).
     part: ``(N,) int8`` or ``None``: which model found each window: ``MAIN_PART`` (0) for
-        the main (square-window) model, ``WIDE_PART`` (1) for the wide-window model.
+        the main (square-window) model, ``WIDE_PART`` (1) for the wide-window model,
+        ``FIRST_COMPONENT_PART + i`` (2, 3, ...) for the detector's component ``i``.
     ids: ``(N,) int64`` or ``None``: track ids (>= 1) from the tracker, -1 for none.
 
     ``len(d)`` is the number of boxes, ``d[mask]`` / ``d[indices]`` / ``d[i:j]`` select rows

@@ -322,3 +322,69 @@ def naive_window_motion(prev_bgr: np.ndarray, cur_bgr: np.ndarray, boxes: np.nda
         patch = d[y1:y2, x1:x2]
         out.append(patch.mean() if patch.size else 0.0)
     return np.array(out)
+
+
+# ========================================================================== own vehicle
+
+
+def ref_pair_stillness(a: np.ndarray, b: np.ndarray, min_gradient: float,
+                       max_change: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per pixel: textured when the central-difference gradient of ``a`` (0 on the border
+    rows / columns in the direction that has no neighbour) reaches ``min_gradient``; still when
+    textured and ``|b - a| < max_change``."""
+    h, w = a.shape
+    tex = np.zeros((h, w), bool)
+    still = np.zeros((h, w), bool)
+    for y in range(h):
+        for x in range(w):
+            gx = (float(a[y, x + 1]) - float(a[y, x - 1])) / 2 if 0 < x < w - 1 else 0.0
+            gy = (float(a[y + 1, x]) - float(a[y - 1, x])) / 2 if 0 < y < h - 1 else 0.0
+            tex[y, x] = math.hypot(gx, gy) >= min_gradient
+            still[y, x] = tex[y, x] and abs(float(b[y, x]) - float(a[y, x])) < max_change
+    return tex, still
+
+
+def ref_box_fraction(region: np.ndarray, box: Box) -> float:
+    """Fraction of a box's area (``x1, y1, x2, y2``, px, exclusive) on True pixels of
+    ``region``, counted pixel by pixel (pixels outside the frame count as not in it)."""
+    x1, y1, x2, y2 = (int(v) for v in box)
+    a = (x2 - x1) * (y2 - y1)
+    if a <= 0:
+        return 0.0
+    h, w = region.shape
+    n = 0
+    for y in range(max(y1, 0), min(y2, h)):
+        for x in range(max(x1, 0), min(x2, w)):
+            n += bool(region[y, x])
+    return n / a
+
+
+# ========================================================================== blob split
+
+
+def ref_mean_shift(boxes: np.ndarray, weights: np.ndarray, bandwidth: float, scale_bandwidth: float,
+                   iters: int) -> np.ndarray:
+    """Where each window's point (centre x, centre y, log2 width) ends after mean shift with a
+    Gaussian kernel (sigma ``bandwidth`` x the moving point's width in x, y; ``scale_bandwidth``
+    in log2 width), all points moved together, one point and one window at a time; stops after
+    ``iters`` steps or when no point moved by more than 1e-3."""
+    pts = [((b[0] + b[2]) / 2, (b[1] + b[3]) / 2, math.log2(max(b[2] - b[0], 1.0))) for b in boxes]
+    y = [list(p) for p in pts]
+    for _ in range(iters):
+        new = []
+        for q in y:
+            s = bandwidth * 2.0 ** q[2]
+            num = [0.0, 0.0, 0.0]
+            den = 0.0
+            for p, wt in zip(pts, weights):
+                d2 = ((q[0] - p[0]) / s) ** 2 + ((q[1] - p[1]) / s) ** 2 + ((q[2] - p[2]) / scale_bandwidth) ** 2
+                k = wt * math.exp(-0.5 * d2)
+                den += k
+                for c in range(3):
+                    num[c] += k * p[c]
+            new.append([v / den for v in num] if den > 0 else list(q))
+        moved = max(abs(a - b) for qa, qb in zip(new, y) for a, b in zip(qa, qb))
+        y = new
+        if moved <= 1e-3:
+            break
+    return np.array(y)

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..config import HeatConfig, PipelineConfig
+from ..config import HeatConfig, NeighbourSplit, OwnVehicleConfig, PerspectiveConfig, PipelineConfig
 from ..errors import FastdetError
 
 
@@ -64,6 +64,10 @@ def add_horizon_argument(parser: argparse.ArgumentParser) -> None:
                         help="where the search bands go: 'auto' (default) follows the horizon estimated "
                              "from the first seconds of the video; F: the horizon row as a fraction of the "
                              "frame height (another camera's known horizon); 'off': bands as configured")
+    parser.add_argument("--perspective", action="store_true",
+                        help="the search bands follow the horizon and the camera's ratio (vehicle width / how "
+                             "far below the horizon it stands) that the tracked vehicles show (off by default; "
+                             "docs/geometry.md)")
 
 
 def add_search_argument(parser: argparse.ArgumentParser) -> None:
@@ -75,8 +79,8 @@ def add_search_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def add_oncoming_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--oncoming-model`` / ``--no-oncoming`` and ``--traffic``, shared by ``video``,
-    ``eval``, ``bench`` and ``batch``."""
+    """``--oncoming-model`` / ``--no-oncoming``, ``--traffic`` and ``--side`` / ``--side-model``,
+    shared by ``video``, ``eval``, ``bench`` and ``batch``."""
     g = parser.add_mutually_exclusive_group()
     g.add_argument("--oncoming-model", metavar="WIDE.npz", default=None,
                    help="wide-window model for oncoming traffic above the median "
@@ -88,6 +92,13 @@ def add_oncoming_arguments(parser: argparse.ArgumentParser) -> None:
                              "other side of the view: 'right' (default; oncoming cars on the left), 'left' "
                              "(UK, Japan, India, Australia ...: searched on the right), 'both' (the whole "
                              "width, about 15%% more CPU a frame)")
+    s = parser.add_mutually_exclusive_group()
+    s.add_argument("--side", action="store_true",
+                   help="add the bundled side-view component (fastdet/models/side.npz: 64x32 windows for "
+                        "vehicles wider than tall, parked cars seen from the side; docs/components.md); off "
+                        "by default")
+    s.add_argument("--side-model", metavar="SIDE.npz", default=None,
+                   help="add this side-view component (built by `python -m tools.scripts.side_model`)")
 
 
 def add_refine_argument(parser: argparse.ArgumentParser) -> None:
@@ -97,13 +108,25 @@ def add_refine_argument(parser: argparse.ArgumentParser) -> None:
                              "(fastdet/models/refine.npz)")
 
 
+def add_camera_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--own-vehicle`` and ``--split-neighbours``: the optional stages for other cameras."""
+    parser.add_argument("--own-vehicle", action="store_true",
+                        help="drop the windows lying on the own vehicle (hood, dashboard, mirrors, letterbox bars: "
+                             "what stays fixed at the picture's border while the scene moves in the first 3 s); "
+                             "off by default")
+    parser.add_argument("--split-neighbours", action="store_true",
+                        help="split a wide heat blob between the modes of its windows, one box per vehicle side "
+                             "by side; off by default")
+
+
 def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
     """The :class:`~fastdet.config.PipelineConfig` of parsed CLI arguments, for every command
     that runs the pipeline (``video``, ``eval --video``, ``bench``, ``batch``); an option a
     command does not have takes its default. ``--no-track``: no tracker (and so the full
     search); ``--full-search``: no guided search; ``--no-refine``: no refinement;
     ``--heat-frames`` / ``--heat-decay`` / ``--heat-threshold``: the main heat map (a bad
-    value: :class:`~fastdet.errors.FastdetError`)."""
+    value: :class:`~fastdet.errors.FastdetError`); ``--own-vehicle``, ``--split-neighbours``:
+    those stages on with their defaults."""
     d = HeatConfig()
     try:
         heat = HeatConfig(n_frames=getattr(args, "heat_frames", d.n_frames), decay=getattr(args, "heat_decay", d.decay),
@@ -113,8 +136,11 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
     config = PipelineConfig(model=getattr(args, "model", None),
                             oncoming=False if getattr(args, "no_oncoming", False)
                             else (getattr(args, "oncoming_model", None) or True),
+                            side=getattr(args, "side_model", None) or bool(getattr(args, "side", False)),
                             traffic=getattr(args, "traffic", "right"), horizon=getattr(args, "horizon", "auto"),
-                            heat=heat)
+                            heat=heat, perspective=PerspectiveConfig() if getattr(args, "perspective", False) else None,
+                            own_vehicle=OwnVehicleConfig() if getattr(args, "own_vehicle", False) else None,
+                            split=NeighbourSplit() if getattr(args, "split_neighbours", False) else None)
     off = [name for name, flag in (("tracker", "no_track"), ("guided", "full_search"), ("refine", "no_refine"))
            if getattr(args, flag, False)]
     return config.without(*off)  # type: ignore[arg-type]

@@ -27,8 +27,8 @@ from ..errors import FastdetError
 from ..signals import Stopped
 from ..io.paths import check_paths
 from ..config.batch import BatchOptions
-from ._args import (add_horizon_argument, add_oncoming_arguments, add_refine_argument, add_search_argument,
-                    nonneg_int, pipeline_config, positive_int)
+from ._args import (add_camera_arguments, add_horizon_argument, add_oncoming_arguments, add_refine_argument,
+                    add_search_argument, nonneg_int, pipeline_config, positive_int)
 
 _INSTALL = "pip install fastdet[cluster]"
 # the packages of the ``cluster`` extra that fastdet.batch imports
@@ -45,6 +45,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
     add_oncoming_arguments(parser)
     add_refine_argument(parser)
+    add_camera_arguments(parser)
     add_horizon_argument(parser)
     add_search_argument(parser)
     parser.add_argument("--no-track", action="store_true",
@@ -99,6 +100,7 @@ def run(args: argparse.Namespace) -> int:
     job.prepare_out_dir(out_dir)
     if table is not None:  # after the output folder exists: the table may go into it
         check_paths([("--model", args.model), ("--oncoming-model", args.oncoming_model),
+                     ("--side-model", getattr(args, "side_model", None)),
                      *[("INPUT", v) for v in videos]], [("--table", table, "table")])
         if os.path.realpath(table.parent) == os.path.realpath(out_dir) \
                 and table.name.endswith(tuple(settings_mod.SUFFIXES.values())):

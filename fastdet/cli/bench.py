@@ -54,6 +54,7 @@ from ..io.reader import FrameReader, check_source
 from ..video.detector import make_detector
 from ..video.pipeline import VideoDetector
 from ._args import (
+    add_camera_arguments,
     add_oncoming_arguments,
     add_refine_argument,
     add_search_argument,
@@ -97,6 +98,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
     add_oncoming_arguments(parser)
     add_refine_argument(parser)
+    add_camera_arguments(parser)
     add_search_argument(parser)
 
 

@@ -17,6 +17,7 @@ from ..io.paths import bundled_models, check_paths
 from ..io.reader import check_source
 from ..video.run import iter_video_detections
 from ._args import (
+    add_camera_arguments,
     add_horizon_argument,
     add_oncoming_arguments,
     add_refine_argument,
@@ -65,6 +66,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", metavar="MODEL.npz", help="model for --video (default: the bundled one)")
     add_oncoming_arguments(parser)
     add_refine_argument(parser)
+    add_camera_arguments(parser)
     add_horizon_argument(parser)
     add_search_argument(parser)
     track = parser.add_mutually_exclusive_group()
@@ -111,10 +113,13 @@ def _run_all(args: argparse.Namespace) -> int:
         raise FastdetError("--all scores every annotated clip: "
                            "it takes no --gt, --pred, --video, --keyframes or --plot")
     if args.pred_dir is not None and (args.model is not None or args.oncoming_model is not None or args.no_oncoming
+                                      or args.side or args.side_model is not None
                                       or args.no_track or args.offline or getattr(args, "no_refine", False)
-                                      or getattr(args, "traffic", "right") != "right"):
-        raise FastdetError("--model, --oncoming-model, --no-oncoming, --traffic, --no-refine, --no-track and "
-                           "--offline only apply when --all runs the pipeline (not with --pred-dir)")
+                                      or getattr(args, "traffic", "right") != "right"
+                                      or getattr(args, "perspective", False)):
+        raise FastdetError("--model, --oncoming-model, --no-oncoming, --side, --side-model, --traffic, --no-refine, "
+                           "--no-track, --offline and --perspective only apply when --all runs the pipeline "
+                           "(not with --pred-dir)")
     clips = annotated_clips(args.data)
     if args.clips is not None:
         want = [c.strip() for c in args.clips.split(",") if c.strip()]
@@ -129,7 +134,8 @@ def _run_all(args: argparse.Namespace) -> int:
         raise DataError(f"{args.data or data_dir()}: no annotated clips (annotations/CLIP.gt.txt with videos/CLIP.mp4)")
     preds_in = [("--pred-dir", Path(args.pred_dir) / f"{c.name}{ext}") for c in clips for ext in (".txt", ".jsonl")
                 ] if args.pred_dir is not None else []
-    check_paths([("--model", args.model), ("--oncoming-model", args.oncoming_model), *bundled_models(),
+    check_paths([("--model", args.model), ("--oncoming-model", args.oncoming_model),
+                 ("--side-model", getattr(args, "side_model", None)), *bundled_models(),
                  *[(f"clip {c.name}", p) for c in clips for p in (c.video, c.gt_path)], *preds_in],
                 [("--out", args.out, "report")])
     scores = []
@@ -146,8 +152,10 @@ def _run_all(args: argparse.Namespace) -> int:
     else:
         config = pipeline_config(args)
         settings.update(model=args.model or "bundled", oncoming=args.oncoming_model or not args.no_oncoming,
+                        side=config.side,
                         traffic=config.traffic, refine=config.refine is not None, track=config.tracker is not None,
-                        offline=args.offline, horizon=config.horizon, full_search=config.guided is None)
+                        offline=args.offline, horizon=config.horizon, full_search=config.guided is None,
+                        perspective=config.perspective is not None)
     report = report_json(scores, settings)
     text = json.dumps(report, indent=1, allow_nan=False) + "\n"
     if args.out is not None:
@@ -172,12 +180,14 @@ def run(args: argparse.Namespace) -> int:
         raise FastdetError("give --gt GT.txt and one of --pred PRED.txt or --video CLIP.mp4 (or --all)")
     no_track, offline = getattr(args, "no_track", False), getattr(args, "offline", False)
     if args.video is None and (args.model is not None or args.oncoming_model is not None or args.no_oncoming
+                               or args.side or args.side_model is not None
                                or no_track or offline or getattr(args, "no_refine", False)
-                               or getattr(args, "traffic", "right") != "right"):
-        raise FastdetError("--model, --oncoming-model, --no-oncoming, --traffic, --no-refine, --no-track and "
-                           "--offline only apply with --video")
+                               or getattr(args, "traffic", "right") != "right" or getattr(args, "perspective", False)):
+        raise FastdetError("--model, --oncoming-model, --no-oncoming, --side, --side-model, --traffic, --no-refine, "
+                           "--no-track, --offline and --perspective only apply with --video")
     check_paths([("--gt", args.gt), ("--pred", args.pred), ("--video", args.video), ("--model", args.model),
                  ("--oncoming-model", getattr(args, "oncoming_model", None)),
+                 ("--side-model", getattr(args, "side_model", None)),
                  ("--keyframes", getattr(args, "keyframes", None) or keyframes_path(args.gt)),
                  *(bundled_models() if args.video is not None else [])],
                 [("--plot", args.plot, "PNG")])

@@ -79,8 +79,8 @@ from ..video.offline import offline_pass
 from ..video.detector import make_detector
 from ..video.run import progress_bar, video_detector_for
 from .. import signals as _signals
-from ._args import (add_horizon_argument, add_oncoming_arguments, add_refine_argument, add_search_argument,
-                    nonneg_int, pipeline_config, positive_int)
+from ._args import (add_camera_arguments, add_horizon_argument, add_oncoming_arguments, add_refine_argument,
+                    add_search_argument, nonneg_int, pipeline_config, positive_int)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -94,6 +94,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
     add_oncoming_arguments(parser)
     add_refine_argument(parser)
+    add_camera_arguments(parser)
     parser.add_argument("--debug", action="store_true",
                         help="add panels along the top: windows by scale, heat map, thresholded blobs; "
                              "every live track's predicted box and state")
@@ -248,7 +249,8 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
     heat = config.heat
     check_source(args.input)
     check_paths([("INPUT", args.input), ("--model", args.model),
-                 ("--oncoming-model", getattr(args, "oncoming_model", None)), *bundled_models()],
+                 ("--oncoming-model", getattr(args, "oncoming_model", None)),
+                 ("--side-model", getattr(args, "side_model", None)), *bundled_models()],
                 [("-o", out, "video"), ("--boxes", boxes_path, "box"), ("--json", json_path, "JSON"),
                  ("--summary", summary_path, "summary")])
     if out:

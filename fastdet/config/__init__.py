@@ -4,13 +4,19 @@ comparable, JSON round-trip through one :meth:`~fastdet.config.Config.to_dict` /
 
 - :mod:`.features`: what a model computes of a window (:class:`FeatureConfig`);
 - :mod:`.search`: where to search (:class:`SearchBand`, :class:`SearchConfig`, the
-  oncoming-traffic search by traffic side, :func:`oncoming_search`);
-- :mod:`.heat`: how the heat map makes boxes (:class:`HeatConfig`, :data:`ONCOMING_HEAT`);
+  oncoming-traffic search by traffic side, :func:`oncoming_search`; the side-view
+  component's, :func:`side_search`);
+- :mod:`.heat`: how the heat map makes boxes (:class:`HeatConfig`, :data:`ONCOMING_HEAT`,
+  :data:`SIDE_HEAT`);
 - :mod:`.motion`: the oncoming model's motion gate (:class:`MotionGate`);
+- :mod:`.ownvehicle`: the own vehicle's region and the windows dropped there (:class:`OwnVehicleConfig`);
+- :mod:`.split`: heat blobs over vehicles side by side split (:class:`NeighbourSplit`);
 - :mod:`.track`: the tracker (:class:`TrackerConfig`);
 - :mod:`.guided`: the search between full scans (:class:`GuidedSearch`);
 - :mod:`.refine`: the box refinement (:class:`RefineConfig`) and its training boxes
   (:class:`JitterConfig`);
+- :mod:`.perspective`: bands from the camera's geometry (:class:`GeometryConfig`) and the
+  perspective learnt from the tracked vehicles (:class:`PerspectiveConfig`);
 - :mod:`.models`: the bundled model files;
 - :mod:`.pipeline`: all of the video pipeline's settings in one value (:class:`PipelineConfig`);
 - :mod:`.batch`: a batch's settings and options (:class:`Settings`, :class:`BatchOptions`).
@@ -22,15 +28,18 @@ A new setting goes into its stage's dataclass (a field with a default and a chec
 from ._base import Config
 from .features import CELL, COLOR_SPACES, WINDOW, ColorSpace, FeatureConfig
 from .guided import GuidedSearch
-from .heat import ONCOMING_HEAT, WIDE_HEAT, BoxMode, HeatConfig, ScoreKind
-from .models import DEFAULT_MODEL_PATH, ONCOMING_MODEL_PATH, REFINE_MODEL_PATH
+from .heat import ONCOMING_HEAT, SIDE_HEAT, WIDE_HEAT, BoxMode, HeatConfig, ScoreKind
+from .models import DEFAULT_MODEL_PATH, ONCOMING_MODEL_PATH, REFINE_MODEL_PATH, SIDE_MODEL_PATH
 from .motion import MotionGate
+from .ownvehicle import OwnVehicleConfig
+from .perspective import GeometryConfig, PerspectiveConfig
 from .pipeline import Horizon, PipelineConfig
 from .refine import JitterConfig, RefineConfig
 from .search import (
                      ONCOMING_SEARCH,
                      REFERENCE_HORIZON,
                      REFERENCE_SHAPE,
+                     SIDE_SEARCH,
                      TRAFFIC_SIDES,
                      WIDE_SEARCH,
                      SearchBand,
@@ -38,12 +47,16 @@ from .search import (
                      Traffic,
                      check_traffic,
                      oncoming_search,
+                     side_search,
                      wide_search,
 )
+from .split import NeighbourSplit
 from .track import TrackerConfig
 
-__all__ = ["CELL", "COLOR_SPACES", "DEFAULT_MODEL_PATH", "ONCOMING_HEAT", "ONCOMING_MODEL_PATH", "ONCOMING_SEARCH",
-           "REFERENCE_HORIZON", "REFERENCE_SHAPE", "REFINE_MODEL_PATH", "TRAFFIC_SIDES", "WIDE_HEAT", "WIDE_SEARCH",
-           "WINDOW", "BoxMode", "ColorSpace", "Config", "FeatureConfig", "GuidedSearch", "HeatConfig", "Horizon",
-           "JitterConfig", "MotionGate", "PipelineConfig", "RefineConfig", "ScoreKind", "SearchBand", "SearchConfig",
-           "TrackerConfig", "Traffic", "check_traffic", "oncoming_search", "wide_search"]
+__all__ = ["BoxMode", "CELL", "COLOR_SPACES", "ColorSpace", "Config", "DEFAULT_MODEL_PATH", "FeatureConfig",
+           "GeometryConfig", "GuidedSearch", "HeatConfig", "Horizon", "JitterConfig", "MotionGate", "NeighbourSplit",
+           "ONCOMING_HEAT", "ONCOMING_MODEL_PATH", "ONCOMING_SEARCH", "OwnVehicleConfig", "PerspectiveConfig",
+           "PipelineConfig", "REFERENCE_HORIZON", "REFERENCE_SHAPE", "REFINE_MODEL_PATH", "RefineConfig",
+           "SIDE_HEAT", "SIDE_MODEL_PATH", "SIDE_SEARCH", "ScoreKind", "SearchBand", "SearchConfig", "TRAFFIC_SIDES",
+           "TrackerConfig", "Traffic", "WIDE_HEAT", "WIDE_SEARCH", "WINDOW", "check_traffic", "oncoming_search",
+           "side_search", "wide_search"]

@@ -7,10 +7,13 @@ from typing import Literal
 
 from ._base import Config
 from .guided import GuidedSearch
-from .heat import ONCOMING_HEAT, HeatConfig
+from .heat import ONCOMING_HEAT, SIDE_HEAT, HeatConfig
 from .motion import MotionGate
+from .ownvehicle import OwnVehicleConfig
+from .perspective import PerspectiveConfig
 from .refine import RefineConfig
-from .search import SearchConfig, Traffic, check_traffic
+from .search import SIDE_SEARCH, SearchConfig, Traffic, check_traffic
+from .split import NeighbourSplit
 from .track import TrackerConfig
 
 #: where the search bands go: ``'auto'`` (estimated from the video), a fraction of the frame
@@ -34,6 +37,9 @@ class PipelineConfig(Config):
     model: the main model file; ``None``: the bundled one (:data:`~fastdet.config.models.DEFAULT_MODEL_PATH`).
     oncoming: the oncoming-traffic (wide-window) model: ``True`` the bundled one, a path for
         another, ``False`` none.
+    side: the side-view component (boxes wider than tall: parked cars seen from the side;
+        docs/components.md): ``False`` (default) none, ``True`` the bundled one
+        (:data:`~fastdet.config.models.SIDE_MODEL_PATH`), a path for another.
     refine_model: the box regressor file; ``None``: the bundled one.
     traffic: the side of the road traffic drives on (:data:`~fastdet.config.TRAFFIC_SIDES`),
         which decides where the oncoming model searches (:func:`~fastdet.config.oncoming_search`).
@@ -42,6 +48,8 @@ class PipelineConfig(Config):
         of the first seconds (:mod:`fastdet.video.horizon`), a number is the horizon row as a
         fraction of the frame height in [0, 1], ``None`` leaves the bands where they are written.
     heat: the main model's heat map; oncoming_heat: the oncoming model's.
+    side_search, side_heat: where the side-view component searches and its heat map (whose
+        boxes join the main ones where those found nothing).
     motion: the motion gate of the oncoming model.
     tracker: the tracker that gives every vehicle an id; ``None``: no tracking (boxes
         without ids).
@@ -49,20 +57,38 @@ class PipelineConfig(Config):
         on every frame. Needs the tracker: without it the search is full (:attr:`planned`).
     refine: the learned box refinement; ``None``: the boxes as the heat map (or the tracker)
         gives them.
+    perspective: the main search follows the horizon and the ratio (vehicle width / how far
+        below the horizon it stands) the tracked vehicles show (:mod:`fastdet.video.perspective`);
+        ``None`` (the default): the bands stay at the horizon above. Needs the tracker and a
+        horizon (not ``None``).
+    own_vehicle: drop the positive windows lying on the own vehicle (hood, dashboard,
+        mirrors, letterbox bars) found in the first seconds (:mod:`fastdet.video.ownvehicle`);
+        ``None`` (default): off.
+    split: split the main heat map's wide boxes between the modes of their windows, one box
+        per vehicle side by side (:mod:`fastdet.video.blobsplit`); ``None`` (default): off.
     """
+
+    #: off by default: a dict written before these stages existed is the same dict
+    _OMIT_NONE = ("own_vehicle", "split")
 
     model: str | None = None
     oncoming: str | bool = True
+    side: str | bool = False
     refine_model: str | None = None
     traffic: Traffic = "right"
     search: SearchConfig = SearchConfig()
     horizon: Horizon = "auto"
     heat: HeatConfig = HeatConfig()
     oncoming_heat: HeatConfig = ONCOMING_HEAT
+    side_search: SearchConfig = SIDE_SEARCH
+    side_heat: HeatConfig = SIDE_HEAT
     motion: MotionGate = MotionGate()
     tracker: TrackerConfig | None = TrackerConfig()
     guided: GuidedSearch | None = GuidedSearch()
     refine: RefineConfig | None = RefineConfig()
+    perspective: PerspectiveConfig | None = None
+    own_vehicle: OwnVehicleConfig | None = None
+    split: NeighbourSplit | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "model", _path(self.model, "model"))
@@ -71,14 +97,20 @@ class PipelineConfig(Config):
             object.__setattr__(self, "oncoming", _path(self.oncoming, "oncoming"))
             if self.oncoming is None:
                 raise TypeError("oncoming must be True, False or a path, got None")
+        if not isinstance(self.side, bool):
+            object.__setattr__(self, "side", _path(self.side, "side"))
+            if self.side is None:
+                raise TypeError("side must be True, False or a path, got None")
         check_traffic(self.traffic)
         h = self.horizon
         if not (h is None or h == "auto" or (isinstance(h, (int, float)) and not isinstance(h, bool) and 0 <= h <= 1)):
             raise ValueError(f"horizon must be 'auto', a fraction of the frame height in [0, 1] or None, got {h!r}")
         for name, cls, optional in (("search", SearchConfig, False), ("heat", HeatConfig, False),
-                                    ("oncoming_heat", HeatConfig, False), ("motion", MotionGate, False),
+                                    ("oncoming_heat", HeatConfig, False), ("side_search", SearchConfig, False),
+                                    ("side_heat", HeatConfig, False), ("motion", MotionGate, False),
                                     ("tracker", TrackerConfig, True), ("guided", GuidedSearch, True),
-                                    ("refine", RefineConfig, True)):
+                                    ("refine", RefineConfig, True), ("perspective", PerspectiveConfig, True),
+                                    ("own_vehicle", OwnVehicleConfig, True), ("split", NeighbourSplit, True)):
             v = getattr(self, name)
             if not (isinstance(v, cls) or (optional and v is None)):
                 allowed = f"a {cls.__name__}" + (" or None" if optional else "")
@@ -92,10 +124,11 @@ class PipelineConfig(Config):
             return None
         return self.guided
 
-    def without(self, *stages: Literal["tracker", "guided", "refine", "oncoming"]) -> PipelineConfig:
+    def without(self, *stages: Literal["tracker", "guided", "refine", "oncoming", "side"]) -> PipelineConfig:
         """This config with the named optional stages off (``tracker``, ``guided``: the full
-        search, ``refine``, ``oncoming``: no oncoming model)."""
+        search, ``refine``, ``oncoming``: no oncoming model, ``side``: no side-view component)."""
         return replace(self, tracker=None if "tracker" in stages else self.tracker,
                        guided=None if "guided" in stages else self.guided,
                        refine=None if "refine" in stages else self.refine,
-                       oncoming=False if "oncoming" in stages else self.oncoming)
+                       oncoming=False if "oncoming" in stages else self.oncoming,
+                       side=False if "side" in stages else self.side)

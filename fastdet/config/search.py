@@ -47,9 +47,9 @@ def _default_bands() -> tuple[SearchBand, ...]:
     # Each window size where cars of that size stand: all bands start 21 px above the horizon
     # (421 px, SearchConfig.reference_horizon) and reach 1.3-1.5 windows below it; 48-px
     # windows (scale 0.75, the band upsampled before HOG) for the 45-70 px cars of a wider
-    # lens or a far lane, near the horizon only.
+    # lens, a far lane or the other carriageway, near the horizon only, across the whole width.
     return (
-        SearchBand(0.75, 400, 460, 128, 1152),
+        SearchBand(0.75, 400, 460),
         SearchBand(1.0, 400, 496),
         SearchBand(1.25, 400, 528),
         SearchBand(1.5, 400, 560),
@@ -198,6 +198,38 @@ def oncoming_search(traffic: Traffic = "right") -> SearchConfig:
 #: :class:`~fastdet.VideoDetector` narrows it each frame to where the picture moves
 #: (:class:`~fastdet.config.MotionGate`).
 ONCOMING_SEARCH = oncoming_search("right")
+
+#: the side-view component's windows, ``(width, height)`` px (:data:`fastdet.train.components.SIDE_RECIPE`)
+SIDE_WINDOW = (WINDOW, 32)
+#: window widths of the side-view component's bands, in units of its window width at the
+#: reference frame (80 .. 448 px of 1280: parked cars seen from the side, close cars at an angle)
+SIDE_SCALES = (1.25, 1.75, 2.5, 3.5, 5.0, 7.0)
+
+
+def _side_bands(scales: tuple[float, ...] = SIDE_SCALES, slack: float = 0.05) -> tuple[SearchBand, ...]:
+    # A vehicle seen from the side with its top near the horizon (a camera about as high as the
+    # vehicle) and its bottom about its height below: each window size is searched from 0.45
+    # window heights above to 1.15 below the reference horizon, plus ``slack`` x H above and
+    # below for cameras whose horizon or height differ.
+    rows, hz = REFERENCE_SHAPE[0], REFERENCE_HORIZON * REFERENCE_SHAPE[0]
+    out = []
+    for s in scales:
+        h = SIDE_WINDOW[1] * s
+        y1 = min(rows, int(hz + 1.15 * h + slack * rows))
+        y0 = max(0, min(int(hz - 0.45 * h - slack * rows), y1 - int(-(-h // 1))))
+        out.append(SearchBand(s, y0, y1))
+    return tuple(out)
+
+
+def side_search() -> SearchConfig:
+    """The default search of the side-view component (:class:`fastdet.Detector`
+    ``components=``): :data:`SIDE_SCALES` over the whole width, windows two HOG cells apart,
+    positive above decision value 0 (probability 0.5)."""
+    return SearchConfig(bands=_side_bands(), cells_per_step=2, threshold=0.0)
+
+
+#: default search of the side-view component
+SIDE_SEARCH = side_search()
 
 #: former names of :func:`oncoming_search` and :data:`ONCOMING_SEARCH`
 wide_search = oncoming_search

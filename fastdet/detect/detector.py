@@ -30,7 +30,7 @@ import numpy as np
 
 from .._numba import ensure_compiled
 from ..config import ONCOMING_SEARCH, SearchBand, SearchConfig
-from ..detections import MAIN_PART, WIDE_PART, Detections
+from ..detections import FIRST_COMPONENT_PART, MAIN_PART, WIDE_PART, Detections
 from ..errors import ModelError
 from ..features import (
     convert_color,
@@ -171,11 +171,18 @@ class Detector:
         The bundled one is ``fastdet.model.ONCOMING_MODEL_PATH``; :class:`fastdet.VideoDetector`
         runs it by default, searching only where the picture moves (:mod:`fastdet.video.motion`).
     wide_search: its search bands (default :data:`fastdet.config.ONCOMING_SEARCH`).
-    horizon: the horizon row of the frames, a fraction of their height, for both searches
+    horizon: the horizon row of the frames, a fraction of their height, for every search
         (:attr:`SearchConfig.horizon <fastdet.config.SearchConfig>`: the bands move with it);
         ``None`` keeps the searches' own. Change it later with :meth:`set_horizon`.
+    components: more whole-vehicle models, each with its own search: ``(model, search)``
+        pairs, e.g. a model of side views with windows twice as wide as tall beside the
+        rear-view main model, as the components of a deformable-parts model (Felzenszwalb et
+        al., PAMI 2010) without the parts. Their windows are tagged ``FIRST_COMPONENT_PART + i``
+        and join the main model's heat map in :class:`fastdet.VideoDetector`; the guided
+        search plans their bands as the main model's (``columns``). All models must give the
+        same kind of score (:attr:`Model.score_kind <fastdet.model.Model.score_kind>`).
 
-    ``detect(frame)`` returns the positive windows of both models (``wide_bands`` narrows the
+    ``detect(frame)`` returns the positive windows of every model (``wide_bands`` narrows the
     wide model's search); :class:`fastdet.VideoDetector` turns them into one box per vehicle
     with a heat map over recent frames.
     """
@@ -187,7 +194,8 @@ class Detector:
 
     def __init__(self, model: Model | str | os.PathLike | None = None, search: SearchConfig | None = None,
                  wide: Model | str | os.PathLike | None = None, wide_search: SearchConfig | None = None,
-                 horizon: float | None = None):
+                 horizon: float | None = None,
+                 components: Sequence[tuple[Model | str | os.PathLike, SearchConfig]] = ()):
         self.model = model if isinstance(model, Model) else load_model(model)
         if self.model.config.window_height is not None:
             name = "the main model" if model is None or isinstance(model, Model) else os.fspath(model)
@@ -197,6 +205,7 @@ class Detector:
         self.search = search if search is not None else SearchConfig()
         self.config = self.model.config
         self.scorers = [_Scorer(self.model, self.search)]
+        self.parts = [MAIN_PART]  # the Detections.part of each scorer's windows
         self.wide_model = None
         if wide is not None:
             self.wide_model = wide if isinstance(wide, Model) else load_model(wide)
@@ -204,18 +213,39 @@ class Detector:
                 name = "the wide model" if isinstance(wide, Model) else os.fspath(wide)
                 raise ModelError(f"{name}: not a wide-window model (its windows are square); "
                                  f"train one with `fastdet train --window-rows A B`")
-            if self.wide_model.score_kind != self.model.score_kind:
-                name = "the wide model" if isinstance(wide, Model) else os.fspath(wide)
-                raise ModelError(f"{name}: a {self.wide_model.classifier} model gives {self.wide_model.score_kind} "
-                                 f"scores, the main model {self.model.score_kind} scores; train both with the "
-                                 f"same --classifier")
+            self._check_kind(self.wide_model, wide, "the wide model")
             self.scorers.append(_Scorer(self.wide_model, wide_search if wide_search is not None else ONCOMING_SEARCH))
+            self.parts.append(WIDE_PART)
+        self.components: list[Model] = []
+        for i, (comp, comp_search) in enumerate(components):
+            m = comp if isinstance(comp, Model) else load_model(comp)
+            self._check_kind(m, comp, f"component {i + 1}")
+            if not isinstance(comp_search, SearchConfig):
+                raise TypeError(f"component {i + 1}: its search must be a SearchConfig, "
+                                f"got {type(comp_search).__name__}")
+            self.components.append(m)
+            self.scorers.append(_Scorer(m, comp_search))
+            self.parts.append(FIRST_COMPONENT_PART + i)
+        self._scorer_of = dict(zip(self.parts, self.scorers))
         if horizon is not None:
             self.set_horizon(horizon)
         self.score_kind = self.model.score_kind
         self._pool: ThreadPoolExecutor | None = None  # band threads, made on the first multi-threaded detect
         self._pool_size = 0
         self._pool_lock = threading.Lock()
+
+    def _check_kind(self, m: Model, given: object, label: str) -> None:
+        """``ModelError`` unless ``m`` gives the main model's kind of score."""
+        if m.score_kind != self.model.score_kind:
+            name = label if isinstance(given, Model) else os.fspath(given)  # type: ignore[call-overload]
+            raise ModelError(f"{name}: a {m.classifier} model gives {m.score_kind} scores, the main model "
+                             f"{self.model.score_kind} scores; train both with the same --classifier")
+
+    @property
+    def main_parts(self) -> list[int]:
+        """The parts whose windows are vehicles' whole boxes (the main model and every
+        component; not the wide model's barrier-cut middle rows), in scorer order."""
+        return [p for p in self.parts if p != WIDE_PART]
 
     @property
     def horizon(self) -> float | None:
@@ -245,7 +275,7 @@ class Detector:
                     part: int = 0) -> np.ndarray:
         """Decision values of every window position of one band: ``(geo.ny, geo.nx) float64``
         (``part`` 0: the main model, 1: the wide model)."""
-        return self.scorers[part].band_scores(frame, geo, timings)
+        return self._scorer_of[part].band_scores(frame, geo, timings)
 
     def _all_band_scores(self, frame: np.ndarray, geos: list, timings: dict[str, float],
                          spans: Sequence[Sequence[tuple[int, int]] | None] | None = None) -> list[np.ndarray]:
@@ -266,7 +296,7 @@ class Detector:
         padded = pad_frame(frame, [g for i, (_, g) in enumerate(geos) if self._needs_pixels(g, spans[i])])
         timings["resize_colour"] = timings.get("resize_colour", 0.0) + (time.perf_counter() - t0)
         if n_threads < 2 or len(geos) < 2:
-            return [self.scorers[p].band_scores(frame, g, timings, spans=sp, padded=padded)
+            return [self._scorer_of[p].band_scores(frame, g, timings, spans=sp, padded=padded)
                     for (p, g), sp in zip(geos, spans)]
         helpers = n_threads - 1  # the calling thread takes jobs too
         with self._pool_lock:
@@ -301,7 +331,7 @@ class Detector:
                         nxt[0] += 1
                     t: dict[str, float] = {}
                     p, g = geos[i]
-                    results[i] = (self.scorers[p].band_scores(frame, g, t, serial=True, spans=spans[i],
+                    results[i] = (self._scorer_of[p].band_scores(frame, g, t, serial=True, spans=spans[i],
                                                               padded=padded), t)
             finally:
                 numba.set_num_threads(before)
@@ -335,7 +365,16 @@ class Detector:
 
     def geometries(self, frame_shape: tuple[int, int], part: int = 0) -> list[BandGeometry]:
         """Geometry of every search band of model ``part`` on a frame of ``(H, W)``."""
-        return self.scorers[part].geometries(frame_shape)
+        return self._scorer_of[part].geometries(frame_shape)
+
+    def window_width(self, part: int = 0) -> int:
+        """Window width in pixels (of a scaled band) of model ``part``."""
+        return self._scorer_of[part].config.win_w
+
+    def main_geometries(self, frame_shape: tuple[int, int]) -> list[tuple[int, BandGeometry]]:
+        """``(part, geometry)`` of every band of the main model and then of each component
+        (:attr:`main_parts`), in the order :meth:`detect`'s ``columns`` refer to them."""
+        return [(p, g) for p in self.main_parts for g in self._scorer_of[p].geometries(frame_shape)]
 
     def detect(self, frame: np.ndarray, rgb: bool = False,
                wide_bands: Sequence[SearchBand] | None = None, stats: DetectStats | None = None,
@@ -348,8 +387,8 @@ class Detector:
             the parts of the wide search where the picture moves (:mod:`fastdet.video.motion`).
         stats: a :class:`DetectStats` to record stage times and every band's decision values
             into (optional).
-        columns: which windows of the main model's bands to score, one entry per band of
-            :meth:`geometries` (missing entries: ``None``): ``None`` for all, else a sequence
+        columns: which windows of the main model's and the components' bands to score, one
+            entry per band of :meth:`main_geometries` (missing entries: ``None``): ``None`` for all, else a sequence
             of window-column ranges ``(j0, j1)``, ``j0 <= j < j1``. Each scored window's
             decision value is the one the whole band gives it (to rounding, ~1e-15): the band
             is cut and resized as a whole, HOG runs on a slice of it with a window step of
@@ -360,7 +399,8 @@ class Detector:
         x1, y1, x2, y2 (exclusive) in frame pixels, ``scores (N,) float32`` (the probability of
         "vehicle" for logistic-regression models, the decision value for LinearSVC; both
         models have the same kind), ``scale`` (the window's band scale) and ``part``
-        (``MAIN_PART`` or ``WIDE_PART``). A window is positive when its decision value
+        (``MAIN_PART``, ``WIDE_PART``, or ``FIRST_COMPONENT_PART + i`` for component ``i``).
+        A window is positive when its decision value
         exceeds its model's ``search.threshold``.
         """
         frame = np.asarray(frame)
@@ -369,19 +409,19 @@ class Detector:
         if rgb:
             frame = frame[:, :, ::-1]
         timings: dict[str, float] = stats.timings if stats is not None else {}
-        geos = [(MAIN_PART, g) for g in self.scorers[0].geometries(frame.shape[:2])]
+        geos = self.main_geometries(frame.shape[:2])
         if columns is not None and len(columns) > len(geos):
             raise ValueError(f"columns: {len(columns)} entries for {len(geos)} bands")
-        if len(self.scorers) > 1:
+        if self.wide_model is not None:
+            sc = self._scorer_of[WIDE_PART]
             if wide_bands is None:
-                geos += [(WIDE_PART, g) for g in self.scorers[1].geometries(frame.shape[:2])]
+                geos += [(WIDE_PART, g) for g in sc.geometries(frame.shape[:2])]
             else:
-                sc = self.scorers[1]
                 geos += [(WIDE_PART, band_geometry(b, frame.shape[:2], sc.config, sc.search.cells_per_step))
                          for b in wide_bands]
         boxes, decs, scales, parts = [], [], [], []
         for (part, geo), dec in zip(geos, self._all_band_scores(frame, geos, timings, columns)):
-            sc = self.scorers[part]
+            sc = self._scorer_of[part]
             if stats is not None:
                 stats.bands.append((part, geo, dec))
             r, c = np.nonzero(dec > sc.search.threshold)

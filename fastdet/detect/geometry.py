@@ -39,29 +39,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..config import CELL, WINDOW, SearchBand, SearchConfig
-
-
-@dataclass(frozen=True)
-class GeometryConfig:
-    """How search bands follow the camera's geometry (module docstring).
-
-    reference_ratio: the ratio of the camera the reference bands were tuned on (1.9; how it
-        was measured: docs/geometry.md).
-    ratio: the prior ratio, used until the video's own vehicles give one.
-    slack: rows added above and below every band, a fraction of the frame height: the
-        horizon error a band survives without losing a window that finds a vehicle.
-    """
-
-    reference_ratio: float = 1.9
-    ratio: float = 1.9
-    slack: float = 0.05
-
-    def __post_init__(self) -> None:
-        if not self.ratio > 0 or not self.reference_ratio > 0:
-            raise ValueError(f"ratio and reference_ratio must be > 0, got {self.ratio!r}, {self.reference_ratio!r}")
-        if not 0 <= self.slack < 1:
-            raise ValueError(f"slack must be a fraction of the frame height in [0, 1), got {self.slack!r}")
+from ..config import CELL, WINDOW, GeometryConfig, SearchBand, SearchConfig
 
 
 def window_bottoms(ref_first: float, ref_last: float, ref_horizon: float, horizon: float, stretch: float,
@@ -87,11 +65,13 @@ def band_on_grid(scale: float, first_bottom: float, last_bottom: float, anchor: 
     n0 = math.ceil((first_bottom - side - anchor) / step - 0.5 - 1e-9)
     n1 = math.floor((last_bottom - side - anchor) / step + 0.5 + 1e-9)
     n0 = max(n0, math.ceil((-0.5 - anchor) / step - 1e-9))  # tops inside the frame (to rounding)
-    n1 = min(n1, math.floor((rows - side - anchor) / step + 1e-9))  # bottoms inside the frame
     if n1 < n0:
         return None
     top = anchor + n0 * step
     y0 = min(max(int(round(top)), 0), rows - 1)  # bands start on whole rows: the grid to half a pixel
+    n1 = min(n1, n0 + math.floor((rows - side - y0) / step + 1e-9))  # bottoms inside the frame
+    if n1 < n0:
+        return None
     # one window side and (n1 - n0) steps, and the reference band's rows below its last window
     end = y0 + side + (n1 - n0) * step  # the last window's bottom
     y1 = min(max(int(round(end + tail)), int(math.ceil(end - 1e-6))), rows)

@@ -7,7 +7,7 @@ from collections.abc import Callable
 
 from ..boxes import clip, overlap_fraction
 from ..config import HeatConfig, RefineConfig
-from ..detections import Detections
+from ..detections import FIRST_COMPONENT_PART, MAIN_PART, Detections
 from .detector import WindowDetector
 from .fusion import merge_wide
 from .guided import SearchPlanner
@@ -37,7 +37,8 @@ class HeatStage(Stage):
             self.heatmap = HeatMap(hw, self.config, score_kind=self.detector.score_kind)
         hm = self.heatmap
         s.heatmap = hm
-        s.boxes = s.out = hm.update(s.windows[~s.windows.is_wide] if self.oncoming else s.windows)
+        w = s.windows
+        s.boxes = s.out = hm.update(w[w.part == MAIN_PART] if w.part is not None else w)
         s.timings.update(hm.timings)
         return s
 
@@ -72,6 +73,32 @@ class FusionStage(Stage):
             self.heatmap.reset()
 
 
+class ComponentStage(Stage):
+    """The heat map of the detector's components' windows (e.g. the side-view component,
+    ``Detector(components=...)``: parts ``FIRST_COMPONENT_PART`` and up); its boxes are added
+    where the main heat map found nothing (:func:`fastdet.video.fusion.merge_wide`). One heat
+    map for them all, apart from the main model's: windows of another shape in the main heat
+    map stretch the boxes of the cars the main model finds (docs/components.md)."""
+
+    name = "components"
+
+    def __init__(self, detector: WindowDetector, config: HeatConfig) -> None:
+        self.detector, self.config = detector, config
+        self.heatmap: HeatMap | None = None
+
+    def __call__(self, s: FrameState) -> FrameState:
+        if self.heatmap is None or self.heatmap.frame_shape != s.shape:
+            self.heatmap = HeatMap(s.shape, self.config, score_kind=self.detector.score_kind)
+        w = s.windows
+        mine = w[w.part >= FIRST_COMPONENT_PART] if w.part is not None else w[:0]
+        s.boxes = s.out = merge_wide(s.boxes, self.heatmap.update(mine))
+        return s
+
+    def reset(self) -> None:
+        if self.heatmap is not None:
+            self.heatmap.reset()
+
+
 class WeakStage(Stage):
     """The tracker's low-confidence boxes: the weak blobs of the heat maps above ``low_heat``
     x their thresholds (:meth:`HeatMap.weak_boxes`), less those with more than 0.2 of their
@@ -79,7 +106,7 @@ class WeakStage(Stage):
 
     name = "weak"
 
-    def __init__(self, low_heat: float, heat_stages: list[HeatStage | FusionStage]) -> None:
+    def __init__(self, low_heat: float, heat_stages: list[HeatStage | ComponentStage | FusionStage]) -> None:
         self.low_heat, self.heat_stages = low_heat, heat_stages
 
     def __call__(self, s: FrameState) -> FrameState:

@@ -9,7 +9,7 @@ from typing import Any, Literal, Protocol, runtime_checkable
 import numpy as np
 
 from ..config import PipelineConfig, SearchBand, oncoming_search
-from ..config.models import ONCOMING_MODEL_PATH
+from ..config.models import ONCOMING_MODEL_PATH, SIDE_MODEL_PATH
 from ..detect import BandGeometry, Detector, DetectStats
 from ..detections import Detections
 from ..model import Model
@@ -57,7 +57,9 @@ class MovableHorizon(Protocol):
 @runtime_checkable
 class ColumnSearch(Protocol):
     """A detector that scores only some windows of its main bands: ``column_search`` is
-    ``True``, ``detect`` takes ``columns`` (one entry per band of ``geometries(shape, 0)``:
+    ``True``, ``detect`` takes ``columns`` (one entry per band of ``geometries(shape, 0)``, or
+    of ``main_geometries(shape)`` when it has that method -- the main model's and its
+    components' bands:
     ``None`` for all, else window-column ranges ``(j0, j1)``) and ``config`` is the main
     model's :class:`~fastdet.config.FeatureConfig` (window and cell size)."""
 
@@ -66,6 +68,18 @@ class ColumnSearch(Protocol):
     def detect(self, frame: np.ndarray, rgb: bool = False, wide_bands: Sequence[SearchBand] | None = None,
                stats: DetectStats | None = None,
                columns: Sequence[Sequence[tuple[int, int]] | None] | None = None) -> Detections: ...
+
+
+@runtime_checkable
+class ComponentBands(Protocol):
+    """A detector with components (:class:`fastdet.Detector` ``components=``) whose bands the
+    guided search plans with the main model's: ``main_geometries(shape)`` gives ``(part,
+    geometry)`` of every such band in the order ``detect``'s ``columns`` refer to them, and
+    ``window_width(part)`` each model's window width."""
+
+    def main_geometries(self, frame_shape: tuple[int, int]) -> list[tuple[int, BandGeometry]]: ...
+
+    def window_width(self, part: int = 0) -> int: ...
 
 
 @runtime_checkable
@@ -86,8 +100,11 @@ def make_detector(config: PipelineConfig | None = None) -> Detector:
     """The video pipeline's :class:`fastdet.Detector` for ``config`` (default
     ``PipelineConfig()``): its main model and search, and its oncoming-traffic model
     searching the side of the view :attr:`PipelineConfig.traffic` puts oncoming cars on
-    (:func:`fastdet.config.oncoming_search`). Raises :class:`~fastdet.errors.ModelError`
-    when a model does not load."""
+    (:func:`fastdet.config.oncoming_search`), and the side-view component when
+    :attr:`PipelineConfig.side` asks for it (searching :attr:`PipelineConfig.side_search`).
+    Raises :class:`~fastdet.errors.ModelError` when a model does not load."""
     c = config if config is not None else PipelineConfig()
     oncoming = ONCOMING_MODEL_PATH if c.oncoming is True else (c.oncoming or None)
-    return Detector(model=c.model, search=c.search, wide=oncoming, wide_search=oncoming_search(c.traffic))
+    side = SIDE_MODEL_PATH if c.side is True else (c.side or None)
+    return Detector(model=c.model, search=c.search, wide=oncoming, wide_search=oncoming_search(c.traffic),
+                    components=[(side, c.side_search)] if side is not None else ())

@@ -117,6 +117,15 @@ class HeatMap:
         return len(self._ring)
 
     @property
+    def current_windows(self) -> tuple[np.ndarray, np.ndarray]:
+        """The last frame's windows: ``(boxes (N, 4) float64 frame px, heat (N,) float64)``,
+        each window's heat as :meth:`window_heat` gives it (read-only views)."""
+        b, w = self._cur
+        b, w = b.view(), w.view()
+        b.flags.writeable = w.flags.writeable = False
+        return b, w
+
+    @property
     def weight_sum(self) -> float:
         """``sum_k decay**k`` over the frames in the ring (the normaliser)."""
         return self._wsum[len(self._ring)]
@@ -222,8 +231,12 @@ class HeatMap:
         n = int(label_blobs(heat, threshold, labels, bbox, peak))
         return labels, n, bbox[:n], peak[:n]
 
+    def shape_ok(self, boxes: np.ndarray) -> np.ndarray:
+        """``(N,) bool``: the boxes ``(N, 4)`` (frame px) that pass the shape filter (module
+        docstring, step 5)."""
+        return self._shape_ok(np.asarray(boxes).reshape(-1, 4))
+
     def _shape_ok(self, boxes: np.ndarray) -> np.ndarray:
-        """``(N,) bool``: the boxes that pass the shape filter (module docstring, step 5)."""
         cfg = self.config
         bw = boxes[:, 2] - boxes[:, 0]
         bh = boxes[:, 3] - boxes[:, 1]

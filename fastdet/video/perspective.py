@@ -12,47 +12,14 @@ ratio and the slack drops to ``settled_slack``.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
-from ..config import SearchConfig
-from ..detect.geometry import GeometricSearch, GeometryConfig, PerspectiveEstimator
+from ..config import PerspectiveConfig, SearchConfig
+from ..detect.geometry import GeometricSearch, PerspectiveEstimator
 from ..detections import Detections
-
-
-@dataclass(frozen=True)
-class PerspectiveConfig:
-    """Settings of :class:`PerspectiveUpdater` (module docstring).
-
-    geometry: the bands' geometry (reference ratio, prior ratio); its ``slack`` is the slack
-        until there is an estimate.
-    settled_slack: the slack once there is one (fraction of the frame height).
-    min_score: the score a tracked box needs to count (the heat map's peak).
-    min_boxes, min_tracks, long_track: tracks of at least ``min_boxes`` such boxes, at least
-        ``min_tracks`` of them (or one track of ``long_track`` boxes; ``None``: never), before
-        there is an estimate.
-    sigma_h: how far (fraction of the height) the estimate may pull the horizon from the
-        prior without cost (one standard deviation of the prior).
-    sigma_ratio: the same for the ratio, in log units.
-    """
-
-    geometry: GeometryConfig = GeometryConfig()
-    settled_slack: float = 0.0
-    min_score: float = 10.0
-    min_boxes: int = 5
-    min_tracks: int = 2
-    long_track: int | None = None
-    sigma_h: float = 0.04
-    sigma_ratio: float = 0.5
-
-    def __post_init__(self) -> None:
-        if not 0 <= self.settled_slack < 1:
-            raise ValueError(f"settled_slack must be in [0, 1), got {self.settled_slack!r}")
-        if self.min_boxes < 1 or self.min_tracks < 1:
-            raise ValueError("min_boxes and min_tracks must be >= 1")
-        if not self.sigma_h > 0 or not self.sigma_ratio > 0:
-            raise ValueError("sigma_h and sigma_ratio must be > 0")
+from .state import FrameState, Stage
 
 
 class PerspectiveUpdater:
@@ -73,6 +40,7 @@ class PerspectiveUpdater:
         self.prior: float | None = None  # the horizon before the vehicles had their say
         self.estimate: tuple[float, float] | None = None
         self._applied: float | None = None  # the horizon this updater last gave the search
+        self.frames = 0
 
     def _search(self) -> SearchConfig:
         return self.detector.scorers[0].search
@@ -99,7 +67,13 @@ class PerspectiveUpdater:
         """One frame's tracked boxes (``ids`` set) of a frame of ``rows`` rows."""
         if self.prior is None:
             self.start()
+        self.frames += 1
         s = self._search()
+        limit = self.config.prior_frames
+        if self.estimate is None and limit is not None and self.frames > limit \
+                and s.geometry.slack != self.config.settled_slack:  # type: ignore[attr-defined]
+            s = replace(s, geometry=replace(self.config.geometry, slack=self.config.settled_slack))
+            self._set_search(s)
         if s.horizon != self._applied:  # the horizon estimate from the flow moved it: the new prior
             self.prior, self._applied = self._horizon(s), s.horizon
             if self.estimate is not None:
@@ -123,3 +97,20 @@ class PerspectiveUpdater:
         geometry = replace(self.config.geometry, slack=self.config.settled_slack)
         self._set_search(replace(self._search(), horizon=h, ratio=self.estimate[1], geometry=geometry))
         self._applied = h
+
+
+class PerspectiveStage(Stage):
+    """After tracking (and the box refinement): the tracked boxes move the main search
+    (:class:`PerspectiveUpdater`)."""
+
+    name = "perspective"
+
+    def __init__(self, updater: PerspectiveUpdater) -> None:
+        self.updater = updater
+
+    def __call__(self, s: FrameState) -> FrameState:
+        self.updater.update(s.out, s.shape[0])
+        return s
+
+    def reset(self) -> None:
+        """A cut: the camera stays, so does what its vehicles showed."""

@@ -36,6 +36,7 @@ from .stages import (
     FusionStage,
     HeatStage,
     HorizonStage,
+    OwnVehicleStage,
     PlanStage,
     Stage,
     build_stages,
@@ -137,13 +138,22 @@ class VideoDetector:
     def prime_horizon(self, frames: Iterable[np.ndarray]) -> float | None:
         """With ``horizon='auto'``: estimate the horizon from ``frames`` (the first frames of
         the video, BGR or RGB alike; at most HORIZON_FRAMES are used) before :meth:`update`
-        sees them, so the first frames are searched at it too. Returns the horizon the bands
-        are now at (``None``: the reference)."""
+        sees them, so the first frames are searched at it too; with ``own_vehicle``, the same
+        frames (as many as its estimate takes) give the own vehicle's region. Returns the
+        horizon the bands are now at (``None``: the reference)."""
         st = self.stage(HorizonStage)
-        if isinstance(st, HorizonStage):
-            return st.prime(frames)
-        det = self.detector
-        return det.horizon if isinstance(det, MovableHorizon) else None
+        own = self.stage(OwnVehicleStage)
+        it = iter(frames)
+        if isinstance(own, OwnVehicleStage):
+            it = own.tee(it)
+        try:
+            if isinstance(st, HorizonStage):
+                return st.prime(it)
+            det = self.detector
+            return det.horizon if isinstance(det, MovableHorizon) else None
+        finally:
+            if isinstance(own, OwnVehicleStage):
+                own.prime(it)  # the frames the horizon did not need
 
     def warmup(self) -> None:
         """Compile / load the numba kernels now, not on the first frame: every kernel the

@@ -3,20 +3,24 @@ that each take the per-frame :class:`FrameState`, do one step and return it.
 
 In the order they run (:func:`build_stages`; a stage whose setting is off is left out):
 
-=============  ===========================================================================
-``horizon``    feed the horizon estimate, move the bands (:class:`HorizonStage`)
-``plan``       which windows of the main bands to score (guided search, :class:`PlanStage`)
-``motion``     where the picture moves: the oncoming bands to search (:class:`MotionStage`)
-``detect``     the positive windows of both models (:class:`DetectStage`)
-``motion``     drop the oncoming windows that did not move enough (:class:`GateStage`)
-``heatmap``    the main heat map's boxes (:class:`HeatStage`)
-``fusion``     the oncoming heat map's boxes where the main one found none (:class:`FusionStage`)
-``weak``       the weak blobs the tracker may keep a track alive with (:class:`WeakStage`)
-``track``      track ids (:class:`TrackStage`)
-``clip``       the tracker's filtered boxes clipped to the frame (:class:`ClipStage`)
-``refine``     the learned box refinement (:class:`RefineStage`)
-``observe``    tell the guided search what this frame found (:class:`ObserveStage`)
-=============  ===========================================================================
+===============  ===========================================================================
+``horizon``      feed the horizon estimate, move the bands (:class:`HorizonStage`)
+``plan``         which windows of the main bands to score (guided search, :class:`PlanStage`)
+``motion``       where the picture moves: the oncoming bands to search (:class:`MotionStage`)
+``detect``       the positive windows of both models (:class:`DetectStage`)
+``motion``       drop the oncoming windows that did not move enough (:class:`GateStage`)
+``ownvehicle``   drop the windows on the own vehicle (:class:`OwnVehicleStage`; off by default)
+``heatmap``      the main heat map's boxes (:class:`HeatStage`)
+``split``        wide boxes split between vehicles side by side (:class:`SplitStage`; off by default)
+``components``   the components' heat map's boxes where the main one found none (:class:`ComponentStage`)
+``fusion``       the oncoming heat map's boxes where the main one found none (:class:`FusionStage`)
+``weak``         the weak blobs the tracker may keep a track alive with (:class:`WeakStage`)
+``track``        track ids (:class:`TrackStage`)
+``clip``         the tracker's filtered boxes clipped to the frame (:class:`ClipStage`)
+``refine``       the learned box refinement (:class:`RefineStage`)
+``perspective``  the tracked boxes move the main search (:class:`PerspectiveStage`; off by default)
+``observe``      tell the guided search what this frame found (:class:`ObserveStage`)
+===============  ===========================================================================
 
 Each stage's seconds go to ``VideoDetector.timings`` under its name; a stage may report
 finer parts of its work (``detect``: ``resize_colour``, ``hog``, ``score``; ``heatmap``:
@@ -29,17 +33,23 @@ ones is a field of :class:`FrameState`.
 from __future__ import annotations
 
 from ..config import GuidedSearch, PipelineConfig
-from .box_stages import ClipStage, FusionStage, HeatStage, ObserveStage, RefineStage, TrackStage, WeakStage
+from ..detect import Detector
+from .blobsplit import SplitStage
+from .box_stages import (ClipStage, ComponentStage, FusionStage, HeatStage, ObserveStage, RefineStage, TrackStage,
+                         WeakStage)
 from .detector import ColumnSearch, MovableHorizon, WindowDetector
 from .guided import SearchPlanner
+from .ownvehicle import OwnVehicleStage
+from .perspective import PerspectiveStage, PerspectiveUpdater
 from .refine import BoxRegressor
 from .search_stages import DetectStage, GateStage, HorizonStage, MotionStage, PlanStage
 from .state import FrameDebug, FrameState, Stage, TrackView
 from .track import Tracker
 
-__all__ = ["ClipStage", "DetectStage", "FrameDebug", "FrameState", "FusionStage", "GateStage", "HeatStage",
-           "HorizonStage", "MotionStage", "ObserveStage", "PlanStage", "RefineStage", "Stage", "TrackStage",
-           "TrackView", "WeakStage", "build_stages", "planner_for"]
+__all__ = ["ClipStage", "ComponentStage", "DetectStage", "FrameDebug", "FrameState", "FusionStage", "GateStage",
+           "HeatStage", "HorizonStage", "MotionStage", "ObserveStage", "OwnVehicleStage", "PerspectiveStage",
+           "PlanStage", "RefineStage", "SplitStage", "Stage", "TrackStage", "TrackView", "WeakStage", "build_stages",
+           "planner_for"]
 
 
 def planner_for(config: PipelineConfig, detector: WindowDetector) -> SearchPlanner | None:
@@ -67,6 +77,8 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
     stages.append(DetectStage(detector))
     if gated:
         stages.append(GateStage())
+    if config.own_vehicle is not None:
+        stages.append(OwnVehicleStage(config.own_vehicle, fps))
 
     def new_size(first: bool) -> None:  # another picture: its tracks and search plan do not continue
         if tracker is not None and not first:
@@ -74,16 +86,24 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
         if planner is not None:  # on the first frame too: a full scan on the second frame
             planner.reset()
 
-    heat: list[HeatStage | FusionStage] = [HeatStage(detector, config.heat, oncoming, new_size)]
+    heat: list[HeatStage | ComponentStage | FusionStage] = [HeatStage(detector, config.heat, oncoming, new_size)]
+    stages.append(heat[0])
+    if config.split is not None:  # on the main heat map's boxes, before the others are added
+        stages.append(SplitStage(config.split))
+    if getattr(detector, "components", None):
+        heat.append(ComponentStage(detector, config.side_heat))
     if oncoming:
         heat.append(FusionStage(detector, config.oncoming_heat))
-    stages += heat
+    stages += heat[1:]
     if tracker is not None:
         stages += [WeakStage(tracker.config.low_heat, heat), TrackStage(tracker)]
         if tracker.config.output == "filtered":
             stages.append(ClipStage())
     if regressor is not None and config.refine is not None:
         stages.append(RefineStage(regressor, config.refine))
+    if config.perspective is not None and tracker is not None and config.horizon is not None \
+            and isinstance(detector, Detector):
+        stages.append(PerspectiveStage(PerspectiveUpdater(detector, config.perspective)))
     if planner is not None:
         stages.append(ObserveStage(planner, tracker))
     return stages

@@ -1,6 +1,6 @@
 """The video pipeline's per-run options: the learned box refinement (on by default,
-``refine=False`` / ``--no-refine``) and the side of the road traffic drives on
-(``make_detector(traffic=...)`` / ``--traffic``), through the API, the CLI and batch settings."""
+``PipelineConfig(refine=None)`` / ``--no-refine``) and the side of the road traffic drives on
+(``PipelineConfig(traffic=...)`` / ``--traffic``), through the API, the CLI and batch settings."""
 from __future__ import annotations
 
 from pathlib import Path

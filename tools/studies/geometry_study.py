@@ -62,6 +62,8 @@ def main() -> None:
     ap.add_argument("--fixed-ratio", action="store_true")
     ap.add_argument("--joint", action="store_true", help="estimate the horizon and the ratio together")
     ap.add_argument("--min-tracks", type=int, default=2, help="--joint: tracks before there is an estimate")
+    ap.add_argument("--prior-frames", type=int, default=None,
+                    help="--joint: frames the slack lasts without an estimate")
     ap.add_argument("--settled-slack", type=float, default=0.0, help="--joint: the slack once there is an estimate")
     ap.add_argument("--min-score", type=float, default=10.0)
     ap.add_argument("--horizon", default="auto", help="auto, off, F or +D / -D (the estimate moved by D)")
@@ -122,7 +124,7 @@ def main() -> None:
                 if updater is None:
                     updater = PerspectiveUpdater(det, PerspectiveConfig(
                         geometry=geo, settled_slack=args.settled_slack, min_tracks=args.min_tracks,
-                        min_score=args.min_score))
+                        min_score=args.min_score, prior_frames=args.prior_frames))
                 updater.update(dets, shape[0])
                 continue
             est.update(dets.boxes[keep], dets.ids[keep], h, shape[0])

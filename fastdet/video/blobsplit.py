@@ -1,0 +1,241 @@
+"""Neighbours apart: one heat blob over vehicles side by side becomes one box each.
+
+Windows on two vehicles next to each other (a queue in the next lane, parked cars, a car
+overtaking another) add heat that touches, so the heat map labels them one blob
+(:mod:`fastdet.video.heatmap`) and the blob's box covers both. The frame's own windows still
+tell them apart: they gather around each vehicle. :func:`split_boxes` looks at every box of
+the heat map that is wider than ``min_aspect`` x its height (a vehicle's rear is not; a blob
+over two side by side is) and finds the modes of the current frame's windows centred in its
+blob by mean shift in position and scale (:func:`window_modes`, as Dalal fuses detections,
+"Finding people in images and videos", 2006, ch. 5). A mode lying mostly inside the box of a
+heavier one is a part of that vehicle, not another (:func:`dominant_modes`); modes lighter
+than ``min_weight`` x the heaviest are dropped. Where two neighbouring modes left overlap
+along x by less than ``max_overlap`` of the narrower, the blob is cut at its coolest column
+between their centres (:func:`mode_cuts`), and each part becomes a box by the heat map's own
+rule (its cells with heat at least ``extent`` x the part's peak), scored by its peak.
+
+Square windows fire on parts of a large near vehicle too (its left and right halves), which
+is why only wide blobs are looked at and why modes inside a heavier mode do not count.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..config import NeighbourSplit
+from ..detections import Detections
+from .state import FrameState, Stage
+
+
+def window_modes(boxes: np.ndarray, weights: np.ndarray, bandwidth: float = 0.25,
+                 scale_bandwidth: float = 0.3, iters: int = 30) -> tuple[np.ndarray, np.ndarray]:
+    """Modes of windows by mean shift in (centre x, centre y, log2 width).
+
+    boxes: ``(N, 4)`` x1, y1, x2, y2 frame px; weights: ``(N,)`` > 0. The kernel is a Gaussian
+    with sigma ``bandwidth`` x the width at the moving point's scale in x and y and
+    ``scale_bandwidth`` in log2 width; every window's point moves (at most ``iters`` steps,
+    until no point moves by more than 1e-3) and points that end within a quarter sigma of a
+    mode found before them join it (in input order). Returns ``(mode_boxes (M, 4) float64,
+    mode_weights (M,) float64)``: each mode's box is the weighted mean of its windows' boxes,
+    its weight their summed weight; modes in order of their first window."""
+    b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    wt = np.asarray(weights, np.float64).reshape(-1)
+    if len(wt) != len(b):
+        raise ValueError(f"{len(b)} boxes but {len(wt)} weights")
+    if not len(b):
+        return np.zeros((0, 4)), np.zeros(0)
+    y = shift_points(b, wt, bandwidth, scale_bandwidth, iters)
+    label = np.empty(len(y), np.int64)
+    reps: list[np.ndarray] = []
+    for i in range(len(y)):
+        for j, r in enumerate(reps):
+            s = bandwidth * 2.0 ** r[2]
+            if (abs(y[i, 0] - r[0]) < 0.25 * s and abs(y[i, 1] - r[1]) < 0.25 * s
+                    and abs(y[i, 2] - r[2]) < 0.25 * scale_bandwidth):
+                label[i] = j
+                break
+        else:
+            label[i] = len(reps)
+            reps.append(y[i])
+    m = len(reps)
+    mw = np.bincount(label, weights=wt, minlength=m)
+    mb = np.stack([np.bincount(label, weights=wt * b[:, c], minlength=m) for c in range(4)], 1)
+    return mb / np.maximum(mw, 1e-300)[:, None], mw
+
+
+def _points(b: np.ndarray) -> np.ndarray:
+    """``(N, 3)``: centre x, centre y, log2 width (at least 1 px) of boxes ``(N, 4)``."""
+    return np.stack([(b[:, 0] + b[:, 2]) / 2, (b[:, 1] + b[:, 3]) / 2, np.log2(np.maximum(b[:, 2] - b[:, 0], 1.0))], 1)
+
+
+def shift_points(boxes: np.ndarray, weights: np.ndarray, bandwidth: float = 0.25, scale_bandwidth: float = 0.3,
+                 iters: int = 30) -> np.ndarray:
+    """Where each window's point (centre x, centre y, log2 width) ends after mean shift
+    (:func:`window_modes`): ``(N, 3) float64``. All points move together, at most ``iters``
+    steps, until none moves by more than 1e-3."""
+    b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    wt = np.asarray(weights, np.float64).reshape(-1)
+    pts = _points(b)
+    y = pts.copy()
+    for _ in range(iters):
+        s = bandwidth * np.exp2(y[:, 2])[:, None]  # (N, 1) spatial sigma of each moving point
+        d2 = (((y[:, None, 0] - pts[None, :, 0]) / s) ** 2 + ((y[:, None, 1] - pts[None, :, 1]) / s) ** 2
+              + ((y[:, None, 2] - pts[None, :, 2]) / scale_bandwidth) ** 2)
+        k = wt[None, :] * np.exp(-0.5 * d2)
+        den = k.sum(1, keepdims=True)
+        y_new = np.where(den > 0, (k @ pts) / np.where(den > 0, den, 1.0), y)
+        moved = float(np.abs(y_new - y).max())
+        y = y_new
+        if moved <= 1e-3:
+            break
+    return y
+
+
+def dominant_modes(mode_boxes: np.ndarray, mode_weights: np.ndarray, inside: float = 0.5) -> np.ndarray:
+    """Indices ``(K,) int64`` of the modes kept, heaviest first (ties: input order): a mode
+    with at least ``inside`` of its box's area inside the box of a heavier kept mode is
+    dropped (a part of that vehicle, or the same one at a neighbouring scale)."""
+    mb = np.asarray(mode_boxes, np.float64).reshape(-1, 4)
+    order = np.argsort(-np.asarray(mode_weights, np.float64), kind="stable")
+    kept: list[int] = []
+    for i in order:
+        bi = mb[i]
+        ai = max((bi[2] - bi[0]) * (bi[3] - bi[1]), 1e-9)
+        covered = False
+        for j in kept:
+            bj = mb[j]
+            iw = min(bi[2], bj[2]) - max(bi[0], bj[0])
+            ih = min(bi[3], bj[3]) - max(bi[1], bj[1])
+            if iw > 0 and ih > 0 and iw * ih >= inside * ai:
+                covered = True
+                break
+        if not covered:
+            kept.append(int(i))
+    return np.array(kept, np.int64)
+
+
+def mode_cuts(profile: np.ndarray, x0: int, cell: int, mode_boxes: np.ndarray,
+              max_overlap: float = 0.3) -> list[int]:
+    """Where to cut a blob between its modes: ``profile`` ``(n,)`` is the blob's highest heat
+    in each grid column from grid column ``x0`` (cells of ``cell`` px); for each two
+    neighbouring ``mode_boxes`` (frame px, sorted by centre x here) that overlap along x by
+    at most ``max_overlap`` of the narrower, the coolest column strictly between their
+    centres' columns (the first of equals). Returns sorted, distinct column indices into
+    ``profile``; the parts are ``[0, c1), [c1, c2), ...``."""
+    p = np.asarray(profile, np.float64).reshape(-1)
+    mb = np.asarray(mode_boxes, np.float64).reshape(-1, 4)
+    if len(mb) < 2:
+        return []
+    mb = mb[np.argsort((mb[:, 0] + mb[:, 2]) / 2, kind="stable")]
+    n = len(p)
+    cuts: list[int] = []
+    for a, b in zip(mb[:-1], mb[1:]):
+        if min(a[2], b[2]) - max(a[0], b[0]) > max_overlap * min(a[2] - a[0], b[2] - b[0]):
+            continue
+        ca = max(int((a[0] + a[2]) / 2 // cell) - x0, 0)
+        cb = min(int((b[0] + b[2]) / 2 // cell) - x0, n - 1)
+        if cb - ca < 2:
+            continue
+        c = ca + 1 + int(np.argmin(p[ca + 1:cb]))
+        if not cuts or c > cuts[-1]:
+            cuts.append(c)
+    return cuts
+
+
+def split_boxes(boxes: Detections, heat: np.ndarray, labels: np.ndarray, cell: int,
+                frame_shape: tuple[int, int], windows: np.ndarray, weights: np.ndarray, extent: float,
+                min_aspect: float = 1.8, min_weight: float = 0.5, bandwidth: float = 0.25,
+                scale_bandwidth: float = 0.3, inside: float = 0.5, max_overlap: float = 0.3) -> Detections:
+    """``boxes`` (one per blob of ``labels``, scored by peak heat, as
+    :meth:`fastdet.video.heatmap.HeatMap.boxes` gives them) with each wide box whose blob holds
+    separate modes of this frame's ``windows`` (``(N, 4)`` frame px, their heat ``weights``
+    ``(N,)``) replaced by one box per part (module docstring). ``heat``, ``labels``: the heat
+    map's ``(Hg, Wg)`` grids (cells of ``cell`` px); ``frame_shape``: ``(H, W)`` px. Returns
+    ``boxes`` itself when nothing was split."""
+    wins = np.asarray(windows, np.float64).reshape(-1, 4)
+    wts = np.asarray(weights, np.float64).reshape(-1)
+    if not len(boxes) or len(wins) < 2:
+        return boxes
+    h, w = frame_shape
+    hg, wg = heat.shape
+    ccx = ((wins[:, 0] + wins[:, 2]) / 2 // cell).astype(np.int64)
+    ccy = ((wins[:, 1] + wins[:, 3]) / 2 // cell).astype(np.int64)
+    out_b: list[np.ndarray] = []
+    out_s: list[float] = []
+    changed = False
+    for b, s in zip(np.asarray(boxes.boxes), np.asarray(boxes.scores)):
+        parts = _split_one(b, heat, labels, cell, (h, w), (hg, wg), wins, wts, ccx, ccy, extent, min_aspect,
+                           min_weight, bandwidth, scale_bandwidth, inside, max_overlap)
+        if parts is None:
+            out_b.append(np.asarray(b, np.int32))
+            out_s.append(float(s))
+            continue
+        changed = True
+        for pb, ps in parts:
+            out_b.append(pb)
+            out_s.append(ps)
+    if not changed:
+        return boxes
+    return Detections(np.array(out_b, np.int32).reshape(-1, 4), np.array(out_s, np.float32))
+
+
+def _split_one(b, heat, labels, cell, frame_hw, grid_hw, wins, wts, ccx, ccy, extent, min_aspect, min_weight,
+               bandwidth, scale_bandwidth, inside, max_overlap) -> list[tuple[np.ndarray, float]] | None:
+    """The parts of one box (``[(box (4,) int32, peak)]``), or ``None`` to keep it whole."""
+    if (b[2] - b[0]) < min_aspect * (b[3] - b[1]):
+        return None
+    h, w = frame_hw
+    hg, wg = grid_hw
+    x0, y0 = int(b[0]) // cell, int(b[1]) // cell
+    x1, y1 = min(-(-int(b[2]) // cell), wg), min(-(-int(b[3]) // cell), hg)
+    sub_l = labels[y0:y1, x0:x1]
+    if sub_l.size == 0 or not (sub_l > 0).any():
+        return None
+    sub_h = heat[y0:y1, x0:x1]
+    lab = sub_l.flat[int(np.argmax(np.where(sub_l > 0, sub_h, -np.inf)))]  # the blob of the hottest cell
+    # this frame's windows centred on the blob inside the box
+    cx, cy = ccx - x0, ccy - y0
+    idx = np.flatnonzero((cx >= 0) & (cy >= 0) & (cx < sub_l.shape[1]) & (cy < sub_l.shape[0]))
+    idx = idx[sub_l[cy[idx], cx[idx]] == lab]
+    if len(idx) < 2:
+        return None
+    mb, mw = window_modes(wins[idx], wts[idx], bandwidth, scale_bandwidth)
+    keep = dominant_modes(mb, mw, inside)
+    keep = keep[mw[keep] >= min_weight * mw[keep].max()]
+    hv = np.where(sub_l == lab, sub_h, 0.0)
+    cuts = mode_cuts(hv.max(axis=0), x0, cell, mb[keep], max_overlap)
+    if not cuts:
+        return None
+    parts = []
+    for a, z in zip([0, *cuts], [*cuts, hv.shape[1]]):
+        part = hv[:, a:z]
+        pk = float(part.max())
+        if pk <= 0:
+            continue
+        ys, xs = np.nonzero(part >= extent * pk) if extent > 0 else np.nonzero(part > 0)
+        box = np.array([(x0 + a + xs.min()) * cell, (y0 + ys.min()) * cell,
+                        min((x0 + a + xs.max() + 1) * cell, w), min((y0 + ys.max() + 1) * cell, h)], np.int32)
+        parts.append((box, pk))
+    return parts if len(parts) > 1 else None
+
+
+class SplitStage(Stage):
+    """The main heat map's wide boxes split between the modes of their windows
+    (:func:`split_boxes`); parts that fail the heat map's shape filter are dropped."""
+
+    name = "split"
+
+    def __init__(self, config: NeighbourSplit) -> None:
+        self.config = config
+
+    def __call__(self, s: FrameState) -> FrameState:
+        hm = s.heatmap
+        if hm is None or not len(s.boxes):
+            return s
+        c = self.config
+        wins, heat = hm.current_windows
+        out = split_boxes(s.boxes, hm.heat, hm.labels, int(hm.config.cell), hm.frame_shape, wins, heat,
+                          float(hm.config.extent), c.min_aspect, c.min_weight, c.bandwidth, c.scale_bandwidth,
+                          c.inside, c.max_overlap)
+        if out is not s.boxes:
+            s.boxes = s.out = out[hm.shape_ok(out.boxes)]
+        return s

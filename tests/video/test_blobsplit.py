@@ -1,0 +1,134 @@
+"""Heat blobs over vehicles side by side split between the modes of their windows."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from fastdet.config import HeatConfig
+from fastdet.detections import Detections
+from fastdet.video.blobsplit import dominant_modes, mode_cuts, shift_points, split_boxes, window_modes
+from fastdet.video.heatmap import HeatMap
+from tests.reference import ref_mean_shift
+
+
+@st.composite
+def windows(draw, max_n: int = 12):
+    n = draw(st.integers(1, max_n))
+    xs = draw(st.lists(st.integers(0, 600), min_size=n, max_size=n))
+    ys = draw(st.lists(st.integers(0, 300), min_size=n, max_size=n))
+    ws = draw(st.lists(st.sampled_from([32, 40, 48, 64, 80, 96, 128]), min_size=n, max_size=n))
+    wt = draw(st.lists(st.floats(1.0, 4.0), min_size=n, max_size=n))
+    b = np.array([[x, y, x + w, y + w] for x, y, w in zip(xs, ys, ws)], np.float64)
+    return b, np.array(wt)
+
+
+@settings(max_examples=40, deadline=None)
+@given(windows(), st.sampled_from([0.15, 0.25, 0.4]), st.sampled_from([0.2, 0.3, 0.6]))
+def test_shift_points_match_the_reference(wb, bw, sbw):
+    b, wt = wb
+    np.testing.assert_allclose(shift_points(b, wt, bw, sbw, 30), ref_mean_shift(b, wt, bw, sbw, 30), atol=1e-6)
+
+
+@settings(max_examples=40, deadline=None)
+@given(windows())
+def test_modes_partition_the_windows(wb):
+    b, wt = wb
+    mb, mw = window_modes(b, wt)
+    assert np.isclose(mw.sum(), wt.sum())
+    # every mode box is a weighted mean of window boxes: inside their hull
+    assert (mb[:, 0] >= b[:, 0].min() - 1e-9).all() and (mb[:, 2] <= b[:, 2].max() + 1e-9).all()
+    assert 1 <= len(mb) <= len(b)
+
+
+def _cluster(x: float, y: float, w: float, n: int = 5, jitter: float = 4.0) -> np.ndarray:
+    off = np.linspace(-jitter, jitter, n)
+    return np.array([[x + d, y, x + d + w, y + w] for d in off])
+
+
+def test_two_cars_side_by_side_give_two_modes_one_car_with_its_halves_one():
+    two = np.vstack([_cluster(100, 200, 40), _cluster(146, 200, 40)])
+    mb, mw = window_modes(two, np.ones(len(two)))
+    keep = dominant_modes(mb, mw)
+    assert len(keep) == 2
+    assert sorted(int(round(v)) for v in mb[keep, 0]) == [100, 146]
+    # a large car: many windows covering it, a few on its left and right halves
+    car = np.vstack([_cluster(1000, 400, 160, 9), _cluster(1000, 416, 64, 2), _cluster(1096, 416, 64, 2)])
+    mb, mw = window_modes(car, np.ones(len(car)))
+    assert len(mb) >= 2  # the halves are modes of their own ...
+    assert len(dominant_modes(mb, mw)) == 1  # ... inside the heavier whole-car mode
+
+
+def test_dominant_modes_keeps_the_heaviest_and_drops_what_it_covers():
+    mb = np.array([[0, 0, 10, 10], [0, 0, 100, 100], [200, 0, 260, 60], [90, 0, 130, 40]], float)
+    mw = np.array([5.0, 9.0, 3.0, 2.0])
+    # box 0 is inside box 1; box 3 is 1/4 inside box 1 (kept at inside=0.5, dropped at 0.2)
+    assert dominant_modes(mb, mw).tolist() == [1, 2, 3]
+    assert dominant_modes(mb, mw, inside=0.2).tolist() == [1, 2]
+
+
+def test_mode_cuts_at_the_coolest_column_between_separate_modes():
+    prof = np.array([1, 5, 6, 5, 2, 1, 3, 7, 7, 2], float)
+    modes = np.array([[4, 0, 16, 10], [24, 0, 36, 10]], float)  # centres at columns 2 and 7 (cell 4)
+    assert mode_cuts(prof, 0, 4, modes) == [5]
+    assert mode_cuts(prof, 0, 4, modes[::-1]) == [5]  # order of the modes does not matter
+    # overlapping modes (along x) are one vehicle, adjacent centres leave no column between
+    assert mode_cuts(prof, 0, 4, np.array([[4, 0, 20, 10], [10, 0, 26, 10]], float)) == []
+    assert mode_cuts(prof, 0, 4, np.array([[0, 0, 8, 4], [6, 0, 12, 4]], float), max_overlap=1.0) == []
+    assert mode_cuts(prof, 0, 4, modes[:1]) == []
+
+
+def _heatmap_with(windows: np.ndarray, shape=(360, 640)) -> tuple[HeatMap, Detections]:
+    hm = HeatMap(shape, HeatConfig(n_frames=1, threshold=1.5, min_width=0, min_height=0, reference_rows=None))
+    d = hm.update(Detections(windows.astype(np.int32), np.full(len(windows), 2.0, np.float32)))
+    return hm, d
+
+
+def test_split_boxes_two_cars_in_a_row():
+    wins = np.vstack([_cluster(100, 200, 40), _cluster(146, 200, 40)])
+    hm, boxes = _heatmap_with(wins)
+    assert len(boxes) == 1  # one blob over both
+    out = split_boxes(boxes, hm.heat, hm.labels, 4, hm.frame_shape, hm._cur[0], hm._cur[1], hm.config.extent)
+    assert len(out) == 2
+    b = out.boxes[np.argsort(out.boxes[:, 0])]
+    assert b[0, 0] <= 100 and b[0, 2] <= 150 and b[1, 0] >= 140 and b[1, 2] >= 186
+    assert (out.scores > 0).all()
+
+
+def test_split_boxes_keeps_a_narrow_blob_and_a_single_wide_vehicle():
+    # narrower than min_aspect x its height: never looked at
+    wins = np.vstack([_cluster(100, 200, 40), _cluster(130, 200, 40)])
+    hm, boxes = _heatmap_with(wins)
+    out = split_boxes(boxes, hm.heat, hm.labels, 4, hm.frame_shape, hm._cur[0], hm._cur[1], hm.config.extent,
+                      min_aspect=3.0)
+    assert out is boxes
+    # one large vehicle: windows covering it and a few on its halves: the halves' modes lie
+    # inside the whole vehicle's, no cut (looked at whatever its shape: min_aspect 0.5)
+    wins = np.vstack([_cluster(300, 100, 160, 9), _cluster(300, 116, 64, 2), _cluster(396, 116, 64, 2)])
+    hm, boxes = _heatmap_with(wins)
+    out = split_boxes(boxes, hm.heat, hm.labels, 4, hm.frame_shape, hm._cur[0], hm._cur[1], hm.config.extent,
+                      min_aspect=0.5)
+    assert out is boxes
+    # fewer than two windows: nothing to split by
+    out = split_boxes(boxes, hm.heat, hm.labels, 4, hm.frame_shape, wins[:1], np.ones(1), hm.config.extent)
+    assert out is boxes
+
+
+def test_the_pipeline_splits_two_cars_in_a_row():
+    from fastdet.config import NeighbourSplit, PipelineConfig
+    from fastdet.video.pipeline import VideoDetector
+    from tests.fakes import FixedDetector
+
+    wins = np.vstack([_cluster(100, 200, 40), _cluster(146, 200, 40)]).astype(np.int32)
+    dets = Detections(wins, np.full(len(wins), 2.0, np.float32))
+    frame = np.zeros((360, 640, 3), np.uint8)
+    base = PipelineConfig(tracker=None, refine=None, horizon=None,
+                          heat=HeatConfig(n_frames=1, threshold=1.5, min_width=0, min_height=0, reference_rows=None))
+    vd = VideoDetector(FixedDetector(dets), base)
+    assert len(vd.update(frame)) == 1
+    vd = VideoDetector(FixedDetector(dets), replace(base, split=NeighbourSplit()))
+    assert [s.name for s in vd.stages] == ["detect", "heatmap", "split"]
+    out = vd.update(frame)
+    assert len(out) == 2 and len(vd.debug.boxes) == 2
