@@ -1,4 +1,7 @@
-"""Read and write MOTChallenge box files (and the JSON-lines box format of ``fastdet video``).
+"""Read MOTChallenge box files (and the JSON-lines box format of ``fastdet video``).
+
+The box tables live in :mod:`fastdet.io.boxtables` and the writers in
+:mod:`fastdet.io.boxwriters`; both are re-exported here.
 
 Formats
 -------
@@ -30,162 +33,30 @@ Boxes inside fastdet are ``x1, y1, x2, y2`` with ``x2 = left + width`` and
 """
 from __future__ import annotations
 
-import io
 import json
 import math
 import os
-from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any, Iterable, Iterator, Sequence, Union
+from typing import Any
 
 import numpy as np
 
-from ..boxes import ltwh_to_xyxy, xyxy_to_ltwh
-from ..errors import DataError, WriteError
-from .atomic import commit, partial_name
+from ..boxes import ltwh_to_xyxy
+from ..errors import DataError
+from .boxtables import GroundTruth, PathLike, Predictions, iter_frames
+from .boxwriters import JsonLinesWriter, MotWriter
 
-PathLike = Union[str, "os.PathLike[str]"]
+__all__ = [
+    "GT_COLUMNS", "PRED_COLUMNS", "MIN_GT_COLUMNS", "MIN_PRED_COLUMNS", "MAX_COLUMNS", "MAX_FRAME", "MAX_ID",
+    "PathLike", "GroundTruth", "Predictions", "iter_frames", "MotWriter", "JsonLinesWriter",
+    "parse_gt", "parse_predictions", "parse_jsonl_predictions", "read_gt", "read_predictions",
+]
 
 GT_COLUMNS = ("frame", "id", "left", "top", "width", "height", "consider", "class", "visibility")
 PRED_COLUMNS = ("frame", "id", "left", "top", "width", "height", "conf", "x", "y", "z")
 MIN_GT_COLUMNS = 6
 MIN_PRED_COLUMNS = 7
 MAX_COLUMNS = 10
-
-
-# ---------------------------------------------------------------------------------------
-# box conversions
-
-
-# ---------------------------------------------------------------------------------------
-# containers
-
-
-def _as_1d(name: str, a, dtype, n: int | None) -> np.ndarray:
-    arr = np.ascontiguousarray(np.asarray(a, dtype=dtype).reshape(-1))
-    if n is not None and arr.shape[0] != n:
-        raise ValueError(f"{name} has {arr.shape[0]} entries, expected {n}")
-    return arr
-
-
-def _as_boxes(a) -> np.ndarray:
-    arr = np.asarray(a, dtype=np.float64)
-    if arr.size == 0:
-        return np.zeros((0, 4), np.float64)
-    if arr.ndim != 2 or arr.shape[1] != 4:
-        raise ValueError(f"boxes must have shape (N, 4), got {arr.shape}")
-    return np.ascontiguousarray(arr)
-
-
-def _normalise_rows(table: Any, last: str, dtype: Any) -> None:
-    """Check and convert the columns of a frozen box table in place: ``boxes`` to ``(N, 4)
-    float64``, ``frames`` and ``ids`` to ``(N,) int64`` and the column ``last`` to ``(N,)
-    dtype``."""
-    boxes = _as_boxes(table.boxes)
-    n = boxes.shape[0]
-    object.__setattr__(table, "boxes", boxes)
-    for name, dt in (("frames", np.int64), ("ids", np.int64), (last, dtype)):
-        object.__setattr__(table, name, _as_1d(name, getattr(table, name), dt, n))
-
-
-@dataclass(frozen=True, eq=False)
-class GroundTruth:
-    """Ground-truth boxes of one clip, one row per box, in file order.
-
-    frames: ``(N,) int64`` 1-based frame numbers.
-    ids: ``(N,) int64`` object identities.
-    boxes: ``(N, 4) float64`` x1, y1, x2, y2.
-    consider: ``(N,) bool``: True for a box a detector must find, False for an ignore region.
-    source: where it came from (file name), for messages.
-    """
-
-    frames: np.ndarray
-    ids: np.ndarray
-    boxes: np.ndarray
-    consider: np.ndarray
-    source: str = "<memory>"
-
-    def __post_init__(self) -> None:
-        _normalise_rows(self, "consider", bool)
-
-    def __len__(self) -> int:
-        return int(self.boxes.shape[0])
-
-    @property
-    def num_frames(self) -> int:
-        """The last annotated frame number (0 when there are no boxes)."""
-        return int(self.frames.max()) if len(self) else 0
-
-    @property
-    def num_considered(self) -> int:
-        return int(self.consider.sum())
-
-
-@dataclass(frozen=True, eq=False)
-class Predictions:
-    """Predicted boxes, one row per box, in file order.
-
-    frames: ``(N,) int64`` 1-based frame numbers.
-    ids: ``(N,) int64`` track ids, ``-1`` for "no id".
-    boxes: ``(N, 4) float64`` x1, y1, x2, y2.
-    scores: ``(N,) float64`` confidences, higher is more certain.
-    source: where it came from (file name), for messages.
-    """
-
-    frames: np.ndarray
-    ids: np.ndarray
-    boxes: np.ndarray
-    scores: np.ndarray
-    source: str = "<memory>"
-
-    def __post_init__(self) -> None:
-        _normalise_rows(self, "scores", np.float64)
-
-    def __len__(self) -> int:
-        return int(self.boxes.shape[0])
-
-    @property
-    def has_ids(self) -> bool:
-        """True when some prediction carries a track id (not all ``-1``)."""
-        return bool(np.any(self.ids != -1))
-
-    @classmethod
-    def empty(cls, source: str = "<memory>") -> "Predictions":
-        return cls(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 4)), np.zeros(0), source)
-
-    @classmethod
-    def from_frames(
-        cls,
-        frames: Iterable[tuple],
-        source: str = "<memory>",
-    ) -> "Predictions":
-        """Collect ``(frame, detections)`` pairs, e.g. from
-        ``fastdet.video.iter_video_detections``.
-
-        ``detections`` is a :class:`~fastdet.detections.Detections` (``boxes`` x1, y1, x2, y2,
-        ``scores``, and ``ids`` if it has them) or a tuple ``(boxes, scores[, ids])``.
-        """
-        fr: list[np.ndarray] = []
-        ids: list[np.ndarray] = []
-        bx: list[np.ndarray] = []
-        sc: list[np.ndarray] = []
-        for frame, det in frames:
-            if hasattr(det, "boxes"):
-                boxes, scores, tid = det.boxes, det.scores, getattr(det, "ids", None)
-            else:
-                boxes, scores = det[0], det[1]
-                tid = det[2] if len(det) > 2 else None
-            b = _as_boxes(boxes)
-            n = b.shape[0]
-            s = _as_1d("scores", scores, np.float64, n)
-            i = np.full(n, -1, np.int64) if tid is None else _as_1d("ids", tid, np.int64, n)
-            fr.append(np.full(n, int(frame), np.int64))
-            ids.append(i)
-            bx.append(b)
-            sc.append(s)
-        if not fr:
-            return cls.empty(source)
-        return cls(np.concatenate(fr), np.concatenate(ids), np.concatenate(bx), np.concatenate(sc), source)
 
 
 # ---------------------------------------------------------------------------------------
@@ -371,183 +242,3 @@ def read_predictions(path: PathLike) -> Predictions:
     if name.lower().endswith((".jsonl", ".json")):
         return parse_jsonl_predictions(text, name)
     return parse_predictions(text, name)
-
-
-# ---------------------------------------------------------------------------------------
-# writing
-
-
-def _fmt_score(s: float) -> str:
-    # shortest text that reads back to the same float32 (detector scores are float32)
-    s32 = np.float32(s)
-    if not np.isfinite(s32):
-        raise ValueError(f"score must be finite, got {s}")
-    return np.format_float_positional(s32, unique=True, trim="-")
-
-
-def _fmt_coord(v) -> str:
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    f = float(v)
-    return str(int(f)) if f.is_integer() else repr(f)
-
-
-def _json_coord(v):
-    if isinstance(v, (int, np.integer)):
-        return int(v)
-    f = float(v)
-    return int(f) if f.is_integer() else f
-
-
-class _FrameWriter:
-    """Shared plumbing: open a path (or take a text stream), validate, flush per frame.
-
-    A path is written under its temporary name (:func:`fastdet.io.atomic.partial_name`,
-    ``.NAME.partial.txt``; flushed after every frame, so it can be followed while a video
-    runs) and renamed to its final name by :meth:`close`: a run that is killed never
-    leaves a file under the final name that looks complete. A failed write (disk full)
-    raises :class:`~fastdet.errors.DataError` naming the final file, and the temporary
-    file is removed; so does ``close(discard=True)``.
-    """
-
-    def __init__(self, target: PathLike | IO[str]) -> None:
-        self._tmp: Path | None = None
-        if hasattr(target, "write"):
-            self._f = target  # type: ignore[assignment]
-            self._owns = False
-            self.name = getattr(target, "name", "<stream>")
-        else:
-            self.name = os.fspath(target)  # type: ignore[arg-type]
-            self._tmp = partial_name(self.name)
-            try:
-                self._f = open(self._tmp, "w", encoding="utf-8", newline="\n")
-            except OSError as exc:
-                raise WriteError(f"{self.name}: cannot write ({exc.strerror or exc})") from None
-            self._owns = True
-        self.frames_written = 0
-        self._failed = False
-        self._result: Path | None = None
-
-    @staticmethod
-    def _check(frame: int, boxes, scores, ids) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
-        frame = int(frame)
-        if frame < 1:
-            raise ValueError(f"frame must be >= 1 (1-based), got {frame}")
-        b = np.asarray(boxes)
-        if b.size == 0:
-            b = np.zeros((0, 4), b.dtype if b.dtype.kind in "iuf" else np.int32)
-        if b.ndim != 2 or b.shape[1] != 4:
-            raise ValueError(f"boxes must have shape (N, 4), got {b.shape}")
-        n = b.shape[0]
-        s = np.asarray(scores, dtype=np.float64).reshape(-1)
-        if s.shape[0] != n:
-            raise ValueError(f"{n} boxes but {s.shape[0]} scores")
-        i = np.full(n, -1, np.int64) if ids is None else np.asarray(ids, dtype=np.int64).reshape(-1)
-        if i.shape[0] != n:
-            raise ValueError(f"{n} boxes but {i.shape[0]} ids")
-        return frame, b, s, i
-
-    def write(self, frame: int, boxes, scores, ids: Sequence[int] | np.ndarray | None = None) -> None:
-        """Write one frame's boxes (``(N, 4)`` x1, y1, x2, y2) and scores; ids default to -1."""
-        frame, b, s, i = self._check(frame, boxes, scores, ids)
-        try:
-            self._f.write(self._format(frame, b, s, i))
-            self._f.flush()
-        except OSError as exc:
-            self._failed = True
-            raise WriteError(f"{self.name}: cannot write ({exc.strerror or exc}); "
-                            f"{self.frames_written} frames were written before it") from None
-        self.frames_written += 1
-
-    def write_detections(self, frame: int, det) -> None:
-        """Write a :class:`~fastdet.detections.Detections` (uses its ``ids`` if it has them)."""
-        self.write(frame, det.boxes, det.scores, getattr(det, "ids", None))
-
-    def _format(self, frame: int, b: np.ndarray, s: np.ndarray, i: np.ndarray) -> str:
-        raise NotImplementedError
-
-    @property
-    def tmp(self) -> Path | None:
-        """The temporary file written (``None`` for a stream)."""
-        return self._tmp
-
-    def close(self, discard: bool = False, rename: bool = True) -> Path | None:
-        """Close the file and give it its final name (the path); with ``discard`` (or after
-        a failed write) remove it instead (``None``). With ``rename=False`` the closed
-        temporary file is left for the caller to rename (:class:`~fastdet.io.atomic.OutputSet`)
-        and its path returned. A stream is only flushed."""
-        if not self._owns:
-            self._f.flush()
-            return None
-        if self._f.closed:
-            if discard and self._result is not None and self._result == self._tmp:
-                self._tmp.unlink(missing_ok=True)
-                self._result = None
-            return self._result
-        tmp = self._tmp
-        assert tmp is not None
-        try:
-            self._f.close()
-        except OSError as exc:
-            self._failed = True
-            if not discard:
-                tmp.unlink(missing_ok=True)
-                raise WriteError(f"{self.name}: cannot write ({exc.strerror or exc})") from None
-        if discard or self._failed:
-            tmp.unlink(missing_ok=True)
-            return None
-        self._result = commit(tmp, self.name) if rename else tmp
-        return self._result
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, exc_type, *exc) -> None:
-        # an exception that is a stop (Ctrl-C, SIGTERM) keeps the frames written so far
-        self.close(discard=exc_type is not None and not issubclass(exc_type, KeyboardInterrupt))
-
-
-class MotWriter(_FrameWriter):
-    """Write predictions as MOTChallenge lines ``frame,id,left,top,width,height,conf,-1,-1,-1``.
-
-    ``MotWriter(path_or_text_stream)``; call :meth:`write` once per frame (a frame with no
-    boxes writes nothing); each call flushes, so the file is readable while a video runs.
-    A path is opened for writing (truncated); a stream is left open by :meth:`close`.
-    """
-
-    def _format(self, frame: int, b: np.ndarray, s: np.ndarray, i: np.ndarray) -> str:
-        ltwh = xyxy_to_ltwh(b)
-        out = io.StringIO()
-        for k in range(b.shape[0]):
-            l, t, w, h = (_fmt_coord(v) for v in ltwh[k])
-            out.write(f"{frame},{int(i[k])},{l},{t},{w},{h},{_fmt_score(s[k])},-1,-1,-1\n")
-        return out.getvalue()
-
-
-class JsonLinesWriter(_FrameWriter):
-    """Write one JSON object per frame:
-    ``{"frame": n, "boxes": [[x1, y1, x2, y2], ...], "scores": [...], "ids": [...]}``.
-
-    Every call of :meth:`write` writes a line (also for a frame with no boxes) and flushes.
-    """
-
-    def _format(self, frame: int, b: np.ndarray, s: np.ndarray, i: np.ndarray) -> str:
-        obj = {
-            "frame": frame,
-            "boxes": [[_json_coord(v) for v in row] for row in b.tolist()] if b.dtype.kind == "f"
-            else b.astype(np.int64).tolist(),
-            "scores": [float(_fmt_score(v)) for v in s],
-            "ids": [int(v) for v in i],
-        }
-        return json.dumps(obj, separators=(",", ":")) + "\n"
-
-
-def iter_frames(preds: Predictions) -> Iterator[tuple[int, np.ndarray]]:
-    """``(frame, row indices)`` of ``preds`` (or a :class:`GroundTruth`) by ascending frame."""
-    if len(preds) == 0:
-        return
-    order = np.argsort(preds.frames, kind="stable")
-    f = preds.frames[order]
-    cuts = np.flatnonzero(np.diff(f)) + 1
-    for idx in np.split(order, cuts):
-        yield int(preds.frames[idx[0]]), idx
