@@ -33,6 +33,7 @@ from numba.core import event
 
 import fastdet
 from fastdet import _numba
+from fastdet._numba import compile_time
 from fastdet.features import _hog
 from fastdet.features import _hog_kernels as _k
 from tests.media import frames
@@ -114,9 +115,9 @@ def test_estimate_uses_this_machines_record(tmp_path, monkeypatch):
     tasks = _numba.tasks_of([_k.cell_hists_u8, _k.normalize_blocks_fast])
     rec = tmp_path / "times.json"
     rec.write_text('{"%s": 7.0, "%s": 3.0}' % (tasks[0].key, tasks[1].key))
-    monkeypatch.setattr(_numba, "_times_path", lambda t: rec)
-    monkeypatch.setattr(_numba, "machine_probe", lambda: (1.0, 1.0))
-    monkeypatch.setattr(_numba, "_cores", lambda: 2)
+    monkeypatch.setattr(compile_time, "_times_path", lambda t: rec)
+    monkeypatch.setattr(compile_time, "machine_probe", lambda: (1.0, 1.0))
+    monkeypatch.setattr(compile_time, "_cores", lambda: 2)
     est = _numba.estimate(tasks, workers=2)
     assert est.measured and est.costs == {tasks[0].key: 7.0, tasks[1].key: 3.0}
     # 7 s here; 3 s in a worker after its start-up; then loading the code
@@ -125,7 +126,7 @@ def test_estimate_uses_this_machines_record(tmp_path, monkeypatch):
     assert est.seconds == pytest.approx(alone)
     # a busy machine: the probe got half a core, i.e. 3 others want the 2 cores; with our 2
     # processes each gets 2 / 5 of a core
-    monkeypatch.setattr(_numba, "machine_probe", lambda: (1.0, 0.5))
+    monkeypatch.setattr(compile_time, "machine_probe", lambda: (1.0, 0.5))
     assert _numba.estimate(tasks, workers=2).seconds == pytest.approx(alone / 0.4)
 
 

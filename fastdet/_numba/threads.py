@@ -1,0 +1,45 @@
+"""Spread a serial kernel's rows over threads: :func:`split_range` (how the package's
+kernels use several cores without being ``parallel=True`` kernels)."""
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+
+import numba
+
+_pool: ThreadPoolExecutor | None = None
+_pool_lock = threading.Lock()
+
+
+def split_range(fn: Callable[[int, int], None], n: int, parts: int) -> None:
+    """``fn(lo, hi)`` over ``0 <= i < n`` cut into ``parts`` contiguous ranges of about equal
+    length, run at once: the first on the calling thread, the others on a shared pool of
+    ``NUMBA_NUM_THREADS - 1`` threads (``fn`` runs serial Numba kernels, which release the
+    GIL). Returns when all are done; re-raises the first exception. ``parts <= 1``: one call
+    ``fn(0, n)`` here. How the package's kernels use several cores without being
+    ``parallel=True`` kernels."""
+    global _pool
+    parts = max(1, min(int(parts), n, numba.config.NUMBA_NUM_THREADS))
+    if parts == 1:
+        if n > 0:
+            fn(0, n)
+        return
+    cuts = [n * i // parts for i in range(parts + 1)]
+    with _pool_lock:
+        if _pool is None:
+            _pool = ThreadPoolExecutor(max_workers=max(1, numba.config.NUMBA_NUM_THREADS - 1),
+                                       thread_name_prefix="fastdet-rows")
+        pool = _pool
+    futures = [pool.submit(fn, cuts[i], cuts[i + 1]) for i in range(1, parts)]
+    errors: list[BaseException] = []
+    try:
+        fn(cuts[0], cuts[1])
+    finally:
+        for f in futures:
+            try:
+                f.result()
+            except BaseException as exc:  # noqa: BLE001 - re-raised below
+                errors.append(exc)
+    if errors:
+        raise errors[0]
