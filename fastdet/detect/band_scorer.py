@@ -1,0 +1,115 @@
+"""One linear model's weights laid out for the dense scoring kernel, with its search bands:
+the decision values of every window of one band (or of chosen window columns) of a frame.
+Used by :class:`~fastdet.detect.detector.Detector`, one per model part."""
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..config import SearchConfig
+from ..features import (
+    convert_color,
+    hist_bin_shift,
+    hog_channels,
+    spatial_factor,
+    spatial_map,
+)
+from ..model import Model
+from .bands import BandGeometry, PaddedFrame, band_geometry, scaled_band
+from .scoring import dense_scores, hist_weight_integral, weight_table
+
+
+class _Scorer:
+    """One linear model's weights laid out for :func:`dense_scores`, with its search bands."""
+
+    def __init__(self, model: Model, search: SearchConfig):
+        self.model, self.search = model, search
+        cfg = self.config = model.config
+        if cfg.spatial_size and cfg.pixels_per_cell % spatial_factor(cfg):
+            raise ValueError(f"spatial_size {cfg.spatial_size} needs windows on a grid of "
+                             f"{spatial_factor(cfg)} px; cells are {cfg.pixels_per_cell} px")
+        w, b = model.folded()
+        nch, bx, by = len(cfg.hog_channels), cfg.blocks_x, cfg.blocks_y
+        cpb, o = cfg.cells_per_block, cfg.orientations
+        self.k = nch * cpb * cpb * o
+        # feature order (channel, block row, block col, ...) → rows of blocks, all channels
+        self.w_hog = np.ascontiguousarray(
+            w[: cfg.n_hog].reshape(nch, by, bx, cpb, cpb, o).transpose(1, 2, 0, 3, 4, 5).reshape(by, bx * self.k))
+        pos = cfg.n_hog
+        sh, sw = cfg.spatial_shape
+        self.w_sp = np.ascontiguousarray(w[pos: pos + cfg.n_spatial].reshape(sh, 3 * sw)) if sh else np.zeros((0, 0))
+        pos += cfg.n_spatial
+        self.w_hist = np.ascontiguousarray(w[pos:].reshape(3, cfg.hist_bins)) if cfg.hist_bins else None
+        self.hist_table = weight_table(self.w_hist, hist_bin_shift(cfg)) if self.w_hist is not None else None
+        self.bias = b
+
+    def geometries(self, frame_shape: tuple[int, int]) -> list[BandGeometry]:
+        search = self.search.for_frame(frame_shape, self.config.win_w, self.config.pixels_per_cell)
+        return [band_geometry(b, frame_shape, self.config, search.cells_per_step, search.border, search.border_mode)
+                for b in search.bands]
+
+    def band_scores(self, frame: np.ndarray, geo: BandGeometry, timings: dict[str, float] | None,
+                    serial: bool = False, spans: Sequence[tuple[int, int]] | None = None,
+                    padded: PaddedFrame | None = None) -> np.ndarray:
+        """Decision values of the band's windows (``spans``: only the window columns
+        ``j0 <= j < j1`` of each ``(j0, j1)``, the others -inf; see :meth:`Detector.detect`;
+        ``padded``: the frame's :func:`~fastdet.detect.bands.pad_frame`, if made)."""
+        cfg = self.config
+        if spans is not None and not any(min(j1, geo.nx) > max(j0, 0) for j0, j1 in spans):
+            return np.full((geo.ny, geo.nx), -np.inf)  # nothing to score: not even the resize
+        t0 = time.perf_counter()
+        img = convert_color(scaled_band(frame, geo, padded), cfg.color_space)
+        t1 = time.perf_counter()
+        t_hog = t_score = 0.0
+        if spans is None:
+            out = np.empty((geo.ny, geo.nx), np.float64)
+            t_hog, t_score = self._image_scores(img, geo.step, out, serial)
+        else:
+            # Every window of a span, scored on a column slice of the scaled band that runs one
+            # window step (>= 1 cell) past it on each side where the band goes on: HOG zeroes the
+            # gradients of an image's first and last columns, so a window touching the slice's
+            # edge would see other values than in the whole band. The slice starts on the
+            # window grid, so its windows are the band's own; the margin ones are dropped.
+            out = np.full((geo.ny, geo.nx), -np.inf)
+            px = geo.step * cfg.pixels_per_cell  # window step in scaled-band pixels
+            for j0, j1 in spans:
+                j0, j1 = max(int(j0), 0), min(int(j1), geo.nx)
+                if j0 >= j1 or not geo.ny:
+                    continue
+                a = (j0 - 1) * px if j0 > 0 else 0
+                b = min(img.shape[1], (j1 - 1) * px + cfg.win_w + px)
+                sub = np.ascontiguousarray(img[:, a:b])
+                part = np.empty((geo.ny, (b - a - cfg.win_w) // px + 1), np.float64)
+                th, ts = self._image_scores(sub, geo.step, part, serial)
+                t_hog, t_score = t_hog + th, t_score + ts
+                out[:, j0:j1] = part[:, j0 - a // px: j1 - a // px]
+        if timings is not None:
+            timings["resize_colour"] = timings.get("resize_colour", 0.0) + (t1 - t0)
+            timings["hog"] = timings.get("hog", 0.0) + t_hog
+            timings["score"] = timings.get("score", 0.0) + t_score
+        return out
+
+    def _image_scores(self, img: np.ndarray, step: int, out: np.ndarray, serial: bool) -> tuple[float, float]:
+        """Decision values of the windows of a scaled, colour-converted band image (``step``
+        cells apart) into ``out (ny, nx)``; returns the seconds of HOG and of scoring."""
+        cfg = self.config
+        t1 = time.perf_counter()
+        blocks = hog_channels(img, cfg.orientations, cfg.pixels_per_cell, cfg.cells_per_block,
+                              channels=list(cfg.hog_channels), exact=False)
+        t2 = time.perf_counter()
+        if out.size:
+            rows = blocks.reshape(blocks.shape[0], -1)
+            if cfg.spatial_size:
+                f = spatial_factor(cfg)
+                sp = spatial_map(img, f).astype(np.float64)
+                sp = sp.reshape(sp.shape[0], -1)
+            else:
+                f, sp = 1, None
+            cell = cfg.pixels_per_cell
+            integ = hist_weight_integral(img, self.hist_table, cell) if self.hist_table is not None else None
+            dense_scores(rows, self.w_hog, self.k, out, step=step, cell=cell, win_h=cfg.win_h, win_w=cfg.win_w,
+                         bias=self.bias, spat_rows=sp, w_sp=self.w_sp if cfg.spatial_size else None, sp_off=f,
+                         integ=integ, hist_step=cell, parallel=not serial)
+        return t2 - t1, time.perf_counter() - t2
