@@ -39,61 +39,50 @@ how many stopped; the outputs and manifest lines of the finished videos stay, so
 does the rest. A second signal while that runs is ignored (the clean-up is bounded by
 timeouts). Connecting to a scheduler waits at most :data:`CONNECT_TIMEOUT_S` and wakes on a
 stop signal.
+
+The client and cluster are made in :mod:`fastdet.batch.cluster`, the run folders handled in
+:mod:`fastdet.batch.runs`; their public names are re-exported here.
 """
 from __future__ import annotations
 
 import contextlib
-import ctypes
-import ctypes.util
-import logging
 import os
-import re
-import shutil
-import signal
-import socket
-import sys
-import threading
 import time
 import uuid
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-import cv2
-from distributed import Client, LocalCluster, WorkerPlugin, as_completed
+from distributed import Client, as_completed
 from distributed.scheduler import KilledWorker
 
 from .. import signals
-from .._numba import WORKERS_ENV, all_kernels, ensure_compiled
 from ..config.batch import BatchOptions
-from ..errors import DataError, FastdetError, WriteError, one_line
-from ..io.atomic import process_token
+from ..errors import DataError, WriteError, one_line
+from .cluster import (  # noqa: F401  (re-exported)
+    CLOSE_TIMEOUT_S,
+    CONNECT_TIMEOUT_S,
+    WORKER_ENV,
+    BatchInterrupted,
+    _client,
+    _connect,
+    _glibc_malloc_defaults,
+    _WorkerSetup,
+    check_address,
+    default_workers,
+)
 from .inputs import output_names
 from .manifest import Manifest, input_stat
 from .progress import BatchProgress
+from .runs import _pid_alive, remove_run, remove_stale_runs, run_id  # noqa: F401  (re-exported)
 from .settings import MANIFEST_NAME, Settings, output_paths
 from .summary import format_summary as _format_summary
 from .table import write_table
-from .task import PARTIAL_DIR, VideoTask, commit_outputs, discard_outputs, run_video
+from .task import VideoTask, commit_outputs, discard_outputs, run_video
 
 POLL_S = 0.2  # how often the main thread looks at finished tasks and redraws the bar
-CONNECT_TIMEOUT_S = 20
-CLOSE_TIMEOUT_S = 20
-#: environment of the local cluster's worker processes (a user's own NUMBA_NUM_THREADS wins)
-WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_WAIT_POLICY": "PASSIVE", WORKERS_ENV: "1"}
-
-
-class BatchInterrupted(Exception):
-    """The batch was stopped by signal ``signum`` (after cleaning up): ``done`` videos were
-    finished in this run, ``stopped`` were left for the next run."""
-
-    def __init__(self, signum: int, done: int, stopped: int = 0) -> None:
-        super().__init__(f"stopped by {signal.Signals(signum).name}")
-        self.signum = signum
-        self.done = done
-        self.stopped = stopped
 
 
 @dataclass
@@ -112,171 +101,6 @@ class BatchReport:
 def format_summary(report: BatchReport) -> str:
     """The end-of-batch table of ``report`` (:func:`fastdet.batch.summary.format_summary`)."""
     return _format_summary(report.done, report.skipped, report.failed, report.wall, report.workers)
-
-
-def default_workers() -> int:
-    """One worker per usable core."""
-    try:
-        return max(len(os.sched_getaffinity(0)), 1)
-    except AttributeError:  # pragma: no cover - not Linux
-        return max(os.cpu_count() or 1, 1)
-
-
-def _glibc_malloc_defaults() -> None:
-    """Undo the ``MALLOC_TRIM_THRESHOLD_=65536`` that Dask's nanny puts in its workers'
-    environment (``distributed.nanny.pre-spawn-environ``): setting it turns off glibc's
-    adaptive mmap threshold, so every array of a frame's size is a fresh ``mmap`` whose pages
-    fault in again (what that cost: docs/batch.md). These are the values glibc's adaptive
-    threshold reaches by itself (the maximum mmap threshold on 64 bits, twice that for
-    trimming). No-op without glibc."""
-    try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
-        mallopt = libc.mallopt
-    except (OSError, AttributeError):
-        return
-    m_trim_threshold, m_mmap_threshold = -1, -3  # malloc.h
-    mallopt(m_mmap_threshold, 32 << 20)
-    mallopt(m_trim_threshold, 64 << 20)
-
-
-class _WorkerSetup(WorkerPlugin):
-    """Runs on every worker (also ones that join or restart later): OpenCV on one thread,
-    like Numba, since the batch's parallelism is one video per worker thread; glibc's
-    malloc as outside Dask (:func:`_glibc_malloc_defaults`)."""
-
-    name = "fastdet-batch-setup"
-
-    def setup(self, worker: Any) -> None:
-        cv2.setNumThreads(1)
-        _glibc_malloc_defaults()
-
-
-@contextlib.contextmanager
-def _client(opts: BatchOptions) -> Iterator[tuple[Client, int]]:
-    """A client on the local cluster or on ``opts.scheduler``, closed (with the local
-    cluster) on exit; yields ``(client, number of workers)``."""
-    cluster = None
-    try:
-        if opts.scheduler:
-            client = _connect(opts.scheduler)
-        else:
-            n = opts.workers or default_workers()
-            # the kernels compiled once here on every core (if the cache lacks them), not once
-            # per worker process; the workers load them
-            ensure_compiled(all_kernels(), what="the kernels")
-            env = {k: os.environ.get(k, v) for k, v in WORKER_ENV.items()}
-            # workers' own log lines (a heartbeat that fails while the cluster closes, a task's
-            # traceback) are not for the user: every outcome is in the summary and the manifest
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                                   silence_logs=logging.CRITICAL, env=env)
-            client = Client(cluster, set_as_default=False)
-    except BaseException:
-        if cluster is not None:
-            cluster.close(timeout=CLOSE_TIMEOUT_S)
-        raise
-    try:
-        try:
-            client.register_plugin(_WorkerSetup())
-        except ImportError as exc:  # raised on a worker, which cannot unpickle fastdet's plugin
-            raise FastdetError(f"the Dask workers cannot import {exc.name or 'fastdet'}: install "
-                               f"fastdet[cluster] on every worker machine") from None
-        workers = len(client.scheduler_info().get("workers", {}))
-        if not workers:
-            print(f"fastdet batch: the scheduler at {opts.scheduler} has no workers yet; the videos "
-                  f"wait for some to join", file=sys.stderr, flush=True)
-        yield client, workers
-    finally:
-        try:
-            client.close(timeout=CLOSE_TIMEOUT_S)
-        finally:
-            if cluster is not None:
-                cluster.close(timeout=CLOSE_TIMEOUT_S)
-
-
-def check_address(address: str) -> None:
-    """``FastdetError`` for a scheduler address that is not ``scheme://host:port`` (checked
-    before a client exists: a client half made from a bad address hangs when collected)."""
-    from distributed.comm.addressing import parse_address, parse_host_port
-
-    try:
-        scheme, loc = parse_address(address, strict=True)
-        if scheme in ("tcp", "tls", "ws", "wss", "ucx"):
-            parse_host_port(loc)
-    except (ValueError, TypeError) as exc:
-        raise FastdetError(f"--scheduler {address!r} is not a scheduler address such as tcp://host:8786 "
-                           f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})") from None
-
-
-def _connect(address: str, timeout: float | None = None) -> Client:
-    """A client of the scheduler at ``address``, made in a helper thread: the wait is
-    bounded by ``timeout`` (default :data:`CONNECT_TIMEOUT_S`) and ends at a stop signal.
-    Something at that address that is not a Dask scheduler (an HTTP server) keeps a
-    client's handshake waiting for ever: the helper thread is then left behind (a daemon)."""
-    check_address(address)
-    limit = CONNECT_TIMEOUT_S if timeout is None else timeout
-    box: dict[str, Any] = {}
-
-    def connect() -> None:
-        try:
-            box["client"] = Client(address, timeout=limit, set_as_default=False)
-        except BaseException as exc:  # noqa: BLE001 - reported by the waiting thread
-            box["error"] = exc
-
-    t = threading.Thread(target=connect, name="fastdet-connect", daemon=True)
-    t.start()
-    finished = signals.wait(lambda: not t.is_alive(), limit + 1)
-    if not finished:
-        if signals.stop_requested():
-            raise BatchInterrupted(signals.received() or signal.SIGINT, 0)
-        raise FastdetError(f"cannot connect to the Dask scheduler at {address}: no answer in {limit:g} s "
-                           f"(is it a Dask scheduler?)")
-    if "error" in box:
-        exc = box["error"]
-        raise FastdetError(f"cannot connect to the Dask scheduler at {address}: "
-                           f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
-    return box["client"]
-
-
-def run_id() -> str:
-    """``HOST-PID-RANDOM``: this batch run's temporary folder name (unique to the process)."""
-    host = re.sub(r"[^A-Za-z0-9.]+", "_", socket.gethostname()) or "host"
-    return f"{host}-{process_token()}"
-
-
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # another user's process
-        return True
-    return True
-
-
-def remove_run(out_dir: Path, run: str) -> None:
-    """Remove run ``run``'s temporary folder, and ``.partial`` when it is then empty."""
-    d = out_dir / PARTIAL_DIR
-    shutil.rmtree(d / run, ignore_errors=True)
-    with contextlib.suppress(OSError):
-        d.rmdir()  # only when empty
-
-
-def remove_stale_runs(out_dir: Path) -> list[str]:
-    """Remove the temporary folders of batch runs on this host whose process is gone (a run
-    killed outright); the folders of live runs and of other hosts stay. Returns the names."""
-    d = out_dir / PARTIAL_DIR
-    host = run_id().rsplit("-", 2)[0]
-    gone: list[str] = []
-    try:
-        entries = list(d.iterdir())
-    except OSError:
-        return gone
-    for p in entries:
-        m = re.fullmatch(r"(?P<host>.+)-(?P<pid>\d+)-[0-9a-f]{8}", p.name)
-        if p.is_dir() and m and m["host"] == host and not _pid_alive(int(m["pid"])):
-            shutil.rmtree(p, ignore_errors=True)
-            gone.append(p.name)
-    return gone
 
 
 def _one_line(exc: BaseException) -> str:

@@ -1,0 +1,163 @@
+"""The Dask client of a batch: a ``LocalCluster`` of worker processes (one per core, one
+thread and one Numba thread each, set up by a worker plugin) or a connection to a running
+scheduler, bounded in time and woken by a stop signal; and :class:`BatchInterrupted`, how a
+stopped batch ends."""
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import ctypes.util
+import logging
+import os
+import signal
+import sys
+import threading
+from collections.abc import Iterator
+from typing import Any
+
+import cv2
+from distributed import Client, LocalCluster, WorkerPlugin
+
+from .. import signals
+from .._numba import WORKERS_ENV, all_kernels, ensure_compiled
+from ..config.batch import BatchOptions
+from ..errors import FastdetError
+
+CONNECT_TIMEOUT_S = 20
+CLOSE_TIMEOUT_S = 20
+#: environment of the local cluster's worker processes (a user's own NUMBA_NUM_THREADS wins)
+WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_WAIT_POLICY": "PASSIVE", WORKERS_ENV: "1"}
+
+
+class BatchInterrupted(Exception):
+    """The batch was stopped by signal ``signum`` (after cleaning up): ``done`` videos were
+    finished in this run, ``stopped`` were left for the next run."""
+
+    def __init__(self, signum: int, done: int, stopped: int = 0) -> None:
+        super().__init__(f"stopped by {signal.Signals(signum).name}")
+        self.signum = signum
+        self.done = done
+        self.stopped = stopped
+
+
+def default_workers() -> int:
+    """One worker per usable core."""
+    try:
+        return max(len(os.sched_getaffinity(0)), 1)
+    except AttributeError:  # pragma: no cover - not Linux
+        return max(os.cpu_count() or 1, 1)
+
+
+def _glibc_malloc_defaults() -> None:
+    """Undo the ``MALLOC_TRIM_THRESHOLD_=65536`` that Dask's nanny puts in its workers'
+    environment (``distributed.nanny.pre-spawn-environ``): setting it turns off glibc's
+    adaptive mmap threshold, so every array of a frame's size is a fresh ``mmap`` whose pages
+    fault in again (what that cost: docs/batch.md). These are the values glibc's adaptive
+    threshold reaches by itself (the maximum mmap threshold on 64 bits, twice that for
+    trimming). No-op without glibc."""
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        mallopt = libc.mallopt
+    except (OSError, AttributeError):
+        return
+    m_trim_threshold, m_mmap_threshold = -1, -3  # malloc.h
+    mallopt(m_mmap_threshold, 32 << 20)
+    mallopt(m_trim_threshold, 64 << 20)
+
+
+class _WorkerSetup(WorkerPlugin):
+    """Runs on every worker (also ones that join or restart later): OpenCV on one thread,
+    like Numba, since the batch's parallelism is one video per worker thread; glibc's
+    malloc as outside Dask (:func:`_glibc_malloc_defaults`)."""
+
+    name = "fastdet-batch-setup"
+
+    def setup(self, worker: Any) -> None:
+        cv2.setNumThreads(1)
+        _glibc_malloc_defaults()
+
+
+@contextlib.contextmanager
+def _client(opts: BatchOptions) -> Iterator[tuple[Client, int]]:
+    """A client on the local cluster or on ``opts.scheduler``, closed (with the local
+    cluster) on exit; yields ``(client, number of workers)``."""
+    cluster = None
+    try:
+        if opts.scheduler:
+            client = _connect(opts.scheduler)
+        else:
+            n = opts.workers or default_workers()
+            # the kernels compiled once here on every core (if the cache lacks them), not once
+            # per worker process; the workers load them
+            ensure_compiled(all_kernels(), what="the kernels")
+            env = {k: os.environ.get(k, v) for k, v in WORKER_ENV.items()}
+            # workers' own log lines (a heartbeat that fails while the cluster closes, a task's
+            # traceback) are not for the user: every outcome is in the summary and the manifest
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                                   silence_logs=logging.CRITICAL, env=env)
+            client = Client(cluster, set_as_default=False)
+    except BaseException:
+        if cluster is not None:
+            cluster.close(timeout=CLOSE_TIMEOUT_S)
+        raise
+    try:
+        try:
+            client.register_plugin(_WorkerSetup())
+        except ImportError as exc:  # raised on a worker, which cannot unpickle fastdet's plugin
+            raise FastdetError(f"the Dask workers cannot import {exc.name or 'fastdet'}: install "
+                               f"fastdet[cluster] on every worker machine") from None
+        workers = len(client.scheduler_info().get("workers", {}))
+        if not workers:
+            print(f"fastdet batch: the scheduler at {opts.scheduler} has no workers yet; the videos "
+                  f"wait for some to join", file=sys.stderr, flush=True)
+        yield client, workers
+    finally:
+        try:
+            client.close(timeout=CLOSE_TIMEOUT_S)
+        finally:
+            if cluster is not None:
+                cluster.close(timeout=CLOSE_TIMEOUT_S)
+
+
+def check_address(address: str) -> None:
+    """``FastdetError`` for a scheduler address that is not ``scheme://host:port`` (checked
+    before a client exists: a client half made from a bad address hangs when collected)."""
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    try:
+        scheme, loc = parse_address(address, strict=True)
+        if scheme in ("tcp", "tls", "ws", "wss", "ucx"):
+            parse_host_port(loc)
+    except (ValueError, TypeError) as exc:
+        raise FastdetError(f"--scheduler {address!r} is not a scheduler address such as tcp://host:8786 "
+                           f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})") from None
+
+
+def _connect(address: str, timeout: float | None = None) -> Client:
+    """A client of the scheduler at ``address``, made in a helper thread: the wait is
+    bounded by ``timeout`` (default :data:`CONNECT_TIMEOUT_S`) and ends at a stop signal.
+    Something at that address that is not a Dask scheduler (an HTTP server) keeps a
+    client's handshake waiting for ever: the helper thread is then left behind (a daemon)."""
+    check_address(address)
+    limit = CONNECT_TIMEOUT_S if timeout is None else timeout
+    box: dict[str, Any] = {}
+
+    def connect() -> None:
+        try:
+            box["client"] = Client(address, timeout=limit, set_as_default=False)
+        except BaseException as exc:  # noqa: BLE001 - reported by the waiting thread
+            box["error"] = exc
+
+    t = threading.Thread(target=connect, name="fastdet-connect", daemon=True)
+    t.start()
+    finished = signals.wait(lambda: not t.is_alive(), limit + 1)
+    if not finished:
+        if signals.stop_requested():
+            raise BatchInterrupted(signals.received() or signal.SIGINT, 0)
+        raise FastdetError(f"cannot connect to the Dask scheduler at {address}: no answer in {limit:g} s "
+                           f"(is it a Dask scheduler?)")
+    if "error" in box:
+        exc = box["error"]
+        raise FastdetError(f"cannot connect to the Dask scheduler at {address}: "
+                           f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
+    return box["client"]
