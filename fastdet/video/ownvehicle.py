@@ -270,7 +270,8 @@ def window_fraction(region: np.ndarray, boxes: np.ndarray, integral: np.ndarray 
     x1, x2 = np.clip(b[:, 0], 0, w), np.clip(b[:, 2], 0, w)
     y1, y2 = np.clip(b[:, 1], 0, h), np.clip(b[:, 3], 0, h)
     inside = integral[y2, x2] - integral[y1, x2] - integral[y2, x1] + integral[y1, x1]
-    a = (b[:, 2] - b[:, 0]) * (b[:, 3] - b[:, 1])
+    # an inverted box (x2 < x1 and y2 < y1) has no area, not the product of two negative sides
+    a = np.maximum(b[:, 2] - b[:, 0], 0) * np.maximum(b[:, 3] - b[:, 1], 0)
     return np.where(a > 0, inside / np.maximum(a, 1), 0.0)
 
 
