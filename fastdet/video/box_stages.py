@@ -47,20 +47,33 @@ class HeatStage(Stage):
             self.heatmap.reset()
 
 
-class FusionStage(Stage):
-    """The oncoming model's heat map; its boxes are added where the main heat map found
+class _ExtraHeatStage(Stage):
+    """A heat map of its own for windows other than the main model's, sized to the frame
+    (a frame of another size starts a new one); its boxes go where the main heat map found
     nothing (:func:`fastdet.video.fusion.merge_wide`)."""
-
-    name = "fusion"
 
     def __init__(self, detector: WindowDetector, config: HeatConfig) -> None:
         self.detector, self.config = detector, config
         self.heatmap: HeatMap | None = None
 
-    def __call__(self, s: FrameState) -> FrameState:
+    def _heatmap_for(self, s: FrameState) -> HeatMap:
         if self.heatmap is None or self.heatmap.frame_shape != s.shape:
             self.heatmap = HeatMap(s.shape, self.config, score_kind=self.detector.score_kind)
-        hw = self.heatmap
+        return self.heatmap
+
+    def reset(self) -> None:
+        if self.heatmap is not None:
+            self.heatmap.reset()
+
+
+class FusionStage(_ExtraHeatStage):
+    """The oncoming model's heat map; its boxes are added where the main heat map found
+    nothing (:func:`fastdet.video.fusion.merge_wide`)."""
+
+    name = "fusion"
+
+    def __call__(self, s: FrameState) -> FrameState:
+        hw = self._heatmap_for(s)
         wide = s.windows.is_wide
         if not wide.any() and hw.config.n_frames == 1:
             hw.reset()  # no memory and no windows: no heat, no boxes
@@ -68,12 +81,8 @@ class FusionStage(Stage):
             s.boxes = s.out = merge_wide(s.boxes, hw.update(s.windows[wide]))
         return s
 
-    def reset(self) -> None:
-        if self.heatmap is not None:
-            self.heatmap.reset()
 
-
-class ComponentStage(Stage):
+class ComponentStage(_ExtraHeatStage):
     """The heat map of the detector's components' windows (e.g. the side-view component,
     ``Detector(components=...)``: parts ``FIRST_COMPONENT_PART`` and up); its boxes are added
     where the main heat map found nothing (:func:`fastdet.video.fusion.merge_wide`). One heat
@@ -82,21 +91,12 @@ class ComponentStage(Stage):
 
     name = "components"
 
-    def __init__(self, detector: WindowDetector, config: HeatConfig) -> None:
-        self.detector, self.config = detector, config
-        self.heatmap: HeatMap | None = None
-
     def __call__(self, s: FrameState) -> FrameState:
-        if self.heatmap is None or self.heatmap.frame_shape != s.shape:
-            self.heatmap = HeatMap(s.shape, self.config, score_kind=self.detector.score_kind)
+        hm = self._heatmap_for(s)
         w = s.windows
         mine = w[w.part >= FIRST_COMPONENT_PART] if w.part is not None else w[:0]
-        s.boxes = s.out = merge_wide(s.boxes, self.heatmap.update(mine))
+        s.boxes = s.out = merge_wide(s.boxes, hm.update(mine))
         return s
-
-    def reset(self) -> None:
-        if self.heatmap is not None:
-            self.heatmap.reset()
 
 
 class WeakStage(Stage):
