@@ -21,6 +21,7 @@ from fastdet.errors import DataError
 from fastdet.io.atomic import partial_name
 from fastdet.video import VideoDetector, iter_video_detections, make_detector
 from tests.fakes import BrightBoxDetector
+from tests.reference import box_iou as iou
 
 W, H = 320, 240
 RECT_W, RECT_H = 80, 60
@@ -51,13 +52,6 @@ def write_video(path: Path, n: int, fourcc: str = "mp4v") -> Path:
         w.write(synth_frame(i))
     w.release()
     return path
-
-
-def iou(a, b) -> float:
-    ix = max(0, min(a[2], b[2]) - max(a[0], b[0]))
-    iy = max(0, min(a[3], b[3]) - max(a[1], b[1]))
-    inter = ix * iy
-    return inter / ((a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter)
 
 
 def count_frames(path: Path) -> int:

@@ -18,6 +18,7 @@ from fastdet.eval.metrics import evaluate
 from fastdet.io.motfiles import GroundTruth, read_predictions
 from fastdet.video import VideoDetector, iter_video_detections
 from tests.fakes import BlobsDetector
+from tests.reference import box_iou as iou
 
 W, H = 480, 240
 HEAT = HeatConfig(n_frames=1, threshold=8.0, min_width=20, min_height=20)
@@ -54,13 +55,6 @@ def write_video(path: Path, n: int, merge: bool = False) -> Path:
         w.write(frame_of(i, merge))
     w.release()
     return path
-
-
-def iou(a, b) -> float:
-    ix = max(0, min(a[2], b[2]) - max(a[0], b[0]))
-    iy = max(0, min(a[3], b[3]) - max(a[1], b[1]))
-    inter = ix * iy
-    return inter / ((a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter)
 
 
 def parse(*argv):
