@@ -30,7 +30,7 @@ import numpy as np
 
 from ..boxes import intersection, iou
 from ..config import SearchBand, SearchConfig
-from ..detections import MAIN_PART
+from ..detections import MAIN_PART, WIDE_PART
 from ..model import Model
 from .keyframes import AnnotatedFrame
 
@@ -71,12 +71,13 @@ class FrameWindows:
     false_boxes: np.ndarray
 
 
-def frame_windows(detector: Any, frame: AnnotatedFrame, iou_min: float = 0.5, part: int = MAIN_PART,
-                  min_false: float = -math.inf) -> FrameWindows:
+def frame_windows(detector: Any, frame: AnnotatedFrame, iou_min: float = 0.5,
+                  parts: Sequence[int] | None = (MAIN_PART,), min_false: float = -math.inf) -> FrameWindows:
     """Score every window ``detector`` (a :class:`fastdet.Detector`) searches in ``frame`` with
-    its model ``part`` (module docstring); false windows are kept only above ``min_false``."""
+    its models ``parts`` (``None``: all but the wide model; module docstring); false windows
+    are kept only above ``min_false``."""
     d = detector.detect(frame.image)
-    d = d[d.part == part]
+    d = d[d.part != WIDE_PART] if parts is None else d[np.isin(d.part, list(parts))]
     boxes = d.boxes.astype(np.float64)
     scores = d.scores.astype(np.float64)
     best = np.full(len(frame.targets), -np.inf)
@@ -132,28 +133,34 @@ def window_score(windows: Sequence[FrameWindows], half: float = 0.5,
                        float((false > half).sum() / max(n, 1)))
 
 
-def dense_detector(model: Model, frame_shape: tuple[int, int], **search: Any) -> Any:
-    """A :class:`fastdet.Detector` of ``model`` alone with :func:`dense_search` for frames of
-    ``frame_shape`` (``search``: its keyword arguments)."""
+def dense_detector(model: Model, frame_shape: tuple[int, int], components: Sequence[Model] = (),
+                   **search: Any) -> Any:
+    """A :class:`fastdet.Detector` of ``model`` (and ``components``, e.g. a side-view model)
+    with :func:`dense_search` for frames of ``frame_shape``, each model's for its own window
+    (``search``: its keyword arguments)."""
     from ..detect import Detector
 
-    cfg = model.config
-    return Detector(model, dense_search(frame_shape, cfg.win_w, cell=cfg.pixels_per_cell, **search))
+    def dense(m: Model) -> SearchConfig:
+        return dense_search(frame_shape, m.config.win_w, cell=m.config.pixels_per_cell, **search)
+
+    return Detector(model, dense(model), components=[(c, dense(c)) for c in components])
 
 
 def score_frames(model: Model, frames: Sequence[AnnotatedFrame], iou_min: float = 0.5,
                  on_frame: Callable[[AnnotatedFrame, FrameWindows], None] | None = None,
-                 **search: Any) -> WindowScore:
+                 components: Sequence[Model] = (), **search: Any) -> WindowScore:
     """:func:`window_score` of ``model`` over ``frames``, every window of :func:`dense_search`
-    (``search``: its keyword arguments) searched; ``on_frame`` sees each frame's
-    :class:`FrameWindows` (e.g. to keep its false windows as hard negatives)."""
+    (``search``: its keyword arguments) searched; with ``components`` the windows of every
+    model count (a target's best window is the best of any model, the false windows are all
+    of theirs). ``on_frame`` sees each frame's :class:`FrameWindows` (e.g. to keep its false
+    windows as hard negatives)."""
     detectors: dict[tuple[int, int], Any] = {}
     out = []
     for f in frames:
         shape = f.image.shape[:2]
         if shape not in detectors:
-            detectors[shape] = dense_detector(model, shape, **search)
-        fw = frame_windows(detectors[shape], f, iou_min)
+            detectors[shape] = dense_detector(model, shape, components, **search)
+        fw = frame_windows(detectors[shape], f, iou_min, parts=None)
         if on_frame is not None:
             on_frame(f, fw)
         out.append(fw)
