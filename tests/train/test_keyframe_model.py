@@ -72,7 +72,7 @@ def test_train_keyframe_model_records_and_learns_its_positives(frames, small_dat
     kf = tr["keyframes"]
     assert kf["clips"] == ["boston_street"] and kf["frames"] == 3 and kf["recipe"]["jitter"] == 1
     assert tr["data"]["extra_positives"] == kf["positives"] == 2 * sum(len(f.targets) for f in frames)
-    assert tr["data"]["hard_negatives"] == kf["background"] + kf["hard_negatives"]
+    assert tr["data"]["hard_negatives"] == kf["background"] + sum(kf["hard_negatives"])
     assert "random_split" not in tr and any("keyframes of boston_street" in s for s in logs)
     # a model trained on the same few data-set crops without them scores those targets lower
     kc = keyframe_crops(frames, replace(recipe, jitter=0))

@@ -8,7 +8,7 @@ re-encoded copies, logistic regression.
 Usage (from the repository root)::
 
     python -m tools.scripts.keyframe_model --out M.npz [--clips A,B,...] [--exclude A,B]
-        [--data DIR] [--jitter N] [--background N] [--hard-per-frame N] [--C C]
+        [--data DIR] [--jitter N] [--background N] [--hard-per-frame N] [--hard-rounds N] [--C C]
         [--max-per-folder N]
 
 ``--clips``: the clips to learn from (default: every annotated clip of the data folder,
@@ -21,11 +21,15 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Sequence
+from dataclasses import asdict
 from pathlib import Path
+from typing import Any
 
 from fastdet.config import FeatureConfig
 from fastdet.data import data_dir
 from fastdet.errors import FastdetError
+from fastdet.model import Model
 from fastdet.eval.clips import annotated_clips
 from fastdet.train.keyframe_model import KeyframeRecipe, train_keyframe_model
 from fastdet.train.keyframes import read_annotated_frames
@@ -50,15 +54,20 @@ def choose_clips(data: Path, clips: str | None, exclude: str | None) -> list[str
 
 
 def build(out: Path, clips: list[str], data: Path, recipe: KeyframeRecipe = KeyframeRecipe(),
-          C: float | None = None, max_per_folder: int | None = None, log=print) -> None:
-    """Train the main model on the data set and the annotated frames of ``clips``; save it to ``out``."""
+          C: float | None = None, max_per_folder: int | None = None, previous: Sequence[Model] = (),
+          log=print) -> None:
+    """Train the main model on the data set and the annotated frames of ``clips``; save it to
+    ``out`` (``previous``: :func:`~fastdet.train.keyframe_model.train_keyframe_model`'s)."""
     frames = [f for c in clips for f in read_annotated_frames(data, c)]
-    args = dict(TRAINING, max_per_folder=max_per_folder)
+    args: dict[str, Any] = dict(TRAINING, max_per_folder=max_per_folder)
     if C is not None:
         args["C"] = C
-    model = train_keyframe_model(data, FeatureConfig(), frames, recipe, log=log, **args)
+    model = train_keyframe_model(data, FeatureConfig(), frames, recipe, log=log, previous=previous, **args)
+    d = KeyframeRecipe()
+    opts = ["--clips", ",".join(clips)] + [f"--{k.replace('_', '-')} {v:g}" for k, v in asdict(recipe).items()
+                                           if v != getattr(d, k)]
     model.metadata["training"]["command"] = "python -m tools.scripts.keyframe_model " + " ".join(
-        ["--clips", ",".join(clips)] + ([f"--C {C:g}"] if C is not None else []))
+        opts + ([f"--C {C:g}"] if C is not None else []))
     model.save(out)
     log(f"wrote {out}")
 
@@ -73,6 +82,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--jitter", type=int, default=d.jitter)
     p.add_argument("--background", type=int, default=d.background)
     p.add_argument("--hard-per-frame", type=int, default=d.hard_per_frame)
+    p.add_argument("--hard-rounds", type=int, default=d.hard_rounds)
     p.add_argument("--C", type=float, default=None, help=f"inverse regularisation (default {TRAINING['C']})")
     p.add_argument("--max-per-folder", type=int, default=None)
     args = p.parse_args(argv)
@@ -85,7 +95,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.max_per_folder is not None and args.max_per_folder < 1:
             raise FastdetError(f"--max-per-folder must be >= 1, got {args.max_per_folder}")
         clips = choose_clips(data, args.clips, args.exclude)
-        recipe = KeyframeRecipe(jitter=args.jitter, background=args.background, hard_per_frame=args.hard_per_frame)
+        recipe = KeyframeRecipe(jitter=args.jitter, background=args.background, hard_per_frame=args.hard_per_frame,
+                                hard_rounds=args.hard_rounds)
         build(args.out, clips, data, recipe, args.C, args.max_per_folder)
     except (FastdetError, ValueError) as exc:
         print(f"keyframe_model: {exc}", file=sys.stderr)

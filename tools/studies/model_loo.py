@@ -17,11 +17,17 @@ Folds (:func:`tools.studies.loo.folds`): each camera is held out in turn; the tw
 (one drive) together. ``WORK/main[_TAG]_without_FOLD.npz`` is trained on the other clips
 (kept when it exists, so a rerun only scores); one training at a time, single process.
 
+``--side``: also a side-view component per fold (``WORK/side_without_FOLD.npz``,
+``tools/scripts/side_model.py`` on the same clips): (a) the pipeline with the held-out main
+model and it (``PipelineConfig(side=...)``), (b) the windows of both models together (a
+target's best window is the best of either; every false window of either counts).
+
 Usage (from the repository root)::
 
     python -m tools.studies.model_loo [--work /tmp/fastdet-model-loo] [--clips A,B] [--tag T]
-        [--jitter N] [--background N] [--hard-per-frame N] [--C C] [--no-train] [--no-baseline]
-        [--json OUT.json]
+        [--jitter N] [--background N] [--hard-per-frame N] [--hard-rounds N [--reuse-round1]] [--C C]
+        [--no-train] [--no-baseline]
+        [--side] [--json OUT.json]
 
 About 4 minutes of CPU per fold to train, 1-2 to score.
 """
@@ -43,6 +49,7 @@ from fastdet.model import load_model
 from fastdet.train.keyframe_model import KeyframeRecipe
 from fastdet.train.keyframes import read_annotated_frames
 from fastdet.train.windows import FALSE_RATES, WindowScore, score_frames
+from tools.scripts import side_model
 from tools.scripts.keyframe_model import build
 from tools.studies.loo import folds, run_clip
 
@@ -78,9 +85,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--jitter", type=int, default=d.jitter)
     p.add_argument("--background", type=int, default=d.background)
     p.add_argument("--hard-per-frame", type=int, default=d.hard_per_frame)
+    p.add_argument("--hard-rounds", type=int, default=d.hard_rounds)
+    p.add_argument("--reuse-round1", action="store_true",
+                   help="with --hard-rounds > 1: WORK/main_without_FOLD.npz (the default recipe's) is round 1")
     p.add_argument("--C", type=float, default=None)
     p.add_argument("--no-train", action="store_true", help="only score: every held-out model must exist")
     p.add_argument("--no-baseline", action="store_true", help="do not score the bundled model")
+    p.add_argument("--side", action="store_true", help="also a side-view component trained on the same clips")
     p.add_argument("--json", type=Path, help="also write every figure to this JSON file")
     args = p.parse_args(argv)
     data = data_dir()
@@ -90,11 +101,12 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         print(f"model_loo: not annotated clips: {', '.join(unknown)}", file=sys.stderr)
         return 2
-    recipe = replace(d, jitter=args.jitter, background=args.background, hard_per_frame=args.hard_per_frame)
+    recipe = replace(d, jitter=args.jitter, background=args.background, hard_per_frame=args.hard_per_frame,
+                     hard_rounds=args.hard_rounds)
     args.work.mkdir(parents=True, exist_ok=True)
     bundled = load_model(None)
     tag = f"_{args.tag}" if args.tag else ""
-    pipe_base, pipe_new, win_rows = [], [], []
+    pipe_base, pipe_new, win_rows, pipe_side, side_rows = [], [], [], [], []
     out: dict[str, Any] = {"recipe": recipe.__dict__, "C": args.C, "clips": {}}
     for fold in folds(list(clips)):
         scored = [c for c in fold.held_out if c in want]
@@ -105,8 +117,16 @@ def main(argv: list[str] | None = None) -> int:
             if args.no_train:
                 print(f"model_loo: {path} missing (run without --no-train)", file=sys.stderr)
                 return 2
-            build(path, list(fold.train), data, recipe, args.C)
+            first = args.work / f"main_without_{fold.name}.npz"
+            previous = [load_model(first)] if args.reuse_round1 and first.exists() else []
+            build(path, list(fold.train), data, recipe, args.C, previous=previous)
         model = load_model(path)
+        side_path = args.work / f"side_without_{fold.name}.npz"
+        if args.side and not side_path.exists():
+            if args.no_train:
+                print(f"model_loo: {side_path} missing (run without --no-train)", file=sys.stderr)
+                return 2
+            side_model.build(side_path, list(fold.train), data)
         for name in scored:
             frames = read_annotated_frames(data, name)
             base_w = None if args.no_baseline else score_frames(bundled, frames)
@@ -117,6 +137,11 @@ def main(argv: list[str] | None = None) -> int:
                 win_rows.append((name, base_w, new_w))
                 pipe_base.append(run_clip(clips[name], PipelineConfig()))
             pipe_new.append(run_clip(clips[name], PipelineConfig(model=str(path))))
+            if args.side:
+                side_rows.append((name, new_w, score_frames(model, frames, components=[load_model(side_path)])))
+                pipe_side.append(run_clip(clips[name], PipelineConfig(model=str(path), side=str(side_path))))
+                out["clips"][name + "+side"] = {"windows": side_rows[-1][2].to_dict(),
+                                                "pipeline": pipe_side[-1].to_dict()}
             out["clips"][name] = {"model": str(path), "trained_on": list(fold.train),
                                   "windows": new_w.to_dict(), "pipeline": pipe_new[-1].to_dict(),
                                   "bundled": None if base_w is None else {"windows": base_w.to_dict(),
@@ -132,6 +157,11 @@ def main(argv: list[str] | None = None) -> int:
     print(markdown_table(pipe_new))
     print("\n(b) placement-free windows" + ("" if args.no_baseline else ": bundled -> held-out model") + "\n")
     print(window_table(win_rows))
+    if args.side:
+        print("\n(a) pipeline, held-out main model + held-out side component\n")
+        print(markdown_table(pipe_side))
+        print("\n(b) placement-free windows: held-out main model -> with the held-out side component\n")
+        print(window_table(side_rows))
     if args.json:
         write_bytes(args.json, json.dumps(out, indent=1, sort_keys=True).encode())
     return 0
