@@ -16,6 +16,12 @@ yaw it); the estimate is the **median** over pairs :data:`GAP` frames apart
 gave one (the camera stood still) or they disagree by more than :data:`MAX_SPREAD` of the
 height (median absolute deviation).
 
+When the flow gives no estimate (the pairs disagree: a slow car in city traffic whose view
+is full of moving vehicles, a shaking motorcycle), the estimate falls back on the road's
+vanishing point: where the frame's line segments along the road meet
+(:mod:`fastdet.video.vanishing`), the median over the same frames, with the same
+:data:`MAX_SPREAD` test.
+
 One pair in three frames is measured until :data:`MAX_PAIRS` pairs gave a FOE (or
 :data:`HORIZON_FRAMES` frames went by). How close the estimate comes on the annotated clips and
 their camera-shift variants, and what it costs: docs/accuracy.md (*The horizon estimate*).
@@ -28,6 +34,7 @@ import cv2
 import numpy as np
 
 from ..config import REFERENCE_HORIZON
+from .vanishing import vanishing_point
 
 #: frames are shrunk to this many rows before tracking corners (speed; flow is smooth)
 WORK_ROWS = 360
@@ -98,15 +105,20 @@ class HorizonEstimator:
     ``gap`` frames apart gave a FOE (and whenever they disagree by more than ``max_spread``).
     ``every``: use one pair in this many frames (the flow of neighbouring pairs is alike);
     ``max_pairs``: stop computing flow once this many pairs gave a FOE (:attr:`done`).
+    ``segments``: when the flow gives no estimate, fall back on the vanishing point of the
+    line segments of the same frames (:attr:`segment_rows`; at least ``min_pairs`` of them,
+    spread at most ``max_spread``); ``False``: the flow only.
     """
 
     def __init__(self, gap: int = GAP, every: int = 3, min_pairs: int = MIN_PAIRS,
-                 max_spread: float = MAX_SPREAD, max_pairs: int = MAX_PAIRS) -> None:
+                 max_spread: float = MAX_SPREAD, max_pairs: int = MAX_PAIRS, segments: bool = True) -> None:
         if gap < 1 or every < 1 or min_pairs < 1 or max_pairs < min_pairs:
             raise ValueError("gap, every and min_pairs must be >= 1, max_pairs >= min_pairs")
         self.gap, self.every, self.min_pairs, self.max_spread = gap, every, min_pairs, max_spread
         self.max_pairs = max_pairs
+        self.segments = segments
         self.rows: list[float] = []  # FOE row of each pair, fraction of the height
+        self.segment_rows: list[float] = []  # vanishing-point row of each frame measured, fraction of the height
         self._recent: list[np.ndarray] = []
         self._n = 0
 
@@ -117,10 +129,15 @@ class HorizonEstimator:
         self._recent.append(frame)
         if len(self._recent) > self.gap + 1:
             self._recent.pop(0)
-        if len(self._recent) == self.gap + 1 and self._n % self.every == 0:
-            p = focus_of_expansion(self._recent[0], frame)
-            if p is not None:
-                self.rows.append(p[1] / frame.shape[0])
+        if self._n % self.every == 0:
+            if len(self._recent) == self.gap + 1 and len(self.rows) < self.max_pairs:
+                p = focus_of_expansion(self._recent[0], frame)
+                if p is not None:
+                    self.rows.append(p[1] / frame.shape[0])
+            if self.segments and len(self.segment_rows) < self.max_pairs and self._flow() is None:
+                v = vanishing_point(frame)
+                if v is not None:
+                    self.segment_rows.append(v[1] / frame.shape[0])
         self._n += 1
 
     def cut(self) -> None:
@@ -134,18 +151,39 @@ class HorizonEstimator:
 
     @property
     def done(self) -> bool:
-        """``max_pairs`` pairs gave a FOE: the estimate will not change."""
-        return len(self.rows) >= self.max_pairs
+        """The estimate will not change: ``max_pairs`` pairs gave a FOE and agree, or (with
+        ``segments``) they disagree and ``max_pairs`` frames gave a vanishing point."""
+        if len(self.rows) < self.max_pairs:
+            return False
+        return not self.segments or self._flow() is not None or len(self.segment_rows) >= self.max_pairs
 
-    @property
-    def estimate(self) -> float | None:
-        if len(self.rows) < self.min_pairs:
+    def _median(self, rows: list[float]) -> float | None:
+        if len(rows) < self.min_pairs:
             return None
-        r = np.asarray(self.rows)
+        r = np.asarray(rows)
         med = float(np.median(r))
         if float(np.median(np.abs(r - med))) > self.max_spread:
             return None
         return med
+
+    def _flow(self) -> float | None:
+        return self._median(self.rows)
+
+    @property
+    def source(self) -> str | None:
+        """Where :attr:`estimate` comes from: ``'flow'``, ``'segments'`` or ``None``."""
+        if self._flow() is not None:
+            return "flow"
+        if self.segments and self._median(self.segment_rows) is not None:
+            return "segments"
+        return None
+
+    @property
+    def estimate(self) -> float | None:
+        f = self._flow()
+        if f is not None or not self.segments:
+            return f
+        return self._median(self.segment_rows)
 
 
 def estimate_horizon(frames: Iterable[np.ndarray], max_frames: int = HORIZON_FRAMES, **kw) -> float | None:
