@@ -217,7 +217,7 @@ class ClassicDetector:
                                 search.border_mode)
             dec = classic_band_scores(frame, geo, self.model, self.pair)
             r, c = np.nonzero(dec > self.search.threshold)
-            parts.append(Detections(window_boxes(geo, r, c, self.model.config), dec[r, c],
+            parts.append(Detections(window_boxes(geo, r, c, self.model.config), dec[r, c].astype(np.float32),
                                     scale=np.full(len(r), band.scale)))
         return Detections.concat(parts)
 
