@@ -200,8 +200,8 @@ def windows_study(clips: list[AnnotatedClip], scales: tuple[float, ...], side: b
 
 def pipeline_study(clips: list[AnnotatedClip], bands: tuple[SearchBand, ...] | None, side: bool,
                    verbose: bool = False, large: tuple[SearchBand, ...] | None = None,
-                   large_threshold: float = 0.0) -> None:
-    config = PipelineConfig(side=side)
+                   large_threshold: float = 0.0, horizon: float | str | None = "auto") -> None:
+    config = PipelineConfig(side=side, horizon=horizon)
     if bands is not None:
         config = replace(config, search=replace(config.search, bands=bands))
     if large is not None:
@@ -272,6 +272,7 @@ def main() -> None:
                     help="--large: its decision-value threshold (default 0, LARGE_SEARCH's with --large default)")
     ap.add_argument("--side-loo", default=None, help="--windows --side: DIR/side_without_CLIP.npz scores CLIP "
                     "(the held-out models of tools.studies.components_loo) instead of the bundled side model")
+    ap.add_argument("--horizon", default="auto", help="--pipeline: auto, off or a fraction of the height")
     ap.add_argument("--verbose", action="store_true", help="--pipeline: every large target's fate")
     ap.add_argument("--clips", default=None)
     ap.add_argument("--scales", default=None, help="--windows: scales (x 64 px at 1280x720)")
@@ -295,7 +296,8 @@ def main() -> None:
         elif args.large:
             large = parse_bands(args.large)
         pipeline_study(clips, parse_bands(args.bands) if args.bands else None, args.side, args.verbose,
-                       large, 0.0 if thr is None else thr)
+                       large, 0.0 if thr is None else thr,
+                       None if args.horizon == "off" else "auto" if args.horizon == "auto" else float(args.horizon))
     if not (args.windows or args.pipeline):
         ap.error("give --windows and / or --pipeline")
 
