@@ -10,7 +10,7 @@ import numpy as np
 
 #: ``Detections.part`` values: which model a window came from.
 MAIN_PART = 0
-WIDE_PART = 1
+ONCOMING_PART = 1
 #: component ``i`` of a :class:`fastdet.Detector` (``components=``) tags its windows ``FIRST_COMPONENT_PART + i``
 FIRST_COMPONENT_PART = 2
 
@@ -30,8 +30,9 @@ class Detections:
     scale: ``(N,) float32`` or ``None``: the search band's scale of each window (a window
         is ``64 * scale`` frame pixels for 64-px windows).
     part: ``(N,) int8`` or ``None``: which model found each window: ``MAIN_PART`` (0) for
-        the main (square-window) model, ``WIDE_PART`` (1) for the wide-window model,
-        ``FIRST_COMPONENT_PART + i`` (2, 3, ...) for the detector's component ``i``.
+        the main (square-window) model, ``ONCOMING_PART`` (1) for the oncoming-traffic
+        (wide-window) model, ``FIRST_COMPONENT_PART + i`` (2, 3, ...) for the detector's
+        component ``i``.
     ids: ``(N,) int64`` or ``None``: track ids (>= 1) from the tracker, -1 for none.
 
     ``len(d)`` is the number of boxes, ``d[mask]`` / ``d[indices]`` / ``d[i:j]`` select rows
@@ -113,8 +114,8 @@ class Detections:
         return f"Detections({len(self)} boxes{', with ' + ', '.join(extra) if extra else ''})"
 
     @property
-    def is_wide(self) -> np.ndarray:
-        """``(N,) bool``: rows found by the wide-window model (all False without ``part``)."""
+    def is_oncoming(self) -> np.ndarray:
+        """``(N,) bool``: rows found by the oncoming-traffic model (all False without ``part``)."""
         if self.part is None:
             return np.zeros(len(self), bool)
-        return self.part == WIDE_PART
+        return self.part == ONCOMING_PART

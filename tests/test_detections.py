@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from fastdet import Detections
-from fastdet.detections import MAIN_PART, WIDE_PART
+from fastdet.detections import MAIN_PART, ONCOMING_PART
 
 
 def _dets(n: int = 4, **cols) -> Detections:
@@ -64,7 +64,7 @@ def test_getitem_mask_index_slice_int():
 
 
 def test_concat_fills_missing_columns():
-    a = _dets(2, scale=[1.0, 2.0], part=[WIDE_PART, WIDE_PART])
+    a = _dets(2, scale=[1.0, 2.0], part=[ONCOMING_PART, ONCOMING_PART])
     b = _dets(3)
     c = _dets(1, ids=[5])
     d = Detections.concat([a, b, c])
@@ -72,7 +72,7 @@ def test_concat_fills_missing_columns():
     np.testing.assert_array_equal(d.boxes, np.concatenate([a.boxes, b.boxes, c.boxes]))
     np.testing.assert_array_equal(d.scores, np.concatenate([a.scores, b.scores, c.scores]))
     np.testing.assert_array_equal(d.scale, [1.0, 2.0, np.nan, np.nan, np.nan, np.nan])
-    np.testing.assert_array_equal(d.part, [WIDE_PART, WIDE_PART, MAIN_PART, MAIN_PART, MAIN_PART, MAIN_PART])
+    np.testing.assert_array_equal(d.part, [ONCOMING_PART, ONCOMING_PART, MAIN_PART, MAIN_PART, MAIN_PART, MAIN_PART])
     np.testing.assert_array_equal(d.ids, [-1, -1, -1, -1, -1, 5])
     assert Detections.concat([b, b]).scale is None  # a column no part has stays missing
     assert len(Detections.concat([])) == 0
@@ -80,10 +80,10 @@ def test_concat_fills_missing_columns():
     assert len(Detections.concat([Detections.empty(), b])) == 3
 
 
-def test_is_wide_and_with_ids():
-    d = _dets(3, part=[MAIN_PART, WIDE_PART, MAIN_PART])
-    assert d.is_wide.tolist() == [False, True, False]
-    assert _dets(3).is_wide.tolist() == [False, False, False]
+def test_is_oncoming_and_with_ids():
+    d = _dets(3, part=[MAIN_PART, ONCOMING_PART, MAIN_PART])
+    assert d.is_oncoming.tolist() == [False, True, False]
+    assert _dets(3).is_oncoming.tolist() == [False, False, False]
     t = d.with_ids(np.array([4, 5, 6]))
     assert t.ids.tolist() == [4, 5, 6] and d.ids is None  # a new object; the original unchanged
     np.testing.assert_array_equal(t.part, d.part)

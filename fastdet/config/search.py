@@ -187,7 +187,7 @@ def oncoming_search(traffic: Traffic = "right") -> SearchConfig:
     drives on the ``'right'`` (oncoming cars on the left of the view: the default,
     :data:`ONCOMING_SEARCH`), on the ``'left'`` (the columns mirrored) or ``'both'`` (the whole
     width, about 15% more CPU per frame on footage whose roadside moves fast; docs/accuracy.md).
-    Give it as ``Detector(wide_search=...)``."""
+    Give it as ``Detector(oncoming_search=...)``."""
     check_traffic(traffic)
     return SearchConfig(bands=_oncoming_bands(traffic), cells_per_step=1, threshold=1.0)
 
@@ -267,7 +267,3 @@ def large_search() -> SearchConfig:
 
 #: the large-vehicle search of the main model (:func:`large_search`)
 LARGE_SEARCH = large_search()
-
-#: former names of :func:`oncoming_search` and :data:`ONCOMING_SEARCH`
-wide_search = oncoming_search
-WIDE_SEARCH = ONCOMING_SEARCH

@@ -3,12 +3,12 @@ from __future__ import annotations
 
 import pytest
 
-from fastdet.config import REFERENCE_HORIZON, WIDE_SEARCH, SearchConfig, wide_search
+from fastdet.config import REFERENCE_HORIZON, ONCOMING_SEARCH, SearchConfig, oncoming_search
 
 
 def test_wide_search_sides():
-    right, left, both = wide_search("right"), wide_search("left"), wide_search("both")
-    assert right == WIDE_SEARCH
+    right, left, both = oncoming_search("right"), oncoming_search("left"), oncoming_search("both")
+    assert right == ONCOMING_SEARCH
     for r, l, b in zip(right.bands, left.bands, both.bands):
         cell = 8 * r.scale
         assert (r.scale, r.y_start, r.y_stop) == (l.scale, l.y_start, l.y_stop) == (b.scale, b.y_start, b.y_stop)
@@ -17,7 +17,7 @@ def test_wide_search_sides():
         assert (l.x_stop - l.x_start) % cell == 0 and r.x_stop % cell == 0
         assert b.x_start == 0 and 1280 - cell < b.x_stop <= 1280 and b.x_stop % cell == 0
     with pytest.raises(ValueError, match="traffic"):
-        wide_search("middle")
+        oncoming_search("middle")
 
 
 def test_default_search_reaches_the_sizes_the_annotations_count():

@@ -22,7 +22,7 @@ import argparse
 from dataclasses import replace
 
 from fastdet import Detector, HeatConfig, MotionGate, SearchConfig
-from fastdet.config import WIDE_HEAT
+from fastdet.config import ONCOMING_HEAT
 from fastdet.data import data_dir
 from fastdet.eval import evaluate
 from fastdet.io.motfiles import Predictions, read_gt
@@ -82,7 +82,7 @@ def main() -> None:
         cells = []
         for n in names:
             clip = cache[n]
-            preds = replay(clip, thr, heat, WIDE_HEAT, motion, tracker=False)
+            preds = replay(clip, thr, heat, ONCOMING_HEAT, motion, tracker=False)
             r = evaluate(gts[n], preds, iou=0.5, num_frames=len(clip))
             cells.append(_cell(r))
         print(f"| {label} | " + " | ".join(cells) + " |", flush=True)

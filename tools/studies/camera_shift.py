@@ -48,25 +48,12 @@ from fastdet.eval import evaluate
 from fastdet.eval.sizes import WIDTH_EDGES, recall_by_width
 from fastdet.eval.variants import Variant, standard_variants, transform_gt
 from fastdet.io.motfiles import Predictions, read_gt
+from fastdet.io.reader import read_frames
 from fastdet.video import VideoDetector, make_detector
 from tests.fakes import RecordingDetector
 
 # ---------------------------------------------------------------------------------------
 # frames
-
-
-def read_frames(path: Path) -> list[np.ndarray]:
-    cap = cv2.VideoCapture(str(path))
-    out = []
-    while True:
-        ok, frame = cap.read()
-        if not ok:
-            break
-        out.append(frame)
-    cap.release()
-    if not out:
-        raise SystemExit(f"{path}: no frames")
-    return out
 
 
 #: variants this tool adds on request (``--variants``), with the OpenCV codec that re-encodes

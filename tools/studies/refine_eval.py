@@ -69,7 +69,7 @@ def _part_of(boxes: np.ndarray, windows: Detections) -> np.ndarray:
         return out
     wb = windows.boxes.astype(np.float64)
     cx, cy = 0.5 * (wb[:, 0] + wb[:, 2]), 0.5 * (wb[:, 1] + wb[:, 3])
-    wide = windows.is_wide
+    wide = windows.is_oncoming
     for i, b in enumerate(boxes):
         inside = (cx >= b[0]) & (cx < b[2]) & (cy >= b[1]) & (cy < b[3])
         out[i] = int(inside.any() and wide[inside].sum() > (~wide[inside]).sum())
