@@ -21,12 +21,15 @@ at IoU >= 0.5 (``heat map``), a heat-map box but no output box (``tracker``); th
 ``fastdet eval --all`` table of the run.
 
     python -m tools.studies.large_vehicles --windows [--side] [--clips A,B] [--scales 3,3.75,...]
+    NUMBA_NUM_THREADS=1 python -m tools.studies.large_vehicles --cost
     python -m tools.studies.large_vehicles --pipeline [--bands 4:300:720,...] [--side] [--clips A,B]
         [--large default|BANDS [--large-threshold T]] [--verbose]
 """
 from __future__ import annotations
 
 import argparse
+import statistics
+import time
 from collections import defaultdict
 from dataclasses import replace
 
@@ -260,11 +263,60 @@ def pipeline_study(clips: list[AnnotatedClip], bands: tuple[SearchBand, ...] | N
         print(f"| {name} | {c['targets']} | {c['found']} | {c['detector']} | {c['heat map']} | {c['tracker']} |")
 
 
+def cost_study(clip: str = "test_small1", frames: int = 20, repeat: int = 5) -> None:
+    """HOG cells and windows per 1280x720 frame of the main search, the oncoming search and the
+    large search, and the CPU of ``Detector.detect`` (full search, the video pipeline's
+    detector) with and without the large search as a component, alternating, median of
+    ``repeat`` passes over ``frames`` frames (``time.process_time``: all threads)."""
+    shape = (720, 1280)
+    today = make_detector(PipelineConfig())
+    large = make_detector(replace(PipelineConfig(), side=str(DEFAULT_MODEL_PATH), side_search=LARGE_SEARCH))
+
+    def count(det: Detector) -> tuple[int, int]:
+        cells = windows = 0
+        for part in det.parts:
+            for g in det.geometries(shape, part):
+                cells += (g.scaled_w // 8) * (g.scaled_h // 8)
+                windows += g.n_windows
+        return cells, windows
+
+    (c0, w0), (c1, w1) = count(today), count(large)
+    print(f"HOG cells / windows per 1280x720 frame (full search, every model): today {c0} / {w0}, "
+          f"with the large search {c1} / {w1}: {c1 / c0:.3f}x / {w1 / w0:.3f}x")
+    r = FrameReader(annotated_clip(clip).video)
+    try:
+        fs = [f for _, (_, f, _) in zip(range(frames), r)]
+    finally:
+        r.close()
+    for d in (today, large):
+        d.warmup()
+        for f in fs[:3]:
+            d.detect(f)
+    ms: dict[str, list[float]] = {"today": [], "large": []}
+    for _ in range(repeat):
+        for name, d in (("today", today), ("large", large)):
+            t = time.process_time()
+            for f in fs:
+                d.detect(f)
+            ms[name].append((time.process_time() - t) / len(fs) * 1e3)
+    a, b = statistics.median(ms["today"]), statistics.median(ms["large"])
+    print(f"Detector.detect CPU: today {a:.1f} ms/frame, with the large search {b:.1f}: {b / a:.2f}x "
+          f"({frames} frames of {clip}, median of {repeat}; NUMBA_NUM_THREADS as set)")
+
+
+def annotated_clip(name: str) -> AnnotatedClip:
+    for c in annotated_clips():
+        if c.name == name:
+            return c
+    raise SystemExit(f"no annotated clip {name!r}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--windows", action="store_true")
     ap.add_argument("--pipeline", action="store_true")
     ap.add_argument("--side", action="store_true")
+    ap.add_argument("--cost", action="store_true", help="cells, windows and CPU of the large search (cost_study)")
     ap.add_argument("--large", default=None, help="--pipeline: bands of the main model run as a component "
                     "(own threshold, own heat map whose boxes join where the main one found nothing), "
                     "or 'default' for LARGE_SEARCH")
@@ -298,8 +350,10 @@ def main() -> None:
         pipeline_study(clips, parse_bands(args.bands) if args.bands else None, args.side, args.verbose,
                        large, 0.0 if thr is None else thr,
                        None if args.horizon == "off" else "auto" if args.horizon == "auto" else float(args.horizon))
-    if not (args.windows or args.pipeline):
-        ap.error("give --windows and / or --pipeline")
+    if args.cost:
+        cost_study()
+    if not (args.windows or args.pipeline or args.cost):
+        ap.error("give --windows, --pipeline and / or --cost")
 
 
 if __name__ == "__main__":
