@@ -184,7 +184,7 @@ def windows_study(clips: list[AnnotatedClip], scales: tuple[float, ...], side: b
 
         for fno, tid, w, h, bottom, bt, m, near, sm in rows:
             cells = [clip.name, str(fno), str(tid), f"{w:.0f} x {h:.0f}", f"{bottom:.0f}",
-                     f"{bt[0]:.2f} ({bt[1]:g})", fmt(m), fa_rate(MAIN_PART, m), fmt(near)]
+                     f"{bt[0]:.3f} ({bt[1]:g})", fmt(m), fa_rate(MAIN_PART, m), fmt(near)]
             if side:
                 cells += [fmt(sm), fa_rate(FIRST_COMPONENT_PART, sm)]
             print("| " + " | ".join(cells) + " |")
