@@ -201,16 +201,52 @@ def windows_study(clips: list[AnnotatedClip], scales: tuple[float, ...], side: b
                   f"by scale: {', '.join(per)}; horizon {hz if hz is None else round(hz, 3)} -->")
 
 
+def replace_inside(inside: float) -> None:
+    """Study only: the components' heat-map boxes also join where main boxes lie inside them
+    (at least ``inside`` of a main box's area), and those main boxes go: a large vehicle the
+    main heat map boxes in part gets the large box. Patches ``ComponentStage.__call__``."""
+    from fastdet.detections import Detections
+    from fastdet.video import box_stages
+    from fastdet.video.fusion import merge_oncoming
+
+    def call(self, s):
+        hm = self._heatmap_for(s)
+        w = s.windows
+        mine = w[w.part >= FIRST_COMPONENT_PART] if w.part is not None else w[:0]
+        big = hm.update(mine)
+        main = s.boxes
+        if len(big) and len(main):
+            inner = overlap_fraction(main.boxes, big.boxes)  # (main, big): fraction of the main box inside
+            outer = overlap_fraction(big.boxes, main.boxes)  # (big, main)
+            # a big box whose overlapping main boxes all lie inside it replaces them
+            takes = [j for j in range(len(big)) if (outer[j] > 0.2).any()
+                     and (inner[outer[j] > 0.0, j] >= inside).all()]
+            if takes:
+                drop = (inner[:, takes] >= inside).any(axis=1)
+                keep = ~drop
+                main = Detections(main.boxes[keep], main.scores[keep])
+                rest = np.setdiff1d(np.arange(len(big)), takes)
+                joined = Detections(np.concatenate([main.boxes, big.boxes[takes]]).astype(np.int32),
+                                    np.concatenate([main.scores, big.scores[takes]]).astype(np.float32))
+                s.boxes = s.out = merge_oncoming(joined, big[rest])
+                return s
+        s.boxes = s.out = merge_oncoming(main, big)
+        return s
+
+    box_stages.ComponentStage.__call__ = call
+
+
 def pipeline_study(clips: list[AnnotatedClip], bands: tuple[SearchBand, ...] | None, side: bool,
                    verbose: bool = False, large: tuple[SearchBand, ...] | None = None,
-                   large_threshold: float = 0.0, horizon: float | str | None = "auto") -> None:
+                   large_threshold: float = 0.0, horizon: float | str | None = "auto", large_step: int = 2) -> None:
     config = PipelineConfig(side=side, horizon=horizon)
     if bands is not None:
         config = replace(config, search=replace(config.search, bands=bands))
     if large is not None:
         # the main model once more as a component: the large bands, their own threshold and heat map
         config = replace(config, side=str(DEFAULT_MODEL_PATH), side_heat=HeatConfig(),
-                         side_search=replace(config.search, bands=large, threshold=large_threshold))
+                         side_search=replace(config.search, bands=large, threshold=large_threshold,
+                                             cells_per_step=large_step))
     scores = []
     losses: dict[str, dict[str, int]] = {}
     for clip in clips:
@@ -324,6 +360,9 @@ def main() -> None:
                     help="--large: its decision-value threshold (default 0, LARGE_SEARCH's with --large default)")
     ap.add_argument("--side-loo", default=None, help="--windows --side: DIR/side_without_CLIP.npz scores CLIP "
                     "(the held-out models of tools.studies.components_loo) instead of the bundled side model")
+    ap.add_argument("--large-step", type=int, default=2, help="--large: window step in cells")
+    ap.add_argument("--large-replace", type=float, default=None,
+                    help="--large: its boxes replace the main boxes lying at least this much inside them (study only)")
     ap.add_argument("--horizon", default="auto", help="--pipeline: auto, off or a fraction of the height")
     ap.add_argument("--verbose", action="store_true", help="--pipeline: every large target's fate")
     ap.add_argument("--clips", default=None)
@@ -340,6 +379,8 @@ def main() -> None:
         windows_study(clips, scales, args.side or bool(args.side_loo), parse_bands(args.bands) if args.bands else None,
                       args.side_loo)
     if args.pipeline:
+        if args.large_replace is not None:
+            replace_inside(args.large_replace)
         if args.large and args.side:
             ap.error("--large runs the main model as the component: not with --side")
         large, thr = None, args.large_threshold
@@ -349,7 +390,8 @@ def main() -> None:
             large = parse_bands(args.large)
         pipeline_study(clips, parse_bands(args.bands) if args.bands else None, args.side, args.verbose,
                        large, 0.0 if thr is None else thr,
-                       None if args.horizon == "off" else "auto" if args.horizon == "auto" else float(args.horizon))
+                       None if args.horizon == "off" else "auto" if args.horizon == "auto" else float(args.horizon),
+                       args.large_step)
     if args.cost:
         cost_study()
     if not (args.windows or args.pipeline or args.cost):
