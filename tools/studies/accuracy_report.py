@@ -25,7 +25,8 @@ from fastdet import Detector, HeatConfig, MotionGate, SearchConfig
 from fastdet.config import ONCOMING_HEAT
 from fastdet.data import data_dir
 from fastdet.eval import evaluate
-from fastdet.io.motfiles import Predictions, read_gt
+from fastdet.detections import Detections
+from fastdet.io.motfiles import read_gt
 from fastdet.video import iter_video_detections, make_detector
 from tools.studies.tune_video import cache_windows, replay
 
@@ -89,7 +90,7 @@ def main() -> None:
     # the defaults, through the code path of `python -m fastdet video` / `eval`
     cells = []
     for n in names:
-        preds = Predictions.from_frames(iter_video_detections(videos[n], progress=False))
+        preds = Detections.from_frames(iter_video_detections(videos[n], progress=False))
         cells.append(_cell(evaluate(gts[n], preds, iou=0.5)))
     print("| **fastdet defaults**: + tracker (ids; weak blobs keep a vehicle's track alive) | "
           + " | ".join(cells) + " |")

@@ -31,7 +31,7 @@ import cv2
 from fastdet.config import PipelineConfig
 from fastdet.data import data_dir
 from fastdet.eval.clips import annotated_clips, markdown_table, score_clip
-from fastdet.io.motfiles import Predictions
+from fastdet.detections import Detections
 from fastdet.io.reader import read_frames
 from fastdet.video import VideoDetector, make_detector
 from fastdet.video.run import iter_video_detections
@@ -39,7 +39,7 @@ from tools.scripts.side_model import build
 
 
 def run_clip(clip, config: PipelineConfig):
-    preds = Predictions.from_frames(iter_video_detections(clip.video, config, progress=False), source=str(clip.video))
+    preds = Detections.from_frames(iter_video_detections(clip.video, config, progress=False), source=str(clip.video))
     cap = cv2.VideoCapture(str(clip.video))
     rows = int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
     cap.release()

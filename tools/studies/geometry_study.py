@@ -27,7 +27,7 @@ from fastdet.detect.geometry import (
     RatioEstimator,
 )
 from fastdet.eval.clips import annotated_clips, markdown_table, report_json, score_clip
-from fastdet.io.motfiles import Predictions
+from fastdet.detections import Detections
 from fastdet.io.reader import FrameReader
 from fastdet.video.horizon import HORIZON_FRAMES, estimate_horizon
 from fastdet.video import iter_video_detections, make_detector
@@ -132,7 +132,7 @@ def main() -> None:
             if r is not None:
                 det.scorers[0].search = replace(det.scorers[0].search, ratio=r)
         cpu_ms = (time.process_time() - cpu0) / max(len(frames) - 1, 1) * 1e3 if cpu0 is not None else float("nan")
-        preds = Predictions.from_frames(frames, source=str(clip.video))
+        preds = Detections.from_frames(frames, source=str(clip.video))
         s = score_clip(clip.name, clip.gt(), preds, shape[0], clip.keyframes())
         scores.append(s)
         h_used = det.horizon if det.horizon is not None else base_search.reference_horizon

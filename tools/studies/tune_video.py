@@ -35,7 +35,7 @@ from fastdet.data import data_dir
 from fastdet.detect import DetectStats, window_boxes
 from fastdet.detections import MAIN_PART
 from fastdet.eval import evaluate
-from fastdet.io.motfiles import GroundTruth, Predictions, read_gt
+from fastdet.io.motfiles import read_gt
 from fastdet.io.reader import FrameReader
 from fastdet.model import ONCOMING_MODEL_PATH
 from tests.fakes import ReplayDetector
@@ -77,7 +77,7 @@ def cache_windows(det: Detector, video: str | os.PathLike, low: float) -> Cached
         for part, geo, dec in stats.bands:
             config = det.model.config if part == MAIN_PART else det.oncoming_model.config
             r, c = np.nonzero(dec > low)
-            found.append(Detections(window_boxes(geo, r, c, config), dec[r, c],
+            found.append(Detections(window_boxes(geo, r, c, config), dec[r, c].astype(np.float32),
                                     scale=np.full(len(r), geo.band.scale), part=np.full(len(r), part)))
             decs.append(dec[r, c])
         windows.append(Detections.concat(found))
@@ -101,7 +101,7 @@ def replayed_windows(clip: CachedClip, thr: float, thr_wide: float) -> list[Dete
 
 def replay(clip: CachedClip, thr: float, heat: HeatConfig, wide_heat: HeatConfig | None = None,
            motion: MotionGate | None = None, thr_wide: float = ONCOMING_SEARCH.threshold,
-           first: int = 1, tracker: TrackerConfig | bool | None = None) -> Predictions:
+           first: int = 1, tracker: TrackerConfig | bool | None = None) -> Detections:
     """The boxes :class:`fastdet.VideoDetector` (``heat``, ``wide_heat``, ``motion``,
     ``tracker``: its arguments) gives on the clip's frames from its cached windows, for frames
     ``first`` (1-based) on."""
@@ -112,14 +112,14 @@ def replay(clip: CachedClip, thr: float, heat: HeatConfig, wide_heat: HeatConfig
     frames = [(i, d) for i, d in enumerate(map(vd.update, frames_of(clip.video)), start=1) if i >= first]
     if vd.detector.frame != len(clip):
         raise RuntimeError(f"{clip.video}: {vd.detector.frame} frames decoded, {len(clip)} cached")
-    return Predictions.from_frames(frames)
+    return Detections.from_frames(frames)
 
 
-def evaluate_from(gt: GroundTruth, preds: Predictions, first: int, n_frames: int):
+def evaluate_from(gt: Detections, preds: Detections, first: int, n_frames: int):
     """Evaluate frames ``first .. n_frames`` only (IoU 0.5), as if the clip began at ``first``."""
     sel, psel = gt.frames >= first, preds.frames >= first
-    sub = GroundTruth(gt.frames[sel] - first + 1, gt.ids[sel], gt.boxes[sel], gt.consider[sel])
-    p = Predictions(preds.frames[psel] - first + 1, preds.ids[psel], preds.boxes[psel], preds.scores[psel])
+    sub = gt[sel].with_frames(gt.frames[sel] - first + 1)
+    p = preds[psel].with_frames(preds.frames[psel] - first + 1)
     return evaluate(sub, p, iou=0.5, num_frames=n_frames - first + 1)
 
 

@@ -10,7 +10,7 @@ import pytest
 
 from fastdet import Detector, HeatConfig, MotionGate, VideoDetector
 from fastdet.config import ONCOMING_HEAT, ONCOMING_SEARCH, PipelineConfig
-from fastdet.io.motfiles import Predictions
+from fastdet.detections import Detections
 from fastdet.io.reader import FrameReader
 from fastdet.video import iter_video_detections, make_detector
 from tools.studies.tune_video import cache_windows, replay
@@ -29,7 +29,7 @@ def cached(clip):
     return det, cache_windows(det, clip, low=-1.0)
 
 
-def _same(a: Predictions, b: Predictions) -> None:
+def _same(a: Detections, b: Detections) -> None:
     assert len(a.frames) > 0
     np.testing.assert_array_equal(a.frames, b.frames)
     np.testing.assert_array_equal(a.boxes, b.boxes)
@@ -40,12 +40,12 @@ def _same(a: Predictions, b: Predictions) -> None:
 def test_replay_of_the_defaults_is_the_video_pipeline(clip, cached):
     det, windows = cached
     got = replay(windows, det.search.threshold, HeatConfig(), ONCOMING_HEAT, MotionGate())
-    want = Predictions.from_frames(iter_video_detections(clip, PipelineConfig(guided=None), progress=False))
+    want = Detections.from_frames(iter_video_detections(clip, PipelineConfig(guided=None), progress=False))
     _same(got, want)
     assert (got.ids >= 1).all()  # tracked, as the pipeline
     untracked = replay(windows, det.search.threshold, HeatConfig(), ONCOMING_HEAT, MotionGate(), tracker=False)
     untracked_config = PipelineConfig(tracker=None, guided=None)
-    _same(untracked, Predictions.from_frames(iter_video_detections(clip, untracked_config, progress=False)))
+    _same(untracked, Detections.from_frames(iter_video_detections(clip, untracked_config, progress=False)))
 
 
 def test_replay_of_other_settings_is_video_detector_with_them(clip, cached):
@@ -60,7 +60,7 @@ def test_replay_of_other_settings_is_video_detector_with_them(clip, cached):
     vd = VideoDetector(real, PipelineConfig(heat=heat, oncoming_heat=wide_heat, motion=MotionGate(30.0), guided=None))
     reader = FrameReader(clip)
     try:
-        want = Predictions.from_frames((f, vd.update(frame)) for f, frame, _ in reader)
+        want = Detections.from_frames((f, vd.update(frame)) for f, frame, _ in reader)
     finally:
         reader.close()
     _same(got, want)
