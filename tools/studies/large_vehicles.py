@@ -42,9 +42,9 @@ from fastdet.config.models import DEFAULT_MODEL_PATH, SIDE_MODEL_PATH
 from fastdet.config.search import LARGE_SEARCH
 from fastdet.detect.bands import window_boxes
 from fastdet.detect.detector import DetectStats, Detector
-from fastdet.detections import FIRST_COMPONENT_PART, MAIN_PART
+from fastdet.detections import FIRST_COMPONENT_PART, MAIN_PART, Detections
 from fastdet.eval.clips import AnnotatedClip, annotated_clips, markdown_table, score_clip
-from fastdet.io.motfiles import Predictions
+
 from fastdet.io.reader import FrameReader
 from fastdet.video import make_detector
 from fastdet.video.run import video_detector_for
@@ -286,7 +286,7 @@ def pipeline_study(clips: list[AnnotatedClip], bands: tuple[SearchBand, ...] | N
                     fates.append(f"{fno}:{tid}:{fate if fate != 'heat map' else 'heat'}")
         finally:
             r.close()
-        preds = Predictions.from_frames(done, source=str(clip.video))
+        preds = Detections.from_frames(done, source=str(clip.video))
         scores.append(score_clip(clip.name, gt, preds, shape[0], kf))
         losses[clip.name] = counts
         if verbose:
