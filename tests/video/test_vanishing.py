@@ -114,3 +114,47 @@ def test_scores_match_the_slow_reference(seed, n_road, n_noise):
     assert got[2] * lengths.sum() == pytest.approx(ref, rel=1e-6, abs=1e-6)
     if n_road >= 8 and 2 * n_noise <= n_road:
         assert math.hypot(got[0] - vx, got[1] - vy) < 8  # most segments point there: found
+
+
+def _clip_frames(path, n: int) -> list[np.ndarray]:
+    cap = cv2.VideoCapture(str(path))
+    out = []
+    while len(out) < n:
+        ok, f = cap.read()
+        if not ok:
+            break
+        out.append(f)
+    cap.release()
+    return out
+
+
+def test_segments_give_boston_streets_horizon(data):
+    """A city street seen in jumps: the flow's pairs disagree, the line segments agree with the
+    horizon the annotated vehicles imply (the Theil-Sen line through their widths and bottom
+    rows, where their width would be 0)."""
+    from scipy.stats import theilslopes
+
+    frames = _clip_frames(data / "videos" / "boston_street.mp4", 40)
+    est = HorizonEstimator()
+    for f in frames:
+        est.update(f)
+    flow_only = HorizonEstimator(segments=False)
+    for f in frames:
+        flow_only.update(f)
+    assert flow_only.estimate is None
+    gt = np.loadtxt(data / "annotations" / "boston_street.gt.txt", delimiter=",", ndmin=2)
+    t = gt[gt[:, 6] == 1]
+    k, c, _, _ = theilslopes(t[:, 4], t[:, 3] + t[:, 5])
+    boxes_horizon = -c / k / frames[0].shape[0]
+    assert est.source == "segments"
+    assert est.estimate == pytest.approx(boxes_horizon, abs=0.03)
+
+
+def test_segments_agree_with_the_flow_on_the_udacity_clip(data):
+    frames = _clip_frames(data / "videos" / "test_video.mp4", 38)
+    rows = [p[1] / f.shape[0] for f in frames[::3] if (p := vanishing_point(f)) is not None]
+    flow = HorizonEstimator(segments=False)
+    for f in frames:
+        flow.update(f)
+    assert len(rows) >= 10 and flow.estimate is not None
+    assert float(np.median(rows)) == pytest.approx(flow.estimate, abs=0.01)
