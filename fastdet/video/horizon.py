@@ -124,9 +124,10 @@ class HorizonEstimator:
     ``target_flow``: the median flow (px at :data:`WORK_ROWS`) a pair should have; the gap
     grows (up to ``max_gap``) until the pairs reach it, and pairs with less than half of it
     are not counted (``None``: every pair ``gap`` frames apart counts).
-    ``segments``: when the flow gives no estimate, fall back on the vanishing point of the
-    line segments of the same frames (:attr:`segment_rows`; at least ``min_pairs`` of them,
-    spread at most ``max_spread``); ``False``: the flow only.
+    ``segments``: when the flow gives no estimate -- ``min_pairs`` pairs that disagree, or
+    fewer pairs while ``max_pairs`` frames gave a vanishing point -- fall back on the
+    vanishing point of the line segments of the same frames (:attr:`segment_rows`; spread at
+    most ``max_spread``); ``False``: the flow only.
     """
 
     def __init__(self, gap: int = GAP, every: int = 3, min_pairs: int = MIN_PAIRS,
@@ -209,21 +210,25 @@ class HorizonEstimator:
     def _flow(self) -> float | None:
         return self._median(self.rows)
 
+    def _segments(self) -> float | None:
+        # only once the flow has had its say: its pairs disagree, or it gave too few pairs
+        # while max_pairs frames gave a vanishing point (a camera standing still), so that a
+        # video whose flow is fine does not see its bands jump to the segments' row first
+        if not self.segments or (len(self.rows) < self.min_pairs and len(self.segment_rows) < self.max_pairs):
+            return None
+        return self._median(self.segment_rows)
+
     @property
     def source(self) -> str | None:
         """Where :attr:`estimate` comes from: ``'flow'``, ``'segments'`` or ``None``."""
         if self._flow() is not None:
             return "flow"
-        if self.segments and self._median(self.segment_rows) is not None:
-            return "segments"
-        return None
+        return "segments" if self._segments() is not None else None
 
     @property
     def estimate(self) -> float | None:
         f = self._flow()
-        if f is not None or not self.segments:
-            return f
-        return self._median(self.segment_rows)
+        return f if f is not None else self._segments()
 
 
 def estimate_horizon(frames: Iterable[np.ndarray], max_frames: int = HORIZON_FRAMES, **kw) -> float | None:

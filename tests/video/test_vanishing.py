@@ -66,10 +66,13 @@ def test_road_segments_keeps_oblique_long_ones():
 
 def test_horizon_estimator_falls_back_on_segments():
     frames = [_road(320, 150)] * 20  # a camera that stands still: no flow, but the road's lines
-    est = HorizonEstimator(gap=1, every=1)
-    for f in frames:
+    est = HorizonEstimator(gap=1, every=1, max_pairs=15)
+    for k, f in enumerate(frames):
         est.update(f)
+        if k == 10:  # the flow may still come: no estimate yet
+            assert est.estimate is None and len(est.segment_rows) == 11
     assert est.rows == []
+    assert len(est.segment_rows) == 15 and est.done is False
     assert est.source == "segments"
     assert est.estimate == pytest.approx(150 / 360, abs=0.01)
     flow_only = HorizonEstimator(gap=1, every=1, segments=False)
