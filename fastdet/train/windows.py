@@ -30,7 +30,7 @@ import numpy as np
 
 from ..boxes import intersection, iou
 from ..config import SearchBand, SearchConfig
-from ..detections import MAIN_PART, WIDE_PART
+from ..detections import MAIN_PART, ONCOMING_PART
 from ..model import Model
 from .keyframes import AnnotatedFrame
 
@@ -74,10 +74,10 @@ class FrameWindows:
 def frame_windows(detector: Any, frame: AnnotatedFrame, iou_min: float = 0.5,
                   parts: Sequence[int] | None = (MAIN_PART,), min_false: float = -math.inf) -> FrameWindows:
     """Score every window ``detector`` (a :class:`fastdet.Detector`) searches in ``frame`` with
-    its models ``parts`` (``None``: all but the wide model; module docstring); false windows
+    its models ``parts`` (``None``: all but the oncoming model; module docstring); false windows
     are kept only above ``min_false``."""
     d = detector.detect(frame.image)
-    d = d[d.part != WIDE_PART] if parts is None else d[np.isin(d.part, list(parts))]
+    d = d[d.part != ONCOMING_PART] if parts is None else d[np.isin(d.part, list(parts))]
     boxes = d.boxes.astype(np.float64)
     scores = d.scores.astype(np.float64)
     best = np.full(len(frame.targets), -np.inf)

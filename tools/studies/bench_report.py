@@ -14,7 +14,7 @@ All figures are measured in this one run (setups as in ``benchmarks/bench_detect
     wide-window model beside the main one; speed-up = classic best / fastdet best.
     The fastdet configurations are timed in interleaved rounds, so a burst of load from
     another program hits all of them alike.
-(a'') opencv: ``Detector(wide=None).detect`` (and at an 8-px window stride) side by side with
+(a'') opencv: ``Detector(oncoming=None).detect`` (and at an 8-px window stride) side by side with
     OpenCV's ``HOGDescriptor.detectMultiScale`` at 8 and 16 px on the same 7 bands
     (``benchmarks/bench_opencv.py``), interleaved, 1 and 2 threads.
 (a') wait policy: ``python -m fastdet bench`` at 2 threads in fresh processes with
@@ -100,8 +100,8 @@ def detector_section(args: argparse.Namespace, thread_counts: list[int]) -> None
         st = {k: 1e3 * statistics.median(v) for k, v in stages[(kind, n)].items()}
         if n == max(thread_counts):
             best2[kind] = best
-        name = {"main": "fastdet `Detector(wide=None)`", "default": "fastdet `Detector()` (default)",
-                "wide": f"fastdet `Detector(wide={os.path.basename(str(args.wide))!r})`"}[kind]
+        name = {"main": "fastdet `Detector(oncoming=None)`", "default": "fastdet `Detector()` (default)",
+                "wide": f"fastdet `Detector(oncoming={os.path.basename(str(args.wide))!r})`"}[kind]
         print(f"| {name} | {models_label(dets[kind])} | {n} | {best:.2f} | {med:.2f}{_flag(best, med)} "
               f"| {st.get('resize_colour', 0):.2f} | {st.get('hog', 0):.2f} | {st.get('score', 0):.2f} "
               f"| {c_best / best:,.0f}x |")
@@ -111,12 +111,12 @@ def detector_section(args: argparse.Namespace, thread_counts: list[int]) -> None
           f"band threads (so they exceed the wall time). Classic: {classic_rounds} run(s) on "
           f"{CLASSIC_FRAME}. Same positive windows from classic and fastdet (main): "
           f"{'yes' if agree else 'NO'}.")
-    if dets["default"].wide_model is None:
-        print("`Detector()` is `Detector(wide=None)`: the oncoming-traffic model runs in `VideoDetector` "
+    if dets["default"].oncoming_model is None:
+        print("`Detector()` is `Detector(oncoming=None)`: the oncoming-traffic model runs in `VideoDetector` "
               "(what `video` runs), where motion narrows its search; its cost is in the video table.")
     if args.wide:
         n_wide = len(dets["wide"].geometries(frames[CLASSIC_FRAME].shape[:2], part=1))
-        print(f"Wide model {args.wide}: {n_wide} more bands (`fastdet.config.WIDE_SEARCH`).")
+        print(f"Wide model {args.wide}: {n_wide} more bands (`fastdet.config.ONCOMING_SEARCH`).")
     nt = max(thread_counts)
     b = best2["default"]
     print(f"Goal (>= 100x classic, < 10 ms per frame at 2 threads): default detector {b:.2f} ms at "
@@ -141,7 +141,7 @@ def opencv_section(args: argparse.Namespace, thread_counts: list[int]) -> None:
         for n in thread_counts:
             best, med, cpu = res[(label, n)]
             ref_best, ref_med, _ = res[("OpenCV stride 8", n)]
-            name = {"fastdet": "fastdet `Detector(wide=None)` (default search)",
+            name = {"fastdet": "fastdet `Detector(oncoming=None)` (default search)",
                     "fastdet stride 8": "fastdet, `SearchConfig(cells_per_step=1)`"
                     }.get(label, "OpenCV `detectMultiScale`")
             print(f"| {name} | {stride} px | {windows[label]:,} | {n} | {best:.2f} | {med:.2f}{_flag(best, med)} "
@@ -253,7 +253,8 @@ def main(argv=None) -> int:
     ap.add_argument("--only", nargs="+", choices=SECTIONS, default=list(SECTIONS), metavar="SECTION",
                     help=f"tables to print: {', '.join(SECTIONS)} (default: all)")
     ap.add_argument("--wide", metavar="WIDE.npz",
-                    help="detector table: also time Detector(wide=WIDE.npz), a wide-window model beside the main one")
+                    help="detector table: also time Detector(oncoming=WIDE.npz), a wide-window model beside the "
+                         "main one")
     args = ap.parse_args(argv)
     if args.wide and not os.path.exists(args.wide):
         ap.error(f"--wide {args.wide}: file not found")

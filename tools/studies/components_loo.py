@@ -31,6 +31,7 @@ import cv2
 from fastdet.config import PipelineConfig
 from fastdet.data import data_dir
 from fastdet.eval.clips import annotated_clips, markdown_table
+from fastdet.io.reader import read_frames
 from fastdet.video import VideoDetector, make_detector
 from tools.scripts.side_model import build
 from tools.studies.loo import run_clip
@@ -41,14 +42,7 @@ def cost(repeat: int) -> None:
 
     numba.set_num_threads(1)
     cv2.setNumThreads(1)
-    cap = cv2.VideoCapture(str(data_dir() / "videos" / "test_small1.mp4"))
-    frames = []
-    while True:
-        ok, f = cap.read()
-        if not ok:
-            break
-        frames.append(f)
-    cap.release()
+    frames = read_frames(data_dir() / "videos" / "test_small1.mp4")
     best: dict[str, float] = {}
     for _ in range(repeat):
         for name, cfg in (("today", PipelineConfig()), ("with the side component", PipelineConfig(side=True))):

@@ -14,7 +14,7 @@ import cv2
 
 from fastdet.config import PipelineConfig
 from fastdet.eval.clips import AnnotatedClip, ClipScore, score_clip
-from fastdet.io.motfiles import Predictions
+from fastdet.detections import Detections
 from fastdet.video.run import iter_video_detections
 
 #: clips cut from one camera's footage (one drive): held out together
@@ -60,5 +60,5 @@ def frame_rows(clip: AnnotatedClip) -> int:
 def run_clip(clip: AnnotatedClip, config: PipelineConfig) -> ClipScore:
     """The video pipeline with ``config`` over ``clip``, scored as ``fastdet eval --all`` scores
     it (keyframes only on a keyframe clip, IoU 0.5)."""
-    preds = Predictions.from_frames(iter_video_detections(clip.video, config, progress=False), source=str(clip.video))
+    preds = Detections.from_frames(iter_video_detections(clip.video, config, progress=False), source=str(clip.video))
     return score_clip(clip.name, clip.gt(), preds, frame_rows(clip), clip.keyframes())
