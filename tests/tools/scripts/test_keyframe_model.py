@@ -36,7 +36,9 @@ def test_builds_a_main_model_from_one_clip(small_data, data, tmp_path, capsys):
     assert (m.config.win_w, m.config.win_h) == (64, 64)
     tr = m.metadata["training"]
     assert tr["keyframes"]["clips"] == ["boston_street"] and tr["keyframes"]["frames"] == 8
-    assert tr["command"].endswith("--clips boston_street") and tr["C"] == keyframe_model.TRAINING["C"]
+    assert tr["command"] == ("python -m tools.scripts.keyframe_model --clips boston_street --jitter 0 "
+                             "--background 2 --hard-per-frame 3")
+    assert tr["C"] == keyframe_model.TRAINING["C"]
     assert "wrote" in capsys.readouterr().out
     d = Detector(out).detect(cv2.imread(str(data / "test_images" / "test1.jpg")))
     assert len(d.boxes) == len(d.scores)
