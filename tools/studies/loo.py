@@ -11,7 +11,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
+import numpy as np
 
+from fastdet.boxes import intersection, iou
 from fastdet.config import PipelineConfig
 from fastdet.eval.clips import AnnotatedClip, ClipScore, score_clip
 from fastdet.detections import Detections
@@ -57,8 +59,34 @@ def frame_rows(clip: AnnotatedClip) -> int:
         cap.release()
 
 
-def run_clip(clip: AnnotatedClip, config: PipelineConfig) -> ClipScore:
+def run_clip(clip: AnnotatedClip, config: PipelineConfig, keep: list[Detections] | None = None) -> ClipScore:
     """The video pipeline with ``config`` over ``clip``, scored as ``fastdet eval --all`` scores
-    it (keyframes only on a keyframe clip, IoU 0.5)."""
+    it (keyframes only on a keyframe clip, IoU 0.5); ``keep``: a list the boxes are appended to."""
     preds = Detections.from_frames(iter_video_detections(clip.video, config, progress=False), source=str(clip.video))
+    if keep is not None:
+        keep.append(preds)
     return score_clip(clip.name, clip.gt(), preds, frame_rows(clip), clip.keyframes())
+
+
+def misplaced(clip: AnnotatedClip, preds: Detections, iou_min: float = 0.5) -> tuple[int, int]:
+    """``(near, clear)``: of the boxes ``preds`` has on the clip's scored frames (its keyframes,
+    or every frame) that reach IoU ``iou_min`` with no target and touch no ignore region, those
+    touching a target (too big, over two vehicles, beside one) and those touching no annotated box."""
+    gt = clip.gt()
+    by_frame = dict(gt.by_frame())
+    keyframes = clip.keyframes()
+    scored = None if keyframes is None else set(int(k) for k in keyframes)
+    near = clear = 0
+    for frame, d in preds.by_frame():
+        if scored is not None and frame not in scored:
+            continue
+        g = by_frame.get(frame)
+        boxes = d.boxes.astype(float)
+        targets = g.boxes[g.targets].astype(float) if g is not None else np.zeros((0, 4))
+        ignores = g.boxes[~g.targets].astype(float) if g is not None else np.zeros((0, 4))
+        hit = (iou(boxes, targets) >= iou_min).any(1) if len(targets) else np.zeros(len(boxes), bool)
+        ign = (intersection(boxes, ignores) > 0).any(1) if len(ignores) else np.zeros(len(boxes), bool)
+        touch = (intersection(boxes, targets) > 0).any(1) if len(targets) else np.zeros(len(boxes), bool)
+        near += int((~hit & ~ign & touch).sum())
+        clear += int((~hit & ~ign & ~touch).sum())
+    return near, clear

@@ -13,6 +13,10 @@ model that never saw its camera, beside the bundled model, in two ways:
   (:func:`fastdet.train.windows.score_frames`). This is the model alone, wherever the search
   may later put its bands.
 
+Per clip it also prints, of the pipeline's boxes that match no target (IoU < 0.5) and touch no
+ignore region, how many touch a target (misplaced: too big, over two vehicles) and how many
+touch nothing annotated (:func:`tools.studies.loo.misplaced`).
+
 Folds (:func:`tools.studies.loo.folds`): each camera is held out in turn; the two Udacity clips
 (one drive) together. ``WORK/main[_TAG]_without_FOLD.npz`` is trained on the other clips
 (kept when it exists, so a rerun only scores); one training at a time, single process.
@@ -43,6 +47,7 @@ from typing import Any
 
 from fastdet.config import PipelineConfig
 from fastdet.data import data_dir
+from fastdet.detections import Detections
 from fastdet.eval.clips import annotated_clips, markdown_table
 from fastdet.io.atomic import write_bytes
 from fastdet.model import load_model
@@ -51,7 +56,7 @@ from fastdet.train.keyframes import read_annotated_frames
 from fastdet.train.windows import FALSE_RATES, WindowScore, score_frames
 from tools.scripts import side_model
 from tools.scripts.keyframe_model import build
-from tools.studies.loo import folds, run_clip
+from tools.studies.loo import folds, misplaced, run_clip
 
 
 def window_table(rows: list[tuple[str, WindowScore, WindowScore | None]]) -> str:
@@ -131,25 +136,29 @@ def main(argv: list[str] | None = None) -> int:
             frames = read_annotated_frames(data, name)
             base_w = None if args.no_baseline else score_frames(bundled, frames)
             new_w = score_frames(model, frames)
+            kept: list[Detections] = []
             if base_w is None:
                 win_rows.append((name, new_w, None))
             else:
                 win_rows.append((name, base_w, new_w))
-                pipe_base.append(run_clip(clips[name], PipelineConfig()))
-            pipe_new.append(run_clip(clips[name], PipelineConfig(model=str(path))))
+                pipe_base.append(run_clip(clips[name], PipelineConfig(), keep=kept))
+            pipe_new.append(run_clip(clips[name], PipelineConfig(model=str(path)), keep=kept))
+            wrong = [misplaced(clips[name], k) for k in kept]
             if args.side:
                 side_rows.append((name, new_w, score_frames(model, frames, components=[load_model(side_path)])))
                 pipe_side.append(run_clip(clips[name], PipelineConfig(model=str(path), side=str(side_path))))
                 out["clips"][name + "+side"] = {"windows": side_rows[-1][2].to_dict(),
                                                 "pipeline": pipe_side[-1].to_dict()}
             out["clips"][name] = {"model": str(path), "trained_on": list(fold.train),
+                                  "false_alarms_near_target_and_clear": wrong,
                                   "windows": new_w.to_dict(), "pipeline": pipe_new[-1].to_dict(),
                                   "bundled": None if base_w is None else {"windows": base_w.to_dict(),
                                                                           "pipeline": pipe_base[-1].to_dict()}}
             print(f"{name}: pipeline F1 {'' if base_w is None else f'{pipe_base[-1].result.f1:.3f} -> '}"
                   f"{pipe_new[-1].result.f1:.3f}; window recall @ 1 FW/frame "
-                  f"{'' if base_w is None else f'{base_w.recall_at[1.0]:.3f} -> '}{new_w.recall_at[1.0]:.3f}",
-                  flush=True)
+                  f"{'' if base_w is None else f'{base_w.recall_at[1.0]:.3f} -> '}{new_w.recall_at[1.0]:.3f}; "
+                  f"pipeline boxes at IoU < 0.5 touching a target / touching nothing annotated: "
+                  f"{' -> '.join(f'{a} / {b}' for a, b in wrong)}", flush=True)
     if pipe_base:
         print("\n(a) pipeline, the bundled model\n")
         print(markdown_table(pipe_base))

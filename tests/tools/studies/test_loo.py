@@ -35,3 +35,24 @@ def test_window_table():
 def test_unknown_clip_is_one_line(capsys):
     assert model_loo.main(["--clips", "nope", "--no-train"]) == 2
     assert capsys.readouterr().err.count("\n") == 1
+
+
+def test_misplaced_counts_boxes_near_a_target_and_clear_of_everything(tmp_path):
+    from fastdet.detections import Detections
+    from fastdet.eval.clips import AnnotatedClip
+    from tools.studies.loo import misplaced
+
+    gt = tmp_path / "c.gt.txt"
+    # frame 1: a target at 100,100 50x50 and an ignore region at 300,100 40x40; frame 2 (not a keyframe)
+    gt.write_text("1,1,100,100,50,50,1,1,1\n1,1000,300,100,40,40,0,1,1\n2,1,100,100,50,50,1,1,1\n")
+    (tmp_path / "c.frames").write_text("1\n")
+    clip = AnnotatedClip("c", tmp_path / "c.mp4", gt)
+    boxes = [[100, 100, 150, 150],   # a hit
+             [90, 90, 200, 200],     # IoU 0.21 with the target: near
+             [310, 110, 330, 130],   # on the ignore region: neither
+             [500, 10, 550, 60],     # clear
+             [500, 10, 550, 60]]     # on frame 2: not scored
+    preds = Detections(boxes, [0.9] * 5, frames=[1, 1, 1, 1, 2])
+    assert misplaced(clip, preds) == (1, 1)
+    (tmp_path / "c.frames").unlink()
+    assert misplaced(clip, preds) == (1, 2)
