@@ -51,13 +51,14 @@ def test_replay_of_the_defaults_is_the_video_pipeline(clip, cached):
 def test_replay_of_other_settings_is_video_detector_with_them(clip, cached):
     det, windows = cached
     heat = HeatConfig(threshold=2.0, n_frames=4)
-    wide_heat = HeatConfig(threshold=5.0, n_frames=1, extent=0.3, min_height=10, max_aspect=0.8)
+    oncoming_heat = HeatConfig(threshold=5.0, n_frames=1, extent=0.3, min_height=10, max_aspect=0.8)
     thr = 0.5
-    got = replay(windows, thr, heat, wide_heat, MotionGate(30.0), thr_wide=0.5)
+    got = replay(windows, thr, heat, oncoming_heat, MotionGate(30.0), thr_oncoming=0.5)
     # the same settings, run for real: the window thresholds are the searches' own
     real = Detector(search=replace(det.search, threshold=thr),
                     oncoming=det.oncoming_model, oncoming_search=replace(ONCOMING_SEARCH, threshold=0.5))
-    vd = VideoDetector(real, PipelineConfig(heat=heat, oncoming_heat=wide_heat, motion=MotionGate(30.0), guided=None))
+    vd = VideoDetector(real, PipelineConfig(heat=heat, oncoming_heat=oncoming_heat, motion=MotionGate(30.0),
+                                            guided=None))
     reader = FrameReader(clip)
     try:
         want = Detections.from_frames((f, vd.update(frame)) for f, frame, _ in reader)
