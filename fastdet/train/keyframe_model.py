@@ -44,6 +44,8 @@ class KeyframeRecipe:
 
     margin: context around a positive, a fraction of its window on each side.
     jitter: moved (up to 5% of the window) and rescaled (0.9-1.1x) copies per positive.
+    max_aspect: only targets narrower than this (width / height) are positives (the wider ones
+        are a side component's, :mod:`fastdet.train.components`); ``inf``: all.
     background: random windows per frame touching no annotated box.
     hard_per_frame: at most this many hard negatives per frame and round; hard_threshold: the
         probability above which a window is one (the search's 0.5).
@@ -54,6 +56,7 @@ class KeyframeRecipe:
 
     margin: float = 0.0625
     jitter: int = 8
+    max_aspect: float = float("inf")
     background: int = 20
     hard_per_frame: int = 40
     hard_threshold: float = 0.5
@@ -63,10 +66,18 @@ class KeyframeRecipe:
     def __post_init__(self) -> None:
         if min(self.jitter, self.background, self.hard_per_frame) < 0 or self.margin < 0:
             raise ValueError("margin, jitter, background and hard_per_frame must be >= 0")
+        if not self.max_aspect > 0:
+            raise ValueError(f"max_aspect must be > 0, got {self.max_aspect!r}")
         if self.hard_rounds < 1:
             raise ValueError(f"hard_rounds must be >= 1, got {self.hard_rounds!r}")
         if not 0 < self.hard_threshold < 1:
             raise ValueError(f"hard_threshold must be a probability in (0, 1), got {self.hard_threshold!r}")
+
+    def to_dict(self) -> dict[str, Any]:
+        """The fields, JSON-ready (``max_aspect`` inf as ``None``)."""
+        d = asdict(self)
+        d["max_aspect"] = None if np.isinf(self.max_aspect) else float(self.max_aspect)
+        return d
 
 
 def _labelled(images: np.ndarray, label: int, group: str | list[str]) -> CropSet:
@@ -117,8 +128,8 @@ def keyframe_crops(frames: Sequence[AnnotatedFrame], recipe: KeyframeRecipe = Ke
     win = cfg.win_w
     parts, groups = [], []
     for i, f in enumerate(frames):
-        p = positive_crops([f], win, win, margin=recipe.margin, min_width=0.0, jitter=recipe.jitter,
-                           seed=recipe.seed + i)
+        p = positive_crops([f], win, win, (0.0, recipe.max_aspect), margin=recipe.margin, min_width=0.0,
+                           jitter=recipe.jitter, seed=recipe.seed + i)
         parts.append(p)
         groups += [f"keyframes/{f.clip}"] * len(p)
     pos = _labelled(np.concatenate(parts) if parts else np.zeros((0, win, win, 3), np.uint8), 1, groups)
@@ -165,6 +176,6 @@ def train_keyframe_model(data: Path, config: FeatureConfig, frames: Sequence[Ann
         if model is None:
             raise ValueError("train_keyframe_model: refit=False gives no model")
     assert model is not None
-    model.metadata["training"]["keyframes"] = {"clips": clips, "frames": len(frames), "recipe": asdict(recipe),
+    model.metadata["training"]["keyframes"] = {"clips": clips, "frames": len(frames), "recipe": recipe.to_dict(),
                                                **kc.counts(), "hard_negatives": hard, "false_windows": fired}
     return model

@@ -2,6 +2,7 @@
 negatives that touch no annotated box), that it joins the training set, and what is recorded."""
 from __future__ import annotations
 
+import json
 import shutil
 from dataclasses import replace
 
@@ -14,7 +15,7 @@ from fastdet.model import load_model
 from fastdet.train import fit
 from fastdet.train.dataset import CropSet
 from fastdet.train.keyframe_model import KeyframeRecipe, keyframe_crops, train_keyframe_model
-from fastdet.train.keyframes import cut, read_annotated_frames
+from fastdet.train.keyframes import aspect_of, cut, read_annotated_frames
 from fastdet.train.windows import score_frames
 
 
@@ -62,6 +63,12 @@ def test_keyframe_crops(frames):
         keyframe_crops(frames, recipe, config=FeatureConfig(window_height=32))
     with pytest.raises(ValueError):
         replace(recipe, hard_threshold=1.5)
+    with pytest.raises(ValueError):
+        replace(recipe, max_aspect=0)
+    # only the targets narrower than max_aspect are positives
+    narrow = keyframe_crops(frames, replace(recipe, max_aspect=1.3, hard_per_frame=0))
+    assert narrow.positives == 3 * int(sum((aspect_of(f.targets) < 1.3).sum() for f in frames)) < kc.positives
+    assert narrow.hard == 0 and json.loads(json.dumps(recipe.to_dict()))["max_aspect"] is None
 
 
 def test_train_keyframe_model_records_and_learns_its_positives(frames, small_data):

@@ -8,7 +8,7 @@ re-encoded copies, logistic regression.
 Usage (from the repository root)::
 
     python -m tools.scripts.keyframe_model --out M.npz [--clips A,B,...] [--exclude A,B]
-        [--data DIR] [--jitter N] [--background N] [--hard-per-frame N] [--hard-rounds N] [--C C]
+        [--data DIR] [--jitter N] [--background N] [--hard-per-frame N] [--hard-rounds N] [--max-aspect A] [--C C]
         [--max-per-folder N]
 
 ``--clips``: the clips to learn from (default: every annotated clip of the data folder,
@@ -83,6 +83,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--background", type=int, default=d.background)
     p.add_argument("--hard-per-frame", type=int, default=d.hard_per_frame)
     p.add_argument("--hard-rounds", type=int, default=d.hard_rounds)
+    p.add_argument("--max-aspect", type=float, default=d.max_aspect,
+                   help="only targets narrower than this (width / height) are positives (default: all)")
     p.add_argument("--C", type=float, default=None, help=f"inverse regularisation (default {TRAINING['C']})")
     p.add_argument("--max-per-folder", type=int, default=None)
     args = p.parse_args(argv)
@@ -96,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
             raise FastdetError(f"--max-per-folder must be >= 1, got {args.max_per_folder}")
         clips = choose_clips(data, args.clips, args.exclude)
         recipe = KeyframeRecipe(jitter=args.jitter, background=args.background, hard_per_frame=args.hard_per_frame,
-                                hard_rounds=args.hard_rounds)
+                                hard_rounds=args.hard_rounds, max_aspect=args.max_aspect)
         build(args.out, clips, data, recipe, args.C, args.max_per_folder)
     except (FastdetError, ValueError) as exc:
         print(f"keyframe_model: {exc}", file=sys.stderr)

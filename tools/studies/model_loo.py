@@ -91,6 +91,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--background", type=int, default=d.background)
     p.add_argument("--hard-per-frame", type=int, default=d.hard_per_frame)
     p.add_argument("--hard-rounds", type=int, default=d.hard_rounds)
+    p.add_argument("--max-aspect", type=float, default=d.max_aspect,
+                   help="only targets narrower than this (width / height) are positives (default: all)")
     p.add_argument("--reuse-round1", action="store_true",
                    help="with --hard-rounds > 1: WORK/main_without_FOLD.npz (the default recipe's) is round 1")
     p.add_argument("--C", type=float, default=None)
@@ -107,12 +109,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"model_loo: not annotated clips: {', '.join(unknown)}", file=sys.stderr)
         return 2
     recipe = replace(d, jitter=args.jitter, background=args.background, hard_per_frame=args.hard_per_frame,
-                     hard_rounds=args.hard_rounds)
+                     hard_rounds=args.hard_rounds, max_aspect=args.max_aspect)
     args.work.mkdir(parents=True, exist_ok=True)
     bundled = load_model(None)
     tag = f"_{args.tag}" if args.tag else ""
     pipe_base, pipe_new, win_rows, pipe_side, side_rows = [], [], [], [], []
-    out: dict[str, Any] = {"recipe": recipe.__dict__, "C": args.C, "clips": {}}
+    out: dict[str, Any] = {"recipe": recipe.to_dict(), "C": args.C, "clips": {}}
     for fold in folds(list(clips)):
         scored = [c for c in fold.held_out if c in want]
         if not scored:
