@@ -14,14 +14,15 @@ for both pipelines: the bundled main model (``fastdet.model.load_model()``) and 
   then every window one at a time (slice its blocks, ``cv2.resize`` spatial bins,
   ``np.histogram``, ``StandardScaler.transform``, ``decision_function``). About 5 s a
   frame, so 2 rounds on test1.jpg (``pedantic``);
-* ``fastdet main``: ``Detector(wide=None).detect`` — the same model and bands, every
+* ``fastdet main``: ``Detector(oncoming=None).detect`` — the same model and bands, every
   window of a band scored at once by the Numba kernels; at 1 and 2 Numba threads;
-* ``fastdet default``: ``Detector().detect`` — what ``python -m fastdet video`` runs. No
-  wide-window model ships, so today this is the same as ``fastdet main`` (a separate row so
-  the figure stays right if the default changes; ``extra_info["models"]`` says which);
-* ``fastdet main + wide``: ``Detector(wide=PATH)`` with the wide-window model in
-  ``$FASTDET_BENCH_WIDE`` (one trained with ``python -m fastdet train --window-rows``) and
-  its default search (``fastdet.config.WIDE_SEARCH``); skipped when the variable is unset.
+* ``fastdet default``: ``Detector().detect`` — the detector alone, whose default has no
+  oncoming-traffic model (``video`` adds the bundled one in ``VideoDetector``, where motion
+  narrows its search), so today this is the same as ``fastdet main`` (a separate row so the
+  figure stays right if the default changes; ``extra_info["models"]`` says which);
+* ``fastdet main + oncoming``: ``Detector(oncoming=PATH)`` with the oncoming-traffic model in
+  ``$FASTDET_BENCH_ONCOMING`` (one trained with ``python -m fastdet train --window-rows``) and
+  its default search (``fastdet.config.ONCOMING_SEARCH``); skipped when the variable is unset.
 
 fastdet cases cycle through the six frames, one frame per call. Both pipelines give the
 same positive windows on test1.jpg (checked after the classic run). Like the ``video``
@@ -86,17 +87,17 @@ def make_classic():
     return ClassicDetector(load_model(), SearchConfig())
 
 
-def make_fastdet(kind: str, wide: str | os.PathLike | None = None):
-    """``'main'``: ``Detector(wide=None)`` (same model and bands as the classic one);
-    ``'default'``: ``Detector()``; ``'wide'``: ``Detector(wide=wide)``."""
+def make_fastdet(kind: str, oncoming: str | os.PathLike | None = None):
+    """``'main'``: ``Detector(oncoming=None)`` (same model and bands as the classic one);
+    ``'default'``: ``Detector()``; ``'oncoming'``: ``Detector(oncoming=oncoming)``."""
     if kind == "main":
-        det = Detector(wide=None)
+        det = Detector(oncoming=None)
     elif kind == "default":
         det = Detector()
-    elif kind == "wide":
-        if wide is None:
-            raise ValueError("kind 'wide' needs a wide-window model")
-        det = Detector(wide=wide)
+    elif kind == "oncoming":
+        if oncoming is None:
+            raise ValueError("kind 'oncoming' needs an oncoming-traffic model")
+        det = Detector(oncoming=oncoming)
     else:
         raise ValueError(f"unknown detector kind {kind!r}")
     det.warmup()
@@ -104,7 +105,7 @@ def make_fastdet(kind: str, wide: str | os.PathLike | None = None):
 
 
 def models_label(det) -> str:
-    return "main" if det.wide_model is None else "main + wide"
+    return "main" if det.oncoming_model is None else "main + oncoming"
 
 
 def time_detectors(dets: dict[str, Detector], frames: dict[str, np.ndarray], thread_counts: list[int],
@@ -191,7 +192,7 @@ t4 = time.perf_counter()
 det.detect(frame)
 t5 = time.perf_counter()
 print(json.dumps({"import_s": t1 - t0, "construct_s": t2 - t1, "first_detect_s": t4 - t3,
-                  "second_detect_s": t5 - t4, "models": "main" if det.wide_model is None else "main + wide"}))
+                  "second_detect_s": t5 - t4, "models": "main" if det.oncoming_model is None else "main + oncoming"}))
 """
 
 
@@ -243,13 +244,13 @@ def test_classic(benchmark, frames):
     assert same_windows(result, fast), "classic and fastdet disagree on the positive windows"
 
 
-@pytest.mark.parametrize("kind", ["main", "default", "wide"])
+@pytest.mark.parametrize("kind", ["main", "default", "oncoming"])
 @pytest.mark.parametrize("n_threads", [1, 2])
 def test_fastdet(benchmark, frames, kind, n_threads):
-    wide = os.environ.get("FASTDET_BENCH_WIDE") or None
-    if kind == "wide" and wide is None:
-        pytest.skip("set FASTDET_BENCH_WIDE=WIDE.npz (a model trained with --window-rows) to time it")
-    det = make_fastdet(kind, wide)
+    oncoming = os.environ.get("FASTDET_BENCH_ONCOMING") or None
+    if kind == "oncoming" and oncoming is None:
+        pytest.skip("set FASTDET_BENCH_ONCOMING=MODEL.npz (a model trained with --window-rows) to time it")
+    det = make_fastdet(kind, oncoming)
     cycle = itertools.cycle(list(frames.values()))
     with threads(n_threads):
         for f in frames.values():  # first frame of this size, caches, thread pool
@@ -257,7 +258,7 @@ def test_fastdet(benchmark, frames, kind, n_threads):
         benchmark.group = GROUP
         benchmark.extra_info.update(pipeline=f"fastdet {kind}", models=models_label(det), threads=n_threads,
                                     bands=sum(len(det.geometries((720, 1280), part))
-                                              for part in range(1 + (det.wide_model is not None))),
+                                              for part in range(1 + (det.oncoming_model is not None))),
                                     frame="test_images/*.jpg (cycled)",
                                     omp_wait_policy=os.environ.get("OMP_WAIT_POLICY"),
                                     threading_layer=numba.threading_layer())

@@ -7,7 +7,7 @@ Run::
 
 What is compared, on the six ``test_images/*.jpg`` 1280x720 frames (cycled, one per call):
 
-* ``fastdet``: ``Detector(wide=None).detect`` — the bundled main model over the default
+* ``fastdet``: ``Detector(oncoming=None).detect`` — the bundled main model over the default
   search (its 7 bands, windows 2 cells = 16 px apart in each scaled band): crop, resize,
   YCrCb, 3-channel HOG (16 orientations), spatial bins, colour histograms, 12,576 weights a
   window, decision values of every window, the positive windows as boxes;
@@ -54,11 +54,11 @@ CASES = (("fastdet", "fastdet", 16), ("fastdet stride 8", "fastdet", 8),
 
 
 class OpenCVBands:
-    """OpenCV's HOG detector over the bands of ``Detector(wide=None)``'s default search (see
+    """OpenCV's HOG detector over the bands of ``Detector(oncoming=None)``'s default search (see
     the module docstring); ``detect(frame)`` returns the windows above 0 of every band."""
 
     def __init__(self, stride: int, det: Detector | None = None):
-        det = det if det is not None else Detector(wide=None)
+        det = det if det is not None else Detector(oncoming=None)
         self.geos = sorted(det.geometries(FRAME_SHAPE), key=lambda g: -g.scaled_w * g.scaled_h)
         self.stride = stride
         self.hog = cv2.HOGDescriptor((64, 64), (16, 16), (8, 8), (8, 8), 9, 1, -1.0,
@@ -93,7 +93,7 @@ class OpenCVBands:
 def make_case(kind: str, stride: int):
     """``(callable(frame, n_threads), windows per frame)`` of one compared configuration."""
     if kind == "fastdet":
-        det = Detector(wide=None) if stride == 16 else Detector(wide=None, search=SearchConfig(cells_per_step=1))
+        det = Detector() if stride == 16 else Detector(search=SearchConfig(cells_per_step=1))
         det.warmup()
         return (lambda frame, n: det.detect(frame)), sum(g.n_windows for g in det.geometries(FRAME_SHAPE))
     cv = OpenCVBands(stride)

@@ -78,7 +78,7 @@ def test_weak_blobs(benchmark, clip):
     hm = HeatMap(frames[0].shape, HeatConfig(), score_kind=make_detector().score_kind)
     maps = []  # the heat map after each frame, for weak_boxes to read
     for windows, *_ in rows:
-        hm.update(windows[~windows.is_wide])
+        hm.update(windows[~windows.is_oncoming])
         maps.append((hm.heat.copy(), hm._cur))
     thr = TrackerConfig().low_heat * hm.config.threshold
 

@@ -6,7 +6,7 @@ Public API (the heavy parts are imported lazily, so ``import fastdet`` is cheap)
     from fastdet import hog_channels_batch           # per-channel HOG of a stack of crops
     from fastdet import Detector, VideoDetector      # one frame / a stream of frames
     from fastdet import load_model, Model            # the bundled or a trained model
-    from fastdet import Detections                   # boxes + per-box columns (scores, scale, part, ids)
+    from fastdet import Detections                   # the box table: boxes + scores, scale, part, ids, frames ...
     from fastdet import PipelineConfig               # every setting of the video pipeline (fastdet.config)
     from fastdet import FeatureConfig, SearchConfig, SearchBand, HeatConfig, MotionGate, TrackerConfig
 

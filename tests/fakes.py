@@ -1,11 +1,13 @@
 """Stand-ins for :class:`fastdet.Detector`: objects that follow the
-:class:`fastdet.video.WindowDetector` protocol (``score_kind``, ``wide_model``, ``warmup()``,
+:class:`fastdet.video.WindowDetector` protocol (``score_kind``, ``oncoming_model``, ``warmup()``,
 ``geometries()``, ``detect()``), so the video pipeline, the CLI commands and the tools can run
 without a trained model or with windows recorded once.
 
 - :class:`BrightBoxDetector`: five windows around the bounding box of every pixel brighter
   than 200 (one object per frame), scales 1..3; counts its calls.
 - :class:`BlobsDetector`: five windows around each connected bright region.
+- :class:`SquareDetector`: three windows around the bright pixels, none of the optional
+  abilities (no horizon, no column search, no kernels).
 - :class:`FixedDetector`: the same windows on every frame (a full search: no motion gate).
 - :class:`ReplayDetector`: windows recorded earlier, one frame per call (``tools/``).
 - :class:`RecordingDetector`: passes through to a real detector and keeps every result, or
@@ -36,7 +38,7 @@ class _NoSearch:
     """What the fakes without search bands share."""
 
     score_kind = "decision"
-    wide_model: Any = None
+    oncoming_model: Any = None
 
     def warmup(self) -> None:
         pass
@@ -58,7 +60,7 @@ class BrightBoxDetector(_NoSearch):
     def warmup(self) -> None:
         self.warmed = True
 
-    def detect(self, frame: np.ndarray, rgb: bool = False, wide_bands=None, stats=None) -> Detections:
+    def detect(self, frame: np.ndarray, rgb: bool = False, oncoming_bands=None, stats=None) -> Detections:
         self.calls += 1
         self.rgb_args.append(rgb)
         if self.on_frame is not None:
@@ -81,7 +83,7 @@ class BlobsDetector(_NoSearch):
     def __init__(self, score: float = 1.0, scales: bool = False):
         self.score, self.scales = score, scales
 
-    def detect(self, frame: np.ndarray, rgb: bool = False, wide_bands=None, stats=None) -> Detections:
+    def detect(self, frame: np.ndarray, rgb: bool = False, oncoming_bands=None, stats=None) -> Detections:
         labels, _ = ndimage.label(_bright(frame))
         boxes = []
         for sl in ndimage.find_objects(labels):
@@ -95,34 +97,49 @@ class BlobsDetector(_NoSearch):
         return Detections(np.array(boxes, np.int32), np.full(len(boxes), self.score, np.float32), scale=scale)
 
 
+class SquareDetector(_NoSearch):
+    """A WindowDetector without optional abilities: three windows (the box of the pixels
+    brighter than 200, and shifted 4 px right and down), score 2, scale 1."""
+
+    def detect(self, frame: np.ndarray, rgb: bool = False, oncoming_bands=None, stats=None) -> Detections:
+        if stats is not None:
+            stats.timings.update({"resize_colour": 0.0, "hog": 0.0, "score": 0.0})
+        ys, xs = np.nonzero(_bright(frame))
+        if len(xs) == 0:
+            return Detections.empty()
+        b = [xs.min(), ys.min(), xs.max() + 1, ys.max() + 1]
+        boxes = np.array([b, [b[0] + 4, b[1], b[2] + 4, b[3]], [b[0], b[1] + 4, b[2], b[3] + 4]], np.int32)
+        return Detections(boxes, np.full(3, 2.0, np.float32), scale=np.ones(3, np.float32))
+
+
 class FixedDetector(_NoSearch):
     """The same windows ``dets`` on every frame. It has no search bands, so it stands only for
     a full search: asking for its bands (the motion gate does) or for part of the wide search
-    is a test error. ``wide_model``: not None makes VideoDetector route the wide windows
-    (``part`` WIDE_PART) to the wide heat map."""
+    is a test error. ``oncoming_model``: not None makes VideoDetector route the wide windows
+    (``part`` ONCOMING_PART) to the wide heat map."""
 
-    def __init__(self, dets: Detections, wide_model: Any = None):
-        self.dets, self.wide_model = dets, wide_model
+    def __init__(self, dets: Detections, oncoming_model: Any = None):
+        self.dets, self.oncoming_model = dets, oncoming_model
 
     def geometries(self, frame_shape, part=0):
         raise AssertionError("FixedDetector has no search bands (turn the motion gate off)")
 
-    def detect(self, frame: np.ndarray, rgb: bool = False, wide_bands=None, stats=None) -> Detections:
-        assert wide_bands is None, "FixedDetector stands for the full search only"
+    def detect(self, frame: np.ndarray, rgb: bool = False, oncoming_bands=None, stats=None) -> Detections:
+        assert oncoming_bands is None, "FixedDetector stands for the full search only"
         return self.dets
 
 
 class ReplayDetector:
     """Windows recorded earlier, ``frames[i]`` on the i-th :meth:`detect` call (``frame``
     counts the calls). ``like`` (the detector that recorded them) gives ``score_kind``,
-    ``wide_model`` and the search bands. When VideoDetector asks for no ``wide_bands`` (nothing
+    ``oncoming_model`` and the search bands. When VideoDetector asks for no ``oncoming_bands`` (nothing
     moved, or the first frame), the wide windows are left out, as the real detector leaves out
     the wide search."""
 
     def __init__(self, frames: Sequence[Detections], like: Any):
         self.frames, self.like = frames, like
         self.score_kind = like.score_kind
-        self.wide_model = like.wide_model
+        self.oncoming_model = like.oncoming_model
         self.frame = 0
 
     def warmup(self) -> None:
@@ -131,11 +148,11 @@ class ReplayDetector:
     def geometries(self, frame_shape, part=0):
         return self.like.geometries(frame_shape, part)
 
-    def detect(self, frame: np.ndarray, rgb: bool = False, wide_bands=None, stats=None) -> Detections:
+    def detect(self, frame: np.ndarray, rgb: bool = False, oncoming_bands=None, stats=None) -> Detections:
         d = self.frames[self.frame]
         self.frame += 1
-        if wide_bands is not None and len(wide_bands) == 0:
-            d = d[~d.is_wide]
+        if oncoming_bands is not None and len(oncoming_bands) == 0:
+            d = d[~d.is_oncoming]
         return d
 
 
@@ -146,14 +163,14 @@ class RecordingDetector:
 
     def __init__(self, det: Any, replay: list[Detections] | None = None):
         self.det, self.replay = det, replay
-        self.score_kind, self.wide_model = det.score_kind, det.wide_model
+        self.score_kind, self.oncoming_model = det.score_kind, det.oncoming_model
         self.record: list[Detections] = []
 
-    def detect(self, frame: np.ndarray, rgb: bool = False, wide_bands=None, stats=None) -> Detections:
+    def detect(self, frame: np.ndarray, rgb: bool = False, oncoming_bands=None, stats=None) -> Detections:
         if self.replay is not None:
             d = self.replay[len(self.record)]
         else:
-            d = self.det.detect(frame, rgb=rgb, wide_bands=wide_bands, stats=stats)
+            d = self.det.detect(frame, rgb=rgb, oncoming_bands=oncoming_bands, stats=stats)
         self.record.append(d)
         return d
 

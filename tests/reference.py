@@ -217,7 +217,7 @@ class ClassicDetector:
                                 search.border_mode)
             dec = classic_band_scores(frame, geo, self.model, self.pair)
             r, c = np.nonzero(dec > self.search.threshold)
-            parts.append(Detections(window_boxes(geo, r, c, self.model.config), dec[r, c],
+            parts.append(Detections(window_boxes(geo, r, c, self.model.config), dec[r, c].astype(np.float32),
                                     scale=np.full(len(r), band.scale)))
         return Detections.concat(parts)
 
@@ -388,3 +388,42 @@ def ref_mean_shift(boxes: np.ndarray, weights: np.ndarray, bandwidth: float, sca
         if moved <= 1e-3:
             break
     return np.array(y)
+
+
+# ========================================================================== vanishing point
+def ref_vanishing_score(segments: np.ndarray, shape: tuple[int, int], tolerance_deg: float,
+                        hypotheses: int) -> float:
+    """The best score of :func:`fastdet.video.vanishing.segments_vanishing_point`'s candidates,
+    one candidate and one segment at a time: every crossing (inside the ``(H, W)`` picture, at an
+    angle over 2 degrees) of two of the ``hypotheses`` longest segments scores the total length
+    of the segments whose line passes it within ``tolerance_deg`` seen from their middle."""
+    segs = [tuple(float(v) for v in s) for s in segments]
+    lengths = [math.hypot(s[2] - s[0], s[3] - s[1]) for s in segs]
+    top = sorted(range(len(segs)), key=lambda k: -lengths[k])[:hypotheses]
+    h, w = shape
+    best = -1.0
+    for a in range(len(top)):
+        for b in range(a + 1, len(top)):
+            s, t = segs[top[a]], segs[top[b]]
+            # the crossing of the two lines, by their direction angles
+            ux, uy = (s[2] - s[0]) / lengths[top[a]], (s[3] - s[1]) / lengths[top[a]]
+            vx, vy = (t[2] - t[0]) / lengths[top[b]], (t[3] - t[1]) / lengths[top[b]]
+            cross = ux * vy - uy * vx
+            if abs(cross) <= math.sin(math.radians(2.0)):
+                continue
+            k = ((t[0] - s[0]) * vy - (t[1] - s[1]) * vx) / cross
+            px, py = s[0] + k * ux, s[1] + k * uy
+            if not (0 <= px < w and 0 <= py < h):
+                continue
+            score = 0.0
+            for seg, length in zip(segs, lengths):
+                mx, my = (seg[0] + seg[2]) / 2, (seg[1] + seg[3]) / 2
+                dist = math.hypot(mx - px, my - py)
+                if dist == 0:
+                    score += length
+                    continue
+                ang = abs(math.atan2(seg[3] - seg[1], seg[2] - seg[0]) - math.atan2(py - my, px - mx)) % math.pi
+                if min(ang, math.pi - ang) < math.radians(tolerance_deg):
+                    score += length
+            best = max(best, score)
+    return best

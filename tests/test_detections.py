@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from fastdet import Detections
-from fastdet.detections import MAIN_PART, WIDE_PART
+from fastdet.detections import MAIN_PART, ONCOMING_PART
 
 
 def _dets(n: int = 4, **cols) -> Detections:
@@ -27,15 +27,34 @@ def test_len_bool_and_empty():
 
 
 def test_dtypes_and_shapes_normalised():
-    d = Detections([[1.9, 2, 3, 4]], [0.5], scale=[1.5], part=[1], ids=[7])
+    d = Detections([[1, 2, 3, 4]], np.array([0.5], np.float32), scale=[1.5], part=[1], ids=[7], frames=[3],
+                   consider=[1])
     assert d.boxes.dtype == np.int32 and d.boxes.tolist() == [[1, 2, 3, 4]]
     assert d.scores.dtype == np.float32 and d.scale.dtype == np.float32
     assert d.part.dtype == np.int8 and d.ids.dtype == np.int64
+    assert d.frames.dtype == np.int64 and d.consider.dtype == bool and d.consider.tolist() == [True]
     assert Detections([1, 2, 3, 4], 0.5).boxes.shape == (1, 4)  # one box, flat
     assert d.boxes.flags.c_contiguous
+    # integer boxes are int32 pixels; floating-point ones keep their value (a box file's
+    # continuous coordinates); float64 scores stay float64, any other kind is float32
+    f = Detections(np.array([[1.5, 2, 3.25, 4]], np.float32), [0.123456789])
+    assert f.boxes.dtype == np.float64 and f.boxes.tolist() == [[1.5, 2, 3.25, 4]]
+    assert f.scores.dtype == np.float64 and f.scores[0] == 0.123456789
+    assert Detections([[1, 2, 3, 4]], [1]).scores.dtype == np.float32
+    assert Detections(np.zeros((0, 4)), np.zeros(0)).boxes.dtype == np.int32  # empty: int32, float32
+    assert Detections(np.zeros((0, 4)), np.zeros(0)).scores.dtype == np.float32
 
 
-@pytest.mark.parametrize("col", ["scores", "scale", "part", "ids"])
+@pytest.mark.parametrize("boxes, msg", [
+    (np.zeros((2, 6)), r"shape \(N, 4\)"), (np.zeros((3,)), r"shape \(N, 4\)"),
+    (np.array([["a", "b", "c", "d"]]), "numbers"), (np.array([[0, 0, 2**31, 5]], np.int64), "fit int32"),
+])
+def test_bad_boxes_raise(boxes, msg):
+    with pytest.raises(ValueError, match=msg):
+        Detections(boxes)
+
+
+@pytest.mark.parametrize("col", ["scores", "scale", "part", "ids", "frames", "consider"])
 def test_column_length_mismatch_raises(col):
     cols = {"scores": np.zeros(3)}
     cols[col] = np.zeros(2)
@@ -51,20 +70,22 @@ def test_frozen():
 
 def test_getitem_mask_index_slice_int():
     d = _dets(5, scale=np.arange(5) + 1.0, part=[0, 1, 0, 1, 0], ids=[10, 11, 12, 13, 14])
+    d = dataclasses.replace(d, frames=[1, 1, 2, 3, 3], consider=[1, 0, 1, 1, 0], source="f.txt")
     for index, rows in ((np.array([True, False, True, False, False]), [0, 2]), (np.array([3, 1]), [3, 1]),
                         ([4], [4]), (slice(1, 3), [1, 2]), (2, [2]), (np.int64(-1), [4])):
         s = d[index]
-        assert isinstance(s, Detections) and len(s) == len(rows)
-        for name in ("boxes", "scores", "scale", "part", "ids"):
+        assert isinstance(s, Detections) and len(s) == len(rows) and s.source == "f.txt"
+        for name in ("boxes", "scores", "scale", "part", "ids", "frames", "consider"):
             np.testing.assert_array_equal(getattr(s, name), getattr(d, name)[rows], err_msg=f"{index!r} {name}")
     assert len(d[np.zeros(5, bool)]) == 0
     # missing columns stay missing
     plain = _dets(3)
     assert plain[[0]].scale is None and plain[[0]].part is None and plain[[0]].ids is None
+    assert plain[[0]].frames is None and plain[[0]].consider is None
 
 
 def test_concat_fills_missing_columns():
-    a = _dets(2, scale=[1.0, 2.0], part=[WIDE_PART, WIDE_PART])
+    a = _dets(2, scale=[1.0, 2.0], part=[ONCOMING_PART, ONCOMING_PART])
     b = _dets(3)
     c = _dets(1, ids=[5])
     d = Detections.concat([a, b, c])
@@ -72,18 +93,59 @@ def test_concat_fills_missing_columns():
     np.testing.assert_array_equal(d.boxes, np.concatenate([a.boxes, b.boxes, c.boxes]))
     np.testing.assert_array_equal(d.scores, np.concatenate([a.scores, b.scores, c.scores]))
     np.testing.assert_array_equal(d.scale, [1.0, 2.0, np.nan, np.nan, np.nan, np.nan])
-    np.testing.assert_array_equal(d.part, [WIDE_PART, WIDE_PART, MAIN_PART, MAIN_PART, MAIN_PART, MAIN_PART])
+    np.testing.assert_array_equal(d.part, [ONCOMING_PART, ONCOMING_PART, MAIN_PART, MAIN_PART, MAIN_PART, MAIN_PART])
     np.testing.assert_array_equal(d.ids, [-1, -1, -1, -1, -1, 5])
     assert Detections.concat([b, b]).scale is None  # a column no part has stays missing
     assert len(Detections.concat([])) == 0
     assert Detections.concat([a]) is a
     assert len(Detections.concat([Detections.empty(), b])) == 3
+    # ground truth's consider is True where a part has none; scores and frames have no
+    # missing value: a table with them and one without do not join
+    g = Detections.concat([Detections(b.boxes, consider=[0, 1, 0]), Detections(c.boxes)])
+    assert g.scores is None and g.consider.tolist() == [False, True, False, True]
+    with pytest.raises(ValueError, match="some parts have scores"):
+        Detections.concat([b, Detections(c.boxes)])
+    with pytest.raises(ValueError, match="some parts have frames"):
+        Detections.concat([b.with_frames([1, 1, 1]), c])
 
 
-def test_is_wide_and_with_ids():
-    d = _dets(3, part=[MAIN_PART, WIDE_PART, MAIN_PART])
-    assert d.is_wide.tolist() == [False, True, False]
-    assert _dets(3).is_wide.tolist() == [False, False, False]
+def test_a_clip_table_from_frames_and_back_by_frame():
+    """Many frames' rows in one table (a ``frames`` column, ids -1 where a frame had none),
+    split again by ascending frame."""
+    f3, f1, f2 = _dets(2, ids=[4, 5]), _dets(3), Detections.empty()
+    t = Detections.from_frames([(3, f3), (1, f1), (2, f2)], source="clip.mp4")
+    assert len(t) == 5 and t.source == "clip.mp4" and t.num_frames == 3 and t.has_ids
+    assert t.frames.tolist() == [3, 3, 1, 1, 1] and t.ids.tolist() == [4, 5, -1, -1, -1]
+    np.testing.assert_array_equal(t.boxes, np.concatenate([f3.boxes, f1.boxes]))
+    assert t.boxes.dtype == np.int32 and t.scores.dtype == np.float64  # _dets' scores are float64
+    parts = list(t.by_frame())
+    assert [f for f, _ in parts] == [1, 3]  # frames with rows only, ascending
+    np.testing.assert_array_equal(parts[0][1].boxes, f1.boxes)
+    np.testing.assert_array_equal(parts[1][1].ids, [4, 5])
+    none = Detections.from_frames([])
+    assert len(none) == 0 and none.num_frames == 0 and not none.has_ids and none.frames is not None
+    assert list(none.by_frame()) == []
+    assert not Detections.from_frames([(1, f1)]).has_ids
+    with pytest.raises(ValueError, match="no frames column"):
+        list(f1.by_frame())
+    with pytest.raises(ValueError, match="no frames column"):
+        f1.num_frames  # noqa: B018
+
+
+def test_ground_truth_is_a_table_without_scores():
+    gt = Detections(np.array([[0.5, 0, 10, 10], [1, 1, 5, 5]]), frames=[1, 2], ids=[1, 2], consider=[True, False])
+    assert gt.scores is None and gt.num_considered == 1 and gt.targets.tolist() == [True, False]
+    assert repr(gt) == "Detections(2 boxes, with no scores, ids, frames, consider)"
+    assert Detections(gt.boxes).num_considered == 2 and Detections(gt.boxes).targets.all()
+    with pytest.warns(DeprecationWarning):
+        boxes, scores = gt
+    assert scores is None
+
+
+def test_is_oncoming_and_with_ids():
+    d = _dets(3, part=[MAIN_PART, ONCOMING_PART, MAIN_PART])
+    assert d.is_oncoming.tolist() == [False, True, False]
+    assert _dets(3).is_oncoming.tolist() == [False, False, False]
     t = d.with_ids(np.array([4, 5, 6]))
     assert t.ids.tolist() == [4, 5, 6] and d.ids is None  # a new object; the original unchanged
     np.testing.assert_array_equal(t.part, d.part)

@@ -20,7 +20,8 @@ import numpy as np
 
 from ..errors import FastdetError
 from ..io.atomic import atomic_path
-from ..io.motfiles import Predictions, read_predictions
+from ..detections import Detections
+from ..io.motfiles import read_predictions
 
 try:  # Parquet only; the CSV table needs nothing
     import pyarrow as pa
@@ -58,13 +59,13 @@ def _score(v: float) -> str:
     return np.format_float_positional(np.float32(v), unique=True, trim="-")
 
 
-def _write_parquet(tmp: Path, videos: Iterable[tuple[str, Predictions]]) -> int:
+def _write_parquet(tmp: Path, videos: Iterable[tuple[str, Detections]]) -> int:
     rows = 0
     schema = _schema()
     with pq.ParquetWriter(tmp, schema) as writer:
         for name, p in videos:
             n = len(p)
-            b = p.boxes
+            b = p.boxes.astype(np.float64)
             writer.write_table(pa.table({
                 "video": pa.array([name] * n, pa.string()), "frame": p.frames.astype(np.int32), "id": p.ids,
                 "x1": b[:, 0], "y1": b[:, 1], "x2": b[:, 2], "y2": b[:, 3],
@@ -75,7 +76,7 @@ def _write_parquet(tmp: Path, videos: Iterable[tuple[str, Predictions]]) -> int:
     return rows
 
 
-def _write_csv(tmp: Path, videos: Iterable[tuple[str, Predictions]]) -> int:
+def _write_csv(tmp: Path, videos: Iterable[tuple[str, Detections]]) -> int:
     rows = 0
     with open(tmp, "w", encoding="utf-8", newline="") as fh:
         w = csv.writer(fh, lineterminator="\n")

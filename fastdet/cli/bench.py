@@ -47,6 +47,7 @@ import numpy as np
 
 from ..console import quiet_native_stderr
 from ..data import data_dir
+from ..detect import Detector
 from ..detect.checks import check_frame
 from ..errors import DataError, FastdetError
 from ..io.images import check_image
@@ -136,7 +137,7 @@ def load_frames(path: str | os.PathLike, n: int) -> tuple[list, str, float | Non
     return frames, "video", 1e3 * decode / len(frames)
 
 
-def _detector(args: argparse.Namespace) -> Any:
+def _detector(args: argparse.Namespace) -> Detector:
     try:
         return make_detector(pipeline_config(args))
     except FastdetError:
@@ -214,8 +215,8 @@ def run(args: argparse.Namespace) -> int:
         runs = time_stages(vd, frames, args.repeat)
 
         h, w = frames[0].shape[:2]
-        n_bands = sum(len(sc.search.bands) for sc in getattr(det, "scorers", []))
-        models = "main model" if det.wide_model is None else "main + oncoming model"
+        n_bands = sum(len(sc.search.bands) for sc in det.scorers)
+        models = "main model" if det.oncoming_model is None else "main + oncoming model"
         try:
             layer = numba.threading_layer()
         except ValueError:

@@ -6,13 +6,14 @@ import json
 import sys
 from pathlib import Path
 
+from ..detections import Detections
 from ..errors import DataError, FastdetError
 from ..eval.clips import annotated_clips, markdown_table, report_json, score_clip
 from ..eval.metrics import evaluate
 from ..eval.report import format_table, plot_pr
 from ..io.atomic import write_bytes
 from ..io.keyframes import keyframes_for, keyframes_path, read_keyframes
-from ..io.motfiles import Predictions, read_gt, read_predictions
+from ..io.motfiles import read_gt, read_predictions
 from ..io.paths import bundled_models, check_paths
 from ..io.reader import check_source
 from ..video.run import iter_video_detections
@@ -79,10 +80,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plot", metavar="PR.png", help="write the precision-recall curve as a PNG")
 
 
-def _video_predictions(video: str, args: argparse.Namespace) -> Predictions:
+def _video_predictions(video: str, args: argparse.Namespace) -> Detections:
     check_source(video)
     frames = iter_video_detections(video, pipeline_config(args), progress=True, offline=getattr(args, "offline", False))
-    return Predictions.from_frames(frames, source=video)
+    return Detections.from_frames(frames, source=video)
 
 
 def _frame_rows(video: str | Path) -> int:
@@ -99,7 +100,7 @@ def _frame_rows(video: str | Path) -> int:
     return rows
 
 
-def _clip_predictions(pred_dir: str, name: str) -> Predictions:
+def _clip_predictions(pred_dir: str, name: str) -> Detections:
     for ext in (".txt", ".jsonl"):
         p = Path(pred_dir) / f"{name}{ext}"
         if p.is_file():

@@ -38,9 +38,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="MOTChallenge ground truth: windows touching any annotated box are not negatives")
     p.add_argument("--margin", type=int, default=8, help="px added around each annotated box (default 8)")
     p.add_argument("--model", type=Path, default=None, help="main model file (default: the bundled model)")
-    p.add_argument("--wide-model", type=Path, default=None, help="wide-window model file (for --part wide)")
-    p.add_argument("--part", choices=("main", "wide"), default="main",
-                   help="mine the windows of the main (square) model or of the wide-window model")
+    p.add_argument("--oncoming-model", "--wide-model", dest="oncoming_model", type=Path, default=None,
+                   help="oncoming-traffic (wide-window) model file, for --part oncoming (--wide-model: its "
+                        "former name)")
+    p.add_argument("--part", choices=("main", "oncoming", "wide"), default="main",
+                   help="mine the windows of the main (square) model or of the oncoming-traffic (wide-window) "
+                        "model ('wide': its former name)")
     p.add_argument("--threshold", type=float, default=None,
                    help="decision value a window needs to count as positive (default: the search's own); "
                         "lower it to mine near misses too")
@@ -83,19 +86,21 @@ def run(args: argparse.Namespace) -> int:
     if args.x_range is None and args.y_range is None and args.gt is None:
         raise FastdetError("say where there are no vehicles: --x-range/--y-range and/or --gt")
     _check_options(args)
-    if args.part == "wide" and args.wide_model is None:
-        raise FastdetError("--part wide needs --wide-model")
+    if args.part == "wide":
+        args.part = "oncoming"
+    if args.part == "oncoming" and args.oncoming_model is None:
+        raise FastdetError("--part oncoming needs --oncoming-model")
     if source_kind(str(args.video)) == "file" and not args.video.exists():
         raise DataError(f"{args.video}: file not found")
     _check_out(args.out)
     gt = None
     if args.gt is not None:
         gt = read_gt(args.gt)
-    det = Detector(args.model, wide=args.wide_model)
+    det = Detector(args.model, oncoming=args.oncoming_model)
     if args.threshold is not None:
         for sc in det.scorers:
             sc.search = replace(sc.search, threshold=args.threshold)
-    win_cfg = det.config if args.part == "main" else det.wide_model.config
+    win_cfg = det.config if args.part == "main" else det.oncoming_model.config
     if args.video.is_file() and cv2.haveImageReader(str(args.video)):
         check_image(args.video)  # a truncated JPEG: one line, before any output
     # the input is opened (and its first frame checked) before --out is created

@@ -25,10 +25,13 @@ A new setting goes into its stage's dataclass (a field with a default and a chec
 ``__post_init__``); a new stage gets a module here with its dataclass and a field of
 :class:`PipelineConfig`.
 """
+import warnings
+from typing import Any
+
 from ._base import Config
 from .features import CELL, COLOR_SPACES, WINDOW, ColorSpace, FeatureConfig
 from .guided import GuidedSearch
-from .heat import ONCOMING_HEAT, SIDE_HEAT, WIDE_HEAT, BoxMode, HeatConfig, ScoreKind
+from .heat import ONCOMING_HEAT, SIDE_HEAT, BoxMode, HeatConfig, ScoreKind
 from .models import DEFAULT_MODEL_PATH, ONCOMING_MODEL_PATH, REFINE_MODEL_PATH, SIDE_MODEL_PATH
 from .motion import MotionGate
 from .ownvehicle import OwnVehicleConfig
@@ -41,14 +44,12 @@ from .search import (
                      REFERENCE_SHAPE,
                      SIDE_SEARCH,
                      TRAFFIC_SIDES,
-                     WIDE_SEARCH,
                      SearchBand,
                      SearchConfig,
                      Traffic,
                      check_traffic,
                      oncoming_search,
                      side_search,
-                     wide_search,
 )
 from .split import NeighbourSplit
 from .track import TrackerConfig
@@ -58,5 +59,16 @@ __all__ = ["BoxMode", "CELL", "COLOR_SPACES", "ColorSpace", "Config", "DEFAULT_M
            "ONCOMING_HEAT", "ONCOMING_MODEL_PATH", "ONCOMING_SEARCH", "OwnVehicleConfig", "PerspectiveConfig",
            "PipelineConfig", "REFERENCE_HORIZON", "REFERENCE_SHAPE", "REFINE_MODEL_PATH", "RefineConfig",
            "SIDE_HEAT", "SIDE_MODEL_PATH", "SIDE_SEARCH", "ScoreKind", "SearchBand", "SearchConfig", "TRAFFIC_SIDES",
-           "TrackerConfig", "Traffic", "WIDE_HEAT", "WIDE_SEARCH", "WINDOW", "check_traffic", "oncoming_search",
-           "side_search", "wide_search"]
+           "TrackerConfig", "Traffic", "WINDOW", "check_traffic", "oncoming_search", "side_search"]
+
+#: former names, kept for code written against them: ``WIDE_HEAT``, ``WIDE_SEARCH``, ``wide_search``
+_RENAMED = {"WIDE_HEAT": "ONCOMING_HEAT", "WIDE_SEARCH": "ONCOMING_SEARCH", "wide_search": "oncoming_search"}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _RENAMED:
+        new = _RENAMED[name]
+        warnings.warn(f"fastdet.config.{name} is deprecated; use fastdet.config.{new}", DeprecationWarning,
+                      stacklevel=2)
+        return globals()[new]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -148,6 +148,3 @@ ONCOMING_HEAT = HeatConfig(n_frames=1, threshold=8.0, extent=0.3, box_mode="exte
 #: heat map's memory and threshold, boxes wider than tall; its boxes join the main heat map's
 #: where those found nothing (docs/components.md)
 SIDE_HEAT = HeatConfig(max_aspect=1.0, min_height=10)
-
-#: former name of :data:`ONCOMING_HEAT`
-WIDE_HEAT = ONCOMING_HEAT

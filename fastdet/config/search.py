@@ -187,7 +187,7 @@ def oncoming_search(traffic: Traffic = "right") -> SearchConfig:
     drives on the ``'right'`` (oncoming cars on the left of the view: the default,
     :data:`ONCOMING_SEARCH`), on the ``'left'`` (the columns mirrored) or ``'both'`` (the whole
     width, about 15% more CPU per frame on footage whose roadside moves fast; docs/accuracy.md).
-    Give it as ``Detector(wide_search=...)``."""
+    Give it as ``Detector(oncoming_search=...)``."""
     check_traffic(traffic)
     return SearchConfig(bands=_oncoming_bands(traffic), cells_per_step=1, threshold=1.0)
 
@@ -231,6 +231,39 @@ def side_search() -> SearchConfig:
 #: default search of the side-view component
 SIDE_SEARCH = side_search()
 
-#: former names of :func:`oncoming_search` and :data:`ONCOMING_SEARCH`
-wide_search = oncoming_search
-WIDE_SEARCH = ONCOMING_SEARCH
+#: window widths of the large-vehicle search, in units of the main model's window (64 px) at
+#: the reference frame: 240 .. 448 px of 1280, past the main search's largest (192 px)
+LARGE_SCALES = (3.75, 4.5, 5.5, 7.0)
+#: decision value a window of the large-vehicle search must exceed (probability 0.982): at the
+#: main search's 0 its windows fire on the cars smaller than themselves and on clutter
+LARGE_THRESHOLD = 4.0
+
+
+def _large_bands(scales: tuple[float, ...] = LARGE_SCALES, above: float = 0.5,
+                 below: float = 1.2) -> tuple[SearchBand, ...]:
+    # A near vehicle w px wide stands with its bottom 0.4..1 w below the horizon (width over
+    # camera height 1..2.5: cars at an angle, SUVs, vans) and its top up to half its width
+    # above it (taller than the camera is high): windows of side w from ``above`` x w above the
+    # reference horizon to ``below`` x w below it, clipped to the frame, at least one window tall.
+    rows, hz = REFERENCE_SHAPE[0], REFERENCE_HORIZON * REFERENCE_SHAPE[0]
+    out = []
+    for s in scales:
+        w = WINDOW * s
+        y1 = min(rows, int(round(hz + below * w)))
+        y0 = max(0, min(int(round(hz - above * w)), y1 - int(-(-w // 1))))
+        out.append(SearchBand(s, y0, y1))
+    return tuple(out)
+
+
+def large_search() -> SearchConfig:
+    """A search of the main model for large and near vehicles (:data:`LARGE_SCALES`, windows
+    240-448 px wide at 1280x720, over the whole width and past its edges as the main search's,
+    positive above :data:`LARGE_THRESHOLD`). **Not part of the default search**: its windows
+    need a heat map of their own whose boxes join the main ones where those found nothing, as
+    a component's (``PipelineConfig(side=DEFAULT_MODEL_PATH, side_search=LARGE_SEARCH,
+    side_heat=HeatConfig())``; docs/geometry.md, "Large and near vehicles")."""
+    return SearchConfig(bands=_large_bands(), threshold=LARGE_THRESHOLD)
+
+
+#: the large-vehicle search of the main model (:func:`large_search`)
+LARGE_SEARCH = large_search()

@@ -21,6 +21,7 @@ from __future__ import annotations
 import os
 import threading
 import time
+import warnings
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
@@ -31,7 +32,7 @@ import numpy as np
 
 from .._numba import ensure_compiled
 from ..config import ONCOMING_SEARCH, SearchBand, SearchConfig
-from ..detections import FIRST_COMPONENT_PART, MAIN_PART, WIDE_PART, Detections
+from ..detections import FIRST_COMPONENT_PART, MAIN_PART, ONCOMING_PART, Detections
 from ..errors import ModelError
 from ..features import _hog_kernels
 from ..model import Model, load_model
@@ -65,12 +66,13 @@ class Detector:
     model: a :class:`~fastdet.model.Model`, a path to a model file, or ``None`` for the
         bundled default model (64x64 windows).
     search: where and how densely to search with it (default :class:`~fastdet.config.SearchConfig`).
-    wide: an optional second model with wide windows (``FeatureConfig.window_height`` <
-        ``window``, trained with ``fastdet train --window-rows``) for vehicles half hidden
-        behind a barrier, e.g. oncoming traffic above the median; ``None`` (default) = off.
-        The bundled one is ``fastdet.model.ONCOMING_MODEL_PATH``; :class:`fastdet.VideoDetector`
-        runs it by default, searching only where the picture moves (:mod:`fastdet.video.motion`).
-    wide_search: its search bands (default :data:`fastdet.config.ONCOMING_SEARCH`).
+    oncoming: an optional second model, for oncoming traffic: wide windows
+        (``FeatureConfig.window_height`` < ``window``, trained with ``fastdet train
+        --window-rows``) for vehicles half hidden behind a barrier, e.g. oncoming traffic above
+        the median; ``None`` (default) = off. The bundled one is
+        ``fastdet.config.ONCOMING_MODEL_PATH``; :class:`fastdet.VideoDetector` runs it by
+        default, searching only where the picture moves (:mod:`fastdet.video.motion`).
+    oncoming_search: its search bands (default :data:`fastdet.config.ONCOMING_SEARCH`).
     horizon: the horizon row of the frames, a fraction of their height, for every search
         (:attr:`SearchConfig.horizon <fastdet.config.SearchConfig>`: the bands move with it);
         ``None`` keeps the searches' own. Change it later with :meth:`set_horizon`.
@@ -81,9 +83,11 @@ class Detector:
         and join the main model's heat map in :class:`fastdet.VideoDetector`; the guided
         search plans their bands as the main model's (``columns``). All models must give the
         same kind of score (:attr:`Model.score_kind <fastdet.model.Model.score_kind>`).
+    wide, wide_search: the former names of ``oncoming`` and ``oncoming_search``; deprecated
+        (a :class:`DeprecationWarning`), they will be removed.
 
-    ``detect(frame)`` returns the positive windows of every model (``wide_bands`` narrows the
-    wide model's search); :class:`fastdet.VideoDetector` turns them into one box per vehicle
+    ``detect(frame)`` returns the positive windows of every model (``oncoming_bands`` narrows the
+    oncoming model's search); :class:`fastdet.VideoDetector` turns them into one box per vehicle
     with a heat map over recent frames.
     """
 
@@ -93,29 +97,38 @@ class Detector:
     kernels: ClassVar[tuple[Any, ...]] = KERNELS
 
     def __init__(self, model: Model | str | os.PathLike | None = None, search: SearchConfig | None = None,
-                 wide: Model | str | os.PathLike | None = None, wide_search: SearchConfig | None = None,
+                 oncoming: Model | str | os.PathLike | None = None, oncoming_search: SearchConfig | None = None,
                  horizon: float | None = None,
-                 components: Sequence[tuple[Model | str | os.PathLike, SearchConfig]] = ()):
+                 components: Sequence[tuple[Model | str | os.PathLike, SearchConfig]] = (), *,
+                 wide: Model | str | os.PathLike | None = None, wide_search: SearchConfig | None = None):
+        if wide is not None or wide_search is not None:
+            if oncoming is not None or oncoming_search is not None:
+                raise TypeError("Detector: give oncoming= and oncoming_search= (wide= and wide_search= are "
+                                "their former names), not both")
+            warnings.warn("Detector(wide=, wide_search=) is deprecated; use Detector(oncoming=, oncoming_search=)",
+                          DeprecationWarning, stacklevel=2)
+            oncoming, oncoming_search = wide, wide_search
         self.model = model if isinstance(model, Model) else load_model(model)
         if self.model.config.window_height is not None:
             name = "the main model" if model is None or isinstance(model, Model) else os.fspath(model)
             cfg = self.model.config
             raise ModelError(f"{name}: a wide-window model ({cfg.win_w}x{cfg.win_h} windows) cannot be the "
-                             f"main model, whose windows are square; give it as the oncoming (wide) model")
+                             f"main model, whose windows are square; give it as the oncoming model")
         self.search = search if search is not None else SearchConfig()
         self.config = self.model.config
         self.scorers = [_Scorer(self.model, self.search)]
         self.parts = [MAIN_PART]  # the Detections.part of each scorer's windows
-        self.wide_model = None
-        if wide is not None:
-            self.wide_model = wide if isinstance(wide, Model) else load_model(wide)
-            if self.wide_model.config.window_height is None:
-                name = "the wide model" if isinstance(wide, Model) else os.fspath(wide)
+        self.oncoming_model: Model | None = None
+        if oncoming is not None:
+            self.oncoming_model = oncoming if isinstance(oncoming, Model) else load_model(oncoming)
+            if self.oncoming_model.config.window_height is None:
+                name = "the oncoming model" if isinstance(oncoming, Model) else os.fspath(oncoming)
                 raise ModelError(f"{name}: not a wide-window model (its windows are square); "
                                  f"train one with `fastdet train --window-rows A B`")
-            self._check_kind(self.wide_model, wide, "the wide model")
-            self.scorers.append(_Scorer(self.wide_model, wide_search if wide_search is not None else ONCOMING_SEARCH))
-            self.parts.append(WIDE_PART)
+            self._check_kind(self.oncoming_model, oncoming, "the oncoming model")
+            self.scorers.append(_Scorer(self.oncoming_model,
+                                        oncoming_search if oncoming_search is not None else ONCOMING_SEARCH))
+            self.parts.append(ONCOMING_PART)
         self.components: list[Model] = []
         for i, (comp, comp_search) in enumerate(components):
             m = comp if isinstance(comp, Model) else load_model(comp)
@@ -144,8 +157,8 @@ class Detector:
     @property
     def main_parts(self) -> list[int]:
         """The parts whose windows are vehicles' whole boxes (the main model and every
-        component; not the wide model's barrier-cut middle rows), in scorer order."""
-        return [p for p in self.parts if p != WIDE_PART]
+        component; not the oncoming model's barrier-cut middle rows), in scorer order."""
+        return [p for p in self.parts if p != ONCOMING_PART]
 
     @property
     def horizon(self) -> float | None:
@@ -174,7 +187,7 @@ class Detector:
     def band_scores(self, frame: np.ndarray, geo: BandGeometry, timings: dict[str, float] | None = None,
                     part: int = 0) -> np.ndarray:
         """Decision values of every window position of one band: ``(geo.ny, geo.nx) float64``
-        (``part`` 0: the main model, 1: the wide model)."""
+        (``part`` 0: the main model, 1: the oncoming model)."""
         return self._scorer_of[part].band_scores(frame, geo, timings)
 
     def _all_band_scores(self, frame: np.ndarray, geos: list, timings: dict[str, float],
@@ -277,14 +290,14 @@ class Detector:
         return [(p, g) for p in self.main_parts for g in self._scorer_of[p].geometries(frame_shape)]
 
     def detect(self, frame: np.ndarray, rgb: bool = False,
-               wide_bands: Sequence[SearchBand] | None = None, stats: DetectStats | None = None,
+               oncoming_bands: Sequence[SearchBand] | None = None, stats: DetectStats | None = None,
                columns: Sequence[Sequence[tuple[int, int]] | None] | None = None) -> Detections:
         """Positive windows of one frame.
 
         frame: ``(H, W, 3) uint8``, BGR (OpenCV's order) or RGB with ``rgb=True``.
-        wide_bands: bands (in this frame's pixels) for the wide model to search instead of
+        oncoming_bands: bands (in this frame's pixels) for the oncoming model to search instead of
             its own search's; an empty list skips it. :class:`fastdet.VideoDetector` passes
-            the parts of the wide search where the picture moves (:mod:`fastdet.video.motion`).
+            the parts of the oncoming search where the picture moves (:mod:`fastdet.video.motion`).
         stats: a :class:`DetectStats` to record stage times and every band's decision values
             into (optional).
         columns: which windows of the main model's and the components' bands to score, one
@@ -299,7 +312,7 @@ class Detector:
         x1, y1, x2, y2 (exclusive) in frame pixels, ``scores (N,) float32`` (the probability of
         "vehicle" for logistic-regression models, the decision value for LinearSVC; both
         models have the same kind), ``scale`` (the window's band scale) and ``part``
-        (``MAIN_PART``, ``WIDE_PART``, or ``FIRST_COMPONENT_PART + i`` for component ``i``).
+        (``MAIN_PART``, ``ONCOMING_PART``, or ``FIRST_COMPONENT_PART + i`` for component ``i``).
         A window is positive when its decision value
         exceeds its model's ``search.threshold``.
         """
@@ -312,13 +325,13 @@ class Detector:
         geos = self.main_geometries(frame.shape[:2])
         if columns is not None and len(columns) > len(geos):
             raise ValueError(f"columns: {len(columns)} entries for {len(geos)} bands")
-        if self.wide_model is not None:
-            sc = self._scorer_of[WIDE_PART]
-            if wide_bands is None:
-                geos += [(WIDE_PART, g) for g in sc.geometries(frame.shape[:2])]
+        if self.oncoming_model is not None:
+            sc = self._scorer_of[ONCOMING_PART]
+            if oncoming_bands is None:
+                geos += [(ONCOMING_PART, g) for g in sc.geometries(frame.shape[:2])]
             else:
-                geos += [(WIDE_PART, band_geometry(b, frame.shape[:2], sc.config, sc.search.cells_per_step))
-                         for b in wide_bands]
+                geos += [(ONCOMING_PART, band_geometry(b, frame.shape[:2], sc.config, sc.search.cells_per_step))
+                         for b in oncoming_bands]
         boxes, decs, scales, parts = [], [], [], []
         for (part, geo), dec in zip(geos, self._all_band_scores(frame, geos, timings, columns)):
             sc = self._scorer_of[part]

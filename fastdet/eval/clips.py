@@ -28,8 +28,9 @@ from typing import Any
 import numpy as np
 
 from ..data import data_dir
+from ..detections import Detections
 from ..io.keyframes import GT_SUFFIX, keyframes_for
-from ..io.motfiles import GroundTruth, Predictions, read_gt
+from ..io.motfiles import read_gt
 from .metrics import EvalResult, evaluate
 from .sizes import REPORT_EDGES, WidthBin, recall_by_width
 
@@ -46,7 +47,7 @@ class AnnotatedClip:
     video: Path
     gt_path: Path
 
-    def gt(self) -> GroundTruth:
+    def gt(self) -> Detections:
         return read_gt(self.gt_path)
 
     def keyframes(self) -> np.ndarray | None:
@@ -86,7 +87,7 @@ class ClipScore:
         return r
 
 
-def score_clip(name: str, gt: GroundTruth, preds: Predictions, frame_rows: int,
+def score_clip(name: str, gt: Detections, preds: Detections, frame_rows: int,
                keyframes: np.ndarray | None = None, iou: float = 0.5,
                edges: tuple[float, ...] = REPORT_EDGES) -> ClipScore:
     """Score one clip's predictions (module docstring); ``frame_rows``: the video's height in

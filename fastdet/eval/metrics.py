@@ -74,8 +74,8 @@ from typing import Any
 import numpy as np
 
 from ..boxes import iou as box_iou
+from ..detections import Detections
 from ..errors import DataError, FastdetError
-from ..io.motfiles import GroundTruth, Predictions
 from .hota import hota
 from .matching import average_precision, match_frame, precision_envelope
 
@@ -171,9 +171,19 @@ def _frame_groups(frames: np.ndarray) -> dict[int, np.ndarray]:
     return {int(frames[idx[0]]): idx for idx in np.split(order, cuts)}
 
 
+def _check_tables(gt: Detections, preds: Detections) -> None:
+    """``ValueError`` unless ``gt`` has a ``frames`` column and ``preds`` ``frames`` and ``scores``
+    (tables of a clip: :func:`fastdet.io.motfiles.read_gt`, :meth:`Detections.from_frames
+    <fastdet.detections.Detections.from_frames>`)."""
+    for table, what, need in ((gt, "ground truth", ("frames",)), (preds, "predictions", ("frames", "scores"))):
+        missing = [c for c in need if getattr(table, c) is None]
+        if missing:
+            raise ValueError(f"{what} ({table.source}): a table of a clip needs {' and '.join(missing)}")
+
+
 def evaluate(
-    gt: GroundTruth,
-    preds: Predictions,
+    gt: Detections,
+    preds: Detections,
     iou: float = 0.5,
     num_frames: int | None = None,
     tracking: bool | None = None,
@@ -181,6 +191,10 @@ def evaluate(
 ) -> EvalResult:
     """Score ``preds`` against ``gt`` at IoU threshold ``iou`` (see the module docstring).
 
+    gt: the ground truth of a clip (``frames``, ``ids``, ``boxes``, ``consider``; no
+        ``consider`` column: every box is a target).
+    preds: the predictions of the clip (``frames``, ``boxes``, ``scores``, ``ids``: -1 or no
+        column for untracked boxes).
     num_frames: evaluate frames ``1..num_frames`` (default: the last GT frame).
     tracking: compute MOT metrics; default when the predictions carry ids.
     keyframes: ``(K,)`` frame numbers: evaluate those frames only (module docstring,
@@ -188,6 +202,8 @@ def evaluate(
     """
     if not (0.0 < iou <= 1.0):
         raise ValueError(f"iou threshold must be in (0, 1], got {iou}")
+    _check_tables(gt, preds)
+    consider = gt.targets
     if keyframes is not None:
         if num_frames is not None:
             raise ValueError("give num_frames or keyframes, not both")
@@ -217,7 +233,7 @@ def evaluate(
     dropped = np.zeros(n, bool)
     for f, pidx in p_groups.items():
         gidx = g_groups.get(f, np.zeros(0, np.int64))
-        cons = gt.consider[gidx]
+        cons = consider[gidx]
         t, d, _ = match_frame(
             preds.boxes[pidx], preds.scores[pidx], gt.boxes[gidx[cons]], gt.boxes[gidx[~cons]], iou
         )
@@ -225,8 +241,8 @@ def evaluate(
         dropped[pidx] = d
 
     evaluated = p_in & ~dropped
-    num_gt = int((gt.consider & g_in).sum())
-    num_ignore = int((~gt.consider & g_in).sum())
+    num_gt = int((consider & g_in).sum())
+    num_ignore = int((~consider & g_in).sum())
     n_tp = int(tp.sum())
     n_fp = int((evaluated & ~tp).sum())
     n_fn = num_gt - n_tp
@@ -277,8 +293,8 @@ def _check_unique(ids: np.ndarray, what: str, source: str, frame: int) -> None:
 
 
 def _mot_metrics(
-    gt: GroundTruth,
-    preds: Predictions,
+    gt: Detections,
+    preds: Detections,
     g_groups: dict[int, np.ndarray],
     p_groups: dict[int, np.ndarray],
     dropped: np.ndarray,
@@ -292,7 +308,9 @@ def _mot_metrics(
     except ImportError as exc:  # pragma: no cover - it is a dependency
         raise FastdetError(f"MOT metrics need the motmetrics package ({exc})") from None
 
-    pids = preds.ids.copy()
+    if gt.ids is None:
+        raise ValueError(f"ground truth ({gt.source}): MOT metrics need its ids")
+    pids = preds.ids.copy() if preds.ids is not None else np.full(len(preds), -1, np.int64)
     untracked = np.flatnonzero(pids == -1)
     if untracked.size:  # each untracked box is a track of its own
         start = int(max(pids.max(initial=-1), -1)) + 1
@@ -305,7 +323,7 @@ def _mot_metrics(
         empty = np.zeros(0, np.int64)
         for f in scored.tolist():
             gidx = g_groups.get(f, empty)
-            gidx = gidx[gt.consider[gidx]]
+            gidx = gidx[gt.targets[gidx]]
             pidx = p_groups.get(f, empty)
             pidx = pidx[~dropped[pidx]]
             oids, hids = gt.ids[gidx], pids[pidx]

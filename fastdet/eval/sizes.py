@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..io.motfiles import GroundTruth, Predictions
+from ..detections import Detections
 from .metrics import match_frame
 
 #: default bin edges (reference pixels): 40-60, 60-80, 80-100, 100+
@@ -41,7 +41,7 @@ class WidthBin:
         return f"<{self.hi:g}" if self.lo <= 0 else f"{self.lo:g}-{self.hi:g}"
 
 
-def recall_by_width(gt: GroundTruth, preds: Predictions, frame_rows: int, iou: float = 0.5,
+def recall_by_width(gt: Detections, preds: Detections, frame_rows: int, iou: float = 0.5,
                     edges: tuple[float, ...] = WIDTH_EDGES, ref_rows: int = 720,
                     num_frames: int | None = None, keyframes: np.ndarray | None = None) -> list[WidthBin]:
     """Matched targets per width bin (module docstring); targets narrower than ``edges[0]``
@@ -52,11 +52,12 @@ def recall_by_width(gt: GroundTruth, preds: Predictions, frame_rows: int, iou: f
     found = np.zeros(len(edges) - 1, np.int64)
     total = np.zeros(len(edges) - 1, np.int64)
     scored = gt.frames <= last if keyframes is None else np.isin(gt.frames, np.asarray(keyframes, np.int64))
-    for f in np.unique(gt.frames[gt.consider & scored]):
+    consider = gt.targets
+    for f in np.unique(gt.frames[consider & scored]):
         g = np.flatnonzero(gt.frames == f)
-        tgt = g[gt.consider[g]]
+        tgt = g[consider[g]]
         p = np.flatnonzero(preds.frames == f)
-        _, _, gi = match_frame(preds.boxes[p], preds.scores[p], gt.boxes[tgt], gt.boxes[g[~gt.consider[g]]], iou)
+        _, _, gi = match_frame(preds.boxes[p], preds.scores[p], gt.boxes[tgt], gt.boxes[g[~consider[g]]], iou)
         hit = np.zeros(len(tgt), bool)
         hit[gi[gi >= 0]] = True
         w = (gt.boxes[tgt, 2] - gt.boxes[tgt, 0]) * factor

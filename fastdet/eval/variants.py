@@ -35,12 +35,12 @@ re-applied to the transformed picture:
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
 
-from ..io.motfiles import GroundTruth
+from ..detections import Detections
 
 #: rows of the reference frame the annotation rules are stated in (1280x720)
 REF_ROWS = 720
@@ -229,11 +229,11 @@ class Variant:
         return b, region
 
 
-def transform_gt(gt: GroundTruth, variant: Variant, shape: tuple[int, int], min_width: float = MIN_TARGET_WIDTH,
-                 min_visible: float = MIN_VISIBLE, ref_rows: int = REF_ROWS) -> GroundTruth:
+def transform_gt(gt: Detections, variant: Variant, shape: tuple[int, int], min_width: float = MIN_TARGET_WIDTH,
+                 min_visible: float = MIN_VISIBLE, ref_rows: int = REF_ROWS) -> Detections:
     """The ground truth of ``variant`` of a clip whose frames have ``shape = (H, W)`` (module
     docstring: moved, clipped to the picture, the annotation rules re-applied)."""
-    moved, region = variant.boxes(gt.boxes, shape)
+    moved, region = variant.boxes(gt.boxes.astype(np.float64), shape)
     clipped = np.stack([np.clip(moved[:, 0], region[0], region[2]), np.clip(moved[:, 1], region[1], region[3]),
                         np.clip(moved[:, 2], region[0], region[2]), np.clip(moved[:, 3], region[1], region[3])], 1)
     cw, ch = clipped[:, 2] - clipped[:, 0], clipped[:, 3] - clipped[:, 1]
@@ -242,9 +242,8 @@ def transform_gt(gt: GroundTruth, variant: Variant, shape: tuple[int, int], min_
     visible = cw * ch / full
     ref_w = cw * ref_rows / variant.out_shape(shape)[0]
     tol = 1e-9  # a resize must not turn a 40.0-px car into 39.999...
-    consider = gt.consider & (visible >= min_visible - tol) & (ref_w >= min_width - tol)
-    return GroundTruth(gt.frames[keep], gt.ids[keep], clipped[keep], consider[keep],
-                       source=f"{gt.source}#{variant.name}")
+    consider = gt.targets & (visible >= min_visible - tol) & (ref_w >= min_width - tol)
+    return replace(gt[keep], boxes=clipped[keep], consider=consider[keep], source=f"{gt.source}#{variant.name}")
 
 
 @dataclass(frozen=True)

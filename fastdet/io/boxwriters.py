@@ -1,5 +1,8 @@
 """Write box files frame by frame: MOTChallenge lines (:class:`MotWriter`) and JSON lines
-(:class:`JsonLinesWriter`); the formats are described in :mod:`fastdet.io.motfiles`.
+(:class:`JsonLinesWriter`); the formats are described in :mod:`fastdet.io.motfiles`. What
+they write is a :class:`~fastdet.detections.Detections` with scores: one frame's
+(:meth:`~_FrameWriter.write_detections`) or a whole table of many frames
+(:meth:`~_FrameWriter.write_table`).
 
 Each writer takes a path (written under a temporary name, renamed on close) or a text
 stream, and flushes after every frame so the file can be followed while a video runs.
@@ -10,14 +13,16 @@ import io
 import json
 import os
 from pathlib import Path
-from typing import IO, Sequence
+from typing import IO, Sequence, Union
 
 import numpy as np
 
 from ..boxes import xyxy_to_ltwh
+from ..detections import Detections
 from ..errors import WriteError
 from .atomic import commit, partial_name
-from .boxtables import PathLike
+
+PathLike = Union[str, "os.PathLike[str]"]
 
 
 def _fmt_score(s: float) -> str:
@@ -71,30 +76,24 @@ class _FrameWriter:
         self._failed = False
         self._result: Path | None = None
 
-    @staticmethod
-    def _check(frame: int, boxes, scores, ids) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+    def write(self, frame: int, boxes, scores, ids: Sequence[int] | np.ndarray | None = None) -> None:
+        """Write one frame's boxes (``(N, 4)`` x1, y1, x2, y2) and scores; ids default to -1."""
+        self.write_detections(frame, Detections(boxes, scores, ids=ids))
+
+    def write_detections(self, frame: int, det: Detections) -> None:
+        """Write one frame's :class:`~fastdet.detections.Detections` (its ``ids`` if it has
+        them, else -1); it needs scores, and a ``frames`` column, if it has one, must say
+        ``frame``."""
         frame = int(frame)
         if frame < 1:
             raise ValueError(f"frame must be >= 1 (1-based), got {frame}")
-        b = np.asarray(boxes)
-        if b.size == 0:
-            b = np.zeros((0, 4), b.dtype if b.dtype.kind in "iuf" else np.int32)
-        if b.ndim != 2 or b.shape[1] != 4:
-            raise ValueError(f"boxes must have shape (N, 4), got {b.shape}")
-        n = b.shape[0]
-        s = np.asarray(scores, dtype=np.float64).reshape(-1)
-        if s.shape[0] != n:
-            raise ValueError(f"{n} boxes but {s.shape[0]} scores")
-        i = np.full(n, -1, np.int64) if ids is None else np.asarray(ids, dtype=np.int64).reshape(-1)
-        if i.shape[0] != n:
-            raise ValueError(f"{n} boxes but {i.shape[0]} ids")
-        return frame, b, s, i
-
-    def write(self, frame: int, boxes, scores, ids: Sequence[int] | np.ndarray | None = None) -> None:
-        """Write one frame's boxes (``(N, 4)`` x1, y1, x2, y2) and scores; ids default to -1."""
-        frame, b, s, i = self._check(frame, boxes, scores, ids)
+        if det.scores is None:
+            raise ValueError("these boxes have no scores (ground truth?): a box file holds predictions")
+        if det.frames is not None and np.any(det.frames != frame):
+            raise ValueError(f"frame {frame}, but the rows say frames {sorted(set(det.frames.tolist()))}")
+        ids = det.ids if det.ids is not None else np.full(len(det), -1, np.int64)
         try:
-            self._f.write(self._format(frame, b, s, i))
+            self._f.write(self._format(frame, det.boxes, det.scores, ids))
             self._f.flush()
         except OSError as exc:
             self._failed = True
@@ -102,9 +101,13 @@ class _FrameWriter:
                             f"{self.frames_written} frames were written before it") from None
         self.frames_written += 1
 
-    def write_detections(self, frame: int, det) -> None:
-        """Write a :class:`~fastdet.detections.Detections` (uses its ``ids`` if it has them)."""
-        self.write(frame, det.boxes, det.scores, getattr(det, "ids", None))
+    def write_table(self, table: Detections) -> None:
+        """Write a table of many frames (a ``frames`` column, e.g. from
+        :meth:`Detections.from_frames <fastdet.detections.Detections.from_frames>` or
+        :func:`~fastdet.io.motfiles.read_predictions`): each frame that has rows, by ascending
+        frame, its rows in table order."""
+        for frame, rows in table.by_frame():
+            self.write_detections(frame, rows)
 
     def _format(self, frame: int, b: np.ndarray, s: np.ndarray, i: np.ndarray) -> str:
         raise NotImplementedError

@@ -140,7 +140,7 @@ def draw_windows(img: np.ndarray, windows: Detections, thickness: int = 1, scale
     the wide model's windows in the colour of the negated scale)."""
     boxes = windows.boxes
     scales = windows.scale if windows.scale is not None else np.ones(len(windows), np.float32)
-    scales = np.where(windows.is_wide, -scales, scales)
+    scales = np.where(windows.is_oncoming, -scales, scales)
     for b, s in zip(boxes, scales):
         x1, y1, x2, y2 = (int(round(v * scale)) for v in b)
         cv2.rectangle(img, (x1, y1), (max(x1, x2 - 1), max(y1, y2 - 1)), scale_color(s), thickness)

@@ -1,7 +1,10 @@
-"""Read MOTChallenge box files (and the JSON-lines box format of ``fastdet video``).
+"""Read MOTChallenge box files (and the JSON-lines box format of ``fastdet video``) into
+the one box table, :class:`~fastdet.detections.Detections`.
 
-The box tables live in :mod:`fastdet.io.boxtables` and the writers in
-:mod:`fastdet.io.boxwriters`; both are re-exported here.
+A file is a table of many frames: ground truth has ``frames``, ``ids``, ``boxes`` and
+``consider`` (no scores), predictions ``frames``, ``ids``, ``boxes`` and ``scores``; both
+keep the file's continuous coordinates (``float64`` boxes) and name the file in ``source``.
+The writers live in :mod:`fastdet.io.boxwriters` and are re-exported here.
 
 Formats
 -------
@@ -42,13 +45,13 @@ from typing import Any
 import numpy as np
 
 from ..boxes import ltwh_to_xyxy
+from ..detections import Detections
 from ..errors import DataError
-from .boxtables import GroundTruth, PathLike, Predictions, iter_frames
-from .boxwriters import JsonLinesWriter, MotWriter
+from .boxwriters import JsonLinesWriter, MotWriter, PathLike
 
 __all__ = [
     "GT_COLUMNS", "PRED_COLUMNS", "MIN_GT_COLUMNS", "MIN_PRED_COLUMNS", "MAX_COLUMNS", "MAX_FRAME", "MAX_ID",
-    "PathLike", "GroundTruth", "Predictions", "iter_frames", "MotWriter", "JsonLinesWriter",
+    "PathLike", "MotWriter", "JsonLinesWriter",
     "parse_gt", "parse_predictions", "parse_jsonl_predictions", "read_gt", "read_predictions",
 ]
 
@@ -143,8 +146,9 @@ def _parse_rows(text: str, source: str, min_cols: int, kind: str) -> tuple[np.nd
     return arr, linenos
 
 
-def parse_gt(text: str, source: str = "<string>") -> GroundTruth:
-    """Ground truth from the text of a MOTChallenge ``gt.txt`` (see module docstring)."""
+def parse_gt(text: str, source: str = "<string>") -> Detections:
+    """Ground truth from the text of a MOTChallenge ``gt.txt`` (see module docstring): a
+    table with ``frames``, ``ids``, ``boxes`` and ``consider``, no scores."""
     arr, linenos = _parse_rows(text, source, MIN_GT_COLUMNS, "ground truth")
     consider = arr[:, 6].copy()
     consider[np.isnan(consider)] = 1.0
@@ -152,30 +156,32 @@ def parse_gt(text: str, source: str = "<string>") -> GroundTruth:
     if bad.size:
         k = int(bad[0])
         raise DataError(f"{source}: line {linenos[k]}: consider must be 0 or 1, got {arr[k, 6]:g}")
-    return GroundTruth(
+    return Detections(
+        ltwh_to_xyxy(arr[:, 2:6]),
         frames=arr[:, 0].astype(np.int64),
         ids=arr[:, 1].astype(np.int64),
-        boxes=ltwh_to_xyxy(arr[:, 2:6]),
         consider=consider.astype(bool),
         source=source,
     )
 
 
-def parse_predictions(text: str, source: str = "<string>") -> Predictions:
-    """Predictions from the text of a MOTChallenge detection / tracker file."""
+def parse_predictions(text: str, source: str = "<string>") -> Detections:
+    """Predictions from the text of a MOTChallenge detection / tracker file: a table with
+    ``frames``, ``ids``, ``boxes`` and ``scores``."""
     arr, _ = _parse_rows(text, source, MIN_PRED_COLUMNS, "predictions")
-    return Predictions(
+    return Detections(
+        ltwh_to_xyxy(arr[:, 2:6]),
+        arr[:, 6].copy(),
         frames=arr[:, 0].astype(np.int64),
         ids=arr[:, 1].astype(np.int64),
-        boxes=ltwh_to_xyxy(arr[:, 2:6]),
-        scores=arr[:, 6].copy(),
         source=source,
     )
 
 
-def parse_jsonl_predictions(text: str, source: str = "<string>") -> Predictions:
-    """Predictions from JSON lines as written by :class:`JsonLinesWriter`."""
-    frames: list[tuple[int, tuple]] = []
+def parse_jsonl_predictions(text: str, source: str = "<string>") -> Detections:
+    """Predictions from JSON lines as written by :class:`JsonLinesWriter` (a table as
+    :func:`parse_predictions` gives)."""
+    frames: list[tuple[int, Detections]] = []
     for lineno, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
         if not line:
@@ -220,11 +226,11 @@ def parse_jsonl_predictions(text: str, source: str = "<string>") -> Predictions:
                 raise ValueError("negative box size (x2 < x1 or y2 < y1)")
         except (TypeError, ValueError) as exc:
             raise DataError(f"{where}: {exc}") from None
-        frames.append((frame, (boxes, scores, ids)))
-    return Predictions.from_frames(frames, source=source)
+        frames.append((frame, Detections(boxes, scores, ids=ids)))
+    return Detections.from_frames(frames, source=source)
 
 
-def read_gt(path: PathLike) -> GroundTruth:
+def read_gt(path: PathLike) -> Detections:
     """Read a MOTChallenge ground-truth file. An empty file is an error."""
     text, name = _read_text(path)
     gt = parse_gt(text, name)
@@ -233,7 +239,7 @@ def read_gt(path: PathLike) -> GroundTruth:
     return gt
 
 
-def read_predictions(path: PathLike) -> Predictions:
+def read_predictions(path: PathLike) -> Detections:
     """Read predictions: MOTChallenge text, or JSON lines when the name ends in ``.jsonl``/``.json``.
 
     An empty file is valid (the detector found nothing).

@@ -338,3 +338,14 @@ class FrameReader:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def read_frames(source: str | os.PathLike | int, start: int = 0, frames: int | None = None,
+                notify: Callable[[str], None] | None = None) -> list[np.ndarray]:
+    """Every frame of ``source`` that decodes (after skipping ``start``, at most ``frames``),
+    in order: what a :class:`FrameReader` yields, ``(H, W, 3) uint8`` BGR each, for the
+    studies and tests that hold a whole clip in memory. ``notify`` as :class:`FrameReader`'s
+    (default :func:`fastdet.console.note`). Raises :class:`~fastdet.errors.DataError` for a
+    source that does not open or has no frames."""
+    with FrameReader(source, start, frames, notify=notify) as reader:
+        return [frame for _, frame, _ in reader]

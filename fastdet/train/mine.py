@@ -4,8 +4,8 @@ Classic hard-negative mining. A positive window is a *false* alarm when it lies 
 vehicle is: inside ``--x-range``/``--y-range`` (a region you know to be empty), and, with
 ``--gt``, touching no annotated box at all (targets and ignore regions alike, so a
 partially visible or far-away car is never saved as a negative). Each such window is cut
-from the frame, resized to its model's window size (64x64 for the main model, e.g. 64x32
-for the wide one, chosen with ``--part``) and written as a PNG; ``fastdet train
+from the frame, resized to its model's window size (64x64 for the main model, e.g. 64x24
+for the oncoming-traffic one, chosen with ``--part``) and written as a PNG; ``fastdet train
 --negatives DIR`` then adds them to the training negatives of that kind of model.
 """
 from __future__ import annotations
@@ -16,7 +16,7 @@ import numpy as np
 from ..boxes import intersection
 from ..config import FeatureConfig
 from ..detect import Detector
-from ..detections import MAIN_PART, WIDE_PART
+from ..detections import MAIN_PART, ONCOMING_PART
 
 
 def false_windows(boxes: np.ndarray, x_range=None, y_range=None, gt_boxes: np.ndarray | None = None) -> np.ndarray:
@@ -34,10 +34,12 @@ def false_windows(boxes: np.ndarray, x_range=None, y_range=None, gt_boxes: np.nd
 def hard_negatives(det: Detector, frame: np.ndarray, part: str, win_cfg: FeatureConfig, x_range=None,
                    y_range=None, gt_boxes: np.ndarray | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
     """``[(box (4,), crop (win_h, win_w, 3) uint8)]``: the positive windows of model ``part``
-    (``"main"`` or ``"wide"``) in ``frame`` that :func:`false_windows` calls false, cut
+    (``"main"`` or ``"oncoming"``) in ``frame`` that :func:`false_windows` calls false, cut
     from the frame and resized to the model's window (``INTER_AREA``)."""
     d = det.detect(frame)
-    want = MAIN_PART if part == "main" else WIDE_PART
+    if part not in ("main", "oncoming"):
+        raise ValueError(f"part must be 'main' or 'oncoming', got {part!r}")
+    want = MAIN_PART if part == "main" else ONCOMING_PART
     d = d[d.part == want]
     out = []
     for i in false_windows(d.boxes, x_range, y_range, gt_boxes):

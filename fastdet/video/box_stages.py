@@ -9,7 +9,7 @@ from ..boxes import clip, overlap_fraction
 from ..config import HeatConfig, RefineConfig
 from ..detections import FIRST_COMPONENT_PART, MAIN_PART, Detections
 from .detector import WindowDetector
-from .fusion import merge_wide
+from .fusion import merge_oncoming
 from .guided import SearchPlanner
 from .heatmap import HeatMap
 from .refine import BoxRegressor, refine
@@ -50,7 +50,7 @@ class HeatStage(Stage):
 class _ExtraHeatStage(Stage):
     """A heat map of its own for windows other than the main model's, sized to the frame
     (a frame of another size starts a new one); its boxes go where the main heat map found
-    nothing (:func:`fastdet.video.fusion.merge_wide`)."""
+    nothing (:func:`fastdet.video.fusion.merge_oncoming`)."""
 
     def __init__(self, detector: WindowDetector, config: HeatConfig) -> None:
         self.detector, self.config = detector, config
@@ -68,24 +68,24 @@ class _ExtraHeatStage(Stage):
 
 class FusionStage(_ExtraHeatStage):
     """The oncoming model's heat map; its boxes are added where the main heat map found
-    nothing (:func:`fastdet.video.fusion.merge_wide`)."""
+    nothing (:func:`fastdet.video.fusion.merge_oncoming`)."""
 
     name = "fusion"
 
     def __call__(self, s: FrameState) -> FrameState:
         hw = self._heatmap_for(s)
-        wide = s.windows.is_wide
-        if not wide.any() and hw.config.n_frames == 1:
+        oncoming = s.windows.is_oncoming
+        if not oncoming.any() and hw.config.n_frames == 1:
             hw.reset()  # no memory and no windows: no heat, no boxes
         else:
-            s.boxes = s.out = merge_wide(s.boxes, hw.update(s.windows[wide]))
+            s.boxes = s.out = merge_oncoming(s.boxes, hw.update(s.windows[oncoming]))
         return s
 
 
 class ComponentStage(_ExtraHeatStage):
     """The heat map of the detector's components' windows (e.g. the side-view component,
     ``Detector(components=...)``: parts ``FIRST_COMPONENT_PART`` and up); its boxes are added
-    where the main heat map found nothing (:func:`fastdet.video.fusion.merge_wide`). One heat
+    where the main heat map found nothing (:func:`fastdet.video.fusion.merge_oncoming`). One heat
     map for them all, apart from the main model's: windows of another shape in the main heat
     map stretch the boxes of the cars the main model finds (docs/components.md)."""
 
@@ -95,14 +95,14 @@ class ComponentStage(_ExtraHeatStage):
         hm = self._heatmap_for(s)
         w = s.windows
         mine = w[w.part >= FIRST_COMPONENT_PART] if w.part is not None else w[:0]
-        s.boxes = s.out = merge_wide(s.boxes, hm.update(mine))
+        s.boxes = s.out = merge_oncoming(s.boxes, hm.update(mine))
         return s
 
 
 class WeakStage(Stage):
     """The tracker's low-confidence boxes: the weak blobs of the heat maps above ``low_heat``
     x their thresholds (:meth:`HeatMap.weak_boxes`), less those with more than 0.2 of their
-    area inside a heat-map box (as :func:`merge_wide`)."""
+    area inside a heat-map box (as :func:`merge_oncoming`)."""
 
     name = "weak"
 
@@ -178,7 +178,7 @@ class ObserveStage(Stage):
 
     def __call__(self, s: FrameState) -> FrameState:
         w = s.windows
-        main = w[~w.is_wide] if w.part is not None else w
+        main = w[~w.is_oncoming] if w.part is not None else w
         tracks, lost = [], False
         if self.tracker is not None:
             frame = self.tracker.frame

@@ -20,10 +20,10 @@ class WindowDetector(Protocol):
     """What :class:`~fastdet.VideoDetector` needs of a detector (:class:`fastdet.Detector` is one).
 
     ``score_kind``: ``"probability"`` or ``"decision"`` (how the heat map scales scores);
-    ``wide_model``: the oncoming-traffic (wide-window) model or ``None``; ``detect`` returns
+    ``oncoming_model``: the oncoming-traffic (wide-window) model or ``None``; ``detect`` returns
     the positive windows with the ``part`` column set (or no ``part``: all main-model
     windows); ``geometries(shape, part=1)`` the oncoming model's bands (used only when
-    ``wide_model`` is not ``None``, for the motion gate).
+    ``oncoming_model`` is not ``None``, for the motion gate).
 
     Optional abilities, used when the detector has them: :class:`MovableHorizon` (the bands
     follow the horizon), :class:`ColumnSearch` (the guided search) and :class:`HasKernels`
@@ -33,9 +33,9 @@ class WindowDetector(Protocol):
     def score_kind(self) -> str: ...
 
     @property
-    def wide_model(self) -> Model | None: ...
+    def oncoming_model(self) -> Model | None: ...
 
-    def detect(self, frame: np.ndarray, rgb: bool = False, wide_bands: Sequence[SearchBand] | None = None,
+    def detect(self, frame: np.ndarray, rgb: bool = False, oncoming_bands: Sequence[SearchBand] | None = None,
                stats: DetectStats | None = None) -> Detections: ...
 
     def warmup(self) -> None: ...
@@ -65,7 +65,7 @@ class ColumnSearch(Protocol):
 
     column_search: Literal[True]
 
-    def detect(self, frame: np.ndarray, rgb: bool = False, wide_bands: Sequence[SearchBand] | None = None,
+    def detect(self, frame: np.ndarray, rgb: bool = False, oncoming_bands: Sequence[SearchBand] | None = None,
                stats: DetectStats | None = None,
                columns: Sequence[Sequence[tuple[int, int]] | None] | None = None) -> Detections: ...
 
@@ -106,5 +106,5 @@ def make_detector(config: PipelineConfig | None = None) -> Detector:
     c = config if config is not None else PipelineConfig()
     oncoming = ONCOMING_MODEL_PATH if c.oncoming is True else (c.oncoming or None)
     side = SIDE_MODEL_PATH if c.side is True else (c.side or None)
-    return Detector(model=c.model, search=c.search, wide=oncoming, wide_search=oncoming_search(c.traffic),
+    return Detector(model=c.model, search=c.search, oncoming=oncoming, oncoming_search=oncoming_search(c.traffic),
                     components=[(side, c.side_search)] if side is not None else ())

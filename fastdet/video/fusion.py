@@ -14,16 +14,16 @@ from ..boxes import overlap_fraction
 from ..detections import Detections
 
 
-def merge_wide(main: Detections, wide: Detections, max_overlap: float = 0.2) -> Detections:
-    """``main`` plus the boxes of ``wide`` that overlap no main box by more than
+def merge_oncoming(main: Detections, oncoming: Detections, max_overlap: float = 0.2) -> Detections:
+    """``main`` plus the boxes of ``oncoming`` that overlap no main box by more than
     ``max_overlap`` of their own area."""
-    if len(wide.boxes) == 0:
+    if len(oncoming.boxes) == 0:
         return main
     if len(main.boxes):
-        keep = overlap_fraction(wide.boxes, main.boxes).max(axis=1) <= max_overlap
+        keep = overlap_fraction(oncoming.boxes, main.boxes).max(axis=1) <= max_overlap
     else:
-        keep = np.ones(len(wide.boxes), bool)
+        keep = np.ones(len(oncoming.boxes), bool)
     if not keep.any():
         return main
-    return Detections(np.concatenate([main.boxes, wide.boxes[keep]]).astype(np.int32),
-                      np.concatenate([main.scores, wide.scores[keep]]).astype(np.float32))
+    return Detections(np.concatenate([main.boxes, oncoming.boxes[keep]]).astype(np.int32),
+                      np.concatenate([main.scores, oncoming.scores[keep]]).astype(np.float32))

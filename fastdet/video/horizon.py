@@ -16,18 +16,26 @@ yaw it); the estimate is the **median** over pairs :data:`GAP` frames apart
 gave one (the camera stood still) or they disagree by more than :data:`MAX_SPREAD` of the
 height (median absolute deviation).
 
+When the flow gives no estimate (the pairs disagree: a slow car in city traffic whose view
+is full of moving vehicles, a shaking motorcycle), the estimate falls back on the road's
+vanishing point: where the frame's line segments along the road meet
+(:mod:`fastdet.video.vanishing`), the median over the same frames, with the same
+:data:`MAX_SPREAD` test.
+
 One pair in three frames is measured until :data:`MAX_PAIRS` pairs gave a FOE (or
 :data:`HORIZON_FRAMES` frames went by). How close the estimate comes on the annotated clips and
 their camera-shift variants, and what it costs: docs/accuracy.md (*The horizon estimate*).
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 
 import cv2
 import numpy as np
 
 from ..config import REFERENCE_HORIZON
+from .vanishing import vanishing_point
 
 #: frames are shrunk to this many rows before tracking corners (speed; flow is smooth)
 WORK_ROWS = 360
@@ -37,6 +45,9 @@ MIN_FLOW = 1.0
 MIN_VECTORS = 20
 #: frames between the two frames of a pair (flow of a single frame is short)
 GAP = 2
+#: with a ``target_flow``, the gap grows up to this many frames until the pairs' median flow
+#: reaches it
+MAX_GAP = 12
 #: fewest frame pairs with a FOE before there is an estimate
 MIN_PAIRS = 5
 #: frames a video's horizon is estimated from (3 s at 25 fps); the estimate is then fixed
@@ -57,23 +68,22 @@ def _grey(frame: np.ndarray, rows: int) -> tuple[np.ndarray, float]:
     return cv2.cvtColor(small, cv2.COLOR_BGR2GRAY), f
 
 
-def focus_of_expansion(prev: np.ndarray, cur: np.ndarray, work_rows: int = WORK_ROWS) -> tuple[float, float] | None:
-    """``(x, y)`` in frame pixels of the point the flow from ``prev`` to ``cur`` (two
-    ``(H, W, 3) uint8`` frames, BGR or RGB) expands from; ``None`` when fewer than
-    :data:`MIN_VECTORS` corners moved or the point is outside the frame."""
-    rows = min(work_rows, prev.shape[0])
-    g0, f = _grey(prev, rows)
-    g1, _ = _grey(cur, rows)
+def _flow_foe(g0: np.ndarray, g1: np.ndarray) -> tuple[tuple[float, float] | None, float]:
+    """The flow of the grey work frames ``g0 -> g1``: ``((x, y), median)`` in work px, the FOE
+    of the flow vectors at least :data:`MIN_FLOW` long (``None`` when fewer than
+    :data:`MIN_VECTORS` are) and the median length of all tracked corners' flow (0 when
+    there are too few corners to track)."""
     p0 = cv2.goodFeaturesToTrack(g0, maxCorners=400, qualityLevel=0.01, minDistance=8)
     if p0 is None or len(p0) < MIN_VECTORS:
-        return None
+        return None, 0.0
     p1, st, _ = cv2.calcOpticalFlowPyrLK(g0, g1, p0, None, winSize=(15, 15), maxLevel=3)
     ok = st[:, 0] == 1
     a, d = p0[ok, 0].astype(np.float64), (p1[ok, 0] - p0[ok, 0]).astype(np.float64)
     m = np.hypot(d[:, 0], d[:, 1])
+    median = float(np.median(m)) if len(m) else 0.0
     keep = m >= MIN_FLOW
     if keep.sum() < MIN_VECTORS:
-        return None
+        return None, median
     a, d, m = a[keep], d[keep], m[keep]
     n = np.stack([-d[:, 1], d[:, 0]], 1) / m[:, None]  # unit normal of each flow line
     b = (n * a).sum(1)  # line: n . p = b
@@ -84,7 +94,20 @@ def focus_of_expansion(prev: np.ndarray, cur: np.ndarray, work_rows: int = WORK_
         r = np.abs(n @ foe - b)
         s = max(1.5 * float(np.median(r)), 1.0)
         w = 1.0 / np.maximum(r / s, 1.0)
-    x, y = foe / f
+    return (float(foe[0]), float(foe[1])), median
+
+
+def focus_of_expansion(prev: np.ndarray, cur: np.ndarray, work_rows: int = WORK_ROWS) -> tuple[float, float] | None:
+    """``(x, y)`` in frame pixels of the point the flow from ``prev`` to ``cur`` (two
+    ``(H, W, 3) uint8`` frames, BGR or RGB) expands from; ``None`` when fewer than
+    :data:`MIN_VECTORS` corners moved or the point is outside the frame."""
+    rows = min(work_rows, prev.shape[0])
+    g0, f = _grey(prev, rows)
+    g1, _ = _grey(cur, rows)
+    found = _flow_foe(g0, g1)[0]
+    if found is None:
+        return None
+    x, y = found[0] / f, found[1] / f
     if not (0 <= x < prev.shape[1] and 0 <= y < prev.shape[0]):
         return None
     return float(x), float(y)
@@ -98,30 +121,65 @@ class HorizonEstimator:
     ``gap`` frames apart gave a FOE (and whenever they disagree by more than ``max_spread``).
     ``every``: use one pair in this many frames (the flow of neighbouring pairs is alike);
     ``max_pairs``: stop computing flow once this many pairs gave a FOE (:attr:`done`).
+    ``target_flow``: the median flow (px at :data:`WORK_ROWS`) a pair should have; the gap
+    grows (up to ``max_gap``) until the pairs reach it, and pairs with less than half of it
+    are not counted (``None``: every pair ``gap`` frames apart counts).
+    ``segments``: when the flow gives no estimate -- ``min_pairs`` pairs that disagree, or
+    fewer pairs while ``max_pairs`` frames gave a vanishing point -- fall back on the
+    vanishing point of the line segments of the same frames (:attr:`segment_rows`; spread at
+    most ``max_spread``); ``False``: the flow only.
     """
 
     def __init__(self, gap: int = GAP, every: int = 3, min_pairs: int = MIN_PAIRS,
-                 max_spread: float = MAX_SPREAD, max_pairs: int = MAX_PAIRS) -> None:
-        if gap < 1 or every < 1 or min_pairs < 1 or max_pairs < min_pairs:
-            raise ValueError("gap, every and min_pairs must be >= 1, max_pairs >= min_pairs")
+                 max_spread: float = MAX_SPREAD, max_pairs: int = MAX_PAIRS, segments: bool = True,
+                 target_flow: float | None = None, max_gap: int = MAX_GAP) -> None:
+        if gap < 1 or every < 1 or min_pairs < 1 or max_pairs < min_pairs or max_gap < gap:
+            raise ValueError("gap, every and min_pairs must be >= 1, max_pairs >= min_pairs, max_gap >= gap")
+        if target_flow is not None and not target_flow > 0:
+            raise ValueError(f"target_flow must be > 0 or None, got {target_flow!r}")
         self.gap, self.every, self.min_pairs, self.max_spread = gap, every, min_pairs, max_spread
         self.max_pairs = max_pairs
+        self.segments = segments
+        self.target_flow, self.max_gap = target_flow, max_gap
         self.rows: list[float] = []  # FOE row of each pair, fraction of the height
-        self._recent: list[np.ndarray] = []
+        self.segment_rows: list[float] = []  # vanishing-point row of each frame measured, fraction of the height
+        self.pair_gap = gap  # frames between the two frames of the next pair
+        self._flow_per_frame: list[float] = []  # median flow of each pair over its gap (work px a frame)
+        self._recent: list[np.ndarray] = []  # the last frames, grey at WORK_ROWS
         self._n = 0
 
     def update(self, frame: np.ndarray) -> None:
         """Add the next frame (``(H, W, 3) uint8``); nothing once :attr:`done`."""
         if self.done:
             return
-        self._recent.append(frame)
-        if len(self._recent) > self.gap + 1:
-            self._recent.pop(0)
-        if len(self._recent) == self.gap + 1 and self._n % self.every == 0:
-            p = focus_of_expansion(self._recent[0], frame)
-            if p is not None:
-                self.rows.append(p[1] / frame.shape[0])
+        measure = self._n % self.every == 0
+        flow_wanted = len(self.rows) < self.max_pairs
+        if flow_wanted:
+            grey, _ = _grey(frame, min(WORK_ROWS, frame.shape[0]))
+            self._recent.append(grey)
+            del self._recent[:-(self.max_gap + 1)]
+        if measure and flow_wanted and len(self._recent) > self.pair_gap:
+            self._measure_flow(self._recent[-1 - self.pair_gap], self._recent[-1])
+        if measure and self.segments and len(self.segment_rows) < self.max_pairs and self._flow() is None:
+            v = vanishing_point(frame)
+            if v is not None:
+                self.segment_rows.append(v[1] / frame.shape[0])
         self._n += 1
+
+    def _measure_flow(self, g0: np.ndarray, g1: np.ndarray) -> None:
+        foe, median = _flow_foe(g0, g1)
+        gap = self.pair_gap
+        if self.target_flow is not None:
+            # a pair whose flow is short says little about where it points (a little pitch or
+            # yaw of the camera moves its FOE far): longer gaps until the flow is long enough
+            self._flow_per_frame.append(median / gap)
+            per_frame = float(np.median(self._flow_per_frame))
+            want = self.max_gap if per_frame <= 0 else math.ceil(self.target_flow / per_frame)
+            self.pair_gap = int(min(max(want, self.gap), self.max_gap))
+            if median < 0.5 * self.target_flow and gap < self.max_gap:
+                return
+        if foe is not None and 0 <= foe[0] < g0.shape[1] and 0 <= foe[1] < g0.shape[0]:
+            self.rows.append(foe[1] / g0.shape[0])
 
     def cut(self) -> None:
         """The next frame does not follow the last one (a cut): pair no frames across it."""
@@ -134,18 +192,43 @@ class HorizonEstimator:
 
     @property
     def done(self) -> bool:
-        """``max_pairs`` pairs gave a FOE: the estimate will not change."""
-        return len(self.rows) >= self.max_pairs
+        """The estimate will not change: ``max_pairs`` pairs gave a FOE and agree, or (with
+        ``segments``) they disagree and ``max_pairs`` frames gave a vanishing point."""
+        if len(self.rows) < self.max_pairs:
+            return False
+        return not self.segments or self._flow() is not None or len(self.segment_rows) >= self.max_pairs
 
-    @property
-    def estimate(self) -> float | None:
-        if len(self.rows) < self.min_pairs:
+    def _median(self, rows: list[float]) -> float | None:
+        if len(rows) < self.min_pairs:
             return None
-        r = np.asarray(self.rows)
+        r = np.asarray(rows)
         med = float(np.median(r))
         if float(np.median(np.abs(r - med))) > self.max_spread:
             return None
         return med
+
+    def _flow(self) -> float | None:
+        return self._median(self.rows)
+
+    def _segments(self) -> float | None:
+        # only once the flow has had its say: its pairs disagree, or it gave too few pairs
+        # while max_pairs frames gave a vanishing point (a camera standing still), so that a
+        # video whose flow is fine does not see its bands jump to the segments' row first
+        if not self.segments or (len(self.rows) < self.min_pairs and len(self.segment_rows) < self.max_pairs):
+            return None
+        return self._median(self.segment_rows)
+
+    @property
+    def source(self) -> str | None:
+        """Where :attr:`estimate` comes from: ``'flow'``, ``'segments'`` or ``None``."""
+        if self._flow() is not None:
+            return "flow"
+        return "segments" if self._segments() is not None else None
+
+    @property
+    def estimate(self) -> float | None:
+        f = self._flow()
+        return f if f is not None else self._segments()
 
 
 def estimate_horizon(frames: Iterable[np.ndarray], max_frames: int = HORIZON_FRAMES, **kw) -> float | None:

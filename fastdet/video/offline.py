@@ -100,7 +100,7 @@ def offline_pass(frames: Sequence[tuple[int, Detections]], frame_shape: tuple[in
     for fno, det in frames:
         extra = added.get(fno)
         if extra:
-            boxes = clip(np.array([b for _, b in extra]), hw)
+            boxes = clip(np.array([b for _, b in extra]), hw).astype(np.int32)  # whole pixels (rounded)
             ok = np.ones(len(extra), bool)
             if len(det):
                 ok = iou(boxes, det.boxes).max(axis=1) <= _MAX_OVERLAP

@@ -82,7 +82,7 @@ class VideoDetector:
                  fps: float | None = None, refiner: BoxRegressor | None = None) -> None:
         if detector is not None and not isinstance(detector, WindowDetector):
             raise TypeError(f"detector must provide detect(), warmup(), geometries(), score_kind and "
-                            f"wide_model (a WindowDetector), got {type(detector).__name__}")
+                            f"oncoming_model (a WindowDetector), got {type(detector).__name__}")
         if config is not None and not isinstance(config, PipelineConfig):
             raise TypeError(f"config must be a PipelineConfig, got {type(config).__name__}")
         self.config = config if config is not None else PipelineConfig()

@@ -114,10 +114,10 @@ class MotionStage(Stage):
         if motion is None:
             s.motion, s.oncoming_bands, s.gate = None, [], 0.0
             return s
-        assert det.wide_model is not None
+        assert det.oncoming_model is not None
         gate = self.gate.threshold(motion.noise)
         s.motion, s.gate = motion, gate
-        s.oncoming_bands = [b for g in geos for b in moving_bands(g, det.wide_model.config, motion, gate)]
+        s.oncoming_bands = [b for g in geos for b in moving_bands(g, det.oncoming_model.config, motion, gate)]
         return s
 
     def reset(self) -> None:
@@ -137,7 +137,7 @@ class DetectStage(Stage):
         stats = DetectStats()
         kw: dict = {}
         if s.oncoming_bands is not None:
-            kw["wide_bands"] = s.oncoming_bands
+            kw["oncoming_bands"] = s.oncoming_bands
         if s.columns is not None:
             kw["columns"] = s.columns
         s.windows = self.detector.detect(s.frame, rgb=s.rgb, stats=stats, **kw)
@@ -154,11 +154,11 @@ class GateStage(Stage):
         windows = s.windows
         if s.motion is None:
             return s
-        wide = windows.is_wide
-        if not wide.any():
+        oncoming = windows.is_oncoming
+        if not oncoming.any():
             return s
         keep = np.ones(len(windows), bool)
-        idx = np.flatnonzero(wide)
+        idx = np.flatnonzero(oncoming)
         keep[idx[window_motion(s.motion, windows.boxes[idx]) < s.gate]] = False
         if not keep.all():
             s.windows = windows[keep]

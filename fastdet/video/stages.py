@@ -70,7 +70,7 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
     planner = planner_for(config, detector)
     if planner is not None:
         stages.append(PlanStage(detector, planner))  # type: ignore[arg-type]
-    oncoming = detector.wide_model is not None
+    oncoming = detector.oncoming_model is not None
     gated = oncoming and config.motion.min_motion > 0
     if gated:
         stages.append(MotionStage(detector, config.motion, fps))

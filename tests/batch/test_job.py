@@ -239,7 +239,7 @@ def test_a_failed_write_is_not_a_property_of_the_video(tmp_path: Path, data: Pat
         raise WriteError(f"{self.name}: cannot write (No space left on device)")
 
     with monkeypatch.context() as m:
-        m.setattr(MotWriter, "write", full)
+        m.setattr(MotWriter, "write_detections", full)
         summary = run_video(VideoTask(str(clip), "c", str(tmp_path / "o1"), s, None, "r1"))
     assert summary["status"] == "failed" and summary["permanent"] is False and "No space" in summary["error"]
     # a done task whose temporary file vanished before the batch renamed it

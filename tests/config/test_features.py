@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from fastdet.config import (
-    WIDE_HEAT, WIDE_SEARCH, FeatureConfig, HeatConfig, MotionGate, SearchBand, SearchConfig,
+    ONCOMING_HEAT, ONCOMING_SEARCH, FeatureConfig, HeatConfig, MotionGate, SearchBand, SearchConfig,
 )
 from tests.reference import crop_features
 
@@ -68,7 +68,7 @@ def test_feature_config_refuses(kw, msg):
         FeatureConfig(**kw)
 
 
-@pytest.mark.parametrize("cfg", [*FEATURE_CONFIGS, MotionGate(), MotionGate(0), HeatConfig(), WIDE_HEAT,
+@pytest.mark.parametrize("cfg", [*FEATURE_CONFIGS, MotionGate(), MotionGate(0), HeatConfig(), ONCOMING_HEAT,
                                  HeatConfig(n_frames=3, decay=0.5, box_mode="mean", score_lo=0.1, score_hi=0.9)],
                          ids=repr)
 def test_dict_round_trip_through_json(cfg):
@@ -85,7 +85,7 @@ def test_square_feature_config_dict_has_no_window_height():
     assert FeatureConfig(window_height=24).to_dict()["window_height"] == 24
 
 
-@pytest.mark.parametrize("cfg", [FeatureConfig(), SearchBand(1.0, 400, 500), SearchConfig(), WIDE_SEARCH,
+@pytest.mark.parametrize("cfg", [FeatureConfig(), SearchBand(1.0, 400, 500), SearchConfig(), ONCOMING_SEARCH,
                                  HeatConfig(), MotionGate()], ids=lambda c: type(c).__name__)
 def test_frozen_hashable_comparable(cfg):
     assert cfg == dataclasses.replace(cfg) and hash(cfg) == hash(dataclasses.replace(cfg))
@@ -134,7 +134,7 @@ def test_for_frame_rescales_rows_columns_and_scales():
 def test_wide_search_bands_hold_whole_cells():
     """Each default wide band is a whole number of its 8 * scale px cells wide, so a band
     narrowed to part of it (fastdet.video.motion) resamples exactly as the full band."""
-    for b in WIDE_SEARCH.bands:
+    for b in ONCOMING_SEARCH.bands:
         cell = 8 * b.scale
         assert b.x_start == 0 and (b.x_stop / cell) == int(b.x_stop / cell), b
         assert b.y_stop - b.y_start >= 24 * b.scale  # room for one 64x24 window

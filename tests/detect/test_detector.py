@@ -23,7 +23,7 @@ def _random_model(config: FeatureConfig, seed=0) -> Model:
 
 
 def _compare_all_windows(det: Detector, frame: np.ndarray, part: int = 0) -> int:
-    model = det.model if part == 0 else det.wide_model
+    model = det.model if part == 0 else det.oncoming_model
     pair = sklearn_pair(model)
     n = 0
     for geo in det.geometries(frame.shape[:2], part):
@@ -47,9 +47,9 @@ def test_one_cell_step_and_other_feature_configs(frames):
     search = SearchConfig(bands=(SearchBand(1.0, 400, 500, 100, 400), SearchBand(1.7, 380, 600)), cells_per_step=1)
     det = Detector(_random_model(cfg), search)
     assert _compare_all_windows(det, frames[0]) > 500
-    cfg = FeatureConfig(window_height=32, orientations=11, spatial_size=16)  # wide windows: the wide model
+    cfg = FeatureConfig(window_height=32, orientations=11, spatial_size=16)  # wide windows: the oncoming model
     search = SearchConfig(bands=(SearchBand(0.75, 400, 480, 0, 640), SearchBand(1.0, 390, 470)), cells_per_step=1)
-    det = Detector(_random_model(FeatureConfig(), 3), search, wide=_random_model(cfg, 2), wide_search=search)
+    det = Detector(_random_model(FeatureConfig(), 3), search, oncoming=_random_model(cfg, 2), oncoming_search=search)
     assert _compare_all_windows(det, frames[2], part=1) > 500
     cfg = FeatureConfig(color_space="HSV", spatial_size=0, hist_bins=0, cells_per_block=3)
     det = Detector(_random_model(cfg, 1), SearchConfig(bands=(SearchBand(1.3, 390, 610),), cells_per_step=3))
@@ -62,7 +62,7 @@ def test_detect_boxes_and_scores(frames):
     d = det.detect(frames[0], stats=stats)
     assert d.boxes.dtype == np.int32 and d.boxes.shape[1] == 4 and d.scores.dtype == np.float32
     assert len(d) == len(d.boxes) == len(d.scores) == len(d.scale) == len(d.part) > 0
-    assert not d.is_wide.any()  # no wide model
+    assert not d.is_oncoming.any()  # no oncoming model
     assert set(d.scale.tolist()) <= {b.scale for b in det.search.bands}
     if det.score_kind == "probability":
         assert np.all((d.scores > 0.5) & (d.scores <= 1))
@@ -155,3 +155,23 @@ def test_band_threads_give_the_same_windows(frames):
     finally:
         numba.set_num_threads(before)
     det.close()
+
+
+def test_the_former_names_of_the_oncoming_model_still_work_and_warn():
+    """``Detector(wide=, wide_search=)`` and ``fastdet.config.WIDE_SEARCH`` / ``WIDE_HEAT`` /
+    ``wide_search``: the names before ``oncoming``, deprecated."""
+    import fastdet.config as config
+
+    cfg = FeatureConfig(window_height=32)
+    wide, search = _random_model(cfg, 2), SearchConfig(bands=(SearchBand(1.0, 390, 470),), cells_per_step=1)
+    with pytest.warns(DeprecationWarning, match="oncoming="):
+        det = Detector(_random_model(FeatureConfig()), wide=wide, wide_search=search)
+    assert det.oncoming_model is wide and det.scorers[1].search == search and det.parts == [0, 1]
+    with pytest.raises(TypeError, match="not both"):
+        Detector(oncoming=wide, wide=wide)
+    for old, new in (("WIDE_SEARCH", config.ONCOMING_SEARCH), ("WIDE_HEAT", config.ONCOMING_HEAT),
+                     ("wide_search", config.oncoming_search)):
+        with pytest.warns(DeprecationWarning, match=old):
+            assert getattr(config, old) is new
+    with pytest.raises(AttributeError):
+        config.NO_SUCH_NAME  # noqa: B018

@@ -6,9 +6,9 @@ import cv2
 import numpy as np
 import pytest
 
-from fastdet.config import WIDE_SEARCH, SearchBand, SearchConfig
+from fastdet.config import ONCOMING_SEARCH, SearchBand, SearchConfig
 from fastdet.detect import Detector, DetectStats
-from fastdet.detections import FIRST_COMPONENT_PART, MAIN_PART, WIDE_PART
+from fastdet.detections import FIRST_COMPONENT_PART, MAIN_PART, ONCOMING_PART
 from fastdet.errors import ModelError
 from fastdet.model import ONCOMING_MODEL_PATH, load_model
 
@@ -25,16 +25,16 @@ def frame(test_images):
 
 def test_component_windows_are_the_models_own(frame):
     low = SearchConfig(bands=(SearchBand(1.0, 380, 480), SearchBand(2.0, 380, 560)), threshold=-2.0)
-    plain = Detector(wide=ONCOMING_MODEL_PATH, wide_search=low)
+    plain = Detector(oncoming=ONCOMING_MODEL_PATH, oncoming_search=low)
     ref = plain.detect(frame)
-    ref_wide = ref[ref.part == WIDE_PART]
+    ref_wide = ref[ref.part == ONCOMING_PART]
     assert len(ref_wide) > 10
-    both = Detector(wide=ONCOMING_MODEL_PATH, wide_search=low, components=[(ONCOMING_MODEL_PATH, low),
+    both = Detector(oncoming=ONCOMING_MODEL_PATH, oncoming_search=low, components=[(ONCOMING_MODEL_PATH, low),
                                                                           (None, SearchConfig())])
-    assert both.parts == [MAIN_PART, WIDE_PART, FIRST_COMPONENT_PART, FIRST_COMPONENT_PART + 1]
+    assert both.parts == [MAIN_PART, ONCOMING_PART, FIRST_COMPONENT_PART, FIRST_COMPONENT_PART + 1]
     assert both.main_parts == [MAIN_PART, FIRST_COMPONENT_PART, FIRST_COMPONENT_PART + 1]
     got = both.detect(frame)
-    for part, want in ((FIRST_COMPONENT_PART, ref_wide), (WIDE_PART, ref_wide),
+    for part, want in ((FIRST_COMPONENT_PART, ref_wide), (ONCOMING_PART, ref_wide),
                        (MAIN_PART, ref[ref.part == MAIN_PART]),
                        (FIRST_COMPONENT_PART + 1, ref[ref.part == MAIN_PART])):
         mine = got[got.part == part]
@@ -72,6 +72,6 @@ def test_horizon_moves_every_component_and_kinds_must_agree(frame, tmp_path):
     m = load_model(ONCOMING_MODEL_PATH)
     svc = type(m)(m.config, m.coef, m.intercept, m.mean, m.scale, classifier="linearsvc")
     with pytest.raises(ModelError, match="component 1"):
-        Detector(components=[(svc, WIDE_SEARCH)])
+        Detector(components=[(svc, ONCOMING_SEARCH)])
     with pytest.raises(TypeError, match="SearchConfig"):
         Detector(components=[(m, "bands")])  # type: ignore[list-item]

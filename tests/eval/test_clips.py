@@ -12,21 +12,23 @@ from fastdet.errors import DataError
 from fastdet.eval import evaluate, format_table
 from fastdet.eval.clips import annotated_clips, markdown_table, report_json, score_clip
 from fastdet.eval.sizes import REPORT_EDGES, recall_by_width
-from fastdet.io.motfiles import GroundTruth, Predictions, parse_gt, parse_predictions
+from fastdet.detections import Detections
+from fastdet.io.motfiles import parse_gt, parse_predictions
 
 
-def gt_of(*rows) -> GroundTruth:
+def gt_of(*rows) -> Detections:
     """rows: (frame, id, left, top, width, height, consider)."""
     return parse_gt("\n".join(",".join(str(v) for v in r) + ",1,1" for r in rows), "gt")
 
 
-def pred_of(*rows) -> Predictions:
+def pred_of(*rows) -> Detections:
     """rows: (frame, id, left, top, width, height, conf)."""
     return parse_predictions("\n".join(",".join(str(v) for v in r) + ",-1,-1,-1" for r in rows), "pred")
 
 
 # keyframes 1, 11, 21: two targets on 1, one (and an ignore region) on 11, none on 21
 KF = np.array([1, 11, 21])
+NO_PREDS = Detections.from_frames([])  # a clip's predictions: none
 GT = gt_of((1, 1, 100, 100, 50, 40, 1), (1, 2, 300, 100, 150, 80, 1),
            (11, 1, 110, 100, 50, 40, 1), (11, 1000, 600, 100, 40, 20, 0))
 
@@ -57,11 +59,11 @@ def test_keyframes_score_listed_frames_only():
 
 def test_keyframes_refuse_ground_truth_elsewhere_and_bad_arguments():
     with pytest.raises(DataError, match="gt: ground truth on frame 11, which is not one of the keyframes"):
-        evaluate(GT, Predictions.empty(), keyframes=np.array([1, 21]))
+        evaluate(GT, NO_PREDS, keyframes=np.array([1, 21]))
     with pytest.raises(ValueError, match="not both"):
-        evaluate(GT, Predictions.empty(), keyframes=KF, num_frames=3)
+        evaluate(GT, NO_PREDS, keyframes=KF, num_frames=3)
     with pytest.raises(ValueError, match=">= 1"):
-        evaluate(GT, Predictions.empty(), keyframes=np.array([0, 1, 11]))
+        evaluate(GT, NO_PREDS, keyframes=np.array([0, 1, 11]))
 
 
 def test_id_switches_are_counted_between_keyframes():
@@ -94,7 +96,7 @@ def test_score_clip_table_and_json():
     assert (s.result.tp, s.result.fp, s.result.frames) == (1, 1, 3)
     # 720 rows: widths 50 (< 60), 150 (>= 120), 50 (< 60)
     assert [(b.found, b.total) for b in s.widths] == [(1, 2), (0, 0), (0, 1)]
-    dense = score_clip("dense", gt_of((1, 1, 0, 0, 80, 40, 1)), Predictions.empty(), frame_rows=720)
+    dense = score_clip("dense", gt_of((1, 1, 0, 0, 80, 40, 1)), NO_PREDS, frame_rows=720)
     table = markdown_table([s, dense])
     lines = table.splitlines()
     assert len(lines) == 4 and lines[0].startswith("| clip | frames | targets | P | R | F1 |")
@@ -135,7 +137,7 @@ def test_every_shared_clip_scores_its_own_ground_truth_perfectly(data):
     for clip in clips:
         gt, kf = clip.gt(), clip.keyframes()
         c = gt.consider
-        preds = Predictions(gt.frames[c], gt.ids[c], gt.boxes[c], np.ones(int(c.sum())))
+        preds = Detections(gt.boxes[c], np.ones(int(c.sum())), ids=gt.ids[c], frames=gt.frames[c])
         s = score_clip(clip.name, gt, preds, frame_rows=720, keyframes=kf)
         assert s.result.f1 == 1.0 and s.result.fp == 0 and s.result.keyframes == (kf is not None), clip.name
         assert sum(b.total for b in s.widths) == s.result.num_gt == sum(b.found for b in s.widths)

@@ -11,21 +11,21 @@ import pytest
 from fastdet.eval.hota import ALPHAS, hota
 from fastdet.eval.metrics import evaluate
 from fastdet.eval.report import format_table
-from fastdet.io.motfiles import GroundTruth, Predictions
+from fastdet.detections import Detections
 
 
 def _box(x: float, w: float = 40.0, y: float = 100.0, h: float = 20.0) -> list[float]:
     return [x, y, x + w, y + h]
 
 
-def _gt(rows: list[tuple[int, int, list[float]]]) -> GroundTruth:
-    return GroundTruth(np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
-                       np.array([r[2] for r in rows], float), np.ones(len(rows), bool))
+def _gt(rows: list[tuple[int, int, list[float]]]) -> Detections:
+    return Detections(np.array([r[2] for r in rows], float), frames=np.array([r[0] for r in rows]),
+                      ids=np.array([r[1] for r in rows]), consider=np.ones(len(rows), bool))
 
 
-def _pred(rows: list[tuple[int, int, list[float]]]) -> Predictions:
-    return Predictions(np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
-                       np.array([r[2] for r in rows], float), np.ones(len(rows)))
+def _pred(rows: list[tuple[int, int, list[float]]]) -> Detections:
+    return Detections(np.array([r[2] for r in rows], float), np.ones(len(rows)),
+                      frames=np.array([r[0] for r in rows]), ids=np.array([r[1] for r in rows]))
 
 
 def _car(gid: int, x0: float, frames=range(1, 11), dx: float = 10.0) -> list[tuple[int, int, list[float]]]:

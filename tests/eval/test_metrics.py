@@ -15,10 +15,8 @@ from fastdet.cli import eval as ev
 from fastdet.boxes import iou as box_iou
 from fastdet.eval import average_precision, evaluate, format_table, match_frame
 from fastdet.io.motfiles import (
-    GroundTruth,
     JsonLinesWriter,
     MotWriter,
-    Predictions,
     parse_gt,
     parse_predictions,
     read_gt,
@@ -26,12 +24,12 @@ from fastdet.io.motfiles import (
 )
 
 
-def gt_of(*rows) -> GroundTruth:
+def gt_of(*rows) -> Detections:
     """rows: (frame, id, left, top, width, height, consider)."""
     return parse_gt("\n".join(",".join(str(v) for v in r) + ",1,1" for r in rows), "gt")
 
 
-def pred_of(*rows) -> Predictions:
+def pred_of(*rows) -> Detections:
     """rows: (frame, id, left, top, width, height, conf)."""
     return parse_predictions("\n".join(",".join(str(v) for v in r) + ",-1,-1,-1" for r in rows), "pred")
 
@@ -46,7 +44,7 @@ GT_ROWS = [
 ]
 
 
-def perfect_preds(ids: bool = False) -> Predictions:
+def perfect_preds(ids: bool = False) -> Detections:
     rows = [(f, i if ids else -1, l, t, w, h, 0.9 - 0.1 * k)
             for k, (f, i, l, t, w, h, c) in enumerate(GT_ROWS) if c == 1]
     return pred_of(*rows)
@@ -157,7 +155,7 @@ def test_ap_of_known_ranking():
 def test_ap_edge_cases():
     assert average_precision(np.zeros(0, bool), 4)[0] == 0.0
     assert math.isnan(average_precision(np.array([False]), 0)[0])
-    r = evaluate(gt_of((1, 1, 0, 0, 10, 10, 1)), Predictions.empty())
+    r = evaluate(gt_of((1, 1, 0, 0, 10, 10, 1)), Detections.from_frames([]))
     assert r.ap == 0.0 and r.recall == 0.0 and math.isnan(r.precision) and r.f1 == 0.0
     assert r.to_dict()["precision"] is None
     assert "n/a" in format_table(r)
@@ -407,7 +405,7 @@ def test_real_annotations_against_themselves(data):
     for f in files:
         gt = read_gt(f)
         c = gt.consider
-        preds = Predictions(gt.frames[c], gt.ids[c], gt.boxes[c], np.ones(int(c.sum())), source=str(f))
+        preds = Detections(gt.boxes[c], np.ones(int(c.sum())), ids=gt.ids[c], frames=gt.frames[c], source=str(f))
         r = evaluate(gt, preds)
         assert r.num_gt == int(c.sum()) > 0
         assert (r.fp, r.fn, r.num_dropped) == (0, 0, 0)
@@ -425,5 +423,5 @@ def test_default_pipeline_accuracy_on_the_annotated_clips(data):
     for name, (min_f1, max_fp) in floors.items():
         video = data / "videos" / f"{name}.mp4"
         gt = read_gt(data / "annotations" / f"{name}.gt.txt")
-        r = evaluate(gt, Predictions.from_frames(iter_video_detections(video, progress=False)), iou=0.5)
+        r = evaluate(gt, Detections.from_frames(iter_video_detections(video, progress=False)), iou=0.5)
         assert r.f1 >= min_f1 and r.fp_per_frame <= max_fp, (name, r.f1, r.fp_per_frame)

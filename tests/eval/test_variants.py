@@ -17,7 +17,7 @@ from fastdet.eval.variants import (
     standard_variants,
     transform_gt,
 )
-from fastdet.io.motfiles import GroundTruth, Predictions
+from fastdet.detections import Detections
 
 H, W = 180, 320
 
@@ -72,7 +72,8 @@ def test_zoom_fills_by_replication_and_region_is_the_picture():
 
 def _gt(boxes, consider):
     n = len(boxes)
-    return GroundTruth(np.ones(n, np.int64), np.arange(n), np.array(boxes, float), np.array(consider, bool))
+    return Detections(np.array(boxes, float).reshape(-1, 4), frames=np.ones(n, np.int64), ids=np.arange(n),
+                      consider=np.array(consider, bool))
 
 
 def test_transform_gt_reapplies_the_annotation_rules():
@@ -126,11 +127,11 @@ def test_standard_variants_names_unique():
 
 
 def test_recall_by_width_matches_evaluate():
-    gt = GroundTruth(np.array([1, 1, 1, 2, 2]), np.array([1, 2, 3, 1, 2]),
-                     np.array([[0, 0, 50, 30], [100, 0, 170, 40], [300, 0, 420, 60],
-                               [0, 0, 50, 30], [100, 0, 190, 40]], float), np.ones(5, bool))
-    preds = Predictions(np.array([1, 1, 2]), -np.ones(3, np.int64),
-                        np.array([[0, 0, 50, 30], [300, 0, 420, 60], [100, 0, 190, 40]], float), np.ones(3))
+    gt = Detections(np.array([[0, 0, 50, 30], [100, 0, 170, 40], [300, 0, 420, 60],
+                              [0, 0, 50, 30], [100, 0, 190, 40]], float),
+                    frames=np.array([1, 1, 1, 2, 2]), ids=np.array([1, 2, 3, 1, 2]), consider=np.ones(5, bool))
+    preds = Detections(np.array([[0, 0, 50, 30], [300, 0, 420, 60], [100, 0, 190, 40]], float), np.ones(3),
+                       frames=np.array([1, 1, 2]), ids=-np.ones(3, np.int64))
     bins = recall_by_width(gt, preds, frame_rows=720)
     assert [(b.label, b.found, b.total) for b in bins] == [("40-60", 1, 2), ("60-80", 0, 1), ("80-100", 1, 1),
                                                           (">=100", 1, 1)]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fastdet.detections import WIDE_PART, Detections
+from fastdet.detections import ONCOMING_PART, Detections
 from fastdet.io import draw
 
 
@@ -37,7 +37,7 @@ def test_draw_windows_colours_by_scale_and_part():
     wide model's windows in that of the negated scale."""
     boxes = np.array([[0, 0, 20, 20], [30, 0, 50, 20], [60, 0, 80, 20]])
     img = np.zeros((40, 100, 3), np.uint8)
-    w = Detections(boxes, np.ones(3), scale=np.array([1.0, 3.0, 3.0]), part=np.array([0, 0, WIDE_PART]))
+    w = Detections(boxes, np.ones(3), scale=np.array([1.0, 3.0, 3.0]), part=np.array([0, 0, ONCOMING_PART]))
     assert draw.draw_windows(img, w, 1) is img
     assert tuple(img[10, 0]) == draw.scale_color(1.0)
     assert tuple(img[10, 30]) == draw.scale_color(3.0)

@@ -1,6 +1,7 @@
 """Box files: numbers out of their domain are refused in one line naming the file and line."""
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from fastdet.errors import DataError
@@ -43,3 +44,20 @@ def test_jsonl_numbers_out_of_domain(obj, msg):
 def test_jsonl_whole_float_id_is_read_as_int():
     p = parse_jsonl_predictions('{"frame": 2, "boxes": [[0,0,5,5]], "scores": [1], "ids": [777.0]}', "p.jsonl")
     assert p.ids.tolist() == [777] and p.frames.tolist() == [2]
+
+
+def test_files_read_into_the_one_box_table():
+    """Ground truth: frames, ids, boxes (the file's continuous coordinates) and consider, no
+    scores; predictions: frames, ids, boxes and scores (float64, as written), no consider."""
+    from fastdet.detections import Detections
+
+    gt = parse_gt("1,1,10.5,10,20,20,1,1,1\n2,7,0,0,5,5,0\n", "g.txt")
+    assert isinstance(gt, Detections) and gt.scores is None and gt.source == "g.txt"
+    assert gt.boxes.dtype == np.float64 and gt.boxes.tolist() == [[10.5, 10, 30.5, 30], [0, 0, 5, 5]]
+    assert gt.frames.tolist() == [1, 2] and gt.ids.tolist() == [1, 7] and gt.consider.tolist() == [True, False]
+    assert gt.num_frames == 2 and gt.num_considered == 1
+    p = parse_predictions("3,-1,1,2,3,4,0.123456789,-1,-1,-1\n", "p.txt")
+    assert p.consider is None and p.scores.dtype == np.float64 and p.scores.tolist() == [0.123456789]
+    assert p.frames.tolist() == [3] and p.ids.tolist() == [-1] and not p.has_ids
+    none = parse_predictions("", "p.txt")
+    assert len(none) == 0 and none.frames is not None and none.scores is not None

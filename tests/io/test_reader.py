@@ -15,7 +15,7 @@ import pytest
 
 from fastdet.cli.main import main
 from fastdet.io.motfiles import read_predictions
-from fastdet.io.reader import FrameReader, source_kind
+from fastdet.io.reader import FrameReader, read_frames, source_kind
 from tests.media import (
     GOP12,
     INTRA,
@@ -61,6 +61,19 @@ def test_reader_ends_where_decoding_ends(cut):
     assert got == list(range(1, n + 1))
     assert r.decoded == n and r.skipped == []
     assert len(notes) == 1 and f"{n} frames decoded" in notes[0] and str(header) in notes[0]
+
+
+def test_read_frames_is_every_frame_the_reader_yields(cut):
+    path, n, _ = cut
+    notes: list[str] = []
+    got = read_frames(path, notify=notes.append)
+    assert len(got) == n == decoded_count(path) and len(notes) == 1  # the header's count, once
+    cap = cv2.VideoCapture(str(path))
+    for frame in got:
+        ok, want = cap.read()
+        assert ok and (frame == want).all()
+    cap.release()
+    assert len(read_frames(path, start=2, frames=3, notify=notes.append)) == 3
 
 
 def test_reader_no_note_when_stopped_by_frames(cut):

@@ -47,8 +47,11 @@ def test_mine_user_errors(tmp_path, capsys):
     assert main(["mine-negatives", str(tmp_path / "none.mp4"), "--out", str(tmp_path / "o")]) == 2
     assert "say where there are no vehicles" in capsys.readouterr().err
     assert main(["mine-negatives", str(tmp_path / "none.mp4"), "--out", str(tmp_path / "o"), "--gt", "x",
-                 "--part", "wide"]) == 2
-    assert "--wide-model" in capsys.readouterr().err
+                 "--part", "oncoming"]) == 2
+    assert "--oncoming-model" in capsys.readouterr().err
+    assert main(["mine-negatives", str(tmp_path / "none.mp4"), "--out", str(tmp_path / "o"), "--gt", "x",
+                 "--part", "wide"]) == 2  # the former name of --part oncoming
+    assert "--part oncoming needs --oncoming-model" in capsys.readouterr().err
 
 
 def test_mine_counts_must_be_positive(tmp_path, capsys):
@@ -70,7 +73,7 @@ def test_mine_image_sequence_with_annotations(data, tmp_path, capsys):
     gt_path = Path(__file__).resolve().parents[2] / "tools" / "test_images.gt.txt"
     out = tmp_path / "neg"
     rc = main(["mine-negatives", str(data / "test_images" / "test%d.jpg"), "--gt", str(gt_path), "--out", str(out),
-               "--part", "wide", "--wide-model", str(ONCOMING_MODEL_PATH), "--threshold", "-1",
+               "--part", "oncoming", "--oncoming-model", str(ONCOMING_MODEL_PATH), "--threshold", "-1",
                "--x-range", "0", "660", "--y-range", "380", "520", "--no-progress"])
     assert rc == 0
     assert "from 6 frames" in capsys.readouterr().out

@@ -13,7 +13,7 @@ from fastdet.config import GuidedSearch, PipelineConfig
 from fastdet.detect import Detector
 from fastdet.detections import Detections
 from fastdet.eval.metrics import evaluate
-from fastdet.io.motfiles import Predictions, read_gt
+from fastdet.io.motfiles import read_gt
 from fastdet.io.reader import FrameReader
 from fastdet.video import VideoDetector
 from fastdet.video.guided import SearchPlanner, merge_spans
@@ -111,8 +111,8 @@ def test_guided_video_finds_what_the_full_search_finds(data):
     assert 0 < vd.stage(PlanStage).planner.full_scans < len(guided)
     _, full, _ = _run(clip, None, data)
     gt = read_gt(str(data / "annotations" / "test_video.gt.txt"))
-    a = evaluate(gt, Predictions.from_frames(guided, source=path)).to_dict()
-    b = evaluate(gt, Predictions.from_frames(full, source=path)).to_dict()
+    a = evaluate(gt, Detections.from_frames(guided, source=path)).to_dict()
+    b = evaluate(gt, Detections.from_frames(full, source=path)).to_dict()
     for k in ("f1", "ap", "idf1"):
         assert abs(a[k] - b[k]) <= 0.01, (k, a[k], b[k])
 

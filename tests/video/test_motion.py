@@ -9,11 +9,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fastdet.config import WIDE_SEARCH, MotionGate
+from fastdet.config import ONCOMING_SEARCH, MotionGate
 from fastdet.video.motion import FrameMotion, moving_bands, window_motion
 from fastdet.detect import DetectStats
 from fastdet.detect.bands import band_geometry, window_boxes
-from fastdet.detections import WIDE_PART
+from fastdet.detections import ONCOMING_PART
 from tests.reference import naive_window_motion
 
 
@@ -102,13 +102,13 @@ def _wide_windows(det, frame, bands=None):
     """All wide-model windows (any score) of ``bands`` (default: its full search), as
     {box tuple: decision value}."""
     stats = DetectStats()
-    det.detect(frame, wide_bands=bands, stats=stats)
+    det.detect(frame, oncoming_bands=bands, stats=stats)
     out = {}
     for part, geo, dec in stats.bands:
-        if part != WIDE_PART:
+        if part != ONCOMING_PART:
             continue
         r, c = np.nonzero(np.ones_like(dec, bool))
-        for box, v in zip(window_boxes(geo, r, c, det.wide_model.config), dec[r, c]):
+        for box, v in zip(window_boxes(geo, r, c, det.oncoming_model.config), dec[r, c]):
             out[tuple(int(x) for x in box)] = float(v)
     return out
 
@@ -119,7 +119,7 @@ def test_moving_bands_cover_every_moving_window_with_the_same_scores(detector, o
     fm.update(prev)
     integral = fm.update(cur)
     gate = MotionGate().min_motion
-    cfg = detector.wide_model.config
+    cfg = detector.oncoming_model.config
     geos = detector.geometries(cur.shape[:2], part=1)
     bands = [b for g in geos for b in moving_bands(g, cfg, integral, gate)]
     assert bands, "the oncoming cars move: some band must be searched"
@@ -140,10 +140,10 @@ def test_moving_bands_is_empty_without_motion(detector, oncoming_frames):
     fm.update(cur)
     integral = fm.update(cur)
     for g in detector.geometries(cur.shape[:2], part=1):
-        assert moving_bands(g, detector.wide_model.config, integral, 1.0) == []
+        assert moving_bands(g, detector.oncoming_model.config, integral, 1.0) == []
     # and a band's geometry with no windows gives nothing either
-    g = band_geometry(WIDE_SEARCH.bands[0].__class__(1.0, 0, 10), cur.shape[:2], detector.wide_model.config, 1)
-    assert moving_bands(g, detector.wide_model.config, integral, 0.0) == []
+    g = band_geometry(ONCOMING_SEARCH.bands[0].__class__(1.0, 0, 10), cur.shape[:2], detector.oncoming_model.config, 1)
+    assert moving_bands(g, detector.oncoming_model.config, integral, 0.0) == []
 
 
 def test_detect_with_no_wide_bands_is_the_main_model_alone(detector, oncoming_frames):
@@ -151,10 +151,10 @@ def test_detect_with_no_wide_bands_is_the_main_model_alone(detector, oncoming_fr
 
     frame = oncoming_frames[1]
     main_only = Detector().detect(frame)
-    both = detector.detect(frame, wide_bands=[])
+    both = detector.detect(frame, oncoming_bands=[])
     assert both.boxes.tolist() == main_only.boxes.tolist()
     np.testing.assert_array_equal(both.scores, main_only.scores)
-    assert len(both) and not both.is_wide.any()
+    assert len(both) and not both.is_oncoming.any()
     np.testing.assert_array_equal(both.scale, main_only.scale)
 
 
@@ -166,13 +166,13 @@ def test_video_detector_wide_windows_are_the_gated_full_search(detector, oncomin
     prev, cur = oncoming_frames
     vd = VideoDetector(detector)
     vd.update(prev)
-    assert not vd.debug.windows.is_wide.any(), "no previous frame: no motion, no wide windows"
+    assert not vd.debug.windows.is_oncoming.any(), "no previous frame: no motion, no wide windows"
     vd.update(cur)
-    got = {tuple(int(v) for v in b) for b in vd.debug.windows[vd.debug.windows.is_wide].boxes}
+    got = {tuple(int(v) for v in b) for b in vd.debug.windows[vd.debug.windows.is_oncoming].boxes}
     fm = FrameMotion()
     fm.update(prev)
     integral = fm.update(cur)
-    thr, gate = WIDE_SEARCH.threshold, MotionGate().min_motion
+    thr, gate = ONCOMING_SEARCH.threshold, MotionGate().min_motion
     full = _wide_windows(detector, cur)
     want = {k for k, v in full.items() if v > thr and window_motion(integral, [k])[0] >= gate}
     assert want, "the oncoming cars must give gated wide windows"
@@ -189,7 +189,7 @@ def test_video_detector_rgb_frames_give_the_same_boxes(detector, oncoming_frames
         b = rgb.update(np.ascontiguousarray(frame[:, :, ::-1]), rgb=True)
         assert a.boxes.tolist() == b.boxes.tolist()
         assert bgr.debug.windows.boxes.tolist() == rgb.debug.windows.boxes.tolist()
-    assert bgr.debug.windows.is_wide.any(), "the second frame has moving oncoming cars"
+    assert bgr.debug.windows.is_oncoming.any(), "the second frame has moving oncoming cars"
 
 
 # ------------------------------------------------------------------ the moving-columns kernel
@@ -243,14 +243,14 @@ def test_moving_bands_same_as_the_numpy_version(detector, seed, roi, gate, blob)
     x2, y2 = min(x1 + w, 320), min(y1 + h, 240)
     fm.update(prev, (x1, y1, x2, y2))
     motion = fm.update(cur, (x1, y1, x2, y2))
-    cfg = detector.wide_model.config
+    cfg = detector.oncoming_model.config
     for g in detector.geometries((240, 320), part=1):
         assert moving_bands(g, cfg, motion, gate) == _old_moving_bands(g, cfg, motion, gate)
 
 
 def test_moving_bands_same_as_the_numpy_version_on_real_frames(detector, oncoming_frames):
     prev, cur = oncoming_frames
-    cfg = detector.wide_model.config
+    cfg = detector.oncoming_model.config
     for lag_frames in ((prev, cur), (cur, prev)):
         fm = FrameMotion()
         fm.update(lag_frames[0])

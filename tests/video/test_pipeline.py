@@ -280,9 +280,9 @@ def test_bad_oncoming_model_exits_2_without_traceback(clip, tmp_path, capsys):
 def test_make_detector_oncoming_choices():
     from fastdet.model import ONCOMING_MODEL_PATH, load_model
 
-    assert make_detector().wide_model is not None  # the bundled oncoming model
-    assert make_detector(PipelineConfig(oncoming=False)).wide_model is None
-    assert make_detector(PipelineConfig(oncoming=str(ONCOMING_MODEL_PATH))).wide_model is not None
+    assert make_detector().oncoming_model is not None  # the bundled oncoming model
+    assert make_detector(PipelineConfig(oncoming=False)).oncoming_model is None
+    assert make_detector(PipelineConfig(oncoming=str(ONCOMING_MODEL_PATH))).oncoming_model is not None
     wide = load_model(ONCOMING_MODEL_PATH)
     assert wide.config.window_height == 24 and wide.config.win_w == 64
     from fastdet.errors import ModelError

@@ -15,7 +15,8 @@ from fastdet.cli.main import build_parser
 from fastdet.config import HeatConfig, PipelineConfig, TrackerConfig
 from fastdet.errors import FastdetError
 from fastdet.eval.metrics import evaluate
-from fastdet.io.motfiles import GroundTruth, read_predictions
+from fastdet.detections import Detections
+from fastdet.io.motfiles import read_predictions
 from fastdet.video import VideoDetector, iter_video_detections
 from tests.fakes import BlobsDetector
 from tests.reference import box_iou as iou
@@ -66,10 +67,10 @@ def clip(tmp_path_factory) -> Path:
     return write_video(tmp_path_factory.mktemp("tracking") / "cars.avi", 24)
 
 
-def ground_truth(n: int) -> GroundTruth:
+def ground_truth(n: int) -> Detections:
     rows = [(i + 1, k + 1, b) for i in range(n) for k, b in enumerate(cars_at(i))]
-    return GroundTruth(np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
-                       np.array([r[2] for r in rows], float), np.ones(len(rows), bool))
+    return Detections(np.array([r[2] for r in rows], float), frames=np.array([r[0] for r in rows]),
+                      ids=np.array([r[1] for r in rows]), consider=np.ones(len(rows), bool))
 
 
 # ------------------------------------------------------------------------- VideoDetector

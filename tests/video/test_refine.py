@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import cv2
 import numpy as np
 import pytest
 from hypothesis import strategies as st
@@ -13,6 +12,7 @@ from hypothesis import strategies as st
 from fastdet.config import FeatureConfig
 from fastdet.detections import Detections
 from fastdet.io.motfiles import read_gt
+from fastdet.io.reader import read_frames
 from fastdet.train.refine import JitterConfig, collect_samples, jitter_boxes, paired_iou
 from fastdet.video.refine import (REFINE_FEATURES, REFINE_MODEL_PATH, BoxFeatures, BoxRegressor, RefineConfig,
                                   load_regressor, refine, refine_boxes)
@@ -86,15 +86,7 @@ def test_jitter_boxes() -> None:
 
 
 def _clip(data: Path, clip: str) -> tuple[list[np.ndarray], object]:
-    cap = cv2.VideoCapture(str(data / "videos" / f"{clip}.mp4"))
-    frames = []
-    while True:
-        ok, f = cap.read()
-        if not ok:
-            break
-        frames.append(f)
-    cap.release()
-    return frames, read_gt(data / "annotations" / f"{clip}.gt.txt")
+    return read_frames(data / "videos" / f"{clip}.mp4"), read_gt(data / "annotations" / f"{clip}.gt.txt")
 
 
 def _jittered_iou(frames: list[np.ndarray], gt, reg: BoxRegressor, step: int = 4) -> tuple[float, float]:

@@ -5,32 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tests.fakes import SquareDetector
 from fastdet.config import PipelineConfig
 from fastdet.detections import Detections
 from fastdet.video import FrameDebug, VideoDetector, make_detector
 from fastdet.video.stages import FrameState, Stage
-
-
-class SquareDetector:
-    """A WindowDetector without optional abilities: three windows on the bright square."""
-
-    score_kind = "decision"
-    wide_model = None
-
-    def warmup(self) -> None: ...
-
-    def geometries(self, frame_shape, part=0):
-        return []
-
-    def detect(self, frame, rgb=False, wide_bands=None, stats=None) -> Detections:
-        if stats is not None:
-            stats.timings.update({"resize_colour": 0.0, "hog": 0.0, "score": 0.0})
-        ys, xs = np.nonzero(frame.max(axis=2) > 200)
-        if len(xs) == 0:
-            return Detections.empty()
-        b = [xs.min(), ys.min(), xs.max() + 1, ys.max() + 1]
-        boxes = np.array([b, [b[0] + 4, b[1], b[2] + 4, b[3]], [b[0], b[1] + 4, b[2], b[3] + 4]], np.int32)
-        return Detections(boxes, np.full(3, 2.0, np.float32), scale=np.ones(3, np.float32))
 
 
 def frame() -> np.ndarray:

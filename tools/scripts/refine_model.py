@@ -25,7 +25,8 @@ import numpy as np
 
 from fastdet.config import FeatureConfig
 from fastdet.data import data_dir
-from fastdet.io.motfiles import GroundTruth, read_gt
+from fastdet.detections import Detections
+from fastdet.io.motfiles import read_gt
 from fastdet.io.reader import FrameReader
 from fastdet.train.refine import JitterConfig, Samples, collect_samples, fit_ridge
 from fastdet.detect.regressor import BoxFeatures, BoxRegressor
@@ -37,7 +38,7 @@ TEST_IMAGES_GT = Path(__file__).resolve().parent.parent / "test_images.gt.txt"
 Annotated = list[tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 
-def annotated(frames: list[np.ndarray], gt: GroundTruth, group_base: int) -> Annotated:
+def annotated(frames: list[np.ndarray], gt: Detections, group_base: int) -> Annotated:
     """``(frame, vehicle boxes (M, 4), groups (M,))`` of every frame with a ``consider = 1``
     box; a vehicle's group (``group_base`` + its id) keeps its samples in one CV fold."""
     out = []
@@ -55,7 +56,7 @@ def test_images() -> Annotated:
     return annotated(imgs, gt, 900_000)
 
 
-def clip_data(clip: str) -> tuple[list[np.ndarray], GroundTruth]:
+def clip_data(clip: str) -> tuple[list[np.ndarray], Detections]:
     """Every frame of ``$FASTDET_DATA/videos/CLIP.mp4`` (BGR) and its ground truth."""
     root = data_dir()
     reader = FrameReader(root / "videos" / f"{clip}.mp4")
@@ -66,7 +67,7 @@ def clip_data(clip: str) -> tuple[list[np.ndarray], GroundTruth]:
     return frames, read_gt(root / "annotations" / f"{clip}.gt.txt")
 
 
-def clip_vehicles(clip: str, data: tuple[list[np.ndarray], GroundTruth] | None = None) -> Annotated:
+def clip_vehicles(clip: str, data: tuple[list[np.ndarray], Detections] | None = None) -> Annotated:
     """:func:`annotated` of one of :data:`CLIPS` (``data``: its frames and ground truth, read
     when not given), groups numbered from ``1000 * (its place in CLIPS + 1)``."""
     frames, gt = data if data is not None else clip_data(clip)

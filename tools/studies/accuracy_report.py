@@ -22,10 +22,11 @@ import argparse
 from dataclasses import replace
 
 from fastdet import Detector, HeatConfig, MotionGate, SearchConfig
-from fastdet.config import WIDE_HEAT
+from fastdet.config import ONCOMING_HEAT
 from fastdet.data import data_dir
 from fastdet.eval import evaluate
-from fastdet.io.motfiles import Predictions, read_gt
+from fastdet.detections import Detections
+from fastdet.io.motfiles import read_gt
 from fastdet.video import iter_video_detections, make_detector
 from tools.studies.tune_video import cache_windows, replay
 
@@ -82,14 +83,14 @@ def main() -> None:
         cells = []
         for n in names:
             clip = cache[n]
-            preds = replay(clip, thr, heat, WIDE_HEAT, motion, tracker=False)
+            preds = replay(clip, thr, heat, ONCOMING_HEAT, motion, tracker=False)
             r = evaluate(gts[n], preds, iou=0.5, num_frames=len(clip))
             cells.append(_cell(r))
         print(f"| {label} | " + " | ".join(cells) + " |", flush=True)
     # the defaults, through the code path of `python -m fastdet video` / `eval`
     cells = []
     for n in names:
-        preds = Predictions.from_frames(iter_video_detections(videos[n], progress=False))
+        preds = Detections.from_frames(iter_video_detections(videos[n], progress=False))
         cells.append(_cell(evaluate(gts[n], preds, iou=0.5)))
     print("| **fastdet defaults**: + tracker (ids; weak blobs keep a vehicle's track alive) | "
           + " | ".join(cells) + " |")

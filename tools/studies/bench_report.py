@@ -1,6 +1,6 @@
 """Print the detector, video and start-up benchmarks as markdown tables (docs/benchmarks.md).
 
-    python -m tools.studies.bench_report [--quick] [--wide W.npz]
+    python -m tools.studies.bench_report [--quick] [--oncoming W.npz]
         [--only detector|opencv|wait-policy|video|start-up ...]
 
 All figures are measured in this one run (setups as in ``benchmarks/bench_detector.py`` and
@@ -10,11 +10,11 @@ All figures are measured in this one run (setups as in ``benchmarks/bench_detect
     (``tests.reference.ClassicDetector``, test1.jpg) and of fastdet's ``Detector.detect``
     (cycling through test_images/*.jpg) at 1 and 2 Numba threads, with the main model only
     (the same model and bands as the classic one) and as ``Detector()`` builds it by default
-    (the same: the oncoming-traffic model runs in VideoDetector), and with ``--wide W.npz`` also with that
-    wide-window model beside the main one; speed-up = classic best / fastdet best.
+    (the same: the oncoming-traffic model runs in VideoDetector), and with ``--oncoming W.npz`` also with that
+    oncoming-traffic model beside the main one; speed-up = classic best / fastdet best.
     The fastdet configurations are timed in interleaved rounds, so a burst of load from
     another program hits all of them alike.
-(a'') opencv: ``Detector(wide=None).detect`` (and at an 8-px window stride) side by side with
+(a'') opencv: ``Detector(oncoming=None).detect`` (and at an 8-px window stride) side by side with
     OpenCV's ``HOGDescriptor.detectMultiScale`` at 8 and 16 px on the same 7 bands
     (``benchmarks/bench_opencv.py``), interleaved, 1 and 2 threads.
 (a') wait policy: ``python -m fastdet bench`` at 2 threads in fresh processes with
@@ -59,8 +59,8 @@ def this_command(args: argparse.Namespace, section: str) -> str:
     cmd = ["python", "-m", "tools.studies.bench_report", "--only", section]
     if args.quick:
         cmd.append("--quick")
-    if args.wide and section == "detector":
-        cmd += ["--wide", str(args.wide)]
+    if args.oncoming and section == "detector":
+        cmd += ["--oncoming", str(args.oncoming)]
     return shlex.join(cmd)
 
 
@@ -76,8 +76,8 @@ def detector_section(args: argparse.Namespace, thread_counts: list[int]) -> None
     calls, rounds = (30, 3) if args.quick else (120, 6)
     classic_rounds = 1 if args.quick else 2
 
-    kinds = ("main", "default", "wide") if args.wide else ("main", "default")
-    dets = {kind: make_fastdet(kind, args.wide) for kind in kinds}
+    kinds = ("main", "default", "oncoming") if args.oncoming else ("main", "default")
+    dets = {kind: make_fastdet(kind, args.oncoming) for kind in kinds}
     configs = [(kind, n) for kind in dets for n in thread_counts]
     times, stages = time_detectors(dets, frames, thread_counts, calls, rounds)
     frame = frames[CLASSIC_FRAME]
@@ -100,8 +100,8 @@ def detector_section(args: argparse.Namespace, thread_counts: list[int]) -> None
         st = {k: 1e3 * statistics.median(v) for k, v in stages[(kind, n)].items()}
         if n == max(thread_counts):
             best2[kind] = best
-        name = {"main": "fastdet `Detector(wide=None)`", "default": "fastdet `Detector()` (default)",
-                "wide": f"fastdet `Detector(wide={os.path.basename(str(args.wide))!r})`"}[kind]
+        name = {"main": "fastdet `Detector(oncoming=None)`", "default": "fastdet `Detector()` (default)",
+                "oncoming": f"fastdet `Detector(oncoming={os.path.basename(str(args.oncoming))!r})`"}[kind]
         print(f"| {name} | {models_label(dets[kind])} | {n} | {best:.2f} | {med:.2f}{_flag(best, med)} "
               f"| {st.get('resize_colour', 0):.2f} | {st.get('hog', 0):.2f} | {st.get('score', 0):.2f} "
               f"| {c_best / best:,.0f}x |")
@@ -111,12 +111,12 @@ def detector_section(args: argparse.Namespace, thread_counts: list[int]) -> None
           f"band threads (so they exceed the wall time). Classic: {classic_rounds} run(s) on "
           f"{CLASSIC_FRAME}. Same positive windows from classic and fastdet (main): "
           f"{'yes' if agree else 'NO'}.")
-    if dets["default"].wide_model is None:
-        print("`Detector()` is `Detector(wide=None)`: the oncoming-traffic model runs in `VideoDetector` "
+    if dets["default"].oncoming_model is None:
+        print("`Detector()` is `Detector(oncoming=None)`: the oncoming-traffic model runs in `VideoDetector` "
               "(what `video` runs), where motion narrows its search; its cost is in the video table.")
-    if args.wide:
-        n_wide = len(dets["wide"].geometries(frames[CLASSIC_FRAME].shape[:2], part=1))
-        print(f"Wide model {args.wide}: {n_wide} more bands (`fastdet.config.WIDE_SEARCH`).")
+    if args.oncoming:
+        n_wide = len(dets["oncoming"].geometries(frames[CLASSIC_FRAME].shape[:2], part=1))
+        print(f"Oncoming model {args.oncoming}: {n_wide} more bands (`fastdet.config.ONCOMING_SEARCH`).")
     nt = max(thread_counts)
     b = best2["default"]
     print(f"Goal (>= 100x classic, < 10 ms per frame at 2 threads): default detector {b:.2f} ms at "
@@ -141,7 +141,7 @@ def opencv_section(args: argparse.Namespace, thread_counts: list[int]) -> None:
         for n in thread_counts:
             best, med, cpu = res[(label, n)]
             ref_best, ref_med, _ = res[("OpenCV stride 8", n)]
-            name = {"fastdet": "fastdet `Detector(wide=None)` (default search)",
+            name = {"fastdet": "fastdet `Detector(oncoming=None)` (default search)",
                     "fastdet stride 8": "fastdet, `SearchConfig(cells_per_step=1)`"
                     }.get(label, "OpenCV `detectMultiScale`")
             print(f"| {name} | {stride} px | {windows[label]:,} | {n} | {best:.2f} | {med:.2f}{_flag(best, med)} "
@@ -252,11 +252,12 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="fewer repeats (a rough picture in about a minute)")
     ap.add_argument("--only", nargs="+", choices=SECTIONS, default=list(SECTIONS), metavar="SECTION",
                     help=f"tables to print: {', '.join(SECTIONS)} (default: all)")
-    ap.add_argument("--wide", metavar="WIDE.npz",
-                    help="detector table: also time Detector(wide=WIDE.npz), a wide-window model beside the main one")
+    ap.add_argument("--oncoming", metavar="ONCOMING.npz",
+                    help="detector table: also time Detector(oncoming=ONCOMING.npz), an oncoming-traffic "
+                         "model beside the main one")
     args = ap.parse_args(argv)
-    if args.wide and not os.path.exists(args.wide):
-        ap.error(f"--wide {args.wide}: file not found")
+    if args.oncoming and not os.path.exists(args.oncoming):
+        ap.error(f"--oncoming {args.oncoming}: file not found")
 
     thread_counts = [n for n in (1, 2) if n <= numba.config.NUMBA_NUM_THREADS]
     load0 = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")

@@ -47,26 +47,13 @@ from fastdet.detections import Detections
 from fastdet.eval import evaluate
 from fastdet.eval.sizes import WIDTH_EDGES, recall_by_width
 from fastdet.eval.variants import Variant, standard_variants, transform_gt
-from fastdet.io.motfiles import Predictions, read_gt
+from fastdet.io.motfiles import read_gt
+from fastdet.io.reader import read_frames
 from fastdet.video import VideoDetector, make_detector
 from tests.fakes import RecordingDetector
 
 # ---------------------------------------------------------------------------------------
 # frames
-
-
-def read_frames(path: Path) -> list[np.ndarray]:
-    cap = cv2.VideoCapture(str(path))
-    out = []
-    while True:
-        ok, frame = cap.read()
-        if not ok:
-            break
-        out.append(frame)
-    cap.release()
-    if not out:
-        raise SystemExit(f"{path}: no frames")
-    return out
 
 
 #: variants this tool adds on request (``--variants``), with the OpenCV codec that re-encodes
@@ -134,7 +121,7 @@ def load_windows(path: Path) -> list[Detections]:
 
 
 def run_clip(det: Any, frames: list[np.ndarray], heat: HeatConfig, cache: Path | None,
-             horizon: float | str | None) -> tuple[Predictions, float]:
+             horizon: float | str | None) -> tuple[Detections, float]:
     """Boxes of every frame through a fresh VideoDetector (``horizon`` as its argument;
     ``'auto'`` primed with the clip's first frames, as ``iter_video_detections`` does for a
     file), and the seconds per frame."""
@@ -151,7 +138,7 @@ def run_clip(det: Any, frames: list[np.ndarray], heat: HeatConfig, cache: Path |
     dt = (time.perf_counter() - t0) / len(frames)
     if cache is not None and replay is None:
         save_windows(cache, rec.record)
-    return Predictions.from_frames(out), dt
+    return Detections.from_frames(out), dt
 
 
 def iter_suite(variants: list[Variant], clips: list[str], det: Any, heat: HeatConfig, cache_dir: Path | None,

@@ -31,14 +31,15 @@ import cv2
 from fastdet.config import PipelineConfig
 from fastdet.data import data_dir
 from fastdet.eval.clips import annotated_clips, markdown_table, score_clip
-from fastdet.io.motfiles import Predictions
+from fastdet.detections import Detections
+from fastdet.io.reader import read_frames
 from fastdet.video import VideoDetector, make_detector
 from fastdet.video.run import iter_video_detections
 from tools.scripts.side_model import build
 
 
 def run_clip(clip, config: PipelineConfig):
-    preds = Predictions.from_frames(iter_video_detections(clip.video, config, progress=False), source=str(clip.video))
+    preds = Detections.from_frames(iter_video_detections(clip.video, config, progress=False), source=str(clip.video))
     cap = cv2.VideoCapture(str(clip.video))
     rows = int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
     cap.release()
@@ -50,14 +51,7 @@ def cost(repeat: int) -> None:
 
     numba.set_num_threads(1)
     cv2.setNumThreads(1)
-    cap = cv2.VideoCapture(str(data_dir() / "videos" / "test_small1.mp4"))
-    frames = []
-    while True:
-        ok, f = cap.read()
-        if not ok:
-            break
-        frames.append(f)
-    cap.release()
+    frames = read_frames(data_dir() / "videos" / "test_small1.mp4")
     best: dict[str, float] = {}
     for _ in range(repeat):
         for name, cfg in (("today", PipelineConfig()), ("with the side component", PipelineConfig(side=True))):

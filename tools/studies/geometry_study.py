@@ -6,8 +6,9 @@ clip with the main model's search replaced by a :class:`~fastdet.detect.geometry
 and, unless ``--fixed-ratio``, the ratio estimated from the tracked boxes as the video goes
 (:class:`~fastdet.detect.geometry.RatioEstimator`, boxes whose score is at least
 ``--min-score``). Prints the per-clip table of ``fastdet eval --all`` plus the estimated
-ratio and the main search's cost (HOG cells of the scaled bands per frame, relative to
-today's bands at the same horizon).
+ratio, the main search's cost (HOG cells of the scaled bands of a full scan, relative to
+today's bands at the same horizon) and the windows the pipeline scored per frame (the main
+model's and all models'; the guided search scores fewer between full scans).
 
     python -m tools.studies.geometry_study [--ratio 1.9] [--slack 0.05] [--fixed-ratio]
         [--horizon auto|off|F|+D] [--clips A,B] [--out R.json] [--baseline]
@@ -19,7 +20,10 @@ import json
 import time
 from dataclasses import replace
 
+import numpy as np
+
 from fastdet.config import PipelineConfig, SearchBand, SearchConfig
+from fastdet.detect import DetectStats
 from fastdet.detect.bands import band_geometry
 from fastdet.detect.geometry import (
     GeometricSearch,
@@ -27,7 +31,7 @@ from fastdet.detect.geometry import (
     RatioEstimator,
 )
 from fastdet.eval.clips import annotated_clips, markdown_table, report_json, score_clip
-from fastdet.io.motfiles import Predictions
+from fastdet.detections import Detections
 from fastdet.io.reader import FrameReader
 from fastdet.video.horizon import HORIZON_FRAMES, estimate_horizon
 from fastdet.video import iter_video_detections, make_detector
@@ -71,6 +75,8 @@ def main() -> None:
     ap.add_argument("--clips", default=None)
     ap.add_argument("--bands", default=None,
                     help="reference bands scale:y0:y1[:x0:x1],... (1280x720 px) instead of today's")
+    ap.add_argument("--oncoming-slack", type=float, default=0.0,
+                    help="rows (fraction of H) added above and below every band of the oncoming model")
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
     geo = GeometryConfig(ratio=args.ratio, slack=args.slack)
@@ -97,11 +103,30 @@ def main() -> None:
                 bands.append(SearchBand(float(p[0]), int(p[1]), int(p[2]), int(p[3]) if len(p) > 3 else None,
                                         int(p[4]) if len(p) > 4 else None))
             det.scorers[0].search = replace(det.scorers[0].search, bands=tuple(bands))
+        if args.oncoming_slack and len(det.scorers) > 1:
+            on = det.scorers[1].search
+            rows = on.reference_shape[0] if on.reference_shape is not None else 720
+            d = int(round(args.oncoming_slack * rows))
+            det.scorers[1].search = replace(on, bands=tuple(
+                replace(b, y_start=max(b.y_start - d, 0), y_stop=min(b.y_stop + d, rows)) for b in on.bands))
         base_search = det.scorers[0].search
         if not args.baseline:
             det.scorers[0].search = GeometricSearch(**{f: getattr(base_search, f) for f in (
                 "bands", "cells_per_step", "threshold", "reference_shape", "reference_horizon", "horizon", "border",
                 "border_mode")}, geometry=geo)
+        scored = [0, 0]  # windows scored (main model, all models) over the clip's frames
+        inner_detect = det.detect
+
+        def counting_detect(frame, *a, stats=None, _inner=inner_detect, **kw):
+            st = stats if stats is not None else DetectStats()
+            out = _inner(frame, *a, stats=st, **kw)
+            for part, _, values in st.bands:
+                n = int(np.isfinite(values).sum())
+                scored[1] += n
+                scored[0] += n if part == 0 else 0
+            return out
+
+        det.detect = counting_detect  # type: ignore[method-assign]
         est = RatioEstimator()
         updater = None
         frames = []
@@ -132,16 +157,19 @@ def main() -> None:
             if r is not None:
                 det.scorers[0].search = replace(det.scorers[0].search, ratio=r)
         cpu_ms = (time.process_time() - cpu0) / max(len(frames) - 1, 1) * 1e3 if cpu0 is not None else float("nan")
-        preds = Predictions.from_frames(frames, source=str(clip.video))
+        preds = Detections.from_frames(frames, source=str(clip.video))
         s = score_clip(clip.name, clip.gt(), preds, shape[0], clip.keyframes())
         scores.append(s)
         h_used = det.horizon if det.horizon is not None else base_search.reference_horizon
         ref_cells = cells(replace(base_search, horizon=det.horizon), shape, det.config)
         extra[clip.name] = {"horizon": h_used, "ratio": getattr(det.scorers[0].search, "ratio", None),
                             "cells": cells(det.scorers[0].search, shape, det.config), "ref_cells": ref_cells,
-                            "cpu_ms_per_frame": cpu_ms}
+                            "cpu_ms_per_frame": cpu_ms, "main_windows_per_frame": scored[0] / max(len(frames), 1),
+                            "windows_per_frame": scored[1] / max(len(frames), 1)}
         print(f"{clip.name}: F1 {s.result.f1:.3f} horizon {h_used:.3f} ratio {extra[clip.name]['ratio']} "
-              f"cost {extra[clip.name]['cells'] / ref_cells:.2f}x cpu {cpu_ms:.0f} ms/frame", flush=True)
+              f"cost {extra[clip.name]['cells'] / ref_cells:.2f}x (full scan), windows scored / frame: main "
+              f"{scored[0] / max(len(frames), 1):.0f}, all {scored[1] / max(len(frames), 1):.0f}; "
+              f"cpu {cpu_ms:.0f} ms/frame", flush=True)
     print(markdown_table(scores))
     if args.out:
         rep = report_json(scores, vars(args))

@@ -28,7 +28,7 @@ from fastdet.config import NeighbourSplit, OwnVehicleConfig, PipelineConfig
 from fastdet.data import data_dir
 from fastdet.detections import Detections
 from fastdet.eval import evaluate
-from fastdet.io.motfiles import Predictions, read_gt
+from fastdet.io.motfiles import read_gt
 from fastdet.io.reader import FrameReader
 from fastdet.video.detector import make_detector
 from fastdet.video.ownvehicle import OwnVehicleEstimator, OwnVehicleStage, window_fraction
@@ -59,7 +59,7 @@ def keyframes(clip: str) -> np.ndarray | None:
     return np.array([int(x) for x in p.read_text().split()], np.int64)
 
 
-def score(clip: str, preds: Predictions, iou: float = 0.5) -> dict[str, float]:
+def score(clip: str, preds: Detections, iou: float = 0.5) -> dict[str, float]:
     """P / R / F1 / false alarms per scored frame of ``preds`` on ``clip``'s annotated frames
     (:func:`fastdet.eval.evaluate` with the clip's keyframes, as ``fastdet eval --all``)."""
     gt = read_gt(_annotation(clip, "gt.txt"))
@@ -68,7 +68,7 @@ def score(clip: str, preds: Predictions, iou: float = 0.5) -> dict[str, float]:
             "fa": r.fp_per_frame, "frames": r.frames}
 
 
-def run_clip(clip: str, config: PipelineConfig) -> tuple[Predictions, list[dict], float]:
+def run_clip(clip: str, config: PipelineConfig) -> tuple[Detections, list[dict], float]:
     """The boxes of every frame of ``clip`` with the pipeline of ``config`` (built as every
     command builds it: :func:`fastdet.video.run.video_detector_for`), per-frame debug (the heat
     maps' boxes, the windows, the heat and its labels) and the CPU seconds per frame of the
@@ -93,7 +93,7 @@ def run_clip(clip: str, config: PipelineConfig) -> tuple[Predictions, list[dict]
     finally:
         reader.close()
     cpu = (time.process_time() - t0) / max(len(out), 1)
-    return Predictions.from_frames(out, source=clip), debug, cpu
+    return Detections.from_frames(out, source=clip), debug, cpu
 
 
 _WARM: list[bool] = []

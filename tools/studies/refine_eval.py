@@ -43,7 +43,7 @@ from fastdet.data import data_dir
 from fastdet.detections import Detections
 from fastdet.eval import evaluate
 from fastdet.eval.variants import Variant, standard_variants, transform_gt
-from fastdet.io.motfiles import GroundTruth, Predictions, read_gt
+from fastdet.io.motfiles import read_gt
 from fastdet.config import PipelineConfig
 from fastdet.train.refine import paired_iou
 from fastdet.video import VideoDetector, make_detector
@@ -54,7 +54,7 @@ from tools.scripts.refine_model import (CLIPS, add_feature_arguments, check_clip
 from .camera_shift import read_frames, variant_frames
 
 
-def clip_data(clip: str) -> tuple[list[np.ndarray], GroundTruth]:
+def clip_data(clip: str) -> tuple[list[np.ndarray], Detections]:
     root = data_dir()
     return read_frames(root / "videos" / f"{clip}.mp4"), read_gt(root / "annotations" / f"{clip}.gt.txt")
 
@@ -69,7 +69,7 @@ def _part_of(boxes: np.ndarray, windows: Detections) -> np.ndarray:
         return out
     wb = windows.boxes.astype(np.float64)
     cx, cy = 0.5 * (wb[:, 0] + wb[:, 2]), 0.5 * (wb[:, 1] + wb[:, 3])
-    wide = windows.is_wide
+    wide = windows.is_oncoming
     for i, b in enumerate(boxes):
         inside = (cx >= b[0]) & (cx < b[2]) & (cy >= b[1]) & (cy < b[3])
         out[i] = int(inside.any() and wide[inside].sum() > (~wide[inside]).sum())
@@ -106,7 +106,7 @@ def pipeline_boxes(det: Any, frames: list[np.ndarray], cache: Path) -> list[Dete
 # ---------------------------------------------------------------------------------------- scoring
 
 
-def paired(gt: GroundTruth, dets: list[Detections], min_iou: float = 0.3) -> list[tuple[int, int, int]]:
+def paired(gt: Detections, dets: list[Detections], min_iou: float = 0.3) -> list[tuple[int, int, int]]:
     """``(frame index, box row, gt row)``: each vehicle with the box overlapping it most
     (IoU >= ``min_iou``), greedily by IoU, one box per vehicle and one vehicle per box."""
     from fastdet.boxes import iou
@@ -127,8 +127,8 @@ def paired(gt: GroundTruth, dets: list[Detections], min_iou: float = 0.3) -> lis
     return out
 
 
-def score(gt: GroundTruth, dets: list[Detections], pairs: list[tuple[int, int, int]], n_frames: int) -> dict[str, Any]:
-    preds = Predictions.from_frames([(i + 1, d) for i, d in enumerate(dets)])
+def score(gt: Detections, dets: list[Detections], pairs: list[tuple[int, int, int]], n_frames: int) -> dict[str, Any]:
+    preds = Detections.from_frames([(i + 1, d) for i, d in enumerate(dets)])
     r = evaluate(gt, preds, iou=0.5, num_frames=n_frames)
     ious = np.array([paired_iou(dets[fi].boxes[i:i + 1], gt.boxes[g:g + 1])[0] for fi, i, g in pairs])
     nan = math.nan

@@ -27,4 +27,4 @@ def test_the_script_builds_a_wide_window_model(data, tmp_path):
         assert any((tmp_path / "work" / step).glob("*.png")), step
     model = load_model(out)
     assert model.config.window_height == 24  # 64x24 windows: rows 12..36 of the crops
-    assert Detector(wide=model).wide_model is model
+    assert Detector(oncoming=model).oncoming_model is model

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from fastdet import Detector, HeatConfig, MotionGate, VideoDetector
-from fastdet.config import WIDE_HEAT, WIDE_SEARCH, PipelineConfig
-from fastdet.io.motfiles import Predictions
+from fastdet.config import ONCOMING_HEAT, ONCOMING_SEARCH, PipelineConfig
+from fastdet.detections import Detections
 from fastdet.io.reader import FrameReader
 from fastdet.video import iter_video_detections, make_detector
 from tools.studies.tune_video import cache_windows, replay
@@ -29,7 +29,7 @@ def cached(clip):
     return det, cache_windows(det, clip, low=-1.0)
 
 
-def _same(a: Predictions, b: Predictions) -> None:
+def _same(a: Detections, b: Detections) -> None:
     assert len(a.frames) > 0
     np.testing.assert_array_equal(a.frames, b.frames)
     np.testing.assert_array_equal(a.boxes, b.boxes)
@@ -39,28 +39,29 @@ def _same(a: Predictions, b: Predictions) -> None:
 
 def test_replay_of_the_defaults_is_the_video_pipeline(clip, cached):
     det, windows = cached
-    got = replay(windows, det.search.threshold, HeatConfig(), WIDE_HEAT, MotionGate())
-    want = Predictions.from_frames(iter_video_detections(clip, PipelineConfig(guided=None), progress=False))
+    got = replay(windows, det.search.threshold, HeatConfig(), ONCOMING_HEAT, MotionGate())
+    want = Detections.from_frames(iter_video_detections(clip, PipelineConfig(guided=None), progress=False))
     _same(got, want)
     assert (got.ids >= 1).all()  # tracked, as the pipeline
-    untracked = replay(windows, det.search.threshold, HeatConfig(), WIDE_HEAT, MotionGate(), tracker=False)
+    untracked = replay(windows, det.search.threshold, HeatConfig(), ONCOMING_HEAT, MotionGate(), tracker=False)
     untracked_config = PipelineConfig(tracker=None, guided=None)
-    _same(untracked, Predictions.from_frames(iter_video_detections(clip, untracked_config, progress=False)))
+    _same(untracked, Detections.from_frames(iter_video_detections(clip, untracked_config, progress=False)))
 
 
 def test_replay_of_other_settings_is_video_detector_with_them(clip, cached):
     det, windows = cached
     heat = HeatConfig(threshold=2.0, n_frames=4)
-    wide_heat = HeatConfig(threshold=5.0, n_frames=1, extent=0.3, min_height=10, max_aspect=0.8)
+    oncoming_heat = HeatConfig(threshold=5.0, n_frames=1, extent=0.3, min_height=10, max_aspect=0.8)
     thr = 0.5
-    got = replay(windows, thr, heat, wide_heat, MotionGate(30.0), thr_wide=0.5)
+    got = replay(windows, thr, heat, oncoming_heat, MotionGate(30.0), thr_oncoming=0.5)
     # the same settings, run for real: the window thresholds are the searches' own
     real = Detector(search=replace(det.search, threshold=thr),
-                    wide=det.wide_model, wide_search=replace(WIDE_SEARCH, threshold=0.5))
-    vd = VideoDetector(real, PipelineConfig(heat=heat, oncoming_heat=wide_heat, motion=MotionGate(30.0), guided=None))
+                    oncoming=det.oncoming_model, oncoming_search=replace(ONCOMING_SEARCH, threshold=0.5))
+    vd = VideoDetector(real, PipelineConfig(heat=heat, oncoming_heat=oncoming_heat, motion=MotionGate(30.0),
+                                            guided=None))
     reader = FrameReader(clip)
     try:
-        want = Predictions.from_frames((f, vd.update(frame)) for f, frame, _ in reader)
+        want = Detections.from_frames((f, vd.update(frame)) for f, frame, _ in reader)
     finally:
         reader.close()
     _same(got, want)

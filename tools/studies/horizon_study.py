@@ -1,0 +1,144 @@
+"""The horizon of every annotated clip: what its annotated boxes imply, what the optical flow
+and the line segments give (run by hand; docs/geometry.md).
+
+Per clip (per shot: ``--cut CLIP:FRAME`` splits a clip at a cut, the first frame of the new
+shot):
+
+- **boxes, Theil-Sen**: the line ``w = ratio x (y_bottom - horizon x H)`` through the
+  targets' (``consider`` = 1) widths and bottom rows, fitted by Theil-Sen (robust to a few
+  vehicles of another width, e.g. seen from the side); ``ratio`` per px of rows.
+- **boxes, per track**: the horizon and ratio of
+  :class:`fastdet.detect.geometry.PerspectiveEstimator` over the same boxes grouped by
+  vehicle (each vehicle's boxes must agree; no prior), with the default spreads (tight) and
+  twice them (loose). Both fits need vehicles at several depths: where all stand at about
+  one depth (``y_bottom`` range printed) neither says much.
+- **flow**: :class:`fastdet.video.horizon.HorizonEstimator` over the first
+  ``HORIZON_FRAMES`` frames with the line segments off: pairs with a FOE, their median row
+  and spread (median absolute deviation), and the estimate (``None`` when the spread is over
+  ``MAX_SPREAD``); also the median flow per frame (px at 360 rows) and, with
+  ``--gaps``, the same at other gaps.
+- **segments**: the vanishing point of the line segments (:mod:`fastdet.video.vanishing`) of
+  one frame in three of the same frames: frames with one, median row, spread.
+- **estimate**: what the default estimator gives and from which cue.
+
+These are evaluation only: nothing here is a setting.
+
+    python -m tools.studies.horizon_study [--clips A,B] [--cut motorcycle_highway:65] [--gaps 2,4,8]
+"""
+from __future__ import annotations
+
+import argparse
+
+import cv2
+import numpy as np
+from scipy.stats import theilslopes
+
+from fastdet.detect.geometry import PerspectiveEstimator
+from fastdet.eval.clips import annotated_clips
+from fastdet.video.horizon import HORIZON_FRAMES, HorizonEstimator, _flow_foe, _grey
+from fastdet.video.vanishing import vanishing_point
+
+
+def frames_of(video, n: int | None = None) -> list[np.ndarray]:
+    cap = cv2.VideoCapture(str(video))
+    out: list[np.ndarray] = []
+    while n is None or len(out) < n:
+        ok, f = cap.read()
+        if not ok:
+            break
+        out.append(f)
+    cap.release()
+    return out
+
+
+def box_fits(t: np.ndarray, rows: int) -> dict:
+    """Horizon / ratio fits of the target rows ``t`` of a gt.txt (module docstring)."""
+    w, yb = t[:, 4], t[:, 3] + t[:, 5]
+    k, c0, _, _ = theilslopes(w, yb)
+    out = {"theil": (-c0 / k / rows, k), "bottoms": (yb.min() / rows, yb.max() / rows)}
+    boxes = np.c_[t[:, 2], t[:, 3], t[:, 2] + t[:, 4], yb]
+    for name, sb, sr in (("track", 0.05, 0.15), ("track_loose", 0.1, 0.3)):
+        pe = PerspectiveEstimator(min_boxes=1, min_tracks=1, reach=0.3, grid=0.0025, sigma_h=1e3, sigma_k=1e3,
+                                  sigma_r=sr, sigma_box=sb)
+        pe.update(boxes, t[:, 1].astype(int), rows)
+        est = pe.estimate(0.5, 1.9)
+        out[name] = est if est is not None else (float("nan"), float("nan"))
+    return out
+
+
+def med_mad(r: list[float]) -> tuple[float, float]:
+    if not r:
+        return float("nan"), float("nan")
+    a = np.asarray(r)
+    m = float(np.median(a))
+    return m, float(np.median(np.abs(a - m)))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--clips", default=None)
+    ap.add_argument("--cut", action="append", default=["motorcycle_highway:65"],
+                    help="CLIP:FRAME, the 1-based first frame after a cut (repeatable)")
+    ap.add_argument("--gaps", default="", help="also the flow estimate at these gaps (comma-separated)")
+    args = ap.parse_args()
+    cuts = {c.split(":")[0]: int(c.split(":")[1]) for c in args.cut}
+    clips = annotated_clips()
+    if args.clips:
+        clips = [c for c in clips if c.name in args.clips.split(",")]
+    print("| clip | shot | boxes (targets, tracks) | bottoms (of H) | Theil-Sen horizon / ratio | per track "
+          "horizon / ratio (tight; loose) | flow: pairs, median, spread | flow / frame (px at 360) | "
+          "segments: frames, median, spread | estimate |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for clip in clips:
+        frames = frames_of(clip.video)
+        rows = frames[0].shape[0]
+        gt = np.loadtxt(clip.gt_path, delimiter=",", ndmin=2)
+        t_all = gt[gt[:, 6] == 1]
+        cut = cuts.get(clip.name)
+        shots = [(1, len(frames))] if cut is None else [(1, cut - 1), (cut, len(frames))]
+        for a, b in shots:
+            t = t_all[(t_all[:, 0] >= a) & (t_all[:, 0] <= b)]
+            fits = box_fits(t, rows) if len(t) >= 2 else None
+            fr = frames[a - 1:b][:HORIZON_FRAMES]
+            flow = HorizonEstimator(segments=False)
+            for f in fr:
+                if flow.done:
+                    break
+                flow.update(f)
+            per_frame = []
+            for j in range(0, len(fr) - 1, 6):
+                g0, _ = _grey(fr[j], min(360, rows))
+                g1, _ = _grey(fr[j + 1], min(360, rows))
+                per_frame.append(_flow_foe(g0, g1)[1] * 360 / g0.shape[0])
+            seg = [p[1] / rows for p in (vanishing_point(f) for f in fr[::3]) if p is not None]
+            est = HorizonEstimator()
+            for f in fr:
+                if est.done:
+                    break
+                est.update(f)
+            fm, fs = med_mad(flow.rows)
+            sm, ss = med_mad(seg)
+            if fits is None:
+                box = "-", "-", "-", "-"
+            else:
+                box = (f"{fits['bottoms'][0]:.3f}-{fits['bottoms'][1]:.3f}",
+                       f"{fits['theil'][0]:.3f} / {fits['theil'][1]:.2f}",
+                       f"{fits['track'][0]:.3f} / {fits['track'][1]:.2f}; "
+                       f"{fits['track_loose'][0]:.3f} / {fits['track_loose'][1]:.2f}", "")
+            e = "none" if est.estimate is None else f"{est.estimate:.3f} ({est.source})"
+            extra = ""
+            for gap in [int(g) for g in args.gaps.split(",") if g]:
+                h = HorizonEstimator(gap=gap, segments=False)
+                for f in fr:
+                    if h.done:
+                        break
+                    h.update(f)
+                gm, gs = med_mad(h.rows)
+                extra += f"; gap {gap}: {gm:.3f} / {gs:.3f}"
+            print(f"| {clip.name} | {a}-{b} | {len(t)}, {len(set(t[:, 1].astype(int)))} | {box[0]} | {box[1]} | "
+                  f"{box[2]} | {len(flow.rows)}, {fm:.3f}, {fs:.3f}{extra} | {np.median(per_frame):.2f} | "
+                  f"{len(seg)}, {sm:.3f}, {ss:.3f} | {e} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
