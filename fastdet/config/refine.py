@@ -21,7 +21,7 @@ class RefineConfig(Config):
         Detections without ``part`` count as part 0).
     """
 
-    iterations: int = 3
+    iterations: int = 1
     max_shift: float = 0.5
     max_log_scale: float = math.log(1.5)
     min_size: int = 8

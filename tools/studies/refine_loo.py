@@ -9,13 +9,16 @@ default pipeline (or the settings of :mod:`tools.studies.small_boxes`) runs on E
 scored only by a regressor that never saw it. Prints the per-clip table of
 ``fastdet eval --all`` and the box measurements of :mod:`tools.studies.small_boxes`.
 
-    python -m tools.studies.refine_loo [--out-dir DIR [--reuse]] [--clips A,B] [small_boxes options]
+    python -m tools.studies.refine_loo [--out-dir DIR [--reuse]] [--clips A,B] [--jitter-scale LO HI]
+        [--jitter-aspect A] [small_boxes options, e.g. --refine iterations=3]
 
 ``--ship PATH --ship-without CLIP`` then fits one regressor on every clip but CLIP (default
 ``test_small1``, so that ``fastdet eval`` on it stays a held-out figure) and writes it to
 PATH with the leave-one-clip-out figures of this run in its metadata
 (``leave_one_clip_out``). On the other clips ``fastdet eval`` with that regressor is
-in-sample: their honest figures are this study's.
+in-sample: their honest figures are this study's. The optional
+``fastdet/models/refine_cameras.npz`` is made so (``--refine iterations=3 --ship``;
+docs/geometry.md "Small vehicles and box formation").
 """
 from __future__ import annotations
 
@@ -27,10 +30,12 @@ from typing import Any
 
 import numpy as np
 
+from fastdet.detections import Detections
 from fastdet.eval.clips import AnnotatedClip, annotated_clips, markdown_table, score_clip
-from fastdet.io.motfiles import Predictions
 from fastdet.io.reader import FrameReader
-from tools.scripts.refine_model import Annotated, add_feature_arguments, fit_box_regressor, samples, spec_of
+from fastdet.config import JitterConfig
+from fastdet.train.refine import collect_samples
+from tools.scripts.refine_model import Annotated, add_feature_arguments, fit_box_regressor, spec_of, test_images
 
 from .small_boxes import add_setting_arguments, config_from, fa_summary, measure, print_tables, run_clip, summary
 
@@ -61,7 +66,9 @@ def fit_without(clips: list[AnnotatedClip], vehicles: dict[str, Annotated], held
     spec = spec_of(a)
     train = [v for c in clips if c.name != held_out for v in vehicles[c.name]]
     names = [c.name for c in clips if c.name != held_out]
-    reg = fit_box_regressor(samples(train, spec, a.seed, a.per_box), spec, metadata={
+    jitter = JitterConfig(per_box=a.per_box, scale=(a.jitter_scale[0], a.jitter_scale[1]), aspect=a.jitter_aspect)
+    smp = collect_samples(train + test_images(), spec, seed=a.seed, jitter=jitter)
+    reg = fit_box_regressor(smp, spec, metadata={
         "trained_on": names + ["test_images"], "held_out_clip": held_out,
         "command": "python -m tools.studies.refine_loo " + " ".join(sys.argv[1:]), **(metadata or {})})
     reg.save(path)
@@ -79,6 +86,10 @@ def main() -> None:
                          "leave-one-clip-out figures in its metadata")
     ap.add_argument("--ship-without", default="test_small1")
     ap.add_argument("--reuse", action="store_true", help="use the regressors already in --out-dir (same options)")
+    ap.add_argument("--jitter-scale", type=float, nargs=2, default=JitterConfig().scale, metavar=("LO", "HI"),
+                    help="size factors of the training boxes about each vehicle (default: JitterConfig's)")
+    ap.add_argument("--jitter-aspect", type=float, default=JitterConfig().aspect,
+                    help="largest |log| aspect change of the training boxes (default: JitterConfig's)")
     add_feature_arguments(ap)
     add_setting_arguments(ap)
     a = ap.parse_args()
@@ -101,7 +112,7 @@ def main() -> None:
         a.refine_model = str(path)
         config = config_from(a)
         frames, rec, rows, _ = run_clip(clip, config)
-        preds = Predictions.from_frames(frames, source=str(clip.video))
+        preds = Detections.from_frames(frames, source=str(clip.video))
         scores.append(score_clip(clip.name, clip.gt(), preds, rows, clip.keyframes()))
         m = measure(clip, rec, rows, int(config.heat.cell))
         tables += summary(clip.name, m)

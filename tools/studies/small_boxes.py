@@ -34,10 +34,9 @@ from fastdet.boxes import iou as box_iou
 from fastdet.config import HeatConfig, NeighbourSplit, PipelineConfig, RefineConfig
 from fastdet.detect.bands import window_boxes
 from fastdet.detect.detector import DetectStats
-from fastdet.detections import MAIN_PART
+from fastdet.detections import MAIN_PART, Detections
 from fastdet.eval.clips import annotated_clips, markdown_table, score_clip
 from fastdet.eval.matching import match_frame
-from fastdet.io.motfiles import Predictions
 from fastdet.io.reader import FrameReader
 from fastdet.video.detector import make_detector
 from fastdet.video.run import video_detector_for
@@ -283,7 +282,7 @@ def main() -> None:
     scores, tables, fa_lines, search_lines, dump = [], [], [], [], {}
     for clip in clips:
         frames, rec, rows, counts = run_clip(clip, config, args.search)
-        preds = Predictions.from_frames(frames, source=str(clip.video))
+        preds = Detections.from_frames(frames, source=str(clip.video))
         scores.append(score_clip(clip.name, clip.gt(), preds, rows, clip.keyframes()))
         m = measure(clip, rec, rows, int(config.heat.cell))
         tables += summary(clip.name, m)

@@ -1,6 +1,5 @@
-"""tools/studies/small_boxes.py and refine_loo.py: the box measurements (hit, near miss, far
-false alarm, box / target size ratios) on a made-up frame, and the keyframe vehicles a
-leave-one-clip-out regressor is fitted on."""
+"""tools/studies/small_boxes.py: the box measurements (hit, near miss, far false alarm, box /
+target size ratios, windows and heat on a target) on a made-up frame."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -8,16 +7,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from fastdet.detections import Detections
-from fastdet.io.motfiles import GroundTruth
-from tools.studies.refine_loo import clip_vehicles
 from tools.studies.small_boxes import fa_summary, measure, summary
 
 
 @dataclass
 class _Clip:
-    truth: GroundTruth
+    truth: Detections
 
-    def gt(self) -> GroundTruth:
+    def gt(self) -> Detections:
         return self.truth
 
 
@@ -31,9 +28,8 @@ def _record(out: list, windows: list) -> dict:
 
 def test_hits_near_misses_far_false_alarms_and_ratios() -> None:
     # two targets (a 40x20 and a 100x50 box) and an ignore region, in a 720-row frame
-    gt = GroundTruth(frames=np.array([1, 1, 1]), ids=np.array([1, 2, 1000]),
-                     boxes=np.array([[100., 200, 140, 220], [400, 300, 500, 350], [600, 100, 700, 150]]),
-                     consider=np.array([True, True, False]))
+    gt = Detections(np.array([[100., 200, 140, 220], [400, 300, 500, 350], [600, 100, 700, 150]]),
+                    frames=np.array([1, 1, 1]), ids=np.array([1, 2, 1000]), consider=np.array([True, True, False]))
     out = [[100, 195, 140, 235],  # first target, twice as tall: IoU 0.5 -> a hit
            [400, 300, 460, 350],  # second target, 60 % of its width: IoU 0.6 -> a hit
            [380, 290, 520, 380],  # second target again (taken): IoU 0.40 -> a near miss
@@ -56,22 +52,6 @@ def test_hits_near_misses_far_false_alarms_and_ratios() -> None:
 
 def test_scaled_to_reference_rows() -> None:
     # a 360-row frame: widths in 720-row pixels are twice the frame's
-    gt = GroundTruth(frames=np.array([1]), ids=np.array([1]), boxes=np.array([[10., 10, 40, 25]]),
-                     consider=np.array([True]))
+    gt = Detections(np.array([[10., 10, 40, 25]]), frames=np.array([1]), ids=np.array([1]), consider=np.array([True]))
     m = measure(_Clip(gt), {1: _record([], [])}, rows=360, cell=4)
     assert m["targets"][0]["w"] == 60 and m["targets"][0]["h"] == 30 and not m["targets"][0]["hit"]
-
-
-def test_keyframe_clip_gives_only_its_keyframes_targets(data) -> None:
-    from fastdet.eval.clips import annotated_clips
-
-    clip = next(c for c in annotated_clips() if c.name == "highway_640")
-    gt, kf = clip.gt(), clip.keyframes()
-    got = clip_vehicles(clip, 2)
-    want = [f for f in np.unique(gt.frames[gt.consider]) if f in set(kf.tolist())]
-    assert len(got) == len(want) > 0
-    n = sum(len(b) for _, b, _ in got)
-    assert n == int(np.isin(gt.frames, kf)[gt.consider].sum())
-    for frame, boxes, groups in got:
-        assert frame.shape == (360, 640, 3) and len(boxes) == len(groups)
-        assert np.all(groups >= 3000) and np.all(groups < 4000)
