@@ -41,10 +41,12 @@ def features_in_chunks(images: np.ndarray, config: FeatureConfig, progress: bool
     return out
 
 
-def fit_classifier(x: np.ndarray, y: np.ndarray, classifier: str, C: float, seed: int):
-    """StandardScaler + classifier; returns ``(scaler, clf)``."""
-    scaler = StandardScaler().fit(x)
-    xs = scaler.transform(x)
+def fit_classifier(x: np.ndarray, y: np.ndarray, classifier: str, C: float, seed: int, in_place: bool = False):
+    """StandardScaler + classifier; returns ``(scaler, clf)``. ``in_place``: standardise ``x``
+    itself (a float64 array the caller no longer needs as it was) instead of a copy: half the
+    memory of a large training set."""
+    scaler = StandardScaler(copy=not in_place).fit(x)
+    xs = scaler.transform(x, copy=not in_place)
     if classifier == "linearsvc":
         clf = LinearSVC(C=C, dual=False, random_state=seed, max_iter=5000)
     else:
@@ -129,8 +131,15 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
           max_per_folder: int | None = None, refit: bool = True, progress: bool = True,
           window_top: int | None = None, positives: list[Path] | None = None, truncate: float = 0.0,
           truncate_negatives: bool = True, reencode: float = 0.0, jpeg_quality: tuple[int, int] = JPEG_QUALITY,
-          truncate_keep: tuple[float, float] = (MIN_KEEP, MAX_KEEP), log=print):
+          truncate_keep: tuple[float, float] = (MIN_KEEP, MAX_KEEP), extra_crops: CropSet | None = None,
+          log=print):
     """Train and evaluate; returns ``(model or None, report dict)``.
+
+    ``split``: ``"both"``, ``"random"``, ``"sequence"`` or ``"none"`` (no held-out evaluation).
+    ``negatives`` / ``positives``: folders of extra crops; ``extra_crops``: more extra crops
+    in memory, labelled (e.g. cut from annotated video frames,
+    :mod:`fastdet.train.keyframe_model`), of the config's window size. Extra crops join every
+    training part, never a test part; extra vehicles are mirrored as the data set's crops.
 
     ``truncate`` / ``reencode``: fractions of the crops that also join the training parts as
     truncated / re-encoded copies (:func:`fastdet.train.augment.augmented_copies`; truncated
@@ -139,6 +148,11 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
 
     For a wide-window ``config`` (``window_height`` set), ``window_top`` is the first row of
     the 64x64 crops that the window covers (default: centred)."""
+    if split not in ("both", "random", "sequence", "none"):
+        raise ValueError(f"split must be 'both', 'random', 'sequence' or 'none', got {split!r}")
+    if extra_crops is not None and extra_crops.images.shape[1:3] != (config.win_h, config.win_w):
+        raise ValueError(f"extra_crops are {extra_crops.images.shape[2]}x{extra_crops.images.shape[1]}, "
+                         f"the window is {config.win_w}x{config.win_h}")
     C = DEFAULT_C[classifier] if C is None else C
     t0 = time.perf_counter()
     crops = load_crops(data, progress=progress)
@@ -151,6 +165,8 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
     for folder, label in [(nd, 0) for nd in negatives or []] + [(pd, 1) for pd in positives or []]:
         part = fit_to_window(load_folder(folder, label, None, size=None, progress=progress), config, top)
         extra = part if extra is None else CropSet.concat(extra, part)
+    if extra_crops is not None and len(extra_crops):
+        extra = extra_crops if extra is None else CropSet.concat(extra, extra_crops)
     n_pos, n_neg = int(crops.labels.sum()), int((crops.labels == 0).sum())
     n_hard = 0 if extra is None else int((extra.labels == 0).sum())
     n_extra = 0 if extra is None else int((extra.labels == 1).sum())
@@ -196,18 +212,19 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
                                        "hard_negatives": n_hard, "extra_positives": n_extra}}
     splits = {"random": lambda: random_split(crops.labels, seed),
               "sequence": lambda: sequence_split(crops.groups, crops.order, seed)}
-    for name in (("random", "sequence") if split == "both" else (split,)):
+    for name in {"both": ("random", "sequence"), "none": ()}.get(split, (split,)):
         tr, te = splits[name]()
         xt, yt = training_part(tr)
-        scaler, clf = fit_classifier(xt, yt, classifier, C, seed)
+        scaler, clf = fit_classifier(xt, yt, classifier, C, seed, in_place=True)
+        del xt
         m = metrics(crops.labels[te], clf.predict(scaler.transform(x[te])))
         report[f"{name}_split"] = m
         log(format_metrics(name, m) + f"  ({time.perf_counter() - t0:.1f} s)")
     if not refit:
         return None, report
     xt, yt = training_part(np.arange(len(crops)))
-    scaler, clf = fit_classifier(xt, yt, classifier, C, seed)
-    report["train_accuracy"] = float((clf.predict(scaler.transform(xt)) == yt).mean())
+    scaler, clf = fit_classifier(xt, yt, classifier, C, seed, in_place=True)  # xt is standardised now
+    report["train_accuracy"] = float((clf.predict(xt) == yt).mean())
     model = Model(config=config, coef=clf.coef_.ravel(), intercept=float(clf.intercept_[0]),
                   mean=scaler.mean_, scale=scaler.scale_, classifier=classifier,
                   metadata={"training": report})

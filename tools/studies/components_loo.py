@@ -30,20 +30,11 @@ import cv2
 
 from fastdet.config import PipelineConfig
 from fastdet.data import data_dir
-from fastdet.eval.clips import annotated_clips, markdown_table, score_clip
-from fastdet.detections import Detections
+from fastdet.eval.clips import annotated_clips, markdown_table
 from fastdet.io.reader import read_frames
 from fastdet.video import VideoDetector, make_detector
-from fastdet.video.run import iter_video_detections
 from tools.scripts.side_model import build
-
-
-def run_clip(clip, config: PipelineConfig):
-    preds = Detections.from_frames(iter_video_detections(clip.video, config, progress=False), source=str(clip.video))
-    cap = cv2.VideoCapture(str(clip.video))
-    rows = int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
-    cap.release()
-    return score_clip(clip.name, clip.gt(), preds, rows, clip.keyframes())
+from tools.studies.loo import run_clip
 
 
 def cost(repeat: int) -> None:

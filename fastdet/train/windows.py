@@ -1,0 +1,167 @@
+"""A model judged on every window of annotated frames, wherever the search would put its bands:
+the *placement-free* window score, and the false windows a model fires on there (hard negatives).
+
+The pipeline's score of a model on a camera mixes two things: how well the model tells vehicles
+from background, and whether the search bands put windows of the right size where that
+camera's vehicles are. :func:`dense_search` takes the second out: bands over the whole frame
+height at every window size from ``min_width`` of the frame width to the frame height, ``steps``
+sizes per octave, windows ``cells_per_step`` HOG cells apart. On every annotated frame
+(:class:`~fastdet.train.keyframes.AnnotatedFrame`) :func:`frame_windows` then gives
+
+- per target, the best score of a window whose IoU with it is at least ``iou`` (``-inf``
+  when none is: a square window cannot reach IoU 0.5 with a box more than twice as wide as
+  tall);
+- the scores of the *false* windows: those touching no annotated box, target or ignore
+  region alike (a far-away or half-hidden vehicle is neither).
+
+:func:`window_score` sums those up over frames: recall (the fraction of targets whose best
+window beats a threshold) at the thresholds that let 0.1, 1 and 10 false windows per frame
+through, and at probability 0.5 (the search's threshold) with the false windows per frame
+there.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..boxes import intersection, iou
+from ..config import SearchBand, SearchConfig
+from ..detections import MAIN_PART, ONCOMING_PART
+from ..model import Model
+from .keyframes import AnnotatedFrame
+
+#: false windows per frame at which :class:`WindowScore` reports recall
+FALSE_RATES = (0.1, 1.0, 10.0)
+
+
+def dense_search(frame_shape: tuple[int, int], window: int = 64, min_width: float = 1 / 32,
+                 steps: int = 4, cells_per_step: int = 1, threshold: float = -math.inf,
+                 cell: int = 8) -> SearchConfig:
+    """A search over every row of a ``frame_shape = (H, W)`` frame at every window size from
+    ``min_width x W`` up to ``H`` pixels, ``steps`` sizes per octave (``window``: the model's
+    window width at scale 1, ``cell``: its HOG cell). Bands in the frame's own pixels
+    (``reference_shape`` None), no window over the frame edge (``border`` 0). ``threshold``
+    -inf: every window is returned."""
+    h, w = (int(v) for v in frame_shape[:2])
+    if min(h, w) < window or not 0 < min_width <= 1 or steps < 1:
+        raise ValueError(f"dense_search: frame {w}x{h}, min_width {min_width}, steps {steps}")
+    lo = max(min_width * w, 2 * cell) / window
+    n = int(math.floor(steps * math.log2(h / window / lo))) + 1
+    bands = []
+    for k in range(max(n, 1)):
+        s = lo * 2 ** (k / steps)
+        if window * s <= h:
+            bands.append(SearchBand(s, 0, h, 0, int(w // (cell * s) * cell * s) or w))
+    return SearchConfig(bands=tuple(bands), cells_per_step=cells_per_step, threshold=threshold,
+                        reference_shape=None, border=0.0)
+
+
+@dataclass(frozen=True)
+class FrameWindows:
+    """One annotated frame's windows: ``best (N,)`` the best score of a window at IoU >=
+    ``iou`` with each target (``-inf``: none), ``false (K,)`` the scores of the windows that
+    touch no annotated box, ``false_boxes (K, 4)`` those windows."""
+
+    best: np.ndarray
+    false: np.ndarray
+    false_boxes: np.ndarray
+
+
+def frame_windows(detector: Any, frame: AnnotatedFrame, iou_min: float = 0.5,
+                  parts: Sequence[int] | None = (MAIN_PART,), min_false: float = -math.inf) -> FrameWindows:
+    """Score every window ``detector`` (a :class:`fastdet.Detector`) searches in ``frame`` with
+    its models ``parts`` (``None``: all but the oncoming model; module docstring); false windows
+    are kept only above ``min_false``."""
+    d = detector.detect(frame.image)
+    d = d[d.part != ONCOMING_PART] if parts is None else d[np.isin(d.part, list(parts))]
+    boxes = d.boxes.astype(np.float64)
+    scores = d.scores.astype(np.float64)
+    best = np.full(len(frame.targets), -np.inf)
+    if len(frame.targets) and len(boxes):
+        ov = iou(boxes, frame.targets) >= iou_min
+        for j in range(len(frame.targets)):
+            if ov[:, j].any():
+                best[j] = scores[ov[:, j]].max()
+    keep = scores > min_false
+    annotated = frame.boxes
+    if len(annotated):
+        keep &= ~np.any(intersection(boxes, annotated) > 0, axis=1)
+    return FrameWindows(best, scores[keep], boxes[keep])
+
+
+@dataclass(frozen=True)
+class WindowScore:
+    """Placement-free score of a model over annotated frames (:func:`window_score`).
+
+    targets: how many; reachable: how many have a window at IoU >= 0.5 at all;
+    recall_at: ``{false windows per frame: recall}`` (:data:`FALSE_RATES`);
+    recall_half / false_half: recall and false windows per frame at probability 0.5.
+    """
+
+    frames: int
+    targets: int
+    reachable: int
+    recall_at: dict[float, float]
+    recall_half: float
+    false_half: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"frames": self.frames, "targets": self.targets, "reachable": self.reachable,
+                "recall_at": {str(k): v for k, v in self.recall_at.items()}, "recall_half": self.recall_half,
+                "false_half": self.false_half}
+
+
+def window_score(windows: Sequence[FrameWindows], half: float = 0.5,
+                 rates: Iterable[float] = FALSE_RATES) -> WindowScore:
+    """Sum up :func:`frame_windows` of several frames (module docstring). Probabilities are
+    compared with ``half``; the thresholds for ``rates`` false windows per frame are the
+    scores of the ``rate x frames``-th best false window."""
+    n = len(windows)
+    best = np.concatenate([w.best for w in windows]) if n else np.zeros(0)
+    false = np.sort(np.concatenate([w.false for w in windows]))[::-1] if n else np.zeros(0)
+    recall_at = {}
+    for r in rates:
+        k = int(round(r * n))
+        t = false[k - 1] if 0 < k <= len(false) else (-np.inf if k > len(false) else np.inf)
+        recall_at[float(r)] = float((best > t).mean()) if len(best) else math.nan
+    return WindowScore(n, len(best), int(np.isfinite(best).sum()), recall_at,
+                       float((best > half).mean()) if len(best) else math.nan,
+                       float((false > half).sum() / max(n, 1)))
+
+
+def dense_detector(model: Model, frame_shape: tuple[int, int], components: Sequence[Model] = (),
+                   **search: Any) -> Any:
+    """A :class:`fastdet.Detector` of ``model`` (and ``components``, e.g. a side-view model)
+    with :func:`dense_search` for frames of ``frame_shape``, each model's for its own window
+    (``search``: its keyword arguments)."""
+    from ..detect import Detector
+
+    def dense(m: Model) -> SearchConfig:
+        return dense_search(frame_shape, m.config.win_w, cell=m.config.pixels_per_cell, **search)
+
+    return Detector(model, dense(model), components=[(c, dense(c)) for c in components])
+
+
+def score_frames(model: Model, frames: Sequence[AnnotatedFrame], iou_min: float = 0.5,
+                 on_frame: Callable[[AnnotatedFrame, FrameWindows], None] | None = None,
+                 components: Sequence[Model] = (), **search: Any) -> WindowScore:
+    """:func:`window_score` of ``model`` over ``frames``, every window of :func:`dense_search`
+    (``search``: its keyword arguments) searched; with ``components`` the windows of every
+    model count (a target's best window is the best of any model, the false windows are all
+    of theirs). ``on_frame`` sees each frame's :class:`FrameWindows` (e.g. to keep its false
+    windows as hard negatives)."""
+    detectors: dict[tuple[int, int], Any] = {}
+    out = []
+    for f in frames:
+        shape = f.image.shape[:2]
+        if shape not in detectors:
+            detectors[shape] = dense_detector(model, shape, components, **search)
+        fw = frame_windows(detectors[shape], f, iou_min, parts=None)
+        if on_frame is not None:
+            on_frame(f, fw)
+        out.append(fw)
+    return window_score(out)

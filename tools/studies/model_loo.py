@@ -1,0 +1,180 @@
+"""Leave-one-camera-out measurement of the main model trained on the data set's crops plus the crops
+of the annotated frames (``tools/scripts/keyframe_model.py``): every annotated clip scored by a
+model that never saw its camera, beside the bundled model, in two ways:
+
+- (a) the pipeline: ``fastdet video``'s defaults with the held-out model as the main model,
+  scored as ``fastdet eval --all`` (keyframes only on the keyframe clips, IoU 0.5): what a user
+  gets today, search placement included;
+- (b) placement-free, per window: on the annotated frames every row and window size searched
+  (:func:`fastdet.train.windows.dense_search`: window widths from 1/32 of the frame width to
+  the frame height, 4 sizes per octave, one HOG cell apart), each target's best window at IoU
+  >= 0.5 against the windows that touch no annotated box: recall at 0.1 / 1 / 10 such false
+  windows per frame, and recall with the false windows per frame at probability 0.5
+  (:func:`fastdet.train.windows.score_frames`). This is the model alone, wherever the search
+  may later put its bands.
+
+Per clip it also prints, of the pipeline's boxes that match no target (IoU < 0.5) and touch no
+ignore region, how many touch a target (misplaced: too big, over two vehicles) and how many
+touch nothing annotated (:func:`tools.studies.loo.misplaced`).
+
+Folds (:func:`tools.studies.loo.folds`): each camera is held out in turn; the two Udacity clips
+(one drive) together. ``WORK/main[_TAG]_without_FOLD.npz`` is trained on the other clips
+(kept when it exists, so a rerun only scores); one training at a time, single process.
+
+``--side``: also a side-view component per fold (``WORK/side_without_FOLD.npz``,
+``tools/scripts/side_model.py`` on the same clips): (a) the pipeline with the held-out main
+model and it (``PipelineConfig(side=...)``), (b) the windows of both models together (a
+target's best window is the best of either; every false window of either counts).
+
+Usage (from the repository root)::
+
+    python -m tools.studies.model_loo [--work /tmp/fastdet-model-loo] [--clips A,B] [--tag T]
+        [--jitter N] [--background N] [--hard-per-frame N] [--hard-rounds N [--reuse-round1]] [--C C]
+        [--no-train] [--no-baseline]
+        [--side] [--json OUT.json]
+
+About 4 minutes of CPU per fold to train, 1-2 to score.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from fastdet.config import PipelineConfig
+from fastdet.data import data_dir
+from fastdet.detections import Detections
+from fastdet.eval.clips import annotated_clips, markdown_table
+from fastdet.io.atomic import write_bytes
+from fastdet.model import load_model
+from fastdet.train.keyframe_model import KeyframeRecipe
+from fastdet.train.keyframes import read_annotated_frames
+from fastdet.train.windows import FALSE_RATES, WindowScore, score_frames
+from tools.scripts import side_model
+from tools.scripts.keyframe_model import build
+from tools.studies.loo import folds, misplaced, run_clip
+
+
+def window_table(rows: list[tuple[str, WindowScore, WindowScore | None]]) -> str:
+    """Markdown: per clip the placement-free window scores of the bundled model and of the
+    held-out model (``before -> after``)."""
+    head = ["clip", "frames", "targets", "reachable"] + [f"R @ {r:g} FW/frame" for r in FALSE_RATES]
+    head += ["R @ p>0.5", "FW/frame @ p>0.5"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+
+    def pair(a: float, b: float | None, digits: int = 2) -> str:
+        def f(v: float | None) -> str:
+            return "n/a" if v is None or not math.isfinite(v) else f"{v:.{digits}f}"
+
+        return f(a) if b is None else f"{f(a)} -> **{f(b)}**"
+
+    for name, base, new in rows:
+        cells = [name, str(base.frames), str(base.targets), str(base.reachable)]
+        cells += [pair(base.recall_at[r], None if new is None else new.recall_at[r]) for r in FALSE_RATES]
+        cells += [pair(base.recall_half, None if new is None else new.recall_half),
+                  pair(base.false_half, None if new is None else new.false_half, 1)]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--work", type=Path, default=Path("/tmp/fastdet-model-loo"))
+    p.add_argument("--clips", help="comma-separated clips to score (default: every annotated clip)")
+    p.add_argument("--tag", default="", help="a name for this recipe's models (WORK/main_TAG_without_X.npz)")
+    d = KeyframeRecipe()
+    p.add_argument("--jitter", type=int, default=d.jitter)
+    p.add_argument("--background", type=int, default=d.background)
+    p.add_argument("--hard-per-frame", type=int, default=d.hard_per_frame)
+    p.add_argument("--hard-rounds", type=int, default=d.hard_rounds)
+    p.add_argument("--reuse-round1", action="store_true",
+                   help="with --hard-rounds > 1: WORK/main_without_FOLD.npz (the default recipe's) is round 1")
+    p.add_argument("--C", type=float, default=None)
+    p.add_argument("--no-train", action="store_true", help="only score: every held-out model must exist")
+    p.add_argument("--no-baseline", action="store_true", help="do not score the bundled model")
+    p.add_argument("--side", action="store_true", help="also a side-view component trained on the same clips")
+    p.add_argument("--json", type=Path, help="also write every figure to this JSON file")
+    args = p.parse_args(argv)
+    data = data_dir()
+    clips = {c.name: c for c in annotated_clips(data)}
+    want = args.clips.split(",") if args.clips else list(clips)
+    unknown = sorted(set(want) - set(clips))
+    if unknown:
+        print(f"model_loo: not annotated clips: {', '.join(unknown)}", file=sys.stderr)
+        return 2
+    recipe = replace(d, jitter=args.jitter, background=args.background, hard_per_frame=args.hard_per_frame,
+                     hard_rounds=args.hard_rounds)
+    args.work.mkdir(parents=True, exist_ok=True)
+    bundled = load_model(None)
+    tag = f"_{args.tag}" if args.tag else ""
+    pipe_base, pipe_new, win_rows, pipe_side, side_rows = [], [], [], [], []
+    out: dict[str, Any] = {"recipe": recipe.__dict__, "C": args.C, "clips": {}}
+    for fold in folds(list(clips)):
+        scored = [c for c in fold.held_out if c in want]
+        if not scored:
+            continue
+        path = args.work / f"main{tag}_without_{fold.name}.npz"
+        if not path.exists():
+            if args.no_train:
+                print(f"model_loo: {path} missing (run without --no-train)", file=sys.stderr)
+                return 2
+            first = args.work / f"main_without_{fold.name}.npz"
+            previous = [load_model(first)] if args.reuse_round1 and first.exists() else []
+            build(path, list(fold.train), data, recipe, args.C, previous=previous)
+        model = load_model(path)
+        side_path = args.work / f"side_without_{fold.name}.npz"
+        if args.side and not side_path.exists():
+            if args.no_train:
+                print(f"model_loo: {side_path} missing (run without --no-train)", file=sys.stderr)
+                return 2
+            side_model.build(side_path, list(fold.train), data)
+        for name in scored:
+            frames = read_annotated_frames(data, name)
+            base_w = None if args.no_baseline else score_frames(bundled, frames)
+            new_w = score_frames(model, frames)
+            kept: list[Detections] = []
+            if base_w is None:
+                win_rows.append((name, new_w, None))
+            else:
+                win_rows.append((name, base_w, new_w))
+                pipe_base.append(run_clip(clips[name], PipelineConfig(), keep=kept))
+            pipe_new.append(run_clip(clips[name], PipelineConfig(model=str(path)), keep=kept))
+            wrong = [misplaced(clips[name], k) for k in kept]
+            if args.side:
+                side_rows.append((name, new_w, score_frames(model, frames, components=[load_model(side_path)])))
+                pipe_side.append(run_clip(clips[name], PipelineConfig(model=str(path), side=str(side_path))))
+                out["clips"][name + "+side"] = {"windows": side_rows[-1][2].to_dict(),
+                                                "pipeline": pipe_side[-1].to_dict()}
+            out["clips"][name] = {"model": str(path), "trained_on": list(fold.train),
+                                  "false_alarms_near_target_and_clear": wrong,
+                                  "windows": new_w.to_dict(), "pipeline": pipe_new[-1].to_dict(),
+                                  "bundled": None if base_w is None else {"windows": base_w.to_dict(),
+                                                                          "pipeline": pipe_base[-1].to_dict()}}
+            print(f"{name}: pipeline F1 {'' if base_w is None else f'{pipe_base[-1].result.f1:.3f} -> '}"
+                  f"{pipe_new[-1].result.f1:.3f}; window recall @ 1 FW/frame "
+                  f"{'' if base_w is None else f'{base_w.recall_at[1.0]:.3f} -> '}{new_w.recall_at[1.0]:.3f}; "
+                  f"pipeline boxes at IoU < 0.5 touching a target / touching nothing annotated: "
+                  f"{' -> '.join(f'{a} / {b}' for a, b in wrong)}", flush=True)
+    if pipe_base:
+        print("\n(a) pipeline, the bundled model\n")
+        print(markdown_table(pipe_base))
+    print("\n(a) pipeline, held-out models (each clip scored by the model trained without its camera)\n")
+    print(markdown_table(pipe_new))
+    print("\n(b) placement-free windows" + ("" if args.no_baseline else ": bundled -> held-out model") + "\n")
+    print(window_table(win_rows))
+    if args.side:
+        print("\n(a) pipeline, held-out main model + held-out side component\n")
+        print(markdown_table(pipe_side))
+        print("\n(b) placement-free windows: held-out main model -> with the held-out side component\n")
+        print(window_table(side_rows))
+    if args.json:
+        write_bytes(args.json, json.dumps(out, indent=1, sort_keys=True).encode())
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
