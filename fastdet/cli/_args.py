@@ -105,7 +105,7 @@ def add_refine_argument(parser: argparse.ArgumentParser) -> None:
     """``--no-refine``, shared by ``video``, ``eval``, ``bench`` and ``batch``."""
     parser.add_argument("--no-refine", action="store_true",
                         help="report the heat map's boxes as they are, without the learned box refinement "
-                             "(fastdet/models/refine.npz)")
+                             "(fastdet/models/refine_cameras.npz, applied 3 times)")
 
 
 def add_camera_arguments(parser: argparse.ArgumentParser) -> None:

@@ -14,8 +14,14 @@ DEFAULT_MODEL_PATH = MODELS_DIR / "default.npz"
 ONCOMING_MODEL_PATH = MODELS_DIR / "oncoming.npz"
 #: the bundled side-view component, 64x32 windows (``python -m tools.scripts.side_model``; docs/components.md)
 SIDE_MODEL_PATH = MODELS_DIR / "side.npz"
-#: the bundled box regressor (:mod:`fastdet.detect.regressor`)
-REFINE_MODEL_PATH = MODELS_DIR / "refine.npz"
+#: the bundled box regressor (:mod:`fastdet.detect.regressor`), applied
+#: ``RefineConfig.iterations`` (3) times: fitted on test_video, the three keyframe clips of other
+#: cameras and the test images, never on test_small1 (``python -m tools.studies.refine_loo --refine
+#: iterations=3 --ship``; its leave-one-clip-out figures are in its metadata and docs/geometry.md)
+REFINE_MODEL_PATH = MODELS_DIR / "refine_cameras.npz"
+#: the earlier box regressor, fitted on test_video and the test images alone
+#: (``tools/scripts/refine_model.py``); meant for one iteration: ``RefineConfig(iterations=1)``
+REFINE_UDACITY_MODEL_PATH = MODELS_DIR / "refine.npz"
 
 
 def resolve_model(path: str | os.PathLike | None, bundled: Path) -> str:

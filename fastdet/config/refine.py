@@ -12,7 +12,8 @@ from ._base import Config
 class RefineConfig(Config):
     """How :func:`refine` moves boxes.
 
-    iterations: times the regressor is applied (each from the previous result), >= 1.
+    iterations: times the regressor is applied (each from the previous result), >= 1; the
+        bundled regressor is fitted for 3 (its one-pass boxes are looser on other cameras).
     max_shift: largest centre move per iteration, as a fraction of the box's width / height.
     max_log_scale: largest ``|log|`` size change per iteration (``log(1.5)``: at most 1.5x
         larger or smaller).
@@ -21,7 +22,7 @@ class RefineConfig(Config):
         Detections without ``part`` count as part 0).
     """
 
-    iterations: int = 1
+    iterations: int = 3
     max_shift: float = 0.5
     max_log_scale: float = math.log(1.5)
     min_size: int = 8

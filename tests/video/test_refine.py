@@ -56,10 +56,13 @@ def _shift_right(config: FeatureConfig, contexts: tuple[float, ...], tx: float) 
 def test_refine_moves_clamps_parts_and_clips() -> None:
     frame = _frame()
     dets = Detections(np.array([[10, 20, 90, 70], [250, 10, 310, 60]]), np.ones(2), part=np.array([0, 1]))
-    out = refine(frame, dets, _shift_right(SMALL, (1.0,), 0.25))
+    one = RefineConfig(iterations=1)
+    out = refine(frame, dets, _shift_right(SMALL, (1.0,), 0.25), one)
     np.testing.assert_array_equal(out.boxes, [[30, 20, 110, 70], [265, 10, 320, 60]])  # second clipped at W
-    out = refine(frame, dets, _shift_right(SMALL, (1.0,), 5.0), RefineConfig(max_shift=0.5))
+    out = refine(frame, dets, _shift_right(SMALL, (1.0,), 5.0), RefineConfig(iterations=1, max_shift=0.5))
     np.testing.assert_array_equal(out.boxes[0], [50, 20, 130, 70])  # clamped to half a width
+    out = refine(frame, dets, _shift_right(SMALL, (1.0,), 0.25))  # the default: three steps
+    np.testing.assert_array_equal(out.boxes[0], [70, 20, 150, 70])  # 0.25 three times
     out = refine(frame, dets, _shift_right(SMALL, (1.0,), 0.25), RefineConfig(parts=(1,)))
     np.testing.assert_array_equal(out.boxes[0], dets.boxes[0])
     out = refine(frame, dets, _shift_right(SMALL, (1.0,), 0.25), RefineConfig(iterations=2))
