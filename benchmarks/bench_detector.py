@@ -54,8 +54,8 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from benchmarks.bench_hog import threads  # noqa: E402
-from fastdet.data import data_dir  # noqa: E402
 from fastdet.config import SearchConfig  # noqa: E402
+from fastdet.data import data_dir  # noqa: E402
 from fastdet.detect import Detector, DetectStats  # noqa: E402
 from fastdet.model import load_model  # noqa: E402
 

@@ -15,10 +15,10 @@ import numba
 import numpy as np
 import pytest
 
-from tests.reference import crop_features
 from fastdet.config import FeatureConfig
-from fastdet.train.dataset import load_crops
 from fastdet.features import extract_features
+from fastdet.train.dataset import load_crops
+from tests.reference import crop_features
 
 CFG = FeatureConfig()
 

@@ -42,8 +42,8 @@ import numba
 import numpy as np
 import pytest
 
-from fastdet.features._hog import hog_channels, hog_channels_batch
 from fastdet.data import data_dir
+from fastdet.features._hog import hog_channels, hog_channels_batch
 
 ROI_Y = (400, 656)
 ORIENTATIONS, CELL, BLOCK = 9, 8, 2

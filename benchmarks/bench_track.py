@@ -28,9 +28,9 @@ import pytest
 
 from fastdet.config import HeatConfig, PipelineConfig, TrackerConfig
 from fastdet.io.reader import FrameReader
+from fastdet.video import VideoDetector, make_detector
 from fastdet.video.heatmap import HeatMap
 from fastdet.video.offline import offline_pass
-from fastdet.video import VideoDetector, make_detector
 from fastdet.video.track import Tracker
 
 N_VIDEO_FRAMES = 16

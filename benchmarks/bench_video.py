@@ -36,7 +36,6 @@ from pathlib import Path
 
 import pytest
 
-
 REPO = Path(__file__).resolve().parent.parent
 CLIPS = ("test_video.mp4", "test_small1.mp4")
 MODES = ("boxes", "boxes-full", "boxes-main", "video")

@@ -38,8 +38,8 @@ if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers and
     from .config import SearchBand as SearchBand
     from .config import SearchConfig as SearchConfig
     from .config import TrackerConfig as TrackerConfig
-    from .detections import Detections as Detections
     from .detect import Detector as Detector
+    from .detections import Detections as Detections
     from .features import extract_features as extract_features
     from .features import hog as hog
     from .features import hog_channels as hog_channels

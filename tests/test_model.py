@@ -6,10 +6,10 @@ import json
 import numpy as np
 import pytest
 
-from tests.reference import sklearn_pair
 from fastdet.config import FeatureConfig
 from fastdet.errors import ModelError
 from fastdet.model import FORMAT_VERSION, Model, load_model
+from tests.reference import sklearn_pair
 
 CFG = FeatureConfig(color_space="LUV", hog_channels=(0,), orientations=6, spatial_size=8, hist_bins=8)
 

@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..detections import Detections
 from ..errors import FastdetError
 from ..io.atomic import atomic_path
-from ..detections import Detections
 from ..io.motfiles import read_predictions
 
 try:  # Parquet only; the CSV table needs nothing

@@ -23,12 +23,20 @@ import os
 from pathlib import Path
 from types import ModuleType
 
-from ..errors import FastdetError
-from ..signals import Stopped
-from ..io.paths import check_paths
 from ..config.batch import BatchOptions
-from ._args import (add_camera_arguments, add_horizon_argument, add_oncoming_arguments, add_refine_argument,
-                    add_search_argument, nonneg_int, pipeline_config, positive_int)
+from ..errors import FastdetError
+from ..io.paths import check_paths
+from ..signals import Stopped
+from ._args import (
+    add_camera_arguments,
+    add_horizon_argument,
+    add_oncoming_arguments,
+    add_refine_argument,
+    add_search_argument,
+    nonneg_int,
+    pipeline_config,
+    positive_int,
+)
 
 _INSTALL = "pip install fastdet[cluster]"
 # the packages of the ``cluster`` extra that fastdet.batch imports

@@ -22,9 +22,9 @@ from collections.abc import Sequence
 from typing import Any
 
 from .. import console
+from .. import signals as _signals
 from .._version import __version__
 from ..errors import FastdetError
-from .. import signals as _signals
 
 # name -> (module, one-line help)
 SUBCOMMANDS: dict[str, tuple[str, str]] = {

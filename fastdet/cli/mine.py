@@ -14,6 +14,7 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
+from .. import signals as _signals
 from ..detect import Detector
 from ..detect.checks import check_frame
 from ..errors import DataError, FastdetError, WriteError
@@ -22,7 +23,6 @@ from ..io.images import check_image, write_image
 from ..io.motfiles import read_gt
 from ..io.reader import FrameReader, source_kind
 from ..train.mine import hard_negatives
-from .. import signals as _signals
 from ._args import nonneg_int, positive_int
 
 

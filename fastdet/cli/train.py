@@ -19,6 +19,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from .. import signals as _signals
 from .._numba import ensure_compiled
 from ..config import COLOR_SPACES, FeatureConfig
 from ..data import data_dir
@@ -28,9 +29,7 @@ from ..io.paths import check_output
 from ..train import augment
 from ..train.augment import JPEG_QUALITY
 from ..train.fit import train
-from .. import signals as _signals
 from ._args import fraction, nonneg_int, positive_float, positive_int
-
 
 #: upper bounds of the feature options (beyond them a 64x64 crop has no more to give, and
 #: the feature vector would not fit in memory)

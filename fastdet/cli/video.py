@@ -65,6 +65,7 @@ from typing import Any
 
 import numba
 
+from .. import signals as _signals
 from ..config import HeatConfig
 from ..console import process_seconds, prog
 from ..detections import Detections
@@ -75,12 +76,19 @@ from ..io.paths import bundled_models, check_paths
 from ..io.reader import FrameReader, check_source
 from ..io.sink import VideoSink, check_video_path
 from ..video.count import CountLine, VehicleCounter
-from ..video.offline import offline_pass
 from ..video.detector import make_detector
+from ..video.offline import offline_pass
 from ..video.run import progress_bar, video_detector_for
-from .. import signals as _signals
-from ._args import (add_camera_arguments, add_horizon_argument, add_oncoming_arguments, add_refine_argument,
-                    add_search_argument, nonneg_int, pipeline_config, positive_int)
+from ._args import (
+    add_camera_arguments,
+    add_horizon_argument,
+    add_oncoming_arguments,
+    add_refine_argument,
+    add_search_argument,
+    nonneg_int,
+    pipeline_config,
+    positive_int,
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

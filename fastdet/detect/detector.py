@@ -36,10 +36,9 @@ from ..detections import FIRST_COMPONENT_PART, MAIN_PART, ONCOMING_PART, Detecti
 from ..errors import ModelError
 from ..features import _hog_kernels
 from ..model import Model, load_model
+from . import _score_kernels
 from .band_scorer import _Scorer
 from .bands import BandGeometry, band_geometry, pad_frame, window_boxes
-from . import _score_kernels
-
 
 #: the numba kernels :meth:`Detector.detect` runs (each in the signatures its module lists)
 KERNELS = (_hog_kernels.cell_hists_u8, _hog_kernels.normalize_blocks_fast, _score_kernels.dense_scores,

@@ -2,9 +2,8 @@
 :mod:`fastdet.detect._score_kernels` (which index without bounds checks)."""
 from __future__ import annotations
 
-import numpy as np
-
 import numba
+import numpy as np
 
 from .._numba import split_range
 from ._score_kernels import dense_scores as _dense

@@ -24,7 +24,6 @@ from ..boxes import iou as box_iou
 from ..config import JitterConfig
 from ..detect.regressor import BoxFeatures, decode_offsets, encode_offsets
 
-
 #: ridge penalties tried by :func:`fit_ridge` (on standardised features, summed squared error)
 ALPHAS = tuple(float(a) for a in np.logspace(1, 6, 11))
 

@@ -25,7 +25,6 @@ from ..detect.regressor import (  # noqa: F401 - the regressor's names, as this 
 )
 from ..detections import Detections
 
-
 # ---------------------------------------------------------------------------------------- refinement
 
 

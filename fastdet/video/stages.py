@@ -35,8 +35,16 @@ from __future__ import annotations
 from ..config import GuidedSearch, PipelineConfig
 from ..detect import Detector
 from .blobsplit import SplitStage
-from .box_stages import (ClipStage, ComponentStage, FusionStage, HeatStage, ObserveStage, RefineStage, TrackStage,
-                         WeakStage)
+from .box_stages import (
+    ClipStage,
+    ComponentStage,
+    FusionStage,
+    HeatStage,
+    ObserveStage,
+    RefineStage,
+    TrackStage,
+    WeakStage,
+)
 from .detector import ColumnSearch, MovableHorizon, WindowDetector
 from .guided import SearchPlanner
 from .ownvehicle import OwnVehicleStage

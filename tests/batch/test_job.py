@@ -20,8 +20,8 @@ pytest.importorskip("distributed")
 pyarrow = pytest.importorskip("pyarrow")
 import pyarrow.parquet as pq
 
-from fastdet.batch.inputs import batch_writes, expand_inputs, output_names
 from fastdet.batch import job
+from fastdet.batch.inputs import batch_writes, expand_inputs, output_names
 from fastdet.batch.job import BatchInterrupted, remove_run, remove_stale_runs, run_id
 from fastdet.batch.manifest import Manifest, input_stat
 from fastdet.batch.progress import BatchProgress

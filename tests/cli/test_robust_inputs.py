@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from fastdet.cli.main import main
+from fastdet.config import PipelineConfig
 from fastdet.detect.checks import check_frame_size, minimum_frame_size
 from fastdet.errors import ModelError
 from fastdet.model import DEFAULT_MODEL_PATH, ONCOMING_MODEL_PATH, load_model
-from fastdet.config import PipelineConfig
 from fastdet.video import make_detector
 from tests.media import write_video
 

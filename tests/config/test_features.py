@@ -9,7 +9,13 @@ import numpy as np
 import pytest
 
 from fastdet.config import (
-    ONCOMING_HEAT, ONCOMING_SEARCH, FeatureConfig, HeatConfig, MotionGate, SearchBand, SearchConfig,
+    ONCOMING_HEAT,
+    ONCOMING_SEARCH,
+    FeatureConfig,
+    HeatConfig,
+    MotionGate,
+    SearchBand,
+    SearchConfig,
 )
 from tests.reference import crop_features
 

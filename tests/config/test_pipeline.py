@@ -7,8 +7,19 @@ from dataclasses import replace
 
 import pytest
 
-from fastdet.config import (FeatureConfig, GuidedSearch, HeatConfig, JitterConfig, MotionGate, PipelineConfig,
-                            RefineConfig, SearchBand, SearchConfig, TrackerConfig, oncoming_search)
+from fastdet.config import (
+    FeatureConfig,
+    GuidedSearch,
+    HeatConfig,
+    JitterConfig,
+    MotionGate,
+    PipelineConfig,
+    RefineConfig,
+    SearchBand,
+    SearchConfig,
+    TrackerConfig,
+    oncoming_search,
+)
 
 CONFIGS = [FeatureConfig(), FeatureConfig(window_height=24, hog_channels=(0,)), SearchConfig(),
            SearchConfig(horizon=0.5, reference_shape=None), oncoming_search("left"),

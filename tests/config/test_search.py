@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import pytest
 
-from fastdet.config import REFERENCE_HORIZON, ONCOMING_SEARCH, SearchConfig, oncoming_search
+from fastdet.config import ONCOMING_SEARCH, REFERENCE_HORIZON, SearchConfig, oncoming_search
 
 
 def test_wide_search_sides():

@@ -5,10 +5,10 @@ import cv2
 import numpy as np
 import pytest
 
-from tests.reference import classic_band_scores, sklearn_pair
 from fastdet.config import SearchBand
 from fastdet.detect import Detector
 from fastdet.detect.bands import BORDER_MODES, band_geometry, pad_frame, scaled_band, window_boxes
+from tests.reference import classic_band_scores, sklearn_pair
 
 
 @pytest.fixture(scope="module")

@@ -5,10 +5,10 @@ import cv2
 import numpy as np
 import pytest
 
-from tests.reference import classic_band_scores, sklearn_pair
 from fastdet.config import FeatureConfig, SearchBand, SearchConfig
 from fastdet.detect import Detector, DetectStats
 from fastdet.model import Model
+from tests.reference import classic_band_scores, sklearn_pair
 
 
 @pytest.fixture(scope="module")

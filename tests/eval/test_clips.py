@@ -8,11 +8,11 @@ import math
 import numpy as np
 import pytest
 
+from fastdet.detections import Detections
 from fastdet.errors import DataError
 from fastdet.eval import evaluate, format_table
 from fastdet.eval.clips import annotated_clips, markdown_table, report_json, score_clip
 from fastdet.eval.sizes import REPORT_EDGES, recall_by_width
-from fastdet.detections import Detections
 from fastdet.io.motfiles import parse_gt, parse_predictions
 
 

@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
+from fastdet.detections import Detections
 from fastdet.eval.hota import ALPHAS, hota
 from fastdet.eval.metrics import evaluate
 from fastdet.eval.report import format_table
-from fastdet.detections import Detections
 
 
 def _box(x: float, w: float = 40.0, y: float = 100.0, h: float = 20.0) -> list[float]:

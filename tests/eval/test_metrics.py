@@ -8,11 +8,11 @@ import math
 import numpy as np
 import pytest
 
+from fastdet.boxes import iou as box_iou
+from fastdet.cli import eval as ev
 from fastdet.cli import main
 from fastdet.detections import Detections
 from fastdet.errors import DataError, FastdetError
-from fastdet.cli import eval as ev
-from fastdet.boxes import iou as box_iou
 from fastdet.eval import average_precision, evaluate, format_table, match_frame
 from fastdet.io.motfiles import (
     JsonLinesWriter,

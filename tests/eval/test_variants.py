@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from fastdet.detections import Detections
 from fastdet.eval import evaluate
 from fastdet.eval.sizes import recall_by_width
 from fastdet.eval.variants import (
@@ -17,7 +18,6 @@ from fastdet.eval.variants import (
     standard_variants,
     transform_gt,
 )
-from fastdet.detections import Detections
 
 H, W = 180, 320
 

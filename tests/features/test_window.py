@@ -8,9 +8,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from tests.reference import crop_features
 from fastdet.config import FeatureConfig
 from fastdet.features import extract_features, spatial_map
+from tests.reference import crop_features
 
 
 def _crops(data, n_per_folder=6):

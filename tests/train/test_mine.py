@@ -2,8 +2,8 @@
 from __future__ import annotations
 
 import cv2
-import pytest
 import numpy as np
+import pytest
 
 from fastdet.cli import main
 from fastdet.train.mine import false_windows
@@ -67,8 +67,8 @@ def test_mine_image_sequence_with_annotations(data, tmp_path, capsys):
     their oncoming cars (tools/test_images.gt.txt), wide windows touching them are not mined."""
     from pathlib import Path
 
-    from fastdet.model import ONCOMING_MODEL_PATH
     from fastdet.io.motfiles import read_gt
+    from fastdet.model import ONCOMING_MODEL_PATH
 
     gt_path = Path(__file__).resolve().parents[2] / "tools" / "test_images.gt.txt"
     out = tmp_path / "neg"

@@ -3,11 +3,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from fastdet.boxes import overlap_fraction
 from fastdet.config import HeatConfig, MotionGate, PipelineConfig
 from fastdet.detections import MAIN_PART, ONCOMING_PART, Detections
-from fastdet.boxes import overlap_fraction
-from fastdet.video.fusion import merge_oncoming
 from fastdet.video import VideoDetector
+from fastdet.video.fusion import merge_oncoming
 from tests.fakes import FixedDetector
 
 

@@ -15,9 +15,8 @@ from fastdet.detections import Detections
 from fastdet.eval.metrics import evaluate
 from fastdet.io.motfiles import read_gt
 from fastdet.io.reader import FrameReader
-from fastdet.video import VideoDetector
+from fastdet.video import VideoDetector, prime_horizon_from_file
 from fastdet.video.guided import SearchPlanner, merge_spans
-from fastdet.video import prime_horizon_from_file
 from fastdet.video.stages import PlanStage
 
 SHAPE = (720, 1280)

@@ -163,8 +163,8 @@ def test_video_detector_for_primes_from_the_run_reader(data, start, monkeypatch)
     horizon as a second reader of the file gives, the file decoded once, every frame still
     yielded; over the buffer limit (or a run shorter than the priming) it decodes them again."""
     from fastdet.io.reader import FrameReader
-    from fastdet.video import run as pipeline
     from fastdet.video import VideoDetector, make_detector, prime_horizon_from_file, video_detector_for
+    from fastdet.video import run as pipeline
 
     path = data / "videos" / "test_small1.mp4"
     det = make_detector()

@@ -10,10 +10,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fastdet.config import ONCOMING_SEARCH, MotionGate
-from fastdet.video.motion import FrameMotion, moving_bands, window_motion
 from fastdet.detect import DetectStats
 from fastdet.detect.bands import band_geometry, window_boxes
 from fastdet.detections import ONCOMING_PART
+from fastdet.video.motion import FrameMotion, moving_bands, window_motion
 from tests.reference import naive_window_motion
 
 

@@ -8,9 +8,9 @@ import pytest
 
 from fastdet import VideoDetector
 from fastdet.config import MotionGate
+from fastdet.video import make_detector
 from fastdet.video import motion as motion_mod
 from fastdet.video.motion import FrameMotion, window_motion
-from fastdet.video import make_detector
 
 
 @pytest.mark.parametrize("fps, lag", [(None, 1), (25.0, 1), (29.97, 1), (12.5, 1), (50.0, 2), (59.94, 2),

@@ -13,9 +13,9 @@ import pytest
 from fastdet.cli import video
 from fastdet.cli.main import build_parser
 from fastdet.config import HeatConfig, PipelineConfig, TrackerConfig
+from fastdet.detections import Detections
 from fastdet.errors import FastdetError
 from fastdet.eval.metrics import evaluate
-from fastdet.detections import Detections
 from fastdet.io.motfiles import read_predictions
 from fastdet.video import VideoDetector, iter_video_detections
 from tests.fakes import BlobsDetector

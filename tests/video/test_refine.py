@@ -14,8 +14,16 @@ from fastdet.detections import Detections
 from fastdet.io.motfiles import read_gt
 from fastdet.io.reader import read_frames
 from fastdet.train.refine import JitterConfig, collect_samples, jitter_boxes, paired_iou
-from fastdet.video.refine import (REFINE_FEATURES, REFINE_MODEL_PATH, BoxFeatures, BoxRegressor, RefineConfig,
-                                  load_regressor, refine, refine_boxes)
+from fastdet.video.refine import (
+    REFINE_FEATURES,
+    REFINE_MODEL_PATH,
+    BoxFeatures,
+    BoxRegressor,
+    RefineConfig,
+    load_regressor,
+    refine,
+    refine_boxes,
+)
 
 SMALL = FeatureConfig(color_space="YCrCb", hog_channels=(0,), orientations=4, pixels_per_cell=16,
                       cells_per_block=2, spatial_size=4, hist_bins=0)

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.fakes import SquareDetector
 from fastdet.config import PipelineConfig
 from fastdet.detections import Detections
 from fastdet.video import FrameDebug, VideoDetector, make_detector
 from fastdet.video.stages import FrameState, Stage
+from tests.fakes import SquareDetector
 
 
 def frame() -> np.ndarray:

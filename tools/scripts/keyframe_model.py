@@ -29,8 +29,8 @@ from typing import Any
 from fastdet.config import FeatureConfig
 from fastdet.data import data_dir
 from fastdet.errors import FastdetError
-from fastdet.model import Model
 from fastdet.eval.clips import annotated_clips
+from fastdet.model import Model
 from fastdet.train.keyframe_model import KeyframeRecipe, train_keyframe_model
 from fastdet.train.keyframes import read_annotated_frames
 

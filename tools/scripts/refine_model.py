@@ -25,11 +25,11 @@ import numpy as np
 
 from fastdet.config import FeatureConfig
 from fastdet.data import data_dir
+from fastdet.detect.regressor import BoxFeatures, BoxRegressor
 from fastdet.detections import Detections
 from fastdet.io.motfiles import read_gt
 from fastdet.io.reader import FrameReader
 from fastdet.train.refine import JitterConfig, Samples, collect_samples, fit_ridge
-from fastdet.detect.regressor import BoxFeatures, BoxRegressor
 
 #: the annotated clips a regressor can be fitted on (``$FASTDET_DATA/videos``)
 CLIPS = ("test_small1", "test_video")

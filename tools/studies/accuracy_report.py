@@ -24,8 +24,8 @@ from dataclasses import replace
 from fastdet import Detector, HeatConfig, MotionGate, SearchConfig
 from fastdet.config import ONCOMING_HEAT
 from fastdet.data import data_dir
-from fastdet.eval import evaluate
 from fastdet.detections import Detections
+from fastdet.eval import evaluate
 from fastdet.io.motfiles import read_gt
 from fastdet.video import iter_video_detections, make_detector
 from tools.studies.tune_video import cache_windows, replay

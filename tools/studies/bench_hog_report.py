@@ -20,7 +20,14 @@ import cv2
 import numba
 
 from benchmarks.bench_hog import (
-    load_roi, opencv_setup, run_fastdet, run_opencv, run_skimage, start_up_times, threads, time_ms,
+    load_roi,
+    opencv_setup,
+    run_fastdet,
+    run_opencv,
+    run_skimage,
+    start_up_times,
+    threads,
+    time_ms,
 )
 
 

@@ -44,8 +44,15 @@ import cv2  # noqa: E402
 import numba  # noqa: E402
 
 from benchmarks.bench_detector import (  # noqa: E402
-    CLASSIC_FRAME, load_frames, make_fastdet, models_label, same_windows, start_up_times, time_classic,
-    time_detectors, wait_policy_times,
+    CLASSIC_FRAME,
+    load_frames,
+    make_fastdet,
+    models_label,
+    same_windows,
+    start_up_times,
+    time_classic,
+    time_detectors,
+    wait_policy_times,
 )
 from benchmarks.bench_opencv import CASES, summary, time_side_by_side  # noqa: E402
 from benchmarks.bench_video import CLIPS, IO_LABELS, IO_MODES, MODE_LABELS, MODES, command_line, video_runs  # noqa: E402

@@ -30,11 +30,11 @@ from fastdet.detect.geometry import (
     GeometryConfig,
     RatioEstimator,
 )
-from fastdet.eval.clips import annotated_clips, markdown_table, report_json, score_clip
 from fastdet.detections import Detections
+from fastdet.eval.clips import annotated_clips, markdown_table, report_json, score_clip
 from fastdet.io.reader import FrameReader
-from fastdet.video.horizon import HORIZON_FRAMES, estimate_horizon
 from fastdet.video import iter_video_detections, make_detector
+from fastdet.video.horizon import HORIZON_FRAMES, estimate_horizon
 from fastdet.video.perspective import PerspectiveConfig, PerspectiveUpdater
 
 

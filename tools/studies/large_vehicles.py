@@ -36,19 +36,17 @@ from dataclasses import replace
 import numpy as np
 
 from fastdet.boxes import iou, overlap_fraction
-from fastdet.config import PipelineConfig, SearchBand, SearchConfig
-from fastdet.config import HeatConfig
+from fastdet.config import HeatConfig, PipelineConfig, SearchBand, SearchConfig
 from fastdet.config.models import DEFAULT_MODEL_PATH, SIDE_MODEL_PATH
 from fastdet.config.search import LARGE_SEARCH
 from fastdet.detect.bands import window_boxes
-from fastdet.detect.detector import DetectStats, Detector
+from fastdet.detect.detector import Detector, DetectStats
 from fastdet.detections import FIRST_COMPONENT_PART, MAIN_PART, Detections
 from fastdet.eval.clips import AnnotatedClip, annotated_clips, markdown_table, score_clip
-
 from fastdet.io.reader import FrameReader
 from fastdet.video import make_detector
-from fastdet.video.run import video_detector_for
 from fastdet.video.horizon import HORIZON_FRAMES, estimate_horizon
+from fastdet.video.run import video_detector_for
 
 #: width (reference pixels, 720-row frame) from which a target counts as large
 LARGE = 120.0

@@ -15,8 +15,8 @@ import numpy as np
 
 from fastdet.boxes import intersection, iou
 from fastdet.config import PipelineConfig
-from fastdet.eval.clips import AnnotatedClip, ClipScore, score_clip
 from fastdet.detections import Detections
+from fastdet.eval.clips import AnnotatedClip, ClipScore, score_clip
 from fastdet.video.run import iter_video_detections
 
 #: clips cut from one camera's footage (one drive): held out together

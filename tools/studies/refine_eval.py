@@ -39,17 +39,24 @@ from typing import Any
 
 import numpy as np
 
+from fastdet.config import PipelineConfig
 from fastdet.data import data_dir
 from fastdet.detections import Detections
 from fastdet.eval import evaluate
 from fastdet.eval.variants import Variant, standard_variants, transform_gt
 from fastdet.io.motfiles import read_gt
-from fastdet.config import PipelineConfig
 from fastdet.train.refine import paired_iou
 from fastdet.video import VideoDetector, make_detector
 from fastdet.video.refine import BoxRegressor, RefineConfig, refine
-from tools.scripts.refine_model import (CLIPS, add_feature_arguments, check_clips, clip_vehicles, fit_box_regressor,
-                                        samples, spec_of)
+from tools.scripts.refine_model import (
+    CLIPS,
+    add_feature_arguments,
+    check_clips,
+    clip_vehicles,
+    fit_box_regressor,
+    samples,
+    spec_of,
+)
 
 from .camera_shift import read_frames, variant_frames
 

@@ -30,10 +30,10 @@ from typing import Any
 
 import numpy as np
 
+from fastdet.config import JitterConfig
 from fastdet.detections import Detections
 from fastdet.eval.clips import AnnotatedClip, annotated_clips, markdown_table, score_clip
 from fastdet.io.reader import FrameReader
-from fastdet.config import JitterConfig
 from fastdet.train.refine import collect_samples
 from tools.scripts.refine_model import Annotated, add_feature_arguments, fit_box_regressor, spec_of, test_images
 
