@@ -47,6 +47,7 @@ from fastdet.detections import Detections
 from fastdet.eval import evaluate
 from fastdet.eval.sizes import WIDTH_EDGES, recall_by_width
 from fastdet.eval.variants import Variant, standard_variants, transform_gt
+from fastdet.io.keyframes import keyframes_for
 from fastdet.io.motfiles import read_gt
 from fastdet.io.reader import read_frames
 from fastdet.video import VideoDetector, make_detector
@@ -148,6 +149,7 @@ def iter_suite(variants: list[Variant], clips: list[str], det: Any, heat: HeatCo
         for clip in clips:
             src = read_frames(root / "videos" / f"{clip}.mp4")
             gt0 = read_gt(root / "annotations" / f"{clip}.gt.txt")
+            kf = keyframes_for(root / "annotations" / f"{clip}.gt.txt")  # a keyframe clip: those frames only
             shape = src[0].shape[:2]
             for v in variants:
                 frames = variant_frames(src, v, clip, Path(tmpd))
@@ -158,11 +160,12 @@ def iter_suite(variants: list[Variant], clips: list[str], det: Any, heat: HeatCo
                     hz = float(v.boxes(np.array([[0, row, 1, row]]), shape)[0][0, 1]) / frames[0].shape[0]
                 cache = cache_dir / f"{tag}.{clip}.{v.name}.npz" if cache_dir is not None else None
                 preds, dt = run_clip(det, frames, heat, cache, hz)
-                res = evaluate(gt, preds, iou=0.5, num_frames=len(frames))
-                bins = recall_by_width(gt, preds, frames[0].shape[0], num_frames=len(frames))
+                res = evaluate(gt, preds, iou=0.5, num_frames=None if kf is not None else len(frames), keyframes=kf)
+                bins = recall_by_width(gt, preds, frames[0].shape[0], keyframes=kf,
+                                       num_frames=None if kf is not None else len(frames))
                 yield {"variant": v.name, "clip": clip, "shape": list(frames[0].shape[:2]), "frames": len(frames),
                        "horizon": det.horizon,
-                       "targets": res.num_gt, "tp": res.tp, "fp": res.fp, "fn": res.fn,
+                       "scored_frames": res.frames, "targets": res.num_gt, "tp": res.tp, "fp": res.fp, "fn": res.fn,
                        "precision": res.precision, "recall": res.recall, "f1": res.f1,
                        "fp_per_frame": res.fp_per_frame, "ms_per_frame": 1000 * dt,
                        "width_bins": [[b.lo, b.hi, b.found, b.total] for b in bins]}
@@ -172,12 +175,14 @@ def pooled(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """One row summing the counts of ``rows`` (the clips of one variant)."""
     tp, fp, fn = (sum(r[k] for r in rows) for k in ("tp", "fp", "fn"))
     frames = sum(r["frames"] for r in rows)
+    scored = sum(r["scored_frames"] for r in rows)  # the keyframes of a keyframe clip, else every frame
     bins = [[b[0], b[1], sum(r["width_bins"][i][2] for r in rows), sum(r["width_bins"][i][3] for r in rows)]
             for i, b in enumerate(rows[0]["width_bins"])]
     nan = float("nan")
-    return {"variant": rows[0]["variant"], "clip": "all", "frames": frames, "targets": tp + fn, "tp": tp, "fp": fp,
+    return {"variant": rows[0]["variant"], "clip": "all", "frames": frames, "scored_frames": scored,
+            "targets": tp + fn, "tp": tp, "fp": fp,
             "fn": fn, "precision": tp / (tp + fp) if tp + fp else nan, "recall": tp / (tp + fn) if tp + fn else nan,
-            "f1": 2 * tp / (2 * tp + fp + fn) if tp + fp + fn else nan, "fp_per_frame": fp / frames,
+            "f1": 2 * tp / (2 * tp + fp + fn) if tp + fp + fn else nan, "fp_per_frame": fp / scored,
             "ms_per_frame": sum(r["ms_per_frame"] * r["frames"] for r in rows) / frames, "width_bins": bins}
 
 
