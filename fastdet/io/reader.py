@@ -27,7 +27,7 @@ import re
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -349,3 +349,22 @@ def read_frames(source: str | os.PathLike | int, start: int = 0, frames: int | N
     source that does not open or has no frames."""
     with FrameReader(source, start, frames, notify=notify) as reader:
         return [frame for _, frame, _ in reader]
+
+
+def read_frames_at(source: str | os.PathLike, numbers: Iterable[int],
+                   notify: Callable[[str], None] | None = None) -> dict[int, np.ndarray]:
+    """The frames of ``source`` with the 1-based ``numbers`` (a keyframe list, frames to test
+    on), ``{number: (H, W, 3) uint8 BGR}``, decoding no further than the largest; a number past
+    the end of the video is missing from the result. ``notify`` as :class:`FrameReader`'s."""
+    want = {int(n) for n in numbers}
+    out: dict[int, np.ndarray] = {}
+    if not want:
+        return out
+    last = max(want)
+    with FrameReader(source, notify=notify) as reader:
+        for number, frame, _ in reader:
+            if number in want:
+                out[number] = frame
+            if number >= last:
+                break
+    return out

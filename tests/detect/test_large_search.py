@@ -11,21 +11,7 @@ from fastdet.config.search import LARGE_SEARCH
 from fastdet.detect import Detector
 from fastdet.detections import MAIN_PART
 from fastdet.io.motfiles import read_gt
-from fastdet.io.reader import FrameReader
-
-
-def _frames(path, wanted):
-    out = {}
-    r = FrameReader(path)
-    try:
-        for fno, frame, _ in r:
-            if fno in wanted:
-                out[fno] = frame
-            if fno >= max(wanted):
-                break
-    finally:
-        r.close()
-    return out
+from fastdet.io.reader import read_frames_at
 
 
 def _truth(data, clip, fno):
@@ -42,7 +28,7 @@ def large():
 def test_large_search_boxes_the_near_suv_also_where_the_frame_edge_cuts_it(data, large):
     # highway_640: the SUV overtaking on the left, 280-312 px of 1280 (frames 191-211); at 191
     # it is cut by the left edge of the frame
-    frames = _frames(data / "videos" / "highway_640.mp4", {191, 201, 211})
+    frames = read_frames_at(data / "videos" / "highway_640.mp4", {191, 201, 211})
     for fno, frame in frames.items():
         targets, _ = _truth(data, "highway_640", fno)
         suv = targets[np.argmax(targets[:, 2] - targets[:, 0])]
@@ -59,7 +45,7 @@ def test_large_search_fires_on_little_else_on_test_video(data, large):
     # the hand-read frames of test_video: two cars of 127-214 px; a window of the large search
     # that overlaps neither (IoU < 0.3) and lies not on an ignore region is a false one
     wanted = set(range(1, 39, 5))
-    frames = _frames(data / "videos" / "test_video.mp4", wanted)
+    frames = read_frames_at(data / "videos" / "test_video.mp4", wanted)
     false = 0
     for fno, frame in frames.items():
         targets, ignore = _truth(data, "test_video", fno)

@@ -15,7 +15,7 @@ import pytest
 
 from fastdet.cli.main import main
 from fastdet.io.motfiles import read_predictions
-from fastdet.io.reader import FrameReader, read_frames, source_kind
+from fastdet.io.reader import FrameReader, read_frames, read_frames_at, source_kind
 from tests.media import (
     GOP12,
     INTRA,
@@ -74,6 +74,16 @@ def test_read_frames_is_every_frame_the_reader_yields(cut):
         assert ok and (frame == want).all()
     cap.release()
     assert len(read_frames(path, start=2, frames=3, notify=notes.append)) == 3
+
+
+def test_read_frames_at_gives_the_numbered_frames_only(cut):
+    path, n, _ = cut
+    every = read_frames(path, notify=lambda _: None)
+    got = read_frames_at(path, [n, 2, 1, 2, n + 5], notify=lambda _: None)
+    assert sorted(got) == [1, 2, n]  # 1-based; a number past the end is missing
+    for k, frame in got.items():
+        assert (frame == every[k - 1]).all()
+    assert read_frames_at(path, []) == {}
 
 
 def test_reader_no_note_when_stopped_by_frames(cut):

@@ -22,6 +22,7 @@ from fastdet.train.windows import (
     score_frames,
     window_score,
 )
+from tests.reference import box_iou
 
 
 @pytest.mark.parametrize("shape", [(720, 1280), (450, 800), (360, 640)])
@@ -52,13 +53,6 @@ class _Fixed:
         return self.d
 
 
-def _iou(a, b):
-    iw = max(0.0, min(a[2], b[2]) - max(a[0], b[0]))
-    ih = max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
-    u = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - iw * ih
-    return iw * ih / u if u > 0 else 0.0
-
-
 _box = st.tuples(st.integers(0, 150), st.integers(0, 80), st.integers(4, 60), st.integers(4, 40)).map(
     lambda t: [t[0], t[1], t[0] + t[2], t[1] + t[3]])
 
@@ -73,7 +67,7 @@ def test_frame_windows_against_brute_force(wins, targets, ignores, seed):
     f = AnnotatedFrame("c", 1, img, np.array(targets, float).reshape(-1, 4), np.array(ignores, float).reshape(-1, 4))
     fw = frame_windows(_Fixed(np.array(wins, float).reshape(-1, 4), scores), f)
     for j, t in enumerate(targets):
-        hits = [s for b, s in zip(wins, scores) if _iou(b, t) >= 0.5]
+        hits = [s for b, s in zip(wins, scores) if box_iou(b, t) >= 0.5]
         assert fw.best[j] == pytest.approx(max(hits)) if hits else fw.best[j] == -np.inf
     clear = [(b, s) for b, s in zip(wins, scores)
              if all(min(b[2], a[2]) <= max(b[0], a[0]) or min(b[3], a[3]) <= max(b[1], a[1])

@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from fastdet.io.reader import read_frames
 from fastdet.video.horizon import HorizonEstimator
 from fastdet.video.vanishing import road_segments, segments_vanishing_point, vanishing_point
 from tests.reference import ref_vanishing_score
@@ -119,25 +120,13 @@ def test_scores_match_the_slow_reference(seed, n_road, n_noise):
         assert math.hypot(got[0] - vx, got[1] - vy) < 8  # most segments point there: found
 
 
-def _clip_frames(path, n: int) -> list[np.ndarray]:
-    cap = cv2.VideoCapture(str(path))
-    out = []
-    while len(out) < n:
-        ok, f = cap.read()
-        if not ok:
-            break
-        out.append(f)
-    cap.release()
-    return out
-
-
 def test_segments_give_boston_streets_horizon(data):
     """A city street seen in jumps: the flow's pairs disagree, the line segments agree with the
     horizon the annotated vehicles imply (the Theil-Sen line through their widths and bottom
     rows, where their width would be 0)."""
     from scipy.stats import theilslopes
 
-    frames = _clip_frames(data / "videos" / "boston_street.mp4", 40)
+    frames = read_frames(data / "videos" / "boston_street.mp4", frames=40)
     est = HorizonEstimator()
     for f in frames:
         est.update(f)
@@ -154,7 +143,7 @@ def test_segments_give_boston_streets_horizon(data):
 
 
 def test_segments_agree_with_the_flow_on_the_udacity_clip(data):
-    frames = _clip_frames(data / "videos" / "test_video.mp4", 38)
+    frames = read_frames(data / "videos" / "test_video.mp4", frames=38)
     rows = [p[1] / f.shape[0] for f in frames[::3] if (p := vanishing_point(f)) is not None]
     flow = HorizonEstimator(segments=False)
     for f in frames:

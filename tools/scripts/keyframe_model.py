@@ -72,12 +72,10 @@ def build(out: Path, clips: list[str], data: Path, recipe: KeyframeRecipe = Keyf
     log(f"wrote {out}")
 
 
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", type=Path, required=True)
-    p.add_argument("--data", type=Path, default=None, help="data folder (default: $FASTDET_DATA or ../shared/data)")
-    p.add_argument("--clips", help="comma-separated clips to learn from (default: every annotated clip)")
-    p.add_argument("--exclude", help="comma-separated clips not to learn from")
+def add_recipe_arguments(p: argparse.ArgumentParser) -> None:
+    """The :class:`KeyframeRecipe` options (``--jitter``, ``--background``, ``--hard-per-frame``,
+    ``--hard-rounds``, ``--max-aspect``), defaults from the recipe; also read by
+    ``tools/studies/model_loo.py``."""
     d = KeyframeRecipe()
     p.add_argument("--jitter", type=int, default=d.jitter)
     p.add_argument("--background", type=int, default=d.background)
@@ -85,6 +83,21 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--hard-rounds", type=int, default=d.hard_rounds)
     p.add_argument("--max-aspect", type=float, default=d.max_aspect,
                    help="only targets narrower than this (width / height) are positives (default: all)")
+
+
+def recipe_from_args(args: argparse.Namespace) -> KeyframeRecipe:
+    """The recipe of :func:`add_recipe_arguments`' options."""
+    return KeyframeRecipe(jitter=args.jitter, background=args.background, hard_per_frame=args.hard_per_frame,
+                          hard_rounds=args.hard_rounds, max_aspect=args.max_aspect)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--data", type=Path, default=None, help="data folder (default: $FASTDET_DATA or ../shared/data)")
+    p.add_argument("--clips", help="comma-separated clips to learn from (default: every annotated clip)")
+    p.add_argument("--exclude", help="comma-separated clips not to learn from")
+    add_recipe_arguments(p)
     p.add_argument("--C", type=float, default=None, help=f"inverse regularisation (default {TRAINING['C']})")
     p.add_argument("--max-per-folder", type=int, default=None)
     args = p.parse_args(argv)
@@ -97,9 +110,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.max_per_folder is not None and args.max_per_folder < 1:
             raise FastdetError(f"--max-per-folder must be >= 1, got {args.max_per_folder}")
         clips = choose_clips(data, args.clips, args.exclude)
-        recipe = KeyframeRecipe(jitter=args.jitter, background=args.background, hard_per_frame=args.hard_per_frame,
-                                hard_rounds=args.hard_rounds, max_aspect=args.max_aspect)
-        build(args.out, clips, data, recipe, args.C, args.max_per_folder)
+        build(args.out, clips, data, recipe_from_args(args), args.C, args.max_per_folder)
     except (FastdetError, ValueError) as exc:
         print(f"keyframe_model: {exc}", file=sys.stderr)
         return 2

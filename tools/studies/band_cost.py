@@ -12,12 +12,34 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
+from collections.abc import Sequence
 from dataclasses import replace
+from typing import Any
+
+import numpy as np
 
 from fastdet.config import PipelineConfig, SearchBand
 from fastdet.data import data_dir
-from fastdet.io.reader import FrameReader
+from fastdet.io.reader import read_frames
 from fastdet.video import make_detector
+
+
+def detect_cpu_ms(detectors: Sequence[Any], frames: Sequence[np.ndarray], repeat: int) -> list[float]:
+    """Median CPU milliseconds (``time.process_time``: all threads) of ``detect`` per frame of
+    each detector: each warmed up on the first frames, then all of them over ``frames`` in turn,
+    ``repeat`` times, so that a busy machine slows them alike."""
+    for d in detectors:
+        d.warmup()
+        for f in frames[:3]:
+            d.detect(f)
+    ms: list[list[float]] = [[] for _ in detectors]
+    for _ in range(repeat):
+        for i, d in enumerate(detectors):
+            t = time.process_time()
+            for f in frames:
+                d.detect(f)
+            ms[i].append((time.process_time() - t) / len(frames) * 1e3)
+    return [statistics.median(m) for m in ms]
 
 
 def main() -> None:
@@ -32,25 +54,10 @@ def main() -> None:
         p = item.split(":")
         bands.append(SearchBand(float(p[0]), int(p[1]), int(p[2]), int(p[3]) if len(p) > 3 else None,
                                 int(p[4]) if len(p) > 4 else None))
-    reader = FrameReader(data_dir() / "videos" / f"{args.clip}.mp4")
-    try:
-        frames = [f for _, (_, f, _) in zip(range(args.frames), reader)]
-    finally:
-        reader.close()
+    frames = read_frames(data_dir() / "videos" / f"{args.clip}.mp4", frames=args.frames)
     today = make_detector(PipelineConfig())
     other = make_detector(PipelineConfig(search=replace(PipelineConfig().search, bands=tuple(bands))))
-    for d in (today, other):
-        d.warmup()
-        for f in frames[:3]:
-            d.detect(f)
-    ms: dict[str, list[float]] = {"today": [], "other": []}
-    for _ in range(args.repeat):
-        for name, d in (("today", today), ("other", other)):
-            t = time.process_time()
-            for f in frames:
-                d.detect(f)
-            ms[name].append((time.process_time() - t) / len(frames) * 1e3)
-    a, b = statistics.median(ms["today"]), statistics.median(ms["other"])
+    a, b = detect_cpu_ms([today, other], frames, args.repeat)
     print(f"default bands {a:.1f} ms/frame CPU, --bands {b:.1f} ms/frame CPU: {b / a:.2f}x "
           f"({args.frames} frames of {args.clip}, median of {args.repeat})")
 

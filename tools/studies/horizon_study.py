@@ -29,26 +29,14 @@ from __future__ import annotations
 
 import argparse
 
-import cv2
 import numpy as np
 from scipy.stats import theilslopes
 
 from fastdet.detect.geometry import PerspectiveEstimator
 from fastdet.eval.clips import annotated_clips
+from fastdet.io.reader import read_frames
 from fastdet.video.horizon import HORIZON_FRAMES, HorizonEstimator, _flow_foe, _grey
 from fastdet.video.vanishing import vanishing_point
-
-
-def frames_of(video, n: int | None = None) -> list[np.ndarray]:
-    cap = cv2.VideoCapture(str(video))
-    out: list[np.ndarray] = []
-    while n is None or len(out) < n:
-        ok, f = cap.read()
-        if not ok:
-            break
-        out.append(f)
-    cap.release()
-    return out
 
 
 def box_fits(t: np.ndarray, rows: int) -> dict:
@@ -90,7 +78,7 @@ def main() -> None:
           "segments: frames, median, spread | estimate |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for clip in clips:
-        frames = frames_of(clip.video)
+        frames = read_frames(clip.video)
         rows = frames[0].shape[0]
         gt = np.loadtxt(clip.gt_path, delimiter=",", ndmin=2)
         t_all = gt[gt[:, 6] == 1]

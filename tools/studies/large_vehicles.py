@@ -28,8 +28,6 @@ at IoU >= 0.5 (``heat map``), a heat-map box but no output box (``tracker``); th
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
 from collections import defaultdict
 from dataclasses import replace
 
@@ -43,10 +41,11 @@ from fastdet.detect.bands import window_boxes
 from fastdet.detect.detector import Detector, DetectStats
 from fastdet.detections import FIRST_COMPONENT_PART, MAIN_PART, Detections
 from fastdet.eval.clips import AnnotatedClip, annotated_clips, markdown_table, score_clip
-from fastdet.io.reader import FrameReader
+from fastdet.io.reader import FrameReader, read_frames, read_frames_at
 from fastdet.video import make_detector
 from fastdet.video.horizon import HORIZON_FRAMES, estimate_horizon
 from fastdet.video.run import video_detector_for
+from tools.studies.band_cost import detect_cpu_ms
 
 #: width (reference pixels, 720-row frame) from which a target counts as large
 LARGE = 120.0
@@ -77,28 +76,8 @@ def scored_frames(clip: AnnotatedClip) -> np.ndarray:
     return np.arange(1, int(gt.frames.max()) + 1, 5)
 
 
-def read_frames(clip: AnnotatedClip, wanted: np.ndarray) -> dict[int, np.ndarray]:
-    want = set(int(f) for f in wanted)
-    out: dict[int, np.ndarray] = {}
-    r = FrameReader(clip.video)
-    try:
-        for fno, frame, _ in r:
-            if fno in want:
-                out[fno] = frame
-            if fno >= max(want):
-                break
-    finally:
-        r.close()
-    return out
-
-
 def flow_horizon(clip: AnnotatedClip) -> float | None:
-    r = FrameReader(clip.video)
-    try:
-        frames = [f for _, (_, f, _) in zip(range(HORIZON_FRAMES), r)]
-    finally:
-        r.close()
-    return estimate_horizon(iter(frames))
+    return estimate_horizon(iter(read_frames(clip.video, frames=HORIZON_FRAMES)))
 
 
 def all_windows(geo, config) -> np.ndarray:
@@ -125,7 +104,7 @@ def windows_study(clips: list[AnnotatedClip], scales: tuple[float, ...], side: b
     for clip in clips:
         gt = clip.gt()
         frames_wanted = scored_frames(clip)
-        frames = read_frames(clip, frames_wanted)
+        frames = read_frames_at(clip.video, frames_wanted)
         shape = next(iter(frames.values())).shape[:2]
         hz = flow_horizon(clip)
         todays = replace(today, horizon=hz).for_frame(shape)
@@ -317,23 +296,7 @@ def cost_study(clip: str = "test_small1", frames: int = 20, repeat: int = 5) -> 
     (c0, w0), (c1, w1) = count(today), count(large)
     print(f"HOG cells / windows per 1280x720 frame (full search, every model): today {c0} / {w0}, "
           f"with the large search {c1} / {w1}: {c1 / c0:.3f}x / {w1 / w0:.3f}x")
-    r = FrameReader(annotated_clip(clip).video)
-    try:
-        fs = [f for _, (_, f, _) in zip(range(frames), r)]
-    finally:
-        r.close()
-    for d in (today, large):
-        d.warmup()
-        for f in fs[:3]:
-            d.detect(f)
-    ms: dict[str, list[float]] = {"today": [], "large": []}
-    for _ in range(repeat):
-        for name, d in (("today", today), ("large", large)):
-            t = time.process_time()
-            for f in fs:
-                d.detect(f)
-            ms[name].append((time.process_time() - t) / len(fs) * 1e3)
-    a, b = statistics.median(ms["today"]), statistics.median(ms["large"])
+    a, b = detect_cpu_ms([today, large], read_frames(annotated_clip(clip).video, frames=frames), repeat)
     print(f"Detector.detect CPU: today {a:.1f} ms/frame, with the large search {b:.1f}: {b / a:.2f}x "
           f"({frames} frames of {clip}, median of {repeat}; NUMBA_NUM_THREADS as set)")
 

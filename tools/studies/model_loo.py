@@ -41,7 +41,6 @@ import argparse
 import json
 import math
 import sys
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -51,11 +50,10 @@ from fastdet.detections import Detections
 from fastdet.eval.clips import annotated_clips, markdown_table
 from fastdet.io.atomic import write_bytes
 from fastdet.model import load_model
-from fastdet.train.keyframe_model import KeyframeRecipe
 from fastdet.train.keyframes import read_annotated_frames
 from fastdet.train.windows import FALSE_RATES, WindowScore, score_frames
 from tools.scripts import side_model
-from tools.scripts.keyframe_model import build
+from tools.scripts.keyframe_model import add_recipe_arguments, build, recipe_from_args
 from tools.studies.loo import folds, misplaced, run_clip
 
 
@@ -86,13 +84,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--work", type=Path, default=Path("/tmp/fastdet-model-loo"))
     p.add_argument("--clips", help="comma-separated clips to score (default: every annotated clip)")
     p.add_argument("--tag", default="", help="a name for this recipe's models (WORK/main_TAG_without_X.npz)")
-    d = KeyframeRecipe()
-    p.add_argument("--jitter", type=int, default=d.jitter)
-    p.add_argument("--background", type=int, default=d.background)
-    p.add_argument("--hard-per-frame", type=int, default=d.hard_per_frame)
-    p.add_argument("--hard-rounds", type=int, default=d.hard_rounds)
-    p.add_argument("--max-aspect", type=float, default=d.max_aspect,
-                   help="only targets narrower than this (width / height) are positives (default: all)")
+    add_recipe_arguments(p)
     p.add_argument("--reuse-round1", action="store_true",
                    help="with --hard-rounds > 1: WORK/main_without_FOLD.npz (the default recipe's) is round 1")
     p.add_argument("--C", type=float, default=None)
@@ -108,8 +100,7 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         print(f"model_loo: not annotated clips: {', '.join(unknown)}", file=sys.stderr)
         return 2
-    recipe = replace(d, jitter=args.jitter, background=args.background, hard_per_frame=args.hard_per_frame,
-                     hard_rounds=args.hard_rounds, max_aspect=args.max_aspect)
+    recipe = recipe_from_args(args)
     args.work.mkdir(parents=True, exist_ok=True)
     bundled = load_model(None)
     tag = f"_{args.tag}" if args.tag else ""

@@ -17,38 +17,16 @@ from __future__ import annotations
 import argparse
 from dataclasses import replace
 
-import cv2
 import numpy as np
 
+from fastdet.boxes import iou
 from fastdet.config import SearchBand
 from fastdet.detect.bands import window_boxes
 from fastdet.detect.geometry import GeometricSearch, GeometryConfig
 from fastdet.eval.clips import annotated_clips
+from fastdet.io.reader import read_frames
 from fastdet.video import make_detector
 from fastdet.video.horizon import HORIZON_FRAMES, HorizonEstimator, search_horizon
-
-
-def iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """IoU of every box of ``a (N, 4)`` with every box of ``b (M, 4)``, x1 y1 x2 y2."""
-    x1 = np.maximum(a[:, None, 0], b[None, :, 0])
-    y1 = np.maximum(a[:, None, 1], b[None, :, 1])
-    x2 = np.minimum(a[:, None, 2], b[None, :, 2])
-    y2 = np.minimum(a[:, None, 3], b[None, :, 3])
-    inter = np.clip(x2 - x1, 0, None) * np.clip(y2 - y1, 0, None)
-    area = lambda z: (z[:, 2] - z[:, 0]) * (z[:, 3] - z[:, 1])  # noqa: E731
-    return inter / (area(a)[:, None] + area(b)[None, :] - inter + 1e-9)
-
-
-def frames_of(video) -> list[np.ndarray]:
-    cap = cv2.VideoCapture(str(video))
-    out = []
-    while True:
-        ok, f = cap.read()
-        if not ok:
-            break
-        out.append(f)
-    cap.release()
-    return out
 
 
 def main() -> None:
@@ -66,7 +44,7 @@ def main() -> None:
           "windows / frame | stray positives / keyframe |")
     print("|---|---|---|---|---|---|---|---|---|")
     for clip in clips:
-        frames = frames_of(clip.video)
+        frames = read_frames(clip.video)
         shape = frames[0].shape[:2]
         if args.horizon == "auto":
             est = HorizonEstimator()
