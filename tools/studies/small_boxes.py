@@ -53,24 +53,22 @@ def _value(s: str) -> Any:
     return {"none": None, "true": True, "false": False}.get(s.lower(), s)
 
 
-def config_from(args: argparse.Namespace) -> PipelineConfig:
-    heat = HeatConfig()
+def _overrides(items: list[str] | None, cls: type, flag: str) -> dict[str, Any]:
+    """``KEY=VALUE`` options naming fields of the dataclass ``cls``, as keyword arguments."""
+    names = {f.name for f in fields(cls)}
     kw = {}
-    names = {f.name for f in fields(HeatConfig)}
-    for item in args.heat or ():
+    for item in items or ():
         k, v = item.split("=", 1)
         if k not in names:
-            raise SystemExit(f"--heat: HeatConfig has no field {k!r}")
+            raise SystemExit(f"{flag}: {cls.__name__} has no field {k!r}")
         kw[k] = _value(v)
-    heat = replace(heat, **kw)
+    return kw
+
+
+def config_from(args: argparse.Namespace) -> PipelineConfig:
+    heat = replace(HeatConfig(), **_overrides(args.heat, HeatConfig, "--heat"))
     cfg = PipelineConfig(heat=heat, refine_model=args.refine_model)
-    rkw = {}
-    rnames = {f.name for f in fields(RefineConfig)}
-    for item in args.refine or ():
-        k, v = item.split("=", 1)
-        if k not in rnames:
-            raise SystemExit(f"--refine: RefineConfig has no field {k!r}")
-        rkw[k] = _value(v)
+    rkw = _overrides(args.refine, RefineConfig, "--refine")
     if rkw:
         cfg = replace(cfg, refine=replace(RefineConfig(), **rkw))
     if args.no_refine:
