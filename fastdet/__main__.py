@@ -3,7 +3,8 @@
 A stop signal (Ctrl-C, SIGTERM, SIGHUP) that comes while the command's modules are still
 being imported -- before the dispatcher installs its handlers -- ends the process with one
 line and status 128 + the signal, not a ``KeyboardInterrupt`` traceback: nothing has been
-written yet.
+written yet. Once the command has returned, stop signals are ignored until the process exits,
+so its status is the command's.
 """
 import os
 import signal
@@ -24,7 +25,14 @@ def run() -> int:
             signal.signal(s, _early_stop)
     from .cli.main import main
 
-    return main()
+    status = main()
+    # The command is over: its outputs are final and its status and line are out. A stop signal
+    # from here on stops nothing, and one that came while the interpreter shuts down (after it
+    # has put the default handlers back) would kill the process and hide that status.
+    for s in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None)):
+        if s is not None:
+            signal.signal(s, signal.SIG_IGN)
+    return status
 
 
 if __name__ == "__main__":

@@ -128,3 +128,18 @@ def test_stop_while_starting_is_one_line(tmp_path, command, after, python_start)
     # the run was stopped, or had already ended with its own one-line error
     assert (p.returncode == 130 and "interrupted (SIGINT)" in err) or p.returncode == 2, (p.returncode, err)
     assert len(err.strip().splitlines()) == 1, err
+
+
+def test_stop_after_the_command_ended_keeps_its_status():
+    """A stop signal once the command has returned (while the interpreter shuts down) cannot
+    turn its exit status into a kill or a second line."""
+    code = ("import os, signal, sys\n"
+            "import fastdet.cli.main\n"
+            "sys.modules['fastdet.cli.main'].main = lambda: 2\n"
+            "from fastdet.__main__ import run\n"
+            "status = run()\n"
+            "os.kill(os.getpid(), signal.SIGINT)\n"
+            "os.kill(os.getpid(), signal.SIGTERM)\n"
+            "sys.exit(status)\n")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 2 and p.stderr == "", (p.returncode, p.stderr)
