@@ -21,7 +21,12 @@ it touches the frame's left / right edge. Also every target's ratio, the range t
 must keep.
 
     python -m tools.studies.false_alarms [--clips A,B] [--no-plausible | --perspective-filter] [--loo-dir DIR]
-        [--json OUT] [--crops DIR]
+        [--rules] [--json OUT] [--crops DIR]
+
+``--rules`` then applies each rule of :data:`RULES` (tried as a last stage: duplicates, the
+perspective test at several bounds, boxes kept by weak blobs, the oncoming model's boxes, a
+minimum track age) to the boxes of the same runs and prints, per clip, the false alarms, the hits
+and the hits lost (targets matched before and not after, same frame, IoU 0.5).
 
 ``--crops DIR`` writes one picture per clip (``DIR/CLIP_fa.png``) of every false alarm's
 surroundings, with the box (red), the targets (green), the ignore regions (grey) and the
@@ -33,6 +38,7 @@ import argparse
 import json
 import sys
 from collections import Counter, defaultdict
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -40,7 +46,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from fastdet.boxes import intersection
+from fastdet.boxes import intersection, overlap_fraction
 from fastdet.config import REFERENCE_HORIZON, PipelineConfig, PlausibleConfig
 from fastdet.detections import Detections
 from fastdet.eval.clips import AnnotatedClip, annotated_clips, markdown_table, score_clip
@@ -48,6 +54,7 @@ from fastdet.eval.matching import match_frame
 from fastdet.io.reader import FrameReader, read_frames_at
 from fastdet.video.detector import make_detector
 from fastdet.video.pipeline import VideoDetector
+from fastdet.video.plausible import duplicates, perspective_ok
 from fastdet.video.run import video_detector_for
 
 REF_ROWS = 720
@@ -133,12 +140,13 @@ def records(clip: AnnotatedClip, frames: list[tuple[int, Detections]], horizon: 
         if not len(d):
             continue
         boxes = d.boxes.astype(float)
-        tp, dropped, _ = match_frame(boxes, d.scores, targets, ignores, 0.5)
+        scores = d.scores if d.scores is not None else np.zeros(len(d))
+        tp, dropped, _ = match_frame(boxes, scores, targets, ignores, 0.5)
         touch = (intersection(boxes, targets) > 0).any(1) if len(targets) else np.zeros(len(boxes), bool)
         touch_ign = (intersection(boxes, ignores) > 0).any(1) if len(ignores) else np.zeros(len(boxes), bool)
         for j, b in enumerate(boxes):
             kind = "hit" if tp[j] else "ignored" if dropped[j] else "near" if touch[j] else "clear"
-            out.append(dict(frame=fno, kind=kind, score=float(d.scores[j]), id=int(ids[j]),
+            out.append(dict(frame=fno, kind=kind, score=float(scores[j]), id=int(ids[j]),
                             source=weak.get(fno, {}).get(int(ids[j]), '-'),
                             age=seen[int(ids[j])], life=life[int(ids[j])], touches_ignore=bool(touch_ign[j]),
                             **geometry(b)))
@@ -169,10 +177,10 @@ def ratio_line(name: str, horizon: float, recs: list[dict[str, Any]], targets: l
         return f"{a.min():.2f} / {np.median(a):.2f} / {a.max():.2f} ({len(a)})"
 
     inner = [t for t in targets if not t["edge"] and not t["bottom_edge"]]
-    hits = [r for r in recs if r["kind"] == "hit"]
+    hit_recs = [r for r in recs if r["kind"] == "hit"]
     above = sum(1 for t in targets if t["ratio"] is None)
     return (f"| {name} | {horizon:.3f} | {q([t['ratio'] for t in inner if t['ratio'] is not None])} | {above} | "
-            f"{q([t['ratio'] for t in hits if t['ratio'] is not None])} | "
+            f"{q([t['ratio'] for t in hit_recs if t['ratio'] is not None])} | "
             f"{q([r['ratio'] for r in recs if r['kind'] in ('near', 'clear') and r['ratio'] is not None])} |")
 
 
@@ -212,6 +220,99 @@ def draw_crops(clip: AnnotatedClip, recs: list[dict[str, Any]], horizon: float, 
         raise SystemExit(f"could not write {path}")
 
 
+Rule = Callable[[Detections, float, tuple[int, int], dict[int, str], dict[int, int]], np.ndarray]
+
+
+def _by_source(drop: str) -> Rule:
+    def rule(d: Detections, h: float, shape: tuple[int, int], src: dict[int, str], age: dict[int, int]) -> np.ndarray:
+        return np.array([src.get(int(i)) != drop for i in _ids(d)], bool)
+    return rule
+
+
+def _min_age(n: int, off_centre: float) -> Rule:
+    def rule(d: Detections, h: float, shape: tuple[int, int], src: dict[int, str], age: dict[int, int]) -> np.ndarray:
+        c = np.abs((d.boxes[:, 0] + d.boxes[:, 2]) / 2 - shape[1] / 2) / shape[1]
+        return np.array([age[int(i)] >= n for i in _ids(d)], bool) | (c <= off_centre)
+    return rule
+
+
+def _inside(fraction: float) -> Rule:
+    def rule(d: Detections, h: float, shape: tuple[int, int], src: dict[int, str], age: dict[int, int]) -> np.ndarray:
+        b, sc = d.boxes.astype(float), _scores(d)
+        inside = overlap_fraction(b, b)  # [i, j]: the fraction of box i inside box j
+        np.fill_diagonal(inside, 0.0)
+        return ~((inside >= fraction) & (sc[None, :] > sc[:, None])).any(axis=1)
+    return rule
+
+
+def _ids(d: Detections) -> np.ndarray:
+    return d.ids if d.ids is not None else np.full(len(d), -1)
+
+
+def _scores(d: Detections) -> np.ndarray:
+    return d.scores.astype(float) if d.scores is not None else np.zeros(len(d))
+
+
+#: the rules ``--rules`` tries on the boxes a run returned (each keeps a box when True)
+RULES: dict[str, Rule] = {
+    "duplicates IoU > 0.5 (the stage's default)": lambda d, h, shape, src, age: duplicates(d.boxes, _scores(d), 0.5),
+    "duplicates IoU > 0.4": lambda d, h, shape, src, age: duplicates(d.boxes, _scores(d), 0.4),
+    "a box half inside a higher-scored one": _inside(0.5),
+    "perspective [0.45, 12], slack 0.05 (--perspective-filter)":
+        lambda d, h, shape, src, age: perspective_ok(d.boxes, shape, h, 0.45, 12.0, 0.05),
+    "perspective [1.0, 12], slack 0": lambda d, h, shape, src, age: perspective_ok(d.boxes, shape, h, 1.0, 12.0, 0.0),
+    "perspective [0.01, 3], slack 0": lambda d, h, shape, src, age: perspective_ok(d.boxes, shape, h, 0.01, 3.0, 0.0),
+    "no box a weak blob kept": _by_source("weak"),
+    "no box of the oncoming model": _by_source("oncoming"),
+    "track returned >= 2 frames": _min_age(2, -1.0),
+    "track returned >= 3 frames, off centre > 0.2": _min_age(3, 0.2),
+}
+
+
+def apply_rule(frames: list[tuple[int, Detections]], horizon: float, shape: tuple[int, int],
+               sources: dict[int, dict[int, str]], rule: Rule) -> list[tuple[int, Detections]]:
+    """``frames`` with the boxes ``rule`` rejects left out (what a last stage with the rule
+    would return: the stages before it never see its decisions)."""
+    age: Counter[int] = Counter()
+    out = []
+    for fno, d in frames:
+        for i in _ids(d):
+            age[int(i)] += 1
+        out.append((fno, d[rule(d, horizon, shape, sources.get(fno, {}), age)] if len(d) else d))
+    return out
+
+
+def hits(clip: AnnotatedClip, frames: list[tuple[int, Detections]]) -> set[tuple[int, int]]:
+    """``(frame, target id)`` of every target matched at IoU 0.5 on the scored frames."""
+    gt = clip.gt()
+    by_frame = dict(gt.by_frame())
+    kf = clip.keyframes()
+    scored = set(int(f) for f in (kf if kf is not None else np.unique(gt.frames)))
+    out = set()
+    for fno, d in frames:
+        g = by_frame.get(fno)
+        if fno not in scored or g is None or not len(d):
+            continue
+        tp, _, gi = match_frame(d.boxes, _scores(d), g.boxes[g.targets], g.boxes[~g.targets], 0.5)
+        ids = g.ids[g.targets] if g.ids is not None else np.arange(int(g.targets.sum()))
+        out |= {(fno, int(ids[j])) for j in gi[tp]}
+    return out
+
+
+def rule_lines(runs: dict[str, tuple[AnnotatedClip, list, float, tuple[int, int], dict]]) -> list[str]:
+    """One row per rule of :data:`RULES`: per clip the false alarms, hits and hits lost."""
+    lines = []
+    for name, rule in {"none": None, **RULES}.items():
+        cells = []
+        for clip, frames, horizon, shape, sources in runs.values():
+            new = frames if rule is None else apply_rule(frames, horizon, shape, sources, rule)
+            sc = score_clip(clip.name, clip.gt(), Detections.from_frames(new), shape[0], clip.keyframes()).result
+            lost = len(hits(clip, frames) - hits(clip, new))
+            cells.append(f"{sc.fp} ({sc.fp_per_frame:.2f}) / {sc.tp} / {lost}")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return lines
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--clips", default=None, help="comma-separated clip names (default: every annotated clip)")
@@ -224,6 +325,9 @@ def main() -> None:
                          "tools.studies.refine_loo --out-dir DIR): the honest leave-one-clip-out figures")
     ap.add_argument("--json", default=None, help="write every record to this JSON file")
     ap.add_argument("--crops", default=None, help="a folder for one picture of the false alarms per clip")
+    ap.add_argument("--rules", action="store_true",
+                    help="also: each rule of RULES applied to the boxes returned (per clip: false alarms (per "
+                         "frame) / hits / hits lost); run it with --no-plausible")
     a = ap.parse_args()
     config = PipelineConfig()
     if a.no_plausible:
@@ -232,6 +336,7 @@ def main() -> None:
         config = replace(config, plausible=PlausibleConfig(perspective=True))
     clips = [c for c in annotated_clips() if a.clips is None or c.name in a.clips.split(",")]
     scores, lines, ratio_lines, dump = [], [], [], {}
+    runs: dict[str, tuple[AnnotatedClip, list, float, tuple[int, int], dict]] = {}
     kinds: dict[str, Counter[str]] = defaultdict(Counter)
     for clip in clips:
         cfg = config
@@ -241,6 +346,7 @@ def main() -> None:
                 raise SystemExit(f"--loo-dir: no {path} (run tools.studies.refine_loo --out-dir {a.loo_dir} first)")
             cfg = replace(config, refine_model=str(path))
         frames, horizon, shape, weak = run(clip, cfg)
+        runs[clip.name] = (clip, frames, horizon, shape, weak)
         preds = Detections.from_frames(frames, source=str(clip.video))
         scores.append(score_clip(clip.name, clip.gt(), preds, shape[0], clip.keyframes()))
         recs, targets = records(clip, frames, horizon, shape, weak)
@@ -268,6 +374,11 @@ def main() -> None:
           "life | side edge | off centre | touches ignore | box from |")
     print("|" + "---|" * 14)
     print("\n".join(lines))
+    if a.rules:
+        print()
+        print("| rule (false alarms (per frame) / hits / hits lost) | " + " | ".join(runs) + " |")
+        print("|" + "---|" * (len(runs) + 1))
+        print("\n".join(rule_lines(runs)))
     if a.json:
         with open(a.json + ".tmp", "w") as fh:
             json.dump(dump, fh, indent=1)
