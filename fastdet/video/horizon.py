@@ -113,6 +113,14 @@ def focus_of_expansion(prev: np.ndarray, cur: np.ndarray, work_rows: int = WORK_
     return float(x), float(y)
 
 
+def median_flow(prev: np.ndarray, cur: np.ndarray, work_rows: int = WORK_ROWS) -> float:
+    """How far the scene moved from ``prev`` to ``cur`` (two ``(H, W, 3) uint8`` frames): the
+    median length of the optical flow of the corners tracked as in :func:`focus_of_expansion`,
+    in px of the frames shrunk to ``min(work_rows, H)`` rows; 0 when too few corners are found."""
+    rows = min(work_rows, prev.shape[0])
+    return _flow_foe(_grey(prev, rows)[0], _grey(cur, rows)[0])[1]
+
+
 class HorizonEstimator:
     """The horizon of a video from its frames so far (module docstring).
 

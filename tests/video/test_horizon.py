@@ -10,6 +10,7 @@ from fastdet.video.horizon import (
     HorizonEstimator,
     estimate_horizon,
     focus_of_expansion,
+    median_flow,
     search_horizon,
 )
 
@@ -209,3 +210,13 @@ def test_estimator_lengthens_the_gap_of_slow_flow():
         HorizonEstimator(target_flow=0.0)
     with pytest.raises(ValueError):
         HorizonEstimator(gap=4, max_gap=3)
+
+
+def test_median_flow_is_the_shift_in_work_pixels():
+    img = _texture(720, 1280, seed=2)
+    shifted = cv2.warpAffine(img, np.float32([[1, 0, 6], [0, 1, 0]]), (1280, 720), borderMode=cv2.BORDER_REFLECT)
+    assert median_flow(img, shifted) == pytest.approx(3.0, abs=0.3)  # 6 px at 720 rows: 3 at 360
+    assert median_flow(img, shifted, work_rows=720) == pytest.approx(6.0, abs=0.5)
+    assert median_flow(img, img) == pytest.approx(0.0, abs=1e-3)
+    flat = np.full((360, 640, 3), 90, np.uint8)
+    assert median_flow(flat, flat) == 0.0  # no corners to track

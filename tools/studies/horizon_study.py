@@ -35,7 +35,7 @@ from scipy.stats import theilslopes
 from fastdet.detect.geometry import PerspectiveEstimator
 from fastdet.eval.clips import annotated_clips
 from fastdet.io.reader import read_frames
-from fastdet.video.horizon import HORIZON_FRAMES, HorizonEstimator, _flow_foe, _grey
+from fastdet.video.horizon import HORIZON_FRAMES, WORK_ROWS, HorizonEstimator, median_flow
 from fastdet.video.vanishing import vanishing_point
 
 
@@ -95,9 +95,7 @@ def main() -> None:
                 flow.update(f)
             per_frame = []
             for j in range(0, len(fr) - 1, 6):
-                g0, _ = _grey(fr[j], min(360, rows))
-                g1, _ = _grey(fr[j + 1], min(360, rows))
-                per_frame.append(_flow_foe(g0, g1)[1] * 360 / g0.shape[0])
+                per_frame.append(median_flow(fr[j], fr[j + 1]) * 360 / min(WORK_ROWS, rows))
             seg = [p[1] / rows for p in (vanishing_point(f) for f in fr[::3]) if p is not None]
             est = HorizonEstimator()
             for f in fr:
