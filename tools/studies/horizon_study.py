@@ -21,13 +21,19 @@ shot):
   one frame in three of the same frames: frames with one, median row, spread.
 - **estimate**: what the default estimator gives and from which cue.
 
+``--cost`` prints instead, per clip, what the default estimator costs as ``fastdet video``
+primes it (frames fed until it is done or ``HORIZON_FRAMES`` went by, then the estimate):
+frames fed, the line-segment detections it ran (vanishing points) and their CPU (this
+thread's), the estimator's CPU in all, and the estimate in full precision.
+
 These are evaluation only: nothing here is a setting.
 
-    python -m tools.studies.horizon_study [--clips A,B] [--cut motorcycle_highway:65] [--gaps 2,4,8]
+    python -m tools.studies.horizon_study [--clips A,B] [--cut motorcycle_highway:65] [--gaps 2,4,8] [--cost]
 """
 from __future__ import annotations
 
 import argparse
+import time
 
 import numpy as np
 from scipy.stats import theilslopes
@@ -35,6 +41,7 @@ from scipy.stats import theilslopes
 from fastdet.detect.geometry import PerspectiveEstimator
 from fastdet.eval.clips import annotated_clips
 from fastdet.io.reader import read_frames
+from fastdet.video import horizon
 from fastdet.video.horizon import HORIZON_FRAMES, WORK_ROWS, HorizonEstimator, median_flow
 from fastdet.video.vanishing import vanishing_point
 
@@ -62,17 +69,55 @@ def med_mad(r: list[float]) -> tuple[float, float]:
     return m, float(np.median(np.abs(a - m)))
 
 
+def cost(clips: list) -> None:
+    """The ``--cost`` table (module docstring)."""
+    runs: list[float] = []
+    real = horizon.vanishing_point
+
+    def timed(frame: np.ndarray) -> tuple[float, float] | None:
+        t0 = time.thread_time()
+        try:
+            return real(frame)
+        finally:
+            runs.append(time.thread_time() - t0)
+
+    horizon.vanishing_point = timed  # type: ignore[assignment]
+    print("| clip | frames fed | segment detections | their CPU (ms) | estimator CPU (ms) | estimate |")
+    print("|---|---|---|---|---|---|")
+    try:
+        for clip in clips:
+            frames = read_frames(clip.video, frames=HORIZON_FRAMES, notify=lambda _n: None)
+            runs.clear()
+            t0 = time.thread_time()
+            est, fed = HorizonEstimator(), 0
+            for f in frames:
+                if est.done:
+                    break
+                est.update(f)
+                fed += 1
+            e = est.estimate
+            total = time.thread_time() - t0
+            print(f"| {clip.name} | {fed} | {len(runs)} | {1000 * sum(runs):.0f} | {1000 * total:.0f} | "
+                  f"{e!r} ({est.source}) |", flush=True)
+    finally:
+        horizon.vanishing_point = real
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--clips", default=None)
     ap.add_argument("--cut", action="append", default=["motorcycle_highway:65"],
                     help="CLIP:FRAME, the 1-based first frame after a cut (repeatable)")
     ap.add_argument("--gaps", default="", help="also the flow estimate at these gaps (comma-separated)")
+    ap.add_argument("--cost", action="store_true", help="the default estimator's cost instead (module docstring)")
     args = ap.parse_args()
     cuts = {c.split(":")[0]: int(c.split(":")[1]) for c in args.cut}
     clips = annotated_clips()
     if args.clips:
         clips = [c for c in clips if c.name in args.clips.split(",")]
+    if args.cost:
+        cost(clips)
+        return
     print("| clip | shot | boxes (targets, tracks) | bottoms (of H) | Theil-Sen horizon / ratio | per track "
           "horizon / ratio (tight; loose) | flow: pairs, median, spread | flow / frame (px at 360) | "
           "segments: frames, median, spread | estimate |")
