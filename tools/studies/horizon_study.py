@@ -69,6 +69,15 @@ def med_mad(r: list[float]) -> tuple[float, float]:
     return m, float(np.median(np.abs(a - m)))
 
 
+def fed(est: HorizonEstimator, frames: list[np.ndarray]) -> HorizonEstimator:
+    """``est`` after ``frames`` were fed to it in order until it was done."""
+    for f in frames:
+        if est.done:
+            break
+        est.update(f)
+    return est
+
+
 def cost(clips: list) -> None:
     """The ``--cost`` table (module docstring)."""
     runs: list[float] = []
@@ -89,15 +98,10 @@ def cost(clips: list) -> None:
             frames = read_frames(clip.video, frames=HORIZON_FRAMES, notify=lambda _n: None)
             runs.clear()
             t0 = time.thread_time()
-            est, fed = HorizonEstimator(), 0
-            for f in frames:
-                if est.done:
-                    break
-                est.update(f)
-                fed += 1
+            est = fed(HorizonEstimator(), frames)
             e = est.estimate
             total = time.thread_time() - t0
-            print(f"| {clip.name} | {fed} | {len(runs)} | {1000 * sum(runs):.0f} | {1000 * total:.0f} | "
+            print(f"| {clip.name} | {est.frames} | {len(runs)} | {1000 * sum(runs):.0f} | {1000 * total:.0f} | "
                   f"{e!r} ({est.source}) |", flush=True)
     finally:
         horizon.vanishing_point = real
@@ -133,20 +137,12 @@ def main() -> None:
             t = t_all[(t_all[:, 0] >= a) & (t_all[:, 0] <= b)]
             fits = box_fits(t, rows) if len(t) >= 2 else None
             fr = frames[a - 1:b][:HORIZON_FRAMES]
-            flow = HorizonEstimator(segments=False)
-            for f in fr:
-                if flow.done:
-                    break
-                flow.update(f)
+            flow = fed(HorizonEstimator(segments=False), fr)
             per_frame = []
             for j in range(0, len(fr) - 1, 6):
                 per_frame.append(median_flow(fr[j], fr[j + 1]) * 360 / min(WORK_ROWS, rows))
             seg = [p[1] / rows for p in (vanishing_point(f) for f in fr[::3]) if p is not None]
-            est = HorizonEstimator()
-            for f in fr:
-                if est.done:
-                    break
-                est.update(f)
+            est = fed(HorizonEstimator(), fr)
             fm, fs = med_mad(flow.rows)
             sm, ss = med_mad(seg)
             if fits is None:
@@ -159,11 +155,7 @@ def main() -> None:
             e = "none" if est.estimate is None else f"{est.estimate:.3f} ({est.source})"
             extra = ""
             for gap in [int(g) for g in args.gaps.split(",") if g]:
-                h = HorizonEstimator(gap=gap, segments=False)
-                for f in fr:
-                    if h.done:
-                        break
-                    h.update(f)
+                h = fed(HorizonEstimator(gap=gap, segments=False), fr)
                 gm, gs = med_mad(h.rows)
                 extra += f"; gap {gap}: {gm:.3f} / {gs:.3f}"
             print(f"| {clip.name} | {a}-{b} | {len(t)}, {len(set(t[:, 1].astype(int)))} | {box[0]} | {box[1]} | "
