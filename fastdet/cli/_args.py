@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..config import HeatConfig, NeighbourSplit, OwnVehicleConfig, PerspectiveConfig, PipelineConfig
+from ..config import HeatConfig, NeighbourSplit, OwnVehicleConfig, PerspectiveConfig, PipelineConfig, PlausibleConfig
 from ..errors import FastdetError
 
 
@@ -116,7 +116,8 @@ def add_refine_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def add_camera_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--own-vehicle`` and ``--split-neighbours``: the optional stages for other cameras."""
+    """``--own-vehicle``, ``--split-neighbours`` and ``--perspective-filter``: the optional stages for
+    other cameras."""
     parser.add_argument("--own-vehicle", action="store_true",
                         help="drop the windows lying on the own vehicle (hood, dashboard, mirrors, letterbox bars: "
                              "what stays fixed at the picture's border while the scene moves in the first 3 s); "
@@ -124,6 +125,9 @@ def add_camera_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--split-neighbours", action="store_true",
                         help="split a wide heat blob between the modes of its windows, one box per vehicle side "
                              "by side; off by default")
+    parser.add_argument("--perspective-filter", action="store_true",
+                        help="drop the boxes whose width no vehicle and no camera can have for how far below the "
+                             "horizon they stand (too narrow: 0.45x those rows, too wide: 12x); off by default")
 
 
 def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
@@ -133,7 +137,8 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
     search); ``--full-search``: no guided search; ``--no-refine``: no refinement;
     ``--heat-frames`` / ``--heat-decay`` / ``--heat-threshold``: the main heat map (a bad
     value: :class:`~fastdet.errors.FastdetError`); ``--own-vehicle``, ``--split-neighbours``:
-    those stages on with their defaults."""
+    those stages on with their defaults; ``--perspective-filter``: the perspective test of the
+    plausibility stage on."""
     d = HeatConfig()
     try:
         heat = HeatConfig(n_frames=getattr(args, "heat_frames", d.n_frames), decay=getattr(args, "heat_decay", d.decay),
@@ -148,7 +153,8 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
                             traffic=getattr(args, "traffic", "right"), horizon=getattr(args, "horizon", "auto"),
                             heat=heat, perspective=PerspectiveConfig() if getattr(args, "perspective", False) else None,
                             own_vehicle=OwnVehicleConfig() if getattr(args, "own_vehicle", False) else None,
-                            split=NeighbourSplit() if getattr(args, "split_neighbours", False) else None)
+                            split=NeighbourSplit() if getattr(args, "split_neighbours", False) else None,
+                            plausible=PlausibleConfig(perspective=bool(getattr(args, "perspective_filter", False))))
     off = [name for name, flag in (("tracker", "no_track"), ("guided", "full_search"), ("refine", "no_refine"))
            if getattr(args, flag, False)]
     return config.without(*off)  # type: ignore[arg-type]

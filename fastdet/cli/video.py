@@ -158,6 +158,7 @@ _STAGES = (
     ("track", "track", "main"),
     ("clip", "clip", "main"),
     ("refine", "refine", "main"),
+    ("plausible", "plausible", "main"),
     ("observe", "observe", "main"),
     ("boxes out", "boxes_out", "main"),
     ("draw", "draw", "writer"),

@@ -11,6 +11,7 @@ from .heat import ONCOMING_HEAT, SIDE_HEAT, HeatConfig
 from .motion import MotionGate
 from .ownvehicle import OwnVehicleConfig
 from .perspective import PerspectiveConfig
+from .plausible import PlausibleConfig
 from .refine import RefineConfig
 from .search import SIDE_SEARCH, SearchConfig, Traffic, check_traffic
 from .small import SMALL_HEAT, SMALL_SEARCH
@@ -72,6 +73,10 @@ class PipelineConfig(Config):
         ``None`` (default): off.
     split: split the main heat map's wide boxes between the modes of their windows, one box
         per vehicle side by side (:mod:`fastdet.video.blobsplit`); ``None`` (default): off.
+    plausible: drop the returned boxes that cannot be vehicles (:mod:`fastdet.video.plausible`):
+        by default a second box on one vehicle (IoU above 0.5 with a higher-scored box); with
+        ``PlausibleConfig(perspective=True)`` also the boxes whose width does not fit how far
+        below the horizon they stand. ``None``: every box the tracker (and the refinement) gives.
     """
 
     #: off by default: a dict written before these stages existed is the same dict
@@ -98,6 +103,7 @@ class PipelineConfig(Config):
     perspective: PerspectiveConfig | None = None
     own_vehicle: OwnVehicleConfig | None = None
     split: NeighbourSplit | None = None
+    plausible: PlausibleConfig | None = PlausibleConfig()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "model", _path(self.model, "model"))
@@ -122,7 +128,8 @@ class PipelineConfig(Config):
                                     ("small_heat", HeatConfig, False), ("motion", MotionGate, False),
                                     ("tracker", TrackerConfig, True), ("guided", GuidedSearch, True),
                                     ("refine", RefineConfig, True), ("perspective", PerspectiveConfig, True),
-                                    ("own_vehicle", OwnVehicleConfig, True), ("split", NeighbourSplit, True)):
+                                    ("own_vehicle", OwnVehicleConfig, True), ("split", NeighbourSplit, True),
+                                    ("plausible", PlausibleConfig, True)):
             v = getattr(self, name)
             if not (isinstance(v, cls) or (optional and v is None)):
                 allowed = f"a {cls.__name__}" + (" or None" if optional else "")

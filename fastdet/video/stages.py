@@ -20,6 +20,7 @@ In the order they run (:func:`build_stages`; a stage whose setting is off is lef
 ``track``        track ids (:class:`TrackStage`)
 ``clip``         the tracker's filtered boxes clipped to the frame (:class:`ClipStage`)
 ``refine``       the learned box refinement (:class:`RefineStage`)
+``plausible``    drop the returned boxes that cannot be vehicles (:class:`PlausibleStage`)
 ``perspective``  the tracked boxes move the main search (:class:`PerspectiveStage`; off by default)
 ``observe``      tell the guided search what this frame found (:class:`ObserveStage`)
 ===============  ===========================================================================
@@ -52,6 +53,7 @@ from .detector import ColumnSearch, MovableHorizon, WindowDetector, small_part
 from .guided import SearchPlanner
 from .ownvehicle import OwnVehicleStage
 from .perspective import PerspectiveStage, PerspectiveUpdater
+from .plausible import PlausibleStage
 from .refine import BoxRegressor
 from .search_stages import DetectStage, GateStage, HorizonStage, MotionStage, PlanStage
 from .state import FrameDebug, FrameState, Stage, TrackView
@@ -59,8 +61,8 @@ from .track import Tracker
 
 __all__ = ["ClipStage", "ComponentStage", "DetectStage", "FrameDebug", "FrameState", "FusionStage", "GateStage",
            "HeatStage", "HorizonStage", "MotionStage", "ObserveStage", "OwnVehicleStage", "PerspectiveStage",
-           "PlanStage", "RefineStage", "SplitStage", "Stage", "TrackStage", "TrackView", "WeakStage", "build_stages",
-           "planner_for"]
+           "PlausibleStage", "PlanStage", "RefineStage", "SplitStage", "Stage", "TrackStage", "TrackView",
+           "WeakStage", "build_stages", "planner_for"]
 
 
 def planner_for(config: PipelineConfig, detector: WindowDetector) -> SearchPlanner | None:
@@ -120,6 +122,9 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
             stages.append(ClipStage())
     if regressor is not None and config.refine is not None:
         stages.append(RefineStage(regressor, config.refine))
+    if config.plausible is not None:
+        stages.append(PlausibleStage(config.plausible,
+                                     (lambda: detector.horizon) if isinstance(detector, MovableHorizon) else None))
     if config.perspective is not None and tracker is not None and config.horizon is not None \
             and isinstance(detector, Detector):
         stages.append(PerspectiveStage(PerspectiveUpdater(detector, config.perspective)))

@@ -44,7 +44,7 @@ def test_component_windows_get_their_own_heat_map_and_join_where_main_found_noth
     dets = Detections(boxes, np.full(len(boxes), 3.0), scale=np.full(len(boxes), 2.0), part=part)
     cfg = PipelineConfig(tracker=None, refine=None, horizon=None, oncoming=False)
     vd = VideoDetector(_ComponentFake(dets), cfg)
-    assert [s.name for s in vd.stages] == ["detect", "heatmap", "components"]
+    assert [s.name for s in vd.stages] == ["detect", "heatmap", "components", "plausible"]
     out = vd.update(_frame())
     main_only = VideoDetector(FixedDetector(dets[np.array(part) == MAIN_PART]), cfg).update(_frame())
     assert len(main_only) == 1
