@@ -104,7 +104,7 @@ def test_small_component_gets_a_heat_map_of_its_own_and_its_threshold():
     assert small_part(cfg, det) == FIRST_COMPONENT_PART + 1
     assert small_part(cfg.without("small"), det) is None
     vd = VideoDetector(det, cfg)
-    assert [s.name for s in vd.stages] == ["detect", "heatmap", "components", "small"]
+    assert [s.name for s in vd.stages] == ["detect", "heatmap", "components", "small", "plausible"]
     stages = {s.name: s for s in vd.stages}
     assert stages["components"].parts == (FIRST_COMPONENT_PART,)
     assert stages["small"].parts == (FIRST_COMPONENT_PART + 1,)
@@ -118,7 +118,7 @@ def test_small_component_gets_a_heat_map_of_its_own_and_its_threshold():
     assert len(out) == 1 and out.boxes[0][0] >= 780
     # without the small component in the config, every component's windows share one heat map
     vd = VideoDetector(det, cfg.without("small"))
-    assert [s.name for s in vd.stages] == ["detect", "heatmap", "components"]
+    assert [s.name for s in vd.stages] == ["detect", "heatmap", "components", "plausible"]
 
 
 def test_make_detector_puts_the_small_component_last(tmp_path):
