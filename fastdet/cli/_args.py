@@ -79,8 +79,8 @@ def add_search_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def add_oncoming_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--oncoming-model`` / ``--no-oncoming``, ``--traffic`` and ``--side`` / ``--side-model``,
-    shared by ``video``, ``eval``, ``bench`` and ``batch``."""
+    """``--oncoming-model`` / ``--no-oncoming``, ``--traffic``, ``--side`` / ``--side-model`` and
+    ``--small`` / ``--small-model``, shared by ``video``, ``eval``, ``bench`` and ``batch``."""
     g = parser.add_mutually_exclusive_group()
     g.add_argument("--oncoming-model", metavar="WIDE.npz", default=None,
                    help="wide-window model for oncoming traffic above the median "
@@ -99,6 +99,13 @@ def add_oncoming_arguments(parser: argparse.ArgumentParser) -> None:
                         "by default")
     s.add_argument("--side-model", metavar="SIDE.npz", default=None,
                    help="add this side-view component (built by `python -m tools.scripts.side_model`)")
+    m = parser.add_mutually_exclusive_group()
+    m.add_argument("--small", action="store_true",
+                   help="add the bundled small-vehicle component (fastdet/models/small.npz: 32x32 windows on the "
+                        "frame at its own resolution about the horizon, for vehicles under 60 px wide of 1280; "
+                        "docs/components.md); off by default")
+    m.add_argument("--small-model", metavar="SMALL.npz", default=None,
+                   help="add this small-vehicle component (built by `python -m tools.scripts.small_model`)")
 
 
 def add_refine_argument(parser: argparse.ArgumentParser) -> None:
@@ -142,6 +149,7 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
                             oncoming=False if getattr(args, "no_oncoming", False)
                             else (getattr(args, "oncoming_model", None) or True),
                             side=getattr(args, "side_model", None) or bool(getattr(args, "side", False)),
+                            small=getattr(args, "small_model", None) or bool(getattr(args, "small", False)),
                             traffic=getattr(args, "traffic", "right"), horizon=getattr(args, "horizon", "auto"),
                             heat=heat, perspective=PerspectiveConfig() if getattr(args, "perspective", False) else None,
                             own_vehicle=OwnVehicleConfig() if getattr(args, "own_vehicle", False) else None,
