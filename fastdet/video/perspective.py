@@ -53,7 +53,7 @@ class PerspectiveUpdater:
         s = self._search()
         if not isinstance(s, GeometricSearch):
             fields = ("bands", "cells_per_step", "threshold", "reference_shape", "reference_horizon", "horizon",
-                      "border", "border_mode")
+                      "border", "border_mode", "slack_threshold")
             s = GeometricSearch(**{f: getattr(s, f) for f in fields}, geometry=self.config.geometry)
             self._set_search(s)
         self.prior = self._horizon(s)
