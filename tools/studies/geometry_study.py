@@ -84,6 +84,11 @@ def main() -> None:
     ap.add_argument("--slack-threshold", type=float, default=None,
                     help="decision value a window in a band's slack rows must exceed (SearchConfig.slack_threshold; "
                          "'nan': none)")
+    ap.add_argument("--oncoming-band-slack", default=None, metavar="ABOVE,BELOW",
+                    help="slack (fractions of H) above and below every oncoming band (windows there above "
+                         "the oncoming search's slack_threshold)")
+    ap.add_argument("--oncoming-slack-threshold", type=float, default=2.2,
+                    help="with --oncoming-band-slack: the decision value a window in the slack rows must exceed")
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
     geo = GeometryConfig(ratio=args.ratio, slack=args.slack)
@@ -119,6 +124,12 @@ def main() -> None:
         if args.slack_threshold is not None:
             gate = None if args.slack_threshold != args.slack_threshold else args.slack_threshold
             det.scorers[0].search = replace(det.scorers[0].search, slack_threshold=gate)
+        if args.oncoming_band_slack is not None and len(det.scorers) > 1:
+            above, below = (float(v) or None for v in args.oncoming_band_slack.split(","))
+            on = det.scorers[1].search
+            det.scorers[1].search = replace(on, bands=tuple(
+                replace(b, slack_above=above, slack_below=below) for b in on.bands),
+                slack_threshold=args.oncoming_slack_threshold)
         if args.oncoming_slack and len(det.scorers) > 1:
             on = det.scorers[1].search
             rows = on.reference_shape[0] if on.reference_shape is not None else 720
