@@ -143,6 +143,11 @@ class SearchConfig(Config):
         one; the columns past the edge are filled as ``border_mode`` says (``'reflect'``:
         the frame mirrored at its edge, ``'replicate'``: its edge column repeated) and the
         boxes clipped to the frame (:mod:`fastdet.detect.bands`). ``0``: windows stay inside.
+    shrink: how a band is shrunk to its windows' scale (scale > 1): ``'linear'`` (default:
+        ``cv2.INTER_LINEAR``, what the main model's bands have always used) or ``'area'``
+        (``cv2.INTER_AREA``: the mean of the pixels each scaled pixel covers, as a model trained
+        on crops shrunk with ``INTER_AREA`` saw them; the small-vehicle component's). A band
+        enlarged (scale < 1) is always ``INTER_LINEAR``.
     """
 
     bands: tuple[SearchBand, ...] = field(default_factory=_default_bands)
@@ -154,6 +159,7 @@ class SearchConfig(Config):
     border: float = 0.5
     border_mode: Literal["reflect", "replicate"] = "replicate"
     slack_threshold: float | None = SLACK_THRESHOLD
+    shrink: Literal["linear", "area"] = "linear"
 
     def for_frame(self, frame_shape: tuple[int, int], window: int = WINDOW, cell: int = CELL) -> SearchConfig:
         """This config with its bands rescaled (and moved to ``horizon``) for frames of
@@ -208,6 +214,8 @@ class SearchConfig(Config):
             raise ValueError(f"border_mode must be 'reflect' or 'replicate', got {self.border_mode!r}")
         if self.slack_threshold is not None and not math.isfinite(self.slack_threshold):
             raise ValueError(f"slack_threshold must be a finite number or None, got {self.slack_threshold!r}")
+        if self.shrink not in ("linear", "area"):
+            raise ValueError(f"shrink must be 'linear' or 'area', got {self.shrink!r}")
         for name in ("reference_horizon", "horizon"):
             v = getattr(self, name)
             if v is not None and not 0 <= v <= 1:

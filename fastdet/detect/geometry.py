@@ -35,7 +35,7 @@ the reference frame, rescaled by ``H / reference H`` to the frame).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
@@ -159,9 +159,14 @@ class GeometricSearch(SearchConfig):
         horizon = self.horizon if self.horizon is not None else self.reference_horizon
         ratio = self.ratio if self.ratio is not None else self.geometry.ratio
         bands = geometric_bands(frame_shape, horizon, ratio, self.geometry, self, window, cell)
-        return SearchConfig(bands=bands, cells_per_step=self.cells_per_step, threshold=self.threshold,
-                            reference_shape=None, reference_horizon=self.reference_horizon, horizon=None,
-                            border=self.border, border_mode=self.border_mode, slack_threshold=self.slack_threshold)
+        kw = {f.name: getattr(self, f.name) for f in fields(SearchConfig)}
+        kw.update(bands=bands, reference_shape=None, horizon=None)
+        return SearchConfig(**kw)
+
+    @classmethod
+    def from_search(cls, search: SearchConfig, geometry: GeometryConfig, ratio: float | None = None) -> GeometricSearch:
+        """``search`` (its bands, thresholds, horizon ...) with its bands placed from the geometry."""
+        return cls(**{f.name: getattr(search, f.name) for f in fields(SearchConfig)}, geometry=geometry, ratio=ratio)
 
     def with_ratio(self, ratio: float | None) -> GeometricSearch:
         return replace(self, ratio=ratio)

@@ -154,6 +154,9 @@ def test_a_horizon_near_the_top_or_bottom():
 
 def test_geometric_search_follows_horizon_and_ratio():
     s = GeometricSearch()
+    area = GeometricSearch.from_search(replace(SearchConfig(), shrink="area", slack_threshold=3.0), s.geometry, 2.0)
+    framed = area.for_frame((720, 1280))
+    assert (area.ratio, framed.shrink, framed.slack_threshold) == (2.0, "area", 3.0)  # every field carried
     f = s.for_frame((720, 1280))
     assert type(f) is SearchConfig and f.reference_shape is None and f.horizon is None
     assert f.bands == geometric_bands((720, 1280), s.reference_horizon, s.geometry.ratio, s.geometry, s)
@@ -172,18 +175,13 @@ def test_detector_searches_the_geometric_bands(test_images):
     from fastdet.detect import DetectStats
 
     frame = cv2.imread(str(test_images[0]))
-    det = Detector(search=GeometricSearch(**_fields(no_slack(SearchConfig()))))
+    det = Detector(search=GeometricSearch.from_search(no_slack(SearchConfig()), GeometryConfig()))
     det.set_horizon(0.5)
     assert det.horizon == 0.5 and isinstance(det.scorers[0].search, GeometricSearch)
     stats = DetectStats()
     det.detect(frame, stats=stats)
     want = geometric_bands(frame.shape[:2], 0.5, GeometryConfig().ratio, GeometryConfig(), no_slack(SearchConfig()))
     assert [g.band for _, g, _ in stats.bands] == list(want)
-
-
-def _fields(s: SearchConfig) -> dict:
-    return {f: getattr(s, f) for f in ("bands", "cells_per_step", "threshold", "reference_shape", "reference_horizon",
-                                       "horizon", "border", "border_mode", "slack_threshold")}
 
 
 @pytest.mark.parametrize("shape", [(720, 1280), (360, 640), (540, 960)])
@@ -195,7 +193,7 @@ def test_geometric_bands_keep_the_bands_own_slack_and_their_core(shape):
     assert any(b.core is not None and b.y_start < b.core[0] for b in plain)
     assert GeometricSearch(geometry=GeometryConfig(slack=0.0)).for_frame(shape).bands == plain
     wide = GeometricSearch(geometry=GeometryConfig(slack=0.05)).for_frame(shape).bands
-    bare = GeometricSearch(**_fields(no_slack(SearchConfig())), geometry=GeometryConfig(slack=0.0)).for_frame(shape)
+    bare = GeometricSearch.from_search(no_slack(SearchConfig()), GeometryConfig(slack=0.0)).for_frame(shape)
     for w, b in zip(wide, bare.bands):
         assert w.scale == b.scale and w.core == (b.y_start, b.y_stop)
         assert w.y_start < b.y_start and (w.y_stop > b.y_stop or w.y_stop == shape[0])

@@ -138,9 +138,7 @@ def main() -> None:
                 replace(b, y_start=max(b.y_start - d, 0), y_stop=min(b.y_stop + d, rows)) for b in on.bands))
         base_search = det.scorers[0].search
         if not args.baseline:
-            det.scorers[0].search = GeometricSearch(**{f: getattr(base_search, f) for f in (
-                "bands", "cells_per_step", "threshold", "reference_shape", "reference_horizon", "horizon", "border",
-                "border_mode", "slack_threshold")}, geometry=geo)
+            det.scorers[0].search = GeometricSearch.from_search(base_search, geo)
         scored = [0, 0]  # windows scored (main model, all models) over the clip's frames
         inner_detect = det.detect
 
