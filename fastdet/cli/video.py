@@ -77,8 +77,7 @@ from ..io.reader import FrameReader, check_source
 from ..io.sink import VideoSink, check_video_path
 from ..video.count import CountLine, VehicleCounter
 from ..video.detector import make_detector
-from ..video.offline import offline_pass
-from ..video.run import progress_bar, video_detector_for
+from ..video.run import defer_plausible, offline_boxes, progress_bar, video_detector_for
 from ._args import (
     add_camera_arguments,
     add_horizon_argument,
@@ -277,6 +276,8 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
         elif args.model is not None:
             raise FastdetError("--model cannot be used with an injected detector")
         vd = video_detector_for(reader, detector, config)
+        if offline:
+            defer_plausible(vd)
         vd.warmup()
         counter = VehicleCounter(line) if track else None
         done: list[tuple[int, Detections]] = []  # --offline: every frame's tracks
@@ -322,8 +323,7 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
                     n += 1
                     bar.update(1)
                 if offline and done:
-                    assert vd.tracker is not None
-                    final = offline_pass(done, reader.shape, vd.tracker.config)
+                    final = offline_boxes(vd, done, reader.shape)
                     for fno, dets in final:
                         _emit(fno, dets, mot, jsl, counter)
                     if sink is not None:

@@ -21,7 +21,7 @@ class PlausibleConfig(Config):
         farther one's box and at most all of the nearer one's, which bounds the IoU by 0.5 --
         so a pair above it is one vehicle boxed twice.
     perspective: drop the boxes whose width does not fit how far below the horizon their
-        bottom edge stands (off by default: it dropped no box on the annotated clips).
+        bottom edge stands (off by default; why: docs/accuracy.md).
         On a flat road a vehicle of width ``W`` seen by a camera ``h_c`` above the road has a
         width in pixels of ``(W / h_c)`` x the rows between its bottom edge and the horizon
         (Hoiem, Efros & Hebert, "Putting Objects in Perspective", CVPR 2006); a box is kept

@@ -17,7 +17,8 @@ of the frame height either way.
 
 The stage (:class:`PlausibleStage`) runs on the boxes :meth:`VideoDetector.update
 <fastdet.VideoDetector.update>` returns, after the refinement: the tracker, the heat maps and
-the guided search keep every box.
+the guided search keep every box. With the offline pass the rules run after it instead
+(:func:`fastdet.video.run.offline_boxes`).
 """
 from __future__ import annotations
 
@@ -27,6 +28,7 @@ import numpy as np
 
 from ..boxes import iou
 from ..config import REFERENCE_HORIZON, PlausibleConfig
+from ..detections import Detections
 from .state import FrameState, Stage
 
 
@@ -73,32 +75,43 @@ class PlausibleStage(Stage):
     """Drop the returned boxes that are duplicates or, with ``config.perspective``, do not fit
     the perspective (module docstring). ``horizon``: the horizon the pipeline searches at now,
     a fraction of the height (``None``: :data:`~fastdet.config.REFERENCE_HORIZON`, where the
-    default bands put it); asked only when the perspective test is on."""
+    default bands put it); asked only when the perspective test is on.
+
+    ``deferred``: let every box through and leave the rules to :meth:`filter`, called on the
+    frames later -- for the offline pass (:func:`fastdet.video.run.offline_boxes`), which would
+    fill the gap a dropped box leaves in its track with a box interpolated over it."""
 
     name = "plausible"
 
     def __init__(self, config: PlausibleConfig, horizon: Callable[[], float | None] | None = None) -> None:
         self.config = config
         self.horizon = horizon if horizon is not None else (lambda: None)
+        self.deferred = False
         self.dropped = 0  # boxes dropped since the start (or the last reset)
 
-    def __call__(self, s: FrameState) -> FrameState:
-        out = s.out
-        if not len(out):
-            return s
+    def filter(self, dets: Detections, frame_shape: tuple[int, int]) -> Detections:
+        """``dets`` (one frame's boxes, of a frame of ``frame_shape = (rows, cols)``) less the
+        boxes the rules drop."""
+        if not len(dets):
+            return dets
         c = self.config
-        keep = np.ones(len(out), bool)
+        keep = np.ones(len(dets), bool)
         if c.perspective:
             h = self.horizon()
-            keep &= perspective_ok(out.boxes, s.shape, REFERENCE_HORIZON if h is None else h,
+            keep &= perspective_ok(dets.boxes, frame_shape, REFERENCE_HORIZON if h is None else h,
                                    c.min_ratio, c.max_ratio, c.slack)
         if c.max_iou is not None:
             idx = np.flatnonzero(keep)
-            scores = out.scores if out.scores is not None else np.zeros(len(out))
-            keep[idx[~duplicates(out.boxes[idx], scores[idx], c.max_iou)]] = False
-        if not keep.all():
-            self.dropped += int((~keep).sum())
-            s.out = out[keep]
+            scores = dets.scores if dets.scores is not None else np.zeros(len(dets))
+            keep[idx[~duplicates(dets.boxes[idx], scores[idx], c.max_iou)]] = False
+        if keep.all():
+            return dets
+        self.dropped += int((~keep).sum())
+        return dets[keep]
+
+    def __call__(self, s: FrameState) -> FrameState:
+        if not self.deferred:
+            s.out = self.filter(s.out, s.shape)
         return s
 
     def reset(self) -> None:

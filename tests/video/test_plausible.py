@@ -182,3 +182,29 @@ def test_the_pipeline_runs_the_stage_last_before_the_search_learns_and_at_the_se
     assert off.stage(PlausibleStage) is None
     plain = VideoDetector(SquareDetector(), PipelineConfig(refine=None))
     assert plain.stage(PlausibleStage).horizon() is None  # a detector whose bands do not move
+
+
+def test_with_the_offline_pass_the_rules_run_after_it():
+    """A box the rules dropped before the offline pass would leave a gap in its track that the
+    pass fills with an interpolated box; deferred, they run on the pass's boxes."""
+    from fastdet.video.offline import offline_pass
+    from fastdet.video.run import defer_plausible, offline_boxes
+
+    vd = VideoDetector(SquareDetector(), PipelineConfig(refine=None))
+    st_ = vd.stage(PlausibleStage)
+    assert isinstance(st_, PlausibleStage) and not st_.deferred
+    defer_plausible(vd)
+    assert st_.deferred
+    s = st_(out_state([[500, 380, 700, 460], [510, 380, 710, 460]], [1.0, 2.0]))
+    assert len(s.out) == 2  # deferred: every box through
+    a, b = [100, 100, 200, 200], [110, 100, 210, 200]  # IoU 0.82
+    pair = Detections(np.array([a, b], np.int32), np.array([9.0, 5.0], np.float32), ids=np.array([1, 2]))
+    none = Detections(np.zeros((0, 4), np.int32), np.zeros(0, np.float32), ids=np.zeros(0, np.int64))
+    done = [(1, pair), (2, none), (3, pair)]
+    filled = offline_pass(done, (360, 640), vd.tracker.config)
+    assert [d.ids.tolist() for _, d in filled] == [[1, 2], [1, 2], [1, 2]]  # both gaps filled
+    final = offline_boxes(vd, done, (360, 640))
+    assert [d.ids.tolist() for _, d in final] == [[1], [1], [1]]
+    assert final[1][1].boxes.tolist() == [a]
+    with pytest.raises(ValueError, match="needs the tracker"):
+        offline_boxes(VideoDetector(SquareDetector(), PipelineConfig(refine=None, tracker=None)), done, (360, 640))
