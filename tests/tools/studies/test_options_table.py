@@ -18,7 +18,9 @@ def test_settings_to_pipelines() -> None:
     c = ot.config_for("small+side+split+own+persp+pfilter+both")
     assert c.small is True and c.side is True and c.split == NeighbourSplit()
     assert c.own_vehicle == OwnVehicleConfig() and c.perspective == PerspectiveConfig()
-    assert c.plausible is not None and c.plausible.perspective and c.plausible.max_iou == PipelineConfig().plausible.max_iou
+    default_plausible = PipelineConfig().plausible
+    assert c.plausible is not None and default_plausible is not None
+    assert c.plausible.perspective and c.plausible.max_iou == default_plausible.max_iou
     assert c.traffic == "both"
     large = ot.config_for("large")
     assert large.side == str(DEFAULT_MODEL_PATH) and large.side_search == LARGE_SEARCH
@@ -47,7 +49,8 @@ def test_held_out_models(tmp_path: Path) -> None:
     with pytest.raises(SystemExit, match="side_without_test_small1\\+test_video.npz missing"):
         ot.held_out_models("test_video", tmp_path, tmp_path, "side")
     (tmp_path / "side_without_test_small1+test_video.npz").write_bytes(b"")
-    assert ot.held_out_models("test_video", tmp_path, tmp_path, "side")[1].endswith("side_without_test_small1+test_video.npz")
+    side = ot.held_out_models("test_video", tmp_path, tmp_path, "side")[1]
+    assert side is not None and side.endswith("side_without_test_small1+test_video.npz")
     with pytest.raises(SystemExit, match="refine_without_boston_street.npz missing"):
         ot.held_out_models("boston_street", tmp_path, tmp_path, "small")
 
@@ -85,12 +88,14 @@ def test_holds() -> None:
 
 
 def _score(f1: float) -> dict:
-    return {"p": 0.5, "r": 0.5, "f1": f1, "fa": 0.25, "tp": 1, "fp": 1, "targets": 2, "widths": [[1, 2], [0, 0], [3, 4]]}
+    return {"p": 0.5, "r": 0.5, "f1": f1, "fa": 0.25, "tp": 1, "fp": 1, "targets": 2,
+            "widths": [[1, 2], [0, 0], [3, 4]]}
 
 
 def test_tables_and_resume(tmp_path: Path) -> None:
     cost = {"hog_cells": 100.0, "windows": 10.0, "score_macs": 1000.0}
-    results = {"cost": {"base": cost, "split": cost, "small": {"hog_cells": 140.0, "windows": 15.0, "score_macs": 1100.0}},
+    small = {"hog_cells": 140.0, "windows": 15.0, "score_macs": 1100.0}
+    results = {"cost": {"base": cost, "split": cost, "small": small},
                "in": {"base": {c: _score(0.5) for c in CLIPS}},
                "loo": {"base": {c: _score(0.95) for c in CLIPS}, "split": {c: _score(0.96) for c in CLIPS},
                        "small": {c: _score(0.99) for c in CLIPS}}}
