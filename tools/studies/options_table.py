@@ -202,6 +202,8 @@ def tables(results: dict[str, Any], settings: Sequence[str], clips: Sequence[str
         flags = " ".join(OPTIONS[o][0] for o in parse_setting(s)) or "(today)"
         f1 = {c: loo[c]["f1"] for c in clips if c in loo}
         verdict = holds(f1, base_loo, ratio)[1] if ratio and s != "base" and base_loo else "-"
+        if verdict == "holds" and all(abs(f1[c] - base_loo[c]) <= TOLERANCE for c in base_loo):
+            verdict = "holds (no change)"
         row = [s, flags, *(f"{ratio[k]:.2f}x" if ratio else "?" for k in ("hog_cells", "windows", "score_macs"))]
         row += [f"{f1[c]:.2f}" if c in f1 else "?" for c in clips]
         out.append("| " + " | ".join(row + [verdict]) + " |")

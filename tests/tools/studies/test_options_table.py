@@ -105,6 +105,8 @@ def test_tables_and_resume(tmp_path: Path) -> None:
     assert lines[3] == "| split | --split-neighbours | 1.00x | 1.00x | 1.00x | 0.96 | 0.96 | 0.96 | holds |"
     assert lines[4] == "| small | --small | 1.40x | 1.50x | 1.10x | 0.99 | 0.99 | 0.99 | hog_cells 1.40x |"
     assert "| base | 0.50 (0.50/0.50, 0.25); 1/2, -, 3/4 |" in text
+    results["loo"]["split"] = {c: _score(0.95) for c in CLIPS}
+    assert ot.tables(results, ["split"], CLIPS).splitlines()[2].endswith("| holds (no change) |")
     # what an out-dir holds is read back; a rerun has nothing left to run
     for key in ot.KEYS:
         ot._save(results[key], tmp_path / f"{key}.json")
