@@ -89,6 +89,8 @@ def main() -> None:
                          "the oncoming search's slack_threshold)")
     ap.add_argument("--oncoming-slack-threshold", type=float, default=2.2,
                     help="with --oncoming-band-slack: the decision value a window in the slack rows must exceed")
+    ap.add_argument("--residuals", choices=("rows", "log"), default="log",
+                    help="--joint: how a box's misfit is measured (PerspectiveConfig.residuals)")
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
     geo = GeometryConfig(ratio=args.ratio, slack=args.slack)
@@ -174,7 +176,7 @@ def main() -> None:
                 if updater is None:
                     updater = PerspectiveUpdater(det, PerspectiveConfig(
                         geometry=geo, settled_slack=args.settled_slack, min_tracks=args.min_tracks,
-                        min_score=args.min_score, prior_frames=args.prior_frames))
+                        min_score=args.min_score, prior_frames=args.prior_frames, residuals=args.residuals))
                 updater.update(dets, shape[0])
                 continue
             est.update(dets.boxes[keep], dets.ids[keep], h, shape[0])
