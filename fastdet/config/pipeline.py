@@ -1,6 +1,7 @@
 """Every setting of the video pipeline in one frozen value (:class:`PipelineConfig`)."""
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass, replace
 from typing import Literal
@@ -14,7 +15,7 @@ from .perspective import PerspectiveConfig
 from .plausible import PlausibleConfig
 from .refine import RefineConfig
 from .search import SIDE_SEARCH, SearchConfig, Traffic, check_traffic
-from .small import SMALL_HEAT, SMALL_SEARCH
+from .small import SMALL_CHECK, SMALL_HEAT, SMALL_SEARCH
 from .split import NeighbourSplit
 from .track import TrackerConfig
 
@@ -57,6 +58,9 @@ class PipelineConfig(Config):
     side_search, side_heat: where the side-view component searches and its heat map (whose
         boxes join the main ones where those found nothing).
     small_search, small_heat: the same for the small-vehicle component (a heat map of its own).
+    small_check: the small component's boxes are kept only where the main model's decision value
+        on their square crop exceeds this (:class:`fastdet.video.small.MainModelCheck`); ``None``:
+        no check.
     motion: the motion gate of the oncoming model.
     tracker: the tracker that gives every vehicle an id; ``None``: no tracking (boxes
         without ids).
@@ -96,6 +100,7 @@ class PipelineConfig(Config):
     side_heat: HeatConfig = SIDE_HEAT
     small_search: SearchConfig = SMALL_SEARCH
     small_heat: HeatConfig = SMALL_HEAT
+    small_check: float | None = SMALL_CHECK
     motion: MotionGate = MotionGate()
     tracker: TrackerConfig | None = TrackerConfig()
     guided: GuidedSearch | None = GuidedSearch()
@@ -119,6 +124,9 @@ class PipelineConfig(Config):
                 if getattr(self, name) is None:
                     raise TypeError(f"{name} must be True, False or a path, got None")
         check_traffic(self.traffic)
+        sc = self.small_check
+        if sc is not None and (isinstance(sc, bool) or not isinstance(sc, (int, float)) or not math.isfinite(sc)):
+            raise ValueError(f"small_check must be a finite decision value or None, got {sc!r}")
         h = self.horizon
         if not (h is None or h == "auto" or (isinstance(h, (int, float)) and not isinstance(h, bool) and 0 <= h <= 1)):
             raise ValueError(f"horizon must be 'auto', a fraction of the frame height in [0, 1] or None, got {h!r}")

@@ -57,6 +57,11 @@ SMALL_SEARCH = small_search()
 #: any heat, over the five annotated clips: 3.5; docs/components.md states the rule and its
 #: leave-one-clip-out values)
 SMALL_THRESHOLD = 3.5
+#: the second look at the small component's boxes (:class:`fastdet.video.small.MainModelCheck`):
+#: a box is kept when the main model gives its square crop a decision value above this, a
+#: probability of being a vehicle of at least 1% (log(0.01 / 0.99) = -4.6): it only drops what the
+#: main model is sure is no vehicle
+SMALL_CHECK = -4.6
 #: heat map of the small-vehicle component's windows (:class:`~fastdet.VideoDetector`): its own,
 #: apart from the main one (a small model's windows on a big car would stretch its box), the main
 #: heat map's memory and window weights, :data:`SMALL_THRESHOLD`, blobs split between groups of

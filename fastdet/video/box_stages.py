@@ -90,14 +90,17 @@ class ComponentStage(_ExtraHeatStage):
     its boxes are added where the earlier heat maps found nothing
     (:func:`fastdet.video.fusion.merge_oncoming`). One heat map for them all, apart from the main
     model's: windows of another shape in the main heat map stretch the boxes of the cars the main
-    model finds (docs/components.md). ``name``: its stage name (its seconds in the timings)."""
+    model finds (docs/components.md). ``name``: its stage name (its seconds in the timings);
+    ``check``: ``check(bgr frame, boxes (N, 4)) -> keep (N,) bool``, a second look at the heat
+    map's boxes before they join (e.g. :class:`fastdet.video.small.MainModelCheck`)."""
 
     name = "components"
 
     def __init__(self, detector: WindowDetector, config: HeatConfig, parts: tuple[int, ...] | None = None,
-                 name: str = "components") -> None:
+                 name: str = "components",
+                 check: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> None:
         super().__init__(detector, config)
-        self.parts, self.name = parts, name
+        self.parts, self.name, self.check = parts, name, check
 
     def __call__(self, s: FrameState) -> FrameState:
         hm = self._heatmap_for(s)
@@ -108,7 +111,10 @@ class ComponentStage(_ExtraHeatStage):
             mine = w[w.part >= FIRST_COMPONENT_PART]
         else:
             mine = w[np.isin(w.part, self.parts)]
-        s.boxes = s.out = merge_oncoming(s.boxes, hm.update(mine))
+        found = hm.update(mine)
+        if self.check is not None and len(found):
+            found = found[np.asarray(self.check(s.bgr, found.boxes), bool)]
+        s.boxes = s.out = merge_oncoming(s.boxes, found)
         return s
 
 

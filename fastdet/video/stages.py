@@ -13,8 +13,8 @@ In the order they run (:func:`build_stages`; a stage whose setting is off is lef
 ``heatmap``      the main heat map's boxes (:class:`HeatStage`)
 ``split``        wide boxes split between vehicles side by side (:class:`SplitStage`; off by default)
 ``components``   the components' heat map's boxes where the main one found none (:class:`ComponentStage`)
-``small``        the small-vehicle component's heat map's boxes where none was found (:class:`ComponentStage`;
-                 off by default)
+``small``        the small-vehicle component's heat map's boxes the main model does not reject, where none
+                 was found (:class:`ComponentStage`, :class:`~fastdet.video.small.MainModelCheck`; off by default)
 ``fusion``       the oncoming heat map's boxes where the main one found none (:class:`FusionStage`)
 ``weak``         the weak blobs the tracker may keep a track alive with (:class:`WeakStage`)
 ``track``        track ids (:class:`TrackStage`)
@@ -56,6 +56,7 @@ from .perspective import PerspectiveStage, PerspectiveUpdater
 from .plausible import PlausibleStage
 from .refine import BoxRegressor
 from .search_stages import DetectStage, GateStage, HorizonStage, MotionStage, PlanStage
+from .small import MainModelCheck
 from .state import FrameDebug, FrameState, Stage, TrackView
 from .track import Tracker
 
@@ -112,7 +113,10 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
             others = tuple(p for p in range(FIRST_COMPONENT_PART, FIRST_COMPONENT_PART + len(components)) if p != small)
             if others:
                 heat.append(ComponentStage(detector, config.side_heat, others))
-            heat.append(ComponentStage(detector, config.small_heat, (small,), name="small"))
+            check = None
+            if config.small_check is not None and isinstance(detector, Detector):
+                check = MainModelCheck(detector.model, config.small_check)
+            heat.append(ComponentStage(detector, config.small_heat, (small,), name="small", check=check))
     if oncoming:
         heat.append(FusionStage(detector, config.oncoming_heat))
     stages += heat[1:]

@@ -30,7 +30,7 @@ features per window), as ratios to the pipeline's search without it (main and on
 No clock: the machine is shared.
 
     python -m tools.studies.small_model [--model fastdet/models/small.npz] [--windows] [--pipeline]
-        [--cost] [--loo WORK] [--clips A,B] [--heat threshold=3] [--threshold T] [--no-refine]
+        [--cost] [--loo WORK] [--clips A,B] [--heat threshold=3] [--threshold T] [--check D|off] [--no-refine]
         [--no-baseline] [--json OUT]
 """
 from __future__ import annotations
@@ -282,6 +282,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-refine", action="store_true", help="the pipelines without the box regressor")
     ap.add_argument("--no-baseline", action="store_true", help="--pipeline: only the run with the component")
     ap.add_argument("--threshold", type=float, help="the component's search threshold (decision value)")
+    ap.add_argument("--check", help="the main model's check of its boxes: a decision value, or 'off'")
     ap.add_argument("--json", type=Path, help="write every figure here")
     args = ap.parse_args(argv)
     data = args.data or data_dir()
@@ -294,10 +295,12 @@ def main(argv: list[str] | None = None) -> int:
         config = replace(config, small_heat=replace(config.small_heat, **_overrides(args.heat, HeatConfig, "--heat")))
     if args.no_refine:
         config = config.without("refine")
+    if args.check is not None:
+        config = replace(config, small_check=None if args.check == "off" else float(args.check))
     if args.threshold is not None:
         config = replace(config, small_search=replace(config.small_search, threshold=args.threshold))
     report: dict[str, Any] = {"model": args.model, "small_heat": config.small_heat.to_dict(),
-                              "small_threshold": config.small_search.threshold,
+                              "small_threshold": config.small_search.threshold, "small_check": config.small_check,
                               "refine": config.refine is not None}
     if args.windows:
         res = windows_study(load_model(args.model), clips, data)
