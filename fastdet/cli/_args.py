@@ -116,15 +116,19 @@ def add_refine_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def add_camera_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--own-vehicle``, ``--split-neighbours`` and ``--perspective-filter``: the optional stages for
-    other cameras."""
+    """``--own-vehicle``, ``--no-split-neighbours`` / ``--split-neighbours`` and ``--perspective-filter``:
+    the optional stages for other cameras."""
     parser.add_argument("--own-vehicle", action="store_true",
                         help="drop the windows lying on the own vehicle (hood, dashboard, mirrors, letterbox bars: "
                              "what stays fixed at the picture's border while the scene moves in the first 3 s); "
                              "off by default")
-    parser.add_argument("--split-neighbours", action="store_true",
-                        help="split a wide heat blob between the modes of its windows, one box per vehicle side "
-                             "by side; off by default")
+    g = parser.add_mutually_exclusive_group()
+    g.add_argument("--no-split-neighbours", action="store_true",
+                   help="keep a wide heat blob whole (one box over vehicles side by side) instead of splitting it "
+                        "between the modes of its windows, one box per vehicle (the default)")
+    g.add_argument("--split-neighbours", action="store_true",
+                   help="split a wide heat blob between the modes of its windows (the default; kept for scripts "
+                        "that name it)")
     parser.add_argument("--perspective-filter", action="store_true",
                         help="drop the boxes whose width no vehicle and no camera can have for how far below the "
                              "horizon they stand (too narrow: 0.45x those rows, too wide: 12x); off by default")
@@ -136,8 +140,8 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
     command does not have takes its default. ``--no-track``: no tracker (and so the full
     search); ``--full-search``: no guided search; ``--no-refine``: no refinement;
     ``--heat-frames`` / ``--heat-decay`` / ``--heat-threshold``: the main heat map (a bad
-    value: :class:`~fastdet.errors.FastdetError`); ``--own-vehicle``, ``--split-neighbours``:
-    those stages on with their defaults; ``--perspective-filter``: the perspective test of the
+    value: :class:`~fastdet.errors.FastdetError`); ``--own-vehicle``: that stage on with its defaults;
+    ``--no-split-neighbours``: the neighbour split off; ``--perspective-filter``: the perspective test of the
     plausibility stage on."""
     d = HeatConfig()
     try:
@@ -153,7 +157,7 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
                             traffic=getattr(args, "traffic", "right"), horizon=getattr(args, "horizon", "auto"),
                             heat=heat, perspective=PerspectiveConfig() if getattr(args, "perspective", False) else None,
                             own_vehicle=OwnVehicleConfig() if getattr(args, "own_vehicle", False) else None,
-                            split=NeighbourSplit() if getattr(args, "split_neighbours", False) else None,
+                            split=None if getattr(args, "no_split_neighbours", False) else NeighbourSplit(),
                             plausible=PlausibleConfig(perspective=bool(getattr(args, "perspective_filter", False))))
     off = [name for name, flag in (("tracker", "no_track"), ("guided", "full_search"), ("refine", "no_refine"))
            if getattr(args, flag, False)]

@@ -158,7 +158,7 @@ def _run_all(args: argparse.Namespace) -> int:
                         side=config.side, small=config.small,
                         traffic=config.traffic, refine=config.refine is not None, track=config.tracker is not None,
                         offline=args.offline, horizon=config.horizon, full_search=config.guided is None,
-                        perspective=config.perspective is not None,
+                        perspective=config.perspective is not None, split=config.split is not None,
                         perspective_filter=config.plausible is not None and config.plausible.perspective)
     report = report_json(scores, settings)
     text = json.dumps(report, indent=1, allow_nan=False) + "\n"

@@ -76,7 +76,8 @@ class PipelineConfig(Config):
         mirrors, letterbox bars) found in the first seconds (:mod:`fastdet.video.ownvehicle`);
         ``None`` (default): off.
     split: split the main heat map's wide boxes between the modes of their windows, one box
-        per vehicle side by side (:mod:`fastdet.video.blobsplit`); ``None`` (default): off.
+        per vehicle side by side (:mod:`fastdet.video.blobsplit`); on by default
+        (:class:`NeighbourSplit`), ``None``: off.
     plausible: drop the returned boxes that cannot be vehicles (:mod:`fastdet.video.plausible`):
         by default a second box on one vehicle (IoU above 0.5 with a higher-scored box); with
         ``PlausibleConfig(perspective=True)`` also the boxes whose width does not fit how far
@@ -84,7 +85,7 @@ class PipelineConfig(Config):
     """
 
     #: off by default: a dict written before these stages existed is the same dict
-    _OMIT_NONE = ("own_vehicle", "split")
+    _OMIT_NONE = ("own_vehicle",)
 
     model: str | None = None
     oncoming: str | bool = True
@@ -107,7 +108,7 @@ class PipelineConfig(Config):
     refine: RefineConfig | None = RefineConfig()
     perspective: PerspectiveConfig | None = None
     own_vehicle: OwnVehicleConfig | None = None
-    split: NeighbourSplit | None = None
+    split: NeighbourSplit | None = NeighbourSplit()
     plausible: PlausibleConfig | None = PlausibleConfig()
 
     def __post_init__(self) -> None:

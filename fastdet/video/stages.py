@@ -11,7 +11,7 @@ In the order they run (:func:`build_stages`; a stage whose setting is off is lef
 ``motion``       drop the oncoming windows that did not move enough (:class:`GateStage`)
 ``ownvehicle``   drop the windows on the own vehicle (:class:`OwnVehicleStage`; off by default)
 ``heatmap``      the main heat map's boxes (:class:`HeatStage`)
-``split``        wide boxes split between vehicles side by side (:class:`SplitStage`; off by default)
+``split``        wide boxes split between vehicles side by side (:class:`SplitStage`; on by default)
 ``components``   the components' heat map's boxes where the main one found none (:class:`ComponentStage`)
 ``small``        the small-vehicle component's heat map's boxes the main model does not reject, where none
                  was found (:class:`ComponentStage`, :class:`~fastdet.video.small.MainModelCheck`; off by default)

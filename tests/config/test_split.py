@@ -13,11 +13,15 @@ def test_bad_values_are_refused(bad):
         NeighbourSplit(**bad)
 
 
-def test_round_trip_and_off_by_default():
+def test_round_trip_and_on_by_default():
     c = NeighbourSplit(min_aspect=2.0)
     assert NeighbourSplit.from_dict(c.to_dict()) == c
     on = PipelineConfig(split=c)
     assert PipelineConfig.from_dict(on.to_dict()) == on
-    assert PipelineConfig().split is None and "split" not in PipelineConfig().to_dict()
+    assert PipelineConfig().split == NeighbourSplit()
+    # off is written as such (a dict without the key reads as the default, on)
+    off = PipelineConfig(split=None)
+    assert off.to_dict()["split"] is None and PipelineConfig.from_dict(off.to_dict()) == off
+    assert PipelineConfig.from_dict({}).split == NeighbourSplit()
     with pytest.raises(TypeError):
         PipelineConfig(split=True)  # type: ignore[arg-type]

@@ -124,10 +124,11 @@ def test_the_pipeline_splits_two_cars_in_a_row():
     wins = np.vstack([_cluster(100, 200, 40), _cluster(146, 200, 40)]).astype(np.int32)
     dets = Detections(wins, np.full(len(wins), 2.0, np.float32))
     frame = np.zeros((360, 640, 3), np.uint8)
-    base = PipelineConfig(tracker=None, refine=None, horizon=None,
+    base = PipelineConfig(tracker=None, refine=None, horizon=None, split=None,
                           heat=HeatConfig(n_frames=1, threshold=1.5, min_width=0, min_height=0, reference_rows=None))
     vd = VideoDetector(FixedDetector(dets), base)
     assert len(vd.update(frame)) == 1
+    assert replace(base, split=NeighbourSplit()) == replace(base, split=PipelineConfig().split)  # on by default
     vd = VideoDetector(FixedDetector(dets), replace(base, split=NeighbourSplit()))
     assert [s.name for s in vd.stages] == ["detect", "heatmap", "split", "plausible"]
     out = vd.update(frame)

@@ -42,7 +42,7 @@ def test_component_windows_get_their_own_heat_map_and_join_where_main_found_noth
     boxes = np.array(car + side + over)
     part = [MAIN_PART] * 4 + [FIRST_COMPONENT_PART] * 8
     dets = Detections(boxes, np.full(len(boxes), 3.0), scale=np.full(len(boxes), 2.0), part=part)
-    cfg = PipelineConfig(tracker=None, refine=None, horizon=None, oncoming=False)
+    cfg = PipelineConfig(tracker=None, refine=None, horizon=None, oncoming=False, split=None)
     vd = VideoDetector(_ComponentFake(dets), cfg)
     assert [s.name for s in vd.stages] == ["detect", "heatmap", "components", "plausible"]
     out = vd.update(_frame())
@@ -100,7 +100,8 @@ def test_small_component_gets_a_heat_map_of_its_own_and_its_threshold():
     dets = Detections(boxes, scores.astype(np.float32), scale=np.full(len(boxes), 1.5), part=part)
     det = _TwoComponentFake(dets)
     det.score_kind = "probability"
-    cfg = PipelineConfig(tracker=None, refine=None, horizon=None, oncoming=False, small="unused.npz", side=True)
+    cfg = PipelineConfig(tracker=None, refine=None, horizon=None, oncoming=False, small="unused.npz", side=True,
+                         split=None)
     assert small_part(cfg, det) == FIRST_COMPONENT_PART + 1
     assert small_part(cfg.without("small"), det) is None
     vd = VideoDetector(det, cfg)

@@ -5,6 +5,7 @@ import functools
 
 import cv2
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -165,7 +166,7 @@ def test_the_pipeline_drops_the_windows_on_the_own_vehicle_once_it_is_known():
     from fastdet.video.ownvehicle import OwnVehicleStage
 
     vd, frames = _pipeline(primed=False)
-    assert [s.name for s in vd.stages] == ["detect", "ownvehicle", "heatmap", "plausible"]
+    assert [s.name for s in vd.stages] == ["detect", "ownvehicle", "heatmap", "split", "plausible"]
     kept = []
     for f in frames:
         vd.update(f)
@@ -185,7 +186,7 @@ def test_the_pipeline_drops_the_windows_on_the_own_vehicle_once_it_is_known():
     assert len(vd.debug.windows) == 1
 
 
-def test_the_cli_turns_the_stages_on(tmp_path):
+def test_the_cli_turns_the_stages_on_and_off(tmp_path):
     import argparse
 
     from fastdet.cli._args import add_camera_arguments, pipeline_config
@@ -195,7 +196,11 @@ def test_the_cli_turns_the_stages_on(tmp_path):
     add_camera_arguments(p)
     on = pipeline_config(p.parse_args(["--own-vehicle", "--split-neighbours"]))
     assert on.own_vehicle == OwnVehicleConfig() and on.split == NeighbourSplit()
-    off = pipeline_config(p.parse_args([]))
-    assert off.own_vehicle is None and off.split is None
-    assert off.to_dict() == PipelineConfig().to_dict() and "own_vehicle" not in off.to_dict()
+    default = pipeline_config(p.parse_args([]))
+    assert default.own_vehicle is None and default.split == NeighbourSplit()
+    assert default.to_dict() == PipelineConfig().to_dict() and "own_vehicle" not in default.to_dict()
     assert PipelineConfig.from_dict(on.to_dict()) == on
+    off = pipeline_config(p.parse_args(["--no-split-neighbours"]))
+    assert off.split is None and PipelineConfig.from_dict(off.to_dict()) == off
+    with pytest.raises(SystemExit):
+        p.parse_args(["--split-neighbours", "--no-split-neighbours"])

@@ -15,7 +15,8 @@ and every false alarm (a returned box neither matched at 0.5 nor on an ignore re
 *near miss* (IoU 0.3-0.5 with a target: a true detection with a bad box) or *far* (< 0.3).
 
 Settings (the pipeline's defaults otherwise): ``--heat key=value`` (HeatConfig fields, e.g.
-``--heat extent=0.5``), ``--no-refine``, ``--split`` (the neighbour split on), ``--no-track``.
+``--heat extent=0.5``), ``--no-refine``, ``--no-split`` (the neighbour split off; ``--split``, on, is the
+default), ``--no-track``.
 Prints the per-clip table of ``fastdet eval --all`` and the measurement tables.
 
     python -m tools.studies.small_boxes [--clips A,B] [--heat k=v ...] [--no-refine] [--json OUT]
@@ -75,6 +76,8 @@ def config_from(args: argparse.Namespace) -> PipelineConfig:
         cfg = replace(cfg, refine=None)
     if args.split:
         cfg = replace(cfg, split=NeighbourSplit())
+    if args.no_split:
+        cfg = replace(cfg, split=None)
     if args.no_track:
         cfg = replace(cfg, tracker=None, guided=None)
     return cfg
@@ -241,7 +244,9 @@ def add_setting_arguments(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--no-refine", action="store_true")
     ap.add_argument("--refine", action="append", metavar="KEY=VALUE", help="a RefineConfig field")
     ap.add_argument("--refine-model", default=None, help="the box regressor file (default: the bundled one)")
-    ap.add_argument("--split", action="store_true")
+    split = ap.add_mutually_exclusive_group()
+    split.add_argument("--split", action="store_true", help="the neighbour split on (the default)")
+    split.add_argument("--no-split", action="store_true", help="the neighbour split off")
     ap.add_argument("--no-track", action="store_true")
 
 

@@ -24,10 +24,11 @@ def test_settings_to_pipelines() -> None:
     assert c.traffic == "both"
     large = ot.config_for("large")
     assert large.side == str(DEFAULT_MODEL_PATH) and large.side_search == LARGE_SEARCH
-    # every option changes the pipeline, and no two the same way
-    configs = [ot.config_for(o) for o in ot.OPTIONS]
+    # every option but split (the default) changes the pipeline, and no two the same way
+    assert ot.config_for("split") == PipelineConfig() and ot.config_for("nosplit").split is None
+    configs = [ot.config_for(o) for o in ot.OPTIONS if o != "split"]
     assert all(c != PipelineConfig() for c in configs) and len(set(map(repr, configs))) == len(configs)
-    for bad in ("small+nope", "side+large", "small+small", ""):
+    for bad in ("small+nope", "side+large", "small+small", "split+nosplit", ""):
         with pytest.raises(ValueError):
             ot.parse_setting(bad)
     for s in ot.DEFAULT_SETTINGS:
@@ -58,7 +59,7 @@ def test_held_out_models(tmp_path: Path) -> None:
 def test_cost_counts_what_each_option_adds() -> None:
     base = ot.search_cost(PipelineConfig())
     assert all(v > 0 for v in base.values())
-    assert ot.search_cost(ot.config_for("split+own+pfilter")) == base  # no band of their own
+    assert ot.search_cost(ot.config_for("nosplit+own+pfilter")) == base  # no band of their own
     small = ot.search_cost(ot.config_for("small"))
     side = ot.search_cost(ot.config_for("side"))
     both = ot.search_cost(ot.config_for("small+side"))
