@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from fastdet.config.models import REFINE_MODEL_PATH
+from fastdet.detections import Detections
 from fastdet.eval.clips import annotated_clips
 from fastdet.io.motfiles import read_gt
-from fastdet.detections import Detections
 from fastdet.io.reader import read_frames, read_frames_at
 from fastdet.train.refine import JitterConfig, jitter_boxes, paired_iou
 from fastdet.video.refine import RefineConfig, load_regressor, refine_boxes
