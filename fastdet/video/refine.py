@@ -4,12 +4,11 @@ regressor (:mod:`fastdet.detect.regressor`: its features, offsets and file) to a
 (:attr:`RefineConfig.max_shift`, :attr:`RefineConfig.max_log_scale`), decoded
 (:func:`~fastdet.detect.regressor.decode_offsets`), optionally applied again from the new box
 (:attr:`RefineConfig.iterations`), rounded and clipped to the frame; every other column
-(scores, ids, part, scale) is kept. A sequence of regressors is a cascade: iteration ``i``
-uses the ``i``-th (the last one for the iterations after them).
+(scores, ids, part, scale) is kept. A cascade (:attr:`BoxRegressor.n_stages` > 1) takes
+step ``i`` with its ``i``-th stage (the last one for the steps after them).
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -30,16 +29,13 @@ from ..detections import Detections
 # ---------------------------------------------------------------------------------------- refinement
 
 
-def refine_boxes(frame: np.ndarray, boxes: np.ndarray, regressor: BoxRegressor | Sequence[BoxRegressor],
+def refine_boxes(frame: np.ndarray, boxes: np.ndarray, regressor: BoxRegressor,
                  config: RefineConfig = RefineConfig()) -> np.ndarray:
     """Refined ``(N, 4) float64`` boxes (not rounded or clipped) of ``boxes (N, 4)`` x1, y1,
     x2, y2 in ``frame (H, W, 3) uint8 BGR``; boxes below ``config.min_size`` stay as they are.
-    ``regressor``: one regressor, or a cascade (module docstring). A box stops once a step's
+    ``regressor``: one regressor or a cascade (module docstring). A box stops once a step's
     largest offset is below ``config.min_step``; its width and height stay within
     ``exp(+-config.max_total_log_scale)`` of the box given."""
-    stages = [regressor] if isinstance(regressor, BoxRegressor) else list(regressor)
-    if not stages:
-        raise ValueError("refine_boxes: no regressor given")
     b = np.asarray(boxes, np.float64).reshape(-1, 4).copy()
     ok = ((b[:, 2] - b[:, 0]) >= config.min_size) & ((b[:, 3] - b[:, 1]) >= config.min_size)
     if not ok.any():
@@ -52,8 +48,7 @@ def refine_boxes(frame: np.ndarray, boxes: np.ndarray, regressor: BoxRegressor |
     for i in range(config.iterations):
         if not live.any():
             break
-        reg = stages[min(i, len(stages) - 1)]
-        t = np.clip(reg.predict(frame, cur[live]), -lim, lim)
+        t = np.clip(regressor.predict(frame, cur[live], stage=i), -lim, lim)
         if total is not None:
             sw, sh = start[live, 2] - start[live, 0], start[live, 3] - start[live, 1]
             w, h = cur[live, 2] - cur[live, 0], cur[live, 3] - cur[live, 1]
@@ -67,7 +62,7 @@ def refine_boxes(frame: np.ndarray, boxes: np.ndarray, regressor: BoxRegressor |
     return b
 
 
-def refine(frame: np.ndarray, dets: Detections, regressor: BoxRegressor | Sequence[BoxRegressor],
+def refine(frame: np.ndarray, dets: Detections, regressor: BoxRegressor,
            config: RefineConfig = RefineConfig()) -> Detections:
     """``dets`` of ``frame (H, W, 3) uint8 BGR`` with their boxes refined (:func:`refine_boxes`),
     rounded to whole pixels and clipped to the frame; the other columns as they were. Boxes

@@ -98,10 +98,12 @@ def test_cascade_stages_fit_the_boxes_before_them_and_tighten_them() -> None:
     assert r2["input_mean_iou"] == pytest.approx(r1["output_mean_iou"])
     assert r2["output_mean_iou"] >= r2["input_mean_iou"] - 0.01
     regs = [BoxRegressor.from_fit(coder, *a) for a in (a1, a2)]
+    cascade = BoxRegressor.stack(regs)
+    assert cascade.n_stages == 2
     v = views[0]
     one = step(v.inputs, regs[0].predict(v.image, v.inputs), 0.5, np.log(1.5))
     two = step(one, regs[1].predict(v.image, one), 0.5, np.log(1.5))
-    np.testing.assert_allclose(refine_boxes(v.image, v.inputs, regs, RefineConfig(iterations=2)), two)
+    np.testing.assert_allclose(refine_boxes(v.image, v.inputs, cascade, RefineConfig(iterations=2)), two)
     assert paired_iou(two, v.targets).mean() > paired_iou(v.inputs, v.targets).mean()
     with pytest.raises(ValueError):
         fit_cascade(views, coder, 0)

@@ -91,11 +91,13 @@ def test_cascade_stopping_and_total_growth_cap() -> None:
     frame = _frame()
     b = np.array([[100.0, 50, 140, 90]])
     # a cascade: step i uses stage i, the last one for the steps after
-    got = refine_boxes(frame, b, [_shift_right(SMALL, (1.0,), 0.25), _shift_right(SMALL, (1.0,), 0.5)],
-                       RefineConfig(iterations=3))
+    cascade = BoxRegressor.stack([_shift_right(SMALL, (1.0,), 0.25), _shift_right(SMALL, (1.0,), 0.5)])
+    got = refine_boxes(frame, b, cascade, RefineConfig(iterations=3))
     np.testing.assert_allclose(got, [[100 + 10 + 20 + 20, 50, 140 + 50, 90]])
     with pytest.raises(ValueError):
-        refine_boxes(frame, b, [], RefineConfig())
+        BoxRegressor.stack([])
+    with pytest.raises(ValueError):
+        BoxRegressor.stack([BoxRegressor.zero(SMALL, (1.0,)), BoxRegressor.zero(SMALL, (1.5,))])
     # the width grows by exp(0.2) a step; capped at exp(0.3) in all about the centre
     grown = refine_boxes(frame, b, _grow(SMALL, 0.2), RefineConfig(iterations=3))
     np.testing.assert_allclose(grown[0, 2] - grown[0, 0], 40 * np.exp(0.6))

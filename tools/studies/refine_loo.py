@@ -26,9 +26,9 @@ Training inputs (``--inputs``):
   each ``--own-repeat`` times (a weight);
 - ``both``: the two together.
 
-``--cascade S`` fits S regressors, each on the boxes the ones before it made
-(:func:`fastdet.train.refine.fit_cascade`); refinement step ``i`` uses the ``i``-th
-(``--refine iterations=N``; the last one for further steps).
+``--cascade S`` fits S regressors, each on the (cross-validated) boxes the ones before it
+made (:func:`fastdet.train.refine.fit_cascade`), into one file; refinement step ``i`` uses
+the ``i``-th (``--refine iterations=N``; the last one for further steps).
 
     python -m tools.studies.refine_loo [--out-dir DIR [--reuse]] [--clips A,B] [--inputs jitter|own|both]
         [--own-iou 0.3] [--own-repeat K] [--own-source out|heat|both] [--cascade S]
@@ -125,6 +125,7 @@ def annotated_frames(run: ClipRun, index: int) -> list[tuple[int, np.ndarray, np
     ``run`` with a ``consider = 1`` box (keyframes only, for a keyframe clip); groups from
     ``1000 * (index + 1)`` plus the vehicle's id, so one vehicle's samples stay in one CV fold."""
     gt = run.clip.gt()
+    assert gt.ids is not None and gt.frames is not None and gt.consider is not None  # ground truth has them
     out = []
     for fno in sorted(run.rec):
         sel = (gt.frames == fno) & gt.consider
@@ -170,10 +171,9 @@ def training_views(runs: dict[str, ClipRun], names: list[str], images: bool, a: 
 
 
 def fit_without(runs: dict[str, ClipRun], held_out: str, a: argparse.Namespace, path: Path,
-                metadata: dict[str, Any] | None = None, loo: bool = True) -> list[BoxRegressor]:
-    """Fit the regressor (or cascade) on the clips of every camera but ``held_out``'s (``loo``;
-    otherwise on every clip but ``held_out``) and save its stages to ``path`` (one file per
-    stage after the first: ``NAME.stage2.npz`` ...)."""
+                metadata: dict[str, Any] | None = None, loo: bool = True) -> BoxRegressor:
+    """Fit the regressor (a cascade of ``--cascade`` stages) on the clips of every camera but
+    ``held_out``'s (``loo``; otherwise on every clip but ``held_out``) and save it to ``path``."""
     spec = spec_of(a)
     if loo:
         names, images = training_clips(list(runs), held_out)
@@ -181,34 +181,30 @@ def fit_without(runs: dict[str, ClipRun], held_out: str, a: argparse.Namespace, 
         names, images = [n for n in runs if n != held_out], True
     views = training_views(runs, names, images, a)
     fits = fit_cascade(views, spec, a.cascade)
-    regs = []
-    for i, (arrays, report) in enumerate(fits):
-        reg = BoxRegressor.from_fit(spec, *arrays, metadata={
-            "trained_on": names + (["test_images"] if images else []), "held_out_clip": held_out,
-            "inputs": a.inputs, "own_iou": a.own_iou, "own_repeat": a.own_repeat, "own_source": a.own_source,
-            "cascade_stage": i + 1, "cascade_stages": a.cascade,
-            "command": "python -m tools.studies.refine_loo " + " ".join(sys.argv[1:]), **(metadata or {}),
-            "fit": report})
-        reg.save(stage_path(path, i))
-        regs.append(reg)
-        print(f"{stage_path(path, i)}: without {held_out}: {report['samples']} samples of {report['groups']} "
+    stages = [BoxRegressor.from_fit(spec, *arrays) for arrays, _ in fits]
+    reports = [report for _, report in fits]
+    reg = BoxRegressor.stack(stages, metadata={
+        "trained_on": names + (["test_images"] if images else []), "held_out_clip": held_out,
+        "inputs": a.inputs, "own_iou": a.own_iou, "own_repeat": a.own_repeat, "own_source": a.own_source,
+        "command": "python -m tools.studies.refine_loo " + " ".join(sys.argv[1:]), **(metadata or {}),
+        "fit": reports[0], "stage_fits": reports})
+    reg.save(path)
+    for i, report in enumerate(reports):
+        print(f"{path}: stage {i + 1}, without {held_out}: {report['samples']} samples of {report['groups']} "
               f"vehicles, alpha {report['alpha']:g}, CV mean IoU {max(report['cv_mean_iou']):.3f}, "
-              f"training IoU {report['input_mean_iou']:.3f} -> {report['output_mean_iou']:.3f}", flush=True)
-    return regs
+              f"training IoU {report['input_mean_iou']:.3f} -> {report['output_mean_iou']:.3f} (cross-validated)",
+              flush=True)
+    return reg
 
 
-def stage_path(path: Path, i: int) -> Path:
-    return path if i == 0 else path.with_name(f"{path.stem}.stage{i + 1}{path.suffix}")
-
-
-def refined(run: ClipRun, regs: list[BoxRegressor], refine: RefineConfig | None) -> tuple[list, dict]:
-    """``run``'s frames and records with the scored frames' boxes refined by ``regs``."""
+def refined(run: ClipRun, reg: BoxRegressor, refine: RefineConfig | None) -> tuple[list, dict]:
+    """``run``'s frames and records with the scored frames' boxes refined by ``reg``."""
     from fastdet.video.refine import refine as refine_dets
 
     rec = {f: dict(r) for f, r in run.rec.items()}
     if refine is not None:
         for f, r in rec.items():
-            r["out"] = refine_dets(run.images[f], r["out"], regs, refine)
+            r["out"] = refine_dets(run.images[f], r["out"], reg, refine)
     frames = [(f, rec[f]["out"] if f in rec else out) for f, out in run.frames]
     return frames, rec
 
@@ -221,7 +217,8 @@ def main() -> None:
                     help="after the measurement, fit on every clip but --ship-without and write it here, with the "
                          "leave-one-clip-out figures in its metadata")
     ap.add_argument("--ship-without", default="test_small1")
-    ap.add_argument("--reuse", action="store_true", help="use the regressors already in --out-dir (same options)")
+    ap.add_argument("--reuse", action="store_true",
+                    help="use the regressors already in --out-dir (refine_without_CAMERA.npz, same options)")
     ap.add_argument("--jitter-scale", type=float, nargs=2, default=JitterConfig().scale, metavar=("LO", "HI"),
                     help="size factors of the training boxes about each vehicle (default: JitterConfig's)")
     ap.add_argument("--jitter-aspect", type=float, default=JitterConfig().aspect,
@@ -245,20 +242,21 @@ def main() -> None:
     refine = config_from(a).refine
     held = [c for c in clips if a.clips is None or c.name in a.clips.split(",")]
     scores, tables, fa_lines, hotas = [], [], [], []
-    fitted: dict[str, list[BoxRegressor]] = {}  # one regressor per held-out camera
+    fitted: dict[str, BoxRegressor] = {}  # one regressor per held-out camera
     for clip in held:
         cam = camera_of(clip.name)
         path = out_dir / f"refine_without_{cam}.npz"
-        paths = [stage_path(path, i) for i in range(a.cascade)]
         if cam in fitted:
-            regs = fitted[cam]
-        elif a.reuse and all(p.is_file() for p in paths):
-            regs = [load_regressor(p) for p in paths]
+            reg = fitted[cam]
+        elif a.reuse and path.is_file():
+            reg = load_regressor(path)
+            if reg.n_stages != a.cascade:
+                raise SystemExit(f"refine_loo: {path} has {reg.n_stages} stages, not --cascade {a.cascade}")
         else:
-            regs = fit_without(runs, clip.name, a, path)
-        fitted[cam] = regs
+            reg = fit_without(runs, clip.name, a, path)
+        fitted[cam] = reg
         run = runs[clip.name]
-        frames, rec = refined(run, regs, refine)
+        frames, rec = refined(run, reg, refine)
         preds = Detections.from_frames(frames, source=str(clip.video))
         score = score_clip(clip.name, clip.gt(), preds, run.rows, clip.keyframes())
         scores.append(score)
