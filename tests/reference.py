@@ -216,7 +216,16 @@ class ClassicDetector:
             geo = band_geometry(band, frame.shape[:2], self.model.config, search.cells_per_step, search.border,
                                 search.border_mode)
             dec = classic_band_scores(frame, geo, self.model, self.pair)
-            r, c = np.nonzero(dec > self.search.threshold)
+            keep = []
+            for i in range(geo.ny):
+                for j in range(geo.nx):
+                    box = window_boxes(geo, np.array([i]), np.array([j]), self.model.config)[0]
+                    # a window reaching out of the band's core (into its slack) needs the slack threshold
+                    slack = band.core is not None and search.slack_threshold is not None and not (
+                        band.core[0] - 1 <= box[1] and box[3] <= band.core[1] + 1)
+                    if dec[i, j] > (search.slack_threshold if slack else search.threshold):
+                        keep.append((i, j))
+            r, c = (np.array([k[n] for k in keep], np.int64) for n in (0, 1))
             parts.append(Detections(window_boxes(geo, r, c, self.model.config), dec[r, c].astype(np.float32),
                                     scale=np.full(len(r), band.scale)))
         return Detections.concat(parts)

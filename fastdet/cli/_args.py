@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..config import HeatConfig, NeighbourSplit, OwnVehicleConfig, PerspectiveConfig, PipelineConfig
+from ..config import HeatConfig, NeighbourSplit, OwnVehicleConfig, PerspectiveConfig, PipelineConfig, PlausibleConfig
 from ..errors import FastdetError
 
 
@@ -79,8 +79,8 @@ def add_search_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def add_oncoming_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--oncoming-model`` / ``--no-oncoming``, ``--traffic`` and ``--side`` / ``--side-model``,
-    shared by ``video``, ``eval``, ``bench`` and ``batch``."""
+    """``--oncoming-model`` / ``--no-oncoming``, ``--traffic``, ``--side`` / ``--side-model`` and
+    ``--small`` / ``--small-model``, shared by ``video``, ``eval``, ``bench`` and ``batch``."""
     g = parser.add_mutually_exclusive_group()
     g.add_argument("--oncoming-model", metavar="WIDE.npz", default=None,
                    help="wide-window model for oncoming traffic above the median "
@@ -99,6 +99,13 @@ def add_oncoming_arguments(parser: argparse.ArgumentParser) -> None:
                         "by default")
     s.add_argument("--side-model", metavar="SIDE.npz", default=None,
                    help="add this side-view component (built by `python -m tools.scripts.side_model`)")
+    m = parser.add_mutually_exclusive_group()
+    m.add_argument("--small", action="store_true",
+                   help="add the bundled small-vehicle component (fastdet/models/small.npz: 32x32 windows on the "
+                        "frame at its own resolution about the horizon, for vehicles under 60 px wide of 1280; "
+                        "docs/components.md); off by default")
+    m.add_argument("--small-model", metavar="SMALL.npz", default=None,
+                   help="add this small-vehicle component (built by `python -m tools.scripts.small_model`)")
 
 
 def add_refine_argument(parser: argparse.ArgumentParser) -> None:
@@ -109,7 +116,8 @@ def add_refine_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def add_camera_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--own-vehicle`` and ``--split-neighbours``: the optional stages for other cameras."""
+    """``--own-vehicle``, ``--split-neighbours`` and ``--perspective-filter``: the optional stages for
+    other cameras."""
     parser.add_argument("--own-vehicle", action="store_true",
                         help="drop the windows lying on the own vehicle (hood, dashboard, mirrors, letterbox bars: "
                              "what stays fixed at the picture's border while the scene moves in the first 3 s); "
@@ -117,6 +125,9 @@ def add_camera_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--split-neighbours", action="store_true",
                         help="split a wide heat blob between the modes of its windows, one box per vehicle side "
                              "by side; off by default")
+    parser.add_argument("--perspective-filter", action="store_true",
+                        help="drop the boxes whose width no vehicle and no camera can have for how far below the "
+                             "horizon they stand (too narrow: 0.45x those rows, too wide: 12x); off by default")
 
 
 def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
@@ -126,7 +137,8 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
     search); ``--full-search``: no guided search; ``--no-refine``: no refinement;
     ``--heat-frames`` / ``--heat-decay`` / ``--heat-threshold``: the main heat map (a bad
     value: :class:`~fastdet.errors.FastdetError`); ``--own-vehicle``, ``--split-neighbours``:
-    those stages on with their defaults."""
+    those stages on with their defaults; ``--perspective-filter``: the perspective test of the
+    plausibility stage on."""
     d = HeatConfig()
     try:
         heat = HeatConfig(n_frames=getattr(args, "heat_frames", d.n_frames), decay=getattr(args, "heat_decay", d.decay),
@@ -137,10 +149,12 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
                             oncoming=False if getattr(args, "no_oncoming", False)
                             else (getattr(args, "oncoming_model", None) or True),
                             side=getattr(args, "side_model", None) or bool(getattr(args, "side", False)),
+                            small=getattr(args, "small_model", None) or bool(getattr(args, "small", False)),
                             traffic=getattr(args, "traffic", "right"), horizon=getattr(args, "horizon", "auto"),
                             heat=heat, perspective=PerspectiveConfig() if getattr(args, "perspective", False) else None,
                             own_vehicle=OwnVehicleConfig() if getattr(args, "own_vehicle", False) else None,
-                            split=NeighbourSplit() if getattr(args, "split_neighbours", False) else None)
+                            split=NeighbourSplit() if getattr(args, "split_neighbours", False) else None,
+                            plausible=PlausibleConfig(perspective=bool(getattr(args, "perspective_filter", False))))
     off = [name for name, flag in (("tracker", "no_track"), ("guided", "full_search"), ("refine", "no_refine"))
            if getattr(args, flag, False)]
     return config.without(*off)  # type: ignore[arg-type]

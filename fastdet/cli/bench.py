@@ -82,6 +82,7 @@ STAGES = (
     ("track", "track"),
     ("clip", "clip"),
     ("refine", "refine"),
+    ("plausible", "plausible"),
     ("observe", "observe"),
 )
 

@@ -77,8 +77,7 @@ from ..io.reader import FrameReader, check_source
 from ..io.sink import VideoSink, check_video_path
 from ..video.count import CountLine, VehicleCounter
 from ..video.detector import make_detector
-from ..video.offline import offline_pass
-from ..video.run import progress_bar, video_detector_for
+from ..video.run import defer_plausible, offline_boxes, progress_bar, video_detector_for
 from ._args import (
     add_camera_arguments,
     add_horizon_argument,
@@ -158,6 +157,7 @@ _STAGES = (
     ("track", "track", "main"),
     ("clip", "clip", "main"),
     ("refine", "refine", "main"),
+    ("plausible", "plausible", "main"),
     ("observe", "observe", "main"),
     ("boxes out", "boxes_out", "main"),
     ("draw", "draw", "writer"),
@@ -258,7 +258,8 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
     check_source(args.input)
     check_paths([("INPUT", args.input), ("--model", args.model),
                  ("--oncoming-model", getattr(args, "oncoming_model", None)),
-                 ("--side-model", getattr(args, "side_model", None)), *bundled_models()],
+                 ("--side-model", getattr(args, "side_model", None)),
+                 ("--small-model", getattr(args, "small_model", None)), *bundled_models()],
                 [("-o", out, "video"), ("--boxes", boxes_path, "box"), ("--json", json_path, "JSON"),
                  ("--summary", summary_path, "summary")])
     if out:
@@ -275,6 +276,8 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
         elif args.model is not None:
             raise FastdetError("--model cannot be used with an injected detector")
         vd = video_detector_for(reader, detector, config)
+        if offline:
+            defer_plausible(vd)
         vd.warmup()
         counter = VehicleCounter(line) if track else None
         done: list[tuple[int, Detections]] = []  # --offline: every frame's tracks
@@ -320,8 +323,7 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
                     n += 1
                     bar.update(1)
                 if offline and done:
-                    assert vd.tracker is not None
-                    final = offline_pass(done, reader.shape, vd.tracker.config)
+                    final = offline_boxes(vd, done, reader.shape)
                     for fno, dets in final:
                         _emit(fno, dets, mot, jsl, counter)
                     if sink is not None:

@@ -6,11 +6,14 @@ comparable, JSON round-trip through one :meth:`~fastdet.config.Config.to_dict` /
 - :mod:`.search`: where to search (:class:`SearchBand`, :class:`SearchConfig`, the
   oncoming-traffic search by traffic side, :func:`oncoming_search`; the side-view
   component's, :func:`side_search`);
+- :mod:`.small`: the small-vehicle component's features, search and heat map
+  (:data:`SMALL_FEATURES`, :func:`small_search`, :data:`SMALL_HEAT`);
 - :mod:`.heat`: how the heat map makes boxes (:class:`HeatConfig`, :data:`ONCOMING_HEAT`,
   :data:`SIDE_HEAT`);
 - :mod:`.motion`: the oncoming model's motion gate (:class:`MotionGate`);
 - :mod:`.ownvehicle`: the own vehicle's region and the windows dropped there (:class:`OwnVehicleConfig`);
 - :mod:`.split`: heat blobs over vehicles side by side split (:class:`NeighbourSplit`);
+- :mod:`.plausible`: returned boxes that cannot be vehicles dropped (:class:`PlausibleConfig`);
 - :mod:`.track`: the tracker (:class:`TrackerConfig`);
 - :mod:`.guided`: the search between full scans (:class:`GuidedSearch`);
 - :mod:`.refine`: the box refinement (:class:`RefineConfig`) and its training boxes
@@ -32,11 +35,12 @@ from ._base import Config
 from .features import CELL, COLOR_SPACES, WINDOW, ColorSpace, FeatureConfig
 from .guided import GuidedSearch
 from .heat import ONCOMING_HEAT, SIDE_HEAT, BoxMode, HeatConfig, ScoreKind
-from .models import DEFAULT_MODEL_PATH, ONCOMING_MODEL_PATH, REFINE_MODEL_PATH, SIDE_MODEL_PATH
+from .models import DEFAULT_MODEL_PATH, ONCOMING_MODEL_PATH, REFINE_MODEL_PATH, SIDE_MODEL_PATH, SMALL_MODEL_PATH
 from .motion import MotionGate
 from .ownvehicle import OwnVehicleConfig
 from .perspective import GeometryConfig, PerspectiveConfig
 from .pipeline import Horizon, PipelineConfig
+from .plausible import PlausibleConfig
 from .refine import JitterConfig, RefineConfig
 from .search import (
                      ONCOMING_SEARCH,
@@ -51,15 +55,17 @@ from .search import (
                      oncoming_search,
                      side_search,
 )
+from .small import SMALL_FEATURES, SMALL_HEAT, SMALL_SEARCH, small_search
 from .split import NeighbourSplit
 from .track import TrackerConfig
 
 __all__ = ["BoxMode", "CELL", "COLOR_SPACES", "ColorSpace", "Config", "DEFAULT_MODEL_PATH", "FeatureConfig",
            "GeometryConfig", "GuidedSearch", "HeatConfig", "Horizon", "JitterConfig", "MotionGate", "NeighbourSplit",
            "ONCOMING_HEAT", "ONCOMING_MODEL_PATH", "ONCOMING_SEARCH", "OwnVehicleConfig", "PerspectiveConfig",
-           "PipelineConfig", "REFERENCE_HORIZON", "REFERENCE_SHAPE", "REFINE_MODEL_PATH", "RefineConfig",
-           "SIDE_HEAT", "SIDE_MODEL_PATH", "SIDE_SEARCH", "ScoreKind", "SearchBand", "SearchConfig", "TRAFFIC_SIDES",
-           "TrackerConfig", "Traffic", "WINDOW", "check_traffic", "oncoming_search", "side_search"]
+           "PipelineConfig", "PlausibleConfig", "REFERENCE_HORIZON", "REFERENCE_SHAPE", "REFINE_MODEL_PATH",
+           "RefineConfig", "SIDE_HEAT", "SIDE_MODEL_PATH", "SIDE_SEARCH", "SMALL_FEATURES", "SMALL_HEAT",
+           "SMALL_MODEL_PATH", "SMALL_SEARCH", "ScoreKind", "SearchBand", "SearchConfig", "TRAFFIC_SIDES",
+           "TrackerConfig", "Traffic", "WINDOW", "check_traffic", "oncoming_search", "side_search", "small_search"]
 
 #: former names, kept for code written against them: ``WIDE_HEAT``, ``WIDE_SEARCH``, ``wide_search``
 _RENAMED = {"WIDE_HEAT": "ONCOMING_HEAT", "WIDE_SEARCH": "ONCOMING_SEARCH", "wide_search": "oncoming_search"}

@@ -1,6 +1,7 @@
 """Every setting of the video pipeline in one frozen value (:class:`PipelineConfig`)."""
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass, replace
 from typing import Literal
@@ -11,8 +12,10 @@ from .heat import ONCOMING_HEAT, SIDE_HEAT, HeatConfig
 from .motion import MotionGate
 from .ownvehicle import OwnVehicleConfig
 from .perspective import PerspectiveConfig
+from .plausible import PlausibleConfig
 from .refine import RefineConfig
 from .search import SIDE_SEARCH, SearchConfig, Traffic, check_traffic
+from .small import SMALL_CHECK, SMALL_HEAT, SMALL_SEARCH
 from .split import NeighbourSplit
 from .track import TrackerConfig
 
@@ -40,6 +43,10 @@ class PipelineConfig(Config):
     side: the side-view component (boxes wider than tall: parked cars seen from the side;
         docs/components.md): ``False`` (default) none, ``True`` the bundled one
         (:data:`~fastdet.config.models.SIDE_MODEL_PATH`), a path for another.
+    small: the small-vehicle component (32x32 windows on the frame at its own resolution about
+        the horizon, for vehicles under 60 px wide of 1280; docs/components.md): ``False``
+        (default) none, ``True`` the bundled one (:data:`~fastdet.config.models.SMALL_MODEL_PATH`),
+        a path for another.
     refine_model: the box regressor file; ``None``: the bundled one.
     traffic: the side of the road traffic drives on (:data:`~fastdet.config.TRAFFIC_SIDES`),
         which decides where the oncoming model searches (:func:`~fastdet.config.oncoming_search`).
@@ -50,6 +57,10 @@ class PipelineConfig(Config):
     heat: the main model's heat map; oncoming_heat: the oncoming model's.
     side_search, side_heat: where the side-view component searches and its heat map (whose
         boxes join the main ones where those found nothing).
+    small_search, small_heat: the same for the small-vehicle component (a heat map of its own).
+    small_check: the small component's boxes are kept only where the main model's decision value
+        on their square crop exceeds this (:class:`fastdet.video.small.MainModelCheck`); ``None``:
+        no check.
     motion: the motion gate of the oncoming model.
     tracker: the tracker that gives every vehicle an id; ``None``: no tracking (boxes
         without ids).
@@ -66,6 +77,10 @@ class PipelineConfig(Config):
         ``None`` (default): off.
     split: split the main heat map's wide boxes between the modes of their windows, one box
         per vehicle side by side (:mod:`fastdet.video.blobsplit`); ``None`` (default): off.
+    plausible: drop the returned boxes that cannot be vehicles (:mod:`fastdet.video.plausible`):
+        by default a second box on one vehicle (IoU above 0.5 with a higher-scored box); with
+        ``PlausibleConfig(perspective=True)`` also the boxes whose width does not fit how far
+        below the horizon they stand. ``None``: every box the tracker (and the refinement) gives.
     """
 
     #: off by default: a dict written before these stages existed is the same dict
@@ -74,6 +89,7 @@ class PipelineConfig(Config):
     model: str | None = None
     oncoming: str | bool = True
     side: str | bool = False
+    small: str | bool = False
     refine_model: str | None = None
     traffic: Traffic = "right"
     search: SearchConfig = SearchConfig()
@@ -82,6 +98,9 @@ class PipelineConfig(Config):
     oncoming_heat: HeatConfig = ONCOMING_HEAT
     side_search: SearchConfig = SIDE_SEARCH
     side_heat: HeatConfig = SIDE_HEAT
+    small_search: SearchConfig = SMALL_SEARCH
+    small_heat: HeatConfig = SMALL_HEAT
+    small_check: float | None = SMALL_CHECK
     motion: MotionGate = MotionGate()
     tracker: TrackerConfig | None = TrackerConfig()
     guided: GuidedSearch | None = GuidedSearch()
@@ -89,6 +108,7 @@ class PipelineConfig(Config):
     perspective: PerspectiveConfig | None = None
     own_vehicle: OwnVehicleConfig | None = None
     split: NeighbourSplit | None = None
+    plausible: PlausibleConfig | None = PlausibleConfig()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "model", _path(self.model, "model"))
@@ -97,20 +117,27 @@ class PipelineConfig(Config):
             object.__setattr__(self, "oncoming", _path(self.oncoming, "oncoming"))
             if self.oncoming is None:
                 raise TypeError("oncoming must be True, False or a path, got None")
-        if not isinstance(self.side, bool):
-            object.__setattr__(self, "side", _path(self.side, "side"))
-            if self.side is None:
-                raise TypeError("side must be True, False or a path, got None")
+        for name in ("side", "small"):
+            v = getattr(self, name)
+            if not isinstance(v, bool):
+                object.__setattr__(self, name, _path(v, name))
+                if getattr(self, name) is None:
+                    raise TypeError(f"{name} must be True, False or a path, got None")
         check_traffic(self.traffic)
+        sc = self.small_check
+        if sc is not None and (isinstance(sc, bool) or not isinstance(sc, (int, float)) or not math.isfinite(sc)):
+            raise ValueError(f"small_check must be a finite decision value or None, got {sc!r}")
         h = self.horizon
         if not (h is None or h == "auto" or (isinstance(h, (int, float)) and not isinstance(h, bool) and 0 <= h <= 1)):
             raise ValueError(f"horizon must be 'auto', a fraction of the frame height in [0, 1] or None, got {h!r}")
         for name, cls, optional in (("search", SearchConfig, False), ("heat", HeatConfig, False),
                                     ("oncoming_heat", HeatConfig, False), ("side_search", SearchConfig, False),
-                                    ("side_heat", HeatConfig, False), ("motion", MotionGate, False),
+                                    ("side_heat", HeatConfig, False), ("small_search", SearchConfig, False),
+                                    ("small_heat", HeatConfig, False), ("motion", MotionGate, False),
                                     ("tracker", TrackerConfig, True), ("guided", GuidedSearch, True),
                                     ("refine", RefineConfig, True), ("perspective", PerspectiveConfig, True),
-                                    ("own_vehicle", OwnVehicleConfig, True), ("split", NeighbourSplit, True)):
+                                    ("own_vehicle", OwnVehicleConfig, True), ("split", NeighbourSplit, True),
+                                    ("plausible", PlausibleConfig, True)):
             v = getattr(self, name)
             if not (isinstance(v, cls) or (optional and v is None)):
                 allowed = f"a {cls.__name__}" + (" or None" if optional else "")
@@ -124,11 +151,13 @@ class PipelineConfig(Config):
             return None
         return self.guided
 
-    def without(self, *stages: Literal["tracker", "guided", "refine", "oncoming", "side"]) -> PipelineConfig:
+    def without(self, *stages: Literal["tracker", "guided", "refine", "oncoming", "side", "small"]) -> PipelineConfig:
         """This config with the named optional stages off (``tracker``, ``guided``: the full
-        search, ``refine``, ``oncoming``: no oncoming model, ``side``: no side-view component)."""
+        search, ``refine``, ``oncoming``: no oncoming model, ``side``: no side-view component,
+        ``small``: no small-vehicle component)."""
         return replace(self, tracker=None if "tracker" in stages else self.tracker,
                        guided=None if "guided" in stages else self.guided,
                        refine=None if "refine" in stages else self.refine,
                        oncoming=False if "oncoming" in stages else self.oncoming,
-                       side=False if "side" in stages else self.side)
+                       side=False if "side" in stages else self.side,
+                       small=False if "small" in stages else self.small)

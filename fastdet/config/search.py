@@ -3,6 +3,7 @@ model and the oncoming-traffic model's search (:func:`oncoming_search`), which d
 side of the road traffic drives on (:data:`TRAFFIC_SIDES`)."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from typing import Literal
 
@@ -26,13 +27,32 @@ def check_traffic(traffic: str) -> str:
 class SearchBand(Config):
     """One search band: windows of ``scale x`` the model's window width (64 px by default) in
     frame rows [y_start, y_stop)
-    and columns [x_start, x_stop) (``None`` = frame edge)."""
+    and columns [x_start, x_stop) (``None`` = frame edge).
+
+    slack_above, slack_below: rows, fractions of the frame height, the band also searches
+        above / below ``[y_start, y_stop)`` once placed at the frame's horizon
+        (:meth:`SearchConfig.for_frame`: the nearest whole number of the band's window steps),
+        for a horizon estimate that is off by up to that much (too low in the picture /
+        too high); a window reaching into those rows is positive only above
+        :attr:`SearchConfig.slack_threshold` (on those rows no vehicle of the window's size
+        stands when the horizon is right, so what fires there is mostly clutter).
+        ``None``: no slack on that side.
+    core: set by :meth:`SearchConfig.for_frame` on a band with slack: the frame rows
+        ``[start, stop)`` of the band without its slack (a window inside them needs only the
+        search's ``threshold``). ``None``: the whole band is its core.
+    """
+
+    #: left out of :meth:`to_dict` while ``None`` (a band written before they existed is the same dict)
+    _OMIT_NONE = ("slack_above", "slack_below", "core")
 
     scale: float
     y_start: int
     y_stop: int
     x_start: int | None = None
     x_stop: int | None = None
+    slack_above: float | None = None
+    slack_below: float | None = None
+    core: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
         if not self.scale > 0:
@@ -41,21 +61,46 @@ class SearchBand(Config):
             raise ValueError(f"y_stop must exceed y_start, got {self.y_start}..{self.y_stop}")
         if self.x_start is not None and self.x_stop is not None and self.x_stop <= self.x_start:
             raise ValueError(f"x_stop must exceed x_start, got {self.x_start}..{self.x_stop}")
+        for name in ("slack_above", "slack_below"):
+            v = getattr(self, name)
+            if v is not None and not 0 <= v < 1:
+                raise ValueError(f"{name} must be a fraction of the frame height in [0, 1) or None, got {v!r}")
+        if self.core is not None:
+            core = tuple(int(v) for v in self.core)
+            if len(core) != 2 or core[0] > core[1]:
+                raise ValueError(f"core must be (start, stop) rows with start <= stop, got {self.core!r}")
+            object.__setattr__(self, "core", core)
+
+    @property
+    def has_slack(self) -> bool:
+        """Whether the band searches rows beyond its own (:attr:`slack_above`, :attr:`slack_below`)."""
+        return bool(self.slack_above) or bool(self.slack_below)
 
 
-def _default_bands() -> tuple[SearchBand, ...]:
+#: rows (fraction of the frame height) the default bands also search above their rows, for a
+#: horizon estimate that is too low in the picture (:attr:`SearchBand.slack_above`; not the
+#: 48-px band, whose upsampled rows cost the most and whose windows find few vehicles; not
+#: below: there the larger windows fire on the road; docs/geometry.md)
+BAND_SLACK = 0.03
+#: decision value a window in a band's slack rows must exceed (probability 0.9 for the
+#: logistic-regression models): there the main model's barely-positive windows are clutter
+SLACK_THRESHOLD = 2.2
+
+
+def _default_bands(slack: float | None = BAND_SLACK) -> tuple[SearchBand, ...]:
     # Each window size where cars of that size stand: all bands start 21 px above the horizon
     # (421 px, SearchConfig.reference_horizon) and reach 1.3-1.5 windows below it; 48-px
     # windows (scale 0.75, the band upsampled before HOG) for the 45-70 px cars of a wider
     # lens, a far lane or the other carriageway, near the horizon only, across the whole width.
+    # Every band but the 48-px one with ``slack`` above it, for a horizon estimate that is too low.
     return (
         SearchBand(0.75, 400, 460),
-        SearchBand(1.0, 400, 496),
-        SearchBand(1.25, 400, 528),
-        SearchBand(1.5, 400, 560),
-        SearchBand(2.0, 400, 592),
-        SearchBand(2.5, 400, 656),
-        SearchBand(3.0, 400, 656),
+        SearchBand(1.0, 400, 496, slack_above=slack),
+        SearchBand(1.25, 400, 528, slack_above=slack),
+        SearchBand(1.5, 400, 560, slack_above=slack),
+        SearchBand(2.0, 400, 592, slack_above=slack),
+        SearchBand(2.5, 400, 656, slack_above=slack),
+        SearchBand(3.0, 400, 656, slack_above=slack),
     )
 
 
@@ -88,12 +133,21 @@ class SearchConfig(Config):
         (``cells_per_step x cell x scale`` rows; the nearest to that shift), so its windows sit
         on the grid they have at the reference horizon: a shift of a few rows would put every
         window somewhere else (docs/accuracy.md). Bands are clipped to the frame; a band the clip
-        leaves lower than its window (``window x scale`` rows) is dropped.
+        leaves lower than its window (``window x scale`` rows) is dropped. A band with slack
+        gets its slack rows added on its grid and its rows without them as its ``core``.
+    slack_threshold: the decision value a window must exceed in a band's slack rows
+        (:attr:`SearchBand.slack_above`, :attr:`SearchBand.slack_below`, placed by
+        :meth:`for_frame`; ``None``: ``threshold`` there too).
     border: windows may hang this fraction of their width over the left / right frame edge
         (bands whose ``x_start`` / ``x_stop`` is ``None``), so a car cut by the border can fill
         one; the columns past the edge are filled as ``border_mode`` says (``'reflect'``:
         the frame mirrored at its edge, ``'replicate'``: its edge column repeated) and the
         boxes clipped to the frame (:mod:`fastdet.detect.bands`). ``0``: windows stay inside.
+    shrink: how a band is shrunk to its windows' scale (scale > 1): ``'linear'`` (default:
+        ``cv2.INTER_LINEAR``, what the main model's bands have always used) or ``'area'``
+        (``cv2.INTER_AREA``: the mean of the pixels each scaled pixel covers, as a model trained
+        on crops shrunk with ``INTER_AREA`` saw them; the small-vehicle component's). A band
+        enlarged (scale < 1) is always ``INTER_LINEAR``.
     """
 
     bands: tuple[SearchBand, ...] = field(default_factory=_default_bands)
@@ -104,6 +158,8 @@ class SearchConfig(Config):
     horizon: float | None = None
     border: float = 0.5
     border_mode: Literal["reflect", "replicate"] = "replicate"
+    slack_threshold: float | None = SLACK_THRESHOLD
+    shrink: Literal["linear", "area"] = "linear"
 
     def for_frame(self, frame_shape: tuple[int, int], window: int = WINDOW, cell: int = CELL) -> SearchConfig:
         """This config with its bands rescaled (and moved to ``horizon``) for frames of
@@ -112,7 +168,8 @@ class SearchConfig(Config):
         in pixels at scale 1 (:attr:`FeatureConfig.win_w`, :attr:`FeatureConfig.pixels_per_cell`)."""
         h, w = (int(v) for v in frame_shape[:2])
         moved = self.horizon is not None and self.horizon != self.reference_horizon
-        if not moved and (self.reference_shape is None or (h, w) == tuple(self.reference_shape)):
+        slack = any(b.has_slack for b in self.bands)
+        if not moved and not slack and (self.reference_shape is None or (h, w) == tuple(self.reference_shape)):
             return self
         rh, rw = self.reference_shape if self.reference_shape is not None else (h, w)
         fy, fx = h / rh, w / rw
@@ -126,9 +183,15 @@ class SearchConfig(Config):
             step = self.cells_per_step * cell * b.scale * fy  # rows between window positions
             d = round(dy / step) * step  # whole steps: the windows stay on the reference's grid
             a, z = int(round(b.y_start * fy + d)), int(round(b.y_stop * fy + d))
+            core_a, core_z = a, z
+            if b.has_slack:  # whole steps more: the windows stay on the grid
+                up, down = (round((v or 0.0) * h / step) * step for v in (b.slack_above, b.slack_below))
+                a, z = int(round(b.y_start * fy + d - up)), int(round(b.y_stop * fy + d + down))
             y0, y1 = max(a, 0), min(z, h)
             if y1 > y0 and ((y0, y1) == (a, z) or y1 - y0 >= window * b.scale * fy):
-                bands.append(SearchBand(b.scale * fy, y0, y1, col(b.x_start), col(b.x_stop)))
+                c0 = min(max(core_a, y0), y1)
+                core = (c0, max(min(core_z, y1), c0)) if b.has_slack else None
+                bands.append(SearchBand(b.scale * fy, y0, y1, col(b.x_start), col(b.x_stop), core=core))
         if not bands:
             where = f"the horizon at {self.horizon:g} of the height" if moved else "the frame size"
             raise ValueError(f"{where} leaves no search band in a {w}x{h} frame")
@@ -149,6 +212,10 @@ class SearchConfig(Config):
             raise ValueError(f"border must be a fraction of the window width in [0, 1], got {self.border!r}")
         if self.border_mode not in ("reflect", "replicate"):
             raise ValueError(f"border_mode must be 'reflect' or 'replicate', got {self.border_mode!r}")
+        if self.slack_threshold is not None and not math.isfinite(self.slack_threshold):
+            raise ValueError(f"slack_threshold must be a finite number or None, got {self.slack_threshold!r}")
+        if self.shrink not in ("linear", "area"):
+            raise ValueError(f"shrink must be 'linear' or 'area', got {self.shrink!r}")
         for name in ("reference_horizon", "horizon"):
             v = getattr(self, name)
             if v is not None and not 0 <= v <= 1:

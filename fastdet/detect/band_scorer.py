@@ -47,7 +47,8 @@ class _Scorer:
 
     def geometries(self, frame_shape: tuple[int, int]) -> list[BandGeometry]:
         search = self.search.for_frame(frame_shape, self.config.win_w, self.config.pixels_per_cell)
-        return [band_geometry(b, frame_shape, self.config, search.cells_per_step, search.border, search.border_mode)
+        return [band_geometry(b, frame_shape, self.config, search.cells_per_step, search.border, search.border_mode,
+                              search.shrink)
                 for b in search.bands]
 
     def band_scores(self, frame: np.ndarray, geo: BandGeometry, timings: dict[str, float] | None,

@@ -2,7 +2,8 @@
 
 A band (:class:`~fastdet.config.SearchBand`) is the frame region ``[y_start, y_stop) x
 [x_start, x_stop)``, resized by ``1/scale`` with ``cv2.resize(.., INTER_LINEAR)`` to
-``(int(w / scale), int(h / scale))``; a 64-px window in the scaled band is a
+``(int(w / scale), int(h / scale))`` (``INTER_AREA`` instead for a shrunk band of a search
+with ``shrink='area'``); a 64-px window in the scaled band is a
 ``64 * scale``-px box in the frame (``win_w * scale`` by ``win_h * scale`` in general).
 Windows sit on the HOG cell grid of the scaled band, ``cells_per_step`` cells apart.
 
@@ -42,6 +43,7 @@ class BandGeometry:
     pad_left: int = 0  # columns of the band left of the frame (x0 = -pad_left)
     pad_right: int = 0  # columns of the band right of the frame (x1 = frame width + pad_right)
     border_mode: str = "reflect"  # how those columns are filled: "reflect" or "replicate"
+    shrink: str = "linear"  # how the band is shrunk (scale > 1): "linear" (INTER_LINEAR) or "area" (INTER_AREA)
 
     @property
     def n_windows(self) -> int:
@@ -52,14 +54,19 @@ BORDER_MODES = {"reflect": cv2.BORDER_REFLECT_101, "replicate": cv2.BORDER_REPLI
 
 
 def band_geometry(band: SearchBand, frame_shape: tuple[int, int], config: FeatureConfig,
-                  cells_per_step: int, border: float = 0.0, border_mode: str = "reflect") -> BandGeometry:
+                  cells_per_step: int, border: float = 0.0, border_mode: str = "reflect",
+                  shrink: str = "linear") -> BandGeometry:
     """Geometry of ``band`` on a frame of ``frame_shape = (H, W)``; ``ValueError`` if the band
     does not fit the frame. ``border``: at a frame edge the band reaches (``x_start`` /
     ``x_stop`` ``None``), let it run ``round(border x win_w x scale)`` px past the edge,
-    filled as ``border_mode`` says (module docstring)."""
+    filled as ``border_mode`` says (module docstring). ``shrink``: the resize of a band shrunk
+    to its scale, ``'linear'`` or ``'area'`` (:attr:`SearchConfig.shrink
+    <fastdet.config.SearchConfig>`)."""
     h, w = frame_shape
     if border_mode not in BORDER_MODES:
         raise ValueError(f"border_mode must be one of {sorted(BORDER_MODES)}, got {border_mode!r}")
+    if shrink not in ("linear", "area"):
+        raise ValueError(f"shrink must be 'linear' or 'area', got {shrink!r}")
     pad = round(border * config.win_w * band.scale) if border > 0 else 0
     pl = pad if band.x_start is None else 0
     pr = pad if band.x_stop is None else 0
@@ -74,7 +81,7 @@ def band_geometry(band: SearchBand, frame_shape: tuple[int, int], config: Featur
     nbx, nby = sw // ppc - cpb + 1, sh // ppc - cpb + 1
     nx = (nbx - config.blocks_x) // cells_per_step + 1 if nbx >= config.blocks_x else 0
     ny = (nby - config.blocks_y) // cells_per_step + 1 if nby >= config.blocks_y else 0
-    return BandGeometry(band, x0, y0, x1, y1, sw, sh, nx, ny, cells_per_step, pl, pr, border_mode)
+    return BandGeometry(band, x0, y0, x1, y1, sw, sh, nx, ny, cells_per_step, pl, pr, border_mode, shrink)
 
 
 @dataclass(frozen=True)
@@ -126,7 +133,8 @@ def scaled_band(frame: np.ndarray, geo: BandGeometry, padded: PaddedFrame | None
             roi = cv2.copyMakeBorder(roi, 0, 0, geo.pad_left, geo.pad_right, BORDER_MODES[geo.border_mode])
     if geo.scaled_w == roi.shape[1] and geo.scaled_h == roi.shape[0]:
         return np.ascontiguousarray(roi)
-    return cv2.resize(roi, (geo.scaled_w, geo.scaled_h), interpolation=cv2.INTER_LINEAR)
+    area = geo.shrink == "area" and geo.scaled_w < roi.shape[1] and geo.scaled_h < roi.shape[0]
+    return cv2.resize(roi, (geo.scaled_w, geo.scaled_h), interpolation=cv2.INTER_AREA if area else cv2.INTER_LINEAR)
 
 
 def window_boxes(geo: BandGeometry, rows: np.ndarray, cols: np.ndarray, config: FeatureConfig) -> np.ndarray:

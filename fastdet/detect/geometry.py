@@ -35,22 +35,39 @@ the reference frame, rescaled by ``H / reference H`` to the frame).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
-from ..config import CELL, WINDOW, GeometryConfig, SearchBand, SearchConfig
+from ..config import CELL, WINDOW, FeatureConfig, GeometryConfig, SearchBand, SearchConfig
+from .bands import BandGeometry, window_boxes
+
+
+def row_thresholds(geo: BandGeometry, search: SearchConfig, config: FeatureConfig) -> np.ndarray | float:
+    """The decision value each window row of the band ``geo`` must exceed to be positive:
+    ``search.threshold`` where the window lies inside the band's core rows
+    (:attr:`~fastdet.config.SearchBand.core`), ``search.slack_threshold`` where it reaches
+    into the slack above or below them (a ``(geo.ny,)`` array); the plain ``search.threshold``
+    (a float) for a band without slack or a search without a slack threshold."""
+    core, gate = geo.band.core, search.slack_threshold
+    if core is None or gate is None or geo.ny == 0:
+        return float(search.threshold)
+    rows = np.arange(geo.ny)
+    b = window_boxes(geo, rows, np.zeros(geo.ny, np.int64), config)
+    inside = (b[:, 1] >= core[0] - 1) & (b[:, 3] <= core[1] + 1)  # to the rounding of a band's rows
+    return np.where(inside, float(search.threshold), float(gate))
 
 
 def window_bottoms(ref_first: float, ref_last: float, ref_horizon: float, horizon: float, stretch: float,
-                   slack_rows: float) -> tuple[float, float]:
+                   slack_rows: float, slack_below_rows: float | None = None) -> tuple[float, float]:
     """Rows ``(first, last)`` (frame pixels) the bottom of a window may be on: the reference
     band's window bottoms ``[ref_first, ref_last]`` (rows of a frame whose horizon is at row
     ``ref_horizon``) at the same distances below the horizon times ``stretch`` (the
-    reference ratio over the camera's) from row ``horizon``, widened by ``slack_rows`` on
-    both sides."""
+    reference ratio over the camera's) from row ``horizon``, widened by ``slack_rows`` above
+    and ``slack_below_rows`` below (``None``: ``slack_rows`` on both sides)."""
+    below = slack_rows if slack_below_rows is None else slack_below_rows
     return (horizon + (ref_first - ref_horizon) * stretch - slack_rows,
-            horizon + (ref_last - ref_horizon) * stretch + slack_rows)
+            horizon + (ref_last - ref_horizon) * stretch + below)
 
 
 def band_on_grid(scale: float, first_bottom: float, last_bottom: float, anchor: float, step: float,
@@ -84,9 +101,12 @@ def geometric_bands(frame_shape: tuple[int, int], horizon: float, ratio: float, 
     ``horizon x H`` and whose vehicles have the ``ratio`` (module docstring): each band of
     ``reference`` (rescaled to the frame as :meth:`SearchConfig.for_frame` does) searches
     the window bottoms it searches at its ``reference_horizon``, at distances below the
-    horizon stretched by ``config.reference_ratio / ratio``, plus ``config.slack``; on the
-    reference band's window grid (``window`` / ``cell``: the model's window width and HOG cell,
-    px at scale 1). Bands in frame pixels."""
+    horizon stretched by ``config.reference_ratio / ratio``, plus a slack above and below (on
+    each side the larger of ``config.slack`` and the band's own
+    :attr:`~fastdet.config.SearchBand.slack_above` / ``slack_below``; a band with slack gets the
+    rows it has without it as its ``core``); on the reference band's window grid
+    (``window`` / ``cell``: the model's window width and HOG cell, px at scale 1). Bands in
+    frame pixels."""
     h, w = (int(v) for v in frame_shape[:2])
     rh, rw = reference.reference_shape if reference.reference_shape is not None else (h, w)
     fy, fx = h / rh, w / rw
@@ -99,12 +119,19 @@ def geometric_bands(frame_shape: tuple[int, int], horizon: float, ratio: float, 
         anchor = b.y_start * fy
         n_ref = max(math.floor(((b.y_stop - b.y_start) * fy - side) / step + 1e-6), 0)
         last_ref = anchor + side + n_ref * step
-        first, last = window_bottoms(anchor + side, last_ref, reference.reference_horizon * h,
-                                     horizon * h, stretch, config.slack * h)
-        band = band_on_grid(scale, first, last, anchor, step, h,
-                            None if b.x_start is None else min(int(round(b.x_start * fx)), w),
-                            None if b.x_stop is None else min(int(round(b.x_stop * fx)), w),
-                            tail=b.y_stop * fy - last_ref, window=window)
+        up, down = (max(config.slack, v or 0.0) * h for v in (b.slack_above, b.slack_below))
+        x0 = None if b.x_start is None else min(int(round(b.x_start * fx)), w)
+        x1 = None if b.x_stop is None else min(int(round(b.x_stop * fx)), w)
+        bands = []
+        for above, below in ((up, down), (0.0, 0.0)) if up or down else ((0.0, 0.0),):  # with the slack, its core
+            first, last = window_bottoms(anchor + side, last_ref, reference.reference_horizon * h,
+                                         horizon * h, stretch, above, below)
+            bands.append(band_on_grid(scale, first, last, anchor, step, h, x0, x1,
+                                      tail=b.y_stop * fy - last_ref, window=window))
+        band = bands[0]
+        if band is not None and len(bands) == 2:
+            core = bands[1]
+            band = replace(band, core=(band.y_start, band.y_start) if core is None else (core.y_start, core.y_stop))
         if band is not None:
             out.append(band)
     if not out:
@@ -132,9 +159,14 @@ class GeometricSearch(SearchConfig):
         horizon = self.horizon if self.horizon is not None else self.reference_horizon
         ratio = self.ratio if self.ratio is not None else self.geometry.ratio
         bands = geometric_bands(frame_shape, horizon, ratio, self.geometry, self, window, cell)
-        return SearchConfig(bands=bands, cells_per_step=self.cells_per_step, threshold=self.threshold,
-                            reference_shape=None, reference_horizon=self.reference_horizon, horizon=None,
-                            border=self.border, border_mode=self.border_mode)
+        kw = {f.name: getattr(self, f.name) for f in fields(SearchConfig)}
+        kw.update(bands=bands, reference_shape=None, horizon=None)
+        return SearchConfig(**kw)
+
+    @classmethod
+    def from_search(cls, search: SearchConfig, geometry: GeometryConfig, ratio: float | None = None) -> GeometricSearch:
+        """``search`` (its bands, thresholds, horizon ...) with its bands placed from the geometry."""
+        return cls(**{f.name: getattr(search, f.name) for f in fields(SearchConfig)}, geometry=geometry, ratio=ratio)
 
     def with_ratio(self, ratio: float | None) -> GeometricSearch:
         return replace(self, ratio=ratio)

@@ -132,7 +132,7 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
           window_top: int | None = None, positives: list[Path] | None = None, truncate: float = 0.0,
           truncate_negatives: bool = True, reencode: float = 0.0, jpeg_quality: tuple[int, int] = JPEG_QUALITY,
           truncate_keep: tuple[float, float] = (MIN_KEEP, MAX_KEEP), extra_crops: CropSet | None = None,
-          log=print):
+          crop_size: int = 64, log=print):
     """Train and evaluate; returns ``(model or None, report dict)``.
 
     ``split``: ``"both"``, ``"random"``, ``"sequence"`` or ``"none"`` (no held-out evaluation).
@@ -147,7 +147,11 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
     range of the fraction of columns a truncated copy keeps).
 
     For a wide-window ``config`` (``window_height`` set), ``window_top`` is the first row of
-    the 64x64 crops that the window covers (default: centred)."""
+    the 64x64 crops that the window covers (default: centred).
+
+    ``crop_size``: the data set's crops are resized to ``crop_size`` x ``crop_size`` first
+    (``cv2.INTER_AREA``; 64: as they are): a small-window model learns from crops downscaled
+    to its window (:mod:`fastdet.train.small`)."""
     if split not in ("both", "random", "sequence", "none"):
         raise ValueError(f"split must be 'both', 'random', 'sequence' or 'none', got {split!r}")
     if extra_crops is not None and extra_crops.images.shape[1:3] != (config.win_h, config.win_w):
@@ -155,7 +159,7 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
                          f"the window is {config.win_w}x{config.win_h}")
     C = DEFAULT_C[classifier] if C is None else C
     t0 = time.perf_counter()
-    crops = load_crops(data, progress=progress)
+    crops = load_crops(data, size=crop_size, progress=progress)
     if max_per_folder:
         crops = _thin(crops, max_per_folder)
     top = (crops.images.shape[1] - config.win_h) // 2 if window_top is None else window_top
@@ -204,6 +208,7 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
         return np.concatenate(xs), np.concatenate(ys)
 
     report: dict[str, Any] = {"C": C, "classifier": classifier, "seed": seed, "flip": flip, "window_top": top,
+                              "crop_size": crop_size,
                               "augment": {"truncate": truncate, "truncate_negatives": truncate_negatives,
                                           "truncate_keep": list(truncate_keep),
                                           "reencode": reencode, "jpeg_quality": list(jpeg_quality),

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..boxes import intersection
 from ..errors import DataError
+from ..io.reader import FrameReader, read_frames_at
 
 
 @dataclass(frozen=True)
@@ -59,31 +60,29 @@ def annotated_frame_numbers(data: Path, clip: str, every: int = 5) -> list[int]:
 
 
 def read_annotated_frames(data: Path, clip: str, every: int = 5) -> list[AnnotatedFrame]:
-    """The frames :func:`annotated_frame_numbers` names, decoded, with their boxes."""
+    """The frames :func:`annotated_frame_numbers` names, decoded
+    (:func:`~fastdet.io.reader.read_frames_at`), with their boxes. A video that ends before
+    its last annotated frame is a :class:`~fastdet.errors.DataError`."""
     data = Path(data)
     rows = np.loadtxt(data / "annotations" / f"{clip}.gt.txt", delimiter=",", ndmin=2)
     wanted = annotated_frame_numbers(data, clip, every)
     video = data / "videos" / f"{clip}.mp4"
-    cap = cv2.VideoCapture(str(video))
-    if not cap.isOpened():
-        raise DataError(f"{video}: cannot open the video")
-    out, want, n = [], set(wanted), 0
-    try:
-        while n < max(wanted):
-            ok, image = cap.read()
-            if not ok:
-                break
-            n += 1
-            if n not in want:
-                continue
-            r = rows[rows[:, 0] == n]
-            xyxy = np.c_[r[:, 2], r[:, 3], r[:, 2] + r[:, 4], r[:, 3] + r[:, 5]].reshape(-1, 4)
-            out.append(AnnotatedFrame(clip, n, image, xyxy[r[:, 6] == 1], xyxy[r[:, 6] == 0]))
-    finally:
-        cap.release()
-    if len(out) != len(wanted):
-        raise DataError(f"{video}: ends after {n} frames, before annotated frame {max(wanted)}")
+    images = read_frames_at(video, wanted)
+    if len(images) != len(wanted):
+        raise DataError(f"{video}: ends after {_frames_in(video)} frames, before annotated frame {max(wanted)}")
+    out = []
+    for n in wanted:
+        r = rows[rows[:, 0] == n]
+        xyxy = np.c_[r[:, 2], r[:, 3], r[:, 2] + r[:, 4], r[:, 3] + r[:, 5]].reshape(-1, 4)
+        out.append(AnnotatedFrame(clip, n, images[n], xyxy[r[:, 6] == 1], xyxy[r[:, 6] == 0]))
     return out
+
+
+def _frames_in(video: Path) -> int:
+    """The number of the last frame of ``video`` that decodes (for the message of a video
+    shorter than its annotation; decodes it again)."""
+    with FrameReader(video, notify=lambda _: None) as reader:
+        return max((number for number, _, _ in reader), default=0)
 
 
 def window_around(box: np.ndarray, win_w: int, win_h: int, margin: float) -> np.ndarray:

@@ -113,6 +113,23 @@ def focus_of_expansion(prev: np.ndarray, cur: np.ndarray, work_rows: int = WORK_
     return float(x), float(y)
 
 
+def _segment_row(grey: np.ndarray, height: int) -> float | None:
+    """The row of :func:`~fastdet.video.vanishing.vanishing_point` (fraction of the height) of a
+    frame ``height`` rows high, from its grey work frame (:func:`_grey` at ``min(WORK_ROWS,
+    height)`` rows, the picture the vanishing point shrinks the frame to): the same value as
+    ``vanishing_point(frame)[1] / height``, with the same arithmetic."""
+    v = vanishing_point(grey)
+    return None if v is None else v[1] / (grey.shape[0] / height) / height
+
+
+def median_flow(prev: np.ndarray, cur: np.ndarray, work_rows: int = WORK_ROWS) -> float:
+    """How far the scene moved from ``prev`` to ``cur`` (two ``(H, W, 3) uint8`` frames): the
+    median length of the optical flow of the corners tracked as in :func:`focus_of_expansion`,
+    in px of the frames shrunk to ``min(work_rows, H)`` rows; 0 when too few corners are found."""
+    rows = min(work_rows, prev.shape[0])
+    return _flow_foe(_grey(prev, rows)[0], _grey(cur, rows)[0])[1]
+
+
 class HorizonEstimator:
     """The horizon of a video from its frames so far (module docstring).
 
@@ -128,6 +145,11 @@ class HorizonEstimator:
     fewer pairs while ``max_pairs`` frames gave a vanishing point -- fall back on the
     vanishing point of the line segments of the same frames (:attr:`segment_rows`; spread at
     most ``max_spread``); ``False``: the flow only.
+
+    The frames the fallback may need (one in ``every`` while the flow has no estimate) are kept
+    grey at :data:`WORK_ROWS` rows, and their line segments are found only when an answer
+    depends on them (the flow's pairs disagree, or as many frames as could reach
+    ``max_pairs``): a video whose flow gives its estimate never runs the segment detector.
     """
 
     def __init__(self, gap: int = GAP, every: int = 3, min_pairs: int = MIN_PAIRS,
@@ -142,7 +164,8 @@ class HorizonEstimator:
         self.segments = segments
         self.target_flow, self.max_gap = target_flow, max_gap
         self.rows: list[float] = []  # FOE row of each pair, fraction of the height
-        self.segment_rows: list[float] = []  # vanishing-point row of each frame measured, fraction of the height
+        self._segment_rows: list[float] = []  # vanishing-point row of each frame measured, fraction of the height
+        self._pending: list[tuple[np.ndarray, int]] = []  # frames not measured yet: grey at WORK_ROWS, height
         self.pair_gap = gap  # frames between the two frames of the next pair
         self._flow_per_frame: list[float] = []  # median flow of each pair over its gap (work px a frame)
         self._recent: list[np.ndarray] = []  # the last frames, grey at WORK_ROWS
@@ -154,17 +177,40 @@ class HorizonEstimator:
             return
         measure = self._n % self.every == 0
         flow_wanted = len(self.rows) < self.max_pairs
+        grey = None
         if flow_wanted:
             grey, _ = _grey(frame, min(WORK_ROWS, frame.shape[0]))
             self._recent.append(grey)
             del self._recent[:-(self.max_gap + 1)]
         if measure and flow_wanted and len(self._recent) > self.pair_gap:
             self._measure_flow(self._recent[-1 - self.pair_gap], self._recent[-1])
-        if measure and self.segments and len(self.segment_rows) < self.max_pairs and self._flow() is None:
-            v = vanishing_point(frame)
-            if v is not None:
-                self.segment_rows.append(v[1] / frame.shape[0])
+        if measure and self.segments and self._flow() is None and self._fewer_segments(self.max_pairs):
+            if grey is None:
+                grey, _ = _grey(frame, min(WORK_ROWS, frame.shape[0]))
+            self._pending.append((grey, frame.shape[0]))
         self._n += 1
+
+    @property
+    def segment_rows(self) -> list[float]:
+        """The vanishing-point row (fraction of the height) of each frame measured for the
+        fallback that gave one, in order (measures the frames kept for it now)."""
+        self._measure_segments()
+        return self._segment_rows
+
+    def _measure_segments(self) -> None:
+        for grey, height in self._pending:
+            row = _segment_row(grey, height)
+            if row is not None:
+                self._segment_rows.append(row)
+        self._pending.clear()
+
+    def _fewer_segments(self, n: int) -> bool:
+        """Fewer than ``n`` frames gave a vanishing point (the kept frames are measured only
+        when they could make it ``n``)."""
+        if len(self._segment_rows) + len(self._pending) < n:
+            return True
+        self._measure_segments()
+        return len(self._segment_rows) < n
 
     def _measure_flow(self, g0: np.ndarray, g1: np.ndarray) -> None:
         foe, median = _flow_foe(g0, g1)
@@ -196,7 +242,7 @@ class HorizonEstimator:
         ``segments``) they disagree and ``max_pairs`` frames gave a vanishing point."""
         if len(self.rows) < self.max_pairs:
             return False
-        return not self.segments or self._flow() is not None or len(self.segment_rows) >= self.max_pairs
+        return not self.segments or self._flow() is not None or not self._fewer_segments(self.max_pairs)
 
     def _median(self, rows: list[float]) -> float | None:
         if len(rows) < self.min_pairs:
@@ -214,7 +260,7 @@ class HorizonEstimator:
         # only once the flow has had its say: its pairs disagree, or it gave too few pairs
         # while max_pairs frames gave a vanishing point (a camera standing still), so that a
         # video whose flow is fine does not see its bands jump to the segments' row first
-        if not self.segments or (len(self.rows) < self.min_pairs and len(self.segment_rows) < self.max_pairs):
+        if not self.segments or (len(self.rows) < self.min_pairs and self._fewer_segments(self.max_pairs)):
             return None
         return self._median(self.segment_rows)
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from dataclasses import replace
 from functools import lru_cache
 from typing import NamedTuple
 
@@ -159,7 +160,7 @@ def moving_bands(geo: BandGeometry, config: FeatureConfig, motion: MotionMap,
         # whole cells wide: when a cell is a whole number of pixels (every default wide
         # scale), the sub-band resamples exactly as the full band does
         x_b = x_a + math.ceil(((c1 - c0) * geo.step + win_cells) * cell_px - 1e-9)
-        out.append(SearchBand(b.scale, b.y_start, b.y_stop, x_a, min(x_b, geo.x1)))
+        out.append(replace(b, x_start=x_a, x_stop=min(x_b, geo.x1)))  # its rows and their core kept
     return out
 
 

@@ -52,9 +52,7 @@ class PerspectiveUpdater:
         """Make the main search geometric, at the prior (the detector's horizon as it is now)."""
         s = self._search()
         if not isinstance(s, GeometricSearch):
-            fields = ("bands", "cells_per_step", "threshold", "reference_shape", "reference_horizon", "horizon",
-                      "border", "border_mode")
-            s = GeometricSearch(**{f: getattr(s, f) for f in fields}, geometry=self.config.geometry)
+            s = GeometricSearch.from_search(s, self.config.geometry)
             self._set_search(s)
         self.prior = self._horizon(s)
         self._applied = s.horizon

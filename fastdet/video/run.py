@@ -19,6 +19,7 @@ from .detector import WindowDetector, make_detector
 from .horizon import HORIZON_FRAMES
 from .offline import offline_pass
 from .pipeline import VideoDetector
+from .plausible import PlausibleStage
 
 #: most bytes of frames :func:`video_detector_for` keeps to estimate the horizon from the
 #: run's own reader (75 frames of 1280x720: 207 MB); for larger frames the first seconds are
@@ -75,6 +76,30 @@ def video_detector_for(reader: FrameReader, detector: WindowDetector,
     return vd
 
 
+def defer_plausible(vd: VideoDetector) -> None:
+    """Before the first frame of a run with the offline pass: the plausibility stage lets every
+    box through, so that :func:`offline_boxes` applies its rules after the pass."""
+    st = vd.stage(PlausibleStage)
+    if isinstance(st, PlausibleStage):
+        st.deferred = True
+
+
+def offline_boxes(vd: VideoDetector, done: list[tuple[int, Detections]],
+                  frame_shape: tuple[int, ...]) -> list[tuple[int, Detections]]:
+    """The offline pass (:func:`~fastdet.video.offline.offline_pass`) over the boxes ``vd``
+    returned for every frame (``done``), then the rules of its plausibility stage when
+    :func:`defer_plausible` deferred them (a box they drop before the pass leaves a gap in its
+    track that the pass fills again). Needs the tracker."""
+    if vd.tracker is None:
+        raise ValueError("the offline pass needs the tracker")
+    final = offline_pass(done, frame_shape, vd.tracker.config)
+    st = vd.stage(PlausibleStage)
+    if isinstance(st, PlausibleStage) and st.deferred:
+        hw = (int(frame_shape[0]), int(frame_shape[1]))
+        final = [(fno, st.filter(d, hw)) for fno, d in final]
+    return final
+
+
 def iter_video_detections(path: str | os.PathLike, config: PipelineConfig | None = None, *, start: int = 0,
                           frames: int | None = None, progress: bool = True, detector: WindowDetector | None = None,
                           offline: bool = False) -> Iterator[tuple[int, Detections]]:
@@ -100,6 +125,8 @@ def iter_video_detections(path: str | os.PathLike, config: PipelineConfig | None
         if detector is None:
             detector = make_detector(config)
         vd = video_detector_for(reader, detector, config)
+        if offline:
+            defer_plausible(vd)
         vd.warmup()
         done: list[tuple[int, Detections]] = []
         with progress_bar(reader.expected, progress, os.path.basename(reader.path)) as bar:
@@ -114,5 +141,4 @@ def iter_video_detections(path: str | os.PathLike, config: PipelineConfig | None
     finally:
         reader.close()
     if offline:
-        assert vd.tracker is not None
-        yield from offline_pass(done, shape, vd.tracker.config)
+        yield from offline_boxes(vd, done, shape)

@@ -13,11 +13,14 @@ In the order they run (:func:`build_stages`; a stage whose setting is off is lef
 ``heatmap``      the main heat map's boxes (:class:`HeatStage`)
 ``split``        wide boxes split between vehicles side by side (:class:`SplitStage`; off by default)
 ``components``   the components' heat map's boxes where the main one found none (:class:`ComponentStage`)
+``small``        the small-vehicle component's heat map's boxes the main model does not reject, where none
+                 was found (:class:`ComponentStage`, :class:`~fastdet.video.small.MainModelCheck`; off by default)
 ``fusion``       the oncoming heat map's boxes where the main one found none (:class:`FusionStage`)
 ``weak``         the weak blobs the tracker may keep a track alive with (:class:`WeakStage`)
 ``track``        track ids (:class:`TrackStage`)
 ``clip``         the tracker's filtered boxes clipped to the frame (:class:`ClipStage`)
 ``refine``       the learned box refinement (:class:`RefineStage`)
+``plausible``    drop the returned boxes that cannot be vehicles (:class:`PlausibleStage`)
 ``perspective``  the tracked boxes move the main search (:class:`PerspectiveStage`; off by default)
 ``observe``      tell the guided search what this frame found (:class:`ObserveStage`)
 ===============  ===========================================================================
@@ -34,6 +37,7 @@ from __future__ import annotations
 
 from ..config import GuidedSearch, PipelineConfig
 from ..detect import Detector
+from ..detections import FIRST_COMPONENT_PART
 from .blobsplit import SplitStage
 from .box_stages import (
     ClipStage,
@@ -45,19 +49,21 @@ from .box_stages import (
     TrackStage,
     WeakStage,
 )
-from .detector import ColumnSearch, MovableHorizon, WindowDetector
+from .detector import ColumnSearch, MovableHorizon, WindowDetector, small_part
 from .guided import SearchPlanner
 from .ownvehicle import OwnVehicleStage
 from .perspective import PerspectiveStage, PerspectiveUpdater
+from .plausible import PlausibleStage
 from .refine import BoxRegressor
 from .search_stages import DetectStage, GateStage, HorizonStage, MotionStage, PlanStage
+from .small import MainModelCheck
 from .state import FrameDebug, FrameState, Stage, TrackView
 from .track import Tracker
 
 __all__ = ["ClipStage", "ComponentStage", "DetectStage", "FrameDebug", "FrameState", "FusionStage", "GateStage",
            "HeatStage", "HorizonStage", "MotionStage", "ObserveStage", "OwnVehicleStage", "PerspectiveStage",
-           "PlanStage", "RefineStage", "SplitStage", "Stage", "TrackStage", "TrackView", "WeakStage", "build_stages",
-           "planner_for"]
+           "PlausibleStage", "PlanStage", "RefineStage", "SplitStage", "Stage", "TrackStage", "TrackView",
+           "WeakStage", "build_stages", "planner_for"]
 
 
 def planner_for(config: PipelineConfig, detector: WindowDetector) -> SearchPlanner | None:
@@ -98,8 +104,19 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
     stages.append(heat[0])
     if config.split is not None:  # on the main heat map's boxes, before the others are added
         stages.append(SplitStage(config.split))
-    if getattr(detector, "components", None):
-        heat.append(ComponentStage(detector, config.side_heat))
+    components = getattr(detector, "components", None)
+    if components:
+        small = small_part(config, detector)
+        if small is None:
+            heat.append(ComponentStage(detector, config.side_heat))
+        else:
+            others = tuple(p for p in range(FIRST_COMPONENT_PART, FIRST_COMPONENT_PART + len(components)) if p != small)
+            if others:
+                heat.append(ComponentStage(detector, config.side_heat, others))
+            check = None
+            if config.small_check is not None and isinstance(detector, Detector):
+                check = MainModelCheck(detector.model, config.small_check)
+            heat.append(ComponentStage(detector, config.small_heat, (small,), name="small", check=check))
     if oncoming:
         heat.append(FusionStage(detector, config.oncoming_heat))
     stages += heat[1:]
@@ -109,6 +126,9 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
             stages.append(ClipStage())
     if regressor is not None and config.refine is not None:
         stages.append(RefineStage(regressor, config.refine))
+    if config.plausible is not None:
+        stages.append(PlausibleStage(config.plausible,
+                                     (lambda: detector.horizon) if isinstance(detector, MovableHorizon) else None))
     if config.perspective is not None and tracker is not None and config.horizon is not None \
             and isinstance(detector, Detector):
         stages.append(PerspectiveStage(PerspectiveUpdater(detector, config.perspective)))

@@ -126,7 +126,8 @@ def test_search_config_keeps_bands_as_a_tuple():
 def test_for_frame_rescales_rows_columns_and_scales():
     cfg = SearchConfig(bands=(SearchBand(1.0, 400, 496), SearchBand(2.0, 380, 700, 100, 1200)), threshold=0.3)
     assert cfg.for_frame((720, 1280)) is cfg
-    assert SearchConfig(reference_shape=None).for_frame((100, 100)).bands == SearchConfig().bands
+    pixels = SearchConfig(bands=cfg.bands, reference_shape=None)
+    assert pixels.for_frame((100, 100)).bands == cfg.bands  # bands in pixels, without slack: as given
     half = cfg.for_frame((360, 640))
     assert half.bands == (SearchBand(0.5, 200, 248), SearchBand(1.0, 190, 350, 50, 600))
     assert (half.threshold, half.cells_per_step, half.reference_shape) == (0.3, 2, None)

@@ -1,9 +1,12 @@
 """The default searches: oncoming traffic on either side of the road, small windows near the horizon."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 
-from fastdet.config import ONCOMING_SEARCH, REFERENCE_HORIZON, SearchConfig, oncoming_search
+from fastdet.config import ONCOMING_SEARCH, REFERENCE_HORIZON, SearchBand, SearchConfig, oncoming_search
+from fastdet.config.search import BAND_SLACK, SLACK_THRESHOLD
 
 
 def test_wide_search_sides():
@@ -59,3 +62,78 @@ def test_large_search_keeps_every_band_on_the_annotated_frame_sizes(shape):
     for b, ref in zip(bands, LARGE_SEARCH.bands):
         assert b.scale == pytest.approx(ref.scale * f)
         assert 0 <= b.y_start and b.y_stop <= shape[0] and b.y_stop - b.y_start >= 64 * b.scale - 1
+
+
+def _without_slack(search: SearchConfig) -> SearchConfig:
+    return replace(search, bands=tuple(replace(b, slack_above=None, slack_below=None) for b in search.bands))
+
+
+def _tops(band: SearchBand) -> set[float]:
+    """Frame rows of the window tops of ``band`` (main model: 64-px windows two 8-px cells apart)."""
+    side, step = 64 * band.scale, 16 * band.scale
+    n = int((band.y_stop - band.y_start - side) // step + 1e-6) + 1
+    return {round(band.y_start + k * step, 3) for k in range(max(n, 0))}
+
+
+def _covered(tops: set[float], searched: set[float]) -> bool:
+    """Every row of ``tops`` is within a pixel of a row of ``searched`` (bands start on whole rows)."""
+    return all(any(abs(t - u) <= 1 for u in searched) for t in tops)
+
+
+@pytest.mark.parametrize("shape", [(720, 1280), (360, 640), (450, 800), (540, 960), (1080, 1920)])
+def test_default_bands_search_a_slack_above_on_their_grid(shape):
+    """Every default band but the 48-px one also searches BAND_SLACK of the height above its
+    rows (the nearest whole window steps), and keeps its rows without slack as its core."""
+    cfg = SearchConfig()
+    smallest = min(b.scale for b in cfg.bands)
+    for b in cfg.bands:
+        assert (b.slack_above, b.slack_below) == ((None, None) if b.scale == smallest else (BAND_SLACK, None))
+    assert cfg.slack_threshold == SLACK_THRESHOLD > cfg.threshold
+    bare = _without_slack(cfg).for_frame(shape).bands
+    for b, n in zip(cfg.for_frame(shape).bands, bare):
+        step = 16 * b.scale
+        assert b.scale == n.scale and b.y_stop == n.y_stop
+        if b.scale == smallest * shape[0] / 720:
+            assert b == n and b.core is None
+            continue
+        assert b.core == (n.y_start, n.y_stop)
+        assert (n.y_start - b.y_start) == pytest.approx(round(BAND_SLACK * shape[0] / step) * step, abs=1)
+        assert _covered(_tops(n), _tops(b))
+
+
+@pytest.mark.parametrize("shape", [(720, 1280), (360, 640), (540, 960)])
+@pytest.mark.parametrize("error", [0.0, 0.01, 0.02, 0.025])
+def test_slack_above_keeps_the_windows_of_a_horizon_set_too_low(shape, error):
+    """Bands placed from a horizon ``error`` of the height too low in the picture still search
+    (to the row rounding of the grid) every window the bands at the true horizon search
+    without slack, in every band whose slack rows exceed the error by half a window step (a
+    band moves with the horizon by the nearest whole number of steps)."""
+    true = 0.55
+    right = _without_slack(replace(SearchConfig(), horizon=true)).for_frame(shape).bands
+    off = replace(SearchConfig(), horizon=true + error).for_frame(shape).bands
+    checked = 0
+    for r, o in zip(right, off):
+        assert r.scale == o.scale
+        step = 16 * o.scale
+        if o.core is None or o.core[0] - o.y_start < error * shape[0] + step / 2 - 1:
+            continue  # the 48-px band (no slack), or a window step too coarse for this error
+        assert _covered({t for t in _tops(r) if t + 64 * r.scale <= o.y_stop}, _tops(o)), (r, o)
+        checked += 1
+    assert checked >= (5 if error <= 0.01 else 1)
+
+
+def test_band_slack_checks_and_dicts():
+    with pytest.raises(ValueError, match="slack_above"):
+        SearchBand(1.0, 400, 496, slack_above=1.5)
+    with pytest.raises(ValueError, match="slack_below"):
+        SearchBand(1.0, 400, 496, slack_below=-0.1)
+    with pytest.raises(ValueError, match="core"):
+        SearchBand(1.0, 400, 496, core=(450, 420))
+    with pytest.raises(ValueError, match="slack_threshold"):
+        SearchConfig(slack_threshold=float("inf"))
+    plain = SearchBand(1.0, 400, 496)
+    assert "slack_above" not in plain.to_dict() and "core" not in plain.to_dict()  # old dicts read back the same
+    cfg = SearchConfig()
+    assert SearchConfig.from_dict(cfg.to_dict()) == cfg
+    framed = cfg.for_frame((360, 640))
+    assert SearchConfig.from_dict(framed.to_dict()) == framed and framed.for_frame((360, 640)) == framed

@@ -96,3 +96,35 @@ def test_shared_padded_frame_gives_the_same_scaled_bands(frame, detector, mode):
         assert not (g.pad_left or g.pad_right) or padded.covers(g)
         np.testing.assert_array_equal(scaled_band(frame, g, padded), scaled_band(frame, g))
     assert pad_frame(frame, geos[:1]) is None
+
+
+@pytest.mark.parametrize("scale", [1.25, 1.75, 2.0, 0.75])
+def test_area_shrink_is_inter_area_of_the_band(frame, scale):
+    from fastdet.config import SMALL_FEATURES, SearchConfig
+    from fastdet.model import Model
+
+    band = SearchBand(scale, 380, 380 + int(48 * scale))
+    geo = band_geometry(band, frame.shape[:2], SMALL_FEATURES, 1, shrink="area")
+    lin = band_geometry(band, frame.shape[:2], SMALL_FEATURES, 1)
+    assert (geo.shrink, lin.shrink) == ("area", "linear")
+    roi = frame[geo.y0: geo.y1, geo.x0: geo.x1]
+    got = scaled_band(frame, geo)
+    # shrunk: the mean of the pixels each scaled pixel covers; enlarged: INTER_LINEAR as before
+    interp = cv2.INTER_AREA if scale > 1 else cv2.INTER_LINEAR
+    np.testing.assert_array_equal(got, cv2.resize(roi, (geo.scaled_w, geo.scaled_h), interpolation=interp))
+    np.testing.assert_array_equal(scaled_band(frame, lin),
+                                  cv2.resize(roi, (geo.scaled_w, geo.scaled_h), interpolation=cv2.INTER_LINEAR))
+    if scale > 1 and scale != int(scale):  # (at a whole factor INTER_LINEAR is the area mean too)
+        assert not np.array_equal(got, scaled_band(frame, lin))
+    with pytest.raises(ValueError, match="shrink"):
+        band_geometry(band, frame.shape[:2], SMALL_FEATURES, 1, shrink="cubic")
+    # the Detector scores an area-shrunk band as the classic per-window pipeline does
+    rng = np.random.default_rng(0)
+    n = SMALL_FEATURES.n_features
+    model = Model(SMALL_FEATURES, rng.normal(size=n) * 0.01, -0.2, rng.normal(size=n), rng.uniform(0.5, 2.0, n))
+    narrow = SearchBand(scale, band.y_start, band.y_stop, None, 320)  # the left edge, past it too
+    det = Detector(model, SearchConfig(bands=(narrow,), cells_per_step=1, shrink="area", border=0.25))
+    (g,) = det.geometries(frame.shape[:2])
+    assert g.shrink == "area" and g.pad_left > 0
+    np.testing.assert_allclose(det.band_scores(frame, g), classic_band_scores(frame, g, model, sklearn_pair(model)),
+                               rtol=0, atol=1e-6)

@@ -1,6 +1,8 @@
 """The dense scores of every window equal the classic per-window pipeline; boxes land on cars."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import cv2
 import numpy as np
 import pytest
@@ -71,8 +73,15 @@ def test_detect_boxes_and_scores(frames):
     np.testing.assert_array_equal(d.boxes[:, 2] - d.boxes[:, 0], (64 * d.scale).astype(np.int32))
     assert set(stats.timings) == {"resize_colour", "hog", "score"}
     assert [g.band for _, g, _ in stats.bands] == [g.band for g in det.geometries(frames[0].shape[:2])]
-    # the positive windows are those of the recorded decision values above the threshold
-    n_pos = sum(int((dec > det.search.threshold).sum()) for _, _, dec in stats.bands)
+    # the positive windows are those of the recorded decision values above the threshold (above
+    # the slack threshold where a window reaches into its band's slack rows)
+    n_pos = 0
+    for _, g, dec in stats.bands:
+        tops = g.y0 + np.arange(g.ny) * g.step * 8 * g.band.scale
+        core = g.band.core if g.band.core is not None else (g.y0, g.y1)
+        inside = (tops >= core[0] - 1) & (tops + 64 * g.band.scale <= core[1] + 1)
+        thr = np.where(inside, det.search.threshold, det.search.slack_threshold)
+        n_pos += int((dec > thr[:, None]).sum())
     assert n_pos == len(d)
     rgb = det.detect(np.ascontiguousarray(frames[0][:, :, ::-1]), rgb=True)
     np.testing.assert_array_equal(rgb.boxes, d.boxes)
@@ -103,7 +112,8 @@ def test_bad_frames(frame, msg):
 
 
 def test_bands_in_pixels_must_fit_the_frame():
-    search = SearchConfig(reference_shape=None)
+    bands = tuple(replace(b, slack_above=None) for b in SearchConfig().bands)  # slack bands are clipped
+    search = SearchConfig(bands=bands, reference_shape=None)
     with pytest.raises(ValueError, match="does not fit"):
         Detector(search=search).detect(np.zeros((300, 400, 3), np.uint8))
 
@@ -115,8 +125,10 @@ def test_other_frame_sizes_get_rescaled_bands(frames):
     big = cfg.for_frame((1080, 1920))
     assert [b.scale for b in big.bands] == [1.5 * b.scale for b in cfg.bands]
     one = next(b for b in big.bands if b.scale == 1.5)  # the 64-px band at y 400..496 of 720 rows
-    assert (one.y_start, one.y_stop) == (600, 744)
-    assert cfg.for_frame((720, 1280)) is cfg
+    assert one.core == (600, 744) and one.y_stop == 744
+    assert one.y_start == 600 - 24  # its slack above: 0.03 of 1080 rows is about one 24-row window step
+    framed = cfg.for_frame((720, 1280))
+    assert framed.for_frame((720, 1280)) is framed
     det = Detector()
     for size in ((1920, 1080), (640, 360)):
         frame = cv2.resize(frames[0], size, interpolation=cv2.INTER_AREA)

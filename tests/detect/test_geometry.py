@@ -17,6 +17,7 @@ from fastdet.detect.geometry import (
     RatioEstimator,
     band_on_grid,
     geometric_bands,
+    row_thresholds,
     window_bottoms,
 )
 
@@ -62,6 +63,13 @@ def test_band_on_grid_covers_the_bottoms_on_the_grid(scale, anchor, first, width
 def test_window_bottoms():
     lo, hi = window_bottoms(450, 500, 420, 380, 0.5, 10)
     assert lo == pytest.approx(380 + 30 * 0.5 - 10) and hi == pytest.approx(380 + 80 * 0.5 + 10)
+    lo, hi = window_bottoms(450, 500, 420, 380, 0.5, 10, 0)
+    assert lo == pytest.approx(380 + 30 * 0.5 - 10) and hi == pytest.approx(380 + 80 * 0.5)
+
+
+def no_slack(search: SearchConfig) -> SearchConfig:
+    """``search`` with no band slack of its own (the reference bands as they were written)."""
+    return replace(search, bands=tuple(replace(b, slack_above=None, slack_below=None) for b in search.bands))
 
 
 @pytest.mark.parametrize("shape", [(720, 1280), (360, 640), (450, 800), (540, 960), (1080, 1920)])
@@ -85,7 +93,7 @@ def _rows(bands, shape):
 def test_slack_loses_no_window_when_the_horizon_is_off(shape, shift):
     """The bands placed from a horizon ``shift`` away (of the height) with a slack of 0.05
     search every window the bands at the true horizon without slack search."""
-    ref = SearchConfig()
+    ref = no_slack(SearchConfig())
     true = 0.55
     exact = geometric_bands(shape, true, 1.9, GeometryConfig(slack=0.0), ref)
     off = geometric_bands(shape, true + shift, 1.9, GeometryConfig(slack=0.05), ref)
@@ -146,6 +154,9 @@ def test_a_horizon_near_the_top_or_bottom():
 
 def test_geometric_search_follows_horizon_and_ratio():
     s = GeometricSearch()
+    area = GeometricSearch.from_search(replace(SearchConfig(), shrink="area", slack_threshold=3.0), s.geometry, 2.0)
+    framed = area.for_frame((720, 1280))
+    assert (area.ratio, framed.shrink, framed.slack_threshold) == (2.0, "area", 3.0)  # every field carried
     f = s.for_frame((720, 1280))
     assert type(f) is SearchConfig and f.reference_shape is None and f.horizon is None
     assert f.bands == geometric_bands((720, 1280), s.reference_horizon, s.geometry.ratio, s.geometry, s)
@@ -164,13 +175,75 @@ def test_detector_searches_the_geometric_bands(test_images):
     from fastdet.detect import DetectStats
 
     frame = cv2.imread(str(test_images[0]))
-    det = Detector(search=GeometricSearch())
+    det = Detector(search=GeometricSearch.from_search(no_slack(SearchConfig()), GeometryConfig()))
     det.set_horizon(0.5)
     assert det.horizon == 0.5 and isinstance(det.scorers[0].search, GeometricSearch)
     stats = DetectStats()
     det.detect(frame, stats=stats)
-    want = geometric_bands(frame.shape[:2], 0.5, GeometryConfig().ratio, GeometryConfig(), SearchConfig())
+    want = geometric_bands(frame.shape[:2], 0.5, GeometryConfig().ratio, GeometryConfig(), no_slack(SearchConfig()))
     assert [g.band for _, g, _ in stats.bands] == list(want)
+
+
+@pytest.mark.parametrize("shape", [(720, 1280), (360, 640), (540, 960)])
+def test_geometric_bands_keep_the_bands_own_slack_and_their_core(shape):
+    """The default bands' own slack above: at the reference horizon and ratio, the geometric
+    bands are the plain search's, core included; a larger geometric slack widens both sides
+    and keeps the rows without slack as the core."""
+    plain = SearchConfig().for_frame(shape).bands
+    assert any(b.core is not None and b.y_start < b.core[0] for b in plain)
+    assert GeometricSearch(geometry=GeometryConfig(slack=0.0)).for_frame(shape).bands == plain
+    wide = GeometricSearch(geometry=GeometryConfig(slack=0.05)).for_frame(shape).bands
+    bare = GeometricSearch.from_search(no_slack(SearchConfig()), GeometryConfig(slack=0.0)).for_frame(shape)
+    for w, b in zip(wide, bare.bands):
+        assert w.scale == b.scale and w.core == (b.y_start, b.y_stop)
+        assert w.y_start < b.y_start and (w.y_stop > b.y_stop or w.y_stop == shape[0])
+
+
+def test_row_thresholds_gate_only_the_windows_reaching_into_the_slack():
+    band = SearchBand(1.0, 376, 496, core=(400, 496))  # 24 rows of slack above, windows 16 rows apart
+    geo = band_geometry(band, (720, 1280), CFG, 2)
+    search = SearchConfig(bands=(band,), reference_shape=None, threshold=0.5, slack_threshold=2.0)
+    thr = row_thresholds(geo, search, CFG)
+    tops = window_rows(band, (720, 1280))[:, 0]
+    assert len(thr) == geo.ny == len(tops)
+    np.testing.assert_array_equal(thr, np.where(tops >= 399, 0.5, 2.0))
+    assert row_thresholds(geo, replace(search, slack_threshold=None), CFG) == 0.5
+    assert row_thresholds(band_geometry(replace(band, core=None), (720, 1280), CFG, 2), search, CFG) == 0.5
+
+
+def test_detector_needs_the_slack_threshold_in_the_slack_rows(test_images):
+    """Detector.detect's positive windows, against the obvious rule applied to every window's
+    decision value: above ``threshold`` inside a band's core rows, above ``slack_threshold``
+    where the window reaches into its slack."""
+    import cv2
+
+    from fastdet import Detector
+    from fastdet.detect import DetectStats
+    from fastdet.detect.bands import window_boxes
+
+    frame = cv2.imread(str(test_images[0]))
+    search = replace(SearchConfig(), horizon=0.6, slack_threshold=5.0)  # cars in the slack rows of some bands
+    det = Detector(search=search, oncoming=None)
+    stats = DetectStats()
+    got = det.detect(frame, stats=stats)
+    want, gated, kept = [], 0, 0
+    for _, geo, dec in stats.bands:
+        for i in range(geo.ny):
+            for j in range(geo.nx):
+                box = window_boxes(geo, np.array([i]), np.array([j]), det.config)[0]
+                core = geo.band.core
+                slack = core is not None and not (core[0] - 1 <= box[1] and box[3] <= core[1] + 1)
+                if dec[i, j] > (5.0 if slack else search.threshold):
+                    want.append((*box.tolist(), float(dec[i, j])))
+                    kept += slack
+                elif dec[i, j] > search.threshold:
+                    gated += 1
+    assert gated > 0 and kept > 0  # the gate dropped some windows in the slack rows and kept others
+    have = sorted((*b.tolist(), float(v)) for b, v in zip(got.boxes, got.scores))
+    assert len(have) == len(want)
+    for h, w in zip(have, sorted(want)):
+        score = 1 / (1 + np.exp(-w[4])) if det.score_kind == "probability" else w[4]
+        assert h[:4] == w[:4] and h[4] == pytest.approx(score, rel=1e-5)
 
 
 def test_ratio_estimator():

@@ -2,12 +2,16 @@
 aspect, negatives that never touch an annotated box."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fastdet.boxes import intersection
+from fastdet.errors import DataError
+from fastdet.io.reader import read_frames
 from fastdet.train.keyframes import (
     AnnotatedFrame,
     annotated_frame_numbers,
@@ -19,6 +23,7 @@ from fastdet.train.keyframes import (
     read_annotated_frames,
     window_around,
 )
+from tests.media import write_video
 
 
 def _frame(targets, ignores=(), shape=(120, 200), seed=0):
@@ -98,3 +103,39 @@ def test_real_keyframe_clip_frames_and_boxes(data):
     np.testing.assert_allclose(f.targets, np.c_[r[:, 2], r[:, 3], r[:, 2] + r[:, 4], r[:, 3] + r[:, 5]])
     assert f.image.shape == (450, 800, 3) and f.image.dtype == np.uint8
     assert len(f.ignores) == int(((rows[:, 0] == f.frame) & (rows[:, 6] == 0)).sum())
+
+
+def _clip(root: Path, frames: int, keyframes: list[int]) -> Path:
+    """A data folder with one keyframe clip ``c``: a ``frames``-frame video, one target box on
+    each of ``keyframes`` and an ignore region on the first."""
+    (root / "videos").mkdir(parents=True)
+    (root / "annotations").mkdir()
+    write_video(root / "videos" / "c.mp4", frames)
+    lines = [f"{k},1,{10 + k},20,40,30,1,-1,-1" for k in keyframes] + [f"{keyframes[0]},2,200,100,50,40,0,-1,-1"]
+    (root / "annotations" / "c.gt.txt").write_text("\n".join(lines) + "\n")
+    (root / "annotations" / "c.frames").write_text(" ".join(map(str, keyframes)) + "\n")
+    return root
+
+
+def test_annotated_frames_are_the_videos_frames_with_their_boxes(tmp_path):
+    data = _clip(tmp_path, 12, [3, 7, 12])
+    every = read_frames(data / "videos" / "c.mp4")
+    got = read_annotated_frames(data, "c")
+    assert [f.frame for f in got] == [3, 7, 12]
+    for f in got:
+        np.testing.assert_array_equal(f.image, every[f.frame - 1])
+        np.testing.assert_array_equal(f.targets, [[10 + f.frame, 20, 50 + f.frame, 50]])
+    assert got[0].ignores.tolist() == [[200, 100, 250, 140]] and got[1].ignores.shape == (0, 4)
+
+
+def test_a_video_that_ends_before_its_last_keyframe_is_one_clear_error(tmp_path):
+    data = _clip(tmp_path, 12, [3, 7, 15])
+    with pytest.raises(DataError) as err:
+        read_annotated_frames(data, "c")
+    assert str(err.value) == f"{data / 'videos' / 'c.mp4'}: ends after 12 frames, before annotated frame 15"
+    (data / "videos" / "c.mp4").write_bytes(b"not a video")
+    with pytest.raises(DataError, match="c.mp4: not a video"):
+        read_annotated_frames(data, "c")
+    (data / "videos" / "c.mp4").unlink()
+    with pytest.raises(DataError, match="c.mp4: file not found"):
+        read_annotated_frames(data, "c")

@@ -129,6 +129,6 @@ def test_the_pipeline_splits_two_cars_in_a_row():
     vd = VideoDetector(FixedDetector(dets), base)
     assert len(vd.update(frame)) == 1
     vd = VideoDetector(FixedDetector(dets), replace(base, split=NeighbourSplit()))
-    assert [s.name for s in vd.stages] == ["detect", "heatmap", "split"]
+    assert [s.name for s in vd.stages] == ["detect", "heatmap", "split", "plausible"]
     out = vd.update(frame)
     assert len(out) == 2 and len(vd.debug.boxes) == 2

@@ -44,7 +44,7 @@ def test_component_windows_get_their_own_heat_map_and_join_where_main_found_noth
     dets = Detections(boxes, np.full(len(boxes), 3.0), scale=np.full(len(boxes), 2.0), part=part)
     cfg = PipelineConfig(tracker=None, refine=None, horizon=None, oncoming=False)
     vd = VideoDetector(_ComponentFake(dets), cfg)
-    assert [s.name for s in vd.stages] == ["detect", "heatmap", "components"]
+    assert [s.name for s in vd.stages] == ["detect", "heatmap", "components", "plausible"]
     out = vd.update(_frame())
     main_only = VideoDetector(FixedDetector(dets[np.array(part) == MAIN_PART]), cfg).update(_frame())
     assert len(main_only) == 1
@@ -80,3 +80,55 @@ def test_plan_takes_one_width_per_band():
     p = SearchPlanner(GuidedSearch())
     with pytest.raises(ValueError, match="widths"):
         p.plan([object(), object()], [64], 8, (720, 1280))  # type: ignore[list-item]
+
+
+class _TwoComponentFake(FixedDetector):
+    components = ["side", "small"]
+
+
+def test_small_component_gets_a_heat_map_of_its_own_and_its_threshold():
+    from dataclasses import replace
+
+    from fastdet.config import HeatConfig
+    from fastdet.video.detector import small_part
+
+    side = [[800, 450, 1056, 578]] * 4  # side-component windows
+    small = [[300, 400, 348, 448]] * 3  # small-component windows on a distant car, probability 0.75: heat 2.5 each
+    boxes = np.array(side + small)
+    part = [FIRST_COMPONENT_PART] * 4 + [FIRST_COMPONENT_PART + 1] * 3
+    scores = np.r_[np.full(4, 0.99), np.full(3, 0.75)]
+    dets = Detections(boxes, scores.astype(np.float32), scale=np.full(len(boxes), 1.5), part=part)
+    det = _TwoComponentFake(dets)
+    det.score_kind = "probability"
+    cfg = PipelineConfig(tracker=None, refine=None, horizon=None, oncoming=False, small="unused.npz", side=True)
+    assert small_part(cfg, det) == FIRST_COMPONENT_PART + 1
+    assert small_part(cfg.without("small"), det) is None
+    vd = VideoDetector(det, cfg)
+    assert [s.name for s in vd.stages] == ["detect", "heatmap", "components", "small", "plausible"]
+    stages = {s.name: s for s in vd.stages}
+    assert stages["components"].parts == (FIRST_COMPONENT_PART,)
+    assert stages["small"].parts == (FIRST_COMPONENT_PART + 1,)
+    out = vd.update(_frame())
+    # 3 x 2.5 = 7.5 over the small car's pixels: above the default threshold 4, a box there
+    assert len(out) == 2 and any(b[0] >= 296 and b[2] <= 352 for b in out.boxes)
+    assert "small" in vd.timings
+    # its own threshold: above 7.5 the small car's windows no longer make a box; the side one's stays
+    strict = replace(cfg, small_heat=HeatConfig(threshold=8.0))
+    out = VideoDetector(det, strict).update(_frame())
+    assert len(out) == 1 and out.boxes[0][0] >= 780
+    # without the small component in the config, every component's windows share one heat map
+    vd = VideoDetector(det, cfg.without("small"))
+    assert [s.name for s in vd.stages] == ["detect", "heatmap", "components", "plausible"]
+
+
+def test_make_detector_puts_the_small_component_last(tmp_path):
+    from fastdet.config import SMALL_MODEL_PATH, SMALL_SEARCH
+    from fastdet.video.detector import small_part
+
+    det = make_detector(PipelineConfig(small=True, side=True, oncoming=False))
+    assert det.parts == [MAIN_PART, FIRST_COMPONENT_PART, FIRST_COMPONENT_PART + 1]
+    assert (det.components[1].config.win_w, det.components[1].config.win_h) == (32, 32)
+    assert det._scorer_of[FIRST_COMPONENT_PART + 1].search == SMALL_SEARCH
+    assert small_part(PipelineConfig(small=True), det) == FIRST_COMPONENT_PART + 1
+    alone = make_detector(PipelineConfig(small=SMALL_MODEL_PATH, oncoming=False))
+    assert alone.parts == [MAIN_PART, FIRST_COMPONENT_PART] and alone.components[0].config.win_w == 32

@@ -6,12 +6,20 @@ import numpy as np
 import pytest
 
 from fastdet.config import REFERENCE_HORIZON, PipelineConfig, SearchBand, SearchConfig
+from fastdet.video import horizon as horizon_module
 from fastdet.video.horizon import (
+    HORIZON_FRAMES,
+    MAX_PAIRS,
+    MAX_SPREAD,
+    MIN_PAIRS,
     HorizonEstimator,
     estimate_horizon,
     focus_of_expansion,
+    median_flow,
     search_horizon,
 )
+from fastdet.video.vanishing import vanishing_point
+from tests.video.test_vanishing import _road
 
 REF_ROW = REFERENCE_HORIZON * 720
 
@@ -209,3 +217,102 @@ def test_estimator_lengthens_the_gap_of_slow_flow():
         HorizonEstimator(target_flow=0.0)
     with pytest.raises(ValueError):
         HorizonEstimator(gap=4, max_gap=3)
+
+
+def test_median_flow_is_the_shift_in_work_pixels():
+    img = _texture(720, 1280, seed=2)
+    shifted = cv2.warpAffine(img, np.float32([[1, 0, 6], [0, 1, 0]]), (1280, 720), borderMode=cv2.BORDER_REFLECT)
+    assert median_flow(img, shifted) == pytest.approx(3.0, abs=0.3)  # 6 px at 720 rows: 3 at 360
+    assert median_flow(img, shifted, work_rows=720) == pytest.approx(6.0, abs=0.5)
+    assert median_flow(img, img) == pytest.approx(0.0, abs=1e-3)
+    flat = np.full((360, 640, 3), 90, np.uint8)
+    assert median_flow(flat, flat) == 0.0  # no corners to track
+
+
+def _eager_horizon(frames, every=3):
+    """The default estimator with the segments' fallback measured at once, a plain reference:
+    while the flow has no estimate, the vanishing point of every ``every``-th frame is found
+    as the frame arrives. ``(estimate, source, segment rows, frames used)``."""
+    flow = HorizonEstimator(every=every, segments=False)
+    seg: list[float] = []
+    used = 0
+    for k, f in enumerate(frames[:HORIZON_FRAMES]):
+        if len(flow.rows) >= MAX_PAIRS and (flow.estimate is not None or len(seg) >= MAX_PAIRS):
+            break  # done
+        flow.update(f)
+        used += 1
+        if k % every == 0 and len(seg) < MAX_PAIRS and flow.estimate is None:
+            v = vanishing_point(f)
+            if v is not None:
+                seg.append(v[1] / f.shape[0])
+    if flow.estimate is not None:
+        return flow.estimate, "flow", seg, used
+    est = None
+    if len(seg) >= MIN_PAIRS and (len(flow.rows) >= MIN_PAIRS or len(seg) >= MAX_PAIRS):
+        med = float(np.median(seg))
+        est = med if float(np.median(np.abs(np.asarray(seg) - med))) <= MAX_SPREAD else None
+    return est, ("segments" if est is not None else None), seg, used
+
+
+def _lazy_horizon(frames, online: bool, **kw):
+    """The estimator as the video pipeline drives it: ``online``, the estimate asked after
+    every frame (HorizonStage on a stream); else only ``done`` until the end (priming)."""
+    est = HorizonEstimator(**kw)
+    used = 0
+    for f in frames[:HORIZON_FRAMES]:
+        if est.done:
+            break
+        est.update(f)
+        used += 1
+        if online:
+            est.estimate  # noqa: B018 - asked as the stage asks it
+    return est, used
+
+
+def _counting_segments(monkeypatch) -> list[int]:
+    calls: list[int] = []
+    real = horizon_module.vanishing_point
+
+    def counted(frame):
+        calls.append(1)
+        return real(frame)
+
+    monkeypatch.setattr(horizon_module, "vanishing_point", counted)
+    return calls
+
+
+def test_segments_are_found_only_when_the_flow_fails(monkeypatch):
+    calls = _counting_segments(monkeypatch)
+    frames = _zoom_frames(24, 150)  # the flow agrees from its first pairs on
+    for online in (False, True):
+        calls.clear()
+        est, _ = _lazy_horizon(frames, online, gap=1, every=1)
+        assert est.source == "flow" and calls == []
+        ref = _eager_horizon(frames, every=1)
+        # asked for, the rows are measured: the frames 0-4, before the fifth pair gave the flow its say
+        assert est.segment_rows == ref[2] and len(calls) == 5
+    still = [_road(320, 150)] * 20  # a camera standing still: the flow never has its say
+    calls.clear()
+    est, _ = _lazy_horizon(still, True, gap=1, every=1, max_pairs=6)
+    # measured once 6 frames could give the 6 rows that let the segments speak, then no more
+    assert len(calls) == 6 and est.source == "segments" and len(est.segment_rows) == 6
+
+
+@pytest.mark.slow
+def test_lazy_segments_give_the_eager_estimates_on_every_clip(data, monkeypatch):
+    """On all five clips the estimate, its source, the vanishing-point rows and the frames
+    used are those of the eager reference (the estimate asked after every frame, as on a
+    stream); the clips whose flow gives the estimate run the segment detector on no frame."""
+    from fastdet.eval.clips import annotated_clips
+    from fastdet.io.reader import read_frames
+
+    calls = _counting_segments(monkeypatch)
+    for clip in annotated_clips(data):
+        frames = read_frames(clip.video, frames=HORIZON_FRAMES, notify=lambda _n: None)
+        ref = _eager_horizon(frames)
+        calls.clear()
+        est, used = _lazy_horizon(frames, online=True)
+        found = len(calls)
+        assert (est.estimate, est.source, est.segment_rows, used) == ref, clip.name
+        if ref[1] == "flow":
+            assert found == 0, clip.name

@@ -165,7 +165,7 @@ def test_the_pipeline_drops_the_windows_on_the_own_vehicle_once_it_is_known():
     from fastdet.video.ownvehicle import OwnVehicleStage
 
     vd, frames = _pipeline(primed=False)
-    assert [s.name for s in vd.stages] == ["detect", "ownvehicle", "heatmap"]
+    assert [s.name for s in vd.stages] == ["detect", "ownvehicle", "heatmap", "plausible"]
     kept = []
     for f in frames:
         vd.update(f)

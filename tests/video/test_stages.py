@@ -25,24 +25,25 @@ def names(vd: VideoDetector) -> list[str]:
 def test_the_default_pipeline_runs_every_stage_in_order():
     vd = VideoDetector(make_detector())
     assert names(vd) == ["horizon", "plan", "motion", "detect", "motion", "heatmap", "fusion", "weak", "track",
-                         "refine", "observe"]
-    off = VideoDetector(make_detector(), PipelineConfig(tracker=None, refine=None, horizon=None))
+                         "refine", "plausible", "observe"]
+    off = VideoDetector(make_detector(), PipelineConfig(tracker=None, refine=None, horizon=None, plausible=None))
     assert names(off) == ["motion", "detect", "motion", "heatmap", "fusion"]  # no tracker: the full search
 
 
 def test_a_detector_without_abilities_gets_no_horizon_or_plan_stage():
-    vd = VideoDetector(SquareDetector(), PipelineConfig(refine=None))
+    vd = VideoDetector(SquareDetector(), PipelineConfig(refine=None, plausible=None))
     assert names(vd) == ["detect", "heatmap", "weak", "track"]
     from fastdet.config import TrackerConfig
 
     vd = VideoDetector(SquareDetector(), PipelineConfig(refine=None, tracker=TrackerConfig(output="filtered")))
-    assert names(vd)[-1] == "clip"
+    assert names(vd)[-2:] == ["clip", "plausible"]
 
 
 def test_timings_name_every_stage_and_its_parts():
     vd = VideoDetector(SquareDetector(), PipelineConfig(refine=None))
     vd.update(frame())
-    assert set(vd.timings) == {"detect", "resize_colour", "hog", "score", "heatmap", "heat", "label", "weak", "track"}
+    assert set(vd.timings) == {"detect", "resize_colour", "hog", "score", "heatmap", "heat", "label", "weak", "track",
+                               "plausible"}
     assert all(v >= 0 for v in vd.timings.values())
 
 

@@ -9,7 +9,7 @@ Usage (from the repository root)::
         [--exclude CLIP] [--data DIR] [--jitter N] [--data-negatives N] [--hard-rounds N]
 
 ``--clips``: the clips to learn from (default: every annotated clip of the data folder,
-:func:`fastdet.eval.clips.annotated_clips`); ``--exclude``: all but this one (the
+:func:`fastdet.eval.clips.annotated_clips`); ``--exclude``: all but these (comma-separated; the
 leave-one-clip-out models of ``tools/studies/components_loo.py``). The bundled model is built
 with the defaults (all five clips; about 2 minutes of CPU).
 """
@@ -23,9 +23,9 @@ from pathlib import Path
 from fastdet.config import side_search
 from fastdet.data import data_dir
 from fastdet.errors import FastdetError
-from fastdet.eval.clips import annotated_clips
 from fastdet.train.components import SIDE_RECIPE, train_component
 from fastdet.train.keyframes import read_annotated_frames
+from tools.scripts.keyframe_model import choose_clips
 
 
 def build(out: Path, clips: list[str], data: Path, jitter: int | None = None, data_negatives: int | None = None,
@@ -46,21 +46,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, default=Path("fastdet/models/side.npz"))
     p.add_argument("--data", type=Path, default=None, help="data folder (default: $FASTDET_DATA or ../shared/data)")
     p.add_argument("--clips", help="comma-separated clips to learn from (default: every annotated clip)")
-    p.add_argument("--exclude", help="learn from every annotated clip but this one")
+    p.add_argument("--exclude", help="learn from every annotated clip but these (comma-separated)")
     p.add_argument("--jitter", type=int)
     p.add_argument("--data-negatives", type=int)
     p.add_argument("--hard-rounds", type=int)
     args = p.parse_args(argv)
     data = args.data or data_dir()
     try:
-        known = [c.name for c in annotated_clips(data)]
-        clips = args.clips.split(",") if args.clips else known
-        unknown = sorted(set(clips + ([args.exclude] if args.exclude else [])) - set(known))
-        if unknown:
-            raise FastdetError(f"not annotated clips of {data}: {', '.join(unknown)} (there are {', '.join(known)})")
-        clips = [c for c in clips if c != args.exclude]
-        if not clips:
-            raise FastdetError("no clip left to learn from")
+        clips = choose_clips(data, args.clips, args.exclude)
         build(args.out, clips, data, args.jitter, args.data_negatives, args.hard_rounds)
     except (FastdetError, ValueError) as exc:
         print(f"side_model: {exc}", file=sys.stderr)

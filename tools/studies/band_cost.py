@@ -24,6 +24,16 @@ from fastdet.io.reader import read_frames
 from fastdet.video import make_detector
 
 
+def parse_bands(text: str) -> tuple[SearchBand, ...]:
+    """``scale:y0:y1[:x0:x1],...`` (1280x720 reference pixels) as bands."""
+    out = []
+    for item in text.split(","):
+        p = item.split(":")
+        out.append(SearchBand(float(p[0]), int(p[1]), int(p[2]), int(p[3]) if len(p) > 3 else None,
+                              int(p[4]) if len(p) > 4 else None))
+    return tuple(out)
+
+
 def detect_cpu_ms(detectors: Sequence[Any], frames: Sequence[np.ndarray], repeat: int) -> list[float]:
     """Median CPU milliseconds (``time.process_time``: all threads) of ``detect`` per frame of
     each detector: each warmed up on the first frames, then all of them over ``frames`` in turn,
@@ -49,11 +59,7 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=20)
     ap.add_argument("--repeat", type=int, default=5)
     args = ap.parse_args()
-    bands = []
-    for item in args.bands.split(","):
-        p = item.split(":")
-        bands.append(SearchBand(float(p[0]), int(p[1]), int(p[2]), int(p[3]) if len(p) > 3 else None,
-                                int(p[4]) if len(p) > 4 else None))
+    bands = parse_bands(args.bands)
     frames = read_frames(data_dir() / "videos" / f"{args.clip}.mp4", frames=args.frames)
     today = make_detector(PipelineConfig())
     other = make_detector(PipelineConfig(search=replace(PipelineConfig().search, bands=tuple(bands))))

@@ -52,6 +52,7 @@ from fastdet.io.motfiles import read_gt
 from fastdet.io.reader import read_frames
 from fastdet.video import VideoDetector, make_detector
 from tests.fakes import RecordingDetector
+from tools.studies.frame_cache import load_frame_detections, save_frame_detections
 
 # ---------------------------------------------------------------------------------------
 # frames
@@ -96,28 +97,6 @@ def variant_frames(src: list[np.ndarray], variant: Variant, clip: str, tmp: Path
 
 
 # ---------------------------------------------------------------------------------------
-# detector windows, recorded or replayed
-
-
-def save_windows(path: Path, dets: list[Detections]) -> None:
-    n = np.array([len(d) for d in dets])
-    cat = Detections.concat(dets) if len(dets) else Detections.empty()
-    np.savez_compressed(path, n=n, boxes=cat.boxes, scores=cat.scores,
-                        scale=cat.scale if cat.scale is not None else np.zeros(0, np.float32),
-                        part=cat.part if cat.part is not None else np.zeros(0, np.int8))
-
-
-def load_windows(path: Path) -> list[Detections]:
-    z = np.load(path)
-    out, i = [], 0
-    for k in z["n"]:
-        sl = slice(i, i + int(k))
-        out.append(Detections(z["boxes"][sl], z["scores"][sl], scale=z["scale"][sl], part=z["part"][sl]))
-        i += int(k)
-    return out
-
-
-# ---------------------------------------------------------------------------------------
 # the suite
 
 
@@ -126,7 +105,7 @@ def run_clip(det: Any, frames: list[np.ndarray], heat: HeatConfig, cache: Path |
     """Boxes of every frame through a fresh VideoDetector (``horizon`` as its argument;
     ``'auto'`` primed with the clip's first frames, as ``iter_video_detections`` does for a
     file), and the seconds per frame."""
-    replay = load_windows(cache) if cache is not None and cache.exists() else None
+    replay = load_frame_detections(cache) if cache is not None and cache.exists() else None
     rec = RecordingDetector(det, replay)
     if horizon is None:
         det.set_horizon(None)
@@ -138,7 +117,7 @@ def run_clip(det: Any, frames: list[np.ndarray], heat: HeatConfig, cache: Path |
     out = [(i, vd.update(f)) for i, f in enumerate(frames, start=1)]
     dt = (time.perf_counter() - t0) / len(frames)
     if cache is not None and replay is None:
-        save_windows(cache, rec.record)
+        save_frame_detections(cache, rec.record)
     return Detections.from_frames(out), dt
 
 

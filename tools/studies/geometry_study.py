@@ -12,6 +12,7 @@ model's and all models'; the guided search scores fewer between full scans).
 
     python -m tools.studies.geometry_study [--ratio 1.9] [--slack 0.05] [--fixed-ratio]
         [--horizon auto|off|F|+D] [--clips A,B] [--out R.json] [--baseline]
+        [--band-slack ABOVE,BELOW] [--slack-threshold D]
 """
 from __future__ import annotations
 
@@ -77,6 +78,17 @@ def main() -> None:
                     help="reference bands scale:y0:y1[:x0:x1],... (1280x720 px) instead of today's")
     ap.add_argument("--oncoming-slack", type=float, default=0.0,
                     help="rows (fraction of H) added above and below every band of the oncoming model")
+    ap.add_argument("--band-slack", default=None, metavar="ABOVE,BELOW",
+                    help="slack (fractions of H) above and below every main band but the smallest "
+                         "(SearchBand.slack_above / slack_below) instead of the default's")
+    ap.add_argument("--slack-threshold", type=float, default=None,
+                    help="decision value a window in a band's slack rows must exceed (SearchConfig.slack_threshold; "
+                         "'nan': none)")
+    ap.add_argument("--oncoming-band-slack", default=None, metavar="ABOVE,BELOW",
+                    help="slack (fractions of H) above and below every oncoming band (windows there above "
+                         "the oncoming search's slack_threshold)")
+    ap.add_argument("--oncoming-slack-threshold", type=float, default=2.2,
+                    help="with --oncoming-band-slack: the decision value a window in the slack rows must exceed")
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
     geo = GeometryConfig(ratio=args.ratio, slack=args.slack)
@@ -103,6 +115,21 @@ def main() -> None:
                 bands.append(SearchBand(float(p[0]), int(p[1]), int(p[2]), int(p[3]) if len(p) > 3 else None,
                                         int(p[4]) if len(p) > 4 else None))
             det.scorers[0].search = replace(det.scorers[0].search, bands=tuple(bands))
+        if args.band_slack is not None:
+            above, below = (float(v) or None for v in args.band_slack.split(","))
+            main = det.scorers[0].search
+            smallest = min(b.scale for b in main.bands)
+            det.scorers[0].search = replace(main, bands=tuple(
+                b if b.scale == smallest else replace(b, slack_above=above, slack_below=below) for b in main.bands))
+        if args.slack_threshold is not None:
+            gate = None if args.slack_threshold != args.slack_threshold else args.slack_threshold
+            det.scorers[0].search = replace(det.scorers[0].search, slack_threshold=gate)
+        if args.oncoming_band_slack is not None and len(det.scorers) > 1:
+            above, below = (float(v) or None for v in args.oncoming_band_slack.split(","))
+            on = det.scorers[1].search
+            det.scorers[1].search = replace(on, bands=tuple(
+                replace(b, slack_above=above, slack_below=below) for b in on.bands),
+                slack_threshold=args.oncoming_slack_threshold)
         if args.oncoming_slack and len(det.scorers) > 1:
             on = det.scorers[1].search
             rows = on.reference_shape[0] if on.reference_shape is not None else 720
@@ -111,9 +138,7 @@ def main() -> None:
                 replace(b, y_start=max(b.y_start - d, 0), y_stop=min(b.y_stop + d, rows)) for b in on.bands))
         base_search = det.scorers[0].search
         if not args.baseline:
-            det.scorers[0].search = GeometricSearch(**{f: getattr(base_search, f) for f in (
-                "bands", "cells_per_step", "threshold", "reference_shape", "reference_horizon", "horizon", "border",
-                "border_mode")}, geometry=geo)
+            det.scorers[0].search = GeometricSearch.from_search(base_search, geo)
         scored = [0, 0]  # windows scored (main model, all models) over the clip's frames
         inner_detect = det.detect
 

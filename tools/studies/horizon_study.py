@@ -21,13 +21,19 @@ shot):
   one frame in three of the same frames: frames with one, median row, spread.
 - **estimate**: what the default estimator gives and from which cue.
 
+``--cost`` prints instead, per clip, what the default estimator costs as ``fastdet video``
+primes it (frames fed until it is done or ``HORIZON_FRAMES`` went by, then the estimate):
+frames fed, the line-segment detections it ran (vanishing points) and their CPU (this
+thread's), the estimator's CPU in all, and the estimate in full precision.
+
 These are evaluation only: nothing here is a setting.
 
-    python -m tools.studies.horizon_study [--clips A,B] [--cut motorcycle_highway:65] [--gaps 2,4,8]
+    python -m tools.studies.horizon_study [--clips A,B] [--cut motorcycle_highway:65] [--gaps 2,4,8] [--cost]
 """
 from __future__ import annotations
 
 import argparse
+import time
 
 import numpy as np
 from scipy.stats import theilslopes
@@ -35,7 +41,8 @@ from scipy.stats import theilslopes
 from fastdet.detect.geometry import PerspectiveEstimator
 from fastdet.eval.clips import annotated_clips
 from fastdet.io.reader import read_frames
-from fastdet.video.horizon import HORIZON_FRAMES, HorizonEstimator, _flow_foe, _grey
+from fastdet.video import horizon
+from fastdet.video.horizon import HORIZON_FRAMES, WORK_ROWS, HorizonEstimator, median_flow
 from fastdet.video.vanishing import vanishing_point
 
 
@@ -62,17 +69,59 @@ def med_mad(r: list[float]) -> tuple[float, float]:
     return m, float(np.median(np.abs(a - m)))
 
 
+def fed(est: HorizonEstimator, frames: list[np.ndarray]) -> HorizonEstimator:
+    """``est`` after ``frames`` were fed to it in order until it was done."""
+    for f in frames:
+        if est.done:
+            break
+        est.update(f)
+    return est
+
+
+def cost(clips: list) -> None:
+    """The ``--cost`` table (module docstring)."""
+    runs: list[float] = []
+    real = horizon.vanishing_point
+
+    def timed(frame: np.ndarray) -> tuple[float, float] | None:
+        t0 = time.thread_time()
+        try:
+            return real(frame)
+        finally:
+            runs.append(time.thread_time() - t0)
+
+    horizon.vanishing_point = timed  # type: ignore[assignment]
+    print("| clip | frames fed | segment detections | their CPU (ms) | estimator CPU (ms) | estimate |")
+    print("|---|---|---|---|---|---|")
+    try:
+        for clip in clips:
+            frames = read_frames(clip.video, frames=HORIZON_FRAMES, notify=lambda _n: None)
+            runs.clear()
+            t0 = time.thread_time()
+            est = fed(HorizonEstimator(), frames)
+            e = est.estimate
+            total = time.thread_time() - t0
+            print(f"| {clip.name} | {est.frames} | {len(runs)} | {1000 * sum(runs):.0f} | {1000 * total:.0f} | "
+                  f"{e!r} ({est.source}) |", flush=True)
+    finally:
+        horizon.vanishing_point = real
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--clips", default=None)
     ap.add_argument("--cut", action="append", default=["motorcycle_highway:65"],
                     help="CLIP:FRAME, the 1-based first frame after a cut (repeatable)")
     ap.add_argument("--gaps", default="", help="also the flow estimate at these gaps (comma-separated)")
+    ap.add_argument("--cost", action="store_true", help="the default estimator's cost instead (module docstring)")
     args = ap.parse_args()
     cuts = {c.split(":")[0]: int(c.split(":")[1]) for c in args.cut}
     clips = annotated_clips()
     if args.clips:
         clips = [c for c in clips if c.name in args.clips.split(",")]
+    if args.cost:
+        cost(clips)
+        return
     print("| clip | shot | boxes (targets, tracks) | bottoms (of H) | Theil-Sen horizon / ratio | per track "
           "horizon / ratio (tight; loose) | flow: pairs, median, spread | flow / frame (px at 360) | "
           "segments: frames, median, spread | estimate |")
@@ -88,22 +137,12 @@ def main() -> None:
             t = t_all[(t_all[:, 0] >= a) & (t_all[:, 0] <= b)]
             fits = box_fits(t, rows) if len(t) >= 2 else None
             fr = frames[a - 1:b][:HORIZON_FRAMES]
-            flow = HorizonEstimator(segments=False)
-            for f in fr:
-                if flow.done:
-                    break
-                flow.update(f)
+            flow = fed(HorizonEstimator(segments=False), fr)
             per_frame = []
             for j in range(0, len(fr) - 1, 6):
-                g0, _ = _grey(fr[j], min(360, rows))
-                g1, _ = _grey(fr[j + 1], min(360, rows))
-                per_frame.append(_flow_foe(g0, g1)[1] * 360 / g0.shape[0])
+                per_frame.append(median_flow(fr[j], fr[j + 1]) * 360 / min(WORK_ROWS, rows))
             seg = [p[1] / rows for p in (vanishing_point(f) for f in fr[::3]) if p is not None]
-            est = HorizonEstimator()
-            for f in fr:
-                if est.done:
-                    break
-                est.update(f)
+            est = fed(HorizonEstimator(), fr)
             fm, fs = med_mad(flow.rows)
             sm, ss = med_mad(seg)
             if fits is None:
@@ -116,11 +155,7 @@ def main() -> None:
             e = "none" if est.estimate is None else f"{est.estimate:.3f} ({est.source})"
             extra = ""
             for gap in [int(g) for g in args.gaps.split(",") if g]:
-                h = HorizonEstimator(gap=gap, segments=False)
-                for f in fr:
-                    if h.done:
-                        break
-                    h.update(f)
+                h = fed(HorizonEstimator(gap=gap, segments=False), fr)
                 gm, gs = med_mad(h.rows)
                 extra += f"; gap {gap}: {gm:.3f} / {gs:.3f}"
             print(f"| {clip.name} | {a}-{b} | {len(t)}, {len(set(t[:, 1].astype(int)))} | {box[0]} | {box[1]} | "

@@ -45,7 +45,7 @@ from fastdet.io.reader import FrameReader, read_frames, read_frames_at
 from fastdet.video import make_detector
 from fastdet.video.horizon import HORIZON_FRAMES, estimate_horizon
 from fastdet.video.run import video_detector_for
-from tools.studies.band_cost import detect_cpu_ms
+from tools.studies.band_cost import detect_cpu_ms, parse_bands
 
 #: width (reference pixels, 720-row frame) from which a target counts as large
 LARGE = 120.0
@@ -55,16 +55,6 @@ STUDY_SCALES = (2.0, 2.5, 3.0, 3.75, 4.5, 5.5, 7.0, 8.5, 10.0)
 
 #: decision values at which the false windows per frame are counted
 FA_LEVELS = (0, 2, 4, 6, 8)
-
-
-def parse_bands(text: str) -> tuple[SearchBand, ...]:
-    """``scale:y0:y1[:x0:x1],...`` (1280x720 reference pixels) as bands."""
-    out = []
-    for item in text.split(","):
-        p = item.split(":")
-        out.append(SearchBand(float(p[0]), int(p[1]), int(p[2]), int(p[3]) if len(p) > 3 else None,
-                              int(p[4]) if len(p) > 4 else None))
-    return tuple(out)
 
 
 def scored_frames(clip: AnnotatedClip) -> np.ndarray:

@@ -59,9 +59,8 @@ def main() -> None:
         det.set_horizon(horizon)
         if args.geometric is not None:
             s = det.scorers[0].search
-            det.scorers[0].search = GeometricSearch(**{f: getattr(s, f) for f in (
-                "bands", "cells_per_step", "threshold", "reference_shape", "reference_horizon", "horizon", "border",
-                "border_mode")}, geometry=GeometryConfig(ratio=args.ratio, slack=args.geometric))
+            geometry = GeometryConfig(ratio=args.ratio, slack=args.geometric)
+            det.scorers[0].search = GeometricSearch.from_search(s, geometry)
         main_search = det.scorers[0].search
         everywhere = replace(main_search.for_frame(shape), bands=tuple(
             SearchBand(b.scale, 0, shape[0]) for b in main_search.for_frame(shape).bands))

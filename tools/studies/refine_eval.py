@@ -57,6 +57,7 @@ from tools.scripts.refine_model import (
     samples,
     spec_of,
 )
+from tools.studies.frame_cache import load_frame_detections, save_frame_detections
 
 from .camera_shift import read_frames, variant_frames
 
@@ -87,13 +88,7 @@ def pipeline_boxes(det: Any, frames: list[np.ndarray], cache: Path) -> list[Dete
     """The default pipeline's boxes of every frame (cached in ``cache``), ``part`` filled by
     :func:`_part_of` (the tracker's output has no part column)."""
     if cache.exists():
-        z = np.load(cache, allow_pickle=False)
-        out, i = [], 0
-        for k in z["n"]:
-            sl = slice(i, i + int(k))
-            out.append(Detections(z["boxes"][sl], z["scores"][sl], part=z["part"][sl], ids=z["ids"][sl]))
-            i += int(k)
-        return out
+        return load_frame_detections(cache)
     vd = VideoDetector(det, PipelineConfig(horizon="auto"))
     vd.prime_horizon(frames)
     vd.warmup()
@@ -102,11 +97,7 @@ def pipeline_boxes(det: Any, frames: list[np.ndarray], cache: Path) -> list[Dete
         d = vd.update(f)
         ids = d.ids if d.ids is not None else np.full(len(d), -1)
         out.append(Detections(d.boxes, d.scores, part=_part_of(d.boxes, vd.debug.windows), ids=ids))
-    cat = Detections.concat(out)
-    cache.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(cache, n=np.array([len(d) for d in out]), boxes=cat.boxes, scores=cat.scores,
-                        part=cat.part if cat.part is not None else np.zeros(0, np.int8),
-                        ids=cat.ids if cat.ids is not None else np.zeros(0, np.int64))
+    save_frame_detections(cache, out)
     return out
 
 

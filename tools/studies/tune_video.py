@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fastdet import Detections, Detector, HeatConfig, MotionGate, SearchBand, SearchConfig, VideoDetector
+from fastdet import Detections, Detector, HeatConfig, MotionGate, SearchConfig, VideoDetector
 from fastdet.config import ONCOMING_HEAT, ONCOMING_SEARCH, PipelineConfig, TrackerConfig
 from fastdet.data import data_dir
 from fastdet.detect import DetectStats, window_boxes
@@ -39,6 +39,7 @@ from fastdet.io.motfiles import read_gt
 from fastdet.io.reader import FrameReader
 from fastdet.model import ONCOMING_MODEL_PATH
 from tests.fakes import ReplayDetector
+from tools.studies.band_cost import parse_bands
 
 
 @dataclass
@@ -140,7 +141,7 @@ def main() -> None:
     ap.add_argument("--w-max", default="4")
     ap.add_argument("--box", default=h.box_mode)
     ap.add_argument("--step", type=int, default=None, help="main search's cells per step")
-    ap.add_argument("--bands", default=None, help="scale:y0:y1,... instead of the default bands")
+    ap.add_argument("--bands", default=None, help="scale:y0:y1[:x0:x1],... instead of the default bands")
     ap.add_argument("--oncoming-heat-thr", default=f"{w.threshold:g}")
     ap.add_argument("--oncoming-n", default=f"{w.n_frames}")
     ap.add_argument("--oncoming-extent", default=f"{w.extent:g}")
@@ -157,8 +158,7 @@ def main() -> None:
 
     search = SearchConfig() if args.step is None else replace(SearchConfig(), cells_per_step=args.step)
     if args.bands:
-        bands = [b.split(":") for b in args.bands.split(",")]
-        search = replace(search, bands=tuple(SearchBand(float(a), int(b), int(c)) for a, b, c in bands))
+        search = replace(search, bands=parse_bands(args.bands))
     oncoming = ONCOMING_MODEL_PATH if args.oncoming == "bundled" else args.oncoming
     det = Detector(args.model, search, oncoming=oncoming)
     clips = sorted((data_dir() / "annotations").glob("*.gt.txt"))

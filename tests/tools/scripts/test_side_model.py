@@ -32,4 +32,8 @@ def test_exclude_and_bad_clips(data, tmp_path, capsys):
     assert err.count("\n") == 1 and "nope" in err
     assert side_model.main(["--clips", "boston_street", "--exclude", "boston_street", "--out", str(out)]) == 2
     assert "no clip left" in capsys.readouterr().err
+    # --exclude takes a list, as keyframe_model's: every name is checked
+    assert side_model.main(["--clips", "boston_street", "--exclude", "test_video,nada", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "nada" in err and "test_video" not in err.split("(there are")[0]
     assert not out.exists()

@@ -1,0 +1,210 @@
+"""fastdet.video.plausible: duplicates dropped by greedy non-maximum suppression, the
+perspective test of a box's width against how far below the horizon it stands, and the
+stage that applies them to the boxes VideoDetector returns."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from fastdet.boxes import iou
+from fastdet.config import REFERENCE_HORIZON, PipelineConfig, PlausibleConfig
+from fastdet.detections import Detections
+from fastdet.eval.clips import annotated_clips
+from fastdet.video import VideoDetector, make_detector
+from fastdet.video.plausible import PlausibleStage, duplicates, perspective_ok
+from fastdet.video.stages import FrameState
+from tests.fakes import SquareDetector
+
+
+def reference_nms(boxes: np.ndarray, scores: np.ndarray, max_iou: float) -> np.ndarray:
+    """The obvious greedy non-maximum suppression, one pair at a time."""
+    order = sorted(range(len(boxes)), key=lambda i: (-scores[i], i))
+    kept: list[int] = []
+    for i in order:
+        if all(iou(boxes[i:i + 1], boxes[j:j + 1])[0, 0] <= max_iou for j in kept):
+            kept.append(i)
+    keep = np.zeros(len(boxes), bool)
+    keep[kept] = True
+    return keep
+
+
+def test_the_lower_scored_of_two_boxes_over_max_iou_goes():
+    a = [100, 100, 200, 200]
+    b = [110, 100, 210, 200]  # IoU 90 / 110 = 0.82
+    c = [150, 100, 250, 200]  # IoU with a: 50 / 150 = 0.33
+    keep = duplicates(np.array([a, b, c]), np.array([5.0, 9.0, 1.0]), 0.5)
+    assert keep.tolist() == [False, True, True]
+    # exactly at max_iou is kept: two vehicles each half in view can reach IoU 0.5
+    d = [100, 100, 300, 200]  # a is half of d: IoU 0.5
+    assert duplicates(np.array([a, d]), np.array([1.0, 2.0]), 0.5).tolist() == [True, True]
+    assert duplicates(np.array([a, d]), np.array([1.0, 2.0]), 0.49).tolist() == [False, True]
+
+
+def test_ties_keep_the_earlier_row_and_a_dropped_box_suppresses_nothing():
+    a = [0, 0, 100, 100]
+    b = [10, 0, 110, 100]   # overlaps a (0.82) and c (0.82)
+    c = [20, 0, 120, 100]   # overlaps a by 80 / 120 = 0.67
+    assert duplicates(np.array([a, b]), np.array([3.0, 3.0]), 0.5).tolist() == [True, False]
+    # b goes because of a; c overlaps a too, so it goes as well
+    assert duplicates(np.array([a, b, c]), np.array([3.0, 2.0, 1.0]), 0.5).tolist() == [True, False, False]
+    e = [60, 0, 160, 100]   # overlaps b by 50 / 150 = 0.33 and a by 40 / 160 = 0.25: kept
+    f = [30, 0, 130, 100]   # overlaps b (0.67), a (0.54), e (0.54)
+    assert duplicates(np.array([a, f, e]), np.array([1.0, 3.0, 2.0]), 0.5).tolist() == [False, True, False]
+    assert duplicates(np.zeros((0, 4)), np.zeros(0), 0.5).tolist() == []
+    assert duplicates(np.array([a]), np.array([0.0]), 0.0).tolist() == [True]
+    with pytest.raises(ValueError, match="2 boxes but 1 scores"):
+        duplicates(np.array([a, b]), np.array([1.0]), 0.5)
+
+
+boxes_st = st.lists(st.tuples(st.integers(0, 300), st.integers(0, 200), st.integers(1, 120), st.integers(1, 90),
+                              st.integers(0, 5)), min_size=0, max_size=12)
+
+
+@settings(max_examples=200, deadline=None)
+@given(boxes_st, st.sampled_from([0.0, 0.3, 0.5, 0.7]))
+def test_duplicates_is_greedy_nms(rows, max_iou):
+    b = np.array([[x, y, x + w, y + h] for x, y, w, h, _ in rows], np.float64).reshape(-1, 4)
+    s = np.array([float(k) for *_, k in rows])  # few distinct scores: many ties
+    keep = duplicates(b, s, max_iou)
+    assert keep.tolist() == reference_nms(b, s, max_iou).tolist()
+    kept = b[keep]
+    if len(kept) > 1:
+        m = iou(kept, kept)
+        np.fill_diagonal(m, 0)
+        assert m.max() <= max_iou
+
+
+def test_no_two_annotated_vehicles_overlap_by_more_than_half(data):
+    """The rule behind max_iou = 0.5: on every annotated frame of every clip, no target is
+    dropped as a duplicate of another, whichever of them scores higher."""
+    clips = annotated_clips(data)
+    assert len(clips) >= 5
+    frames = 0
+    for clip in clips:
+        for _, g in clip.gt().by_frame():
+            t = g.boxes[g.targets].astype(np.float64)
+            if len(t) < 2:
+                continue
+            frames += 1
+            for scores in (np.arange(len(t), dtype=float), -np.arange(len(t), dtype=float)):
+                assert duplicates(t, scores, PlausibleConfig().max_iou).all(), clip.name
+    assert frames > 50
+
+
+def test_perspective_keeps_what_a_vehicle_can_be_and_drops_the_rest():
+    shape = (720, 1280)  # horizon 0.5: row 360
+    ok = lambda *box: bool(perspective_ok(np.array([box]), shape, 0.5, 0.45, 12.0, 0.05)[0])  # noqa: E731
+    assert ok(500, 380, 700, 460)          # 200 px wide, bottom 100 rows below: ratio 2
+    # too narrow: 30 px at 340 rows below (0.088); the slack of 36 rows does not save it
+    assert not ok(600, 650, 630, 700)
+    assert ok(0, 650, 30, 700) and ok(1250, 650, 1280, 700)  # ... unless cut by the frame's side
+    # the narrowest allowed: 0.45 x (rows below - slack): 0.45 x (340 - 36) = 136.8 px
+    assert ok(500, 600, 637, 700) and not ok(500, 600, 636, 700)
+    # too wide: 300 px with its bottom 10 rows below the horizon: 300 / (10 + 36) = 6.5 -- kept;
+    # 600 px: 13 > 12 -- dropped
+    assert ok(300, 300, 600, 370) and not ok(300, 300, 900, 370)
+    # the bottom above the horizon: within the slack (20 rows of 36) a narrow box is kept,
+    # beyond it (60 rows) any box goes
+    assert ok(600, 300, 650, 340) and not ok(600, 250, 610, 300)
+    assert perspective_ok(np.zeros((0, 4)), shape, 0.5, 0.45, 12.0, 0.05).tolist() == []
+
+
+@pytest.mark.slow
+def test_perspective_keeps_every_annotated_vehicle_at_the_estimated_horizon(data):
+    """Every target of the five clips passes at the horizon the pipeline estimates for its
+    video -- but for motorcycle_highway's frames after its cut to another road at frame 65
+    (data README), whose horizon is another one."""
+    from fastdet.io.reader import FrameReader
+    from fastdet.video.horizon import HORIZON_FRAMES, estimate_horizon, search_horizon
+
+    c = PlausibleConfig()
+    for clip in annotated_clips(data):
+        reader = FrameReader(str(clip.video), 0, HORIZON_FRAMES, notify=lambda _n: None)
+        try:
+            h = search_horizon(estimate_horizon(f for _, f, _ in reader))
+            shape = reader.shape
+        finally:
+            reader.close()
+        gt = clip.gt()
+        t = gt[gt.targets & ((gt.frames < 65) if clip.name == "motorcycle_highway" else True)]
+        ok = perspective_ok(t.boxes, shape, REFERENCE_HORIZON if h is None else h, c.min_ratio, c.max_ratio,
+                            c.slack)
+        assert ok.all(), (clip.name, t.frames[~ok].tolist())
+
+
+def out_state(boxes: list[list[int]], scores: list[float]) -> FrameState:
+    s = FrameState(np.zeros((720, 1280, 3), np.uint8))
+    s.out = Detections(np.array(boxes, np.int32).reshape(-1, 4), np.array(scores, np.float32),
+                       ids=np.arange(1, len(boxes) + 1))
+    return s
+
+
+def test_the_stage_drops_duplicates_and_with_perspective_on_the_implausible():
+    boxes = [[500, 380, 700, 460], [510, 380, 710, 460], [600, 650, 630, 700]]
+    st_ = PlausibleStage(PlausibleConfig(), lambda: 0.5)
+    out = st_(out_state(boxes, [1.0, 2.0, 3.0])).out
+    assert out.ids.tolist() == [2, 3] and st_.dropped == 1
+    st_ = PlausibleStage(PlausibleConfig(perspective=True), lambda: 0.5)
+    out = st_(out_state(boxes, [1.0, 2.0, 3.0])).out
+    assert out.ids.tolist() == [2] and st_.dropped == 2
+    st_.reset()
+    assert st_.dropped == 0
+    # a box the perspective test drops suppresses nothing: the lower-scored duplicate stays
+    st_ = PlausibleStage(PlausibleConfig(perspective=True), lambda: 0.5)
+    wide = [[300, 300, 900, 370], [330, 300, 870, 370]]  # ratios 600 / 46 = 13 and 540 / 46 = 11.7, IoU 0.9
+    assert st_(out_state(wide, [9.0, 1.0])).out.ids.tolist() == [2]
+    assert PlausibleStage(PlausibleConfig())(out_state(wide, [9.0, 1.0])).out.ids.tolist() == [1]
+    no_dup = PlausibleStage(PlausibleConfig(max_iou=None))
+    assert no_dup(out_state(boxes, [1.0, 2.0, 3.0])).out.ids.tolist() == [1, 2, 3]
+    assert len(PlausibleStage(PlausibleConfig())(out_state([], [])).out) == 0
+
+
+def test_without_a_horizon_the_stage_uses_the_reference_one():
+    # at the reference horizon (0.585: row 421) a box whose bottom is at row 350 is 71 rows
+    # (0.099) above it: dropped; at horizon 0.4 (row 288) it stands 62 rows below: kept
+    box = [[600, 320, 660, 350]]
+    assert len(PlausibleStage(PlausibleConfig(perspective=True))(out_state(box, [1.0])).out) == 0
+    assert len(PlausibleStage(PlausibleConfig(perspective=True), lambda: None)(out_state(box, [1.0])).out) == 0
+    assert len(PlausibleStage(PlausibleConfig(perspective=True), lambda: 0.4)(out_state(box, [1.0])).out) == 1
+
+
+def test_the_pipeline_runs_the_stage_last_before_the_search_learns_and_at_the_search_horizon():
+    vd = VideoDetector(make_detector())
+    names = [s.name for s in vd.stages]
+    assert names[names.index("refine") + 1] == "plausible" and names[-1] == "observe"
+    st_ = vd.stage(PlausibleStage)
+    assert isinstance(st_, PlausibleStage) and st_.horizon() is None
+    vd.detector.set_horizon(0.45)
+    assert st_.horizon() == 0.45
+    off = VideoDetector(make_detector(), PipelineConfig(plausible=None))
+    assert off.stage(PlausibleStage) is None
+    plain = VideoDetector(SquareDetector(), PipelineConfig(refine=None))
+    assert plain.stage(PlausibleStage).horizon() is None  # a detector whose bands do not move
+
+
+def test_with_the_offline_pass_the_rules_run_after_it():
+    """A box the rules dropped before the offline pass would leave a gap in its track that the
+    pass fills with an interpolated box; deferred, they run on the pass's boxes."""
+    from fastdet.video.offline import offline_pass
+    from fastdet.video.run import defer_plausible, offline_boxes
+
+    vd = VideoDetector(SquareDetector(), PipelineConfig(refine=None))
+    st_ = vd.stage(PlausibleStage)
+    assert isinstance(st_, PlausibleStage) and not st_.deferred
+    defer_plausible(vd)
+    assert st_.deferred
+    s = st_(out_state([[500, 380, 700, 460], [510, 380, 710, 460]], [1.0, 2.0]))
+    assert len(s.out) == 2  # deferred: every box through
+    a, b = [100, 100, 200, 200], [110, 100, 210, 200]  # IoU 0.82
+    pair = Detections(np.array([a, b], np.int32), np.array([9.0, 5.0], np.float32), ids=np.array([1, 2]))
+    none = Detections(np.zeros((0, 4), np.int32), np.zeros(0, np.float32), ids=np.zeros(0, np.int64))
+    done = [(1, pair), (2, none), (3, pair)]
+    filled = offline_pass(done, (360, 640), vd.tracker.config)
+    assert [d.ids.tolist() for _, d in filled] == [[1, 2], [1, 2], [1, 2]]  # both gaps filled
+    final = offline_boxes(vd, done, (360, 640))
+    assert [d.ids.tolist() for _, d in final] == [[1], [1], [1]]
+    assert final[1][1].boxes.tolist() == [a]
+    with pytest.raises(ValueError, match="needs the tracker"):
+        offline_boxes(VideoDetector(SquareDetector(), PipelineConfig(refine=None, tracker=None)), done, (360, 640))
