@@ -13,8 +13,10 @@ annotated on every frame) and the box measurements of :mod:`tools.studies.small_
 
 The pipeline's boxes before the refinement do not depend on the regressor (the heat maps,
 the tracker and the guided search keep the unrefined boxes), so every clip runs once with the
-refinement off (kept in ``--out-dir`` as ``unrefined_CLIP.pkl``), and each regressor refines
-those boxes on the scored frames: the same figures as the pipeline with that regressor.
+refinement and the plausibility rules (which run on the refined boxes) off, kept in
+``--out-dir`` as ``unrefined_CLIP.pkl``; each regressor refines those boxes on the scored
+frames and the rules run on them as the pipeline's stage would (at the horizon the search
+used on that frame): the same figures as the pipeline with that regressor.
 
 Training inputs (``--inputs``):
 
@@ -49,18 +51,21 @@ import os
 import pickle
 import sys
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from fastdet.config import JitterConfig, RefineConfig
+from fastdet.config import JitterConfig, PipelineConfig
 from fastdet.detect.regressor import BoxRegressor, load_regressor
 from fastdet.detections import Detections
 from fastdet.eval.clips import AnnotatedClip, annotated_clips, markdown_table, score_clip
 from fastdet.io.reader import read_frames_at
 from fastdet.train.refine import View, fit_cascade, jittered_views, matched_inputs, mirror
+from fastdet.video.plausible import PlausibleStage
+from fastdet.video.refine import refine
 from tools.scripts.refine_model import Annotated, add_feature_arguments, spec_of, test_images
 
 from .small_boxes import add_setting_arguments, config_from, fa_summary, measure, print_tables, run_clip, summary
@@ -97,9 +102,10 @@ class ClipRun:
 
 
 def unrefined_run(clip: AnnotatedClip, a: argparse.Namespace, out_dir: Path) -> ClipRun:
-    """The pipeline of the options (``config_from``) with the refinement off, over ``clip``;
-    kept in ``out_dir`` and read from there when the configuration is the same."""
-    config = replace(config_from(a), refine=None)
+    """The pipeline of the options (``config_from``) with the refinement and the plausibility
+    rules off, over ``clip``; kept in ``out_dir`` and read from there when the configuration
+    is the same."""
+    config = replace(config_from(a), refine=None, plausible=None)
     key = hashlib.sha256(json.dumps([config.to_dict(), str(clip.video)], sort_keys=True, default=str)
                          .encode()).hexdigest()[:16]
     path = out_dir / f"unrefined_{clip.name}.pkl"
@@ -197,14 +203,22 @@ def fit_without(runs: dict[str, ClipRun], held_out: str, a: argparse.Namespace, 
     return reg
 
 
-def refined(run: ClipRun, reg: BoxRegressor, refine: RefineConfig | None) -> tuple[list, dict]:
-    """``run``'s frames and records with the scored frames' boxes refined by ``reg``."""
-    from fastdet.video.refine import refine as refine_dets
+def _constant(value: float | None) -> Callable[[], float | None]:
+    return lambda: value
 
+
+def refined(run: ClipRun, reg: BoxRegressor, config: PipelineConfig) -> tuple[list, dict]:
+    """``run``'s frames and records with the scored frames' boxes refined by ``reg`` (when
+    ``config.refine`` is on) and then filtered by ``config.plausible`` (when on), as the
+    pipeline's stages would."""
     rec = {f: dict(r) for f, r in run.rec.items()}
-    if refine is not None:
-        for f, r in rec.items():
-            r["out"] = refine_dets(run.images[f], r["out"], reg, refine)
+    for f, r in rec.items():
+        out = r["out"]
+        if config.refine is not None:
+            out = refine(run.images[f], out, reg, config.refine)
+        if config.plausible is not None:
+            out = PlausibleStage(config.plausible, _constant(r.get("horizon"))).filter(out, run.images[f].shape[:2])
+        r["out"] = out
     frames = [(f, rec[f]["out"] if f in rec else out) for f, out in run.frames]
     return frames, rec
 
@@ -239,7 +253,7 @@ def main() -> None:
     out_dir.mkdir(parents=True, exist_ok=True)
     clips = annotated_clips()
     runs = {c.name: unrefined_run(c, a, out_dir) for c in clips}
-    refine = config_from(a).refine
+    refine_cfg = config_from(a).refine
     held = [c for c in clips if a.clips is None or c.name in a.clips.split(",")]
     scores, tables, fa_lines, hotas = [], [], [], []
     fitted: dict[str, BoxRegressor] = {}  # one regressor per held-out camera
@@ -256,7 +270,7 @@ def main() -> None:
             reg = fit_without(runs, clip.name, a, path)
         fitted[cam] = reg
         run = runs[clip.name]
-        frames, rec = refined(run, reg, refine)
+        frames, rec = refined(run, reg, config_from(a))
         preds = Detections.from_frames(frames, source=str(clip.video))
         score = score_clip(clip.name, clip.gt(), preds, run.rows, clip.keyframes())
         scores.append(score)
@@ -273,7 +287,7 @@ def main() -> None:
         keys = ("precision", "recall", "f1", "ap", "fp_per_frame", "tp", "fp")
         loo = {s.name: {k: s.result.to_dict()[k] for k in keys} for s in scores}
         fit_without(runs, a.ship_without, a, Path(a.ship),
-                    {"leave_one_clip_out": loo, "refine_config": None if refine is None else refine.to_dict()},
+                    {"leave_one_clip_out": loo, "refine_config": None if refine_cfg is None else refine_cfg.to_dict()},
                     loo=False)
 
 
