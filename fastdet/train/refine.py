@@ -73,48 +73,15 @@ class Samples:
         return len(self.t)
 
 
-def frame_samples(frame: np.ndarray, targets: np.ndarray, groups: np.ndarray, rng: np.random.Generator,
-                  coder: BoxFeatures, jitter: JitterConfig = JitterConfig(), flip: bool = True) -> Samples:
-    """Samples of one frame ``(H, W, 3) uint8 BGR`` with vehicle boxes ``targets (M, 4)``
-    and their groups ``(M,)``; ``flip``: the mirrored frame too."""
-    targets = np.asarray(targets, np.float64).reshape(-1, 4)
-    groups = np.asarray(groups, np.int64).reshape(-1)
-    W = frame.shape[1]
-    views = [(frame, targets)]
-    if flip:
-        views.append((np.ascontiguousarray(frame[:, ::-1]),
-                      np.stack([W - targets[:, 2], targets[:, 1], W - targets[:, 0], targets[:, 3]], axis=1)))
-    parts = []
-    for img, tg in views:
-        boxes, tgs, grp = [], [], []
-        for g, t in zip(groups, tg):
-            if t[2] - t[0] < 4 or t[3] - t[1] < 4:
-                continue
-            b = jitter_boxes(t, jitter.per_box, rng, jitter)
-            boxes.append(b)
-            tgs.append(np.repeat(t[None], len(b), 0))
-            grp.append(np.full(len(b), g, np.int64))
-        if not boxes:
-            continue
-        b, tt = np.concatenate(boxes), np.concatenate(tgs)
-        parts.append(Samples(coder.features(img, b), encode_offsets(b, tt), b, tt,
-                             np.concatenate(grp)))
-    if not parts:
-        return Samples(np.zeros((0, coder.n_features)), np.zeros((0, 4)), np.zeros((0, 4)), np.zeros((0, 4)),
-                       np.zeros(0, np.int64))
-    return Samples.concat(parts)
-
-
 def collect_samples(frames: Iterable[tuple[np.ndarray, np.ndarray, np.ndarray]], coder: BoxFeatures, seed: int = 0,
                     jitter: JitterConfig = JitterConfig(), flip: bool = True) -> Samples:
-    """:func:`frame_samples` of every ``(frame, targets (M, 4), groups (M,))``, one random
-    stream seeded by ``seed``."""
-    rng = np.random.default_rng(seed)
-    parts = [frame_samples(f, t, g, rng, coder, jitter, flip) for f, t, g in frames]
-    parts = [p for p in parts if len(p)]
-    if not parts:
+    """The samples of :func:`jittered_views` of every ``(frame (H, W, 3) uint8 BGR, targets
+    (M, 4), groups (M,))``: random boxes about each vehicle (and, with ``flip``, about it in the
+    mirrored frame), one random stream seeded by ``seed``."""
+    views = jittered_views(frames, seed, jitter, flip)
+    if not views:
         raise ValueError("no training samples: no annotated vehicle boxes in the frames given")
-    return Samples.concat(parts)
+    return view_samples(views, coder)
 
 
 def _ridge_path(x: np.ndarray, y: np.ndarray, alphas: Sequence[float]) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -234,8 +201,9 @@ def mirror(view: View) -> View:
 
 def jittered_views(frames: Iterable[tuple[np.ndarray, np.ndarray, np.ndarray]], seed: int = 0,
                    jitter: JitterConfig = JitterConfig(), flip: bool = True) -> list[View]:
-    """The jittered boxes of :func:`collect_samples` as views (same random stream, same order:
-    its samples are :func:`view_samples` of these)."""
+    """Views of ``jitter.per_box`` random boxes (:func:`jitter_boxes`) about each vehicle of
+    every ``(frame, targets (M, 4), groups (M,))`` (vehicles under 4 px left out), and with
+    ``flip`` about it in the mirrored frame too, one random stream seeded by ``seed``."""
     rng = np.random.default_rng(seed)
     out = []
     for frame, targets, groups in frames:

@@ -69,14 +69,28 @@ def _scene(seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return img, boxes, np.arange(3) + 10 * seed
 
 
-def test_jittered_views_give_collect_samples() -> None:
+def test_jittered_views_and_collect_samples() -> None:
+    """Each vehicle gets per_box boxes at IoU >= min_iou in the frame and in its mirror image
+    (the same vehicle, flipped); the samples are their features and offsets, reproducible."""
     frames = [_scene(1), _scene(2)]
+    jit = JitterConfig(per_box=5, min_iou=0.4)
+    views = jittered_views(frames, seed=3, jitter=jit)
+    assert len(views) == 4
+    for k, v in enumerate(views):
+        img, boxes, groups = frames[k // 2]
+        want = boxes if k % 2 == 0 else np.stack([400 - boxes[:, 2], boxes[:, 1], 400 - boxes[:, 0], boxes[:, 3]], 1)
+        np.testing.assert_array_equal(v.targets, np.repeat(want, 5, 0))
+        np.testing.assert_array_equal(v.group, np.repeat(groups, 5))
+        assert np.all(paired_iou(v.inputs, v.targets) >= 0.4)
+        assert (v.image is img) == (k % 2 == 0)
+    assert len(jittered_views(frames, seed=3, jitter=jit, flip=False)) == 2
     coder = BoxFeatures(SMALL, (1.5,))
-    jit = JitterConfig(per_box=5)
-    want = collect_samples(frames, coder, seed=3, jitter=jit)
-    got = view_samples(jittered_views(frames, seed=3, jitter=jit), coder)
-    for k in ("x", "t", "boxes", "targets", "group"):
-        np.testing.assert_array_equal(getattr(got, k), getattr(want, k))
+    smp = collect_samples(frames, coder, seed=3, jitter=jit)
+    np.testing.assert_array_equal(smp.boxes, np.concatenate([v.inputs for v in views]))
+    np.testing.assert_allclose(decode_offsets(smp.boxes, smp.t), smp.targets, atol=1e-9)
+    np.testing.assert_array_equal(smp.x[:5], coder.features(frames[0][0], views[0].inputs[:5]))
+    with pytest.raises(ValueError):
+        collect_samples([(frames[0][0], np.zeros((0, 4)), np.zeros(0))], coder)
 
 
 def test_cascade_stages_fit_the_boxes_before_them_and_tighten_them() -> None:
