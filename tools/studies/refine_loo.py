@@ -58,6 +58,7 @@ from typing import Any
 
 import numpy as np
 
+import fastdet
 from fastdet.config import JitterConfig, PipelineConfig
 from fastdet.detect.regressor import BoxRegressor, load_regressor
 from fastdet.detections import Detections
@@ -101,13 +102,24 @@ class ClipRun:
     images: dict[int, np.ndarray]
 
 
+def _code_digest() -> str:
+    """SHA-256 of fastdet's source files and bundled models: a cached run is redone when the
+    pipeline's code or models change, not only its configuration."""
+    root = Path(fastdet.__file__).resolve().parent
+    h = hashlib.sha256()
+    for f in sorted([*root.rglob("*.py"), *(root / "models").glob("*.npz")]):
+        h.update(str(f.relative_to(root)).encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()
+
+
 def unrefined_run(clip: AnnotatedClip, a: argparse.Namespace, out_dir: Path) -> ClipRun:
     """The pipeline of the options (``config_from``) with the refinement and the plausibility
     rules off, over ``clip``; kept in ``out_dir`` and read from there when the configuration
-    is the same."""
+    is the same (and fastdet's code and models, :func:`_code_digest`)."""
     config = replace(config_from(a), refine=None, plausible=None)
-    key = hashlib.sha256(json.dumps([config.to_dict(), str(clip.video)], sort_keys=True, default=str)
-                         .encode()).hexdigest()[:16]
+    key = hashlib.sha256(json.dumps([config.to_dict(), str(clip.video), _code_digest()], sort_keys=True,
+                                    default=str).encode()).hexdigest()[:16]
     path = out_dir / f"unrefined_{clip.name}.pkl"
     got = None
     if path.is_file():
