@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Literal
 
 from ._base import Config
 
@@ -45,6 +46,9 @@ class PerspectiveConfig(Config):
     sigma_h: how far (fraction of the height) the estimate may pull the horizon from the
         prior without cost (one standard deviation of the prior).
     sigma_ratio: the same for the ratio, in log units.
+    residuals: how a box's misfit is measured (:class:`fastdet.detect.geometry.PerspectiveEstimator`):
+        ``'log'`` (its log ratio against its track's) or ``'rows'`` (its bottom row against
+        the one its width puts it on: steadier near the horizon; docs/geometry.md).
     prior_frames: frames the slack is kept while no estimate comes (``None``: until one
         comes); then the bands stay at the prior without slack (a video that shows too few
         vehicles to say where the road is does not pay for the slack for ever).
@@ -59,8 +63,11 @@ class PerspectiveConfig(Config):
     sigma_h: float = 0.04
     sigma_ratio: float = 0.5
     prior_frames: int | None = None
+    residuals: Literal["rows", "log"] = "log"
 
     def __post_init__(self) -> None:
+        if self.residuals not in ("rows", "log"):
+            raise ValueError(f"residuals must be 'rows' or 'log', got {self.residuals!r}")
         if not 0 <= self.settled_slack < 1:
             raise ValueError(f"settled_slack must be in [0, 1), got {self.settled_slack!r}")
         if self.min_boxes < 1 or self.min_tracks < 1:

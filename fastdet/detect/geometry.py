@@ -223,26 +223,40 @@ class PerspectiveEstimator:
     horizon ``h0`` (the flow estimate or the user's) and the prior ratio.
 
     For each candidate ``h`` (``h0 +- reach`` in steps of ``grid``, fractions of the height)
-    the ratio is the median over the tracks of their boxes' median ``w / (bottom - h)``.
-    The cost: per track, the mean over its boxes of ``min((r / sigma_box)^2, clip^2)``, ``r``
-    a box's log-ratio less the track's median (one vehicle's boxes agree only at the right
-    horizon, when they are at several depths), plus ``min((m / sigma_r)^2, clip^2)``, ``m``
-    the track's median less the common ratio (vehicles differ in width); a track whose boxes
-    are mostly not below ``h`` counts ``clip^2``; plus
-    ``((h - h0) / sigma_h)^2`` and ``(log(k / ratio0) / sigma_k)^2``. :meth:`estimate` is
-    ``(h, k)`` of the lowest cost once ``min_tracks`` tracks have ``min_boxes`` boxes each
-    (or, with ``long_track`` set, one track has that many boxes), else ``None``. One vehicle
-    at one depth says little about the horizon, so by default one track is never enough.
+    each track (one vehicle, one width) gets its own ratio ``k_i``, and the cost is, per
+    track, the mean over its boxes of ``min(r^2, clip^2)`` plus ``min((m / sigma_r)^2,
+    clip^2)``, ``m`` the track's log ratio less the common one (the median over the tracks:
+    vehicles differ in width), plus ``((h - h0) / sigma_h)^2`` and ``(log(k / ratio0) /
+    sigma_k)^2``. ``residuals`` says what ``r`` is:
+
+    - ``'rows'``: a box's bottom row less the one its width puts it on,
+      ``bottom - h - w / k_i`` (``k_i`` by weighted least squares over the track's boxes; a
+      track whose boxes stand above ``h`` fits nowhere), over ``sigma_row + sigma_row_w x w``
+      (a box's bottom is known to a few pixels plus a share of its size). A box near the
+      horizon says little about the ratio and is weighted as such.
+    - ``'log'`` (default): its log ratio ``log(w / (bottom - h))`` less the track's median, over
+      ``sigma_box``; a track whose boxes are mostly not below ``h`` counts ``clip^2``. Near
+      the horizon a row's error is a large share of ``bottom - h``, so short tracks there
+      can pull ``h`` anywhere (docs/geometry.md, "Horizon and ratio together").
+
+    :meth:`estimate` is ``(h, k)`` of the lowest cost once ``min_tracks`` tracks have
+    ``min_boxes`` boxes each (or, with ``long_track`` set, one track has that many boxes),
+    else ``None``. One vehicle at one depth says little about the horizon, so by default one
+    track is never enough.
     """
 
     def __init__(self, min_boxes: int = 5, min_tracks: int = 2, long_track: int | None = None, reach: float = 0.08,
                  grid: float = 0.0025,
                  sigma_h: float = 0.04, sigma_k: float = 0.5, sigma_r: float = 0.15, sigma_box: float = 0.05,
-                 clip: float = 3.0) -> None:
+                 clip: float = 3.0, residuals: str = "log", sigma_row: float = 0.003,
+                 sigma_row_w: float = 0.02) -> None:
+        if residuals not in ("rows", "log"):
+            raise ValueError(f"residuals must be 'rows' or 'log', got {residuals!r}")
         self.min_boxes, self.min_tracks, self.long_track = min_boxes, min_tracks, long_track
         self.reach, self.grid, self.sigma_h, self.sigma_k, self.sigma_r, self.clip = reach, grid, sigma_h, sigma_k, \
             sigma_r, clip
         self.sigma_box = sigma_box
+        self.residuals, self.sigma_row, self.sigma_row_w = residuals, sigma_row, sigma_row_w
         self._per_track: dict[int, list[tuple[float, float]]] = {}
 
     def update(self, boxes: np.ndarray, ids: np.ndarray, rows: int) -> None:
@@ -265,6 +279,12 @@ class PerspectiveEstimator:
             return None
         best: tuple[float, float, float] | None = None
         for h in np.arange(h0 - self.reach, h0 + self.reach + 1e-9, self.grid):
+            if self.residuals == "rows":
+                fit, logk = self._row_fit(tracks, float(h))
+                cost = fit + ((h - h0) / self.sigma_h) ** 2 + ((logk - math.log(ratio0)) / self.sigma_k) ** 2
+                if best is None or cost < best[0]:
+                    best = (cost, float(h), math.exp(logk))
+                continue
             logs, bad = [], 0
             for t in tracks:
                 depth = t[:, 0] - h
@@ -287,3 +307,19 @@ class PerspectiveEstimator:
             if best is None or cost < best[0]:
                 best = (cost, float(h), math.exp(logk))
         return None if best is None else (best[1], best[2])
+
+    def _row_fit(self, tracks: list[np.ndarray], h: float) -> tuple[float, float]:
+        """``(cost of the tracks, common log ratio)`` at horizon ``h`` with row residuals (class docstring)."""
+        fit, logks = 0.0, []
+        for t in tracks:
+            y, w = t[:, 0], t[:, 1]
+            sig = self.sigma_row + self.sigma_row_w * w
+            # rows below the horizon per unit of width (1 / k_i), weighted least squares; a track
+            # above h gets a tiny one, so its boxes' residuals are their whole height above h
+            c = max(float(np.sum(w * (y - h) / sig ** 2) / np.sum(w * w / sig ** 2)), 1e-3)
+            r = (y - h - c * w) / sig
+            fit += float(np.minimum(r ** 2, self.clip ** 2).mean())
+            logks.append(-math.log(c))
+        lk = np.asarray(logks)
+        logk = float(np.median(lk))
+        return fit + float(np.minimum(((lk - logk) / self.sigma_r) ** 2, self.clip ** 2).sum()), logk

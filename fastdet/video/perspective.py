@@ -36,7 +36,7 @@ class PerspectiveUpdater:
         self.config = config if config is not None else PerspectiveConfig()
         c = self.config
         self.estimator = PerspectiveEstimator(min_boxes=c.min_boxes, min_tracks=c.min_tracks, long_track=c.long_track,
-                                              sigma_h=c.sigma_h, sigma_k=c.sigma_ratio)
+                                              sigma_h=c.sigma_h, sigma_k=c.sigma_ratio, residuals=c.residuals)
         self.prior: float | None = None  # the horizon before the vehicles had their say
         self.estimate: tuple[float, float] | None = None
         self._applied: float | None = None  # the horizon this updater last gave the search

@@ -81,6 +81,8 @@ def main() -> None:
     ap.add_argument("--band-slack", default=None, metavar="ABOVE,BELOW",
                     help="slack (fractions of H) above and below every main band but the smallest "
                          "(SearchBand.slack_above / slack_below) instead of the default's")
+    ap.add_argument("--below-scales", default=None, metavar="S,S",
+                    help="--band-slack: the slack below only on the bands of these scales (reference scales)")
     ap.add_argument("--slack-threshold", type=float, default=None,
                     help="decision value a window in a band's slack rows must exceed (SearchConfig.slack_threshold; "
                          "'nan': none)")
@@ -89,6 +91,8 @@ def main() -> None:
                          "the oncoming search's slack_threshold)")
     ap.add_argument("--oncoming-slack-threshold", type=float, default=2.2,
                     help="with --oncoming-band-slack: the decision value a window in the slack rows must exceed")
+    ap.add_argument("--residuals", choices=("rows", "log"), default="log",
+                    help="--joint: how a box's misfit is measured (PerspectiveConfig.residuals)")
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
     geo = GeometryConfig(ratio=args.ratio, slack=args.slack)
@@ -119,8 +123,12 @@ def main() -> None:
             above, below = (float(v) or None for v in args.band_slack.split(","))
             main = det.scorers[0].search
             smallest = min(b.scale for b in main.bands)
+            below_scales = None if args.below_scales is None else {float(v) for v in args.below_scales.split(",")}
             det.scorers[0].search = replace(main, bands=tuple(
-                b if b.scale == smallest else replace(b, slack_above=above, slack_below=below) for b in main.bands))
+                b if b.scale == smallest else replace(
+                    b, slack_above=above,
+                    slack_below=below if below_scales is None or b.scale in below_scales else None)
+                for b in main.bands))
         if args.slack_threshold is not None:
             gate = None if args.slack_threshold != args.slack_threshold else args.slack_threshold
             det.scorers[0].search = replace(det.scorers[0].search, slack_threshold=gate)
@@ -174,7 +182,7 @@ def main() -> None:
                 if updater is None:
                     updater = PerspectiveUpdater(det, PerspectiveConfig(
                         geometry=geo, settled_slack=args.settled_slack, min_tracks=args.min_tracks,
-                        min_score=args.min_score, prior_frames=args.prior_frames))
+                        min_score=args.min_score, prior_frames=args.prior_frames, residuals=args.residuals))
                 updater.update(dets, shape[0])
                 continue
             est.update(dets.boxes[keep], dets.ids[keep], h, shape[0])
