@@ -244,7 +244,7 @@ def main() -> None:
                          "leave-one-clip-out figures in its metadata")
     ap.add_argument("--ship-without", default="test_small1")
     ap.add_argument("--reuse", action="store_true",
-                    help="use the regressors already in --out-dir (refine_without_CAMERA.npz, same options)")
+                    help="use the regressors already in --out-dir (refine_without_CLIP.npz, same options)")
     ap.add_argument("--jitter-scale", type=float, nargs=2, default=JitterConfig().scale, metavar=("LO", "HI"),
                     help="size factors of the training boxes about each vehicle (default: JitterConfig's)")
     ap.add_argument("--jitter-aspect", type=float, default=JitterConfig().aspect,
@@ -268,12 +268,14 @@ def main() -> None:
     refine_cfg = config_from(a).refine
     held = [c for c in clips if a.clips is None or c.name in a.clips.split(",")]
     scores, tables, fa_lines, hotas = [], [], [], []
-    fitted: dict[str, BoxRegressor] = {}  # one regressor per held-out camera
+    fitted: dict[str, BoxRegressor] = {}  # one fit per held-out camera, a file per clip
     for clip in held:
         cam = camera_of(clip.name)
-        path = out_dir / f"refine_without_{cam}.npz"
+        path = out_dir / f"refine_without_{clip.name}.npz"
         if cam in fitted:
             reg = fitted[cam]
+            if not (a.reuse and path.is_file()):
+                reg.save(path)
         elif a.reuse and path.is_file():
             reg = load_regressor(path)
             if reg.n_stages != a.cascade:
