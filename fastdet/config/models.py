@@ -19,8 +19,10 @@ SIDE_MODEL_PATH = MODELS_DIR / "side.npz"
 SMALL_MODEL_PATH = MODELS_DIR / "small.npz"
 #: the bundled box regressor (:mod:`fastdet.detect.regressor`), applied
 #: ``RefineConfig.iterations`` (3) times: fitted on test_video, the three keyframe clips of other
-#: cameras and the test images, never on test_small1 (``python -m tools.studies.refine_loo --refine
-#: iterations=3 --ship``; its leave-one-clip-out figures are in its metadata and docs/geometry.md)
+#: cameras and the test images, never on test_small1, on boxes jittered about their vehicles and
+#: on the pipeline's own boxes (``python -m tools.studies.refine_loo --inputs both --own-repeat 8
+#: --refine iterations=3 --ship``; its leave-one-camera-out figures are in its metadata and
+#: docs/geometry.md)
 REFINE_MODEL_PATH = MODELS_DIR / "refine_cameras.npz"
 #: the earlier box regressor, fitted on test_video and the test images alone
 #: (``tools/scripts/refine_model.py``); meant for one iteration: ``RefineConfig(iterations=1)``

@@ -16,6 +16,12 @@ with the regressor's :class:`~fastdet.config.FeatureConfig`. A context above 1 l
 where the vehicle continues beyond the box. The prediction is a ridge regression on
 standardised features: ``t = ((x - mean) / scale) @ coef.T + intercept``.
 
+A regressor may be a *cascade* of ``S`` stages (:meth:`BoxRegressor.stack`, fitted by
+:func:`fastdet.train.refine.fit_cascade`): the same features, one set of arrays per stage;
+refinement step ``i`` uses stage ``i`` (the last stage for the steps after them). A
+one-stage regressor's file holds the arrays as below; a cascade's hold them with a leading
+stage axis (``coef (S, 4, F)``, ``intercept (S, 4)``, ``mean (S, F)``, ``scale (S, F)``).
+
 File format (``.npz``, read with ``allow_pickle=False``; written atomically)
 
 ===============  ============================  =========================================
@@ -157,11 +163,12 @@ class BoxFeatures:
 
 @dataclass(frozen=True, eq=False)
 class BoxRegressor:
-    """A linear box regressor (module docstring).
+    """A linear box regressor (module docstring), one stage or a cascade.
 
     config: the features of each context crop; contexts: the context factors (> 0);
     coef ``(4, F)``, intercept ``(4,)``, mean ``(F,)``, scale ``(F,)`` float64 with
-    ``F = len(contexts) * config.n_features``; metadata: what training recorded.
+    ``F = len(contexts) * config.n_features`` (a cascade of ``S`` stages: a leading axis of
+    ``S`` on each; stored so, one-stage arrays as ``S = 1``); metadata: what training recorded.
     """
 
     config: FeatureConfig
@@ -178,12 +185,19 @@ class BoxRegressor:
             raise ModelError(f"contexts must be positive numbers, got {self.contexts!r}")
         object.__setattr__(self, "contexts", ctx)
         n = len(ctx) * self.config.n_features
+        coef = np.asarray(self.coef)
+        stages = coef.shape[0] if coef.ndim == 3 else 1
+        if stages < 1:
+            raise ModelError("box regressor: a cascade needs at least one stage")
         shapes = {"coef": (4, n), "intercept": (4,), "mean": (n,), "scale": (n,)}
         for name, shape in shapes.items():
             arr = np.ascontiguousarray(getattr(self, name), dtype=np.float64)
-            if arr.shape != shape:
+            if arr.shape == shape:
+                arr = arr[None]
+            if arr.shape != (stages,) + shape:
+                want = shape if coef.ndim != 3 else (stages,) + shape
                 raise ModelError(f"box regressor: '{name}' has shape {arr.shape}, the features "
-                                 f"({len(ctx)} contexts x {self.config.n_features}) imply {shape}")
+                                 f"({len(ctx)} contexts x {self.config.n_features}) imply {want}")
             if not np.all(np.isfinite(arr)):
                 raise ModelError(f"box regressor: '{name}' holds non-finite values")
             object.__setattr__(self, name, arr)
@@ -194,6 +208,11 @@ class BoxRegressor:
     def n_features(self) -> int:
         return len(self.contexts) * self.config.n_features
 
+    @property
+    def n_stages(self) -> int:
+        """Stages of the cascade (1 for a single regressor)."""
+        return int(self.coef.shape[0])
+
     @classmethod
     def from_fit(cls, spec: BoxFeatures, coef: np.ndarray, intercept: np.ndarray, mean: np.ndarray,
                  scale: np.ndarray, metadata: dict[str, Any] | None = None) -> BoxRegressor:
@@ -201,19 +220,35 @@ class BoxRegressor:
         return cls(spec.config, spec.contexts, coef, intercept, mean, scale, metadata=dict(metadata or {}))
 
     @classmethod
+    def stack(cls, stages: list[BoxRegressor], metadata: dict[str, Any] | None = None) -> BoxRegressor:
+        """The cascade of ``stages`` (each a regressor of the same features, one stage or more),
+        in order; ``metadata``: the cascade's."""
+        if not stages:
+            raise ValueError("stack: no stages given")
+        first = stages[0]
+        if any(r.config != first.config or r.contexts != first.contexts for r in stages):
+            raise ValueError("stack: the stages' features differ")
+        coef, intercept, mean, scale = (np.concatenate([getattr(r, k) for r in stages])
+                                        for k in ("coef", "intercept", "mean", "scale"))
+        return cls(first.config, first.contexts, coef, intercept, mean, scale, metadata=dict(metadata or {}))
+
+    @classmethod
     def zero(cls, config: FeatureConfig = REFINE_FEATURES, contexts: tuple[float, ...] = (1.5,)) -> BoxRegressor:
         """A regressor that predicts no change (offsets 0 for every box)."""
         n = len(contexts) * config.n_features
         return cls(config, contexts, np.zeros((4, n)), np.zeros(4), np.zeros(n), np.ones(n))
 
-    def predict_features(self, x: np.ndarray) -> np.ndarray:
-        """Offsets ``(N, 4) float64`` ``(tx, ty, tw, th)`` of feature rows ``x (N, F)``."""
+    def predict_features(self, x: np.ndarray, stage: int = 0) -> np.ndarray:
+        """Offsets ``(N, 4) float64`` ``(tx, ty, tw, th)`` of feature rows ``x (N, F)`` by the
+        ``stage``-th stage (the last one when ``stage`` is past it)."""
+        k = min(max(int(stage), 0), self.n_stages - 1)
         x = np.asarray(x, np.float64).reshape(-1, self.n_features)
-        return ((x - self.mean) / self.scale) @ self.coef.T + self.intercept
+        return ((x - self.mean[k]) / self.scale[k]) @ self.coef[k].T + self.intercept[k]
 
-    def predict(self, frame: np.ndarray, boxes: np.ndarray) -> np.ndarray:
-        """Offsets ``(N, 4) float64`` for ``boxes (N, 4)`` of ``frame (H, W, 3) uint8 BGR``."""
-        return self.predict_features(box_features(frame, boxes, self.config, self.contexts))
+    def predict(self, frame: np.ndarray, boxes: np.ndarray, stage: int = 0) -> np.ndarray:
+        """Offsets ``(N, 4) float64`` for ``boxes (N, 4)`` of ``frame (H, W, 3) uint8 BGR`` by
+        the ``stage``-th stage (:meth:`predict_features`)."""
+        return self.predict_features(box_features(frame, boxes, self.config, self.contexts), stage)
 
     # ---- files ------------------------------------------------------------------------
     def save(self, path: str | os.PathLike) -> Path:
@@ -221,8 +256,11 @@ class BoxRegressor:
         meta = dict(self.metadata)
         meta.update(format_version=FORMAT_VERSION, kind="box_regressor", feature_config=self.config.to_dict(),
                     contexts=list(self.contexts), fastdet_version=__version__)
-        return write_npz(path, {"coef": self.coef, "intercept": self.intercept, "mean": self.mean,
-                                "scale": self.scale}, meta)
+        arrays = {k: getattr(self, k) for k in ("coef", "intercept", "mean", "scale")}
+        if self.n_stages == 1:  # a single regressor's file as it always was
+            arrays = {k: v[0] for k, v in arrays.items()}
+        meta["stages"] = self.n_stages
+        return write_npz(path, arrays, meta)
 
 
 def load_regressor(path: str | os.PathLike | None = None) -> BoxRegressor:

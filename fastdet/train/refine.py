@@ -73,48 +73,15 @@ class Samples:
         return len(self.t)
 
 
-def frame_samples(frame: np.ndarray, targets: np.ndarray, groups: np.ndarray, rng: np.random.Generator,
-                  coder: BoxFeatures, jitter: JitterConfig = JitterConfig(), flip: bool = True) -> Samples:
-    """Samples of one frame ``(H, W, 3) uint8 BGR`` with vehicle boxes ``targets (M, 4)``
-    and their groups ``(M,)``; ``flip``: the mirrored frame too."""
-    targets = np.asarray(targets, np.float64).reshape(-1, 4)
-    groups = np.asarray(groups, np.int64).reshape(-1)
-    W = frame.shape[1]
-    views = [(frame, targets)]
-    if flip:
-        views.append((np.ascontiguousarray(frame[:, ::-1]),
-                      np.stack([W - targets[:, 2], targets[:, 1], W - targets[:, 0], targets[:, 3]], axis=1)))
-    parts = []
-    for img, tg in views:
-        boxes, tgs, grp = [], [], []
-        for g, t in zip(groups, tg):
-            if t[2] - t[0] < 4 or t[3] - t[1] < 4:
-                continue
-            b = jitter_boxes(t, jitter.per_box, rng, jitter)
-            boxes.append(b)
-            tgs.append(np.repeat(t[None], len(b), 0))
-            grp.append(np.full(len(b), g, np.int64))
-        if not boxes:
-            continue
-        b, tt = np.concatenate(boxes), np.concatenate(tgs)
-        parts.append(Samples(coder.features(img, b), encode_offsets(b, tt), b, tt,
-                             np.concatenate(grp)))
-    if not parts:
-        return Samples(np.zeros((0, coder.n_features)), np.zeros((0, 4)), np.zeros((0, 4)), np.zeros((0, 4)),
-                       np.zeros(0, np.int64))
-    return Samples.concat(parts)
-
-
 def collect_samples(frames: Iterable[tuple[np.ndarray, np.ndarray, np.ndarray]], coder: BoxFeatures, seed: int = 0,
                     jitter: JitterConfig = JitterConfig(), flip: bool = True) -> Samples:
-    """:func:`frame_samples` of every ``(frame, targets (M, 4), groups (M,))``, one random
-    stream seeded by ``seed``."""
-    rng = np.random.default_rng(seed)
-    parts = [frame_samples(f, t, g, rng, coder, jitter, flip) for f, t, g in frames]
-    parts = [p for p in parts if len(p)]
-    if not parts:
+    """The samples of :func:`jittered_views` of every ``(frame (H, W, 3) uint8 BGR, targets
+    (M, 4), groups (M,))``: random boxes about each vehicle (and, with ``flip``, about it in the
+    mirrored frame), one random stream seeded by ``seed``."""
+    views = jittered_views(frames, seed, jitter, flip)
+    if not views:
         raise ValueError("no training samples: no annotated vehicle boxes in the frames given")
-    return Samples.concat(parts)
+    return view_samples(views, coder)
 
 
 def _ridge_path(x: np.ndarray, y: np.ndarray, alphas: Sequence[float]) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -171,6 +138,16 @@ def fit_ridge(samples: Samples, coder: BoxFeatures, alphas: Sequence[float] = AL
     all samples (:meth:`fastdet.detect.regressor.BoxRegressor.from_fit` makes the regressor of
     them), the report holding: the alphas, the cross-validated mean
     IoU of each, the chosen alpha, the mean IoU of the jittered boxes as they were."""
+    arrays, report, _ = fit_ridge_cv(samples, coder, alphas, folds, max_offset)
+    return arrays, report
+
+
+def fit_ridge_cv(samples: Samples, coder: BoxFeatures, alphas: Sequence[float] = ALPHAS, folds: int = 4,
+                 max_offset: float = 1.0) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+                                                   dict[str, Any], np.ndarray]:
+    """:func:`fit_ridge`, and the cross-validated offsets ``(N, 4)`` of every sample at the
+    chosen alpha (each predicted by the fit without its fold: what the regressor does on
+    vehicles it never saw)."""
     x, y = samples.x, np.clip(samples.t, -max_offset, max_offset)
     groups = np.unique(samples.group)
     k = max(2, min(folds, len(groups)))
@@ -179,13 +156,14 @@ def fit_ridge(samples: Samples, coder: BoxFeatures, alphas: Sequence[float] = AL
     fold_of = {g: i % k for i, g in enumerate(groups)}
     fold = np.array([fold_of[g] for g in samples.group])
     scores = np.zeros((k, len(alphas)))
+    oof = np.zeros((len(alphas),) + y.shape)
     for f in range(k):
         tr, te = fold != f, fold == f
         xs, mean, scale = _standardise(x[tr])
         xte = (x[te] - mean) / scale
         for j, (coef, icpt) in enumerate(_ridge_path(xs, y[tr], alphas)):
-            scores[f, j] = mean_iou(samples.boxes[te], np.clip(xte @ coef.T + icpt, -max_offset, max_offset),
-                                    samples.targets[te], coder)
+            oof[j][te] = np.clip(xte @ coef.T + icpt, -max_offset, max_offset)
+            scores[f, j] = mean_iou(samples.boxes[te], oof[j][te], samples.targets[te], coder)
     cv = scores.mean(axis=0)
     best = int(np.argmax(cv))
     xs, mean, scale = _standardise(x)
@@ -193,4 +171,123 @@ def fit_ridge(samples: Samples, coder: BoxFeatures, alphas: Sequence[float] = AL
     report = {"alphas": [float(a) for a in alphas], "cv_mean_iou": [float(v) for v in cv], "alpha": float(alphas[best]),
               "folds": k, "groups": int(len(groups)), "samples": int(len(samples)),
               "jittered_mean_iou": mean_iou(samples.boxes, np.zeros_like(samples.t), samples.targets, coder)}
-    return (coef, icpt, mean, scale), report
+    return (coef, icpt, mean, scale), report, oof[best]
+
+
+# ---------------------------------------------------------------------------------------- own boxes, cascades
+
+
+@dataclass
+class View:
+    """One picture's training inputs: ``image (H, W, 3) uint8 BGR``, the boxes the regressor
+    starts from ``inputs (N, 4)``, each one's vehicle ``targets (N, 4)`` (x1, y1, x2, y2
+    pixels) and ``group (N,) int64`` (its vehicle, for leak-free folds)."""
+
+    image: np.ndarray
+    inputs: np.ndarray
+    targets: np.ndarray
+    group: np.ndarray
+
+
+def mirror(view: View) -> View:
+    """``view`` mirrored left-right (image and boxes)."""
+    W = view.image.shape[1]
+
+    def flip(b: np.ndarray) -> np.ndarray:
+        return np.stack([W - b[:, 2], b[:, 1], W - b[:, 0], b[:, 3]], axis=1) if len(b) else b.reshape(0, 4)
+
+    return View(np.ascontiguousarray(view.image[:, ::-1]), flip(view.inputs), flip(view.targets), view.group)
+
+
+def jittered_views(frames: Iterable[tuple[np.ndarray, np.ndarray, np.ndarray]], seed: int = 0,
+                   jitter: JitterConfig = JitterConfig(), flip: bool = True) -> list[View]:
+    """Views of ``jitter.per_box`` random boxes (:func:`jitter_boxes`) about each vehicle of
+    every ``(frame, targets (M, 4), groups (M,))`` (vehicles under 4 px left out), and with
+    ``flip`` about it in the mirrored frame too, one random stream seeded by ``seed``."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for frame, targets, groups in frames:
+        targets = np.asarray(targets, np.float64).reshape(-1, 4)
+        groups = np.asarray(groups, np.int64).reshape(-1)
+        base = View(frame, np.zeros((0, 4)), targets, groups)
+        for v in ([base, mirror(base)] if flip else [base]):
+            boxes, tgs, grp = [], [], []
+            for g, t in zip(v.group, v.targets):
+                if t[2] - t[0] < 4 or t[3] - t[1] < 4:
+                    continue
+                b = jitter_boxes(t, jitter.per_box, rng, jitter)
+                boxes.append(b)
+                tgs.append(np.repeat(t[None], len(b), 0))
+                grp.append(np.full(len(b), g, np.int64))
+            if boxes:
+                out.append(View(v.image, np.concatenate(boxes), np.concatenate(tgs), np.concatenate(grp)))
+    return out
+
+
+def matched_inputs(boxes: np.ndarray, targets: np.ndarray, groups: np.ndarray,
+                   min_iou: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The ``boxes (N, 4)`` a pipeline returned on a frame, each paired with the vehicle of
+    ``targets (M, 4)`` it overlaps most, kept when that IoU is at least ``min_iou``:
+    ``(inputs (K, 4), their targets (K, 4), their groups (K,))`` float64, float64, int64.
+    Repeated boxes count once; boxes narrower or lower than 4 px are left out."""
+    b = np.unique(np.asarray(boxes, np.float64).reshape(-1, 4), axis=0)
+    t = np.asarray(targets, np.float64).reshape(-1, 4)
+    g = np.asarray(groups, np.int64).reshape(-1)
+    b = b[((b[:, 2] - b[:, 0]) >= 4) & ((b[:, 3] - b[:, 1]) >= 4)]
+    if not len(b) or not len(t):
+        return np.zeros((0, 4)), np.zeros((0, 4)), np.zeros(0, np.int64)
+    m = box_iou(b, t)
+    j = np.argmax(m, axis=1)
+    keep = m[np.arange(len(b)), j] >= min_iou
+    return b[keep], t[j[keep]], g[j[keep]]
+
+
+def view_samples(views: Sequence[View], coder: BoxFeatures) -> Samples:
+    """Features of every view's inputs and the offsets to their targets."""
+    parts = [Samples(coder.features(v.image, v.inputs), encode_offsets(v.inputs, v.targets), v.inputs, v.targets,
+                     v.group) for v in views if len(v.inputs)]
+    if not parts:
+        raise ValueError("no training samples: no input boxes in the views given")
+    return Samples.concat(parts)
+
+
+def step(boxes: np.ndarray, offsets: np.ndarray, max_shift: float, max_log_scale: float) -> np.ndarray:
+    """``boxes (N, 4)`` moved by ``offsets (N, 4)`` clamped as a refinement step clamps them
+    (:class:`~fastdet.config.RefineConfig`'s ``max_shift``, ``max_log_scale``)."""
+    lim = np.array([max_shift, max_shift, max_log_scale, max_log_scale])
+    return decode_offsets(boxes, np.clip(offsets, -lim, lim))
+
+
+def fit_cascade(views: Sequence[View], coder: BoxFeatures, stages: int, max_shift: float = 0.5,
+                max_log_scale: float = math.log(1.5), alphas: Sequence[float] = ALPHAS,
+                folds: int = 4) -> list[tuple[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], dict[str, Any]]]:
+    """``stages`` regressors, each fitted (:func:`fit_ridge`) on the boxes the ones before it
+    made of the views' inputs (the first on the inputs as they are): a cascade, so that each
+    stage learns from boxes like the ones it will be given. The boxes passed on are the
+    cross-validated ones (:func:`fit_ridge_cv`: each moved by a fit that never saw its
+    vehicle), as a stage's boxes are on a new camera; a stage fitted on its own training
+    boxes would pass on boxes better than it will ever give. Returns each stage's
+    ``(arrays, report)`` as :func:`fit_ridge` does; a report also holds ``input_mean_iou``
+    (its inputs' mean IoU with their targets) and ``output_mean_iou`` (after its
+    cross-validated step)."""
+    if stages < 1:
+        raise ValueError(f"stages must be >= 1, got {stages}")
+    cur = [View(v.image, np.asarray(v.inputs, np.float64), v.targets, v.group) for v in views if len(v.inputs)]
+    out = []
+    for _ in range(stages):
+        smp = view_samples(cur, coder)
+        arrays, report, oof = fit_ridge_cv(smp, coder, alphas, folds)
+        nxt, ious_in, ious_out = [], [], []
+        at = 0
+        for v in cur:
+            n = len(v.inputs)
+            b = step(v.inputs, oof[at:at + n], max_shift, max_log_scale)
+            at += n
+            ious_in.append(paired_iou(v.inputs, v.targets))
+            ious_out.append(paired_iou(b, v.targets))
+            nxt.append(View(v.image, b, v.targets, v.group))
+        report["input_mean_iou"] = float(np.mean(np.concatenate(ious_in)))
+        report["output_mean_iou"] = float(np.mean(np.concatenate(ious_out)))
+        out.append((arrays, report))
+        cur = nxt
+    return out

@@ -73,6 +73,28 @@ def test_save_load_round_trip(tmp_path: Path) -> None:
     assert not list(tmp_path.glob(".*partial*"))
 
 
+def test_cascade_save_load_and_stage_choice(tmp_path: Path) -> None:
+    """A cascade's file holds its stages along a leading axis; a one-stage regressor's file
+    keeps the two-dimensional arrays it always had; step i uses stage i, the last one after."""
+    rng = np.random.default_rng(1)
+    n = SMALL.n_features
+    stages = [BoxRegressor(SMALL, (1.0,), rng.normal(size=(4, n)), rng.normal(size=4), rng.normal(size=n),
+                           rng.uniform(0.5, 2, n)) for _ in range(3)]
+    cas = BoxRegressor.stack(stages, metadata={"note": "c"})
+    assert cas.n_stages == 3 and stages[0].n_stages == 1
+    back = load_regressor(cas.save(tmp_path / "c.npz"))
+    assert back.n_stages == 3 and back.metadata["stages"] == 3 and back.metadata["note"] == "c"
+    with np.load(tmp_path / "c.npz") as z:
+        assert z["coef"].shape == (3, 4, n) and z["scale"].shape == (3, n)
+    with np.load(stages[0].save(tmp_path / "one.npz")) as z:
+        assert z["coef"].shape == (4, n) and z["intercept"].shape == (4,)
+    x = rng.normal(size=(5, n))
+    for i in range(5):
+        np.testing.assert_array_equal(back.predict_features(x, stage=i), stages[min(i, 2)].predict_features(x))
+    with pytest.raises(ModelError):
+        BoxRegressor(SMALL, (1.0,), np.zeros((2, 4, n)), np.zeros((3, 4)), np.zeros((2, n)), np.ones((2, n)))
+
+
 def _write_npz(path: Path, **arrays: np.ndarray) -> Path:
     with open(path, "wb") as fh:
         np.savez(fh, **arrays)

@@ -81,6 +81,44 @@ def test_refine_moves_clamps_parts_and_clips() -> None:
         refine(frame[..., 0], dets, BoxRegressor.zero(SMALL))
 
 
+def _grow(config: FeatureConfig, tw: float, tx: float = 0.0) -> BoxRegressor:
+    """A regressor that always predicts a width change of ``tw`` (log) and a move of ``tx``."""
+    reg = BoxRegressor.zero(config, (1.0,))
+    return BoxRegressor(config, reg.contexts, reg.coef, np.array([tx, 0.0, tw, 0.0]), reg.mean, reg.scale)
+
+
+def test_cascade_stopping_and_total_growth_cap() -> None:
+    frame = _frame()
+    b = np.array([[100.0, 50, 140, 90]])
+    # a cascade: step i uses stage i, the last one for the steps after
+    cascade = BoxRegressor.stack([_shift_right(SMALL, (1.0,), 0.25), _shift_right(SMALL, (1.0,), 0.5)])
+    got = refine_boxes(frame, b, cascade, RefineConfig(iterations=3))
+    np.testing.assert_allclose(got, [[100 + 10 + 20 + 20, 50, 140 + 50, 90]])
+    with pytest.raises(ValueError):
+        BoxRegressor.stack([])
+    with pytest.raises(ValueError):
+        BoxRegressor.stack([BoxRegressor.zero(SMALL, (1.0,)), BoxRegressor.zero(SMALL, (1.5,))])
+    # the width grows by exp(0.2) a step; capped at exp(0.3) in all about the centre
+    grown = refine_boxes(frame, b, _grow(SMALL, 0.2), RefineConfig(iterations=3))
+    np.testing.assert_allclose(grown[0, 2] - grown[0, 0], 40 * np.exp(0.6))
+    capped = refine_boxes(frame, b, _grow(SMALL, 0.2), RefineConfig(iterations=3, max_total_log_scale=0.3))
+    np.testing.assert_allclose(capped[0, 2] - capped[0, 0], 40 * np.exp(0.3))
+    np.testing.assert_allclose(capped[0, [1, 3]], b[0, [1, 3]])
+    shrunk = refine_boxes(frame, b, _grow(SMALL, -0.2), RefineConfig(iterations=3, max_total_log_scale=0.3))
+    np.testing.assert_allclose(shrunk[0, 2] - shrunk[0, 0], 40 * np.exp(-0.3))
+    # a step below min_step is taken, and it is the last one
+    small = refine_boxes(frame, b, _grow(SMALL, 0.05), RefineConfig(iterations=3, min_step=0.1))
+    np.testing.assert_allclose(small[0, 2] - small[0, 0], 40 * np.exp(0.05))
+    big = refine_boxes(frame, b, _grow(SMALL, 0.2), RefineConfig(iterations=3, min_step=0.1))
+    np.testing.assert_allclose(big, grown)
+    # off by default, and left out of the config's dict (its digest as before they existed)
+    assert "min_step" not in RefineConfig().to_dict() and "max_total_log_scale" not in RefineConfig().to_dict()
+    assert RefineConfig.from_dict(RefineConfig(min_step=0.1).to_dict()).min_step == 0.1
+    for bad in ({"min_step": -1.0}, {"max_total_log_scale": float("inf")}, {"max_total_log_scale": float("nan")}):
+        with pytest.raises(ValueError):
+            RefineConfig(**bad)
+
+
 def test_jitter_boxes() -> None:
     rng = np.random.default_rng(1)
     t = np.array([100.0, 200.0, 200.0, 260.0])

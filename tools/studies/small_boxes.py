@@ -102,8 +102,8 @@ def searched_windows(det, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def run_clip(clip, config: PipelineConfig, search: bool = False) -> tuple[list, list, int, dict]:
     """The pipeline over one clip: ``(frames [(fno, out)], records {fno: ...}, rows, counts)``;
-    records only for the scored frames (with ``search``, also every window the main model's
-    full search scores there, :func:`searched_windows`)."""
+    records only for the scored frames, with the horizon the search used (with ``search``, also
+    every window the main model's full search scores there, :func:`searched_windows`)."""
     gt, kf = clip.gt(), clip.keyframes()
     scored = set(int(f) for f in (kf if kf is not None else np.unique(gt.frames)))
     reader = FrameReader(str(clip.video), notify=lambda _n: None)
@@ -124,7 +124,8 @@ def run_clip(clip, config: PipelineConfig, search: bool = False) -> tuple[list, 
             n_windows += len(w)
             if fno in scored:
                 main = w[w.part == MAIN_PART] if w.part is not None else w
-                rec[fno] = dict(out=out, boxes=dbg.boxes, windows=main, heat=dbg.heat.copy())
+                rec[fno] = dict(out=out, boxes=dbg.boxes, windows=main, heat=dbg.heat.copy(),
+                                horizon=getattr(vd.detector, "horizon", None))
                 if search:
                     rec[fno]["searched"] = searched_windows(vd.detector, frame)
         rows = reader.shape[0]
