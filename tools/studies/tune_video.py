@@ -33,7 +33,7 @@ from fastdet import Detections, Detector, HeatConfig, MotionGate, SearchConfig, 
 from fastdet.config import ONCOMING_HEAT, ONCOMING_SEARCH, PipelineConfig, TrackerConfig
 from fastdet.data import data_dir
 from fastdet.detect import DetectStats, window_boxes
-from fastdet.detections import MAIN_PART
+from fastdet.detect.geometry import row_thresholds
 from fastdet.eval import evaluate
 from fastdet.io.motfiles import read_gt
 from fastdet.io.reader import FrameReader
@@ -46,12 +46,15 @@ from tools.studies.band_cost import parse_bands
 class CachedClip:
     """One clip's windows, detected once: per frame, every window whose decision value is
     above the cache's low threshold (``windows[i]`` with ``scale`` and ``part``,
-    ``decisions[i]`` their decision values, float64)."""
+    ``decisions[i]`` their decision values, float64, ``gates[i]`` the decision value the
+    detector's own search asks of each where it is stricter than the threshold swept, NaN
+    elsewhere: the main bands' slack rows, :func:`fastdet.detect.geometry.row_thresholds`)."""
 
     video: Path
     detector: Detector
     windows: list[Detections]
     decisions: list[np.ndarray]
+    gates: list[np.ndarray]
 
     def __len__(self) -> int:
         return len(self.windows)
@@ -70,20 +73,24 @@ def frames_of(video: str | os.PathLike):
 def cache_windows(det: Detector, video: str | os.PathLike, low: float) -> CachedClip:
     """Run ``det`` over every frame of ``video`` once and keep every window (of both models)
     with a decision value above ``low`` (at most the lowest threshold to sweep)."""
-    windows, decisions = [], []
+    windows, decisions, gates = [], [], []
     for frame in frames_of(video):
         stats = DetectStats()
         det.detect(frame, stats=stats)
-        found, decs = [], []
+        found, decs, gate = [], [], []
         for part, geo, dec in stats.bands:
-            config = det.model.config if part == MAIN_PART else det.oncoming_model.config
+            scorer = det.scorers[det.parts.index(part)]
+            config = scorer.config
             r, c = np.nonzero(dec > low)
             found.append(Detections(window_boxes(geo, r, c, config), dec[r, c].astype(np.float32),
                                     scale=np.full(len(r), geo.band.scale), part=np.full(len(r), part)))
             decs.append(dec[r, c])
+            row_thr = np.broadcast_to(row_thresholds(geo, scorer.search, config), (geo.ny,))[r]
+            gate.append(np.where(row_thr > scorer.search.threshold, row_thr, np.nan))
         windows.append(Detections.concat(found))
         decisions.append(np.concatenate(decs) if decs else np.zeros(0))
-    return CachedClip(Path(video), det, windows, decisions)
+        gates.append(np.concatenate(gate) if gate else np.zeros(0))
+    return CachedClip(Path(video), det, windows, decisions, gates)
 
 
 def replayed_windows(clip: CachedClip, thr: float, thr_oncoming: float) -> list[Detections]:
@@ -91,8 +98,9 @@ def replayed_windows(clip: CachedClip, thr: float, thr_oncoming: float) -> list[
     model), with the scores :meth:`fastdet.Detector.detect` gives them (the probability for
     logistic-regression models, the decision value for LinearSVC)."""
     out = []
-    for windows, dec in zip(clip.windows, clip.decisions):
+    for windows, dec, gate in zip(clip.windows, clip.decisions, clip.gates):
         keep = np.where(windows.is_oncoming, dec > thr_oncoming, dec > thr)
+        keep &= ~(dec <= gate)  # a slack row's own, stricter threshold (NaN: none)
         score = dec[keep]
         if clip.detector.score_kind == "probability":
             score = 1.0 / (1.0 + np.exp(-score))
