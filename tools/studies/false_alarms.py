@@ -51,6 +51,7 @@ from fastdet.config import REFERENCE_HORIZON, PipelineConfig, PlausibleConfig
 from fastdet.detections import Detections
 from fastdet.eval.clips import AnnotatedClip, annotated_clips, markdown_table, score_clip
 from fastdet.eval.matching import match_frame
+from fastdet.io.atomic import write_bytes
 from fastdet.io.reader import FrameReader, read_frames_at
 from fastdet.video.detector import make_detector
 from fastdet.video.pipeline import VideoDetector
@@ -380,11 +381,7 @@ def main() -> None:
         print("|" + "---|" * (len(runs) + 1))
         print("\n".join(rule_lines(runs)))
     if a.json:
-        with open(a.json + ".tmp", "w") as fh:
-            json.dump(dump, fh, indent=1)
-        import os  # noqa: PLC0415
-
-        os.replace(a.json + ".tmp", a.json)
+        write_bytes(a.json, json.dumps(dump, indent=1).encode())
 
 
 if __name__ == "__main__":

@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import replace
@@ -55,6 +54,7 @@ from fastdet.config import (
 )
 from fastdet.config.search import LARGE_SEARCH
 from fastdet.eval.clips import AnnotatedClip, ClipScore, annotated_clips
+from fastdet.io.atomic import write_bytes
 from fastdet.video import make_detector
 from tools.studies.loo import SAME_CAMERA, run_clip
 
@@ -225,10 +225,7 @@ def tables(results: dict[str, Any], settings: Sequence[str], clips: Sequence[str
 
 
 def _save(part: dict[str, Any], path: Path) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "w") as f:
-        json.dump(part, f, indent=1)
-    os.replace(tmp, path)
+    write_bytes(path, json.dumps(part, indent=1).encode())
 
 
 def load(out_dir: Path) -> dict[str, Any]:

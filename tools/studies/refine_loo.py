@@ -47,7 +47,6 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
-import os
 import pickle
 import sys
 import tempfile
@@ -63,6 +62,7 @@ from fastdet.config import JitterConfig, PipelineConfig
 from fastdet.detect.regressor import BoxRegressor, load_regressor
 from fastdet.detections import Detections
 from fastdet.eval.clips import AnnotatedClip, annotated_clips, markdown_table, score_clip
+from fastdet.io.atomic import write_bytes
 from fastdet.io.reader import read_frames_at
 from fastdet.train.refine import View, fit_cascade, jittered_views, matched_inputs, mirror
 from fastdet.video.plausible import PlausibleStage
@@ -130,10 +130,7 @@ def unrefined_run(clip: AnnotatedClip, a: argparse.Namespace, out_dir: Path) -> 
     if got is None:
         frames, rec, rows, _ = run_clip(clip, config)
         got = {"key": key, "frames": frames, "rec": rec, "rows": rows}
-        tmp = path.with_name(path.name + ".tmp")
-        with open(tmp, "wb") as f:
-            pickle.dump(got, f)
-        os.replace(tmp, path)
+        write_bytes(path, pickle.dumps(got))
     images = read_frames_at(clip.video, sorted(got["rec"]), notify=lambda _n: None)
     return ClipRun(clip, got["frames"], got["rec"], got["rows"], images)
 

@@ -54,7 +54,7 @@ def _value(s: str) -> Any:
     return {"none": None, "true": True, "false": False}.get(s.lower(), s)
 
 
-def _overrides(items: list[str] | None, cls: type, flag: str) -> dict[str, Any]:
+def overrides(items: list[str] | None, cls: type, flag: str) -> dict[str, Any]:
     """``KEY=VALUE`` options naming fields of the dataclass ``cls``, as keyword arguments."""
     names = {f.name for f in fields(cls)}
     kw = {}
@@ -67,9 +67,9 @@ def _overrides(items: list[str] | None, cls: type, flag: str) -> dict[str, Any]:
 
 
 def config_from(args: argparse.Namespace) -> PipelineConfig:
-    heat = replace(HeatConfig(), **_overrides(args.heat, HeatConfig, "--heat"))
+    heat = replace(HeatConfig(), **overrides(args.heat, HeatConfig, "--heat"))
     cfg = PipelineConfig(heat=heat, refine_model=args.refine_model)
-    rkw = _overrides(args.refine, RefineConfig, "--refine")
+    rkw = overrides(args.refine, RefineConfig, "--refine")
     if rkw:
         cfg = replace(cfg, refine=replace(RefineConfig(), **rkw))
     if args.no_refine:

@@ -50,8 +50,6 @@ from fastdet.config import HeatConfig, PipelineConfig
 from fastdet.config.models import SMALL_MODEL_PATH
 from fastdet.data import data_dir
 from fastdet.detect import Detector
-from fastdet.detect.bands import window_boxes
-from fastdet.detect.detector import DetectStats
 from fastdet.detections import Detections
 from fastdet.eval.clips import annotated_clips, markdown_table
 from fastdet.eval.sizes import recall_by_width
@@ -62,7 +60,7 @@ from fastdet.train.small import SmallRecipe, train_small
 from fastdet.video import make_detector
 from fastdet.video.horizon import HORIZON_FRAMES, estimate_horizon, search_horizon
 from tools.studies.loo import folds, frame_rows, run_clip
-from tools.studies.small_boxes import _overrides
+from tools.studies.small_boxes import overrides, searched_windows
 
 #: targets narrower than this (pixels of a 720-row frame) are "small"
 SMALL_WIDTH = 60.0
@@ -73,22 +71,6 @@ def clip_horizon(video: Path) -> float | None:
     """The horizon the pipeline searches ``video`` at (:func:`~fastdet.video.horizon.search_horizon`
     of the estimate from its first frames; ``None``: the reference)."""
     return search_horizon(estimate_horizon(read_frames(video, 0, HORIZON_FRAMES, notify=lambda _n: None)))
-
-
-def all_windows(det: Detector, frame: np.ndarray, part: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """Every window model ``part`` of ``det`` scores on ``frame``: ``(boxes (N, 4), decision values (N,))``."""
-    st = DetectStats()
-    det.detect(frame, stats=st)
-    boxes, decs = [], []
-    for p, geo, dec in st.bands:
-        if p != part:
-            continue
-        r, c = np.nonzero(np.isfinite(dec))
-        boxes.append(window_boxes(geo, r, c, det._scorer_of[p].config).astype(np.float64))
-        decs.append(dec[r, c])
-    if not boxes:
-        return np.zeros((0, 4)), np.zeros(0)
-    return np.concatenate(boxes), np.concatenate(decs)
 
 
 def window_stats(frames: list[AnnotatedFrame], windows: list[tuple[np.ndarray, np.ndarray]],
@@ -138,7 +120,7 @@ def windows_study(model: Model, clips: list, data: Path, levels: tuple[float, ..
     for clip in clips:
         frames = read_annotated_frames(data, clip.name)
         det = Detector(model, search=search, horizon=clip_horizon(clip.video))
-        out[clip.name] = window_stats(frames, [all_windows(det, f.image) for f in frames], levels)
+        out[clip.name] = window_stats(frames, [searched_windows(det, f.image) for f in frames], levels)
     return out
 
 
@@ -292,7 +274,7 @@ def main(argv: list[str] | None = None) -> int:
         clips = [c for c in clips if c.name in want]
     config = PipelineConfig()
     if args.heat:
-        config = replace(config, small_heat=replace(config.small_heat, **_overrides(args.heat, HeatConfig, "--heat")))
+        config = replace(config, small_heat=replace(config.small_heat, **overrides(args.heat, HeatConfig, "--heat")))
     if args.no_refine:
         config = config.without("refine")
     if args.check is not None:
