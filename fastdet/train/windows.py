@@ -30,7 +30,7 @@ import numpy as np
 
 from ..boxes import intersection, iou
 from ..config import SearchBand, SearchConfig
-from ..detections import MAIN_PART, ONCOMING_PART
+from ..detections import FIRST_COMPONENT_PART, MAIN_PART, ONCOMING_PART
 from ..model import Model
 from .keyframes import AnnotatedFrame
 
@@ -165,3 +165,44 @@ def score_frames(model: Model, frames: Sequence[AnnotatedFrame], iou_min: float 
             on_frame(f, fw)
         out.append(fw)
     return window_score(out)
+
+
+def false_window_scores(models: Sequence[Model], frames: Sequence[AnnotatedFrame], **search: Any) -> np.ndarray:
+    """``(len(models), K) float64``: each model's decision values on the same ``K`` false windows
+    (touching no annotated box) of ``frames``, every window of :func:`dense_search` (``search``:
+    its keyword arguments, e.g. ``cells_per_step=2``) scored in one search (the models must share
+    one window size and HOG cell), e.g. to compare how many background windows each lets through
+    (:func:`fastdet.train.blend.rate_offset`)."""
+    from ..detect.bands import window_boxes
+    from ..detect.detector import DetectStats
+
+    if not models:
+        raise ValueError("false_window_scores: no model")
+    first = models[0].config
+    for m in models[1:]:
+        if (m.config.win_w, m.config.win_h, m.config.pixels_per_cell) != (first.win_w, first.win_h,
+                                                                            first.pixels_per_cell):
+            raise ValueError("false_window_scores: the models' windows or HOG cells differ")
+    parts = [MAIN_PART] + [FIRST_COMPONENT_PART + i for i in range(len(models) - 1)]
+    detectors: dict[tuple[int, int], Any] = {}
+    out: list[np.ndarray] = []
+    for f in frames:
+        shape = f.image.shape[:2]
+        if shape not in detectors:
+            detectors[shape] = dense_detector(models[0], shape, models[1:], **search)
+        st = DetectStats()
+        detectors[shape].detect(f.image, stats=st)
+        boxes: dict[int, list[np.ndarray]] = {p: [] for p in parts}
+        decs: dict[int, list[np.ndarray]] = {p: [] for p in parts}
+        for part, geo, dec in st.bands:
+            r, c = np.nonzero(np.isfinite(dec))
+            boxes[part].append(window_boxes(geo, r, c, first).astype(np.float64))
+            decs[part].append(dec[r, c].astype(np.float64))
+        b0 = np.concatenate(boxes[MAIN_PART]) if boxes[MAIN_PART] else np.zeros((0, 4))
+        for p in parts[1:]:
+            bp = np.concatenate(boxes[p]) if boxes[p] else np.zeros((0, 4))
+            if not np.array_equal(bp, b0):
+                raise AssertionError("false_window_scores: the models' searches gave other windows")
+        keep = ~np.any(intersection(b0, f.boxes) > 0, axis=1) if len(f.boxes) else np.ones(len(b0), bool)
+        out.append(np.stack([np.concatenate(decs[p])[keep] if decs[p] else np.zeros(0) for p in parts]))
+    return np.concatenate(out, axis=1) if out else np.zeros((len(models), 0))

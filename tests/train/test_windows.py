@@ -18,6 +18,7 @@ from fastdet.train.windows import (
     FrameWindows,
     dense_detector,
     dense_search,
+    false_window_scores,
     frame_windows,
     score_frames,
     window_score,
@@ -103,3 +104,20 @@ def test_real_frames_with_the_bundled_model(data):
     d = det.detect(frames[0].image)
     assert (d.part == MAIN_PART).all() and len(d) > 1000
     np.testing.assert_allclose(seen[0].best, frame_windows(det, frames[0]).best)
+
+
+def test_false_window_scores_of_two_models_on_the_same_windows(data):
+    from fastdet.train.blend import offset
+
+    frames = read_annotated_frames(data, "boston_street")[:1]
+    model = load_model(None)
+    s = false_window_scores([model, offset(model, 1.5)], frames, cells_per_step=2)
+    assert s.shape[0] == 2 and s.shape[1] > 1000
+    np.testing.assert_allclose(s[1], s[0] - 1.5, atol=1e-9)
+    # the same false windows frame_windows finds, as decision values (it gives probabilities)
+    det = dense_detector(model, frames[0].image.shape[:2], cells_per_step=2)
+    fw = frame_windows(det, frames[0])
+    assert len(fw.false) == s.shape[1]
+    np.testing.assert_allclose(np.sort(1 / (1 + np.exp(-s[0]))), np.sort(fw.false), rtol=1e-5, atol=1e-6)
+    with pytest.raises(ValueError):
+        false_window_scores([], frames)

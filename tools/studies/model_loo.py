@@ -26,11 +26,28 @@ Folds (:func:`tools.studies.loo.folds`): each camera is held out in turn; the tw
 model and it (``PipelineConfig(side=...)``), (b) the windows of both models together (a
 target's best window is the best of either; every false window of either counts).
 
+``--refine-loo DIR``: each clip's box regressor is ``DIR/refine_without_CLIP.npz`` (fitted on the
+other cameras, ``python -m tools.studies.refine_loo --out-dir DIR``), for the bundled model and the
+held-out one alike, so that nothing that saw the clip scores it; without it the bundled
+regressor (which saw every clip) refines the boxes.
+
+Two rules that turn a held-out model into the one scored, both learnt only from its own training
+clips (:mod:`fastdet.train.blend`), written beside it (``..._mixM``, ``..._cal``):
+
+- ``--mix M``: the bundled model and the held-out one blended, ``(1 - M) x bundled + M x
+  held-out`` (folded weights averaged: one linear model, the same search cost);
+- ``--calibrate``: the model's decision values moved by a constant so that, on the dense search's
+  false windows of its training clips' annotated frames (every second HOG cell), it lets through
+  as many as the bundled model does at the search's threshold (decision value 0): every
+  threshold of the pipeline on a main-model window moves with it.
+
+``--no-windows`` skips the placement-free scores (b) (they do not depend on the pipeline).
+
 Usage (from the repository root)::
 
     python -m tools.studies.model_loo [--work /tmp/fastdet-model-loo] [--clips A,B] [--tag T]
         [--jitter N] [--background N] [--hard-per-frame N] [--hard-rounds N [--reuse-round1]] [--C C]
-        [--no-train] [--no-baseline]
+        [--no-train] [--no-baseline] [--refine-loo DIR] [--mix M] [--calibrate] [--no-windows]
         [--side] [--json OUT.json]
 
 About 4 minutes of CPU per fold to train, 1-2 to score.
@@ -41,6 +58,7 @@ import argparse
 import json
 import math
 import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -49,9 +67,10 @@ from fastdet.data import data_dir
 from fastdet.detections import Detections
 from fastdet.eval.clips import annotated_clips, markdown_table
 from fastdet.io.atomic import write_bytes
-from fastdet.model import load_model
+from fastdet.model import Model, load_model
+from fastdet.train.blend import blend, offset, rate_offset
 from fastdet.train.keyframes import read_annotated_frames
-from fastdet.train.windows import FALSE_RATES, WindowScore, score_frames
+from fastdet.train.windows import FALSE_RATES, WindowScore, false_window_scores, score_frames
 from tools.scripts import side_model
 from tools.scripts.keyframe_model import add_recipe_arguments, build, recipe_from_args
 from tools.studies.loo import folds, misplaced, run_clip
@@ -79,6 +98,28 @@ def window_table(rows: list[tuple[str, WindowScore, WindowScore | None]]) -> str
     return "\n".join(lines)
 
 
+def scored_model(held_out: Model, bundled: Model, train_clips: list[str], data: Path, mix: float | None,
+                 calibrate: bool, log=print) -> tuple[Model, dict[str, Any]]:
+    """The model a fold's clips are scored with: ``held_out`` blended with ``bundled`` (``mix``,
+    the held-out model's weight; ``None``: not blended) and, with ``calibrate``, offset to let
+    through as many of the false windows of ``train_clips``' annotated frames as ``bundled``
+    does at decision value 0 (module docstring); with what was done."""
+    model, info = held_out, {}
+    if mix is not None:
+        model = blend([bundled, held_out], [1.0 - mix, mix])
+        info["mix"] = mix
+    if calibrate:
+        frames = [f for c in train_clips for f in read_annotated_frames(data, c)]
+        scores = false_window_scores([model, bundled], frames, cells_per_step=2)
+        delta = rate_offset(scores[0], scores[1], 0.0)
+        info.update(offset=delta, false_windows=int(scores.shape[1]), frames=len(frames),
+                    bundled_above_0=int((scores[1] > 0).sum()), model_above_0=int((scores[0] > 0).sum()))
+        log(f"calibrated on {', '.join(train_clips)}: {info['frames']} frames, {info['false_windows']} false "
+            f"windows; above 0: bundled {info['bundled_above_0']}, model {info['model_above_0']}; offset {delta:+.3f}")
+        model = offset(model, delta, {"calibration": {**info, "clips": train_clips}})
+    return model, info
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--work", type=Path, default=Path("/tmp/fastdet-model-loo"))
@@ -91,8 +132,17 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--no-train", action="store_true", help="only score: every held-out model must exist")
     p.add_argument("--no-baseline", action="store_true", help="do not score the bundled model")
     p.add_argument("--side", action="store_true", help="also a side-view component trained on the same clips")
+    p.add_argument("--refine-loo", type=Path, default=None,
+                   help="the held-out box regressors, DIR/refine_without_CLIP.npz (refine_loo --out-dir)")
+    p.add_argument("--mix", type=float, default=None, help="score the bundled and the held-out model blended, "
+                                                            "this the held-out one's weight (0..1)")
+    p.add_argument("--calibrate", action="store_true",
+                   help="offset the scored model to the bundled model's false-window rate on its training clips")
+    p.add_argument("--no-windows", action="store_true", help="skip the placement-free window scores")
     p.add_argument("--json", type=Path, help="also write every figure to this JSON file")
     args = p.parse_args(argv)
+    if args.mix is not None and not 0 <= args.mix <= 1:
+        p.error("--mix must be in 0..1")
     data = data_dir()
     clips = {c.name: c for c in annotated_clips(data)}
     want = args.clips.split(",") if args.clips else list(clips)
@@ -119,6 +169,13 @@ def main(argv: list[str] | None = None) -> int:
             previous = [load_model(first)] if args.reuse_round1 and first.exists() else []
             build(path, list(fold.train), data, recipe, args.C, previous=previous)
         model = load_model(path)
+        rule = ""
+        if args.mix is not None or args.calibrate:
+            rule = (f"_mix{args.mix:g}" if args.mix is not None else "") + ("_cal" if args.calibrate else "")
+            path = args.work / f"main{tag}{rule}_without_{fold.name}.npz"
+            model, info = scored_model(model, bundled, list(fold.train), data, args.mix, args.calibrate)
+            model.save(path)
+            out.setdefault("rules", {})[fold.name] = info
         side_path = args.work / f"side_without_{fold.name}.npz"
         if args.side and not side_path.exists():
             if args.no_train:
@@ -126,30 +183,43 @@ def main(argv: list[str] | None = None) -> int:
                 return 2
             side_model.build(side_path, list(fold.train), data)
         for name in scored:
-            frames = read_annotated_frames(data, name)
-            base_w = None if args.no_baseline else score_frames(bundled, frames)
-            new_w = score_frames(model, frames)
+            frames = [] if args.no_windows and not args.side else read_annotated_frames(data, name)
+            base_w = None if args.no_baseline or args.no_windows else score_frames(bundled, frames)
+            new_w = None if args.no_windows else score_frames(model, frames)
+            refine = None
+            if args.refine_loo is not None:
+                refine = args.refine_loo / f"refine_without_{name}.npz"
+                if not refine.is_file():
+                    print(f"model_loo: {refine} missing (python -m tools.studies.refine_loo --out-dir "
+                          f"{args.refine_loo})", file=sys.stderr)
+                    return 2
+            held = PipelineConfig(refine_model=None if refine is None else str(refine))
             kept: list[Detections] = []
-            if base_w is None:
-                win_rows.append((name, new_w, None))
-            else:
-                win_rows.append((name, base_w, new_w))
-                pipe_base.append(run_clip(clips[name], PipelineConfig(), keep=kept))
-            pipe_new.append(run_clip(clips[name], PipelineConfig(model=str(path)), keep=kept))
+            if new_w is not None:
+                win_rows.append((name, new_w, None) if base_w is None else (name, base_w, new_w))
+            if not args.no_baseline:
+                pipe_base.append(run_clip(clips[name], held, keep=kept))
+            pipe_new.append(run_clip(clips[name], replace(held, model=str(path)), keep=kept))
             wrong = [misplaced(clips[name], k) for k in kept]
             if args.side:
-                side_rows.append((name, new_w, score_frames(model, frames, components=[load_model(side_path)])))
-                pipe_side.append(run_clip(clips[name], PipelineConfig(model=str(path), side=str(side_path))))
-                out["clips"][name + "+side"] = {"windows": side_rows[-1][2].to_dict(),
+                if new_w is not None:
+                    side_rows.append((name, new_w, score_frames(model, frames, components=[load_model(side_path)])))
+                pipe_side.append(run_clip(clips[name], replace(held, model=str(path), side=str(side_path))))
+                out["clips"][name + "+side"] = {"windows": side_rows[-1][2].to_dict() if new_w is not None else None,
                                                 "pipeline": pipe_side[-1].to_dict()}
             out["clips"][name] = {"model": str(path), "trained_on": list(fold.train),
+                                  "refine_model": None if refine is None else str(refine),
                                   "false_alarms_near_target_and_clear": wrong,
-                                  "windows": new_w.to_dict(), "pipeline": pipe_new[-1].to_dict(),
-                                  "bundled": None if base_w is None else {"windows": base_w.to_dict(),
-                                                                          "pipeline": pipe_base[-1].to_dict()}}
-            print(f"{name}: pipeline F1 {'' if base_w is None else f'{pipe_base[-1].result.f1:.3f} -> '}"
-                  f"{pipe_new[-1].result.f1:.3f}; window recall @ 1 FW/frame "
-                  f"{'' if base_w is None else f'{base_w.recall_at[1.0]:.3f} -> '}{new_w.recall_at[1.0]:.3f}; "
+                                  "windows": None if new_w is None else new_w.to_dict(),
+                                  "pipeline": pipe_new[-1].to_dict(),
+                                  "bundled": None if args.no_baseline else {
+                                      "windows": None if base_w is None else base_w.to_dict(),
+                                      "pipeline": pipe_base[-1].to_dict()}}
+            windows = "" if new_w is None else (
+                f"; window recall @ 1 FW/frame {'' if base_w is None else f'{base_w.recall_at[1.0]:.3f} -> '}"
+                f"{new_w.recall_at[1.0]:.3f}")
+            print(f"{name}: pipeline F1 {'' if args.no_baseline else f'{pipe_base[-1].result.f1:.3f} -> '}"
+                  f"{pipe_new[-1].result.f1:.3f}{windows}; "
                   f"pipeline boxes at IoU < 0.5 touching a target / touching nothing annotated: "
                   f"{' -> '.join(f'{a} / {b}' for a, b in wrong)}", flush=True)
     if pipe_base:
@@ -157,13 +227,15 @@ def main(argv: list[str] | None = None) -> int:
         print(markdown_table(pipe_base))
     print("\n(a) pipeline, held-out models (each clip scored by the model trained without its camera)\n")
     print(markdown_table(pipe_new))
-    print("\n(b) placement-free windows" + ("" if args.no_baseline else ": bundled -> held-out model") + "\n")
-    print(window_table(win_rows))
+    if win_rows:
+        print("\n(b) placement-free windows" + ("" if args.no_baseline else ": bundled -> held-out model") + "\n")
+        print(window_table(win_rows))
     if args.side:
         print("\n(a) pipeline, held-out main model + held-out side component\n")
         print(markdown_table(pipe_side))
-        print("\n(b) placement-free windows: held-out main model -> with the held-out side component\n")
-        print(window_table(side_rows))
+        if side_rows:
+            print("\n(b) placement-free windows: held-out main model -> with the held-out side component\n")
+            print(window_table(side_rows))
     if args.json:
         write_bytes(args.json, json.dumps(out, indent=1, sort_keys=True).encode())
     return 0
