@@ -116,12 +116,15 @@ def add_refine_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def add_camera_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--own-vehicle``, ``--no-split-neighbours`` / ``--split-neighbours`` and ``--perspective-filter``:
-    the optional stages for other cameras."""
-    parser.add_argument("--own-vehicle", action="store_true",
-                        help="drop the windows lying on the own vehicle (hood, dashboard, mirrors, letterbox bars: "
-                             "what stays fixed at the picture's border while the scene moves in the first 3 s); "
-                             "off by default")
+    """``--no-own-vehicle`` / ``--own-vehicle``, ``--no-split-neighbours`` / ``--split-neighbours`` and
+    ``--perspective-filter``: the optional stages for other cameras."""
+    o = parser.add_mutually_exclusive_group()
+    o.add_argument("--no-own-vehicle", action="store_true",
+                   help="search the own vehicle's picture regions too, instead of dropping the windows lying on "
+                        "what stays fixed at the picture's border while the scene moves in the first 3 s (hood, "
+                        "dashboard, mirrors, letterbox bars: the default)")
+    o.add_argument("--own-vehicle", action="store_true",
+                   help="drop the windows lying on the own vehicle (the default; kept for scripts that name it)")
     g = parser.add_mutually_exclusive_group()
     g.add_argument("--no-split-neighbours", action="store_true",
                    help="keep a wide heat blob whole (one box over vehicles side by side) instead of splitting it "
@@ -140,7 +143,7 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
     command does not have takes its default. ``--no-track``: no tracker (and so the full
     search); ``--full-search``: no guided search; ``--no-refine``: no refinement;
     ``--heat-frames`` / ``--heat-decay`` / ``--heat-threshold``: the main heat map (a bad
-    value: :class:`~fastdet.errors.FastdetError`); ``--own-vehicle``: that stage on with its defaults;
+    value: :class:`~fastdet.errors.FastdetError`); ``--no-own-vehicle``: the own-vehicle stage off;
     ``--no-split-neighbours``: the neighbour split off; ``--perspective-filter``: the perspective test of the
     plausibility stage on."""
     d = HeatConfig()
@@ -156,7 +159,7 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
                             small=getattr(args, "small_model", None) or bool(getattr(args, "small", False)),
                             traffic=getattr(args, "traffic", "right"), horizon=getattr(args, "horizon", "auto"),
                             heat=heat, perspective=PerspectiveConfig() if getattr(args, "perspective", False) else None,
-                            own_vehicle=OwnVehicleConfig() if getattr(args, "own_vehicle", False) else None,
+                            own_vehicle=None if getattr(args, "no_own_vehicle", False) else OwnVehicleConfig(),
                             split=None if getattr(args, "no_split_neighbours", False) else NeighbourSplit(),
                             plausible=PlausibleConfig(perspective=bool(getattr(args, "perspective_filter", False))))
     off = [name for name, flag in (("tracker", "no_track"), ("guided", "full_search"), ("refine", "no_refine"))

@@ -74,7 +74,8 @@ class PipelineConfig(Config):
         horizon (not ``None``).
     own_vehicle: drop the positive windows lying on the own vehicle (hood, dashboard,
         mirrors, letterbox bars) found in the first seconds (:mod:`fastdet.video.ownvehicle`);
-        ``None`` (default): off.
+        on by default (:class:`OwnVehicleConfig`: a camera with nothing of its vehicle in
+        view gets an empty region and loses no window), ``None``: off.
     split: split the main heat map's wide boxes between the modes of their windows, one box
         per vehicle side by side (:mod:`fastdet.video.blobsplit`); on by default
         (:class:`NeighbourSplit`), ``None``: off.
@@ -83,9 +84,6 @@ class PipelineConfig(Config):
         ``PlausibleConfig(perspective=True)`` also the boxes whose width does not fit how far
         below the horizon they stand. ``None``: every box the tracker (and the refinement) gives.
     """
-
-    #: off by default: a dict written before these stages existed is the same dict
-    _OMIT_NONE = ("own_vehicle",)
 
     model: str | None = None
     oncoming: str | bool = True
@@ -107,7 +105,7 @@ class PipelineConfig(Config):
     guided: GuidedSearch | None = GuidedSearch()
     refine: RefineConfig | None = RefineConfig()
     perspective: PerspectiveConfig | None = None
-    own_vehicle: OwnVehicleConfig | None = None
+    own_vehicle: OwnVehicleConfig | None = OwnVehicleConfig()
     split: NeighbourSplit | None = NeighbourSplit()
     plausible: PlausibleConfig | None = PlausibleConfig()
 

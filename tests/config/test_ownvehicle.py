@@ -21,6 +21,11 @@ def test_frames_at_a_frame_rate_and_round_trip():
     assert OwnVehicleConfig.from_dict(c.to_dict()) == c
     on = PipelineConfig(own_vehicle=OwnVehicleConfig(min_still=0.7))
     assert PipelineConfig.from_dict(on.to_dict()) == on
-    assert "own_vehicle" not in PipelineConfig().to_dict()  # off: the dict of before the field existed
+    assert PipelineConfig().own_vehicle == OwnVehicleConfig()  # on by default
+    off = PipelineConfig(own_vehicle=None)
+    assert PipelineConfig.from_dict(off.to_dict()) == off  # off survives the round trip
+    old = PipelineConfig().to_dict()
+    del old["own_vehicle"]
+    assert PipelineConfig.from_dict(old) == PipelineConfig()  # a dict from before the field: the default
     with pytest.raises(TypeError):
         PipelineConfig(own_vehicle=0.5)  # type: ignore[arg-type]

@@ -197,9 +197,11 @@ def test_the_cli_turns_the_stages_on_and_off(tmp_path):
     on = pipeline_config(p.parse_args(["--own-vehicle", "--split-neighbours"]))
     assert on.own_vehicle == OwnVehicleConfig() and on.split == NeighbourSplit()
     default = pipeline_config(p.parse_args([]))
-    assert default.own_vehicle is None and default.split == NeighbourSplit()
-    assert default.to_dict() == PipelineConfig().to_dict() and "own_vehicle" not in default.to_dict()
+    assert default.own_vehicle == OwnVehicleConfig() and default.split == NeighbourSplit()
+    assert default == on and default.to_dict() == PipelineConfig().to_dict()
     assert PipelineConfig.from_dict(on.to_dict()) == on
+    no_own = pipeline_config(p.parse_args(["--no-own-vehicle"]))
+    assert no_own.own_vehicle is None and PipelineConfig.from_dict(no_own.to_dict()) == no_own
     off = pipeline_config(p.parse_args(["--no-split-neighbours"]))
     assert off.split is None and PipelineConfig.from_dict(off.to_dict()) == off
     with pytest.raises(SystemExit):

@@ -7,7 +7,8 @@ A *setting* is ``base`` (today's defaults) or option names joined by ``+`` (``sm
   (``--side``); ``large``: the main model's large-vehicle search (``LARGE_SEARCH`` as a component,
   in the side component's place, so not with ``side``);
 - ``split``: ``--split-neighbours`` (the default since this table was measured: a no-op today);
-  ``nosplit``: ``--no-split-neighbours``; ``own``: ``--own-vehicle``; ``persp``: ``--perspective``;
+  ``nosplit``: ``--no-split-neighbours``; ``own``: ``--own-vehicle`` (the default now, a no-op);
+  ``noown``: ``--no-own-vehicle``; ``persp``: ``--perspective``;
   ``pfilter``: ``--perspective-filter``; ``both``: ``--traffic both``.
 
 Each setting runs on every clip as ``fastdet eval --all`` runs it (:func:`tools.studies.loo.run_clip`)
@@ -72,6 +73,7 @@ OPTIONS: dict[str, tuple[str, Callable[[PipelineConfig], PipelineConfig]]] = {
     "split": ("--split-neighbours", lambda c: replace(c, split=NeighbourSplit())),
     "nosplit": ("--no-split-neighbours", lambda c: replace(c, split=None)),
     "own": ("--own-vehicle", lambda c: replace(c, own_vehicle=OwnVehicleConfig())),
+    "noown": ("--no-own-vehicle", lambda c: replace(c, own_vehicle=None)),
     "persp": ("--perspective", lambda c: replace(c, perspective=PerspectiveConfig())),
     "pfilter": ("--perspective-filter", _plausible_perspective),
     "both": ("--traffic both", lambda c: replace(c, traffic="both")),
@@ -102,8 +104,9 @@ def parse_setting(name: str) -> tuple[str, ...]:
         raise ValueError(f"unknown option {bad[0]!r} in {name!r} (options: base, {', '.join(OPTIONS)})")
     if len(set(opts)) != len(opts):
         raise ValueError(f"an option named twice in {name!r}")
-    if "split" in opts and "nosplit" in opts:
-        raise ValueError(f"{name!r}: split and nosplit")
+    for on, off in (("split", "nosplit"), ("own", "noown")):
+        if on in opts and off in opts:
+            raise ValueError(f"{name!r}: {on} and {off}")
     if "side" in opts and "large" in opts:
         raise ValueError(f"{name!r}: side and large both take the side component's place")
     return opts

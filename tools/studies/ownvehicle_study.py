@@ -105,7 +105,7 @@ def _warm() -> None:
         _WARM.append(True)
 
 
-BASE = PipelineConfig()
+BASE = replace(PipelineConfig(), own_vehicle=None)  # the variants add the stage to a pipeline without it
 VARIANTS: dict[str, PipelineConfig] = {
     "base": BASE,
     "own": replace(BASE, own_vehicle=OwnVehicleConfig()),

@@ -24,11 +24,12 @@ def test_settings_to_pipelines() -> None:
     assert c.traffic == "both"
     large = ot.config_for("large")
     assert large.side == str(DEFAULT_MODEL_PATH) and large.side_search == LARGE_SEARCH
-    # every option but split (the default) changes the pipeline, and no two the same way
+    # every option but split and own (the defaults) changes the pipeline, and no two the same way
     assert ot.config_for("split") == PipelineConfig() and ot.config_for("nosplit").split is None
-    configs = [ot.config_for(o) for o in ot.OPTIONS if o != "split"]
+    assert ot.config_for("own") == PipelineConfig() and ot.config_for("noown").own_vehicle is None
+    configs = [ot.config_for(o) for o in ot.OPTIONS if o not in ("split", "own")]
     assert all(c != PipelineConfig() for c in configs) and len(set(map(repr, configs))) == len(configs)
-    for bad in ("small+nope", "side+large", "small+small", "split+nosplit", ""):
+    for bad in ("small+nope", "side+large", "small+small", "split+nosplit", "own+noown", ""):
         with pytest.raises(ValueError):
             ot.parse_setting(bad)
     for s in ot.DEFAULT_SETTINGS:
