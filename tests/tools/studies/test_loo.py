@@ -56,3 +56,34 @@ def test_misplaced_counts_boxes_near_a_target_and_clear_of_everything(tmp_path):
     assert misplaced(clip, preds) == (1, 1)
     (tmp_path / "c.frames").unlink()
     assert misplaced(clip, preds) == (1, 2)
+
+
+def test_mix_out_of_range_and_a_missing_held_out_regressor_are_one_line(tmp_path, capsys, data):
+    import shutil
+
+    import pytest
+
+    from fastdet.model import DEFAULT_MODEL_PATH
+
+    with pytest.raises(SystemExit) as e:
+        model_loo.main(["--mix", "1.5", "--no-train", "--work", str(tmp_path)])
+    assert e.value.code == 2 and "--mix" in capsys.readouterr().err
+    shutil.copy(DEFAULT_MODEL_PATH, tmp_path / "main_without_boston_street.npz")
+    assert model_loo.main(["--clips", "boston_street", "--no-train", "--no-windows", "--work", str(tmp_path),
+                           "--refine-loo", str(tmp_path / "none")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "refine_without_boston_street.npz" in err
+
+
+def test_scored_model_blends_with_the_bundled_model():
+    import numpy as np
+
+    from fastdet.model import load_model
+    from fastdet.train.blend import offset
+
+    bundled = load_model(None)
+    other = offset(bundled, 2.0)  # a "held-out model" scoring 2 lower on every window
+    model, info = model_loo.scored_model(other, bundled, [], None, 0.25, False)
+    crops = np.random.default_rng(0).integers(0, 256, (3, 64, 64, 3), dtype=np.uint8)
+    np.testing.assert_allclose(model.decision_function(crops), bundled.decision_function(crops) - 0.5, atol=1e-9)
+    assert info == {"mix": 0.25}
