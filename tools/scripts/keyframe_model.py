@@ -8,13 +8,16 @@ re-encoded copies, logistic regression.
 Usage (from the repository root)::
 
     python -m tools.scripts.keyframe_model --out M.npz [--clips A,B,...] [--exclude A,B]
-        [--data DIR] [--jitter N] [--background N] [--hard-per-frame N] [--hard-rounds N] [--near-per-frame N [--near-iou I]] [--max-aspect A] [--C C]
+        [--data DIR] [--jitter N] [--background N] [--hard-per-frame N] [--hard-rounds N]
+        [--near-per-frame N [--near-iou I]] [--max-aspect A] [--C C]
         [--max-per-folder N]
 
 ``--clips``: the clips to learn from (default: every annotated clip of the data folder,
 :func:`fastdet.eval.clips.annotated_clips`); ``--exclude``: all but these (the
 leave-one-clip-out models of ``tools/studies/model_loo.py``); ``--max-per-folder``: at most
-this many data-set crops per folder (quick runs and tests only). About 3-4 minutes of CPU and
+this many data-set crops per folder (quick runs and tests only); ``--near-per-frame``: also up to
+this many near misses a frame as hard negatives (windows the bundled model fires on that touch
+a target at IoU below ``--near-iou``, :mod:`fastdet.train.keyframe_model`). About 3-4 minutes of CPU and
 10 GB of memory with the whole data set.
 """
 from __future__ import annotations
