@@ -91,6 +91,8 @@ class TrackerConfig(Config):
             raise ValueError(f"split_overlap must be in [0, 1], got {self.split_overlap!r}")
         if not 0 <= self.buffer <= 2:
             raise ValueError(f"buffer must be in [0, 2], got {self.buffer!r}")
+        if not isinstance(self.hold_row, bool):
+            raise ValueError(f"hold_row must be True or False, got {self.hold_row!r}")
         if self.output not in ("detection", "filtered"):
             raise ValueError(f"output must be 'detection' or 'filtered', got {self.output!r}")
         for name in ("std_position", "std_velocity", "init_velocity"):

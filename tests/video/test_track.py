@@ -292,6 +292,8 @@ def test_tracker_config_is_checked():
         TrackerConfig(min_hits=0)
     with pytest.raises(ValueError):
         TrackerConfig(output="kalman")
+    with pytest.raises(ValueError):
+        TrackerConfig(hold_row=1)
     with pytest.raises(TypeError):
         Tracker(HeatConfig())
     assert TrackerConfig.from_dict(TrackerConfig().to_dict()) == TrackerConfig()
