@@ -98,7 +98,7 @@ def timelines(gt: Detections, preds: Detections, keyframes: np.ndarray | None = 
     gt: the clip's ground truth; preds: boxes with ``ids`` (a box without an id, -1, is a
     track of its own). Matching: :func:`match_frame`, as ``fastdet eval``."""
     frames = _frames(gt, keyframes)
-    assert gt.frames is not None and gt.ids is not None and preds.frames is not None
+    assert gt.frames is not None and gt.ids is not None and preds.frames is not None and preds.scores is not None
     ids: np.ndarray = preds.ids if preds.ids is not None else np.full(len(preds), -1, np.int64)
     line: dict[int, list[tuple[int, int | None]]] = defaultdict(list)
     fps: Counter = Counter()
