@@ -39,7 +39,9 @@ clips (:mod:`fastdet.train.blend`), written beside it (``..._mixM``, ``..._cal``
 - ``--calibrate``: the model's decision values moved by a constant so that, on the dense search's
   false windows of its training clips' annotated frames (every second HOG cell), it lets through
   as many as the bundled model does at the search's threshold (decision value 0): every
-  threshold of the pipeline on a main-model window moves with it.
+  threshold of the pipeline on a main-model window moves with it;
+- ``--offset D`` (``..._offD``): the decision values lowered by a fixed ``D`` after either (a
+  sweep, not a rule: a value chosen by looking at the held-out clips scores them in-sample).
 
 ``--no-windows`` skips the placement-free scores (b) (they do not depend on the pipeline).
 
@@ -47,7 +49,7 @@ Usage (from the repository root)::
 
     python -m tools.studies.model_loo [--work /tmp/fastdet-model-loo] [--clips A,B] [--tag T]
         [--jitter N] [--background N] [--hard-per-frame N] [--hard-rounds N [--reuse-round1]] [--C C]
-        [--no-train] [--no-baseline] [--refine-loo DIR] [--mix M] [--calibrate] [--no-windows]
+        [--no-train] [--no-baseline] [--refine-loo DIR] [--mix M] [--calibrate] [--offset D] [--no-windows]
         [--side] [--json OUT.json]
 
 About 4 minutes of CPU per fold to train, 1-2 to score.
@@ -138,11 +140,15 @@ def main(argv: list[str] | None = None) -> int:
                                                             "this the held-out one's weight (0..1)")
     p.add_argument("--calibrate", action="store_true",
                    help="offset the scored model to the bundled model's false-window rate on its training clips")
+    p.add_argument("--offset", type=float, default=None,
+                   help="lower the scored model's decision values by this much (a fixed shift, for sweeps)")
     p.add_argument("--no-windows", action="store_true", help="skip the placement-free window scores")
     p.add_argument("--json", type=Path, help="also write every figure to this JSON file")
     args = p.parse_args(argv)
     if args.mix is not None and not 0 <= args.mix <= 1:
         p.error("--mix must be in 0..1")
+    if args.offset is not None and not math.isfinite(args.offset):
+        p.error("--offset must be finite")
     data = data_dir()
     clips = {c.name: c for c in annotated_clips(data)}
     want = args.clips.split(",") if args.clips else list(clips)
@@ -170,10 +176,14 @@ def main(argv: list[str] | None = None) -> int:
             build(path, list(fold.train), data, recipe, args.C, previous=previous)
         model = load_model(path)
         rule = ""
-        if args.mix is not None or args.calibrate:
-            rule = (f"_mix{args.mix:g}" if args.mix is not None else "") + ("_cal" if args.calibrate else "")
+        if args.mix is not None or args.calibrate or args.offset is not None:
+            rule = ((f"_mix{args.mix:g}" if args.mix is not None else "") + ("_cal" if args.calibrate else "")
+                    + (f"_off{args.offset:g}" if args.offset is not None else ""))
             path = args.work / f"main{tag}{rule}_without_{fold.name}.npz"
             model, info = scored_model(model, bundled, list(fold.train), data, args.mix, args.calibrate)
+            if args.offset is not None:
+                model = offset(model, args.offset, {"fixed_offset": args.offset})
+                info["fixed_offset"] = args.offset
             model.save(path)
             out.setdefault("rules", {})[fold.name] = info
         side_path = args.work / f"side_without_{fold.name}.npz"
