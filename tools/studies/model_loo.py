@@ -43,13 +43,19 @@ clips (:mod:`fastdet.train.blend`), written beside it (``..._mixM``, ``..._cal``
 - ``--offset D`` (``..._offD``): the decision values lowered by a fixed ``D`` after either (a
   sweep, not a rule: a value chosen by looking at the held-out clips scores them in-sample).
 
+``--held-out-rate`` (a diagnostic, never a rule): also the offset at which the scored model lets
+through as many of the *held-out* clips' dense false windows as the bundled model does at 0,
+and how many each lets through (JSON ``held_out_rate``), to compare with what ``--calibrate``
+learnt on the training clips.
+
 ``--no-windows`` skips the placement-free scores (b) (they do not depend on the pipeline).
 
 Usage (from the repository root)::
 
     python -m tools.studies.model_loo [--work /tmp/fastdet-model-loo] [--clips A,B] [--tag T]
         [--jitter N] [--background N] [--hard-per-frame N] [--hard-rounds N [--reuse-round1]] [--C C]
-        [--no-train] [--no-baseline] [--refine-loo DIR] [--mix M] [--calibrate] [--offset D] [--no-windows]
+        [--no-train] [--no-baseline] [--refine-loo DIR] [--mix M] [--calibrate] [--offset D] [--held-out-rate]
+        [--no-windows]
         [--side] [--json OUT.json]
 
 About 4 minutes of CPU per fold to train, 1-2 to score.
@@ -142,6 +148,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="offset the scored model to the bundled model's false-window rate on its training clips")
     p.add_argument("--offset", type=float, default=None,
                    help="lower the scored model's decision values by this much (a fixed shift, for sweeps)")
+    p.add_argument("--held-out-rate", action="store_true",
+                   help="also print the offset matching the bundled model's false-window rate on the held-out "
+                        "clips (a diagnostic)")
     p.add_argument("--no-windows", action="store_true", help="skip the placement-free window scores")
     p.add_argument("--json", type=Path, help="also write every figure to this JSON file")
     args = p.parse_args(argv)
@@ -186,6 +195,15 @@ def main(argv: list[str] | None = None) -> int:
                 info["fixed_offset"] = args.offset
             model.save(path)
             out.setdefault("rules", {})[fold.name] = info
+        if args.held_out_rate:
+            frames = [f for c in scored for f in read_annotated_frames(data, c)]
+            sc = false_window_scores([model, bundled], frames, cells_per_step=2)
+            rate = {"offset": rate_offset(sc[0], sc[1], 0.0), "frames": len(frames), "false_windows": int(sc.shape[1]),
+                    "bundled_above_0": int((sc[1] > 0).sum()), "model_above_0": int((sc[0] > 0).sum())}
+            out.setdefault("held_out_rate", {})[fold.name] = rate
+            print(f"held out {', '.join(scored)} (diagnostic): {rate['frames']} frames, {rate['false_windows']} false "
+                  f"windows; above 0: bundled {rate['bundled_above_0']}, model {rate['model_above_0']}; "
+                  f"the offset matching the bundled model's rate {rate['offset']:+.3f}", flush=True)
         side_path = args.work / f"side_without_{fold.name}.npz"
         if args.side and not side_path.exists():
             if args.no_train:
