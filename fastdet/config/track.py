@@ -32,6 +32,9 @@ class TrackerConfig(Config):
     split_overlap: a high-confidence box that holds at least this fraction of the predicted
         boxes of two or more tracks (merged blobs of vehicles side by side) is split between
         them (:func:`fastdet.video.track.split_merged`); ``0`` = never split.
+    cut_shape: a part of such a cut must pass the heat map's shape filter (``HeatConfig``'s
+        ``min_width``, ``min_height``, ``max_aspect``), else it stays joined to its neighbour
+        (:func:`fastdet.video.track.merge_failed_parts`).
     output: which box a tracked vehicle is reported with: ``'detection'`` (the heat map's box
         of this frame) or ``'filtered'`` (the Kalman filter's estimate).
     buffer: boxes are grown by this fraction of their width / height on every side before
@@ -59,6 +62,7 @@ class TrackerConfig(Config):
     min_hits: int = 1
     max_lost: int = 30
     split_overlap: float = 0.5
+    cut_shape: bool = False
     output: Literal["detection", "filtered"] = "detection"
     buffer: float = 0.3
     std_position: float = 1 / 20
