@@ -169,7 +169,8 @@ def draw(run: ClipRun, rec: dict, fas: list[dict[str, Any]], misses: list[dict[s
         g = gt.get(fno)
         if g is not None:
             for b, t in zip(g.boxes, g.targets):
-                cv2.rectangle(fr, (int(b[0]), int(b[1])), (int(b[2]), int(b[3])), (0, 255, 0) if t else (128, 128, 128), 1)
+                colour = (0, 255, 0) if t else (128, 128, 128)
+                cv2.rectangle(fr, (int(b[0]), int(b[1])), (int(b[2]), int(b[3])), colour, 1)
         for b in rec[fno]["boxes"].boxes:
             cv2.rectangle(fr, (int(b[0]), int(b[1])), (int(b[2]), int(b[3])), (255, 0, 0), 1)
         for b in run.rec[fno]["out"].boxes:
