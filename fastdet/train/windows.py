@@ -190,16 +190,46 @@ def false_window_scores(models: Sequence[Model], frames: Sequence[AnnotatedFrame
     its keyword arguments, e.g. ``cells_per_step=2``) scored in one search (the models must share
     one window size and HOG cell), e.g. to compare how many background windows each lets through
     (:func:`fastdet.train.blend.rate_offset`)."""
+    def clear(boxes: np.ndarray, f: AnnotatedFrame) -> np.ndarray:
+        return ~np.any(intersection(boxes, f.boxes) > 0, axis=1) if len(f.boxes) else np.ones(len(boxes), bool)
+
+    return _shared_window_scores(models, frames, clear, "false_window_scores", search)
+
+
+def near_window_scores(models: Sequence[Model], frames: Sequence[AnnotatedFrame], near_iou: float = 0.3,
+                       **search: Any) -> np.ndarray:
+    """As :func:`false_window_scores` for the near windows of ``frames`` (touching a target, IoU
+    below ``near_iou`` with every target, touching no ignore region; :func:`frame_windows`): the
+    windows partly on a vehicle that the heat map grows into misplaced boxes."""
+    if not 0 < near_iou <= 0.5:
+        raise ValueError(f"near_window_scores: near_iou must be in (0, 0.5], got {near_iou!r}")
+
+    def near(boxes: np.ndarray, f: AnnotatedFrame) -> np.ndarray:
+        if not len(f.targets) or not len(boxes):
+            return np.zeros(len(boxes), bool)
+        keep = (iou(boxes, f.targets).max(axis=1) < near_iou) & np.any(intersection(boxes, f.targets) > 0, axis=1)
+        if len(f.ignores):
+            keep &= ~np.any(intersection(boxes, f.ignores) > 0, axis=1)
+        return keep
+
+    return _shared_window_scores(models, frames, near, "near_window_scores", search)
+
+
+def _shared_window_scores(models: Sequence[Model], frames: Sequence[AnnotatedFrame],
+                          select: Callable[[np.ndarray, AnnotatedFrame], np.ndarray], name: str,
+                          search: dict[str, Any]) -> np.ndarray:
+    """Every model's decision values on the dense windows of ``frames`` that ``select(boxes,
+    frame)`` keeps (a boolean mask), ``(len(models), K)``."""
     from ..detect.bands import window_boxes
     from ..detect.detector import DetectStats
 
     if not models:
-        raise ValueError("false_window_scores: no model")
+        raise ValueError(f"{name}: no model")
     first = models[0].config
     for m in models[1:]:
         if (m.config.win_w, m.config.win_h, m.config.pixels_per_cell) != (first.win_w, first.win_h,
                                                                             first.pixels_per_cell):
-            raise ValueError("false_window_scores: the models' windows or HOG cells differ")
+            raise ValueError(f"{name}: the models' windows or HOG cells differ")
     parts = [MAIN_PART] + [FIRST_COMPONENT_PART + i for i in range(len(models) - 1)]
     detectors: dict[tuple[int, int], Any] = {}
     out: list[np.ndarray] = []
@@ -219,7 +249,7 @@ def false_window_scores(models: Sequence[Model], frames: Sequence[AnnotatedFrame
         for p in parts[1:]:
             bp = np.concatenate(boxes[p]) if boxes[p] else np.zeros((0, 4))
             if not np.array_equal(bp, b0):
-                raise AssertionError("false_window_scores: the models' searches gave other windows")
-        keep = ~np.any(intersection(b0, f.boxes) > 0, axis=1) if len(f.boxes) else np.ones(len(b0), bool)
+                raise AssertionError(f"{name}: the models' searches gave other windows")
+        keep = select(b0, f)
         out.append(np.stack([np.concatenate(decs[p])[keep] if decs[p] else np.zeros(0) for p in parts]))
     return np.concatenate(out, axis=1) if out else np.zeros((len(models), 0))

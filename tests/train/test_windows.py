@@ -20,6 +20,7 @@ from fastdet.train.windows import (
     dense_search,
     false_window_scores,
     frame_windows,
+    near_window_scores,
     score_frames,
     window_score,
 )
@@ -134,3 +135,11 @@ def test_false_window_scores_of_two_models_on_the_same_windows(data):
         false_window_scores([], frames)
     with pytest.raises(ValueError, match="near_iou"):
         frame_windows(det, frames[0], near_iou=0.6)
+    # the near windows, likewise: those frame_windows finds with near_iou
+    n = near_window_scores([model, offset(model, -0.5)], frames, cells_per_step=2)
+    np.testing.assert_allclose(n[1], n[0] + 0.5, atol=1e-9)
+    fn = frame_windows(det, frames[0], near_iou=0.3)
+    assert len(fn.near) == n.shape[1] > 0
+    np.testing.assert_allclose(np.sort(1 / (1 + np.exp(-n[0]))), np.sort(fn.near), rtol=1e-5, atol=1e-6)
+    with pytest.raises(ValueError, match="near_iou"):
+        near_window_scores([model], frames, near_iou=0.7)
