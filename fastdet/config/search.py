@@ -138,6 +138,11 @@ class SearchConfig(Config):
     slack_threshold: the decision value a window must exceed in a band's slack rows
         (:attr:`SearchBand.slack_above`, :attr:`SearchBand.slack_below`, placed by
         :meth:`for_frame`; ``None``: ``threshold`` there too).
+    slack_steps: how :meth:`for_frame` turns a band's slack into whole window steps:
+        ``None`` the nearest number of steps (a band whose step is more than twice its slack
+        gets none), ``'cover'`` the fewest steps that reach at least the slack, so a horizon
+        off by up to the slack loses none of the band's window rows (more rows: the default
+        bands cost 4% more HOG cells at 1280x720; docs/geometry.md, "Tolerance").
     border: windows may hang this fraction of their width over the left / right frame edge
         (bands whose ``x_start`` / ``x_stop`` is ``None``), so a car cut by the border can fill
         one; the columns past the edge are filled as ``border_mode`` says (``'reflect'``:
@@ -160,6 +165,10 @@ class SearchConfig(Config):
     border_mode: Literal["reflect", "replicate"] = "replicate"
     slack_threshold: float | None = SLACK_THRESHOLD
     shrink: Literal["linear", "area"] = "linear"
+    slack_steps: Literal["cover"] | None = None
+
+    #: left out of :meth:`to_dict` while ``None`` (a config written before it existed is the same dict)
+    _OMIT_NONE = ("slack_steps",)
 
     def for_frame(self, frame_shape: tuple[int, int], window: int = WINDOW, cell: int = CELL) -> SearchConfig:
         """This config with its bands rescaled (and moved to ``horizon``) for frames of
@@ -185,7 +194,7 @@ class SearchConfig(Config):
             a, z = int(round(b.y_start * fy + d)), int(round(b.y_stop * fy + d))
             core_a, core_z = a, z
             if b.has_slack:  # whole steps more: the windows stay on the grid
-                up, down = (round((v or 0.0) * h / step) * step for v in (b.slack_above, b.slack_below))
+                up, down = (self._slack_steps((v or 0.0) * h / step) * step for v in (b.slack_above, b.slack_below))
                 a, z = int(round(b.y_start * fy + d - up)), int(round(b.y_stop * fy + d + down))
             y0, y1 = max(a, 0), min(z, h)
             if y1 > y0 and ((y0, y1) == (a, z) or y1 - y0 >= window * b.scale * fy):
@@ -197,10 +206,18 @@ class SearchConfig(Config):
             raise ValueError(f"{where} leaves no search band in a {w}x{h} frame")
         return replace(self, bands=tuple(bands), reference_shape=None, horizon=None)
 
+    def _slack_steps(self, steps: float) -> int:
+        """Whole window steps for a slack of ``steps`` steps (:attr:`slack_steps`)."""
+        if self.slack_steps == "cover":
+            return math.ceil(steps - 1e-6)  # to the rounding of a fraction of the height
+        return round(steps)
+
     def __post_init__(self) -> None:
         object.__setattr__(self, "bands", tuple(self.bands))
         if not self.bands:
             raise ValueError("a SearchConfig needs at least one band")
+        if self.slack_steps not in (None, "cover"):
+            raise ValueError(f"slack_steps must be None or 'cover', got {self.slack_steps!r}")
         if self.cells_per_step < 1:
             raise ValueError("cells_per_step must be >= 1")
         if self.reference_shape is not None:
@@ -232,7 +249,7 @@ ONCOMING_WIDTH = 0.55
 ONCOMING_SCALES = (0.625, 0.75, 0.875, 1.0, 1.25)
 
 
-def _oncoming_bands(traffic: str = "right") -> tuple[SearchBand, ...]:
+def _oncoming_bands(traffic: str = "right", slack_below: float | None = None) -> tuple[SearchBand, ...]:
     # Columns 0..704 of 1280 where traffic drives on the right (oncoming traffic is on the left
     # of the view), 576..1280 where it drives on the left, or all. Each band is a whole number
     # of its CELL * scale px cells wide, so that the narrowed bands of fastdet.video.motion
@@ -246,17 +263,25 @@ def _oncoming_bands(traffic: str = "right") -> tuple[SearchBand, ...]:
         n = int(round(ONCOMING_WIDTH * width) // cell * cell)
         return (0, n) if traffic == "right" else (width - n, width)
 
-    return tuple(SearchBand(s, 400, 400 + int(WINDOW * s) + 24, *cols(s)) for s in ONCOMING_SCALES)
+    return tuple(SearchBand(s, 400, 400 + int(WINDOW * s) + 24, *cols(s), slack_below=slack_below)
+                 for s in ONCOMING_SCALES)
 
 
-def oncoming_search(traffic: Traffic = "right") -> SearchConfig:
+def oncoming_search(traffic: Traffic = "right", slack_below: float | None = None) -> SearchConfig:
     """The default search of the oncoming-traffic (wide-window) model for roads where traffic
     drives on the ``'right'`` (oncoming cars on the left of the view: the default,
     :data:`ONCOMING_SEARCH`), on the ``'left'`` (the columns mirrored) or ``'both'`` (the whole
     width, about 15% more CPU per frame on footage whose roadside moves fast; docs/accuracy.md).
-    Give it as ``Detector(oncoming_search=...)``."""
+    Give it as ``Detector(oncoming_search=...)``.
+
+    slack_below: rows (a fraction of the frame height) every band also searches below its
+    own, for a horizon estimate that is too high in the picture (its bands are only 24 rows
+    more than a window tall); a window there must beat :data:`SLACK_THRESHOLD`. ``None``
+    (default): none. Off by default: 0.04 keeps test_small1's oncoming cars with the
+    horizon 0.04 too high but costs boston_street false alarms at the estimate and 14% more HOG
+    cells a full scan of all models (docs/geometry.md, "Tolerance")."""
     check_traffic(traffic)
-    return SearchConfig(bands=_oncoming_bands(traffic), cells_per_step=1, threshold=1.0)
+    return SearchConfig(bands=_oncoming_bands(traffic, slack_below), cells_per_step=1, threshold=1.0)
 
 
 #: default search of the oncoming-traffic model: small scales near the horizon on the left of

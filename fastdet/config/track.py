@@ -49,6 +49,14 @@ class TrackerConfig(Config):
         velocity, is 4x ByteTrack's 10/160 (made for pedestrians at 30 fps): vehicles cross the
         view at up to half their width per frame, and with 0.25 a track knows its velocity from
         its second box.
+    hold_row: a lost track is predicted at its last row: its vertical velocity is set to 0,
+        as its size velocities are. On a road, a vehicle's row in the picture moves with its
+        distance, and so with its size, which a lost track keeps; and the vertical velocity
+        learnt from a few boxes is mostly their noise (heat-map boxes whose top and bottom
+        jump by a quarter of their height from frame to frame), which, extrapolated over the
+        frames a vehicle is missed, moves the prediction off the vehicle and the vehicle gets
+        a new id when it is found again. The horizontal velocity (vehicles crossing the view
+        at up to half their width a frame) is kept. ``False``: every velocity but the size's.
     max_gap: ``--offline`` only: a track's gaps of at most this many frames are filled by
         linear interpolation (StrongSORT's gap interpolation, Du et al., 2023).
     extend_back: ``--offline`` only: each track is extended this many frames back from its
@@ -71,6 +79,7 @@ class TrackerConfig(Config):
     std_position: float = 1 / 20
     std_velocity: float = 1 / 160
     init_velocity: float = 0.25
+    hold_row: bool = True
     max_gap: int = 10
     extend_back: int = 0
 
@@ -91,6 +100,8 @@ class TrackerConfig(Config):
             raise ValueError(f"split_overlap must be in [0, 1], got {self.split_overlap!r}")
         if not 0 <= self.buffer <= 2:
             raise ValueError(f"buffer must be in [0, 2], got {self.buffer!r}")
+        if not isinstance(self.hold_row, bool):
+            raise ValueError(f"hold_row must be True or False, got {self.hold_row!r}")
         if self.output not in ("detection", "filtered"):
             raise ValueError(f"output must be 'detection' or 'filtered', got {self.output!r}")
         for name in ("std_position", "std_velocity", "init_velocity"):

@@ -18,7 +18,12 @@ from ..features import (
 )
 from ..model import Model
 from .bands import BandGeometry, PaddedFrame, band_geometry, scaled_band
+from .geometry import row_thresholds
 from .scoring import dense_scores, hist_weight_integral, weight_table
+
+#: bands whose row thresholds a scorer keeps (more than any search has; bands that move with
+#: the picture come and go)
+_MAX_CACHED_BANDS = 256
 
 
 class _Scorer:
@@ -44,12 +49,29 @@ class _Scorer:
         self.w_hist = np.ascontiguousarray(w[pos:].reshape(3, cfg.hist_bins)) if cfg.hist_bins else None
         self.hist_table = weight_table(self.w_hist, hist_bin_shift(cfg)) if self.w_hist is not None else None
         self.bias = b
+        # row_thresholds of the bands met so far, by (band geometry, threshold, slack threshold):
+        # a band's rows and thresholds are the same on every frame of a video
+        self._thresholds: dict[tuple[BandGeometry, float, float | None], np.ndarray | float] = {}
 
     def geometries(self, frame_shape: tuple[int, int]) -> list[BandGeometry]:
         search = self.search.for_frame(frame_shape, self.config.win_w, self.config.pixels_per_cell)
         return [band_geometry(b, frame_shape, self.config, search.cells_per_step, search.border, search.border_mode,
                               search.shrink)
                 for b in search.bands]
+
+    def row_thresholds(self, geo: BandGeometry) -> np.ndarray | float:
+        """:func:`~fastdet.detect.geometry.row_thresholds` of the band ``geo`` under this
+        scorer's search, computed once per band (a read-only ``(geo.ny,)`` array, or a float)."""
+        key = (geo, self.search.threshold, self.search.slack_threshold)
+        thr = self._thresholds.get(key)
+        if thr is None:
+            thr = row_thresholds(geo, self.search, self.config)
+            if isinstance(thr, np.ndarray):
+                thr.setflags(write=False)
+            if len(self._thresholds) >= _MAX_CACHED_BANDS:  # bands given per frame (the oncoming search's)
+                self._thresholds.clear()
+            self._thresholds[key] = thr
+        return thr
 
     def band_scores(self, frame: np.ndarray, geo: BandGeometry, timings: dict[str, float] | None,
                     serial: bool = False, spans: Sequence[tuple[int, int]] | None = None,

@@ -39,7 +39,6 @@ from ..model import Model, load_model
 from . import _score_kernels
 from .band_scorer import _Scorer
 from .bands import BandGeometry, band_geometry, pad_frame, window_boxes
-from .geometry import row_thresholds
 
 #: the numba kernels :meth:`Detector.detect` runs (each in the signatures its module lists)
 KERNELS = (_hog_kernels.cell_hists_u8, _hog_kernels.normalize_blocks_fast, _score_kernels.dense_scores,
@@ -337,7 +336,7 @@ class Detector:
             sc = self._scorer_of[part]
             if stats is not None:
                 stats.bands.append((part, geo, dec))
-            thr = row_thresholds(geo, sc.search, sc.config)  # a band's slack rows: a higher threshold
+            thr = sc.row_thresholds(geo)  # a band's slack rows: a higher threshold
             r, c = np.nonzero(dec > (thr[:, None] if isinstance(thr, np.ndarray) else thr))
             if len(r):
                 boxes.append(window_boxes(geo, r, c, sc.config))

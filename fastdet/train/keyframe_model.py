@@ -14,7 +14,11 @@ clip's other frames have no labels) :func:`keyframe_crops` cuts
   ``hard_threshold`` in a search of every row and size of the frame
   (:func:`fastdet.train.windows.dense_search`, so the negatives do not depend on where
   today's search bands are) that touch no annotated box, target or ignore region alike; at
-  most ``hard_per_frame`` per frame (a seeded random choice).
+  most ``hard_per_frame`` per frame (a seeded random choice);
+- near misses (``near_per_frame`` > 0): the windows that model gives a probability above
+  ``hard_threshold`` that touch a target yet overlap every target at IoU below ``near_iou``
+  and touch no ignore region (on part of a vehicle, or far bigger than it: the windows the
+  heat map grows into misplaced boxes), at most ``near_per_frame`` per frame.
 
 :func:`train_keyframe_model` adds them to :func:`fastdet.train.fit.train`'s training set. Which
 clips a model learns from is the caller's choice: a clip it saw must not score it (leave one
@@ -34,7 +38,7 @@ from ..config import FeatureConfig
 from ..model import Model, load_model
 from .dataset import CropSet
 from .fit import train
-from .keyframes import AnnotatedFrame, background_crops, false_window_crops, positive_crops
+from .keyframes import AnnotatedFrame, background_crops, false_window_crops, positive_crops, window_crops
 from .windows import FrameWindows, score_frames
 
 
@@ -51,6 +55,8 @@ class KeyframeRecipe:
         probability above which a window is one (the search's 0.5).
     hard_rounds: rounds of mining (:func:`train_keyframe_model`): the first mines the given
         model's false windows, each later one those of the model the round before trained.
+    near_per_frame: at most this many near misses per frame and round (0: none); near_iou: the
+        IoU with every target they stay below.
     seed: every random choice.
     """
 
@@ -61,11 +67,15 @@ class KeyframeRecipe:
     hard_per_frame: int = 40
     hard_threshold: float = 0.5
     hard_rounds: int = 1
+    near_per_frame: int = 0
+    near_iou: float = 0.3
     seed: int = 0
 
     def __post_init__(self) -> None:
-        if min(self.jitter, self.background, self.hard_per_frame) < 0 or self.margin < 0:
-            raise ValueError("margin, jitter, background and hard_per_frame must be >= 0")
+        if min(self.jitter, self.background, self.hard_per_frame, self.near_per_frame) < 0 or self.margin < 0:
+            raise ValueError("margin, jitter, background, hard_per_frame and near_per_frame must be >= 0")
+        if not 0 < self.near_iou <= 0.5:
+            raise ValueError(f"near_iou must be in (0, 0.5], got {self.near_iou!r}")
         if not self.max_aspect > 0:
             raise ValueError(f"max_aspect must be > 0, got {self.max_aspect!r}")
         if self.hard_rounds < 1:
@@ -89,15 +99,22 @@ def mine_hard(frames: Sequence[AnnotatedFrame], model: Model, recipe: KeyframeRe
               seed: int) -> tuple[np.ndarray, int]:
     """``(crops (N, win, win, 3) uint8, fired)``: the false windows ``model`` gives a probability
     above ``recipe.hard_threshold`` in a dense search of ``frames`` (every second HOG cell), at
-    most ``recipe.hard_per_frame`` per frame (seeded), cut to ``win x win``; ``fired``: how many
-    there were before the limit."""
+    most ``recipe.hard_per_frame`` per frame (seeded), then its near misses there (at most
+    ``recipe.near_per_frame`` per frame; module docstring), cut to ``win x win``; ``fired``: how
+    many false windows there were before the limit."""
     fired: list[np.ndarray] = []
+    near: list[np.ndarray] = []
 
     def keep(_f: AnnotatedFrame, fw: FrameWindows) -> None:
         fired.append(fw.false_boxes[fw.false > recipe.hard_threshold])
+        near.append(fw.near_boxes[fw.near > recipe.hard_threshold])
 
-    score_frames(model, frames, on_frame=keep, cells_per_step=2)
-    return false_window_crops(frames, fired, win, win, recipe.hard_per_frame, seed=seed), sum(len(w) for w in fired)
+    score_frames(model, frames, on_frame=keep, cells_per_step=2,
+                 near_iou=recipe.near_iou if recipe.near_per_frame else None)
+    crops = false_window_crops(frames, fired, win, win, recipe.hard_per_frame, seed=seed)
+    if recipe.near_per_frame:
+        crops = np.concatenate([crops, window_crops(frames, near, win, win, recipe.near_per_frame, seed=seed)])
+    return crops, sum(len(w) for w in fired)
 
 
 @dataclass

@@ -181,13 +181,25 @@ def false_window_crops(frames: Sequence[AnnotatedFrame], windows: Sequence[np.nd
     """Hard negatives: ``(N, win_h, win_w, 3) uint8``, the boxes of ``windows[i]`` (``(K, 4)``
     positive windows a model gave on ``frames[i]``) that touch no annotated box, cut and
     resized; at most ``limit`` per frame (a seeded random choice)."""
-    rng = np.random.default_rng(seed)
-    out = []
+    clear = []
     for f, wins in zip(frames, windows):
         wins = np.asarray(wins, np.float64).reshape(-1, 4)
         boxes = f.boxes
         if len(boxes) and len(wins):
             wins = wins[~np.any(intersection(wins, boxes) > 0, axis=1)]
+        clear.append(wins)
+    return window_crops(frames, clear, win_w, win_h, limit, seed)
+
+
+def window_crops(frames: Sequence[AnnotatedFrame], windows: Sequence[np.ndarray], win_w: int, win_h: int,
+                 limit: int | None = None, seed: int = 0) -> np.ndarray:
+    """``(N, win_h, win_w, 3) uint8``: the boxes ``windows[i]`` (``(K, 4)``) of ``frames[i]``
+    at least 8 x 4 pixels, whatever they touch, cut and resized; at most ``limit`` per frame
+    (a seeded random choice)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for f, wins in zip(frames, windows):
+        wins = np.asarray(wins, np.float64).reshape(-1, 4)
         wins = wins[(wins[:, 2] - wins[:, 0] >= 8) & (wins[:, 3] - wins[:, 1] >= 4)]
         if limit is not None and len(wins) > limit:
             wins = wins[rng.choice(len(wins), limit, replace=False)]

@@ -12,7 +12,10 @@ sizes per octave, windows ``cells_per_step`` HOG cells apart. On every annotated
   when none is: a square window cannot reach IoU 0.5 with a box more than twice as wide as
   tall);
 - the scores of the *false* windows: those touching no annotated box, target or ignore
-  region alike (a far-away or half-hidden vehicle is neither).
+  region alike (a far-away or half-hidden vehicle is neither);
+- the scores of the *near* windows: those that touch a target but overlap every target at
+  IoU below ``near_iou`` (0.3) and touch no ignore region: a window on part of a vehicle, or
+  one much bigger than it (hard negatives that teach where a vehicle's box is).
 
 :func:`window_score` sums those up over frames: recall (the fraction of targets whose best
 window beats a threshold) at the thresholds that let 0.1, 1 and 10 false windows per frame
@@ -23,7 +26,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -64,33 +67,47 @@ def dense_search(frame_shape: tuple[int, int], window: int = 64, min_width: floa
 class FrameWindows:
     """One annotated frame's windows: ``best (N,)`` the best score of a window at IoU >=
     ``iou`` with each target (``-inf``: none), ``false (K,)`` the scores of the windows that
-    touch no annotated box, ``false_boxes (K, 4)`` those windows."""
+    touch no annotated box, ``false_boxes (K, 4)`` those windows; ``near (J,)`` and
+    ``near_boxes (J, 4)`` the near windows (module docstring; empty when not asked for)."""
 
     best: np.ndarray
     false: np.ndarray
     false_boxes: np.ndarray
+    near: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    near_boxes: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
 
 
 def frame_windows(detector: Any, frame: AnnotatedFrame, iou_min: float = 0.5,
-                  parts: Sequence[int] | None = (MAIN_PART,), min_false: float = -math.inf) -> FrameWindows:
+                  parts: Sequence[int] | None = (MAIN_PART,), min_false: float = -math.inf,
+                  near_iou: float | None = None) -> FrameWindows:
     """Score every window ``detector`` (a :class:`fastdet.Detector`) searches in ``frame`` with
     its models ``parts`` (``None``: all but the oncoming model; module docstring); false windows
-    are kept only above ``min_false``."""
+    (and near windows) are kept only above ``min_false``; near windows only with ``near_iou``
+    (the IoU every target must stay below, in (0, ``iou_min``])."""
+    if near_iou is not None and not 0 < near_iou <= iou_min:
+        raise ValueError(f"frame_windows: near_iou must be in (0, {iou_min}], got {near_iou!r}")
     d = detector.detect(frame.image)
     d = d[d.part != ONCOMING_PART] if parts is None else d[np.isin(d.part, list(parts))]
     boxes = d.boxes.astype(np.float64)
     scores = d.scores.astype(np.float64)
     best = np.full(len(frame.targets), -np.inf)
+    near = np.zeros(len(boxes), bool)
     if len(frame.targets) and len(boxes):
-        ov = iou(boxes, frame.targets) >= iou_min
+        ious = iou(boxes, frame.targets)
+        ov = ious >= iou_min
         for j in range(len(frame.targets)):
             if ov[:, j].any():
                 best[j] = scores[ov[:, j]].max()
+        if near_iou is not None:
+            near = (ious.max(axis=1) < near_iou) & np.any(intersection(boxes, frame.targets) > 0, axis=1)
+            if len(frame.ignores):
+                near &= ~np.any(intersection(boxes, frame.ignores) > 0, axis=1)
+            near &= scores > min_false
     keep = scores > min_false
     annotated = frame.boxes
     if len(annotated):
         keep &= ~np.any(intersection(boxes, annotated) > 0, axis=1)
-    return FrameWindows(best, scores[keep], boxes[keep])
+    return FrameWindows(best, scores[keep], boxes[keep], scores[near], boxes[near])
 
 
 @dataclass(frozen=True)
@@ -148,19 +165,19 @@ def dense_detector(model: Model, frame_shape: tuple[int, int], components: Seque
 
 def score_frames(model: Model, frames: Sequence[AnnotatedFrame], iou_min: float = 0.5,
                  on_frame: Callable[[AnnotatedFrame, FrameWindows], None] | None = None,
-                 components: Sequence[Model] = (), **search: Any) -> WindowScore:
+                 components: Sequence[Model] = (), near_iou: float | None = None, **search: Any) -> WindowScore:
     """:func:`window_score` of ``model`` over ``frames``, every window of :func:`dense_search`
     (``search``: its keyword arguments) searched; with ``components`` the windows of every
     model count (a target's best window is the best of any model, the false windows are all
     of theirs). ``on_frame`` sees each frame's :class:`FrameWindows` (e.g. to keep its false
-    windows as hard negatives)."""
+    windows as hard negatives; its near windows with ``near_iou``, :func:`frame_windows`)."""
     detectors: dict[tuple[int, int], Any] = {}
     out = []
     for f in frames:
         shape = f.image.shape[:2]
         if shape not in detectors:
             detectors[shape] = dense_detector(model, shape, components, **search)
-        fw = frame_windows(detectors[shape], f, iou_min, parts=None)
+        fw = frame_windows(detectors[shape], f, iou_min, parts=None, near_iou=near_iou)
         if on_frame is not None:
             on_frame(f, fw)
         out.append(fw)
@@ -173,16 +190,46 @@ def false_window_scores(models: Sequence[Model], frames: Sequence[AnnotatedFrame
     its keyword arguments, e.g. ``cells_per_step=2``) scored in one search (the models must share
     one window size and HOG cell), e.g. to compare how many background windows each lets through
     (:func:`fastdet.train.blend.rate_offset`)."""
+    def clear(boxes: np.ndarray, f: AnnotatedFrame) -> np.ndarray:
+        return ~np.any(intersection(boxes, f.boxes) > 0, axis=1) if len(f.boxes) else np.ones(len(boxes), bool)
+
+    return _shared_window_scores(models, frames, clear, "false_window_scores", search)
+
+
+def near_window_scores(models: Sequence[Model], frames: Sequence[AnnotatedFrame], near_iou: float = 0.3,
+                       **search: Any) -> np.ndarray:
+    """As :func:`false_window_scores` for the near windows of ``frames`` (touching a target, IoU
+    below ``near_iou`` with every target, touching no ignore region; :func:`frame_windows`): the
+    windows partly on a vehicle that the heat map grows into misplaced boxes."""
+    if not 0 < near_iou <= 0.5:
+        raise ValueError(f"near_window_scores: near_iou must be in (0, 0.5], got {near_iou!r}")
+
+    def near(boxes: np.ndarray, f: AnnotatedFrame) -> np.ndarray:
+        if not len(f.targets) or not len(boxes):
+            return np.zeros(len(boxes), bool)
+        keep = (iou(boxes, f.targets).max(axis=1) < near_iou) & np.any(intersection(boxes, f.targets) > 0, axis=1)
+        if len(f.ignores):
+            keep &= ~np.any(intersection(boxes, f.ignores) > 0, axis=1)
+        return keep
+
+    return _shared_window_scores(models, frames, near, "near_window_scores", search)
+
+
+def _shared_window_scores(models: Sequence[Model], frames: Sequence[AnnotatedFrame],
+                          select: Callable[[np.ndarray, AnnotatedFrame], np.ndarray], name: str,
+                          search: dict[str, Any]) -> np.ndarray:
+    """Every model's decision values on the dense windows of ``frames`` that ``select(boxes,
+    frame)`` keeps (a boolean mask), ``(len(models), K)``."""
     from ..detect.bands import window_boxes
     from ..detect.detector import DetectStats
 
     if not models:
-        raise ValueError("false_window_scores: no model")
+        raise ValueError(f"{name}: no model")
     first = models[0].config
     for m in models[1:]:
         if (m.config.win_w, m.config.win_h, m.config.pixels_per_cell) != (first.win_w, first.win_h,
                                                                             first.pixels_per_cell):
-            raise ValueError("false_window_scores: the models' windows or HOG cells differ")
+            raise ValueError(f"{name}: the models' windows or HOG cells differ")
     parts = [MAIN_PART] + [FIRST_COMPONENT_PART + i for i in range(len(models) - 1)]
     detectors: dict[tuple[int, int], Any] = {}
     out: list[np.ndarray] = []
@@ -202,7 +249,7 @@ def false_window_scores(models: Sequence[Model], frames: Sequence[AnnotatedFrame
         for p in parts[1:]:
             bp = np.concatenate(boxes[p]) if boxes[p] else np.zeros((0, 4))
             if not np.array_equal(bp, b0):
-                raise AssertionError("false_window_scores: the models' searches gave other windows")
-        keep = ~np.any(intersection(b0, f.boxes) > 0, axis=1) if len(f.boxes) else np.ones(len(b0), bool)
+                raise AssertionError(f"{name}: the models' searches gave other windows")
+        keep = select(b0, f)
         out.append(np.stack([np.concatenate(decs[p])[keep] if decs[p] else np.zeros(0) for p in parts]))
     return np.concatenate(out, axis=1) if out else np.zeros((len(models), 0))

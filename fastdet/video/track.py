@@ -281,6 +281,8 @@ class Tracker:
         is_tent = np.array([t.state == TENTATIVE for t in tracks], bool)
         if tracks:  # predict
             self._mean[is_lost, 6:8] = 0.0  # a lost track keeps its size
+            if c.hold_row:
+                self._mean[is_lost, 5] = 0.0  # ... and so its row (its distance)
             self._mean, self._cov = self.kalman.predict(self._mean, self._cov)
         pred = cxcywh_to_xyxy(self._mean)
         for t, p in zip(tracks, pred):

@@ -209,35 +209,52 @@ def test_row_thresholds_gate_only_the_windows_reaching_into_the_slack():
     np.testing.assert_array_equal(thr, np.where(tops >= 399, 0.5, 2.0))
     assert row_thresholds(geo, replace(search, slack_threshold=None), CFG) == 0.5
     assert row_thresholds(band_geometry(replace(band, core=None), (720, 1280), CFG, 2), search, CFG) == 0.5
+    below = SearchBand(1.0, 400, 528, core=(400, 496))  # 32 rows of slack below
+    geo = band_geometry(below, (720, 1280), CFG, 2)
+    bottoms = window_rows(below, (720, 1280))[:, 1]
+    np.testing.assert_array_equal(row_thresholds(geo, search, CFG), np.where(bottoms <= 497, 0.5, 2.0))
 
 
-def test_detector_needs_the_slack_threshold_in_the_slack_rows(test_images):
+@pytest.mark.parametrize("variant", ["default", "cover", "oncoming below"])
+def test_detector_needs_the_slack_threshold_in_the_slack_rows(test_images, variant):
     """Detector.detect's positive windows, against the obvious rule applied to every window's
     decision value: above ``threshold`` inside a band's core rows, above ``slack_threshold``
-    where the window reaches into its slack."""
+    where the window reaches into its slack (the default slack above the main bands, the same
+    in whole steps that cover it, ``slack_steps='cover'``, and slack below the oncoming
+    model's bands)."""
     import cv2
 
     from fastdet import Detector
+    from fastdet.config import ONCOMING_MODEL_PATH, oncoming_search
     from fastdet.detect import DetectStats
     from fastdet.detect.bands import window_boxes
 
     frame = cv2.imread(str(test_images[0]))
     search = replace(SearchConfig(), horizon=0.6, slack_threshold=5.0)  # cars in the slack rows of some bands
-    det = Detector(search=search, oncoming=None)
+    if variant == "cover":
+        search = replace(search, slack_steps="cover")
+    if variant == "oncoming below":  # the main bands moved up: the oncoming slack rows reach the cars
+        search = replace(search, horizon=0.5)
+        det = Detector(search=search, oncoming=ONCOMING_MODEL_PATH,
+                       oncoming_search=replace(oncoming_search(slack_below=0.08), slack_threshold=3.0))
+        det.set_horizon(0.5)
+    else:
+        det = Detector(search=search, oncoming=None)
     stats = DetectStats()
     got = det.detect(frame, stats=stats)
     want, gated, kept = [], 0, 0
-    for _, geo, dec in stats.bands:
+    for part, geo, dec in stats.bands:
+        sc = det.scorers[det.parts.index(part)]
         for i in range(geo.ny):
             for j in range(geo.nx):
-                box = window_boxes(geo, np.array([i]), np.array([j]), det.config)[0]
+                box = window_boxes(geo, np.array([i]), np.array([j]), sc.config)[0]
                 core = geo.band.core
                 slack = core is not None and not (core[0] - 1 <= box[1] and box[3] <= core[1] + 1)
-                if dec[i, j] > (5.0 if slack else search.threshold):
+                if dec[i, j] > (sc.search.slack_threshold if slack else sc.search.threshold):
                     want.append((*box.tolist(), float(dec[i, j])))
-                    kept += slack
-                elif dec[i, j] > search.threshold:
-                    gated += 1
+                    kept += slack and (part != 0) == (variant == "oncoming below")
+                elif dec[i, j] > sc.search.threshold:
+                    gated += (part != 0) == (variant == "oncoming below")
     assert gated > 0 and kept > 0  # the gate dropped some windows in the slack rows and kept others
     have = sorted((*b.tolist(), float(v)) for b, v in zip(got.boxes, got.scores))
     assert len(have) == len(want)

@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from fastdet.boxes import intersection
+from fastdet.boxes import intersection, iou
 from fastdet.config import FeatureConfig
 from fastdet.model import load_model
 from fastdet.train import fit
@@ -69,6 +69,24 @@ def test_keyframe_crops(frames):
     narrow = keyframe_crops(frames, replace(recipe, max_aspect=1.3, hard_per_frame=0))
     assert narrow.positives == 3 * int(sum((aspect_of(f.targets) < 1.3).sum() for f in frames)) < kc.positives
     assert narrow.hard == 0 and json.loads(json.dumps(recipe.to_dict()))["max_aspect"] is None
+    with pytest.raises(ValueError):
+        replace(recipe, near_iou=0.7)
+    with pytest.raises(ValueError):
+        replace(recipe, near_per_frame=-1)
+
+
+def test_near_misses_join_the_hard_negatives(frames):
+    recipe = KeyframeRecipe(jitter=0, background=0, hard_per_frame=0, near_per_frame=5)
+    kc = keyframe_crops(frames, recipe)
+    near = []
+    score_frames(load_model(None), frames, on_frame=lambda f, fw: near.append(fw.near_boxes[fw.near > 0.5]),
+                 cells_per_step=2, near_iou=0.3)
+    assert kc.hard == sum(min(len(w), 5) for w in near) > 0
+    for f, w in zip(frames, near):  # each touches a target, none at IoU >= 0.3
+        assert (intersection(w, f.targets) > 0).any(axis=1).all() and (iou(w, f.targets) < 0.3).all()
+    hard = kc.crops.images[kc.positives:]
+    all_cuts = [cut(f.image, b, 64, 64) for f, w in zip(frames, near) for b in w]
+    assert all(any(np.array_equal(h, a) for a in all_cuts) for h in hard)
 
 
 def test_train_keyframe_model_records_and_learns_its_positives(frames, small_data):

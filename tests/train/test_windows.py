@@ -20,6 +20,7 @@ from fastdet.train.windows import (
     dense_search,
     false_window_scores,
     frame_windows,
+    near_window_scores,
     score_frames,
     window_score,
 )
@@ -75,6 +76,17 @@ def test_frame_windows_against_brute_force(wins, targets, ignores, seed):
                     for a in targets + ignores)]
     assert sorted(fw.false.tolist()) == pytest.approx(sorted(s for _, s in clear))
     assert len(fw.false_boxes) == len(clear)
+    assert len(fw.near) == 0 and fw.near_boxes.shape == (0, 4)
+    # near windows: touching a target, IoU < 0.3 with every target, touching no ignore region
+    fn = frame_windows(_Fixed(np.array(wins, float).reshape(-1, 4), scores), f, near_iou=0.3)
+
+    def touch(b, a):
+        return min(b[2], a[2]) > max(b[0], a[0]) and min(b[3], a[3]) > max(b[1], a[1])
+
+    near = [s for b, s in zip(wins, scores) if any(touch(b, t) for t in targets)
+            and all(box_iou(b, t) < 0.3 for t in targets) and not any(touch(b, a) for a in ignores)]
+    assert sorted(fn.near.tolist()) == pytest.approx(sorted(near)) and len(fn.near_boxes) == len(near)
+    np.testing.assert_array_equal(fn.false, fw.false)
 
 
 def test_window_score_recall_at_false_rates():
@@ -121,3 +133,13 @@ def test_false_window_scores_of_two_models_on_the_same_windows(data):
     np.testing.assert_allclose(np.sort(1 / (1 + np.exp(-s[0]))), np.sort(fw.false), rtol=1e-5, atol=1e-6)
     with pytest.raises(ValueError):
         false_window_scores([], frames)
+    with pytest.raises(ValueError, match="near_iou"):
+        frame_windows(det, frames[0], near_iou=0.6)
+    # the near windows, likewise: those frame_windows finds with near_iou
+    n = near_window_scores([model, offset(model, -0.5)], frames, cells_per_step=2)
+    np.testing.assert_allclose(n[1], n[0] + 0.5, atol=1e-9)
+    fn = frame_windows(det, frames[0], near_iou=0.3)
+    assert len(fn.near) == n.shape[1] > 0
+    np.testing.assert_allclose(np.sort(1 / (1 + np.exp(-n[0]))), np.sort(fn.near), rtol=1e-5, atol=1e-6)
+    with pytest.raises(ValueError, match="near_iou"):
+        near_window_scores([model], frames, near_iou=0.7)

@@ -130,7 +130,7 @@ def test_the_pipeline_splits_two_cars_in_a_row():
     assert len(vd.update(frame)) == 1
     assert replace(base, split=NeighbourSplit()) == replace(base, split=PipelineConfig().split)  # on by default
     vd = VideoDetector(FixedDetector(dets), replace(base, split=NeighbourSplit()))
-    assert [s.name for s in vd.stages] == ["detect", "heatmap", "split", "plausible"]
+    assert [s.name for s in vd.stages] == ["detect", "ownvehicle", "heatmap", "split", "plausible"]
     out = vd.update(frame)
     assert len(out) == 2 and len(vd.debug.boxes) == 2
 

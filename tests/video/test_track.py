@@ -215,6 +215,44 @@ def test_occlusion_of_a_few_frames_keeps_the_id():
         assert ids_of(o) == ([] if 10 <= f < 14 else [1]), f
 
 
+def test_a_car_missed_after_misplaced_boxes_keeps_its_id():
+    """An oncoming car (48 x 24 px, 16 px a frame to the left, on one row) tracked for 4 frames
+    whose last two boxes slip down by a quarter of their height each (heat-map boxes whose top
+    and bottom jump), then missed for 3 frames, then found again on its row. The filter learnt
+    a downward velocity from the two slipped boxes; extrapolated over the frames it is missed,
+    the prediction ends below the car and the car would get a new id. A lost track keeps its
+    row (``hold_row``), as it keeps its size, and the car keeps id 1."""
+    def box(f: int) -> list[float]:
+        b = car(600, f, -16, y=424, w=48, h=24)
+        slip = {2: 6, 3: 12}.get(f, 0)
+        return [b[0], b[1] + slip, b[2], b[3] + slip]
+
+    frames = [dets() if 4 <= f < 7 else dets(box(f)) for f in range(12)]
+    out = run(frames)
+    assert [ids_of(o) for o in out] == [[1]] * 4 + [[]] * 3 + [[1]] * 5
+    # the cause: without holding the row, the prediction drifts off the car and it gets id 2
+    out = run(frames, TrackerConfig(hold_row=False))
+    assert [ids_of(o) for o in out[7:]] == [[2]] * 5
+
+
+def test_a_lost_track_keeps_its_row_and_size_but_moves_across():
+    tr = Tracker()
+    for f in range(6):  # a car drifting down-left and growing, then missed
+        x, y, s = 600 - 16 * f, 400 + 3 * f, 1 + 0.05 * f
+        tr.update(dets([x, y, x + 48 * s, y + 24 * s]))
+    pred = []
+    for _ in range(4):
+        tr.update(dets())
+        (t,) = tr.tracks
+        assert t.state == LOST
+        pred.append(t.predicted.copy())
+    # from the second frame missed on: the same rows and size, still moving left ~16 px a frame
+    for a, b in zip(pred[1:], pred[2:]):
+        np.testing.assert_allclose(b[[1, 3]], a[[1, 3]])
+        np.testing.assert_allclose(b[2] - b[0], a[2] - a[0])
+        assert -18 < b[0] - a[0] < -14
+
+
 def test_a_new_car_gets_the_next_id_and_the_first_keeps_its_own():
     frames = [dets(*([car(0, f)] + ([car(300, f, -5)] if f >= 10 else []))) for f in range(20)]
     out = run(frames)
@@ -303,6 +341,8 @@ def test_tracker_config_is_checked():
         TrackerConfig(min_hits=0)
     with pytest.raises(ValueError):
         TrackerConfig(output="kalman")
+    with pytest.raises(ValueError):
+        TrackerConfig(hold_row=1)
     with pytest.raises(TypeError):
         Tracker(HeatConfig())
     assert TrackerConfig.from_dict(TrackerConfig().to_dict()) == TrackerConfig()

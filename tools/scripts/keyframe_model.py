@@ -8,13 +8,16 @@ re-encoded copies, logistic regression.
 Usage (from the repository root)::
 
     python -m tools.scripts.keyframe_model --out M.npz [--clips A,B,...] [--exclude A,B]
-        [--data DIR] [--jitter N] [--background N] [--hard-per-frame N] [--hard-rounds N] [--max-aspect A] [--C C]
+        [--data DIR] [--jitter N] [--background N] [--hard-per-frame N] [--hard-rounds N]
+        [--near-per-frame N [--near-iou I]] [--max-aspect A] [--C C]
         [--max-per-folder N]
 
 ``--clips``: the clips to learn from (default: every annotated clip of the data folder,
 :func:`fastdet.eval.clips.annotated_clips`); ``--exclude``: all but these (the
 leave-one-clip-out models of ``tools/studies/model_loo.py``); ``--max-per-folder``: at most
-this many data-set crops per folder (quick runs and tests only). About 3-4 minutes of CPU and
+this many data-set crops per folder (quick runs and tests only); ``--near-per-frame``: also up to
+this many near misses a frame as hard negatives (windows the bundled model fires on that touch
+a target at IoU below ``--near-iou``, :mod:`fastdet.train.keyframe_model`). About 3-4 minutes of CPU and
 10 GB of memory with the whole data set.
 """
 from __future__ import annotations
@@ -81,6 +84,9 @@ def add_recipe_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--background", type=int, default=d.background)
     p.add_argument("--hard-per-frame", type=int, default=d.hard_per_frame)
     p.add_argument("--hard-rounds", type=int, default=d.hard_rounds)
+    p.add_argument("--near-per-frame", type=int, default=d.near_per_frame,
+                   help="near misses per frame: windows touching a target at IoU below --near-iou (default: none)")
+    p.add_argument("--near-iou", type=float, default=d.near_iou)
     p.add_argument("--max-aspect", type=float, default=d.max_aspect,
                    help="only targets narrower than this (width / height) are positives (default: all)")
 
@@ -88,7 +94,8 @@ def add_recipe_arguments(p: argparse.ArgumentParser) -> None:
 def recipe_from_args(args: argparse.Namespace) -> KeyframeRecipe:
     """The recipe of :func:`add_recipe_arguments`' options."""
     return KeyframeRecipe(jitter=args.jitter, background=args.background, hard_per_frame=args.hard_per_frame,
-                          hard_rounds=args.hard_rounds, max_aspect=args.max_aspect)
+                          hard_rounds=args.hard_rounds, max_aspect=args.max_aspect,
+                          near_per_frame=args.near_per_frame, near_iou=args.near_iou)
 
 
 def main(argv: list[str] | None = None) -> int:

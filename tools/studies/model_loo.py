@@ -39,7 +39,18 @@ clips (:mod:`fastdet.train.blend`), written beside it (``..._mixM``, ``..._cal``
 - ``--calibrate``: the model's decision values moved by a constant so that, on the dense search's
   false windows of its training clips' annotated frames (every second HOG cell), it lets through
   as many as the bundled model does at the search's threshold (decision value 0): every
-  threshold of the pipeline on a main-model window moves with it.
+  threshold of the pipeline on a main-model window moves with it; ``--calibrate-on near``
+  (``..._calnear``): matched on the near windows instead (touching a target at IoU < 0.3 with
+  every target, no ignore region: the windows the heat map grows into misplaced boxes), which
+  the recipe does not mine as negatives;
+- ``--offset D`` (``..._offD``): the decision values lowered by a fixed ``D`` after either (a
+  sweep, not a rule: a value chosen by looking at the held-out clips scores them in-sample).
+
+``--held-out-rate`` (a diagnostic, never a rule): also the offset at which the scored model lets
+through as many of the *held-out* clips' dense false windows (near windows with
+``--calibrate-on near``) as the bundled model does at 0,
+and how many each lets through (JSON ``held_out_rate``), to compare with what ``--calibrate``
+learnt on the training clips.
 
 ``--no-windows`` skips the placement-free scores (b) (they do not depend on the pipeline).
 
@@ -47,7 +58,8 @@ Usage (from the repository root)::
 
     python -m tools.studies.model_loo [--work /tmp/fastdet-model-loo] [--clips A,B] [--tag T]
         [--jitter N] [--background N] [--hard-per-frame N] [--hard-rounds N [--reuse-round1]] [--C C]
-        [--no-train] [--no-baseline] [--refine-loo DIR] [--mix M] [--calibrate] [--no-windows]
+        [--no-train] [--no-baseline] [--refine-loo DIR] [--mix M] [--calibrate [--calibrate-on near]]
+        [--offset D] [--held-out-rate] [--no-windows]
         [--side] [--json OUT.json]
 
 About 4 minutes of CPU per fold to train, 1-2 to score.
@@ -70,7 +82,7 @@ from fastdet.io.atomic import write_bytes
 from fastdet.model import Model, load_model
 from fastdet.train.blend import blend, offset, rate_offset
 from fastdet.train.keyframes import read_annotated_frames
-from fastdet.train.windows import FALSE_RATES, WindowScore, false_window_scores, score_frames
+from fastdet.train.windows import FALSE_RATES, WindowScore, false_window_scores, near_window_scores, score_frames
 from tools.scripts import side_model
 from tools.scripts.keyframe_model import add_recipe_arguments, build, recipe_from_args
 from tools.studies.loo import folds, misplaced, run_clip
@@ -99,22 +111,24 @@ def window_table(rows: list[tuple[str, WindowScore, WindowScore | None]]) -> str
 
 
 def scored_model(held_out: Model, bundled: Model, train_clips: list[str], data: Path, mix: float | None,
-                 calibrate: bool, log=print) -> tuple[Model, dict[str, Any]]:
+                 calibrate: bool, log=print, on: str = "false") -> tuple[Model, dict[str, Any]]:
     """The model a fold's clips are scored with: ``held_out`` blended with ``bundled`` (``mix``,
     the held-out model's weight; ``None``: not blended) and, with ``calibrate``, offset to let
     through as many of the false windows of ``train_clips``' annotated frames as ``bundled``
-    does at decision value 0 (module docstring); with what was done."""
+    does at decision value 0 (module docstring; ``on`` ``"near"``: of their near windows,
+    :func:`fastdet.train.windows.near_window_scores`); with what was done."""
     model, info = held_out, {}
     if mix is not None:
         model = blend([bundled, held_out], [1.0 - mix, mix])
         info["mix"] = mix
     if calibrate:
         frames = [f for c in train_clips for f in read_annotated_frames(data, c)]
-        scores = false_window_scores([model, bundled], frames, cells_per_step=2)
+        windows = near_window_scores if on == "near" else false_window_scores
+        scores = windows([model, bundled], frames, cells_per_step=2)
         delta = rate_offset(scores[0], scores[1], 0.0)
-        info.update(offset=delta, false_windows=int(scores.shape[1]), frames=len(frames),
+        info.update(offset=delta, windows=on, false_windows=int(scores.shape[1]), frames=len(frames),
                     bundled_above_0=int((scores[1] > 0).sum()), model_above_0=int((scores[0] > 0).sum()))
-        log(f"calibrated on {', '.join(train_clips)}: {info['frames']} frames, {info['false_windows']} false "
+        log(f"calibrated on {', '.join(train_clips)}: {info['frames']} frames, {info['false_windows']} {on} "
             f"windows; above 0: bundled {info['bundled_above_0']}, model {info['model_above_0']}; offset {delta:+.3f}")
         model = offset(model, delta, {"calibration": {**info, "clips": train_clips}})
     return model, info
@@ -138,11 +152,21 @@ def main(argv: list[str] | None = None) -> int:
                                                             "this the held-out one's weight (0..1)")
     p.add_argument("--calibrate", action="store_true",
                    help="offset the scored model to the bundled model's false-window rate on its training clips")
+    p.add_argument("--calibrate-on", choices=["false", "near"], default="false",
+                   help="the training clips' windows --calibrate matches: false (touching nothing annotated) "
+                        "or near (touching a target at IoU < 0.3)")
+    p.add_argument("--offset", type=float, default=None,
+                   help="lower the scored model's decision values by this much (a fixed shift, for sweeps)")
+    p.add_argument("--held-out-rate", action="store_true",
+                   help="also print the offset matching the bundled model's false-window rate on the held-out "
+                        "clips (a diagnostic)")
     p.add_argument("--no-windows", action="store_true", help="skip the placement-free window scores")
     p.add_argument("--json", type=Path, help="also write every figure to this JSON file")
     args = p.parse_args(argv)
     if args.mix is not None and not 0 <= args.mix <= 1:
         p.error("--mix must be in 0..1")
+    if args.offset is not None and not math.isfinite(args.offset):
+        p.error("--offset must be finite")
     data = data_dir()
     clips = {c.name: c for c in annotated_clips(data)}
     want = args.clips.split(",") if args.clips else list(clips)
@@ -170,12 +194,29 @@ def main(argv: list[str] | None = None) -> int:
             build(path, list(fold.train), data, recipe, args.C, previous=previous)
         model = load_model(path)
         rule = ""
-        if args.mix is not None or args.calibrate:
-            rule = (f"_mix{args.mix:g}" if args.mix is not None else "") + ("_cal" if args.calibrate else "")
+        if args.mix is not None or args.calibrate or args.offset is not None:
+            cal = ("_cal" + ("near" if args.calibrate_on == "near" else "")) if args.calibrate else ""
+            rule = ((f"_mix{args.mix:g}" if args.mix is not None else "") + cal
+                    + (f"_off{args.offset:g}" if args.offset is not None else ""))
             path = args.work / f"main{tag}{rule}_without_{fold.name}.npz"
-            model, info = scored_model(model, bundled, list(fold.train), data, args.mix, args.calibrate)
+            model, info = scored_model(model, bundled, list(fold.train), data, args.mix, args.calibrate,
+                                       on=args.calibrate_on)
+            if args.offset is not None:
+                model = offset(model, args.offset, {"fixed_offset": args.offset})
+                info["fixed_offset"] = args.offset
             model.save(path)
             out.setdefault("rules", {})[fold.name] = info
+        if args.held_out_rate:
+            frames = [f for c in scored for f in read_annotated_frames(data, c)]
+            sc = (near_window_scores if args.calibrate_on == "near" else false_window_scores)(
+                [model, bundled], frames, cells_per_step=2)
+            rate = {"offset": rate_offset(sc[0], sc[1], 0.0), "frames": len(frames), "false_windows": int(sc.shape[1]),
+                    "bundled_above_0": int((sc[1] > 0).sum()), "model_above_0": int((sc[0] > 0).sum())}
+            out.setdefault("held_out_rate", {})[fold.name] = rate
+            print(f"held out {', '.join(scored)} (diagnostic): {rate['frames']} frames, {rate['false_windows']} "
+                  f"{args.calibrate_on} windows; above 0: bundled {rate['bundled_above_0']}, "
+                  f"model {rate['model_above_0']}; "
+                  f"the offset matching the bundled model's rate {rate['offset']:+.3f}", flush=True)
         side_path = args.work / f"side_without_{fold.name}.npz"
         if args.side and not side_path.exists():
             if args.no_train:

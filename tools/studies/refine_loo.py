@@ -14,7 +14,7 @@ annotated on every frame) and the box measurements of :mod:`tools.studies.small_
 The pipeline's boxes before the refinement do not depend on the regressor (the heat maps,
 the tracker and the guided search keep the unrefined boxes), so every clip runs once with the
 refinement and the plausibility rules (which run on the refined boxes) off, kept in
-``--out-dir`` as ``unrefined_CLIP.pkl``; each regressor refines those boxes on the scored
+``--out-dir`` as ``unrefined_CLIP.npz``; each regressor refines those boxes on the scored
 frames and the rules run on them as the pipeline's stage would (at the horizon the search
 used on that frame): the same figures as the pipeline with that regressor.
 
@@ -46,10 +46,11 @@ from __future__ import annotations
 
 import argparse
 import hashlib
+import io
 import json
-import pickle
 import sys
 import tempfile
+import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -69,6 +70,7 @@ from fastdet.video.plausible import PlausibleStage
 from fastdet.video.refine import refine
 from tools.scripts.refine_model import Annotated, add_feature_arguments, spec_of, test_images
 
+from .frame_cache import pack_detections, unpack_detections
 from .small_boxes import add_setting_arguments, config_from, fa_summary, measure, print_tables, run_clip, summary
 
 #: clips of one camera (anything learnt from one of them never scores another)
@@ -113,26 +115,78 @@ def _code_digest() -> str:
     return h.hexdigest()
 
 
+#: the format of the unrefined runs' cache files (:func:`save_run`)
+RUN_FORMAT = "refine_loo.unrefined/1"
+
+
+def save_run(path: Path, key: str, frames: list, rec: dict, rows: int) -> None:
+    """Write one clip's unrefined run to ``path`` (``.npz`` of plain arrays; no pickle):
+    the boxes of every frame and, per scored frame, the returned boxes, the heat maps' boxes,
+    the main model's windows (:func:`~tools.studies.frame_cache.pack_detections` under
+    ``frames.``, ``out.``, ``boxes.``, ``windows.``), the heat map (``heat.I``, the I-th scored
+    frame) and in ``metadata`` (UTF-8 JSON, ``uint8``) the format, ``key``, ``rows``, the scored
+    frames and the horizon each used."""
+    fnos = sorted(rec)
+    arrays: dict[str, np.ndarray] = {"frames.fno": np.array([f for f, _ in frames], np.int64)}
+    arrays.update(pack_detections([d for _, d in frames], "frames."))
+    for name in ("out", "boxes", "windows"):
+        arrays.update(pack_detections([rec[f][name] for f in fnos], name + "."))
+    for i, f in enumerate(fnos):
+        arrays[f"heat.{i}"] = np.asarray(rec[f]["heat"])
+    extra = sorted({k for f in fnos for k in rec[f]} - {"out", "boxes", "windows", "heat", "horizon"})
+    if extra:
+        raise ValueError(f"save_run: records with {extra} are not stored")
+    meta = {"format": RUN_FORMAT, "key": key, "rows": int(rows), "scored": fnos,
+            "horizons": [None if rec[f]["horizon"] is None else float(rec[f]["horizon"]) for f in fnos]}
+    arrays["metadata"] = np.frombuffer(json.dumps(meta).encode("utf-8"), np.uint8)
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **arrays)
+    write_bytes(path, buf.getvalue())
+
+
+def load_run(path: Path) -> tuple[str, list, dict, int] | None:
+    """``(key, frames, rec, rows)`` of a file :func:`save_run` wrote, or ``None`` (with a
+    line on stderr) when it is of another format or cannot be read."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+        meta = json.loads(arrays["metadata"].tobytes().decode("utf-8"))
+        if meta.get("format") != RUN_FORMAT:
+            raise ValueError(f"format {meta.get('format')!r}, not {RUN_FORMAT!r}")
+        frames = list(zip(arrays["frames.fno"].tolist(), unpack_detections(arrays, "frames.")))
+        parts = {name: unpack_detections(arrays, name + ".") for name in ("out", "boxes", "windows")}
+        rec = {f: {"out": parts["out"][i], "boxes": parts["boxes"][i], "windows": parts["windows"][i],
+                   "heat": arrays[f"heat.{i}"], "horizon": meta["horizons"][i]}
+               for i, f in enumerate(meta["scored"])}
+        return meta["key"], frames, rec, int(meta["rows"])
+    except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile) as exc:
+        print(f"refine_loo: {path}: not a run cache this study can read ({exc}); running the clip again",
+              file=sys.stderr)
+        return None
+
+
 def unrefined_run(clip: AnnotatedClip, a: argparse.Namespace, out_dir: Path) -> ClipRun:
     """The pipeline of the options (``config_from``) with the refinement and the plausibility
-    rules off, over ``clip``; kept in ``out_dir`` and read from there when the configuration
-    is the same (and fastdet's code and models, :func:`_code_digest`)."""
+    rules off, over ``clip``; kept in ``out_dir`` (``unrefined_CLIP.npz``, :func:`save_run`)
+    and read from there when the configuration is the same (and fastdet's code and models,
+    :func:`_code_digest`). A cache of an earlier version of this study (``unrefined_CLIP.pkl``,
+    a pickle) is not read: the clip runs again."""
     config = replace(config_from(a), refine=None, plausible=None)
     key = hashlib.sha256(json.dumps([config.to_dict(), str(clip.video), _code_digest()], sort_keys=True,
                                     default=str).encode()).hexdigest()[:16]
-    path = out_dir / f"unrefined_{clip.name}.pkl"
-    got = None
-    if path.is_file():
-        with open(path, "rb") as f:
-            stored = pickle.load(f)  # written by this study, below
-        if stored.get("key") == key:
-            got = stored
-    if got is None:
+    path = out_dir / f"unrefined_{clip.name}.npz"
+    old = path.with_suffix(".pkl")
+    if old.is_file() and not path.is_file():
+        print(f"refine_loo: {old} is a pickle of an earlier version of this study and is not read; "
+              f"running {clip.name} again (into {path.name})", file=sys.stderr)
+    got = load_run(path) if path.is_file() else None
+    if got is not None and got[0] == key:
+        _, frames, rec, rows = got
+    else:
         frames, rec, rows, _ = run_clip(clip, config)
-        got = {"key": key, "frames": frames, "rec": rec, "rows": rows}
-        write_bytes(path, pickle.dumps(got))
-    images = read_frames_at(clip.video, sorted(got["rec"]), notify=lambda _n: None)
-    return ClipRun(clip, got["frames"], got["rec"], got["rows"], images)
+        save_run(path, key, frames, rec, rows)
+    images = read_frames_at(clip.video, sorted(rec), notify=lambda _n: None)
+    return ClipRun(clip, frames, rec, rows, images)
 
 
 def annotated_frames(run: ClipRun, index: int) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:

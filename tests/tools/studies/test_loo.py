@@ -68,6 +68,9 @@ def test_mix_out_of_range_and_a_missing_held_out_regressor_are_one_line(tmp_path
     with pytest.raises(SystemExit) as e:
         model_loo.main(["--mix", "1.5", "--no-train", "--work", str(tmp_path)])
     assert e.value.code == 2 and "--mix" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as e:
+        model_loo.main(["--offset", "nan", "--no-train", "--work", str(tmp_path)])
+    assert e.value.code == 2 and "--offset" in capsys.readouterr().err
     shutil.copy(DEFAULT_MODEL_PATH, tmp_path / "main_without_boston_street.npz")
     assert model_loo.main(["--clips", "boston_street", "--no-train", "--no-windows", "--work", str(tmp_path),
                            "--refine-loo", str(tmp_path / "none")]) == 2

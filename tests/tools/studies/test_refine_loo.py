@@ -1,7 +1,8 @@
 """tools/studies/refine_loo.py: the keyframe vehicles a leave-one-camera-out regressor is fitted
 on (the Udacity clips and the test images one camera), the pipeline's own boxes paired with
 their vehicles, and the optional regressor it ships (fastdet/models/refine_cameras.npz): fitted without
-test_small1, it tightens boxes about test_small1's vehicles."""
+test_small1, it tightens boxes about test_small1's vehicles; the cache of the unrefined runs (plain arrays,
+no pickle) comes back whole and is redone when the configuration changes."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -16,7 +17,7 @@ from fastdet.io.motfiles import read_gt
 from fastdet.io.reader import read_frames, read_frames_at
 from fastdet.train.refine import JitterConfig, jitter_boxes, paired_iou
 from fastdet.video.refine import RefineConfig, load_regressor, refine_boxes
-from tools.studies.refine_loo import ClipRun, clip_vehicles, own_views, training_clips
+from tools.studies.refine_loo import ClipRun, clip_vehicles, load_run, own_views, save_run, training_clips
 
 CAMERAS = REFINE_MODEL_PATH.with_name("refine_cameras.npz")
 
@@ -77,3 +78,84 @@ def test_cameras_regressor_never_saw_test_small1_and_tightens_its_boxes(data: Pa
             before.extend(paired_iou(b, tt))
             after.extend(paired_iou(refine_boxes(frames[f - 1], b, reg, RefineConfig(iterations=3)), tt))
     assert np.mean(after) > np.mean(before) + 0.02
+
+
+def _run(seed: int) -> tuple[list, dict]:
+    rng = np.random.default_rng(seed)
+
+    def dets(n: int, **cols) -> Detections:
+        xy = rng.integers(0, 300, (n, 2))
+        return Detections(np.c_[xy, xy + rng.integers(8, 60, (n, 2))].astype(np.int32),
+                          rng.random(n).astype(np.float32), **{k: f(n) for k, f in cols.items()})
+
+    frames = [(f, dets(n, ids=lambda n: rng.integers(-1, 9, n))) for f, n in ((1, 2), (2, 0), (3, 4), (5, 1))]
+    rec = {f: {"out": frames[i][1], "boxes": dets(i), "heat": rng.random((9, 16)), "horizon": h,
+               "windows": dets(2 * i + 1, scale=lambda n: rng.random(n).astype(np.float32),
+                               part=lambda n: rng.integers(0, 3, n).astype(np.int8))}
+           for i, (f, h) in enumerate(((1, None), (3, 0.5531234567)))}
+    return frames, rec
+
+
+def _same_dets(a: Detections, b: Detections) -> bool:
+    return all((getattr(a, c) is None and getattr(b, c) is None) or
+               (getattr(a, c).dtype == getattr(b, c).dtype and np.array_equal(getattr(a, c), getattr(b, c)))
+               for c in ("boxes", "scores", "scale", "part", "ids", "frames", "consider"))
+
+
+def _same_run(got: tuple[list, dict], want: tuple[list, dict]) -> bool:
+    (gf, gr), (wf, wr) = got, want
+    return ([f for f, _ in gf] == [f for f, _ in wf] and all(_same_dets(a, b) for (_, a), (_, b) in zip(gf, wf))
+            and list(gr) == list(wr)
+            and all(all(_same_dets(gr[f][k], wr[f][k]) for k in ("out", "boxes", "windows"))
+                    and np.array_equal(gr[f]["heat"], wr[f]["heat"]) and gr[f]["horizon"] == wr[f]["horizon"]
+                    for f in wr))
+
+
+def test_run_cache_is_plain_arrays_and_comes_back_whole(tmp_path: Path, capsys) -> None:
+    frames, rec = _run(0)
+    save_run(tmp_path / "r.npz", "abc", frames, rec, 270)
+    with np.load(tmp_path / "r.npz", allow_pickle=False) as z:  # no object arrays in it
+        assert all(z[k].dtype != object for k in z.files)
+    key, f2, r2, rows = load_run(tmp_path / "r.npz")
+    assert key == "abc" and rows == 270 and _same_run((f2, r2), (frames, rec))
+    assert not list(tmp_path.glob("*.partial*"))
+    (tmp_path / "bad.npz").write_bytes(b"not a zip")
+    assert load_run(tmp_path / "bad.npz") is None
+    assert "bad.npz: not a run cache this study can read" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="searched"):
+        save_run(tmp_path / "s.npz", "abc", frames, {1: {**rec[1], "searched": []}}, 270)
+
+
+def test_unrefined_run_reads_its_cache_and_ignores_old_pickles(tmp_path: Path, monkeypatch, capsys) -> None:
+    import argparse
+    import pickle
+    from types import SimpleNamespace
+
+    from tools.scripts.refine_model import add_feature_arguments
+    from tools.studies import refine_loo
+    from tools.studies.small_boxes import add_setting_arguments
+
+    ap = argparse.ArgumentParser()
+    add_feature_arguments(ap)
+    add_setting_arguments(ap)
+    a = ap.parse_args([])
+    calls = []
+    frames, rec = _run(1)
+
+    def run_clip(clip, config):
+        calls.append(clip.name)
+        return frames, rec, 270, {}
+
+    monkeypatch.setattr(refine_loo, "run_clip", run_clip)
+    monkeypatch.setattr(refine_loo, "read_frames_at", lambda video, fnos, notify: {f: None for f in fnos})
+    clip = SimpleNamespace(name="clipx", video=tmp_path / "clipx.mp4")
+    (tmp_path / "unrefined_clipx.pkl").write_bytes(pickle.dumps({"key": "x", "frames": [], "rec": {}, "rows": 1}))
+    first = refine_loo.unrefined_run(clip, a, tmp_path)
+    assert calls == ["clipx"] and "unrefined_clipx.pkl is a pickle" in capsys.readouterr().err
+    second = refine_loo.unrefined_run(clip, a, tmp_path)  # from the cache: the clip does not run again
+    assert calls == ["clipx"] and capsys.readouterr().err == ""
+    for run in (first, second):
+        assert run.rows == 270 and sorted(run.images) == sorted(rec) and _same_run((run.frames, run.rec), (frames, rec))
+    a.no_split = True  # another configuration: the clip runs again
+    refine_loo.unrefined_run(clip, a, tmp_path)
+    assert calls == ["clipx", "clipx"]

@@ -1,0 +1,60 @@
+"""tools/studies/tolerance.py: the options to searches, the full-scan cost count, the command line."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import pytest
+
+from fastdet.config import PipelineConfig, oncoming_search
+from fastdet.video import make_detector
+from tools.studies import tolerance as tol
+
+
+def _args(**kw: object) -> argparse.Namespace:
+    a = dict(band_slack=None, slack_threshold=None, slack_steps="nearest", oncoming_slack_below=None,
+             oncoming_slack_threshold=None)
+    a.update(kw)
+    return argparse.Namespace(**a)
+
+
+def test_options_to_searches() -> None:
+    main, oncoming = tol.searches(_args())
+    assert main == PipelineConfig().search and oncoming == oncoming_search(PipelineConfig().traffic)
+    main, oncoming = tol.searches(_args(slack_steps="cover", oncoming_slack_below=0.04, oncoming_slack_threshold=3.0,
+                                        band_slack="0.05,0", slack_threshold=float("nan")))
+    assert main.slack_steps == "cover" and main.slack_threshold is None
+    assert all(b.slack_above == 0.05 and b.slack_below is None for b in main.bands if b.has_slack)
+    assert sum(b.has_slack for b in main.bands) == sum(b.has_slack for b in PipelineConfig().search.bands)
+    assert all(b.slack_below == 0.04 for b in oncoming.bands) and oncoming.slack_threshold == 3.0
+    assert tol.parse_slack("0.03,0") == (0.03, None) and tol.parse_slack(None) is None
+    with pytest.raises(SystemExit, match="ABOVE,BELOW"):
+        tol.parse_slack("0.03")
+    # the detector of a run carries both searches, the oncoming one at the pipeline's horizon
+    det = tol.detector(_args(oncoming_slack_below=0.04), PipelineConfig())
+    assert det.scorers[1].search.bands[0].slack_below == 0.04
+
+
+def test_cost_counts_the_setting_against_today() -> None:
+    today = tol.full_scan_cost(make_detector())
+    assert tol.full_scan_cost(tol.detector(_args(), PipelineConfig())) == today
+    cover = tol.full_scan_cost(tol.detector(_args(slack_steps="cover"), PipelineConfig()))
+    below = tol.full_scan_cost(tol.detector(_args(oncoming_slack_below=0.04), PipelineConfig()))
+    for k in today:
+        assert today[k] < cover[k] < below[k]  # more rows: more cells, windows and multiply-adds
+    assert cover["hog_cells"] / today["hog_cells"] < 1.07  # the cover rule: a few window rows more
+
+
+def test_command_line(tmp_path: Path, capsys: pytest.CaptureFixture[str], data: Path) -> None:
+    assert tol.main(["--cost", "--slack-steps", "cover"]) == 0
+    out = capsys.readouterr().out
+    assert "hog_cells" in out and "x)" in out
+    with pytest.raises(SystemExit):
+        tol.main(["--out-dir", str(tmp_path)])  # no --loo: one line from argparse
+    with pytest.raises(SystemExit):
+        tol.main(["--cost", "--oncoming-slack-below", "1.5"])
+    assert (data / "annotations" / "test_small1.gt.txt").is_file()
+    (tmp_path / "base").mkdir()
+    (tmp_path / "base" / "results.json").write_text("{}")
+    with pytest.raises(SystemExit, match="run .* first"):
+        tol.main(["--loo", str(tmp_path), "--out-dir", str(tmp_path), "--why", "0.04", "--clips", "test_small1"])
