@@ -80,6 +80,7 @@ def _best(box_or_target: np.ndarray, others: np.ndarray) -> tuple[float, int]:
 def count_clip(run: ClipRun, rec: dict) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     """``(false alarms, misses)`` of one clip's refined records (module docstring)."""
     gt = run.clip.gt()
+    assert gt.frames is not None and gt.consider is not None and gt.ids is not None  # ground truth has them
     f = REF_ROWS / run.rows
     fas, misses = [], []
     for fno, r in sorted(rec.items()):
@@ -116,15 +117,17 @@ def count_clip(run: ClipRun, rec: dict) -> tuple[list[dict[str, Any]], list[dict
                     item["raw_iou"] = float(iou(raw_by_id[int(out.ids[k])][None].astype(float), t[None])[0, 0])
                 item["heat_iou"] = _best(t, heat.boxes)[0]
             fas.append(item)
-        for j in np.flatnonzero(~hit):
+        for jj in np.flatnonzero(~hit):
+            j = int(jj)
             t = tb[j]
-            v, k = _best(t, ob)
+            v, kb = _best(t, ob)
             item = dict(frame=fno, target=int(tid[j]), box=t.tolist(), width=float((t[2] - t[0]) * f),
                         aspect=_aspect(t), iou=v, kind="no box" if v < 0.1 else "box misses")
             if v > 0:
-                item.update(relation=relation(ob[k], t), box_hits_other=bool(tp[k]),
-                            aspect_ratio=_aspect(ob[k]) / _aspect(t), wr=float((ob[k][2] - ob[k][0]) / (t[2] - t[0])),
-                            hr=float((ob[k][3] - ob[k][1]) / (t[3] - t[1])))
+                item.update(relation=relation(ob[kb], t), box_hits_other=bool(tp[kb]),
+                            aspect_ratio=_aspect(ob[kb]) / _aspect(t),
+                            wr=float((ob[kb][2] - ob[kb][0]) / (t[2] - t[0])),
+                            hr=float((ob[kb][3] - ob[kb][1]) / (t[3] - t[1])))
             item["raw_iou"] = _best(t, raw.boxes)[0]
             item["heat_iou"] = _best(t, heat.boxes)[0]
             wins = run.rec[fno]["windows"]
