@@ -67,22 +67,34 @@ def _read(path: Path, size: int | None) -> np.ndarray:
     return img
 
 
+def thinned(count: int, n: int | None) -> np.ndarray:
+    """Positions ``(min(n, count),) int64`` kept of a folder of ``count`` crops in time order
+    when at most ``n`` are wanted: evenly spread from the first to the last (``n`` ``None`` or
+    0: all)."""
+    if not n or n >= count:
+        return np.arange(count, dtype=np.int64)
+    return np.linspace(0, count - 1, n).astype(np.int64)
+
+
 def load_folder(folder: Path, label: int, root: Path | None = None, size: int | None = 64,
-                progress: bool = False) -> CropSet:
+                progress: bool = False, max_per_folder: int | None = None) -> CropSet:
     """All PNGs under ``folder`` with one label; crops not ``size``x``size`` are resized
-    (``size=None``: kept as they are, and they must then all have the same shape)."""
+    (``size=None``: kept as they are, and they must then all have the same shape).
+    ``max_per_folder``: only the crops :func:`thinned` keeps of each folder are read (their
+    ``order`` is still their position among all of the folder's crops)."""
     folder = Path(folder)
     if not folder.is_dir():
         raise DataError(f"folder {folder} not found")
     groups = find_pngs(folder)
-    paths = [p for ps in groups.values() for p in ps]
-    if not paths:
+    if not any(groups.values()):
         raise DataError(f"no .png files under {folder}")
-    names, order = [], []
+    paths, names, order = [], [], []
     for g, ps in groups.items():
         rel = str(g.relative_to(root)) if root is not None else str(g)
-        names += [rel] * len(ps)
-        order += list(range(len(ps)))
+        keep = thinned(len(ps), max_per_folder)
+        paths += [ps[k] for k in keep]
+        names += [rel] * len(keep)
+        order += keep.tolist()
     with ThreadPoolExecutor(max_workers=4) as pool:
         it = pool.map(lambda p: _read(p, size), paths, chunksize=64)
         if progress:
@@ -97,14 +109,15 @@ def load_folder(folder: Path, label: int, root: Path | None = None, size: int | 
     return CropSet(images, np.full(len(paths), label, np.int64), np.array(names), np.array(order, np.int64))
 
 
-def load_crops(data: Path, size: int = 64, progress: bool = False) -> CropSet:
-    """``data/vehicles`` (label 1) and ``data/non-vehicles`` (label 0)."""
+def load_crops(data: Path, size: int = 64, progress: bool = False, max_per_folder: int | None = None) -> CropSet:
+    """``data/vehicles`` (label 1) and ``data/non-vehicles`` (label 0); ``max_per_folder``:
+    of each folder only the crops :func:`thinned` keeps (the others are not read)."""
     data = Path(data)
     for sub in ("vehicles", "non-vehicles"):
         if not (data / sub).is_dir():
             raise DataError(f"{data} has no '{sub}' folder (expected {data}/vehicles and {data}/non-vehicles)")
-    pos = load_folder(data / "vehicles", 1, data, size, progress)
-    neg = load_folder(data / "non-vehicles", 0, data, size, progress)
+    pos = load_folder(data / "vehicles", 1, data, size, progress, max_per_folder)
+    neg = load_folder(data / "non-vehicles", 0, data, size, progress, max_per_folder)
     return CropSet.concat(pos, neg)
 
 

@@ -86,15 +86,6 @@ def _flip(images: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(images[:, :, ::-1])
 
 
-def _thin(crops, n: int):
-    keep = []
-    for g in np.unique(crops.groups):
-        m = np.flatnonzero(crops.groups == g)
-        m = m[np.argsort(crops.order[m], kind="stable")]
-        keep.append(m[np.linspace(0, len(m) - 1, min(n, len(m))).astype(int)])
-    return crops.subset(np.sort(np.concatenate(keep)))
-
-
 def row_bands(crops, top: int, height: int):
     """Wide-window training set: vehicles' rows ``[top, top + height)``; every non-vehicle
     crop gives its top, middle-window and bottom row bands (three negatives, same group and
@@ -159,9 +150,7 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
                          f"the window is {config.win_w}x{config.win_h}")
     C = DEFAULT_C[classifier] if C is None else C
     t0 = time.perf_counter()
-    crops = load_crops(data, size=crop_size, progress=progress)
-    if max_per_folder:
-        crops = _thin(crops, max_per_folder)
+    crops = load_crops(data, size=crop_size, progress=progress, max_per_folder=max_per_folder)
     top = (crops.images.shape[1] - config.win_h) // 2 if window_top is None else window_top
     if config.win_h != crops.images.shape[1]:
         crops = row_bands(crops, top, config.win_h)

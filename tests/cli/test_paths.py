@@ -121,23 +121,51 @@ def test_image_of_one_pixel_row(tmp_path, capsys):
 def test_two_runs_onto_the_same_outputs_never_share_a_temporary_file(tmp_path):
     """Two ``video`` runs writing the same files at once: each writes its own temporary files
     (pid + token), so both end well and the last rename wins whole -- no video cut short, no
-    box file mixing two runs."""
+    box file mixing two runs. The first run is paused (SIGSTOP) once its temporary files are
+    there and goes on only when the second one has made its own beside them: the two write
+    at the same time on any machine, however fast."""
+    import os
+    import signal
     import subprocess
     import time
 
-    from tests.media import fastdet_cmd
+    from tests.media import fastdet_cmd, partials_of
 
     clip = write_video(tmp_path / "c.mp4", 90, w=480, h=270)
     solo = tmp_path / "solo.txt"
-    subprocess.run(fastdet_cmd("video", clip, "--boxes", solo, "--no-progress"), check=True, capture_output=True)
+    assert main(["video", str(clip), "--boxes", str(solo), "--no-progress"]) == 0
     out, boxes = tmp_path / "same.mp4", tmp_path / "same.txt"
     cmd = fastdet_cmd("video", clip, "-o", out, "--boxes", boxes, "--no-progress")
-    first = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    time.sleep(2.0)
-    second = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    for p in (first, second):
-        _, err = p.communicate(timeout=300)
-        assert p.returncode == 0, err
+
+    def wait_for(n: int, p: subprocess.Popen) -> list[Path]:
+        """The temporary files once each output has ``n`` (bounded: 300 s)."""
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline:
+            assert p.poll() is None, p.communicate()
+            tmps = [partials_of(out), partials_of(boxes)]
+            if all(len(t) == n for t in tmps):
+                return [f for t in tmps for f in t]
+            time.sleep(0.02)
+        raise AssertionError(f"no {n} temporary files of each output after 300 s")
+
+    procs = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)]
+    try:
+        mine = wait_for(1, procs[0])
+        os.kill(procs[0].pid, signal.SIGSTOP)
+        try:
+            procs.append(subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+            both = wait_for(2, procs[1])
+        finally:
+            os.kill(procs[0].pid, signal.SIGCONT)
+        assert set(mine) < set(both)  # the second run's temporary files are others than the first's
+        for p in procs:
+            _, err = p.communicate(timeout=300)
+            assert p.returncode == 0, err
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+                p.communicate()
     assert boxes.read_bytes() == solo.read_bytes()
     cap = cv2.VideoCapture(str(out))
     n = 0

@@ -177,8 +177,7 @@ def test_train_never_puts_augmented_copies_in_the_test_part(data, monkeypatch):
     _, rep = fit.train(data, cfg, truncate=0.5, reencode=0.5, **kw)
     assert rep["sequence_split"]["n_test"] == plain["sequence_split"]["n_test"]
     assert rep["augment"]["copies"] > 0
-    crops = fit.load_crops(data, progress=False)
-    crops = fit._thin(crops, 20)
+    crops = fit.load_crops(data, progress=False, max_per_folder=20)
     tr, _ = fit.sequence_split(crops.groups, crops.order, 2)
     aug = augmented_copies(crops.images, crops.labels, 2, 0.5, True, 0.5)
     assert seen == [2 * len(tr), 2 * len(tr) + len(aug.in_training(tr))]

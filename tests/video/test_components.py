@@ -44,7 +44,7 @@ def test_component_windows_get_their_own_heat_map_and_join_where_main_found_noth
     dets = Detections(boxes, np.full(len(boxes), 3.0), scale=np.full(len(boxes), 2.0), part=part)
     cfg = PipelineConfig(tracker=None, refine=None, horizon=None, oncoming=False, split=None)
     vd = VideoDetector(_ComponentFake(dets), cfg)
-    assert [s.name for s in vd.stages] == ["detect", "heatmap", "components", "plausible"]
+    assert [s.name for s in vd.stages] == ["detect", "ownvehicle", "heatmap", "components", "plausible"]
     out = vd.update(_frame())
     main_only = VideoDetector(FixedDetector(dets[np.array(part) == MAIN_PART]), cfg).update(_frame())
     assert len(main_only) == 1
@@ -105,7 +105,7 @@ def test_small_component_gets_a_heat_map_of_its_own_and_its_threshold():
     assert small_part(cfg, det) == FIRST_COMPONENT_PART + 1
     assert small_part(cfg.without("small"), det) is None
     vd = VideoDetector(det, cfg)
-    assert [s.name for s in vd.stages] == ["detect", "heatmap", "components", "small", "plausible"]
+    assert [s.name for s in vd.stages] == ["detect", "ownvehicle", "heatmap", "components", "small", "plausible"]
     stages = {s.name: s for s in vd.stages}
     assert stages["components"].parts == (FIRST_COMPONENT_PART,)
     assert stages["small"].parts == (FIRST_COMPONENT_PART + 1,)
@@ -119,7 +119,7 @@ def test_small_component_gets_a_heat_map_of_its_own_and_its_threshold():
     assert len(out) == 1 and out.boxes[0][0] >= 780
     # without the small component in the config, every component's windows share one heat map
     vd = VideoDetector(det, cfg.without("small"))
-    assert [s.name for s in vd.stages] == ["detect", "heatmap", "components", "plausible"]
+    assert [s.name for s in vd.stages] == ["detect", "ownvehicle", "heatmap", "components", "plausible"]
 
 
 def test_make_detector_puts_the_small_component_last(tmp_path):

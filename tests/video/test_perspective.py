@@ -107,8 +107,8 @@ def test_the_stage_runs_after_tracking_when_asked_for():
     from fastdet.video import VideoDetector, make_detector
 
     names = [s.name for s in VideoDetector(make_detector(), PipelineConfig(perspective=PerspectiveConfig())).stages]
-    assert names == ["horizon", "plan", "motion", "detect", "motion", "heatmap", "split", "fusion", "weak", "track",
-                     "refine", "plausible", "perspective", "observe"]
+    assert names == ["horizon", "plan", "motion", "detect", "motion", "ownvehicle", "heatmap", "split", "fusion",
+                     "weak", "track", "refine", "plausible", "perspective", "observe"]
     assert "perspective" not in [s.name for s in VideoDetector(make_detector()).stages]  # off by default
     # it needs the tracker's ids and a horizon to start from
     for off in (PipelineConfig(perspective=PerspectiveConfig(), tracker=None),

@@ -24,16 +24,17 @@ def names(vd: VideoDetector) -> list[str]:
 
 def test_the_default_pipeline_runs_every_stage_in_order():
     vd = VideoDetector(make_detector())
-    assert names(vd) == ["horizon", "plan", "motion", "detect", "motion", "heatmap", "split", "fusion", "weak",
-                         "track", "refine", "plausible", "observe"]
+    assert names(vd) == ["horizon", "plan", "motion", "detect", "motion", "ownvehicle", "heatmap", "split", "fusion",
+                         "weak", "track", "refine", "plausible", "observe"]
     off = VideoDetector(make_detector(), PipelineConfig(tracker=None, refine=None, horizon=None, plausible=None,
                                                         split=None))
-    assert names(off) == ["motion", "detect", "motion", "heatmap", "fusion"]  # no tracker: the full search
+    # no tracker: the full search
+    assert names(off) == ["motion", "detect", "motion", "ownvehicle", "heatmap", "fusion"]
 
 
 def test_a_detector_without_abilities_gets_no_horizon_or_plan_stage():
     vd = VideoDetector(SquareDetector(), PipelineConfig(refine=None, plausible=None))
-    assert names(vd) == ["detect", "heatmap", "split", "weak", "track"]
+    assert names(vd) == ["detect", "ownvehicle", "heatmap", "split", "weak", "track"]
     from fastdet.config import TrackerConfig
 
     vd = VideoDetector(SquareDetector(), PipelineConfig(refine=None, tracker=TrackerConfig(output="filtered")))
@@ -43,8 +44,8 @@ def test_a_detector_without_abilities_gets_no_horizon_or_plan_stage():
 def test_timings_name_every_stage_and_its_parts():
     vd = VideoDetector(SquareDetector(), PipelineConfig(refine=None))
     vd.update(frame())
-    assert set(vd.timings) == {"detect", "resize_colour", "hog", "score", "heatmap", "heat", "label", "split", "weak",
-                               "track", "plausible"}
+    assert set(vd.timings) == {"detect", "resize_colour", "hog", "score", "ownvehicle", "heatmap", "heat", "label",
+                               "split", "weak", "track", "plausible"}
     assert all(v >= 0 for v in vd.timings.values())
 
 

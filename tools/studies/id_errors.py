@@ -34,7 +34,12 @@ search reads the tracks, so a tracker setting may move the boxes too: each row i
 run of the pipeline, never a replay of the tracker alone::
 
     python -m tools.studies.id_errors [--clips test_small1,test_video] [--set hold_row=false]
-        [--offline] [--events] [--json OUT.json]
+        [--offline] [--variants original,mirror,...] [--events] [--json OUT.json]
+
+``--variants`` runs each clip's camera-shift copies instead (:func:`fastdet.eval.variants.
+standard_variants`: other resolutions, wider lenses, the horizon moved, the right side cut,
+mirrored, re-encoded; the ground truth moved with the pixels), each through a fresh
+``VideoDetector`` primed with its first frames as a file run is (``tools.studies.camera_shift``).
 """
 from __future__ import annotations
 
@@ -206,6 +211,23 @@ def run_clip(clip: AnnotatedClip, tracker: TrackerConfig, offline: bool) -> Dete
                                   source=str(clip.video))
 
 
+def run_frames(frames: list[np.ndarray], tracker: TrackerConfig, offline: bool) -> Detections:
+    """The default pipeline with ``tracker`` on frames held in memory (a camera-shift copy),
+    its horizon primed from the first frames as a file run's is."""
+    from fastdet.video import VideoDetector, make_detector  # noqa: PLC0415
+    from fastdet.video.run import defer_plausible, offline_boxes  # noqa: PLC0415
+
+    config = replace(PipelineConfig(), tracker=tracker)
+    vd = VideoDetector(make_detector(config), config)
+    if offline:
+        defer_plausible(vd)
+    vd.prime_horizon(frames)
+    out = [(i, vd.update(f)) for i, f in enumerate(frames, start=1)]
+    if offline:
+        out = offline_boxes(vd, out, frames[0].shape)
+    return Detections.from_frames(out)
+
+
 def _row(name: str, setting: str, r: Any, c: Causes) -> str:
     k = c.counts()
     return (f"| {name} | {setting} | {r.f1:.3f} | {r.mota:.3f} | {r.idf1:.3f} | {r.hota:.3f} | {r.id_switches} | "
@@ -229,6 +251,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE,...",
                     help="a row with these TrackerConfig fields (repeatable)")
     ap.add_argument("--offline", action="store_true", help="every row with the offline pass (video --offline)")
+    ap.add_argument("--variants", default=None, help="camera-shift copies of each clip to run, comma-separated "
+                    "(names of fastdet.eval.variants.standard_variants, e.g. original,mirror,960x540), or 'all'")
     ap.add_argument("--events", action="store_true", help="list every id change")
     ap.add_argument("--json", default=None, help="write the counts to this JSON file")
     a = ap.parse_args(argv)
@@ -249,24 +273,53 @@ def main(argv: list[str] | None = None) -> int:
             print(f"id_errors: no annotated clip named {', '.join(missing)}", file=sys.stderr)
             return 2
         clips = [c for c in clips if c.name in want]
+    variants: list[Any] = [None]
+    if a.variants is not None:
+        from fastdet.eval.variants import standard_variants  # noqa: PLC0415
+
+        known = {v.name: v for v in standard_variants()}
+        names = list(known) if a.variants == "all" else [v for v in a.variants.split(",") if v]
+        unknown = [n for n in names if n not in known]
+        if unknown or a.pred_dir is not None:
+            print(f"id_errors: --variants: {', '.join(unknown) or 'not with --pred-dir'} (have: {', '.join(known)})",
+                  file=sys.stderr)
+            return 2
+        variants = [known[n] for n in names]
     print(HEADER)
     dump: list[dict[str, Any]] = []
     for label, kw in sets:
         tracker = replace(TrackerConfig(), **kw)
         for clip in clips:
-            gt, kf = clip.gt(), clip.keyframes()
-            if a.pred_dir is not None:
-                preds = read_predictions(f"{a.pred_dir}/{clip.name}.txt")
-            else:
-                preds = run_clip(clip, tracker, a.offline)
-            r = evaluate(gt, preds, iou=0.5, keyframes=kf, tracking=True)
-            c = causes(gt, preds, kf)
-            print(_row(clip.name, label + (" offline" if a.offline else ""), r, c), flush=True)
-            if a.events:
-                for event in c.events:
-                    print(f"|   | {event} |")
-            dump.append({"clip": clip.name, "set": kw, "offline": a.offline, **r.to_dict(), **c.counts(),
-                         "events": c.events})
+            gt0, kf = clip.gt(), clip.keyframes()
+            src = None
+            for v in variants:
+                name, gt = clip.name, gt0
+                if a.pred_dir is not None:
+                    preds = read_predictions(f"{a.pred_dir}/{clip.name}.txt")
+                elif v is None:
+                    preds = run_clip(clip, tracker, a.offline)
+                else:
+                    import tempfile  # noqa: PLC0415
+                    from pathlib import Path  # noqa: PLC0415
+
+                    from fastdet.eval.variants import transform_gt  # noqa: PLC0415
+                    from fastdet.io.reader import read_frames  # noqa: PLC0415
+                    from tools.studies.camera_shift import variant_frames  # noqa: PLC0415
+
+                    src = src if src is not None else read_frames(clip.video)
+                    with tempfile.TemporaryDirectory(prefix="fastdet_id_errors_") as tmp:
+                        frames = variant_frames(src, v, clip.name, Path(tmp))
+                    gt = transform_gt(gt0, v, src[0].shape[:2])
+                    preds = run_frames(frames, tracker, a.offline)
+                    name = f"{clip.name} {v.name}"
+                r = evaluate(gt, preds, iou=0.5, keyframes=kf, tracking=True)
+                c = causes(gt, preds, kf)
+                print(_row(name, label + (" offline" if a.offline else ""), r, c), flush=True)
+                if a.events:
+                    for event in c.events:
+                        print(f"|   | {event} |")
+                dump.append({"clip": clip.name, "variant": None if v is None else v.name, "set": kw,
+                             "offline": a.offline, **r.to_dict(), **c.counts(), "events": c.events})
     if a.json:
         write_bytes(a.json, json.dumps(dump, indent=1).encode())
     return 0

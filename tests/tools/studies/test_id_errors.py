@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from fastdet.detections import Detections
-from tools.studies.id_errors import causes, parse_set
+from tools.studies.id_errors import causes, main, parse_set
 
 
 def _gt(rows: list[tuple[int, int, list[int], int]]) -> Detections:
@@ -67,3 +67,12 @@ def test_parse_set():
         parse_set("min_hits=0")
     with pytest.raises(ValueError):
         parse_set("hold_row")
+
+
+def test_bad_arguments_are_one_line_and_exit_2(tmp_path, capsys):
+    assert main(["--data", str(tmp_path), "--clips", "all", "--set", "min_hits=0"]) == 2
+    assert main(["--data", str(tmp_path), "--clips", "all", "--pred-dir", str(tmp_path), "--set", "max_lost=3"]) == 2
+    assert main(["--data", str(tmp_path), "--clips", "all", "--variants", "original,no_such_variant"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 3 and all(line.startswith("id_errors: ") for line in err)
+    assert "no_such_variant" in err[2]
