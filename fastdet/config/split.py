@@ -22,7 +22,13 @@ class NeighbourSplit(Config):
         part of that vehicle.
     max_overlap: two neighbouring modes are two vehicles when their boxes overlap along x by
         at most this fraction of the narrower one.
+    min_heat: a mode lighter than ``min_weight`` x the heaviest still counts when its windows'
+        summed heat (window heat, :meth:`fastdet.video.heatmap.HeatMap.window_heat`) is above
+        ``min_heat`` x the heat map's threshold: its windows alone would make a blob in one
+        frame (a smaller car beside a near one gathers fewer windows). ``None``: never.
     """
+
+    _OMIT_NONE = ("min_heat",)  # configs written before it existed keep their digest
 
     min_aspect: float = 1.8
     min_weight: float = 0.5
@@ -30,6 +36,7 @@ class NeighbourSplit(Config):
     scale_bandwidth: float = 0.3
     inside: float = 0.5
     max_overlap: float = 0.3
+    min_heat: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("min_aspect", "bandwidth", "scale_bandwidth"):
@@ -38,3 +45,5 @@ class NeighbourSplit(Config):
         for name in ("min_weight", "inside", "max_overlap"):
             if not 0 <= getattr(self, name) <= 1:
                 raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)!r}")
+        if self.min_heat is not None and not 0 <= self.min_heat < float("inf"):
+            raise ValueError(f"min_heat must be a finite number >= 0 or None, got {self.min_heat!r}")

@@ -32,6 +32,10 @@ class TrackerConfig(Config):
     split_overlap: a high-confidence box that holds at least this fraction of the predicted
         boxes of two or more tracks (merged blobs of vehicles side by side) is split between
         them (:func:`fastdet.video.track.split_merged`); ``0`` = never split.
+    cut_shape: ``True``: a part of such a cut must pass the heat map's shape filter
+        (``HeatConfig``'s ``min_width``, ``min_height``, ``max_aspect``), else it stays joined to
+        its neighbour (:func:`fastdet.video.track.merge_failed_parts`); ``None`` (default) or
+        ``False``: every cut is made.
     output: which box a tracked vehicle is reported with: ``'detection'`` (the heat map's box
         of this frame) or ``'filtered'`` (the Kalman filter's estimate).
     buffer: boxes are grown by this fraction of their width / height on every side before
@@ -60,6 +64,8 @@ class TrackerConfig(Config):
         (docs/accuracy.md).
     """
 
+    _OMIT_NONE = ("cut_shape",)  # configs written before it existed keep their digest
+
     low_heat: float = 0.5
     match_iou: float = 0.2
     low_match_iou: float = 0.5
@@ -67,6 +73,7 @@ class TrackerConfig(Config):
     min_hits: int = 1
     max_lost: int = 30
     split_overlap: float = 0.5
+    cut_shape: bool | None = None
     output: Literal["detection", "filtered"] = "detection"
     buffer: float = 0.3
     std_position: float = 1 / 20
@@ -87,6 +94,8 @@ class TrackerConfig(Config):
             v = getattr(self, name)
             if int(v) != v or v < lo:
                 raise ValueError(f"{name} must be an integer >= {lo}, got {v!r}")
+        if self.cut_shape not in (None, True, False):
+            raise ValueError(f"cut_shape must be True, False or None, got {self.cut_shape!r}")
         if not 0 <= self.split_overlap <= 1:
             raise ValueError(f"split_overlap must be in [0, 1], got {self.split_overlap!r}")
         if not 0 <= self.buffer <= 2:

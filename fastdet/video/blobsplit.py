@@ -144,13 +144,16 @@ def mode_cuts(profile: np.ndarray, x0: int, cell: int, mode_boxes: np.ndarray,
 def split_boxes(boxes: Detections, heat: np.ndarray, labels: np.ndarray, cell: int,
                 frame_shape: tuple[int, int], windows: np.ndarray, weights: np.ndarray, extent: float,
                 min_aspect: float = 1.8, min_weight: float = 0.5, bandwidth: float = 0.25,
-                scale_bandwidth: float = 0.3, inside: float = 0.5, max_overlap: float = 0.3) -> Detections:
+                scale_bandwidth: float = 0.3, inside: float = 0.5, max_overlap: float = 0.3,
+                min_heat: float | None = None) -> Detections:
     """``boxes`` (one per blob of ``labels``, scored by peak heat, as
     :meth:`fastdet.video.heatmap.HeatMap.boxes` gives them) with each wide box whose blob holds
     separate modes of this frame's ``windows`` (``(N, 4)`` frame px, their heat ``weights``
     ``(N,)``) replaced by one box per part (module docstring). ``heat``, ``labels``: the heat
-    map's ``(Hg, Wg)`` grids (cells of ``cell`` px); ``frame_shape``: ``(H, W)`` px. Returns
-    ``boxes`` itself when nothing was split."""
+    map's ``(Hg, Wg)`` grids (cells of ``cell`` px); ``frame_shape``: ``(H, W)`` px.
+    ``min_heat``: a mode lighter than ``min_weight`` x the heaviest still counts when its
+    summed window heat is above this (``None``: never; module docstring). Returns ``boxes``
+    itself when nothing was split."""
     wins = np.asarray(windows, np.float64).reshape(-1, 4)
     wts = np.asarray(weights, np.float64).reshape(-1)
     if not len(boxes) or len(wins) < 2:
@@ -164,7 +167,7 @@ def split_boxes(boxes: Detections, heat: np.ndarray, labels: np.ndarray, cell: i
     changed = False
     for b, s in zip(np.asarray(boxes.boxes), np.asarray(boxes.scores)):
         parts = _split_one(b, heat, labels, cell, (h, w), (hg, wg), wins, wts, ccx, ccy, extent, min_aspect,
-                           min_weight, bandwidth, scale_bandwidth, inside, max_overlap)
+                           min_weight, bandwidth, scale_bandwidth, inside, max_overlap, min_heat)
         if parts is None:
             out_b.append(np.asarray(b, np.int32))
             out_s.append(float(s))
@@ -179,7 +182,8 @@ def split_boxes(boxes: Detections, heat: np.ndarray, labels: np.ndarray, cell: i
 
 
 def _split_one(b, heat, labels, cell, frame_hw, grid_hw, wins, wts, ccx, ccy, extent, min_aspect, min_weight,
-               bandwidth, scale_bandwidth, inside, max_overlap) -> list[tuple[np.ndarray, float]] | None:
+               bandwidth, scale_bandwidth, inside, max_overlap,
+               min_heat=None) -> list[tuple[np.ndarray, float]] | None:
     """The parts of one box (``[(box (4,) int32, peak)]``), or ``None`` to keep it whole."""
     if (b[2] - b[0]) < min_aspect * (b[3] - b[1]):
         return None
@@ -200,7 +204,10 @@ def _split_one(b, heat, labels, cell, frame_hw, grid_hw, wins, wts, ccx, ccy, ex
         return None
     mb, mw = window_modes(wins[idx], wts[idx], bandwidth, scale_bandwidth)
     keep = dominant_modes(mb, mw, inside)
-    keep = keep[mw[keep] >= min_weight * mw[keep].max()]
+    heavy = mw[keep] >= min_weight * mw[keep].max()
+    if min_heat is not None:
+        heavy |= mw[keep] > min_heat
+    keep = keep[heavy]
     hv = np.where(sub_l == lab, sub_h, 0.0)
     cuts = mode_cuts(hv.max(axis=0), x0, cell, mb[keep], max_overlap)
     if not cuts:
@@ -235,7 +242,8 @@ class SplitStage(Stage):
         wins, heat = hm.current_windows
         out = split_boxes(s.boxes, hm.heat, hm.labels, int(hm.config.cell), hm.frame_shape, wins, heat,
                           float(hm.config.extent), c.min_aspect, c.min_weight, c.bandwidth, c.scale_bandwidth,
-                          c.inside, c.max_overlap)
+                          c.inside, c.max_overlap,
+                          None if c.min_heat is None else c.min_heat * float(hm.config.threshold))
         if out is not s.boxes:
             s.boxes = s.out = out[hm.shape_ok(out.boxes)]
         return s

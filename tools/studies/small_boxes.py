@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from fastdet.boxes import iou as box_iou
-from fastdet.config import HeatConfig, NeighbourSplit, PipelineConfig, RefineConfig
+from fastdet.config import HeatConfig, NeighbourSplit, PipelineConfig, RefineConfig, TrackerConfig
 from fastdet.detect.bands import window_boxes
 from fastdet.detect.detector import DetectStats
 from fastdet.detections import MAIN_PART, Detections
@@ -78,6 +78,12 @@ def config_from(args: argparse.Namespace) -> PipelineConfig:
         cfg = replace(cfg, split=NeighbourSplit())
     if args.no_split:
         cfg = replace(cfg, split=None)
+    skw = overrides(getattr(args, "split_opt", None), NeighbourSplit, "--split-opt")
+    if skw and cfg.split is not None:
+        cfg = replace(cfg, split=replace(cfg.split, **skw))
+    tkw = overrides(getattr(args, "tracker_opt", None), TrackerConfig, "--tracker-opt")
+    if tkw and cfg.tracker is not None:
+        cfg = replace(cfg, tracker=replace(cfg.tracker, **tkw))
     if args.no_track:
         cfg = replace(cfg, tracker=None, guided=None)
     return cfg
@@ -248,6 +254,8 @@ def add_setting_arguments(ap: argparse.ArgumentParser) -> None:
     split = ap.add_mutually_exclusive_group()
     split.add_argument("--split", action="store_true", help="the neighbour split on (the default)")
     split.add_argument("--no-split", action="store_true", help="the neighbour split off")
+    ap.add_argument("--split-opt", action="append", metavar="KEY=VALUE", help="a NeighbourSplit field")
+    ap.add_argument("--tracker-opt", action="append", metavar="KEY=VALUE", help="a TrackerConfig field")
     ap.add_argument("--no-track", action="store_true")
 
 
