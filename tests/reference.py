@@ -408,6 +408,25 @@ def ref_mean_shift(boxes: np.ndarray, weights: np.ndarray, bandwidth: float, sca
     return np.array(y)
 
 
+def ref_join_modes(y: np.ndarray, bandwidth: float, scale_bandwidth: float) -> list[int]:
+    """Each end point's mode, in input order: a point within a quarter sigma (``bandwidth`` x
+    2 ** the mode's log2 width in x and y, ``scale_bandwidth`` in log2 width) of the point that
+    started a mode before it joins the first such mode, else it starts one."""
+    reps: list[np.ndarray] = []
+    label = []
+    for q in y:
+        for j, r in enumerate(reps):
+            s = bandwidth * 2.0 ** r[2]
+            near = abs(q[0] - r[0]) < 0.25 * s and abs(q[1] - r[1]) < 0.25 * s
+            if near and abs(q[2] - r[2]) < 0.25 * scale_bandwidth:
+                label.append(j)
+                break
+        else:
+            label.append(len(reps))
+            reps.append(q)
+    return label
+
+
 # ========================================================================== vanishing point
 def ref_vanishing_score(segments: np.ndarray, shape: tuple[int, int], tolerance_deg: float,
                         hypotheses: int) -> float:

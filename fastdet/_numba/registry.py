@@ -18,6 +18,7 @@ KERNEL_MODULES = (
     "fastdet.video._heat_kernels",
     "fastdet.video._label_kernels",
     "fastdet.video._motion_kernels",
+    "fastdet.video._split_kernels",
 )
 
 

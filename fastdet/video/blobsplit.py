@@ -23,7 +23,11 @@ import numpy as np
 
 from ..config import NeighbourSplit
 from ..detections import Detections
+from ._split_kernels import join_modes, mean_shift
 from .state import FrameState, Stage
+
+#: the numba kernels the split runs (compiled before a run: fastdet._numba.ensure_compiled)
+KERNELS = (mean_shift, join_modes)
 
 
 def window_modes(boxes: np.ndarray, weights: np.ndarray, bandwidth: float = 0.25,
@@ -45,18 +49,7 @@ def window_modes(boxes: np.ndarray, weights: np.ndarray, bandwidth: float = 0.25
         return np.zeros((0, 4)), np.zeros(0)
     y = shift_points(b, wt, bandwidth, scale_bandwidth, iters)
     label = np.empty(len(y), np.int64)
-    reps: list[np.ndarray] = []
-    for i in range(len(y)):
-        for j, r in enumerate(reps):
-            s = bandwidth * 2.0 ** r[2]
-            if (abs(y[i, 0] - r[0]) < 0.25 * s and abs(y[i, 1] - r[1]) < 0.25 * s
-                    and abs(y[i, 2] - r[2]) < 0.25 * scale_bandwidth):
-                label[i] = j
-                break
-        else:
-            label[i] = len(reps)
-            reps.append(y[i])
-    m = len(reps)
+    m = int(join_modes(y, float(bandwidth), float(scale_bandwidth), label))
     mw = np.bincount(label, weights=wt, minlength=m)
     mb = np.stack([np.bincount(label, weights=wt * b[:, c], minlength=m) for c in range(4)], 1)
     return mb / np.maximum(mw, 1e-300)[:, None], mw
@@ -74,20 +67,14 @@ def shift_points(boxes: np.ndarray, weights: np.ndarray, bandwidth: float = 0.25
     steps, until none moves by more than 1e-3."""
     b = np.asarray(boxes, np.float64).reshape(-1, 4)
     wt = np.asarray(weights, np.float64).reshape(-1)
-    pts = _points(b)
-    y = pts.copy()
-    for _ in range(iters):
-        s = bandwidth * np.exp2(y[:, 2])[:, None]  # (N, 1) spatial sigma of each moving point
-        d2 = (((y[:, None, 0] - pts[None, :, 0]) / s) ** 2 + ((y[:, None, 1] - pts[None, :, 1]) / s) ** 2
-              + ((y[:, None, 2] - pts[None, :, 2]) / scale_bandwidth) ** 2)
-        k = wt[None, :] * np.exp(-0.5 * d2)
-        den = k.sum(1, keepdims=True)
-        y_new = np.where(den > 0, (k @ pts) / np.where(den > 0, den, 1.0), y)
-        moved = float(np.abs(y_new - y).max())
-        y = y_new
-        if moved <= 1e-3:
-            break
-    return y
+    if len(wt) != len(b):
+        raise ValueError(f"{len(b)} boxes but {len(wt)} weights")
+    pts = np.ascontiguousarray(_points(b))
+    order = np.argsort(pts[:, 0], kind="stable")  # the kernel visits only windows near in x
+    out = np.empty_like(pts)
+    mean_shift(pts, np.ascontiguousarray(pts[order]), np.ascontiguousarray(wt[order]), float(bandwidth),
+               float(scale_bandwidth), int(iters), out)
+    return out
 
 
 def dominant_modes(mode_boxes: np.ndarray, mode_weights: np.ndarray, inside: float = 0.5) -> np.ndarray:

@@ -23,6 +23,8 @@ import numpy as np
 from .._numba import ensure_compiled
 from ..config import PipelineConfig
 from ..detections import Detections
+from .blobsplit import KERNELS as SPLIT_KERNELS
+from .blobsplit import window_modes
 from .detector import MovableHorizon, WindowDetector, detector_kernels, make_detector
 from .heatmap import KERNELS as HEAT_KERNELS
 from .heatmap import HeatMap
@@ -159,11 +161,15 @@ class VideoDetector:
         """Compile / load the numba kernels now, not on the first frame: every kernel the
         frames will run, at once (on a first run on every core, after saying so), then each
         run once."""
+        split = self.config.split is not None
         ensure_compiled((*detector_kernels(self.detector), *HEAT_KERNELS, *MOTION_KERNELS,
-                         *(REFINE_KERNELS if self.refiner is not None else ())))
+                         *(REFINE_KERNELS if self.refiner is not None else ()),
+                         *(SPLIT_KERNELS if split else ())))
         self.detector.warmup()
         HeatMap((8, 8), self.config.heat).warmup()
         warmup_motion()
+        if split:
+            window_modes(np.array([[0.0, 0.0, 64.0, 64.0], [8.0, 0.0, 72.0, 64.0]]), np.ones(2))
 
     def update(self, frame: np.ndarray, rgb: bool = False) -> Detections:
         """Boxes of the vehicles in ``frame`` (``(H, W, 3) uint8``, BGR or RGB with ``rgb=True``).

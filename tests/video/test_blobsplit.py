@@ -9,9 +9,10 @@ from hypothesis import strategies as st
 
 from fastdet.config import HeatConfig
 from fastdet.detections import Detections
+from fastdet.video._split_kernels import join_modes
 from fastdet.video.blobsplit import dominant_modes, mode_cuts, shift_points, split_boxes, window_modes
 from fastdet.video.heatmap import HeatMap
-from tests.reference import ref_mean_shift
+from tests.reference import ref_join_modes, ref_mean_shift
 
 
 @st.composite
@@ -30,6 +31,29 @@ def windows(draw, max_n: int = 12):
 def test_shift_points_match_the_reference(wb, bw, sbw):
     b, wt = wb
     np.testing.assert_allclose(shift_points(b, wt, bw, sbw, 30), ref_mean_shift(b, wt, bw, sbw, 30), atol=1e-6)
+
+
+@settings(max_examples=60, deadline=None)
+@given(windows(max_n=40), st.sampled_from([0.15, 0.25, 0.4]), st.sampled_from([0.2, 0.3, 0.6]),
+       st.sampled_from([1, 3, 30]))
+def test_the_grouping_matches_the_reference(wb, bw, sbw, iters):
+    b, wt = wb
+    y = shift_points(b, wt, bw, sbw, iters)  # end points part-way and all the way to the modes
+    label = np.full(len(y), -7, np.int64)
+    m = join_modes(y, bw, sbw, label)
+    assert label.tolist() == ref_join_modes(y, bw, sbw)
+    assert m == len(set(label.tolist()))
+
+
+def test_a_blob_of_many_windows_is_shifted_as_the_reference_does():
+    # a blob over dense texture: many overlapping windows of several sizes
+    rng = np.random.default_rng(5)
+    n = 150
+    w = rng.choice([48.0, 64.0, 80.0, 96.0], n)
+    x, y = rng.uniform(0, 500, n), rng.uniform(300, 400, n)
+    b = np.stack([x, y, x + w, y + w], 1)
+    wt = rng.uniform(1, 3, n)
+    np.testing.assert_allclose(shift_points(b, wt, 0.25, 0.3, 30), ref_mean_shift(b, wt, 0.25, 0.3, 30), atol=1e-6)
 
 
 @settings(max_examples=40, deadline=None)
