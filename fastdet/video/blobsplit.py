@@ -29,6 +29,12 @@ from .state import FrameState, Stage
 #: the numba kernels the split runs (compiled before a run: fastdet._numba.ensure_compiled)
 KERNELS = (mean_shift, join_modes)
 
+#: at most this many windows of one blob go into the mean shift (the heaviest, in their
+#: order): its cost is quadratic in them. A vehicle's blob on the annotated clips holds at
+#: most 63; dense texture can fire thousands, which would cost seconds a frame
+#: (docs/benchmarks.md, the neighbour split on a blob of many windows)
+MAX_WINDOWS = 256
+
 
 def window_modes(boxes: np.ndarray, weights: np.ndarray, bandwidth: float = 0.25,
                  scale_bandwidth: float = 0.3, iters: int = 30) -> tuple[np.ndarray, np.ndarray]:
@@ -189,6 +195,8 @@ def _split_one(b, heat, labels, cell, frame_hw, grid_hw, wins, wts, ccx, ccy, ex
     idx = idx[sub_l[cy[idx], cx[idx]] == lab]
     if len(idx) < 2:
         return None
+    if len(idx) > MAX_WINDOWS:
+        idx = np.sort(idx[np.argsort(-wts[idx], kind="stable")[:MAX_WINDOWS]])
     mb, mw = window_modes(wins[idx], wts[idx], bandwidth, scale_bandwidth)
     keep = dominant_modes(mb, mw, inside)
     heavy = mw[keep] >= min_weight * mw[keep].max()

@@ -121,6 +121,33 @@ def test_split_boxes_two_cars_in_a_row():
     assert (out.scores > 0).all()
 
 
+def test_a_blob_of_more_windows_than_the_bound_shifts_only_the_heaviest(monkeypatch):
+    import fastdet.video.blobsplit as bs
+
+    # two cars in a row, each under many light windows (dense texture) and a few heavy ones
+    rng = np.random.default_rng(3)
+    wins, wts = [], []
+    for x in (100, 146):
+        wins += [_cluster(x, 200, 40)]
+        wts += [np.full(5, 50.0)]
+        jit = rng.uniform(-3, 3, (200, 2))
+        wins += [np.array([[x + a, 200 + c, x + a + 40, 240 + c] for a, c in jit])]
+        wts += [np.full(200, 0.1)]
+    b, wt = np.vstack(wins), np.concatenate(wts)
+    hm, boxes = _heatmap_with(b)
+    assert len(boxes) == 1
+    seen = []
+    real = bs.window_modes
+    monkeypatch.setattr(bs, "window_modes", lambda w, t, *a: (seen.append((w.copy(), t.copy())), real(w, t, *a))[1])
+    monkeypatch.setattr(bs, "MAX_WINDOWS", 30)
+    out = split_boxes(boxes, hm.heat, hm.labels, 4, hm.frame_shape, b, wt, hm.config.extent)
+    assert len(out) == 2  # the split still finds both cars
+    (w_in, t_in), = seen
+    assert len(w_in) == 30 and (t_in == 50.0).sum() == 10  # the 10 heavy ones, then the first light ones
+    order = [int(np.flatnonzero((b == r).all(1) & (wt == t))[0]) for r, t in zip(w_in, t_in)]
+    assert order == sorted(order)  # in their input order (the grouping depends on it)
+
+
 def test_split_boxes_keeps_a_narrow_blob_and_a_single_wide_vehicle():
     # narrower than min_aspect x its height: never looked at
     wins = np.vstack([_cluster(100, 200, 40), _cluster(130, 200, 40)])
