@@ -20,6 +20,7 @@ import numpy as np
 
 from fastdet.config import PipelineConfig, SearchBand
 from fastdet.data import data_dir
+from fastdet.detect import Detector, DetectStats
 from fastdet.io.reader import read_frames
 from fastdet.video import make_detector
 
@@ -32,6 +33,41 @@ def parse_bands(text: str) -> tuple[SearchBand, ...]:
         out.append(SearchBand(float(p[0]), int(p[1]), int(p[2]), int(p[3]) if len(p) > 3 else None,
                               int(p[4]) if len(p) > 4 else None))
     return tuple(out)
+
+
+def scan_cost(det: Detector, shape: tuple[int, int] = (720, 1280)) -> dict[str, float]:
+    """HOG cells, windows and scoring multiply-adds of a full scan of a ``shape`` frame by every
+    model of ``det`` (its bands at its searches' horizons)."""
+    cells = wins = macs = 0.0
+    for p, scorer in zip(det.parts, det.scorers):
+        cfg = scorer.config
+        for g in det.geometries(shape, p):
+            cells += (g.scaled_h // cfg.pixels_per_cell) * (g.scaled_w // cfg.pixels_per_cell)
+            wins += g.n_windows
+            macs += g.n_windows * cfg.n_features
+    return {"hog_cells": cells, "windows": wins, "score_macs": macs}
+
+
+def count_scored(det: Detector) -> list[float]:
+    """Make ``det.detect`` count the windows it scores: the returned list grows with every call
+    to ``[main model's windows, every model's windows, scoring multiply-adds]`` (a window is
+    scored where its decision value is finite; guided search and motion gate included)."""
+    counts = [0.0, 0.0, 0.0]
+    inner = det.detect
+    features = {p: s.config.n_features for p, s in zip(det.parts, det.scorers)}
+
+    def counting(frame, *args, stats=None, **kw):
+        st = stats if stats is not None else DetectStats()
+        out = inner(frame, *args, stats=st, **kw)
+        for part, _, values in st.bands:
+            n = int(np.isfinite(values).sum())
+            counts[1] += n
+            counts[0] += n if part == 0 else 0
+            counts[2] += n * features[part]
+        return out
+
+    det.detect = counting  # type: ignore[method-assign]
+    return counts
 
 
 def detect_cpu_ms(detectors: Sequence[Any], frames: Sequence[np.ndarray], repeat: int) -> list[float]:

@@ -21,10 +21,7 @@ import json
 import time
 from dataclasses import replace
 
-import numpy as np
-
 from fastdet.config import PipelineConfig, SearchBand, SearchConfig
-from fastdet.detect import DetectStats
 from fastdet.detect.bands import band_geometry
 from fastdet.detect.geometry import (
     GeometricSearch,
@@ -37,6 +34,7 @@ from fastdet.io.reader import FrameReader
 from fastdet.video import iter_video_detections, make_detector
 from fastdet.video.horizon import HORIZON_FRAMES, estimate_horizon
 from fastdet.video.perspective import PerspectiveConfig, PerspectiveUpdater
+from tools.studies.band_cost import count_scored
 
 
 def cells(search: SearchConfig, shape: tuple[int, int], config) -> int:
@@ -147,19 +145,7 @@ def main() -> None:
         base_search = det.scorers[0].search
         if not args.baseline:
             det.scorers[0].search = GeometricSearch.from_search(base_search, geo)
-        scored = [0, 0]  # windows scored (main model, all models) over the clip's frames
-        inner_detect = det.detect
-
-        def counting_detect(frame, *a, stats=None, _inner=inner_detect, **kw):
-            st = stats if stats is not None else DetectStats()
-            out = _inner(frame, *a, stats=st, **kw)
-            for part, _, values in st.bands:
-                n = int(np.isfinite(values).sum())
-                scored[1] += n
-                scored[0] += n if part == 0 else 0
-            return out
-
-        det.detect = counting_detect  # type: ignore[method-assign]
+        scored = count_scored(det)  # windows scored (main model, all models) over the clip's frames
         est = RatioEstimator()
         updater = None
         frames = []

@@ -57,6 +57,7 @@ from fastdet.config.search import LARGE_SEARCH
 from fastdet.eval.clips import AnnotatedClip, ClipScore, annotated_clips
 from fastdet.io.atomic import write_bytes
 from fastdet.video import make_detector
+from tools.studies.band_cost import scan_cost
 from tools.studies.loo import SAME_CAMERA, run_clip
 
 
@@ -127,15 +128,7 @@ def config_for(setting: str, refine_model: str | None = None, side_model: str | 
 def search_cost(config: PipelineConfig, shape: tuple[int, int] = (720, 1280)) -> dict[str, float]:
     """HOG cells, windows and scoring multiply-adds of a full scan of a ``shape`` frame at the reference horizon, over
     every model's bands (main, oncoming, components)."""
-    det = make_detector(replace(config, horizon=None))
-    cells = wins = macs = 0.0
-    for p, scorer in zip(det.parts, det.scorers):
-        cfg = scorer.config
-        for g in det.geometries(shape, p):
-            cells += (g.scaled_h // cfg.pixels_per_cell) * (g.scaled_w // cfg.pixels_per_cell)
-            wins += g.n_windows
-            macs += g.n_windows * cfg.n_features
-    return {"hog_cells": cells, "windows": wins, "score_macs": macs}
+    return scan_cost(make_detector(replace(config, horizon=None)), shape)
 
 
 def fold_of(clip: str, same_camera: Sequence[Sequence[str]] = SAME_CAMERA) -> str:

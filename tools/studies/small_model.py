@@ -59,6 +59,7 @@ from fastdet.train.keyframes import AnnotatedFrame, read_annotated_frames
 from fastdet.train.small import SmallRecipe, train_small
 from fastdet.video import make_detector
 from fastdet.video.horizon import HORIZON_FRAMES, estimate_horizon, search_horizon
+from tools.studies.band_cost import scan_cost
 from tools.studies.loo import folds, frame_rows, run_clip
 from tools.studies.small_boxes import overrides, searched_windows
 
@@ -234,18 +235,8 @@ def heat_peaks(clip, config: PipelineConfig, data: Path) -> dict[str, list[float
 def search_cost(config: PipelineConfig, small: str, shape: tuple[int, int] = (720, 1280)) -> dict[str, float]:
     """HOG cells, windows and scoring multiply-adds of a full scan of a frame of ``shape`` at the
     reference horizon, without and with the component, and their ratios."""
-    def count(det: Detector) -> dict[str, float]:
-        cells = wins = macs = 0.0
-        geos = [(p, g) for p in det.parts for g in det.geometries(shape, p)]
-        for p, g in geos:
-            cfg = det._scorer_of[p].config
-            cells += (g.scaled_h // cfg.pixels_per_cell) * (g.scaled_w // cfg.pixels_per_cell)
-            wins += g.n_windows
-            macs += g.n_windows * cfg.n_features
-        return {"hog_cells": cells, "windows": wins, "score_macs": macs}
-
-    a = count(make_detector(config.without("small")))
-    b = count(make_detector(replace(config, small=small)))
+    a = scan_cost(make_detector(config.without("small")), shape)
+    b = scan_cost(make_detector(replace(config, small=small)), shape)
     return {**{f"without_{k}": v for k, v in a.items()}, **{f"with_{k}": v for k, v in b.items()},
             **{f"ratio_{k}": b[k] / a[k] for k in a}}
 

@@ -10,7 +10,8 @@ the estimate, ``D < 0`` higher. The box regressor is ``--loo DIR``'s ``refine_wi
 (``python -m tools.studies.refine_loo --out-dir DIR``), so every figure is held out. Prints one
 table (F1, P / R, false alarms a frame, recall by width per clip and offset) and the windows the
 pipeline scored a frame (guided search and motion gate included); ``--out-dir`` keeps each
-run's boxes (``TAG/CLIP_D.pkl``, a :class:`~fastdet.detections.Detections`) and the results
+run's boxes (``TAG/CLIP_D.npz``: a :class:`~fastdet.detections.Detections` written by
+:func:`~tools.studies.frame_cache.save_frame_detections`) and the results
 (``TAG/results.json``; a rerun skips what is there with the same settings).
 
 The settings varied (each a change of the default search of the main model or of the oncoming
@@ -43,7 +44,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import pickle
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -63,6 +63,8 @@ from fastdet.io.reader import FrameReader
 from fastdet.video import make_detector
 from fastdet.video.horizon import HORIZON_FRAMES, estimate_horizon
 from fastdet.video.run import iter_video_detections
+from tools.studies.band_cost import count_scored, scan_cost
+from tools.studies.frame_cache import load_frame_detections, save_frame_detections
 from tools.studies.loo import frame_rows
 
 #: the horizon the runs take when a clip gives no estimate (the reference bands' horizon)
@@ -115,19 +117,6 @@ def detector(a: argparse.Namespace, config: PipelineConfig) -> Detector:
     return det
 
 
-def full_scan_cost(det: Detector, shape: tuple[int, int] = (720, 1280)) -> dict[str, float]:
-    """HOG cells, windows and scoring multiply-adds of a full scan of a ``shape`` frame by every
-    model of ``det`` (as :func:`tools.studies.options_table.search_cost` counts them)."""
-    cells = wins = macs = 0.0
-    for p, scorer in zip(det.parts, det.scorers):
-        cfg = scorer.config
-        for g in det.geometries(shape, p):
-            cells += (g.scaled_h // cfg.pixels_per_cell) * (g.scaled_w // cfg.pixels_per_cell)
-            wins += g.n_windows
-            macs += g.n_windows * cfg.n_features
-    return {"hog_cells": cells, "windows": wins, "score_macs": macs}
-
-
 def run(clip: AnnotatedClip, horizon: float | Literal["auto"],
         a: argparse.Namespace) -> tuple[Detections, dict[str, Any]]:
     """The pipeline over ``clip`` at ``horizon`` with the held-out regressor and the options'
@@ -135,21 +124,7 @@ def run(clip: AnnotatedClip, horizon: float | Literal["auto"],
     multiply-adds of scoring them."""
     config = PipelineConfig(refine_model=str(Path(a.loo) / f"refine_without_{clip.name}.npz"), horizon=horizon)
     det = detector(a, config)
-    counts = [0, 0, 0.0]
-    inner = det.detect
-    features = {p: s.config.n_features for p, s in zip(det.parts, det.scorers)}
-
-    def counting(frame, *args, stats=None, **kw):
-        st = stats if stats is not None else DetectStats()
-        out = inner(frame, *args, stats=st, **kw)
-        for part, _, values in st.bands:
-            n = int(np.isfinite(values).sum())
-            counts[1] += n
-            counts[0] += n if part == 0 else 0
-            counts[2] += n * features[part]
-        return out
-
-    det.detect = counting  # type: ignore[method-assign]
+    counts = count_scored(det)
     frames = list(iter_video_detections(clip.video, config, detector=det, progress=False))
     preds = Detections.from_frames(frames, source=str(clip.video))
     n = max(len(frames), 1)
@@ -201,7 +176,7 @@ def why(clip: AnnotatedClip, d: float, out: Path, a: argparse.Namespace) -> None
     if key0 not in results or key1 not in results:
         raise SystemExit(f"tolerance: run {clip.name} at offsets 0 and {d:+.3f} with --tag {out.name} first")
     est = results[key0]["estimate"] or FALLBACK_HORIZON
-    found = [pickle.loads((out / f"{k}.pkl").read_bytes()) for k in (key0, key1)]  # written by this study
+    found = [load_frame_detections(out / f"{k}.npz")[0] for k in (key0, key1)]
     dets = []
     for h in (est, est + d):
         det = detector(a, PipelineConfig())
@@ -230,6 +205,7 @@ def why(clip: AnnotatedClip, d: float, out: Path, a: argparse.Namespace) -> None
             for box, tid in zip(gt.boxes[m], gt.ids[m] if gt.ids is not None else np.zeros(m.sum())):
                 hit = []
                 for p in found:
+                    assert p.frames is not None, "a run's boxes carry their frames"
                     pm = p.frames == f
                     hit.append(bool(pm.any() and iou(box[None].astype(float), p.boxes[pm].astype(float)).max() >= 0.5))
                 flag = "LOST" if hit[0] and not hit[1] else ("GAINED" if hit[1] and not hit[0] else "")
@@ -266,7 +242,7 @@ def main(argv: list[str] | None = None) -> int:
     if a.every < 1:
         ap.error("--every must be >= 1")
     if a.cost:
-        base, new = full_scan_cost(make_detector()), full_scan_cost(detector(a, PipelineConfig()))
+        base, new = scan_cost(make_detector()), scan_cost(detector(a, PipelineConfig()))
         for k in base:
             print(f"{k}: {new[k]:.0f} against {base[k]:.0f} today ({new[k] / base[k]:.3f}x)")
         return 0
@@ -295,16 +271,16 @@ def main(argv: list[str] | None = None) -> int:
         est = clip_estimate(clip.video)
         for d in offsets:
             key = f"{clip.name}_{d:+.3f}"
-            pkl = out / f"{key}.pkl"
-            if key in results and pkl.is_file():
-                preds = pickle.loads(pkl.read_bytes())  # written by this study, below
+            boxes_path = out / f"{key}.npz"
+            if key in results and boxes_path.is_file():
+                preds = load_frame_detections(boxes_path)[0]
                 extra = results[key]
             else:
                 start = est if est is not None else FALLBACK_HORIZON
                 horizon: float | Literal["auto"] = "auto" if d == 0 else min(max(start + d, 0.0), 1.0)
                 preds, extra = run(clip, horizon, a)
                 extra.update(estimate=est, offset=d, horizon=horizon)
-                write_bytes(pkl, pickle.dumps(preds))
+                save_frame_detections(boxes_path, [preds])
             s = score_clip(f"{clip.name} {d:+.2f}", clip.gt(), preds, frame_rows(clip), clip.keyframes())
             extra.update(f1=s.result.f1, precision=s.result.precision, recall=s.result.recall,
                          fp_per_frame=s.result.fp_per_frame)

@@ -9,6 +9,7 @@ import pytest
 from fastdet.config import PipelineConfig, oncoming_search
 from fastdet.video import make_detector
 from tools.studies import tolerance as tol
+from tools.studies.band_cost import scan_cost
 
 
 def _args(**kw: object) -> argparse.Namespace:
@@ -36,10 +37,10 @@ def test_options_to_searches() -> None:
 
 
 def test_cost_counts_the_setting_against_today() -> None:
-    today = tol.full_scan_cost(make_detector())
-    assert tol.full_scan_cost(tol.detector(_args(), PipelineConfig())) == today
-    cover = tol.full_scan_cost(tol.detector(_args(slack_steps="cover"), PipelineConfig()))
-    below = tol.full_scan_cost(tol.detector(_args(oncoming_slack_below=0.04), PipelineConfig()))
+    today = scan_cost(make_detector())
+    assert scan_cost(tol.detector(_args(), PipelineConfig())) == today
+    cover = scan_cost(tol.detector(_args(slack_steps="cover"), PipelineConfig()))
+    below = scan_cost(tol.detector(_args(oncoming_slack_below=0.04), PipelineConfig()))
     for k in today:
         assert today[k] < cover[k] < below[k]  # more rows: more cells, windows and multiply-adds
     assert cover["hog_cells"] / today["hog_cells"] < 1.07  # the cover rule: a few window rows more
