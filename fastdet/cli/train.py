@@ -8,7 +8,8 @@ and on a leak-free *sequence* split (every folder cut into contiguous time block
 (``--negatives``) and flip augmentation only ever join the *training* part of a split, so
 the test figures stay comparable; so do the augmented copies (``--truncate``: crops cut by
 the image border, padded as the detector pads a window over the frame edge; ``--reencode``:
-compression artefacts; :mod:`fastdet.train.augment`). Deterministic for a given ``--seed``.
+compression artefacts; ``--photometric``: another camera's colour; :mod:`fastdet.train.augment`).
+Deterministic for a given ``--seed``.
 """
 from __future__ import annotations
 
@@ -70,6 +71,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "brightness and chroma (training parts only; default 0)")
     p.add_argument("--jpeg-quality", type=int, nargs=2, metavar=("Q1", "Q2"), default=list(JPEG_QUALITY),
                    help=f"JPEG quality range of --reencode (default {JPEG_QUALITY[0]} {JPEG_QUALITY[1]})")
+    p.add_argument("--photometric", type=fraction, default=0.0, metavar="F",
+                   help="add photometric copies of this fraction of the crops (both labels): another camera's "
+                        "white balance (blue and red gains 1/1.2..1.2), exposure (gain 1/1.5..1.5) and gamma "
+                        "(1/1.4..1.4) (training parts only; default 0)")
     p.add_argument("--color-space", choices=COLOR_SPACES, default=None)
     p.add_argument("--orientations", type=positive_int, default=None, help="HOG orientation bins (>= 1)")
     p.add_argument("--spatial-size", type=nonneg_int, default=None, help="spatial-bin image side (0: none)")
@@ -164,7 +169,7 @@ def run(args: argparse.Namespace) -> int:
                           window_top=args.window_rows[0] if args.window_rows else None,
                           positives=args.positives, truncate=args.truncate,
                           truncate_negatives=not args.truncate_vehicles_only, reencode=args.reencode,
-                          jpeg_quality=(q0, q1), truncate_keep=(k0, k1))
+                          jpeg_quality=(q0, q1), truncate_keep=(k0, k1), photometric=args.photometric)
     if model is not None:
         _signals.check()  # a stop that a library swallowed: no model
         model.metadata["training"]["command"] = f"{_command_name()} train " + " ".join(sys.argv[2:])

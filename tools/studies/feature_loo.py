@@ -1,0 +1,239 @@
+"""Which window features carry over to other cameras: main models that differ only in their
+features (trained by ``fastdet train`` on the data set's crops alone), each scored in the pipeline
+on every annotated clip with the held-out box regressors (run by hand; docs/training.md "Which
+features carry over to other cameras").
+
+The models learn nothing from the clips, so every clip may score every model; the box regressor
+is the one fitted without the clip (``--refine-loo DIR``: ``DIR/refine_without_CLIP.npz``, from
+``python -m tools.studies.refine_loo --out-dir DIR``).
+
+Per model:
+
+- **crop accuracy, leak-free**: the model's recipe (its ``training`` metadata: features, C,
+  seed, mirrored and augmented copies) fitted again on the training part of the data set's
+  sequence split (:func:`fastdet.train.dataset.sequence_split`, as ``fastdet train`` does) and
+  its decision values on the test part kept (``WORK/NAME.split.npz``; a rerun reads them); the
+  confusion matrix must equal the one ``fastdet train`` recorded, which checks the refit;
+- **the pipeline** on every clip (``fastdet eval --all``'s scoring: keyframes, IoU 0.5): F1, P / R,
+  false alarms a frame, hits by width (1280-wide pixels);
+- **search cost** of a full 1280x720 scan at the reference horizon, the main model's share
+  (:func:`cost`): features per window, HOG channel-cells (cells x HOG channels), windows,
+  scoring multiply-adds, and the same over every model the pipeline runs (main + oncoming);
+- with ``--crop-rate``, the same pipeline score once more with the model's decision values moved
+  (:func:`fastdet.train.blend.offset`) by the constant at which it lets through as many of the
+  sequence split's held-out **non-vehicle crops** as the first model (the reference, today's)
+  does at decision value 0 (:func:`fastdet.train.blend.rate_offset` on the two split models'
+  test decision values): a rule learnt from no clip, that puts every model at one operating point
+  on the data set (written as ``WORK/NAME_croprate.npz``).
+
+Pipeline scores are kept in ``WORK/feature_loo.json`` as they come (a rerun skips them).
+
+    python -m tools.studies.feature_loo --work /tmp/s5-feat --refine-loo /tmp/s3r/final \\
+        --model today=fastdet/models/default.npz --model hog3=/tmp/s5-feat/d_hog3.npz ... [--crop-rate]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fastdet.config import PipelineConfig
+from fastdet.data import data_dir
+from fastdet.eval.clips import annotated_clips
+from fastdet.io.atomic import write_bytes
+from fastdet.model import Model, load_model
+from fastdet.train.augment import augmented_copies
+from fastdet.train.blend import offset, rate_offset
+from fastdet.train.dataset import load_crops, sequence_split
+from fastdet.train.fit import _flip, features_in_chunks, fit_classifier, metrics
+from fastdet.video import make_detector
+from tools.studies.loo import run_clip
+from tools.studies.options_table import summary_of
+
+
+def split_recipe(model: Model) -> dict[str, Any]:
+    """What a refit of ``model``'s recipe on a split needs, read from its ``training`` metadata;
+    ValueError for a model this study cannot refit (extra crops, a wide window, other crop size)."""
+    t = model.metadata.get("training")
+    if not t:
+        raise ValueError("the model has no training metadata")
+    d = t.get("data", {})
+    if d.get("hard_negatives") or d.get("extra_positives") or model.config.window_height is not None \
+            or t.get("crop_size", 64) != 64:
+        raise ValueError("only models of the data set's 64x64 crops alone can be refitted here")
+    a = t.get("augment", {})
+    return {"C": float(t["C"]), "classifier": t["classifier"], "seed": int(t["seed"]), "flip": bool(t["flip"]),
+            "truncate": float(a.get("truncate", 0.0)), "truncate_negatives": bool(a.get("truncate_negatives", True)),
+            "reencode": float(a.get("reencode", 0.0)), "jpeg_quality": tuple(a.get("jpeg_quality", (30, 90))),
+            "truncate_keep": tuple(a.get("truncate_keep", (0.5, 0.875))),
+            "photometric": float(a.get("photometric", 0.0))}
+
+
+def split_scores(model: Model, data: Path, log=print) -> dict[str, np.ndarray]:
+    """The decision values, on the sequence split's test part, of ``model``'s recipe fitted on its
+    training part (the training part as :func:`fastdet.train.fit.train` builds it: the crops,
+    their mirrored copies, the augmented copies of training crops); ``{"scores", "labels"}``,
+    ``(N,)`` each."""
+    r = split_recipe(model)
+    config = model.config
+    crops = load_crops(data)
+    x = features_in_chunks(crops.images, config, False)
+    tr, te = sequence_split(crops.groups, crops.order, r["seed"])
+    parts = [(x[tr], crops.labels[tr])]
+    if r["flip"]:
+        parts.append((features_in_chunks(_flip(crops.images[tr]), config, False), crops.labels[tr]))
+    aug = augmented_copies(crops.images, crops.labels, r["seed"], r["truncate"], r["truncate_negatives"],
+                           r["reencode"], r["jpeg_quality"], r["truncate_keep"], r["photometric"])
+    if len(aug):
+        a = aug.in_training(tr)
+        parts.append((features_in_chunks(aug.images[a], config, False), aug.labels[a]))
+    x_test = x[te]
+    del x
+    xs, ys = zip(*parts)
+    xt, yt = np.concatenate(xs), np.concatenate(ys)
+    del parts, xs
+    log(f"  split refit: {len(yt)} training crops, {len(te)} test crops, {config.n_features} features")
+    scaler, clf = fit_classifier(xt, yt, r["classifier"], r["C"], r["seed"], in_place=True)
+    return {"scores": clf.decision_function(scaler.transform(x_test)).astype(np.float64),
+            "labels": crops.labels[te].astype(np.int64)}
+
+
+def cached_split_scores(name: str, model: Model, work: Path, data: Path, log=print) -> dict[str, np.ndarray]:
+    """:func:`split_scores`, kept in ``work/NAME.split.npz``; checked against the confusion matrix
+    ``fastdet train`` recorded for the sequence split (a mismatch is an error: the refit is not the
+    model's recipe)."""
+    path = work / f"{name}.split.npz"
+    if path.is_file():
+        with np.load(path, allow_pickle=False) as z:
+            out = {"scores": z["scores"], "labels": z["labels"]}
+    else:
+        log(f"{name}: refitting on the sequence split's training part")
+        out = split_scores(model, data, log)
+        np.savez(path.with_suffix(".tmp.npz"), **out)
+        path.with_suffix(".tmp.npz").replace(path)
+    m = metrics(out["labels"], (out["scores"] > 0).astype(np.int64))
+    want = model.metadata["training"].get("sequence_split", {}).get("confusion")
+    if want is not None and want != m["confusion"]:
+        raise RuntimeError(f"{name}: the split refit's confusion {m['confusion']} is not the recorded {want}")
+    return out
+
+
+def cost(path: str | None, shape: tuple[int, int] = (720, 1280)) -> dict[str, float]:
+    """A full scan of a ``shape`` frame at the reference horizon by the pipeline with main model
+    ``path``: the main model's features per window, HOG channel-cells (HOG cells x channels),
+    windows and scoring multiply-adds, and the channel-cells and multiply-adds of every model."""
+    det = make_detector(PipelineConfig(model=path, horizon=None))
+    out = {"features": 0.0, "hog_channel_cells": 0.0, "windows": 0.0, "score_macs": 0.0,
+           "all_hog_channel_cells": 0.0, "all_score_macs": 0.0}
+    for i, (p, scorer) in enumerate(zip(det.parts, det.scorers)):
+        cfg = scorer.config
+        for g in det.geometries(shape, p):
+            cc = (g.scaled_h // cfg.pixels_per_cell) * (g.scaled_w // cfg.pixels_per_cell) * len(cfg.hog_channels)
+            macs = g.n_windows * cfg.n_features
+            out["all_hog_channel_cells"] += cc
+            out["all_score_macs"] += macs
+            if i == 0:
+                out["hog_channel_cells"] += cc
+                out["windows"] += g.n_windows
+                out["score_macs"] += macs
+                out["features"] = float(cfg.n_features)
+    return out
+
+
+def fmt_clip(s: dict[str, Any]) -> str:
+    """``F1 (P / R, FA; hits by width)`` of :func:`tools.studies.options_table.summary_of`."""
+    widths = " ".join(f"{a}/{b}" for a, b in s["widths"] if b)
+    return f"{s['f1']:.2f} ({s['p']:.2f} / {s['r']:.2f}, {s['fa']:.2f}; {widths})"
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--work", type=Path, required=True, help="split scores, offset models and results go here")
+    p.add_argument("--refine-loo", type=Path, required=True, help="DIR/refine_without_CLIP.npz (refine_loo --out-dir)")
+    p.add_argument("--model", action="append", required=True, metavar="NAME=PATH",
+                   help="a main model to score (repeatable; the first is the reference of --crop-rate)")
+    p.add_argument("--clips", help="comma-separated clips (default: every annotated clip)")
+    p.add_argument("--crop-rate", action="store_true",
+                   help="also score each model offset to the reference's rate on the held-out non-vehicle crops")
+    p.add_argument("--no-pipeline", action="store_true", help="only the crop figures and the cost")
+    args = p.parse_args(argv)
+    models: list[tuple[str, str]] = []
+    for item in args.model:
+        name, sep, path = item.partition("=")
+        if not sep or not name or not Path(path).is_file():
+            p.error(f"--model {item!r}: expected NAME=PATH of an existing model file")
+        models.append((name, path))
+    data = data_dir()
+    clips = {c.name: c for c in annotated_clips(data)}
+    want = args.clips.split(",") if args.clips else list(clips)
+    for c in want:
+        if c not in clips:
+            p.error(f"not an annotated clip: {c}")
+        if not (args.refine_loo / f"refine_without_{c}.npz").is_file():
+            p.error(f"{args.refine_loo}/refine_without_{c}.npz missing")
+    args.work.mkdir(parents=True, exist_ok=True)
+    results_path = args.work / "feature_loo.json"
+    results: dict[str, Any] = json.loads(results_path.read_text()) if results_path.is_file() else {}
+
+    def save() -> None:
+        write_bytes(results_path, json.dumps(results, indent=1, sort_keys=True).encode())
+
+    splits = {name: cached_split_scores(name, load_model(path), args.work, data) for name, path in models}
+    ref_neg = splits[models[0][0]]["scores"][splits[models[0][0]]["labels"] == 0]
+    runs: list[tuple[str, str, str, dict[str, Any]]] = []  # (row name, model name, path, crop figures)
+    for name, path in models:
+        sp = splits[name]
+        m = metrics(sp["labels"], (sp["scores"] > 0).astype(np.int64))
+        neg = sp["scores"][sp["labels"] == 0]
+        crop = {"accuracy": m["accuracy"], "precision": m["precision"], "recall": m["recall"],
+                "confusion": m["confusion"], "offset": 0.0}
+        runs.append((name, name, path, crop))
+        if args.crop_rate:
+            delta = rate_offset(neg, ref_neg, 0.0)
+            pos = sp["scores"][sp["labels"] == 1]
+            shifted = {"offset": delta, "fp": int((neg > delta).sum()), "recall": float((pos > delta).mean()),
+                       "accuracy": float(((sp["scores"] > delta) == (sp["labels"] == 1)).mean())}
+            out = args.work / f"{name}_croprate.npz"
+            offset(load_model(path), delta, {"crop_rate": {"reference": models[0][0], "offset": delta}}).save(out)
+            runs.append((f"{name}, crop rate", name, str(out), shifted))
+    for row, name, path, crop in runs:
+        entry = results.setdefault(row, {})
+        entry["crop"] = crop
+        entry["model"] = path
+        if "cost" not in entry:
+            entry["cost"] = cost(path)
+        for c in [] if args.no_pipeline else want:
+            key = f"clip:{c}"
+            if key in entry and entry.get("model_mtime", {}).get(c) == Path(path).stat().st_mtime:
+                continue
+            held = PipelineConfig(model=path, refine_model=str(args.refine_loo / f"refine_without_{c}.npz"))
+            entry[key] = summary_of(run_clip(clips[c], held))
+            entry.setdefault("model_mtime", {})[c] = Path(path).stat().st_mtime
+            print(f"{row} {c}: {fmt_clip(entry[key])}", flush=True)
+            save()
+        save()
+    # the tables
+    ref_cost = results[runs[0][0]]["cost"]
+    head = ["model", *want, "leak-free crop acc / P / R (offset)", "features", "score MACs", "HOG ch-cells"]
+    print("\n| " + " | ".join(head) + " |\n|" + "---|" * len(head))
+    for row, _, _, crop in runs:
+        e = results[row]
+        cells = [row] + [fmt_clip(e[f"clip:{c}"]) if f"clip:{c}" in e else "-" for c in want]
+        if "precision" in crop:
+            cells.append(f"{crop['accuracy']:.4f} / {crop['precision']:.4f} / {crop['recall']:.4f}")
+        else:
+            cells.append(f"{crop['accuracy']:.4f}, recall {crop['recall']:.4f}, FP {crop['fp']} "
+                         f"(offset {crop['offset']:+.2f})")
+        k = e["cost"]
+        cells += [f"{k['features']:.0f}", f"{k['score_macs'] / ref_cost['score_macs']:.2f}x",
+                  f"{k['hog_channel_cells'] / ref_cost['hog_channel_cells']:.2f}x"]
+        print("| " + " | ".join(cells) + " |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
