@@ -9,11 +9,8 @@ is the one fitted without the clip (``--refine-loo DIR``: ``DIR/refine_without_C
 
 Per model:
 
-- **crop accuracy, leak-free**: the model's recipe (its ``training`` metadata: features, C,
-  seed, mirrored and augmented copies) fitted again on the training part of the data set's
-  sequence split (:func:`fastdet.train.dataset.sequence_split`, as ``fastdet train`` does) and
-  its decision values on the test part kept (``WORK/NAME.split.npz``; a rerun reads them); the
-  confusion matrix must equal the one ``fastdet train`` recorded, which checks the refit;
+- **crop accuracy, leak-free**: what ``fastdet train`` recorded for the data set's sequence
+  split (:func:`fastdet.train.dataset.sequence_split`);
 - **the pipeline** on every clip (``fastdet eval --all``'s scoring: keyframes, IoU 0.5): F1, P / R,
   false alarms a frame, hits by width (1280-wide pixels);
 - **search cost** of a full 1280x720 scan at the reference horizon, the main model's share
@@ -24,7 +21,11 @@ Per model:
   sequence split's held-out **non-vehicle crops** as the first model (the reference, today's)
   does at decision value 0 (:func:`fastdet.train.blend.rate_offset` on the two split models'
   test decision values): a rule learnt from no clip, that puts every model at one operating point
-  on the data set (written as ``WORK/NAME_croprate.npz``).
+  on the data set (written as ``WORK/NAME_croprate.npz``). The split models are the models'
+  recipes (their ``training`` metadata: features, C, seed, mirrored and augmented copies) fitted
+  again on the split's training part, their test decision values kept (``WORK/NAME.split.npz``; a
+  rerun reads them); the confusion matrix at 0 must equal the one ``fastdet train`` recorded,
+  which checks the refit.
 
 Pipeline scores are kept in ``WORK/feature_loo.json`` as they come (a rerun skips them).
 
@@ -34,6 +35,7 @@ Pipeline scores are kept in ``WORK/feature_loo.json`` as they come (a rerun skip
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import sys
 from pathlib import Path
@@ -73,14 +75,14 @@ def split_recipe(model: Model) -> dict[str, Any]:
             "photometric": float(a.get("photometric", 0.0))}
 
 
-def split_scores(model: Model, data: Path, log=print) -> dict[str, np.ndarray]:
+def split_scores(model: Model, data: Path, log=print, max_per_folder: int | None = None) -> dict[str, np.ndarray]:
     """The decision values, on the sequence split's test part, of ``model``'s recipe fitted on its
     training part (the training part as :func:`fastdet.train.fit.train` builds it: the crops,
     their mirrored copies, the augmented copies of training crops); ``{"scores", "labels"}``,
-    ``(N,)`` each."""
+    ``(N,)`` each. ``max_per_folder``: as ``fastdet train --max-per-folder`` (quick runs)."""
     r = split_recipe(model)
     config = model.config
-    crops = load_crops(data)
+    crops = load_crops(data, max_per_folder=max_per_folder)
     x = features_in_chunks(crops.images, config, False)
     tr, te = sequence_split(crops.groups, crops.order, r["seed"])
     parts = [(x[tr], crops.labels[tr])]
@@ -102,7 +104,8 @@ def split_scores(model: Model, data: Path, log=print) -> dict[str, np.ndarray]:
             "labels": crops.labels[te].astype(np.int64)}
 
 
-def cached_split_scores(name: str, model: Model, work: Path, data: Path, log=print) -> dict[str, np.ndarray]:
+def cached_split_scores(name: str, model: Model, work: Path, data: Path, log=print,
+                        max_per_folder: int | None = None) -> dict[str, np.ndarray]:
     """:func:`split_scores`, kept in ``work/NAME.split.npz``; checked against the confusion matrix
     ``fastdet train`` recorded for the sequence split (a mismatch is an error: the refit is not the
     model's recipe)."""
@@ -112,7 +115,7 @@ def cached_split_scores(name: str, model: Model, work: Path, data: Path, log=pri
             out = {"scores": z["scores"], "labels": z["labels"]}
     else:
         log(f"{name}: refitting on the sequence split's training part")
-        out = split_scores(model, data, log)
+        out = split_scores(model, data, log, max_per_folder)
         np.savez(path.with_suffix(".tmp.npz"), **out)
         path.with_suffix(".tmp.npz").replace(path)
     m = metrics(out["labels"], (out["scores"] > 0).astype(np.int64))
@@ -142,6 +145,16 @@ def cost(path: str | None, shape: tuple[int, int] = (720, 1280)) -> dict[str, fl
                 out["score_macs"] += macs
                 out["features"] = float(cfg.n_features)
     return out
+
+
+def model_key(path: str) -> str:
+    """A digest of what a model computes (features, weights, scaler): a rerun rescores a clip only
+    when the model file's contents changed."""
+    m = load_model(path)
+    h = hashlib.sha1(repr((m.config, m.classifier, float(m.intercept))).encode())
+    for a in (m.coef, m.mean, m.scale):
+        h.update(np.ascontiguousarray(a, np.float64).tobytes())
+    return h.hexdigest()
 
 
 def fmt_clip(s: dict[str, Any]) -> str:
@@ -179,22 +192,26 @@ def main(argv: list[str] | None = None) -> int:
     results_path = args.work / "feature_loo.json"
     results: dict[str, Any] = json.loads(results_path.read_text()) if results_path.is_file() else {}
 
-    def save() -> None:
-        write_bytes(results_path, json.dumps(results, indent=1, sort_keys=True).encode())
+    def save() -> None:  # merged into what is on disk: two runs may share a --work
+        disk = json.loads(results_path.read_text()) if results_path.is_file() else {}
+        for row, e in results.items():
+            disk.setdefault(row, {}).update(e)
+        write_bytes(results_path, json.dumps(disk, indent=1, sort_keys=True).encode())
 
-    splits = {name: cached_split_scores(name, load_model(path), args.work, data) for name, path in models}
-    ref_neg = splits[models[0][0]]["scores"][splits[models[0][0]]["labels"] == 0]
+    ref_neg = None
+    if args.crop_rate:
+        ref = cached_split_scores(models[0][0], load_model(models[0][1]), args.work, data)
+        ref_neg = ref["scores"][ref["labels"] == 0]
     runs: list[tuple[str, str, str, dict[str, Any]]] = []  # (row name, model name, path, crop figures)
     for name, path in models:
-        sp = splits[name]
-        m = metrics(sp["labels"], (sp["scores"] > 0).astype(np.int64))
-        neg = sp["scores"][sp["labels"] == 0]
-        crop = {"accuracy": m["accuracy"], "precision": m["precision"], "recall": m["recall"],
-                "confusion": m["confusion"], "offset": 0.0}
+        seq = load_model(path).metadata.get("training", {}).get("sequence_split", {})
+        crop = {k: seq.get(k) for k in ("accuracy", "precision", "recall", "confusion")}
+        crop["offset"] = 0.0
         runs.append((name, name, path, crop))
-        if args.crop_rate:
+        if ref_neg is not None and name != models[0][0]:
+            sp = cached_split_scores(name, load_model(path), args.work, data)
+            neg, pos = sp["scores"][sp["labels"] == 0], sp["scores"][sp["labels"] == 1]
             delta = rate_offset(neg, ref_neg, 0.0)
-            pos = sp["scores"][sp["labels"] == 1]
             shifted = {"offset": delta, "fp": int((neg > delta).sum()), "recall": float((pos > delta).mean()),
                        "accuracy": float(((sp["scores"] > delta) == (sp["labels"] == 1)).mean())}
             out = args.work / f"{name}_croprate.npz"
@@ -208,11 +225,11 @@ def main(argv: list[str] | None = None) -> int:
             entry["cost"] = cost(path)
         for c in [] if args.no_pipeline else want:
             key = f"clip:{c}"
-            if key in entry and entry.get("model_mtime", {}).get(c) == Path(path).stat().st_mtime:
+            if key in entry and entry.get("model_key", {}).get(c) == model_key(path):
                 continue
             held = PipelineConfig(model=path, refine_model=str(args.refine_loo / f"refine_without_{c}.npz"))
             entry[key] = summary_of(run_clip(clips[c], held))
-            entry.setdefault("model_mtime", {})[c] = Path(path).stat().st_mtime
+            entry.setdefault("model_key", {})[c] = model_key(path)
             print(f"{row} {c}: {fmt_clip(entry[key])}", flush=True)
             save()
         save()
@@ -223,7 +240,7 @@ def main(argv: list[str] | None = None) -> int:
     for row, _, _, crop in runs:
         e = results[row]
         cells = [row] + [fmt_clip(e[f"clip:{c}"]) if f"clip:{c}" in e else "-" for c in want]
-        if "precision" in crop:
+        if "fp" not in crop:
             cells.append(f"{crop['accuracy']:.4f} / {crop['precision']:.4f} / {crop['recall']:.4f}")
         else:
             cells.append(f"{crop['accuracy']:.4f}, recall {crop['recall']:.4f}, FP {crop['fp']} "
