@@ -27,6 +27,13 @@ Per model:
   rerun reads them); the confusion matrix at 0 must equal the one ``fastdet train`` recorded,
   which checks the refit.
 
+With ``--windows``, also placement-free and free of any operating point (a diagnostic): on each
+clip's annotated frames every row and window size searched (:func:`fastdet.train.windows.score_frames`,
+as ``model_loo`` (b)), each target's best window at IoU >= 0.5 against the windows touching
+nothing annotated: recall at 0.1 / 1 / 10 such false windows a frame. It compares the
+features' separation on each camera with the threshold set on that clip itself, so it is never
+a rule, only what a perfect per-camera threshold could give.
+
 Pipeline scores are kept in ``WORK/feature_loo.json`` as they come (a rerun skips them).
 
     python -m tools.studies.feature_loo --work /tmp/s5-feat --refine-loo /tmp/s3r/final \\
@@ -52,6 +59,8 @@ from fastdet.train.augment import augmented_copies
 from fastdet.train.blend import offset, rate_offset
 from fastdet.train.dataset import load_crops, sequence_split
 from fastdet.train.fit import _flip, features_in_chunks, fit_classifier, metrics
+from fastdet.train.keyframes import read_annotated_frames
+from fastdet.train.windows import score_frames
 from fastdet.video import make_detector
 from tools.studies.loo import run_clip
 from tools.studies.options_table import summary_of
@@ -173,6 +182,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--crop-rate", action="store_true",
                    help="also score each model offset to the reference's rate on the held-out non-vehicle crops")
     p.add_argument("--no-pipeline", action="store_true", help="only the crop figures and the cost")
+    p.add_argument("--windows", action="store_true",
+                   help="also the placement-free window recall at 0.1 / 1 / 10 false windows a frame (diagnostic)")
     args = p.parse_args(argv)
     models: list[tuple[str, str]] = []
     for item in args.model:
@@ -232,6 +243,15 @@ def main(argv: list[str] | None = None) -> int:
             entry.setdefault("model_key", {})[c] = model_key(path)
             print(f"{row} {c}: {fmt_clip(entry[key])}", flush=True)
             save()
+        for c in want if args.windows and ", crop rate" not in row else []:
+            key = f"windows:{c}"
+            if key in entry and entry.get("model_key", {}).get(key) == model_key(path):
+                continue
+            entry[key] = score_frames(load_model(path), read_annotated_frames(data, c)).to_dict()
+            entry.setdefault("model_key", {})[key] = model_key(path)
+            print(f"{row} {c}: window recall at 0.1 / 1 / 10 FW a frame "
+                  f"{' / '.join(f'{v:.2f}' for v in entry[key]['recall_at'].values())}", flush=True)
+            save()
         save()
     # the tables
     ref_cost = results[runs[0][0]]["cost"]
@@ -249,6 +269,15 @@ def main(argv: list[str] | None = None) -> int:
         cells += [f"{k['features']:.0f}", f"{k['score_macs'] / ref_cost['score_macs']:.2f}x",
                   f"{k['hog_channel_cells'] / ref_cost['hog_channel_cells']:.2f}x"]
         print("| " + " | ".join(cells) + " |")
+    if args.windows:
+        print("\n| model (window recall at 0.1 / 1 / 10 false windows a frame) | " + " | ".join(want) + " |\n|"
+              + "---|" * (len(want) + 1))
+        for row, _, _, _ in runs:
+            e = results[row]
+            if ", crop rate" in row:
+                continue
+            print("| " + " | ".join([row] + [" / ".join(f"{v:.2f}" for v in e[f"windows:{c}"]["recall_at"].values())
+                                             if f"windows:{c}" in e else "-" for c in want]) + " |")
     return 0
 
 
