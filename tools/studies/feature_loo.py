@@ -156,6 +156,23 @@ def cost(path: str | None, shape: tuple[int, int] = (720, 1280)) -> dict[str, fl
     return out
 
 
+def least_offset(scores: np.ndarray, reference: np.ndarray, threshold: float = 0.0) -> float:
+    """The offset of smallest size at which a model with decision values ``scores`` lets through as
+    many of some windows as a reference with ``reference`` does above ``threshold`` (``0`` when
+    it already does): :func:`fastdet.train.blend.rate_offset` puts the threshold halfway between
+    the two scores either side of that count instead, which in a sparse tail (two crops of
+    thousands) moves even the reference itself by a decision unit or more. ``(N,)`` arrays."""
+    s = np.sort(np.asarray(scores, np.float64).ravel())[::-1]
+    k = int((np.asarray(reference, np.float64) > threshold).sum())
+    hi = s[k - 1] if k > 0 else np.inf  # the k-th best must stay above the threshold
+    lo = s[k] if k < len(s) else -np.inf  # the (k+1)-th must not be above it
+    if lo <= threshold < hi:
+        return 0.0
+    if threshold < lo:
+        return float(lo - threshold)
+    return float(np.nextafter(hi, -np.inf) - threshold)
+
+
 def model_key(path: str) -> str:
     """A digest of what a model computes (features, weights, scaler): a rerun rescores a clip only
     when the model file's contents changed."""
@@ -181,6 +198,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--clips", help="comma-separated clips (default: every annotated clip)")
     p.add_argument("--crop-rate", action="store_true",
                    help="also score each model offset to the reference's rate on the held-out non-vehicle crops")
+    p.add_argument("--crop-rule", choices=("midpoint", "least"), default="midpoint",
+                   help="--crop-rate's offset: fastdet.train.blend.rate_offset (midpoint) or the smallest move "
+                        "(least_offset)")
     p.add_argument("--no-pipeline", action="store_true", help="only the crop figures and the cost")
     p.add_argument("--windows", action="store_true",
                    help="also the placement-free window recall at 0.1 / 1 / 10 false windows a frame (diagnostic)")
@@ -222,12 +242,17 @@ def main(argv: list[str] | None = None) -> int:
         if ref_neg is not None and name != models[0][0]:
             sp = cached_split_scores(name, load_model(path), args.work, data)
             neg, pos = sp["scores"][sp["labels"] == 0], sp["scores"][sp["labels"] == 1]
-            delta = rate_offset(neg, ref_neg, 0.0)
+            delta = rate_offset(neg, ref_neg, 0.0) if args.crop_rule == "midpoint" else least_offset(neg, ref_neg)
             shifted = {"offset": delta, "fp": int((neg > delta).sum()), "recall": float((pos > delta).mean()),
                        "accuracy": float(((sp["scores"] > delta) == (sp["labels"] == 1)).mean())}
-            out = args.work / f"{name}_croprate.npz"
-            offset(load_model(path), delta, {"crop_rate": {"reference": models[0][0], "offset": delta}}).save(out)
-            runs.append((f"{name}, crop rate", name, str(out), shifted))
+            if delta == 0.0:
+                print(f"{name}: already at the reference's rate on the held-out non-vehicle crops (offset 0)")
+                continue
+            least = "" if args.crop_rule == "midpoint" else "_least"
+            out = args.work / f"{name}_croprate{least}.npz"
+            offset(load_model(path), delta, {"crop_rate": {"reference": models[0][0], "offset": delta,
+                                                           "rule": args.crop_rule}}).save(out)
+            runs.append((f"{name}, crop rate" + (" (least)" if least else ""), name, str(out), shifted))
     for row, name, path, crop in runs:
         entry = results.setdefault(row, {})
         entry["crop"] = crop

@@ -56,3 +56,22 @@ def test_cost_counts_features_and_hog_channels(tmp_path):
     assert small["score_macs"] * m.config.n_features == today["score_macs"] * n
     # the oncoming model's share is the same in both
     assert today["all_score_macs"] - today["score_macs"] == small["all_score_macs"] - small["score_macs"]
+
+
+def test_least_offset_moves_only_as_far_as_the_count_needs():
+    from fastdet.train.blend import rate_offset
+    from tools.studies.feature_loo import least_offset
+
+    ref = np.array([4.6, 3.6, -0.3, -0.8, -2.0])  # two above 0
+    assert least_offset(ref, ref) == 0.0 and rate_offset(ref, ref) > 1  # the midpoint moves the reference
+    more = np.array([6.0, 5.0, 0.08, -0.02, -1.4])  # three above 0: up to the third
+    d = least_offset(more, ref)
+    assert d == pytest.approx(0.08) and int((more > d).sum()) == 2
+    fewer = np.array([-0.5, -0.6, -0.9, -1.0, -3.0])  # none above 0: down to just under the second
+    d = least_offset(fewer, ref)
+    assert -0.6 - 1e-9 < d < -0.6 and int((fewer > d).sum()) == 2
+    # random scores: the count always matches the reference's
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        s, r = rng.normal(size=200), rng.normal(size=200) - 2
+        assert int((s > least_offset(s, r)).sum()) == int((r > 0).sum())
