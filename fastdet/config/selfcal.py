@@ -33,7 +33,7 @@ class SelfCalibration(Config):
 
     scans: int = 5
     rate: float = 0.1
-    level: float = -8.2
+    level: float = -8.3
     max_shift: float = 6.0
 
     def __post_init__(self) -> None:
