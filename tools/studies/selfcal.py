@@ -17,11 +17,15 @@ from the video itself").
    per-video offset (``PipelineConfig(selfcal=SelfCalibration(level=level of the clip))``), with
    the box regressor fitted without the clip (``--refine-loo DIR``:
    ``DIR/refine_without_CLIP.npz``, ``python -m tools.studies.refine_loo``).
+4. ``--sweep D1,D2,...`` (a bound, not a rule: the offsets are chosen by looking at the scored
+   clips): the bundled and the held-out model with each fixed offset
+   (:func:`fastdet.train.blend.offset`), so the best F1 any per-video offset could give each clip.
 
 Usage (from the repository root; about 5 minutes)::
 
     python -m tools.studies.selfcal --work /tmp/s5-selfcal/loo --refine-loo /tmp/s5-selfcal/refine_final \\
-        [--cache DIR] [--rate 0.1] [--scans 5] [--tags ,r2,sq,light] [--no-pipeline] [--json OUT]
+        [--cache DIR] [--rate 0.1] [--scans 5] [--tags ,r2,sq,light] [--no-pipeline] [--sweep D1,D2,...]
+        [--json OUT]
 """
 from __future__ import annotations
 
@@ -40,7 +44,7 @@ from fastdet.eval.clips import ClipScore, annotated_clips
 from fastdet.io.atomic import write_bytes
 from fastdet.io.reader import FrameReader
 from fastdet.model import Model, load_model
-from fastdet.train.blend import blend
+from fastdet.train.blend import blend, offset
 from fastdet.video.pipeline import VideoDetector
 from fastdet.video.run import prime_horizon_from_file
 from fastdet.video.selfcal import SelfCalStage, calibration_offset
@@ -138,6 +142,8 @@ def main(argv: list[str] | None = None) -> int:
                                                           "(the first one's model is scored in the pipeline)")
     ap.add_argument("--mix", type=float, default=0.5, help="the held-out model's weight in the blend scored")
     ap.add_argument("--no-pipeline", action="store_true", help="only the tails and offsets")
+    ap.add_argument("--sweep", default=None, help="instead of the pipeline rows: fixed offsets D1,D2,... of the "
+                                                   "bundled and the held-out model (a bound, in-sample)")
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args(argv)
     if not 0 < args.rate < 1 or args.scans < 1 or not 0 <= args.mix <= 1:
@@ -205,8 +211,11 @@ def main(argv: list[str] | None = None) -> int:
             write_bytes(args.json, json.dumps(out, indent=1, sort_keys=True).encode())
         return 0
 
-    # 3. the pipeline
     main_tag = f"main{'_' + tags[0] if tags[0] else ''}"
+    if args.sweep:
+        return sweep(args, names, clips, fold_of, bundled, main_tag, out)
+
+    # 3. the pipeline
     rows: dict[str, dict[str, str]] = {}
     for n in names:
         fold = fold_of[n].name
@@ -240,6 +249,36 @@ def main(argv: list[str] | None = None) -> int:
     print("|---|" + "---|" * len(names))
     for name, r in rows.items():
         print(f"| {name} | " + " | ".join(r.get(n, "-") for n in names) + " |")
+    if args.json:
+        write_bytes(args.json, json.dumps(out, indent=1, sort_keys=True, default=float).encode())
+    return 0
+
+
+def sweep(args: argparse.Namespace, names: list[str], clips: dict, fold_of: dict, bundled: Model, main_tag: str,
+          out: dict[str, Any]) -> int:
+    """4.: every clip by the bundled and the held-out model, each with every fixed offset of ``--sweep``."""
+    deltas = [float(d) for d in args.sweep.split(",")]
+    table: dict[str, dict[float, dict[str, str]]] = {}
+    for n in sorted(names, key=lambda c: c.startswith("test_")):  # the other cameras first
+        fold = fold_of[n].name
+        base = PipelineConfig(refine_model=str(args.refine_loo / f"refine_without_{n}.npz"))
+        held = load_model(args.work / f"{main_tag}_without_{fold}.npz")
+        for label, model in (("bundled", bundled), (main_tag, held)):
+            for d in deltas:
+                path = args.work / f"sweep_{label}_off{d:g}_without_{fold}.npz"
+                if not path.is_file():
+                    offset(model, d, {"fixed_offset": d}).save(path)
+                score = run_clip(clips[n], replace(base, model=str(path)))
+                r = score.result
+                table.setdefault(label, {}).setdefault(d, {})[n] = f"{r.f1:.2f} ({r.fp_per_frame:.2f})"
+                out["clips"].setdefault(n, {}).setdefault("sweep", {}).setdefault(label, {})[str(d)] = score.to_dict()
+                print(f"{n}: {label} offset {d:+g}: {cell(score)}", flush=True)
+    for label, rows in table.items():
+        print(f"\n## 4. {label} with a fixed offset: F1 (FA per frame), leave one camera out\n")
+        print("| offset | " + " | ".join(names) + " |")
+        print("|---|" + "---|" * len(names))
+        for d in deltas:
+            print(f"| {d:+g} | " + " | ".join(rows[d].get(n, "-") for n in names) + " |")
     if args.json:
         write_bytes(args.json, json.dumps(out, indent=1, sort_keys=True, default=float).encode())
     return 0
