@@ -6,17 +6,20 @@ over every annotated clip with a variant's VideoDetector, scores the returned bo
 0.5 on the annotated frames only (the keyframes of a sparsely annotated clip: ``CLIP.frames``;
 predictions elsewhere are neither hits nor false alarms) and prints one markdown row per
 clip: P / R / F1 / false alarms per scored frame / CPU ms per frame (process time of the
-whole run, horizon priming included). ``--save DIR`` keeps each run's boxes (pickle) for a
-closer look.
+whole run, horizon priming included). ``--save DIR`` keeps each run's boxes for a closer
+look: ``VARIANT_CLIP.npz`` (plain arrays, read with ``allow_pickle=False``: :func:`load_run`)
+beside ``VARIANT_CLIP.json`` (the variant's configuration, the scores, the CPU figure). A
+``VARIANT_CLIP.pkl`` written by an earlier version of this study is not read (one line says so).
 
     python -m tools.studies.ownvehicle_study VARIANT [VARIANT ...] [--clips a,b] [--save /tmp/ov]
 """
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
-import pickle
+import sys
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -28,12 +31,14 @@ from fastdet.config import NeighbourSplit, OwnVehicleConfig, PipelineConfig
 from fastdet.data import data_dir
 from fastdet.detections import Detections
 from fastdet.eval import evaluate
+from fastdet.io.atomic import atomic_path
 from fastdet.io.motfiles import read_gt
 from fastdet.io.reader import FrameReader
 from fastdet.video.detector import make_detector
 from fastdet.video.ownvehicle import OwnVehicleEstimator, OwnVehicleStage, window_fraction
 from fastdet.video.pipeline import VideoDetector
 from fastdet.video.run import video_detector_for
+from tools.studies.frame_cache import pack_detections, unpack_detections
 
 CLIPS = ("test_small1", "test_video", "highway_640", "boston_street", "motorcycle_highway")
 
@@ -95,6 +100,60 @@ def run_clip(clip: str, config: PipelineConfig) -> tuple[Detections, list[dict],
     cpu = (time.process_time() - t0) / max(len(out), 1)
     return Detections.from_frames(out, source=clip), debug, cpu
 
+
+
+def save_run(out_dir: Path, variant: str, clip: str, preds: Detections, debug: list[dict],
+             meta: dict) -> Path:
+    """Write one run (:func:`run_clip`'s boxes and per-frame debug) to
+    ``out_dir/VARIANT_CLIP.npz`` and ``meta`` (JSON-able: scores, configuration) with the
+    variant, the clip and the frame count to ``VARIANT_CLIP.json``, each under a temporary
+    name then renamed. The ``.npz`` holds plain arrays only: ``preds.*`` and the debug's
+    ``heat_boxes.*`` / ``windows.*`` (:func:`~tools.studies.frame_cache.pack_detections`),
+    ``frame`` ``(F,) int64``, ``grid`` ``(F, 2) int64`` (each frame's heat grid rows, columns)
+    and ``heat`` (float32) / ``labels`` (int32), every frame's grid flattened in order.
+    Returns the ``.npz`` path."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    stem = out_dir / f"{variant}_{clip}"
+    old = stem.with_suffix(".pkl")
+    if old.is_file():
+        print(f"ownvehicle_study: {old} is a pickle of an earlier version of this study and is not read "
+              f"(this run writes {stem.name}.npz and .json)", file=sys.stderr)
+    grids = [np.asarray(d["heat"]).shape for d in debug]
+    arrays = {**pack_detections([preds], "preds."),
+              **pack_detections([d["heat_boxes"] for d in debug], "heat_boxes."),
+              **pack_detections([d["windows"] for d in debug], "windows."),
+              "frame": np.array([d["frame"] for d in debug], np.int64),
+              "grid": np.array(grids, np.int64).reshape(len(debug), 2),
+              "heat": np.concatenate([np.asarray(d["heat"], np.float32).ravel() for d in debug] or
+                                     [np.zeros(0, np.float32)]),
+              "labels": np.concatenate([np.asarray(d["labels"], np.int32).ravel() for d in debug] or
+                                       [np.zeros(0, np.int32)])}
+    path = stem.with_suffix(".npz")
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        np.savez_compressed(fh, **arrays)
+    text = json.dumps({"variant": variant, "clip": clip, "frames": len(debug), **meta}, indent=1, default=float)
+    with atomic_path(stem.with_suffix(".json")) as tmp:
+        tmp.write_text(text + "\n")
+    return path
+
+
+def load_run(path: Path) -> tuple[Detections, list[dict]]:
+    """The boxes and per-frame debug :func:`save_run` wrote to ``path`` (``.npz``, read with
+    ``allow_pickle=False``): as :func:`run_clip` returned them (``preds`` without its source
+    name)."""
+    with np.load(path, allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    preds = unpack_detections(arrays, "preds.")[0]
+    heat_boxes = unpack_detections(arrays, "heat_boxes.")
+    windows = unpack_detections(arrays, "windows.")
+    debug, start = [], 0
+    for i, (fno, (gh, gw)) in enumerate(zip(arrays["frame"].tolist(), arrays["grid"].tolist())):
+        stop = start + gh * gw
+        debug.append({"frame": fno, "heat_boxes": heat_boxes[i], "windows": windows[i],
+                      "heat": arrays["heat"][start:stop].reshape(gh, gw),
+                      "labels": arrays["labels"][start:stop].reshape(gh, gw)})
+        start = stop
+    return preds, debug
 
 _WARM: list[bool] = []
 
@@ -231,10 +290,8 @@ def main() -> None:
             print(f"| {v} | {clip} | {s['P']:.3f} | {s['R']:.3f} | {s['F1']:.3f} | {s['tp']} | {s['fp']} | "
                   f"{s['fn']} | {s['fa']:.2f} | {1000 * cpu:.1f} |", flush=True)
             if a.save:
-                os.makedirs(a.save, exist_ok=True)
-                with open(Path(a.save) / f"{v}_{clip}.pkl", "wb") as fh:
-                    pickle.dump({"preds": preds, "debug": debug}, fh)
-
+                save_run(Path(a.save), v, clip, preds, debug, {"scores": s, "cpu_ms_per_frame": 1000 * cpu,
+                                                               "config": VARIANTS[v].to_dict()})
 
 if __name__ == "__main__":
     main()
