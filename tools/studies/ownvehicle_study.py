@@ -12,6 +12,8 @@ beside ``VARIANT_CLIP.json`` (the variant's configuration, the scores, the CPU f
 ``VARIANT_CLIP.pkl`` written by an earlier version of this study is not read (one line says so).
 
     python -m tools.studies.ownvehicle_study VARIANT [VARIANT ...] [--clips a,b] [--save /tmp/ov]
+    python -m tools.studies.ownvehicle_study --split-load    # the split's most windows a frame
+    python -m tools.studies.ownvehicle_study --split-noise /tmp/noise   # its worst frame on noise
 """
 from __future__ import annotations
 
@@ -48,6 +50,8 @@ EXTRA = Path(os.environ.get("OWNVEHICLE_EXTRA", "/tmp/ov/synth"))
 
 
 def _video(clip: str) -> Path:
+    if clip.endswith(".mp4") and Path(clip).is_file():  # a clip made here (split_noise)
+        return Path(clip)
     p = data_dir() / "videos" / f"{clip}.mp4"
     return p if p.is_file() else EXTRA / f"{clip}.mp4"
 
@@ -73,11 +77,13 @@ def score(clip: str, preds: Detections, iou: float = 0.5) -> dict[str, float]:
             "fa": r.fp_per_frame, "frames": r.frames}
 
 
-def run_clip(clip: str, config: PipelineConfig) -> tuple[Detections, list[dict], float]:
+def run_clip(clip: str, config: PipelineConfig,
+             keep: dict | None = None) -> tuple[Detections, list[dict], float]:
     """The boxes of every frame of ``clip`` with the pipeline of ``config`` (built as every
     command builds it: :func:`fastdet.video.run.video_detector_for`), per-frame debug (the heat
     maps' boxes, the windows, the heat and its labels) and the CPU seconds per frame of the
-    whole run (priming counted, numba compilation not)."""
+    whole run (priming counted, numba compilation not). ``keep``: given the
+    :class:`~fastdet.video.pipeline.VideoDetector` run (``"detector"``)."""
     _warm()
     t0 = time.process_time()
     reader = FrameReader(_video(clip))
@@ -85,6 +91,8 @@ def run_clip(clip: str, config: PipelineConfig) -> tuple[Detections, list[dict],
     out: list[tuple[int, Detections]] = []
     try:
         vd = video_detector_for(reader, make_detector(config), config)
+        if keep is not None:
+            keep["detector"] = vd
         for fno, frame, _ in reader:
             out.append((fno, vd.update(frame)))
             d = vd.debug
@@ -267,11 +275,109 @@ def cost() -> None:
         blobsplit.split_boxes = orig  # type: ignore[assignment]
 
 
+def split_load(clips: list[str]) -> None:
+    """The neighbour split's load on each clip with today's defaults (``PipelineConfig()``):
+    the most windows shifted in one frame and for one blob, and blobs its frame budget
+    (``NeighbourSplit.max_frame_windows``) left whole."""
+    from fastdet.video.blobsplit import SplitStage
+    config = PipelineConfig()
+    assert config.split is not None
+    print(f"| clip | frames split looked at | most windows shifted a frame | most for one blob | "
+          f"blobs left whole by the budget ({config.split.max_frame_windows}) |")
+    print("|---|---:|---:|---:|---:|")
+    for clip in clips:
+        keep: dict = {}
+        run_clip(clip, config, keep)
+        stage = keep["detector"].stage(SplitStage)
+        t = stage.tally
+        print(f"| {clip} | {t.frames} | {t.most} | {t.blob_most} | {t.refused} |", flush=True)
+
+
+#: the noisy clips of :func:`split_noise`: (width, height, patch width, patch height, gap, top row)
+NOISE_CLIPS = ((1280, 720, 280, 80, 160, 400), (1920, 1080, 300, 100, 200, 600), (2560, 720, 280, 80, 160, 400))
+
+
+def make_noise_clip(path: Path, w: int, h: int, pw: int, ph: int, gap: int, y0: int, n: int = 12,
+                    seed: int = 0) -> Path:
+    """``n`` frames of ``w x h`` (mp4v): grey, with patches ``pw x ph`` px of 8 px blocks of
+    random colours at full contrast (new each frame), ``gap`` px apart, in rows from ``y0``:
+    dense texture the detector fires on in thousands of windows, one wide heat blob per patch
+    where the search reaches (a frame of many big blobs)."""
+    rng = np.random.default_rng(seed)
+    mask = np.zeros((h, w), bool)
+    for y in range(y0, h, ph + gap):
+        for x in range(0, w, pw + gap):
+            mask[y:y + ph, x:x + pw] = True
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 25, (w, h))
+    try:
+        for _ in range(n):
+            blocks = rng.integers(0, 255, (h // 8 + 1, w // 8 + 1, 3), dtype=np.uint8)
+            f = np.ascontiguousarray(np.repeat(np.repeat(blocks, 8, 0), 8, 1)[:h, :w])
+            f[~mask] = 128
+            writer.write(f)
+    finally:
+        writer.release()
+    return path
+
+
+def split_noise(out_dir: Path, repeats: int = 3) -> None:
+    """The neighbour split's CPU time a frame on the noisy clips of :func:`make_noise_clip`
+    (written to ``out_dir``) with today's defaults (``PipelineConfig()`` of the fastdet
+    imported): per frame the least of ``repeats`` runs (process time of ``split_boxes``);
+    prints the worst frame, the windows shifted there and the median frame. Uses no API the
+    split had before its frame budget, so the same function measures an older checkout."""
+    from fastdet.video import blobsplit
+    out_dir.mkdir(parents=True, exist_ok=True)
+    real_split, real_modes = blobsplit.split_boxes, blobsplit.window_modes
+    shifted = [0]
+    cpu: list[float] = []
+    counts: list[int] = []
+
+    def modes(w, t, *a, **k):
+        shifted[0] += len(w)
+        return real_modes(w, t, *a, **k)
+
+    def split(*a, **k):
+        shifted[0] = 0
+        t0 = time.process_time()
+        r = real_split(*a, **k)
+        cpu.append(time.process_time() - t0)
+        counts.append(shifted[0])
+        return r
+
+    print("| clip | frames | windows a frame (median) | worst frame: split CPU ms | windows shifted there | "
+          "median frame: split CPU ms |")
+    print("|---|---:|---:|---:|---:|---:|")
+    blobsplit.split_boxes, blobsplit.window_modes = split, modes  # type: ignore[assignment]
+    try:
+        for spec in NOISE_CLIPS:
+            path = make_noise_clip(out_dir / "noise_{}x{}.mp4".format(*spec[:2]), *spec)
+            runs = []
+            for _ in range(repeats):
+                cpu.clear()
+                counts.clear()
+                keep: dict = {}
+                run_clip(str(path), PipelineConfig(), keep)
+                runs.append((list(cpu), list(counts)))
+            best = np.min([c for c, _ in runs], axis=0)
+            n_shift = runs[0][1]
+            i = int(np.argmax(best))
+            wins = keep["detector"].debug.windows
+            print(f"| {path.name} | {len(best)} | {len(wins)} | {1000 * best[i]:.1f} | {n_shift[i]} | "
+                  f"{1000 * np.median(best):.1f} |", flush=True)
+    finally:
+        blobsplit.split_boxes, blobsplit.window_modes = real_split, real_modes  # type: ignore[assignment]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("variants", nargs="*")
     ap.add_argument("--make-synthetic", metavar="DIR", help="write the rigid-dash copies of three clips to DIR")
     ap.add_argument("--cost", action="store_true", help="time the estimator, the window test and the split")
+    ap.add_argument("--split-load", action="store_true",
+                    help="the neighbour split's most windows a frame on each of --clips (today's defaults)")
+    ap.add_argument("--split-noise", metavar="DIR",
+                    help="write noisy clips of many big blobs to DIR and time the split's worst frame there")
     ap.add_argument("--clips", default=",".join(CLIPS))
     ap.add_argument("--save", default=None)
     a = ap.parse_args()
@@ -279,6 +385,10 @@ def main() -> None:
         make_synthetic(Path(a.make_synthetic))
     if a.cost:
         cost()
+    if a.split_load:
+        split_load(a.clips.split(","))
+    if a.split_noise:
+        split_noise(Path(a.split_noise))
     if not a.variants:
         return
     print("| variant | clip | P | R | F1 | TP | FP | FN | FA/frame | CPU ms/frame |")
