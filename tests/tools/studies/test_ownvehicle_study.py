@@ -8,6 +8,7 @@ import json
 import numpy as np
 
 from fastdet.detections import Detections
+from tests.tools.studies.test_frame_cache import _same
 from tools.studies.ownvehicle_study import load_run, save_run
 
 
@@ -29,12 +30,6 @@ def _run(seed: int) -> tuple[Detections, list[dict]]:
                       "labels": rng.integers(0, 3, grid).astype(np.int32)})
     preds = Detections.from_frames([(d["frame"], d["heat_boxes"]) for d in debug], source="clip")
     return preds, debug
-
-
-def _same(a: Detections, b: Detections) -> bool:
-    return all((getattr(a, c) is None and getattr(b, c) is None) or
-               (getattr(a, c).dtype == getattr(b, c).dtype and np.array_equal(getattr(a, c), getattr(b, c)))
-               for c in ("boxes", "scores", "scale", "part", "ids", "frames", "consider"))
 
 
 def test_a_saved_run_comes_back_array_for_array_without_pickle(tmp_path, capsys):
