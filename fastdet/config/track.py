@@ -57,6 +57,15 @@ class TrackerConfig(Config):
         frames a vehicle is missed, moves the prediction off the vehicle and the vehicle gets
         a new id when it is found again. The horizontal velocity (vehicles crossing the view
         at up to half their width a frame) is kept. ``False``: every velocity but the size's.
+    exit_outside: a lost track whose predicted box has more than this fraction of its area
+        outside the picture is dropped: the vehicle left through the border, and a vehicle
+        entering there later gets an id of its own instead of the one of the vehicle that left.
+        A leaving vehicle's boxes are cut at the border, so a lost track, which keeps the size
+        of its last box and moves at the speed of its centre (half the vehicle's while the box
+        shrinks), lags the vehicle: when a quarter of the prediction is outside, the vehicle
+        shows about half of what it showed when it was lost. Needs the frame's size
+        (``Tracker.update(..., frame_shape=)``). ``None``: a lost track is kept ``max_lost``
+        frames wherever it is predicted.
     max_gap: ``--offline`` only: a track's gaps of at most this many frames are filled by
         linear interpolation (StrongSORT's gap interpolation, Du et al., 2023).
     extend_back: ``--offline`` only: each track is extended this many frames back from its
@@ -64,7 +73,7 @@ class TrackerConfig(Config):
         (docs/accuracy.md).
     """
 
-    _OMIT_NONE = ("cut_shape",)  # configs written before it existed keep their digest
+    _OMIT_NONE = ("cut_shape", "exit_outside")  # configs written before it existed keep their digest
 
     low_heat: float = 0.5
     match_iou: float = 0.2
@@ -80,6 +89,7 @@ class TrackerConfig(Config):
     std_velocity: float = 1 / 160
     init_velocity: float = 0.25
     hold_row: bool = True
+    exit_outside: float | None = None
     max_gap: int = 10
     extend_back: int = 0
 
@@ -100,6 +110,8 @@ class TrackerConfig(Config):
             raise ValueError(f"split_overlap must be in [0, 1], got {self.split_overlap!r}")
         if not 0 <= self.buffer <= 2:
             raise ValueError(f"buffer must be in [0, 2], got {self.buffer!r}")
+        if self.exit_outside is not None and not 0 <= self.exit_outside < 1:
+            raise ValueError(f"exit_outside must be in [0, 1) or None, got {self.exit_outside!r}")
         if not isinstance(self.hold_row, bool):
             raise ValueError(f"hold_row must be True or False, got {self.hold_row!r}")
         if self.output not in ("detection", "filtered"):

@@ -16,7 +16,9 @@ stages:
    ``tentative_match_iou``); a tentative track without a box is dropped.
 4. Each high-confidence box still left starts a tentative track; a track matched in
    ``min_hits`` frames in a row is confirmed and gets the next id (1, 2, ...).
-5. A lost track is dropped after ``max_lost`` frames without a box.
+5. A lost track is dropped after ``max_lost`` frames without a box -- or, with
+   ``exit_outside``, as soon as its predicted box lies mostly outside the picture (the
+   vehicle left through the border), before it can be matched to a vehicle entering there.
 
 Before stage 1, **merged blobs are split**: when the blobs of two vehicles side by side
 touch, the heat map gives one box around both. A high-confidence box that holds most
@@ -161,6 +163,18 @@ def buffered(boxes: np.ndarray, b: float) -> np.ndarray:
     return np.stack([x[:, 0] - w, x[:, 1] - h, x[:, 2] + w, x[:, 3] + h], 1)
 
 
+def outside_fraction(boxes: np.ndarray, frame_shape: tuple[int, int]) -> np.ndarray:
+    """``(N,) float64``: the fraction of each box's area (``boxes (N, 4)`` x1, y1, x2, y2)
+    outside a picture of ``frame_shape`` (height, width) pixels; 1 for a box of no area."""
+    b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    h, w = frame_shape
+    area = np.maximum(b[:, 2] - b[:, 0], 0.0) * np.maximum(b[:, 3] - b[:, 1], 0.0)
+    iw = np.maximum(np.minimum(b[:, 2], w) - np.maximum(b[:, 0], 0.0), 0.0)
+    ih = np.maximum(np.minimum(b[:, 3], h) - np.maximum(b[:, 1], 0.0), 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(area > 0, 1.0 - iw * ih / np.where(area > 0, area, 1.0), 1.0)
+
+
 def split_merged(boxes: np.ndarray, predicted: np.ndarray, min_overlap: float,
                  shape_ok: Callable[[np.ndarray], np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Cut boxes that hold several predicted vehicle boxes side by side.
@@ -267,11 +281,13 @@ class Tracker:
         return rows[r], k
 
     def update(self, high: Detections, low: Detections | None = None,
-               shape_ok: Callable[[np.ndarray], np.ndarray] | None = None) -> Detections:
+               shape_ok: Callable[[np.ndarray], np.ndarray] | None = None,
+               frame_shape: tuple[int, int] | None = None) -> Detections:
         """Track one frame. ``high``: the high-confidence boxes (they may start tracks);
         ``low``: low-confidence boxes (they only continue tracked tracks), or ``None``;
         ``shape_ok``: the shapes a box cut between tracks may have (:func:`split_merged`; used
-        when ``config.cut_shape``).
+        when ``config.cut_shape``); ``frame_shape``: the picture's (height, width) in pixels,
+        for ``config.exit_outside`` (``None``: no track is dropped for leaving it).
         Returns the confirmed tracks that found a box this frame: boxes, scores (of the
         matched box), ids, in ascending id order."""
         c = self.config
@@ -285,6 +301,13 @@ class Tracker:
                 self._mean[is_lost, 5] = 0.0  # ... and so its row (its distance)
             self._mean, self._cov = self.kalman.predict(self._mean, self._cov)
         pred = cxcywh_to_xyxy(self._mean)
+        if c.exit_outside is not None and frame_shape is not None and is_lost.any():
+            gone = is_lost & (outside_fraction(pred, frame_shape) > c.exit_outside)
+            if gone.any():  # left through the border: dropped before any match
+                keep = ~gone
+                self.tracks = tracks = [t for t, k in zip(tracks, keep) if k]
+                self._mean, self._cov, pred = self._mean[keep], self._cov[keep], pred[keep]
+                is_lost, is_tent = is_lost[keep], is_tent[keep]
         for t, p in zip(tracks, pred):
             t.predicted = p
         confirmed = np.flatnonzero(~is_tent)

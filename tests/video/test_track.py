@@ -13,7 +13,16 @@ from hypothesis import strategies as st
 from fastdet.config import HeatConfig, TrackerConfig
 from fastdet.detections import Detections
 from fastdet.video.heatmap import HeatMap
-from fastdet.video.track import LOST, TRACKED, Tracker, assign, buffered, merge_failed_parts, split_merged
+from fastdet.video.track import (
+    LOST,
+    TRACKED,
+    Tracker,
+    assign,
+    buffered,
+    merge_failed_parts,
+    outside_fraction,
+    split_merged,
+)
 
 
 def dets(*boxes, score: float = 10.0) -> Detections:
@@ -334,6 +343,85 @@ def test_merged_blob_of_two_tracked_cars_is_split_with_two_ids():
     assert all(len(o) == 1 for o in out[10:15])
 
 
+# ------------------------------------------------------------------ leaving through the border
+
+FRAME = (360, 640)  # height, width
+
+
+def outside_fraction_reference(box: list[int], frame_shape: tuple[int, int]) -> float:
+    """The fraction of an integer box's pixels outside the picture, by counting them."""
+    x1, y1, x2, y2 = box
+    if x2 <= x1 or y2 <= y1:
+        return 1.0
+    h, w = frame_shape
+    inside = sum(1 for y in range(y1, y2) for x in range(x1, x2) if 0 <= x < w and 0 <= y < h)
+    return 1.0 - inside / ((x2 - x1) * (y2 - y1))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(st.integers(-30, 50), st.integers(-30, 40), st.integers(-5, 40), st.integers(-5, 40)),
+                min_size=1, max_size=6), st.integers(1, 30), st.integers(1, 30))
+def test_outside_fraction_against_counting_pixels(spec, h, w):
+    boxes = [[x, y, x + bw, y + bh] for x, y, bw, bh in spec]
+    got = outside_fraction(np.array(boxes, np.float64), (h, w))
+    want = [outside_fraction_reference(b, (h, w)) for b in boxes]
+    np.testing.assert_allclose(got, want, atol=1e-12)
+
+
+def leaving_then_entering(f: int) -> list[list[float]]:
+    """Frame ``f`` at the left edge of a 640 x 360 picture: a car 50 px wide leaving slowly (2
+    px a frame) whose box is cut at the border, found while at least 36 px of it show (frames
+    0-27); from frame 40 another vehicle entering at the same edge, its box growing 4 px a frame."""
+    x = 40 - 2 * f
+    boxes = [[max(x, 0), 200, x + 50, 230]] if x + 50 >= 36 else []
+    if f >= 40:
+        boxes.append([0, 202, 30 + 4 * (f - 40), 234])
+    return boxes
+
+
+def run_in_frame(frames: list[Detections], config: TrackerConfig, frame_shape=FRAME) -> list[list[int]]:
+    tr = Tracker(config)
+    return [ids_of(tr.update(d, frame_shape=frame_shape)) for d in frames]
+
+
+def test_a_track_that_left_through_the_border_does_not_pass_its_id_on():
+    """The lost track of the car that left keeps its last (cut) size and moves at the speed of
+    its box's centre, slower than the car: 12 frames after the car left, its prediction still
+    overlaps the border where the next vehicle enters, which took id 1. With ``exit_outside``
+    the track ends once a quarter of its prediction is outside, and the newcomer gets id 2."""
+    frames = [dets(*leaving_then_entering(f)) for f in range(50)]
+    assert run_in_frame(frames, TrackerConfig())[40:] == [[1]] * 10  # the cause
+    out = run_in_frame(frames, TrackerConfig(exit_outside=0.25))
+    assert out[:28] == [[1]] * 28 and out[28:40] == [[]] * 12 and out[40:] == [[2]] * 10
+    # the same without the picture's size: nothing is dropped
+    assert run_in_frame(frames, TrackerConfig(exit_outside=0.25), frame_shape=None)[40:] == [[1]] * 10
+
+
+def test_a_car_missed_at_the_border_keeps_its_id():
+    """A car alongside, a tenth of it outside the picture at the right edge and standing still
+    there (its box cut at the border), missed for 5 frames: its prediction stays as far out as
+    its box, below ``exit_outside``, and it keeps id 1; so does a lost car inside the picture."""
+    cut = [600, 250, 640, 330]  # the car spans 596-640
+    frames = [dets(cut)] * 10 + [dets()] * 5 + [dets(cut)] * 5
+    assert run_in_frame(frames, TrackerConfig(exit_outside=0.25)) == [[1]] * 10 + [[]] * 5 + [[1]] * 5
+    inside = [dets(car(0, f, 8, y=200)) if not 10 <= f < 15 else dets() for f in range(20)]
+    assert run_in_frame(inside, TrackerConfig(exit_outside=0.0)) == [[1]] * 10 + [[]] * 5 + [[1]] * 5
+
+
+def test_only_lost_tracks_end_at_the_border():
+    """A tracked car whose prediction runs ahead of its cut boxes, well outside the picture,
+    keeps its track and id while it is found: the rule reads lost tracks only."""
+    frames = [dets([max(40 - 12 * f, 0), 200, 40 - 12 * f + 60, 230]) for f in range(8)]  # last: 4 px show
+    tr = Tracker(TrackerConfig(exit_outside=0.25))
+    for f, d in enumerate(frames):
+        assert ids_of(tr.update(d, frame_shape=FRAME)) == [1], f
+    assert outside_fraction(tr.tracks[0].predicted, FRAME)[0] > 0.25
+    tr.update(dets(), frame_shape=FRAME)  # missed: lost, and now predicted further out
+    assert [t.state for t in tr.tracks] == [LOST]
+    tr.update(dets(), frame_shape=FRAME)  # lost and mostly outside: ended
+    assert tr.tracks == []
+
+
 def test_tracker_config_is_checked():
     with pytest.raises(ValueError):
         TrackerConfig(low_heat=1.5)
@@ -343,6 +431,9 @@ def test_tracker_config_is_checked():
         TrackerConfig(output="kalman")
     with pytest.raises(ValueError):
         TrackerConfig(hold_row=1)
+    for bad in (-0.1, 1.0, 1.5):
+        with pytest.raises(ValueError):
+            TrackerConfig(exit_outside=bad)
     with pytest.raises(TypeError):
         Tracker(HeatConfig())
     assert TrackerConfig.from_dict(TrackerConfig().to_dict()) == TrackerConfig()
