@@ -175,6 +175,20 @@ def outside_fraction(boxes: np.ndarray, frame_shape: tuple[int, int]) -> np.ndar
         return np.where(area > 0, 1.0 - iw * ih / np.where(area > 0, area, 1.0), 1.0)
 
 
+def behind(mean: np.ndarray, boxes: np.ndarray, min_speed: float) -> np.ndarray:
+    """``(N, M) float64``: how far each box's centre lies behind each track's predicted centre
+    against the track's horizontal motion, in widths of the predicted box (negative: ahead);
+    ``-inf`` for a track slower than ``min_speed`` of its width a frame (direction unknown).
+    mean: ``(N, >=5)`` Kalman states (cx, cy, w, h, vcx, ...) predicted for this frame; boxes:
+    ``(M, 4)`` x1, y1, x2, y2 (a uniform growth, as :func:`buffered`'s, keeps the centres)."""
+    m = np.asarray(mean, np.float64).reshape(len(mean), -1)
+    b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    w = np.maximum(m[:, 2], 1.0)
+    vx = m[:, 4]
+    d = (m[:, 0, None] - (b[None, :, 0] + b[None, :, 2]) / 2) * np.sign(vx)[:, None] / w[:, None]
+    return np.where((np.abs(vx) >= min_speed * w)[:, None], d, -np.inf)
+
+
 def split_merged(boxes: np.ndarray, predicted: np.ndarray, min_overlap: float,
                  shape_ok: Callable[[np.ndarray], np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Cut boxes that hold several predicted vehicle boxes side by side.
@@ -270,14 +284,18 @@ class Tracker:
         self.frame = 0
         self.confirmed = 0
 
-    @staticmethod
-    def _match(rows: np.ndarray, pred: np.ndarray, boxes: np.ndarray,
-               min_iou: float) -> tuple[np.ndarray, np.ndarray]:
+    def _match(self, rows: np.ndarray, pred: np.ndarray, boxes: np.ndarray,
+               min_iou: float, gate: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Assign ``boxes`` (buffered) to the tracks in ``rows`` (their buffered predicted
-        boxes ``pred[rows]``): ``(track rows, box indices)``."""
+        boxes ``pred[rows]``): ``(track rows, box indices)``. ``gate``: pairs that
+        :func:`behind` finds too far behind the track (``config.max_behind``) are not matched."""
         if not len(rows) or not len(boxes):
             return np.zeros(0, np.int64), np.zeros(0, np.int64)
-        r, k = assign(iou(pred[rows], boxes), min_iou)
+        ious = iou(pred[rows], boxes)
+        c = self.config
+        if gate and c.max_behind is not None:
+            ious[behind(self._mean[rows], boxes, c.behind_speed) > c.max_behind] = 0.0
+        r, k = assign(ious, min_iou)
         return rows[r], k
 
     def update(self, high: Detections, low: Detections | None = None,
@@ -326,7 +344,7 @@ class Tracker:
         fix_scores: list[np.ndarray] = []
 
         # stage 1: high boxes vs confirmed tracks (tracked and lost)
-        r1, k1 = self._match(confirmed, bpred, bhigh, c.match_iou)
+        r1, k1 = self._match(confirmed, bpred, bhigh, c.match_iou, gate=True)
         used[k1] = True
         fix_rows.append(r1), fix_boxes.append(hb[k1]), fix_scores.append(hs[k1])
         done = np.zeros(len(tracks), bool)
@@ -336,7 +354,7 @@ class Tracker:
         # stage 2: low boxes vs the tracked tracks left over
         if low is not None and len(low) and len(left):
             lb = low.boxes.astype(np.float64)
-            r2, k2 = self._match(left, bpred, buffered(lb, c.buffer), c.low_match_iou)
+            r2, k2 = self._match(left, bpred, buffered(lb, c.buffer), c.low_match_iou, gate=True)
             fix_rows.append(r2), fix_boxes.append(lb[k2]), fix_scores.append(low.scores[k2].astype(np.float64))
             done[r2] = True
             left = left[~done[left]]
