@@ -202,7 +202,8 @@ HISTOGRAMS = {"hue-sat 8x4": (8, 4), "rgb 4x4x4": (4, 4, 4), "rg-chroma 8x8": (8
 def colour_histogram(crop: np.ndarray, kind: str) -> np.ndarray:
     """The normalised histogram (flat, float64, sums to 1) of a BGR ``crop (h, w, 3) uint8``:
     ``kind`` one of :data:`HISTOGRAMS` (hue-saturation in OpenCV's HSV; RGB; the
-    chromaticities r / (r + g + b) and g / (r + g + b) over [0.2, 0.5))."""
+    chromaticities (r + 1) / (r + g + b + 3) and (g + 1) / (r + g + b + 3) in 8 bins each over
+    [0.2, 0.5], values beyond it in the end bins: grey is 1/3)."""
     import cv2  # noqa: PLC0415
 
     px = crop.reshape(-1, 3)
@@ -216,8 +217,10 @@ def colour_histogram(crop: np.ndarray, kind: str) -> np.ndarray:
     else:
         f = px.astype(np.float64) + 1
         tot = f.sum(1)
-        h, _, _ = np.histogram2d(f[:, 2] / tot, f[:, 1] / tot, bins=8, range=[[0.2, 0.5], [0.2, 0.5]])
-        h = h.ravel()
+        r, g = (np.clip(c / tot, 0.2, 0.5) for c in (f[:, 2], f[:, 1]))
+        br, bg = (np.minimum(((c - 0.2) / 0.3 * 8).astype(np.int64), 7) for c in (r, g))
+        idx = br * 8 + bg
+        h = np.bincount(idx, minlength=64)
     h = np.asarray(h, np.float64)
     return h / max(h.sum(), 1e-12)
 
