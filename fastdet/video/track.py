@@ -7,7 +7,9 @@ predictions by the Hungarian method on IoU (``scipy.optimize.linear_sum_assignme
 stages:
 
 1. **High-confidence boxes** (the heat map's boxes) against every confirmed track, tracked
-   or lost (IoU >= ``match_iou``).
+   or lost (IoU >= ``match_iou``). With ``max_behind``, a box far behind a moving track's
+   prediction (:func:`behind`: the vehicle following it in a queue) is not matched to it,
+   here and in stage 2.
 2. **Low-confidence boxes** (weak heat blobs, :meth:`HeatMap.weak_boxes`) against the
    tracked tracks that stage 1 left without a box (IoU >= ``low_match_iou``): a vehicle whose
    evidence dips below the threshold for a few frames keeps its track. Tracked tracks still
