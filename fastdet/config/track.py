@@ -66,6 +66,11 @@ class TrackerConfig(Config):
         shows about half of what it showed when it was lost. Needs the frame's size
         (``Tracker.update(..., frame_shape=)``). ``None``: a lost track is kept ``max_lost``
         frames wherever it is predicted.
+    exit_after: ``exit_outside`` drops a track only once it has missed at least this many
+        frames in a row (before the current one). After one missed frame the prediction is one
+        step from a box cut at the border, and the box found next is as often what is left of
+        the same vehicle (which ``--offline`` then joins across the missed frame) as another
+        vehicle.
     max_behind: a box whose centre lies more than this many widths of a track's predicted box
         behind the predicted centre, against the track's horizontal motion, is not matched to
         that track (when the track moves at least ``behind_speed`` of its width a frame, so
@@ -100,6 +105,7 @@ class TrackerConfig(Config):
     init_velocity: float = 0.25
     hold_row: bool = True
     exit_outside: float | None = 0.25
+    exit_after: int = 2
     max_behind: float | None = None
     behind_speed: float = 0.1
     max_gap: int = 10
@@ -112,7 +118,7 @@ class TrackerConfig(Config):
             v = getattr(self, name)
             if not 0 < v <= 1:
                 raise ValueError(f"{name} must be in (0, 1], got {v!r}")
-        for name, lo in (("min_hits", 1), ("max_lost", 0), ("max_gap", 0), ("extend_back", 0)):
+        for name, lo in (("min_hits", 1), ("max_lost", 0), ("max_gap", 0), ("extend_back", 0), ("exit_after", 1)):
             v = getattr(self, name)
             if int(v) != v or v < lo:
                 raise ValueError(f"{name} must be an integer >= {lo}, got {v!r}")

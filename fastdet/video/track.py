@@ -19,8 +19,9 @@ stages:
 4. Each high-confidence box still left starts a tentative track; a track matched in
    ``min_hits`` frames in a row is confirmed and gets the next id (1, 2, ...).
 5. A lost track is dropped after ``max_lost`` frames without a box -- or, with
-   ``exit_outside``, as soon as its predicted box lies mostly outside the picture (the
-   vehicle left through the border), before it can be matched to a vehicle entering there.
+   ``exit_outside``, once its predicted box lies partly outside the picture after
+   ``exit_after`` missed frames (the vehicle left through the border), before it can be
+   matched to a vehicle entering there.
 
 Before stage 1, **merged blobs are split**: when the blobs of two vehicles side by side
 touch, the heat map gives one box around both. A high-confidence box that holds most
@@ -322,7 +323,8 @@ class Tracker:
             self._mean, self._cov = self.kalman.predict(self._mean, self._cov)
         pred = cxcywh_to_xyxy(self._mean)
         if c.exit_outside is not None and frame_shape is not None and is_lost.any():
-            gone = is_lost & (outside_fraction(pred, frame_shape) > c.exit_outside)
+            missed = np.array([self.frame - 1 - t.last_frame for t in tracks])  # frames in a row without a box
+            gone = is_lost & (missed >= c.exit_after) & (outside_fraction(pred, frame_shape) > c.exit_outside)
             if gone.any():  # left through the border: dropped before any match
                 keep = ~gone
                 self.tracks = tracks = [t for t, k in zip(tracks, keep) if k]

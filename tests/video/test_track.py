@@ -420,8 +420,28 @@ def test_only_lost_tracks_end_at_the_border():
     assert outside_fraction(tr.tracks[0].predicted, FRAME)[0] > 0.25
     tr.update(dets(), frame_shape=FRAME)  # missed: lost, and now predicted further out
     assert [t.state for t in tr.tracks] == [LOST]
-    tr.update(dets(), frame_shape=FRAME)  # lost and mostly outside: ended
+    tr.update(dets(), frame_shape=FRAME)  # one frame missed before this one: kept (exit_after 2)
+    assert [t.state for t in tr.tracks] == [LOST]
+    tr.update(dets(), frame_shape=FRAME)  # two missed, far outside: ended
     assert tr.tracks == []
+
+
+def test_a_track_missed_once_at_the_border_is_kept():
+    """A car leaving fast at the left edge (16 px a frame, its box cut) is missed for one frame
+    and found again, cut, in the next: its prediction is then more than a quarter outside,
+    but after a single missed frame (``exit_after`` 2) the track is kept and the remains of the
+    car keep id 1; with ``exit_after=1`` the track ends and they get id 2."""
+    def box(f: int) -> list[float]:
+        x = 100 - 16 * f
+        return [max(x, 0), 200, x + 60, 230]
+
+    frames = [dets(box(f)) if f != 7 else dets() for f in range(9)]  # f 8: 12 px of it show
+    tr = Tracker()
+    out = [ids_of(tr.update(d, frame_shape=FRAME)) for d in frames]
+    assert out == [[1]] * 7 + [[]] + [[1]]
+    (t,) = tr.tracks
+    assert outside_fraction(t.predicted, FRAME)[0] > 0.25  # where it was predicted in the last frame
+    assert run_in_frame(frames, TrackerConfig(exit_after=1)) == [[1]] * 7 + [[]] + [[2]]
 
 
 # ------------------------------------------------------------------ the vehicle behind
@@ -503,6 +523,9 @@ def test_tracker_config_is_checked():
     for bad in (-0.1, 1.0, 1.5):
         with pytest.raises(ValueError):
             TrackerConfig(exit_outside=bad)
+    for bad in (0, 1.5):
+        with pytest.raises(ValueError):
+            TrackerConfig(exit_after=bad)
     for bad in (-0.1, float("inf"), float("nan")):
         with pytest.raises(ValueError):
             TrackerConfig(max_behind=bad)
