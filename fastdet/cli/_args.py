@@ -3,7 +3,15 @@ from __future__ import annotations
 
 import argparse
 
-from ..config import HeatConfig, NeighbourSplit, OwnVehicleConfig, PerspectiveConfig, PipelineConfig, PlausibleConfig
+from ..config import (
+    HeatConfig,
+    NeighbourSplit,
+    OwnVehicleConfig,
+    PerspectiveConfig,
+    PipelineConfig,
+    PlausibleConfig,
+    SelfCalibration,
+)
 from ..errors import FastdetError
 
 
@@ -135,6 +143,10 @@ def add_camera_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--perspective-filter", action="store_true",
                         help="drop the boxes whose width no vehicle and no camera can have for how far below the "
                              "horizon they stand (too narrow: 0.45x those rows, too wide: 12x); off by default")
+    parser.add_argument("--self-calibrate", action="store_true",
+                        help="move the main model's decision values per video so that 10%% of the windows of its "
+                             "first 5 full scans reach the level the bundled model's reach on a typical camera "
+                             "(no labels; docs/training.md, 'Operating point from the video itself'); off by default")
 
 
 def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
@@ -145,7 +157,7 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
     ``--heat-frames`` / ``--heat-decay`` / ``--heat-threshold``: the main heat map (a bad
     value: :class:`~fastdet.errors.FastdetError`); ``--no-own-vehicle``: the own-vehicle stage off;
     ``--no-split-neighbours``: the neighbour split off; ``--perspective-filter``: the perspective test of the
-    plausibility stage on."""
+    plausibility stage on; ``--self-calibrate``: the main model's operating point set from the video."""
     d = HeatConfig()
     try:
         heat = HeatConfig(n_frames=getattr(args, "heat_frames", d.n_frames), decay=getattr(args, "heat_decay", d.decay),
@@ -161,7 +173,8 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
                             heat=heat, perspective=PerspectiveConfig() if getattr(args, "perspective", False) else None,
                             own_vehicle=None if getattr(args, "no_own_vehicle", False) else OwnVehicleConfig(),
                             split=None if getattr(args, "no_split_neighbours", False) else NeighbourSplit(),
-                            plausible=PlausibleConfig(perspective=bool(getattr(args, "perspective_filter", False))))
+                            plausible=PlausibleConfig(perspective=bool(getattr(args, "perspective_filter", False))),
+                            selfcal=SelfCalibration() if getattr(args, "self_calibrate", False) else None)
     off = [name for name, flag in (("tracker", "no_track"), ("guided", "full_search"), ("refine", "no_refine"))
            if getattr(args, flag, False)]
     return config.without(*off)  # type: ignore[arg-type]

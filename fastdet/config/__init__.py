@@ -15,6 +15,7 @@ comparable, JSON round-trip through one :meth:`~fastdet.config.Config.to_dict` /
 - :mod:`.split`: heat blobs over vehicles side by side split (:class:`NeighbourSplit`);
 - :mod:`.plausible`: returned boxes that cannot be vehicles dropped (:class:`PlausibleConfig`);
 - :mod:`.track`: the tracker (:class:`TrackerConfig`);
+- :mod:`.selfcal`: the main model's operating point set from each video (:class:`SelfCalibration`);
 - :mod:`.guided`: the search between full scans (:class:`GuidedSearch`);
 - :mod:`.refine`: the box refinement (:class:`RefineConfig`) and its training boxes
   (:class:`JitterConfig`);
@@ -55,6 +56,7 @@ from .search import (
                      oncoming_search,
                      side_search,
 )
+from .selfcal import SelfCalibration
 from .small import SMALL_FEATURES, SMALL_HEAT, SMALL_SEARCH, small_search
 from .split import NeighbourSplit
 from .track import TrackerConfig
@@ -64,8 +66,9 @@ __all__ = ["BoxMode", "CELL", "COLOR_SPACES", "ColorSpace", "Config", "DEFAULT_M
            "ONCOMING_HEAT", "ONCOMING_MODEL_PATH", "ONCOMING_SEARCH", "OwnVehicleConfig", "PerspectiveConfig",
            "PipelineConfig", "PlausibleConfig", "REFERENCE_HORIZON", "REFERENCE_SHAPE", "REFINE_MODEL_PATH",
            "RefineConfig", "SIDE_HEAT", "SIDE_MODEL_PATH", "SIDE_SEARCH", "SMALL_FEATURES", "SMALL_HEAT",
-           "SMALL_MODEL_PATH", "SMALL_SEARCH", "ScoreKind", "SearchBand", "SearchConfig", "TRAFFIC_SIDES",
-           "TrackerConfig", "Traffic", "WINDOW", "check_traffic", "oncoming_search", "side_search", "small_search"]
+           "SMALL_MODEL_PATH", "SMALL_SEARCH", "ScoreKind", "SearchBand", "SearchConfig", "SelfCalibration",
+           "TRAFFIC_SIDES", "TrackerConfig", "Traffic", "WINDOW", "check_traffic", "oncoming_search", "side_search",
+           "small_search"]
 
 #: former names, kept for code written against them: ``WIDE_HEAT``, ``WIDE_SEARCH``, ``wide_search``
 _RENAMED = {"WIDE_HEAT": "ONCOMING_HEAT", "WIDE_SEARCH": "ONCOMING_SEARCH", "wide_search": "oncoming_search"}

@@ -15,6 +15,7 @@ from .perspective import PerspectiveConfig
 from .plausible import PlausibleConfig
 from .refine import RefineConfig
 from .search import SIDE_SEARCH, SearchConfig, Traffic, check_traffic
+from .selfcal import SelfCalibration
 from .small import SMALL_CHECK, SMALL_HEAT, SMALL_SEARCH
 from .split import NeighbourSplit
 from .track import TrackerConfig
@@ -83,7 +84,12 @@ class PipelineConfig(Config):
         by default a second box on one vehicle (IoU above 0.5 with a higher-scored box); with
         ``PlausibleConfig(perspective=True)`` also the boxes whose width does not fit how far
         below the horizon they stand. ``None``: every box the tracker (and the refinement) gives.
+    selfcal: the main model's decision values moved per video so that a set fraction of the
+        windows of its first full scans reaches a set level (:mod:`fastdet.video.selfcal`,
+        :class:`SelfCalibration`); ``None`` (the default): the model's own.
     """
+
+    _OMIT_NONE = ("selfcal",)  # configs written before it existed keep their digest
 
     model: str | None = None
     oncoming: str | bool = True
@@ -108,6 +114,7 @@ class PipelineConfig(Config):
     own_vehicle: OwnVehicleConfig | None = OwnVehicleConfig()
     split: NeighbourSplit | None = NeighbourSplit()
     plausible: PlausibleConfig | None = PlausibleConfig()
+    selfcal: SelfCalibration | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "model", _path(self.model, "model"))
@@ -136,7 +143,7 @@ class PipelineConfig(Config):
                                     ("tracker", TrackerConfig, True), ("guided", GuidedSearch, True),
                                     ("refine", RefineConfig, True), ("perspective", PerspectiveConfig, True),
                                     ("own_vehicle", OwnVehicleConfig, True), ("split", NeighbourSplit, True),
-                                    ("plausible", PlausibleConfig, True)):
+                                    ("plausible", PlausibleConfig, True), ("selfcal", SelfCalibration, True)):
             v = getattr(self, name)
             if not (isinstance(v, cls) or (optional and v is None)):
                 allowed = f"a {cls.__name__}" + (" or None" if optional else "")

@@ -14,10 +14,16 @@ along x by less than ``max_overlap`` of the narrower, the blob is cut at its coo
 between their centres (:func:`mode_cuts`), and each part becomes a box by the heat map's own
 rule (its cells with heat at least ``extent`` x the part's peak), scored by its peak.
 
+The mean shift's cost grows with the square of a blob's windows: at most :data:`MAX_WINDOWS`
+of a blob (the heaviest) go into it, and at most ``max_frame_windows`` of a frame (the blobs
+heaviest first; one that no longer fits keeps its box whole).
+
 Square windows fire on parts of a large near vehicle too (its left and right halves), which
 is why only wide blobs are looked at and why modes inside a heavier mode do not count.
 """
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -134,33 +140,74 @@ def mode_cuts(profile: np.ndarray, x0: int, cell: int, mode_boxes: np.ndarray,
     return cuts
 
 
+@dataclass
+class SplitTally:
+    """What the split did over the frames it was given (a run's record, for studies):
+    ``frames`` looked at, ``windows`` shifted in all, ``most`` shifted
+    in one frame, ``blob_most`` shifted for one blob, ``refused`` blobs left whole because
+    the frame's budget was spent."""
+
+    frames: int = 0
+    windows: int = 0
+    most: int = 0
+    blob_most: int = 0
+    refused: int = 0
+
+
 def split_boxes(boxes: Detections, heat: np.ndarray, labels: np.ndarray, cell: int,
                 frame_shape: tuple[int, int], windows: np.ndarray, weights: np.ndarray, extent: float,
                 min_aspect: float = 1.8, min_weight: float = 0.5, bandwidth: float = 0.25,
                 scale_bandwidth: float = 0.3, inside: float = 0.5, max_overlap: float = 0.3,
-                min_heat: float | None = None) -> Detections:
+                min_heat: float | None = None, max_frame_windows: int | None = None,
+                tally: SplitTally | None = None) -> Detections:
     """``boxes`` (one per blob of ``labels``, scored by peak heat, as
     :meth:`fastdet.video.heatmap.HeatMap.boxes` gives them) with each wide box whose blob holds
     separate modes of this frame's ``windows`` (``(N, 4)`` frame px, their heat ``weights``
     ``(N,)``) replaced by one box per part (module docstring). ``heat``, ``labels``: the heat
     map's ``(Hg, Wg)`` grids (cells of ``cell`` px); ``frame_shape``: ``(H, W)`` px.
     ``min_heat``: a mode lighter than ``min_weight`` x the heaviest still counts when its
-    summed window heat is above this (``None``: never; module docstring). Returns ``boxes``
-    itself when nothing was split."""
+    summed window heat is above this (``None``: never; module docstring).
+    ``max_frame_windows``: at most this many windows are shifted in the frame (``None``: no
+    bound): the wide blobs take their windows (at most :data:`MAX_WINDOWS` each) heaviest
+    first (summed window heat; ties: input order); a blob whose windows no longer fit keeps
+    its box whole, lighter ones that still fit are split. ``tally``: counts added to (what was
+    shifted, what was refused). Returns ``boxes`` itself when nothing was split."""
     wins = np.asarray(windows, np.float64).reshape(-1, 4)
     wts = np.asarray(weights, np.float64).reshape(-1)
+    if tally is not None:
+        tally.frames += 1
     if not len(boxes) or len(wins) < 2:
         return boxes
     h, w = frame_shape
     hg, wg = heat.shape
     ccx = ((wins[:, 0] + wins[:, 2]) / 2 // cell).astype(np.int64)
     ccy = ((wins[:, 1] + wins[:, 3]) / 2 // cell).astype(np.int64)
+    blobs = [_blob_windows(b, heat, labels, cell, (hg, wg), wts, ccx, ccy, min_aspect)
+             for b in np.asarray(boxes.boxes)]
+    refused = 0
+    if max_frame_windows is not None:
+        left = int(max_frame_windows)
+        heavy = sorted((i for i, blob in enumerate(blobs) if blob is not None),
+                       key=lambda i: -float(wts[blobs[i][-1]].sum()))
+        for i in heavy:
+            n = len(blobs[i][-1])
+            if n > left:
+                blobs[i] = None
+                refused += 1
+            else:
+                left -= n
+    if tally is not None:
+        sizes = [len(blob[-1]) for blob in blobs if blob is not None]
+        tally.windows += sum(sizes)
+        tally.most = max(tally.most, sum(sizes))
+        tally.blob_most = max([tally.blob_most, *sizes])
+        tally.refused += refused
     out_b: list[np.ndarray] = []
     out_s: list[float] = []
     changed = False
-    for b, s in zip(np.asarray(boxes.boxes), np.asarray(boxes.scores)):
-        parts = _split_one(b, heat, labels, cell, (h, w), (hg, wg), wins, wts, ccx, ccy, extent, min_aspect,
-                           min_weight, bandwidth, scale_bandwidth, inside, max_overlap, min_heat)
+    for b, s, blob in zip(np.asarray(boxes.boxes), np.asarray(boxes.scores), blobs):
+        parts = None if blob is None else _split_blob(blob, (h, w), wins, wts, cell, extent, min_weight, bandwidth,
+                                                      scale_bandwidth, inside, max_overlap, min_heat)
         if parts is None:
             out_b.append(np.asarray(b, np.int32))
             out_s.append(float(s))
@@ -174,13 +221,16 @@ def split_boxes(boxes: Detections, heat: np.ndarray, labels: np.ndarray, cell: i
     return Detections(np.array(out_b, np.int32).reshape(-1, 4), np.array(out_s, np.float32))
 
 
-def _split_one(b, heat, labels, cell, frame_hw, grid_hw, wins, wts, ccx, ccy, extent, min_aspect, min_weight,
-               bandwidth, scale_bandwidth, inside, max_overlap,
-               min_heat=None) -> list[tuple[np.ndarray, float]] | None:
-    """The parts of one box (``[(box (4,) int32, peak)]``), or ``None`` to keep it whole."""
+_Blob = tuple[int, int, int, np.ndarray, np.ndarray, np.ndarray]
+
+
+def _blob_windows(b, heat, labels, cell, grid_hw, wts, ccx, ccy, min_aspect) -> _Blob | None:
+    """The blob of one box and this frame's windows centred on it, ``(label, x0, y0, labels,
+    heat, window indices)`` (the grids cut to the box from grid cell ``x0, y0``; at most
+    :data:`MAX_WINDOWS` windows, the heaviest, in input order), or ``None`` when the box is
+    not looked at (narrow, no blob, fewer than two windows)."""
     if (b[2] - b[0]) < min_aspect * (b[3] - b[1]):
         return None
-    h, w = frame_hw
     hg, wg = grid_hw
     x0, y0 = int(b[0]) // cell, int(b[1]) // cell
     x1, y1 = min(-(-int(b[2]) // cell), wg), min(-(-int(b[3]) // cell), hg)
@@ -197,6 +247,14 @@ def _split_one(b, heat, labels, cell, frame_hw, grid_hw, wins, wts, ccx, ccy, ex
         return None
     if len(idx) > MAX_WINDOWS:
         idx = np.sort(idx[np.argsort(-wts[idx], kind="stable")[:MAX_WINDOWS]])
+    return int(lab), x0, y0, sub_l, sub_h, idx
+
+
+def _split_blob(blob: _Blob, frame_hw, wins, wts, cell, extent, min_weight, bandwidth, scale_bandwidth, inside,
+                max_overlap, min_heat=None) -> list[tuple[np.ndarray, float]] | None:
+    """The parts of one blob (``[(box (4,) int32, peak)]``), or ``None`` to keep it whole."""
+    lab, x0, y0, sub_l, sub_h, idx = blob
+    h, w = frame_hw
     mb, mw = window_modes(wins[idx], wts[idx], bandwidth, scale_bandwidth)
     keep = dominant_modes(mb, mw, inside)
     heavy = mw[keep] >= min_weight * mw[keep].max()
@@ -222,12 +280,15 @@ def _split_one(b, heat, labels, cell, frame_hw, grid_hw, wins, wts, ccx, ccy, ex
 
 class SplitStage(Stage):
     """The main heat map's wide boxes split between the modes of their windows
-    (:func:`split_boxes`); parts that fail the heat map's shape filter are dropped."""
+    (:func:`split_boxes`, at most ``config.max_frame_windows`` windows shifted a frame);
+    parts that fail the heat map's shape filter are dropped. ``tally``: what it did so far
+    (:class:`SplitTally`, frames with boxes only)."""
 
     name = "split"
 
     def __init__(self, config: NeighbourSplit) -> None:
         self.config = config
+        self.tally = SplitTally()
 
     def __call__(self, s: FrameState) -> FrameState:
         hm = s.heatmap
@@ -238,7 +299,8 @@ class SplitStage(Stage):
         out = split_boxes(s.boxes, hm.heat, hm.labels, int(hm.config.cell), hm.frame_shape, wins, heat,
                           float(hm.config.extent), c.min_aspect, c.min_weight, c.bandwidth, c.scale_bandwidth,
                           c.inside, c.max_overlap,
-                          None if c.min_heat is None else c.min_heat * float(hm.config.threshold))
+                          None if c.min_heat is None else c.min_heat * float(hm.config.threshold),
+                          c.max_frame_windows, self.tally)
         if out is not s.boxes:
             s.boxes = s.out = out[hm.shape_ok(out.boxes)]
         return s

@@ -44,12 +44,18 @@ def _first_frames(path: str, start: int) -> Iterator[np.ndarray]:
         reader.close()
 
 
+def _primes(config: PipelineConfig) -> bool:
+    """Whether a file's first seconds are read ahead: for the horizon (``'auto'``) or the
+    main model's decision offset (``selfcal``)."""
+    return config.horizon == "auto" or config.selfcal is not None
+
+
 def prime_horizon_from_file(vd: VideoDetector, path: str | os.PathLike, start: int = 0) -> None:
     """For a file (not a live source): give ``vd`` the first seconds of the video ahead of time
     (:meth:`VideoDetector.prime_horizon`), so every frame, the first ones too, is searched at the
     estimated horizon. Every command that reads a file does this, so ``video``, ``batch`` and
     ``eval --video`` give the same boxes."""
-    if vd.config.horizon == "auto" and os.path.isfile(os.fspath(path)):
+    if _primes(vd.config) and os.path.isfile(os.fspath(path)):
         vd.prime_horizon(_first_frames(os.fspath(path), start))
 
 
@@ -65,7 +71,7 @@ def video_detector_for(reader: FrameReader, detector: WindowDetector,
     config = config if config is not None else PipelineConfig()
     check_frame(detector, reader.first_frame, reader.path, horizon=config.horizon)
     vd = VideoDetector(detector, config, fps=reader.fps)
-    if (vd.config.horizon == "auto" and reader.kind == "file" and os.path.isfile(reader.path)
+    if (_primes(vd.config) and reader.kind == "file" and os.path.isfile(reader.path)
             and (reader.limit is None or reader.limit >= HORIZON_FRAMES)
             and HORIZON_FRAMES * reader.first_frame.nbytes <= PRIME_BUFFER_BYTES):
         # the run's own reader decodes the first seconds ahead and yields them again: the

@@ -142,6 +142,7 @@ class DetectStage(Stage):
             kw["columns"] = s.columns
         s.windows = self.detector.detect(s.frame, rgb=s.rgb, stats=stats, **kw)
         s.timings.update(stats.timings)
+        s.bands = stats.bands
         return s
 
 

@@ -25,6 +25,8 @@ class FrameState:
     motion, gate, oncoming_bands: this frame's motion over the oncoming search, the gate in
         grey levels and the parts of the oncoming bands that move (``None``: not gated).
     windows: the positive windows (:class:`Detections` with ``scale`` and ``part``).
+    bands: the detector's decision values of every band it scored, ``(part, geometry, (ny, nx))``
+        (windows not scored -inf; ``None``: a detector that does not give them).
     boxes: the heat maps' boxes; low: the weak boxes given to the tracker.
     out: what :meth:`~fastdet.VideoDetector.update` returns.
     tracks: every live track after the tracker.
@@ -38,6 +40,7 @@ class FrameState:
     gate: float = 0.0
     oncoming_bands: list[SearchBand] | None = None
     windows: Detections = field(default_factory=Detections.empty)
+    bands: list | None = None
     boxes: Detections = field(default_factory=Detections.empty)
     low: Detections = field(default_factory=Detections.empty)
     out: Detections = field(default_factory=Detections.empty)

@@ -148,6 +148,49 @@ def test_a_blob_of_more_windows_than_the_bound_shifts_only_the_heaviest(monkeypa
     assert order == sorted(order)  # in their input order (the grouping depends on it)
 
 
+
+def test_a_frame_budget_leaves_the_blobs_that_no_longer_fit_whole(monkeypatch):
+    import fastdet.video.blobsplit as bs
+    from fastdet.video.blobsplit import SplitTally
+
+    # three blobs of two cars in a row each: 10, 16 and 6 windows of heat 2 (the middle blob heaviest)
+    wins = np.vstack([_cluster(20, 40, 40), _cluster(66, 40, 40),
+                      _cluster(300, 40, 40, 8), _cluster(346, 40, 40, 8),
+                      _cluster(20, 240, 40, 3), _cluster(66, 240, 40, 3)])
+    hm, boxes = _heatmap_with(wins)
+    assert len(boxes) == 3
+    args = (boxes, hm.heat, hm.labels, 4, hm.frame_shape, hm._cur[0], hm._cur[1], hm.config.extent)
+    shifted = []
+    real = bs.window_modes
+    monkeypatch.setattr(bs, "window_modes", lambda w, t, *a: (shifted.append(len(w)), real(w, t, *a))[1])
+    free = SplitTally()
+    whole = split_boxes(*args, tally=free)
+    assert len(whole) == 6 and shifted == [10, 16, 6]  # every blob split, in input order
+    assert (free.frames, free.windows, free.most, free.blob_most, free.refused) == (1, 32, 32, 16, 0)
+    # a budget the frame reaches: the heaviest (16) first, then 10 does not fit in 12 but 6 does
+    shifted.clear()
+    t = SplitTally()
+    out = split_boxes(*args, max_frame_windows=22, tally=t)
+    assert shifted == [16, 6] and (t.windows, t.most, t.refused) == (22, 22, 1)
+    kept = [b for b in out.boxes.tolist() if b in boxes.boxes.tolist()]
+    assert kept == [boxes.boxes[0].tolist()]  # the blob of 10 keeps its heat box (and its score)
+    assert out.scores[out.boxes.tolist().index(kept[0])] == boxes.scores[0]
+    assert len(out) == 5 and out.boxes.tolist()[:1] == kept  # in the boxes' order
+    # a budget the frame does not reach changes nothing (the same boxes as no bound)
+    assert split_boxes(*args, max_frame_windows=32).boxes.tolist() == whole.boxes.tolist()
+    # too small for any blob: nothing is shifted, the boxes come back as they were
+    shifted.clear()
+    assert split_boxes(*args, max_frame_windows=5) is boxes and shifted == []
+    # the pipeline's stage passes its config's budget and keeps the tally
+    from fastdet.config import NeighbourSplit
+    from fastdet.video.blobsplit import SplitStage
+    from fastdet.video.state import FrameState
+    stage = SplitStage(NeighbourSplit(max_frame_windows=22))
+    state = FrameState(np.zeros((*hm.frame_shape, 3), np.uint8), boxes=boxes, out=boxes, heatmap=hm)
+    shifted.clear()
+    stage(state)
+    assert shifted == [16, 6] and stage.tally.refused == 1 and len(state.boxes) == 5
+
 def test_split_boxes_keeps_a_narrow_blob_and_a_single_wide_vehicle():
     # narrower than min_aspect x its height: never looked at
     wins = np.vstack([_cluster(100, 200, 40), _cluster(130, 200, 40)])

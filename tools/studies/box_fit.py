@@ -42,6 +42,7 @@ from fastdet.eval.clips import annotated_clips, markdown_table, score_clip
 from fastdet.eval.matching import match_frame
 from fastdet.io.atomic import write_bytes
 from fastdet.video.refine import load_regressor
+from tools.studies.markdown import table
 
 from .refine_loo import ClipRun, refined, unrefined_run
 from .small_boxes import add_setting_arguments, config_from
@@ -227,21 +228,16 @@ def main() -> None:
             draw(run, rec, fas, misses, f"{a.pictures}/{clip.name}.png")
     print(markdown_table(scores))
     print()
-    print("| clip | false alarms | inside a target | contains one | offset | clear | over 2+ targets | misses | "
-          "a box misses it | no box | a heat box fits it (IoU >= 0.5) |")
-    print("|" + "---|" * 11)
-    print("\n".join(totals))
+    print(table("| clip | false alarms | inside a target | contains one | offset | clear | over 2+ targets | misses | "
+                "a box misses it | no box | a heat box fits it (IoU >= 0.5) |", totals))
     print()
-    print("| clip | frame | width | relation | IoU | targets half inside | target width | target aspect | "
-          "aspect / target's | w ratio | h ratio | centre x off (/w) | centre y off (/h) | target hit by another | "
-          "IoU before refine | best heat box IoU |")
-    print("|" + "---|" * 16)
-    print("\n".join(fa_lines))
+    print(table("| clip | frame | width | relation | IoU | targets half inside | target width | target aspect | "
+                "aspect / target's | w ratio | h ratio | centre x off (/w) | centre y off (/h) | "
+                "target hit by another | IoU before refine | best heat box IoU |", fa_lines))
     print()
-    print("| clip | frame | target | width | aspect | kind | best box IoU | relation | that box hits another | "
-          "w ratio | h ratio | best IoU before refine | best heat box IoU | windows IoU >= 0.3 | peak heat |")
-    print("|" + "---|" * 15)
-    print("\n".join(miss_lines))
+    print(table("| clip | frame | target | width | aspect | kind | best box IoU | relation | that box hits another | "
+                "w ratio | h ratio | best IoU before refine | best heat box IoU | windows IoU >= 0.3 | peak heat |",
+                miss_lines))
     if a.json:
         write_bytes(a.json, json.dumps(dump, indent=1).encode())
 

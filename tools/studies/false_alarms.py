@@ -57,6 +57,7 @@ from fastdet.video.detector import make_detector
 from fastdet.video.pipeline import VideoDetector
 from fastdet.video.plausible import duplicates, perspective_ok
 from fastdet.video.run import video_detector_for
+from tools.studies.markdown import table
 
 REF_ROWS = 720
 
@@ -360,26 +361,19 @@ def main() -> None:
         print(f"{clip.name}: done", file=sys.stderr, flush=True)
     print(markdown_table(scores))
     print()
-    print("| clip | hits | ignored | near | clear |")
-    print("|---|---|---|---|---|")
-    for c in clips:
-        k = kinds[c.name]
-        print(f"| {c.name} | {k['hit']} | {k['ignored']} | {k['near']} | {k['clear']} |")
+    print(table("| clip | hits | ignored | near | clear |",
+                (f"| {c.name} | {k['hit']} | {k['ignored']} | {k['near']} | {k['clear']} |"
+                 for c in clips for k in [kinds[c.name]])))
     print()
-    print("| clip | horizon | target ratio min / median / max (n; off the frame's edges) | targets with bottom "
-          "above it | hits' ratio | false alarms' ratio |")
-    print("|---|---|---|---|---|---|")
-    print("\n".join(ratio_lines))
+    print(table("| clip | horizon | target ratio min / median / max (n; off the frame's edges) | targets with bottom "
+                "above it | hits' ratio | false alarms' ratio |", ratio_lines))
     print()
-    print("| clip | frame | kind | width (ref px) | dy (bottom - horizon, / height) | ratio | aspect | score | age | "
-          "life | side edge | off centre | touches ignore | box from |")
-    print("|" + "---|" * 14)
-    print("\n".join(lines))
+    print(table("| clip | frame | kind | width (ref px) | dy (bottom - horizon, / height) | ratio | aspect | score | "
+                "age | life | side edge | off centre | touches ignore | box from |", lines))
     if a.rules:
         print()
-        print("| rule (false alarms (per frame) / hits / hits lost) | " + " | ".join(runs) + " |")
-        print("|" + "---|" * (len(runs) + 1))
-        print("\n".join(rule_lines(runs)))
+        print(table("| rule (false alarms (per frame) / hits / hits lost) | " + " | ".join(runs) + " |",
+                    rule_lines(runs)))
     if a.json:
         write_bytes(a.json, json.dumps(dump, indent=1).encode())
 

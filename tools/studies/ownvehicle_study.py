@@ -6,17 +6,22 @@ over every annotated clip with a variant's VideoDetector, scores the returned bo
 0.5 on the annotated frames only (the keyframes of a sparsely annotated clip: ``CLIP.frames``;
 predictions elsewhere are neither hits nor false alarms) and prints one markdown row per
 clip: P / R / F1 / false alarms per scored frame / CPU ms per frame (process time of the
-whole run, horizon priming included). ``--save DIR`` keeps each run's boxes (pickle) for a
-closer look.
+whole run, horizon priming included). ``--save DIR`` keeps each run's boxes for a closer
+look: ``VARIANT_CLIP.npz`` (plain arrays, read with ``allow_pickle=False``: :func:`load_run`)
+beside ``VARIANT_CLIP.json`` (the variant's configuration, the scores, the CPU figure). A
+``VARIANT_CLIP.pkl`` written by an earlier version of this study is not read (one line says so).
 
     python -m tools.studies.ownvehicle_study VARIANT [VARIANT ...] [--clips a,b] [--save /tmp/ov]
+    python -m tools.studies.ownvehicle_study --split-load    # the split's most windows a frame
+    python -m tools.studies.ownvehicle_study --split-noise /tmp/noise   # its worst frame on noise
 """
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
-import pickle
+import sys
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -28,12 +33,14 @@ from fastdet.config import NeighbourSplit, OwnVehicleConfig, PipelineConfig
 from fastdet.data import data_dir
 from fastdet.detections import Detections
 from fastdet.eval import evaluate
+from fastdet.io.atomic import atomic_path
 from fastdet.io.motfiles import read_gt
 from fastdet.io.reader import FrameReader
 from fastdet.video.detector import make_detector
 from fastdet.video.ownvehicle import OwnVehicleEstimator, OwnVehicleStage, window_fraction
 from fastdet.video.pipeline import VideoDetector
 from fastdet.video.run import video_detector_for
+from tools.studies.frame_cache import pack_detections, unpack_detections
 
 CLIPS = ("test_small1", "test_video", "highway_640", "boston_street", "motorcycle_highway")
 
@@ -43,6 +50,8 @@ EXTRA = Path(os.environ.get("OWNVEHICLE_EXTRA", "/tmp/ov/synth"))
 
 
 def _video(clip: str) -> Path:
+    if clip.endswith(".mp4") and Path(clip).is_file():  # a clip made here (split_noise)
+        return Path(clip)
     p = data_dir() / "videos" / f"{clip}.mp4"
     return p if p.is_file() else EXTRA / f"{clip}.mp4"
 
@@ -68,11 +77,13 @@ def score(clip: str, preds: Detections, iou: float = 0.5) -> dict[str, float]:
             "fa": r.fp_per_frame, "frames": r.frames}
 
 
-def run_clip(clip: str, config: PipelineConfig) -> tuple[Detections, list[dict], float]:
+def run_clip(clip: str, config: PipelineConfig,
+             keep: dict | None = None) -> tuple[Detections, list[dict], float]:
     """The boxes of every frame of ``clip`` with the pipeline of ``config`` (built as every
     command builds it: :func:`fastdet.video.run.video_detector_for`), per-frame debug (the heat
     maps' boxes, the windows, the heat and its labels) and the CPU seconds per frame of the
-    whole run (priming counted, numba compilation not)."""
+    whole run (priming counted, numba compilation not). ``keep``: given the
+    :class:`~fastdet.video.pipeline.VideoDetector` run (``"detector"``)."""
     _warm()
     t0 = time.process_time()
     reader = FrameReader(_video(clip))
@@ -80,6 +91,8 @@ def run_clip(clip: str, config: PipelineConfig) -> tuple[Detections, list[dict],
     out: list[tuple[int, Detections]] = []
     try:
         vd = video_detector_for(reader, make_detector(config), config)
+        if keep is not None:
+            keep["detector"] = vd
         for fno, frame, _ in reader:
             out.append((fno, vd.update(frame)))
             d = vd.debug
@@ -95,6 +108,60 @@ def run_clip(clip: str, config: PipelineConfig) -> tuple[Detections, list[dict],
     cpu = (time.process_time() - t0) / max(len(out), 1)
     return Detections.from_frames(out, source=clip), debug, cpu
 
+
+
+def save_run(out_dir: Path, variant: str, clip: str, preds: Detections, debug: list[dict],
+             meta: dict) -> Path:
+    """Write one run (:func:`run_clip`'s boxes and per-frame debug) to
+    ``out_dir/VARIANT_CLIP.npz`` and ``meta`` (JSON-able: scores, configuration) with the
+    variant, the clip and the frame count to ``VARIANT_CLIP.json``, each under a temporary
+    name then renamed. The ``.npz`` holds plain arrays only: ``preds.*`` and the debug's
+    ``heat_boxes.*`` / ``windows.*`` (:func:`~tools.studies.frame_cache.pack_detections`),
+    ``frame`` ``(F,) int64``, ``grid`` ``(F, 2) int64`` (each frame's heat grid rows, columns)
+    and ``heat`` (float32) / ``labels`` (int32), every frame's grid flattened in order.
+    Returns the ``.npz`` path."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    stem = out_dir / f"{variant}_{clip}"
+    old = stem.with_suffix(".pkl")
+    if old.is_file():
+        print(f"ownvehicle_study: {old} is a pickle of an earlier version of this study and is not read "
+              f"(this run writes {stem.name}.npz and .json)", file=sys.stderr)
+    grids = [np.asarray(d["heat"]).shape for d in debug]
+    arrays = {**pack_detections([preds], "preds."),
+              **pack_detections([d["heat_boxes"] for d in debug], "heat_boxes."),
+              **pack_detections([d["windows"] for d in debug], "windows."),
+              "frame": np.array([d["frame"] for d in debug], np.int64),
+              "grid": np.array(grids, np.int64).reshape(len(debug), 2),
+              "heat": np.concatenate([np.asarray(d["heat"], np.float32).ravel() for d in debug] or
+                                     [np.zeros(0, np.float32)]),
+              "labels": np.concatenate([np.asarray(d["labels"], np.int32).ravel() for d in debug] or
+                                       [np.zeros(0, np.int32)])}
+    path = stem.with_suffix(".npz")
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        np.savez_compressed(fh, **arrays)
+    text = json.dumps({"variant": variant, "clip": clip, "frames": len(debug), **meta}, indent=1, default=float)
+    with atomic_path(stem.with_suffix(".json")) as tmp:
+        tmp.write_text(text + "\n")
+    return path
+
+
+def load_run(path: Path) -> tuple[Detections, list[dict]]:
+    """The boxes and per-frame debug :func:`save_run` wrote to ``path`` (``.npz``, read with
+    ``allow_pickle=False``): as :func:`run_clip` returned them (``preds`` without its source
+    name)."""
+    with np.load(path, allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    preds = unpack_detections(arrays, "preds.")[0]
+    heat_boxes = unpack_detections(arrays, "heat_boxes.")
+    windows = unpack_detections(arrays, "windows.")
+    debug, start = [], 0
+    for i, (fno, (gh, gw)) in enumerate(zip(arrays["frame"].tolist(), arrays["grid"].tolist())):
+        stop = start + gh * gw
+        debug.append({"frame": fno, "heat_boxes": heat_boxes[i], "windows": windows[i],
+                      "heat": arrays["heat"][start:stop].reshape(gh, gw),
+                      "labels": arrays["labels"][start:stop].reshape(gh, gw)})
+        start = stop
+    return preds, debug
 
 _WARM: list[bool] = []
 
@@ -208,11 +275,109 @@ def cost() -> None:
         blobsplit.split_boxes = orig  # type: ignore[assignment]
 
 
+def split_load(clips: list[str]) -> None:
+    """The neighbour split's load on each clip with today's defaults (``PipelineConfig()``):
+    the most windows shifted in one frame and for one blob, and blobs its frame budget
+    (``NeighbourSplit.max_frame_windows``) left whole."""
+    from fastdet.video.blobsplit import SplitStage
+    config = PipelineConfig()
+    assert config.split is not None
+    print(f"| clip | frames split looked at | most windows shifted a frame | most for one blob | "
+          f"blobs left whole by the budget ({config.split.max_frame_windows}) |")
+    print("|---|---:|---:|---:|---:|")
+    for clip in clips:
+        keep: dict = {}
+        run_clip(clip, config, keep)
+        stage = keep["detector"].stage(SplitStage)
+        t = stage.tally
+        print(f"| {clip} | {t.frames} | {t.most} | {t.blob_most} | {t.refused} |", flush=True)
+
+
+#: the noisy clips of :func:`split_noise`: (width, height, patch width, patch height, gap, top row)
+NOISE_CLIPS = ((1280, 720, 280, 80, 160, 400), (1920, 1080, 300, 100, 200, 600), (2560, 720, 280, 80, 160, 400))
+
+
+def make_noise_clip(path: Path, w: int, h: int, pw: int, ph: int, gap: int, y0: int, n: int = 12,
+                    seed: int = 0) -> Path:
+    """``n`` frames of ``w x h`` (mp4v): grey, with patches ``pw x ph`` px of 8 px blocks of
+    random colours at full contrast (new each frame), ``gap`` px apart, in rows from ``y0``:
+    dense texture the detector fires on in thousands of windows, one wide heat blob per patch
+    where the search reaches (a frame of many big blobs)."""
+    rng = np.random.default_rng(seed)
+    mask = np.zeros((h, w), bool)
+    for y in range(y0, h, ph + gap):
+        for x in range(0, w, pw + gap):
+            mask[y:y + ph, x:x + pw] = True
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 25, (w, h))
+    try:
+        for _ in range(n):
+            blocks = rng.integers(0, 255, (h // 8 + 1, w // 8 + 1, 3), dtype=np.uint8)
+            f = np.ascontiguousarray(np.repeat(np.repeat(blocks, 8, 0), 8, 1)[:h, :w])
+            f[~mask] = 128
+            writer.write(f)
+    finally:
+        writer.release()
+    return path
+
+
+def split_noise(out_dir: Path, repeats: int = 3) -> None:
+    """The neighbour split's CPU time a frame on the noisy clips of :func:`make_noise_clip`
+    (written to ``out_dir``) with today's defaults (``PipelineConfig()`` of the fastdet
+    imported): per frame the least of ``repeats`` runs (process time of ``split_boxes``);
+    prints the worst frame, the windows shifted there and the median frame. Uses no API the
+    split had before its frame budget, so the same function measures an older checkout."""
+    from fastdet.video import blobsplit
+    out_dir.mkdir(parents=True, exist_ok=True)
+    real_split, real_modes = blobsplit.split_boxes, blobsplit.window_modes
+    shifted = [0]
+    cpu: list[float] = []
+    counts: list[int] = []
+
+    def modes(w, t, *a, **k):
+        shifted[0] += len(w)
+        return real_modes(w, t, *a, **k)
+
+    def split(*a, **k):
+        shifted[0] = 0
+        t0 = time.process_time()
+        r = real_split(*a, **k)
+        cpu.append(time.process_time() - t0)
+        counts.append(shifted[0])
+        return r
+
+    print("| clip | frames | windows a frame (median) | worst frame: split CPU ms | windows shifted there | "
+          "median frame: split CPU ms |")
+    print("|---|---:|---:|---:|---:|---:|")
+    blobsplit.split_boxes, blobsplit.window_modes = split, modes  # type: ignore[assignment]
+    try:
+        for spec in NOISE_CLIPS:
+            path = make_noise_clip(out_dir / "noise_{}x{}.mp4".format(*spec[:2]), *spec)
+            runs = []
+            for _ in range(repeats):
+                cpu.clear()
+                counts.clear()
+                keep: dict = {}
+                run_clip(str(path), PipelineConfig(), keep)
+                runs.append((list(cpu), list(counts)))
+            best = np.min([c for c, _ in runs], axis=0)
+            n_shift = runs[0][1]
+            i = int(np.argmax(best))
+            wins = keep["detector"].debug.windows
+            print(f"| {path.name} | {len(best)} | {len(wins)} | {1000 * best[i]:.1f} | {n_shift[i]} | "
+                  f"{1000 * np.median(best):.1f} |", flush=True)
+    finally:
+        blobsplit.split_boxes, blobsplit.window_modes = real_split, real_modes  # type: ignore[assignment]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("variants", nargs="*")
     ap.add_argument("--make-synthetic", metavar="DIR", help="write the rigid-dash copies of three clips to DIR")
     ap.add_argument("--cost", action="store_true", help="time the estimator, the window test and the split")
+    ap.add_argument("--split-load", action="store_true",
+                    help="the neighbour split's most windows a frame on each of --clips (today's defaults)")
+    ap.add_argument("--split-noise", metavar="DIR",
+                    help="write noisy clips of many big blobs to DIR and time the split's worst frame there")
     ap.add_argument("--clips", default=",".join(CLIPS))
     ap.add_argument("--save", default=None)
     a = ap.parse_args()
@@ -220,6 +385,10 @@ def main() -> None:
         make_synthetic(Path(a.make_synthetic))
     if a.cost:
         cost()
+    if a.split_load:
+        split_load(a.clips.split(","))
+    if a.split_noise:
+        split_noise(Path(a.split_noise))
     if not a.variants:
         return
     print("| variant | clip | P | R | F1 | TP | FP | FN | FA/frame | CPU ms/frame |")
@@ -231,10 +400,8 @@ def main() -> None:
             print(f"| {v} | {clip} | {s['P']:.3f} | {s['R']:.3f} | {s['F1']:.3f} | {s['tp']} | {s['fp']} | "
                   f"{s['fn']} | {s['fa']:.2f} | {1000 * cpu:.1f} |", flush=True)
             if a.save:
-                os.makedirs(a.save, exist_ok=True)
-                with open(Path(a.save) / f"{v}_{clip}.pkl", "wb") as fh:
-                    pickle.dump({"preds": preds, "debug": debug}, fh)
-
+                save_run(Path(a.save), v, clip, preds, debug, {"scores": s, "cpu_ms_per_frame": 1000 * cpu,
+                                                               "config": VARIANTS[v].to_dict()})
 
 if __name__ == "__main__":
     main()

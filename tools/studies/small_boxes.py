@@ -41,6 +41,7 @@ from fastdet.eval.matching import match_frame
 from fastdet.io.reader import FrameReader
 from fastdet.video.detector import make_detector
 from fastdet.video.run import video_detector_for
+from tools.studies.markdown import table
 
 BINS = ((0.0, 60.0, "<60"), (60.0, 120.0, "60-120"), (120.0, float("inf"), ">=120"))
 
@@ -261,21 +262,16 @@ def add_setting_arguments(ap: argparse.ArgumentParser) -> None:
 
 def print_tables(tables: list[str], fa_lines: list[str], search_lines: list[str] | None = None) -> None:
     print()
-    print("| clip | width | targets | hit@0.5 | det IoU>=0.3 | IoU | h ratio | w ratio | dy/h | heat IoU>=0.3 | "
-          "heat h ratio | heat w ratio | with a window IoU>=0.3 | windows (median) | peak heat (median) |")
-    print("|" + "---|" * 15)
-    print("\n".join(tables))
+    print(table("| clip | width | targets | hit@0.5 | det IoU>=0.3 | IoU | h ratio | w ratio | dy/h | heat IoU>=0.3 "
+                "| heat h ratio | heat w ratio | with a window IoU>=0.3 | windows (median) | peak heat (median) |",
+                tables))
     print()
-    print("| clip | false alarms | near (IoU 0.3-0.5) | near, too tall (h > 1.3x) | near, too wide | near, other | "
-          "far | near h ratio | near w ratio |")
-    print("|" + "---|" * 9)
-    print("\n".join(fa_lines))
+    print(table("| clip | false alarms | near (IoU 0.3-0.5) | near, too tall (h > 1.3x) | near, too wide | "
+                "near, other | far | near h ratio | near w ratio |", fa_lines))
     if search_lines:
         print()
-        print("| clip | width | targets | searched window IoU >= 0.3 | IoU >= 0.5 | one of those positive | "
-              "best decision value there (median) |")
-        print("|" + "---|" * 7)
-        print("\n".join(search_lines))
+        print(table("| clip | width | targets | searched window IoU >= 0.3 | IoU >= 0.5 | one of those positive | "
+                    "best decision value there (median) |", search_lines))
 
 
 def main() -> None:
