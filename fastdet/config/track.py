@@ -57,6 +57,30 @@ class TrackerConfig(Config):
         frames a vehicle is missed, moves the prediction off the vehicle and the vehicle gets
         a new id when it is found again. The horizontal velocity (vehicles crossing the view
         at up to half their width a frame) is kept. ``False``: every velocity but the size's.
+    exit_outside: a lost track whose predicted box has more than this fraction of its area
+        outside the picture is dropped: the vehicle left through the border, and a vehicle
+        entering there later gets an id of its own instead of the one of the vehicle that left.
+        A leaving vehicle's boxes are cut at the border, so a lost track, which keeps the size
+        of its last box and moves at the speed of its centre (half the vehicle's while the box
+        shrinks), lags the vehicle: when a quarter of the prediction is outside, the vehicle
+        shows about half of what it showed when it was lost. Needs the frame's size
+        (``Tracker.update(..., frame_shape=)``). ``None``: a lost track is kept ``max_lost``
+        frames wherever it is predicted.
+    exit_after: ``exit_outside`` drops a track only once it has missed at least this many
+        frames in a row (before the current one). After one missed frame the prediction is one
+        step from a box cut at the border, and the box found next is as often what is left of
+        the same vehicle (which ``--offline`` then joins across the missed frame) as another
+        vehicle.
+    max_behind: a box whose centre lies more than this many widths of a track's predicted box
+        behind the predicted centre, against the track's horizontal motion, is not matched to
+        that track (when the track moves at least ``behind_speed`` of its width a frame, so
+        that its direction is known). In a queue the vehicle behind comes to where the one
+        ahead was: when the leader leaves or is missed, the follower's box falls behind the
+        leader's prediction by about a vehicle's length and would take its id; a vehicle itself
+        does not fall back by half its width in a frame against its own motion. ``None``: no
+        such gate.
+    behind_speed: the speed, in widths of its predicted box per frame, from which a track's
+        direction is trusted by ``max_behind``.
     max_gap: ``--offline`` only: a track's gaps of at most this many frames are filled by
         linear interpolation (StrongSORT's gap interpolation, Du et al., 2023).
     extend_back: ``--offline`` only: each track is extended this many frames back from its
@@ -64,7 +88,7 @@ class TrackerConfig(Config):
         (docs/accuracy.md).
     """
 
-    _OMIT_NONE = ("cut_shape",)  # configs written before it existed keep their digest
+    _OMIT_NONE = ("cut_shape", "exit_outside", "max_behind")  # configs written before it existed keep their digest
 
     low_heat: float = 0.5
     match_iou: float = 0.2
@@ -80,6 +104,10 @@ class TrackerConfig(Config):
     std_velocity: float = 1 / 160
     init_velocity: float = 0.25
     hold_row: bool = True
+    exit_outside: float | None = 0.25
+    exit_after: int = 2
+    max_behind: float | None = None
+    behind_speed: float = 0.1
     max_gap: int = 10
     extend_back: int = 0
 
@@ -90,7 +118,7 @@ class TrackerConfig(Config):
             v = getattr(self, name)
             if not 0 < v <= 1:
                 raise ValueError(f"{name} must be in (0, 1], got {v!r}")
-        for name, lo in (("min_hits", 1), ("max_lost", 0), ("max_gap", 0), ("extend_back", 0)):
+        for name, lo in (("min_hits", 1), ("max_lost", 0), ("max_gap", 0), ("extend_back", 0), ("exit_after", 1)):
             v = getattr(self, name)
             if int(v) != v or v < lo:
                 raise ValueError(f"{name} must be an integer >= {lo}, got {v!r}")
@@ -100,6 +128,12 @@ class TrackerConfig(Config):
             raise ValueError(f"split_overlap must be in [0, 1], got {self.split_overlap!r}")
         if not 0 <= self.buffer <= 2:
             raise ValueError(f"buffer must be in [0, 2], got {self.buffer!r}")
+        if self.exit_outside is not None and not 0 <= self.exit_outside < 1:
+            raise ValueError(f"exit_outside must be in [0, 1) or None, got {self.exit_outside!r}")
+        if self.max_behind is not None and not 0 <= self.max_behind < float("inf"):
+            raise ValueError(f"max_behind must be a finite number >= 0 or None, got {self.max_behind!r}")
+        if not 0 <= self.behind_speed < float("inf"):
+            raise ValueError(f"behind_speed must be a finite number >= 0, got {self.behind_speed!r}")
         if not isinstance(self.hold_row, bool):
             raise ValueError(f"hold_row must be True or False, got {self.hold_row!r}")
         if self.output not in ("detection", "filtered"):

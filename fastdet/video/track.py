@@ -7,7 +7,9 @@ predictions by the Hungarian method on IoU (``scipy.optimize.linear_sum_assignme
 stages:
 
 1. **High-confidence boxes** (the heat map's boxes) against every confirmed track, tracked
-   or lost (IoU >= ``match_iou``).
+   or lost (IoU >= ``match_iou``). With ``max_behind``, a box far behind a moving track's
+   prediction (:func:`behind`: the vehicle following it in a queue) is not matched to it,
+   here and in stage 2.
 2. **Low-confidence boxes** (weak heat blobs, :meth:`HeatMap.weak_boxes`) against the
    tracked tracks that stage 1 left without a box (IoU >= ``low_match_iou``): a vehicle whose
    evidence dips below the threshold for a few frames keeps its track. Tracked tracks still
@@ -16,7 +18,10 @@ stages:
    ``tentative_match_iou``); a tentative track without a box is dropped.
 4. Each high-confidence box still left starts a tentative track; a track matched in
    ``min_hits`` frames in a row is confirmed and gets the next id (1, 2, ...).
-5. A lost track is dropped after ``max_lost`` frames without a box.
+5. A lost track is dropped after ``max_lost`` frames without a box -- or, with
+   ``exit_outside``, once its predicted box lies partly outside the picture after
+   ``exit_after`` missed frames (the vehicle left through the border), before it can be
+   matched to a vehicle entering there.
 
 Before stage 1, **merged blobs are split**: when the blobs of two vehicles side by side
 touch, the heat map gives one box around both. A high-confidence box that holds most
@@ -161,6 +166,32 @@ def buffered(boxes: np.ndarray, b: float) -> np.ndarray:
     return np.stack([x[:, 0] - w, x[:, 1] - h, x[:, 2] + w, x[:, 3] + h], 1)
 
 
+def outside_fraction(boxes: np.ndarray, frame_shape: tuple[int, int]) -> np.ndarray:
+    """``(N,) float64``: the fraction of each box's area (``boxes (N, 4)`` x1, y1, x2, y2)
+    outside a picture of ``frame_shape`` (height, width) pixels; 1 for a box of no area."""
+    b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    h, w = frame_shape
+    area = np.maximum(b[:, 2] - b[:, 0], 0.0) * np.maximum(b[:, 3] - b[:, 1], 0.0)
+    iw = np.maximum(np.minimum(b[:, 2], w) - np.maximum(b[:, 0], 0.0), 0.0)
+    ih = np.maximum(np.minimum(b[:, 3], h) - np.maximum(b[:, 1], 0.0), 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(area > 0, 1.0 - iw * ih / np.where(area > 0, area, 1.0), 1.0)
+
+
+def behind(mean: np.ndarray, boxes: np.ndarray, min_speed: float) -> np.ndarray:
+    """``(N, M) float64``: how far each box's centre lies behind each track's predicted centre
+    against the track's horizontal motion, in widths of the predicted box (negative: ahead);
+    ``-inf`` for a track slower than ``min_speed`` of its width a frame (direction unknown).
+    mean: ``(N, >=5)`` Kalman states (cx, cy, w, h, vcx, ...) predicted for this frame; boxes:
+    ``(M, 4)`` x1, y1, x2, y2 (a uniform growth, as :func:`buffered`'s, keeps the centres)."""
+    m = np.asarray(mean, np.float64).reshape(len(mean), -1)
+    b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    w = np.maximum(m[:, 2], 1.0)
+    vx = m[:, 4]
+    d = (m[:, 0, None] - (b[None, :, 0] + b[None, :, 2]) / 2) * np.sign(vx)[:, None] / w[:, None]
+    return np.where((np.abs(vx) >= min_speed * w)[:, None], d, -np.inf)
+
+
 def split_merged(boxes: np.ndarray, predicted: np.ndarray, min_overlap: float,
                  shape_ok: Callable[[np.ndarray], np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Cut boxes that hold several predicted vehicle boxes side by side.
@@ -256,22 +287,28 @@ class Tracker:
         self.frame = 0
         self.confirmed = 0
 
-    @staticmethod
-    def _match(rows: np.ndarray, pred: np.ndarray, boxes: np.ndarray,
-               min_iou: float) -> tuple[np.ndarray, np.ndarray]:
+    def _match(self, rows: np.ndarray, pred: np.ndarray, boxes: np.ndarray,
+               min_iou: float, gate: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Assign ``boxes`` (buffered) to the tracks in ``rows`` (their buffered predicted
-        boxes ``pred[rows]``): ``(track rows, box indices)``."""
+        boxes ``pred[rows]``): ``(track rows, box indices)``. ``gate``: pairs that
+        :func:`behind` finds too far behind the track (``config.max_behind``) are not matched."""
         if not len(rows) or not len(boxes):
             return np.zeros(0, np.int64), np.zeros(0, np.int64)
-        r, k = assign(iou(pred[rows], boxes), min_iou)
+        ious = iou(pred[rows], boxes)
+        c = self.config
+        if gate and c.max_behind is not None:
+            ious[behind(self._mean[rows], boxes, c.behind_speed) > c.max_behind] = 0.0
+        r, k = assign(ious, min_iou)
         return rows[r], k
 
     def update(self, high: Detections, low: Detections | None = None,
-               shape_ok: Callable[[np.ndarray], np.ndarray] | None = None) -> Detections:
+               shape_ok: Callable[[np.ndarray], np.ndarray] | None = None,
+               frame_shape: tuple[int, int] | None = None) -> Detections:
         """Track one frame. ``high``: the high-confidence boxes (they may start tracks);
         ``low``: low-confidence boxes (they only continue tracked tracks), or ``None``;
         ``shape_ok``: the shapes a box cut between tracks may have (:func:`split_merged`; used
-        when ``config.cut_shape``).
+        when ``config.cut_shape``); ``frame_shape``: the picture's (height, width) in pixels,
+        for ``config.exit_outside`` (``None``: no track is dropped for leaving it).
         Returns the confirmed tracks that found a box this frame: boxes, scores (of the
         matched box), ids, in ascending id order."""
         c = self.config
@@ -285,6 +322,14 @@ class Tracker:
                 self._mean[is_lost, 5] = 0.0  # ... and so its row (its distance)
             self._mean, self._cov = self.kalman.predict(self._mean, self._cov)
         pred = cxcywh_to_xyxy(self._mean)
+        if c.exit_outside is not None and frame_shape is not None and is_lost.any():
+            missed = np.array([self.frame - 1 - t.last_frame for t in tracks])  # frames in a row without a box
+            gone = is_lost & (missed >= c.exit_after) & (outside_fraction(pred, frame_shape) > c.exit_outside)
+            if gone.any():  # left through the border: dropped before any match
+                keep = ~gone
+                self.tracks = tracks = [t for t, k in zip(tracks, keep) if k]
+                self._mean, self._cov, pred = self._mean[keep], self._cov[keep], pred[keep]
+                is_lost, is_tent = is_lost[keep], is_tent[keep]
         for t, p in zip(tracks, pred):
             t.predicted = p
         confirmed = np.flatnonzero(~is_tent)
@@ -303,7 +348,7 @@ class Tracker:
         fix_scores: list[np.ndarray] = []
 
         # stage 1: high boxes vs confirmed tracks (tracked and lost)
-        r1, k1 = self._match(confirmed, bpred, bhigh, c.match_iou)
+        r1, k1 = self._match(confirmed, bpred, bhigh, c.match_iou, gate=True)
         used[k1] = True
         fix_rows.append(r1), fix_boxes.append(hb[k1]), fix_scores.append(hs[k1])
         done = np.zeros(len(tracks), bool)
@@ -313,7 +358,7 @@ class Tracker:
         # stage 2: low boxes vs the tracked tracks left over
         if low is not None and len(low) and len(left):
             lb = low.boxes.astype(np.float64)
-            r2, k2 = self._match(left, bpred, buffered(lb, c.buffer), c.low_match_iou)
+            r2, k2 = self._match(left, bpred, buffered(lb, c.buffer), c.low_match_iou, gate=True)
             fix_rows.append(r2), fix_boxes.append(lb[k2]), fix_scores.append(low.scores[k2].astype(np.float64))
             done[r2] = True
             left = left[~done[left]]

@@ -13,7 +13,17 @@ from hypothesis import strategies as st
 from fastdet.config import HeatConfig, TrackerConfig
 from fastdet.detections import Detections
 from fastdet.video.heatmap import HeatMap
-from fastdet.video.track import LOST, TRACKED, Tracker, assign, buffered, merge_failed_parts, split_merged
+from fastdet.video.track import (
+    LOST,
+    TRACKED,
+    Tracker,
+    assign,
+    behind,
+    buffered,
+    merge_failed_parts,
+    outside_fraction,
+    split_merged,
+)
 
 
 def dets(*boxes, score: float = 10.0) -> Detections:
@@ -334,6 +344,173 @@ def test_merged_blob_of_two_tracked_cars_is_split_with_two_ids():
     assert all(len(o) == 1 for o in out[10:15])
 
 
+# ------------------------------------------------------------------ leaving through the border
+
+FRAME = (360, 640)  # height, width
+
+
+def outside_fraction_reference(box: list[int], frame_shape: tuple[int, int]) -> float:
+    """The fraction of an integer box's pixels outside the picture, by counting them."""
+    x1, y1, x2, y2 = box
+    if x2 <= x1 or y2 <= y1:
+        return 1.0
+    h, w = frame_shape
+    inside = sum(1 for y in range(y1, y2) for x in range(x1, x2) if 0 <= x < w and 0 <= y < h)
+    return 1.0 - inside / ((x2 - x1) * (y2 - y1))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(st.integers(-30, 50), st.integers(-30, 40), st.integers(-5, 40), st.integers(-5, 40)),
+                min_size=1, max_size=6), st.integers(1, 30), st.integers(1, 30))
+def test_outside_fraction_against_counting_pixels(spec, h, w):
+    boxes = [[x, y, x + bw, y + bh] for x, y, bw, bh in spec]
+    got = outside_fraction(np.array(boxes, np.float64), (h, w))
+    want = [outside_fraction_reference(b, (h, w)) for b in boxes]
+    np.testing.assert_allclose(got, want, atol=1e-12)
+
+
+def leaving_then_entering(f: int) -> list[list[float]]:
+    """Frame ``f`` at the left edge of a 640 x 360 picture: a car 50 px wide leaving slowly (2
+    px a frame) whose box is cut at the border, found while at least 36 px of it show (frames
+    0-27); from frame 40 another vehicle entering at the same edge, its box growing 4 px a frame."""
+    x = 40 - 2 * f
+    boxes = [[max(x, 0), 200, x + 50, 230]] if x + 50 >= 36 else []
+    if f >= 40:
+        boxes.append([0, 202, 30 + 4 * (f - 40), 234])
+    return boxes
+
+
+def run_in_frame(frames: list[Detections], config: TrackerConfig, frame_shape=FRAME) -> list[list[int]]:
+    tr = Tracker(config)
+    return [ids_of(tr.update(d, frame_shape=frame_shape)) for d in frames]
+
+
+def test_a_track_that_left_through_the_border_does_not_pass_its_id_on():
+    """The lost track of the car that left keeps its last (cut) size and moves at the speed of
+    its box's centre, slower than the car: 12 frames after the car left, its prediction still
+    overlaps the border where the next vehicle enters, which took id 1. With ``exit_outside``
+    the track ends once a quarter of its prediction is outside, and the newcomer gets id 2."""
+    frames = [dets(*leaving_then_entering(f)) for f in range(50)]
+    assert run_in_frame(frames, TrackerConfig(exit_outside=None))[40:] == [[1]] * 10  # the cause
+    assert TrackerConfig().exit_outside == 0.25
+    out = run_in_frame(frames, TrackerConfig())
+    assert out[:28] == [[1]] * 28 and out[28:40] == [[]] * 12 and out[40:] == [[2]] * 10
+    # the same without the picture's size: nothing is dropped
+    assert run_in_frame(frames, TrackerConfig(exit_outside=0.25), frame_shape=None)[40:] == [[1]] * 10
+
+
+def test_a_car_missed_at_the_border_keeps_its_id():
+    """A car alongside, a tenth of it outside the picture at the right edge and standing still
+    there (its box cut at the border), missed for 5 frames: its prediction stays as far out as
+    its box, below ``exit_outside``, and it keeps id 1; so does a lost car inside the picture."""
+    cut = [600, 250, 640, 330]  # the car spans 596-640
+    frames = [dets(cut)] * 10 + [dets()] * 5 + [dets(cut)] * 5
+    assert run_in_frame(frames, TrackerConfig(exit_outside=0.25)) == [[1]] * 10 + [[]] * 5 + [[1]] * 5
+    inside = [dets(car(0, f, 8, y=200)) if not 10 <= f < 15 else dets() for f in range(20)]
+    assert run_in_frame(inside, TrackerConfig(exit_outside=0.0)) == [[1]] * 10 + [[]] * 5 + [[1]] * 5
+
+
+def test_only_lost_tracks_end_at_the_border():
+    """A tracked car whose prediction runs ahead of its cut boxes, well outside the picture,
+    keeps its track and id while it is found: the rule reads lost tracks only."""
+    frames = [dets([max(40 - 12 * f, 0), 200, 40 - 12 * f + 60, 230]) for f in range(8)]  # last: 4 px show
+    tr = Tracker(TrackerConfig(exit_outside=0.25))
+    for f, d in enumerate(frames):
+        assert ids_of(tr.update(d, frame_shape=FRAME)) == [1], f
+    assert outside_fraction(tr.tracks[0].predicted, FRAME)[0] > 0.25
+    tr.update(dets(), frame_shape=FRAME)  # missed: lost, and now predicted further out
+    assert [t.state for t in tr.tracks] == [LOST]
+    tr.update(dets(), frame_shape=FRAME)  # one frame missed before this one: kept (exit_after 2)
+    assert [t.state for t in tr.tracks] == [LOST]
+    tr.update(dets(), frame_shape=FRAME)  # two missed, far outside: ended
+    assert tr.tracks == []
+
+
+def test_a_track_missed_once_at_the_border_is_kept():
+    """A car leaving fast at the left edge (16 px a frame, its box cut) is missed for one frame
+    and found again, cut, in the next: its prediction is then more than a quarter outside,
+    but after a single missed frame (``exit_after`` 2) the track is kept and the remains of the
+    car keep id 1; with ``exit_after=1`` the track ends and they get id 2."""
+    def box(f: int) -> list[float]:
+        x = 100 - 16 * f
+        return [max(x, 0), 200, x + 60, 230]
+
+    frames = [dets(box(f)) if f != 7 else dets() for f in range(9)]  # f 8: 12 px of it show
+    tr = Tracker()
+    out = [ids_of(tr.update(d, frame_shape=FRAME)) for d in frames]
+    assert out == [[1]] * 7 + [[]] + [[1]]
+    (t,) = tr.tracks
+    assert outside_fraction(t.predicted, FRAME)[0] > 0.25  # where it was predicted in the last frame
+    assert run_in_frame(frames, TrackerConfig(exit_after=1)) == [[1]] * 7 + [[]] + [[2]]
+
+
+# ------------------------------------------------------------------ the vehicle behind
+
+
+def behind_reference(mean: np.ndarray, boxes: np.ndarray, min_speed: float) -> np.ndarray:
+    out = np.zeros((len(mean), len(boxes)))
+    for i, (cx, _, w, _, vx) in enumerate(mean[:, :5].tolist()):
+        w = max(w, 1.0)
+        for j, (x1, _, x2, _) in enumerate(boxes.tolist()):
+            if abs(vx) < min_speed * w:
+                out[i, j] = -np.inf
+            elif vx > 0:
+                out[i, j] = (cx - (x1 + x2) / 2) / w
+            elif vx < 0:
+                out[i, j] = ((x1 + x2) / 2 - cx) / w
+    return out
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_behind_against_a_plain_loop(seed):
+    rng = np.random.default_rng(seed)
+    n, m = rng.integers(0, 5), rng.integers(0, 5)
+    mean = np.concatenate([rng.uniform(0, 600, (n, 2)), rng.uniform(0.5, 90, (n, 2)),
+                           rng.normal(0, 10, (n, 4)) * (rng.random((n, 1)) < 0.8)], 1)
+    xy = rng.uniform(0, 600, (m, 2))
+    boxes = np.concatenate([xy, xy + rng.uniform(1, 90, (m, 2))], 1)
+    for speed in (0.0, 0.1):
+        np.testing.assert_allclose(behind(mean, boxes, speed), behind_reference(mean, boxes, speed))
+
+
+def queue(f: int, follower_from: int = 9) -> list[list[float]]:
+    """Two cars 48 x 24 px one behind the other, 16 px a frame to the left, the second 42 px
+    (0.875 widths) behind the first, as oncoming cars in one lane: the leader found in frames
+    0-7, then missed (it left or is hidden); the follower found from ``follower_from`` on."""
+    lead = 600 - 16 * f
+    boxes = []
+    if f < 8:
+        boxes.append([lead, 300, lead + 48, 324])
+    if f >= follower_from:
+        boxes.append([lead + 42, 300, lead + 90, 324])
+    return boxes
+
+
+def test_the_car_behind_does_not_take_the_id_of_the_car_ahead():
+    """The follower's box lies 0.875 widths behind the leader's prediction, close enough for
+    the buffered IoU: it took id 1. With ``max_behind`` 0.5 it gets an id of its own."""
+    frames = [dets(*queue(f)) for f in range(14)]
+    assert [ids_of(o) for o in run(frames)][9:] == [[1]] * 5  # the cause
+    out = [ids_of(o) for o in run(frames, TrackerConfig(max_behind=0.5))]
+    assert out == [[1]] * 8 + [[]] + [[2]] * 5
+
+
+def test_a_car_whose_box_slips_back_keeps_its_id():
+    """The gate reads only boxes far behind a track that moves: a car at 16 px a frame whose
+    box falls back by 0.4 of its width for a frame, and a car crawling at 2 px a frame (a
+    twentieth of its width: its direction is not known) whose box falls back by 0.8 of its
+    width, keep id 1."""
+    slip = [dets([600 - 16 * f + (19 if f == 8 else 0), 300, 648 - 16 * f + (19 if f == 8 else 0), 324])
+            for f in range(14)]
+    assert [ids_of(o) for o in run(slip, TrackerConfig(max_behind=0.5))] == [[1]] * 14
+    crawl = [dets([300 - 2 * f + (38 if f == 8 else 0), 300, 348 - 2 * f + (38 if f == 8 else 0), 324])
+             for f in range(14)]
+    assert [ids_of(o) for o in run(crawl, TrackerConfig(max_behind=0.5))] == [[1]] * 14
+    # ... while a gate that trusts every direction would cut the crawling car's track
+    out = [ids_of(o) for o in run(crawl, TrackerConfig(max_behind=0.5, behind_speed=0.0))]
+    assert out[8] != [1]
+
+
 def test_tracker_config_is_checked():
     with pytest.raises(ValueError):
         TrackerConfig(low_heat=1.5)
@@ -343,6 +520,17 @@ def test_tracker_config_is_checked():
         TrackerConfig(output="kalman")
     with pytest.raises(ValueError):
         TrackerConfig(hold_row=1)
+    for bad in (-0.1, 1.0, 1.5):
+        with pytest.raises(ValueError):
+            TrackerConfig(exit_outside=bad)
+    for bad in (0, 1.5):
+        with pytest.raises(ValueError):
+            TrackerConfig(exit_after=bad)
+    for bad in (-0.1, float("inf"), float("nan")):
+        with pytest.raises(ValueError):
+            TrackerConfig(max_behind=bad)
+        with pytest.raises(ValueError):
+            TrackerConfig(behind_speed=bad)
     with pytest.raises(TypeError):
         Tracker(HeatConfig())
     assert TrackerConfig.from_dict(TrackerConfig().to_dict()) == TrackerConfig()

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from fastdet.detections import Detections
-from tools.studies.id_errors import causes, main, parse_set
+from fastdet.eval.clips import AnnotatedClip
+from tools.studies.id_errors import appearance, bhattacharyya, causes, colour_histogram, main, parse_set
 
 
 def _gt(rows: list[tuple[int, int, list[int], int]]) -> Detections:
@@ -76,3 +77,64 @@ def test_bad_arguments_are_one_line_and_exit_2(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 3 and all(line.startswith("id_errors: ") for line in err)
     assert "no_such_variant" in err[2]
+
+
+def _histogram_reference(crop: np.ndarray, kind: str) -> np.ndarray:
+    """The histograms of ``colour_histogram``, one pixel at a time."""
+    import cv2
+
+    if kind.startswith("hue-sat"):
+        hsv = cv2.cvtColor(crop, cv2.COLOR_BGR2HSV)
+        h = np.zeros(32)
+        for hue, sat, _ in hsv.reshape(-1, 3).tolist():
+            h[min(hue * 8 // 180, 7) * 4 + sat * 4 // 256] += 1
+    elif kind.startswith("rgb"):
+        h = np.zeros(64)
+        for b, g, r in crop.reshape(-1, 3).tolist():
+            h[(r // 64) * 16 + (g // 64) * 4 + b // 64] += 1
+    else:
+        h = np.zeros(64)
+        for b, g, r in crop.reshape(-1, 3).tolist():
+            t = r + g + b + 3
+            rr, gg = min(max((r + 1) / t, 0.2), 0.5), min(max((g + 1) / t, 0.2), 0.5)
+            h[min(int((rr - 0.2) / 0.3 * 8), 7) * 8 + min(int((gg - 0.2) / 0.3 * 8), 7)] += 1
+    return h / max(h.sum(), 1e-12)
+
+
+@pytest.mark.parametrize("kind", ["hue-sat 8x4", "rgb 4x4x4", "rg-chroma 8x8"])
+def test_colour_histogram_against_counting_pixels(kind):
+    rng = np.random.default_rng(3)
+    for shape in ((5, 7, 3), (12, 3, 3)):
+        crop = rng.integers(0, 256, shape, dtype=np.uint8)
+        np.testing.assert_allclose(colour_histogram(crop, kind), _histogram_reference(crop, kind), atol=1e-12)
+
+
+def test_bhattacharyya():
+    a, b = np.array([0.5, 0.5, 0.0]), np.array([0.0, 0.0, 1.0])
+    assert bhattacharyya(a, a) == pytest.approx(0.0, abs=1e-7)
+    assert bhattacharyya(a, b) == pytest.approx(1.0)
+    assert bhattacharyya(a, np.array([0.5, 0.0, 0.5])) == pytest.approx(np.sqrt(0.5))
+
+
+def test_appearance_tells_a_red_car_from_its_grey_neighbour(tmp_path):
+    """A red box moving right 5 px a frame on a blocky grey-ish background (tests.media) and a
+    still patch of background beside it, both annotated: the red car's histogram stays close
+    to itself, and far from its neighbour's."""
+    from tests.media import write_video
+
+    (tmp_path / "videos").mkdir()
+    (tmp_path / "annotations").mkdir()
+    video = write_video(tmp_path / "videos" / "c.mp4", 12)
+    lines = []
+    for f in range(1, 13):
+        x = (f - 1) * 5
+        lines.append(f"{f},1,{x + 4},84,52,42,1,1,1")  # inside the red box (80-130, x-x+60)
+        lines.append(f"{f},2,150,84,52,42,1,1,1")  # background beside it
+    gt = tmp_path / "annotations" / "c.gt.txt"
+    gt.write_text("\n".join(lines) + "\n")
+    r = appearance(AnnotatedClip("c", video, gt))
+    for kind in ("hue-sat 8x4", "rgb 4x4x4", "rg-chroma 8x8"):
+        assert r[kind]["same_pairs"] > 0 and r[kind]["neighbour_pairs"] > 0
+        assert r[kind]["same"] < 0.2, kind
+        assert r[kind]["neighbours"] > 0.5, kind
+        assert r[kind]["same_1"] <= r[kind]["same"]
