@@ -188,7 +188,7 @@ def main(argv: list[str] | None = None) -> int:
     train_frames = {c: clip_vehicles(c, data[c]) for c in CLIPS}
 
     def samples_for(names: list[str]):
-        return samples([fr for n in names for fr in train_frames[n]], spec, a.seed, a.per_box)
+        return samples([fr for n in names for fr in train_frames[n]], spec, a.seed, a.per_box, a.size_of == "vehicle")
 
     det = make_detector()
     rows: list[dict[str, Any]] = []
@@ -200,7 +200,8 @@ def main(argv: list[str] | None = None) -> int:
             others = [c for c in CLIPS if c != clip]
             t0 = time.perf_counter()
             smp = samples_for(others)
-            reg = fit_box_regressor(smp, spec, metadata={"trained_on": others + ["test_images"]})
+            reg = fit_box_regressor(smp, spec, metadata={"trained_on": others + ["test_images"]},
+                                    size_weight=a.size_weight)
             fit = reg.metadata["fit"]
             print(f"[{clip}] regressor fitted on {'+'.join(others)}+test_images: {fit['samples']} samples of "
                   f"{fit['groups']} vehicles, alpha {fit['alpha']:g}, CV mean IoU {max(fit['cv_mean_iou']):.3f} "
@@ -227,7 +228,7 @@ def main(argv: list[str] | None = None) -> int:
         reg = fit_box_regressor(smp, spec, metadata={
             "trained_on": ship_clips + ["test_images"], "settings": settings,
             "command": "python -m tools.studies.refine_eval " + " ".join(argv if argv is not None else sys.argv[1:]),
-            "held_out": rows})
+            "held_out": rows}, size_weight=a.size_weight)
         reg.save(a.ship)
         print(f"wrote {a.ship}: fitted on {'+'.join(ship_clips)}+test_images, alpha {reg.metadata['fit']['alpha']:g}")
     if a.json:
