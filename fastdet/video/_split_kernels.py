@@ -19,27 +19,15 @@ FAR = 60.0
 
 
 @njit(**EXACT)
-def _first_at_least(xs: np.ndarray, v: float) -> int:
-    """The first index of sorted ``xs`` whose value is >= ``v`` (``len(xs)`` if none)."""
+def _search(xs: np.ndarray, v: float, right: bool) -> int:
+    """Where ``v`` goes in sorted ``xs``, as ``np.searchsorted`` with side ``'left'`` (the first
+    index whose value is >= ``v``) or, with ``right``, side ``'right'`` (the first whose value is
+    > ``v``); ``len(xs)`` if none."""
     lo = 0
     hi = xs.shape[0]
     while lo < hi:
         mid = (lo + hi) // 2
-        if xs[mid] < v:
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo
-
-
-@njit(**EXACT)
-def _first_above(xs: np.ndarray, v: float) -> int:
-    """The first index of sorted ``xs`` whose value is > ``v`` (``len(xs)`` if none)."""
-    lo = 0
-    hi = xs.shape[0]
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if xs[mid] <= v:
+        if xs[mid] < v or (right and xs[mid] == v):
             lo = mid + 1
         else:
             hi = mid
@@ -72,8 +60,8 @@ def mean_shift(pts: np.ndarray, ps: np.ndarray, pw: np.ndarray, bandwidth: float
         moved = 0.0
         for i in range(n):
             s = bandwidth * 2.0 ** y[i, 2]
-            lo = _first_at_least(px, y[i, 0] - reach * s)
-            hi = _first_above(px, y[i, 0] + reach * s)
+            lo = _search(px, y[i, 0] - reach * s, False)
+            hi = _search(px, y[i, 0] + reach * s, True)
             den = 0.0
             n0 = 0.0
             n1 = 0.0

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from fastdet.config import HeatConfig
 from fastdet.detections import Detections
-from fastdet.video._split_kernels import join_modes
+from fastdet.video._split_kernels import _search, join_modes
 from fastdet.video.blobsplit import dominant_modes, mode_cuts, shift_points, split_boxes, window_modes
 from fastdet.video.heatmap import HeatMap
 from tests.reference import ref_join_modes, ref_mean_shift
@@ -43,6 +43,13 @@ def test_the_grouping_matches_the_reference(wb, bw, sbw, iters):
     m = join_modes(y, bw, sbw, label)
     assert label.tolist() == ref_join_modes(y, bw, sbw)
     assert m == len(set(label.tolist()))
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.integers(-5, 5), max_size=12), st.integers(-6, 6), st.booleans())
+def test_the_kernels_binary_search_is_searchsorted(xs, v, right):
+    a = np.sort(np.array(xs, np.float64))
+    assert _search(a, float(v), right) == np.searchsorted(a, float(v), side="right" if right else "left")
 
 
 def test_a_blob_of_many_windows_is_shifted_as_the_reference_does():
