@@ -169,13 +169,8 @@ def buffered(boxes: np.ndarray, b: float) -> np.ndarray:
 def outside_fraction(boxes: np.ndarray, frame_shape: tuple[int, int]) -> np.ndarray:
     """``(N,) float64``: the fraction of each box's area (``boxes (N, 4)`` x1, y1, x2, y2)
     outside a picture of ``frame_shape`` (height, width) pixels; 1 for a box of no area."""
-    b = np.asarray(boxes, np.float64).reshape(-1, 4)
     h, w = frame_shape
-    area = np.maximum(b[:, 2] - b[:, 0], 0.0) * np.maximum(b[:, 3] - b[:, 1], 0.0)
-    iw = np.maximum(np.minimum(b[:, 2], w) - np.maximum(b[:, 0], 0.0), 0.0)
-    ih = np.maximum(np.minimum(b[:, 3], h) - np.maximum(b[:, 1], 0.0), 0.0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(area > 0, 1.0 - iw * ih / np.where(area > 0, area, 1.0), 1.0)
+    return 1.0 - overlap_fraction(boxes, np.array([[0.0, 0.0, w, h]]))[:, 0]
 
 
 def behind(mean: np.ndarray, boxes: np.ndarray, min_speed: float) -> np.ndarray:
