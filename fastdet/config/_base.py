@@ -54,10 +54,12 @@ def _decode(tp: Any, value: Any) -> Any:
 
 class Config:
     """Mixin of the frozen configuration dataclasses: :meth:`to_dict`, :meth:`from_dict` and
-    :meth:`digest`. ``_OMIT_NONE`` names fields left out of :meth:`to_dict` while ``None``
-    (so a dict written before such a field existed is still the same dict)."""
+    :meth:`digest`. ``_OMIT_NONE`` names fields left out of :meth:`to_dict` while ``None``, and
+    ``_OMIT_DEFAULT`` fields left out while at the value it gives them (so a dict written before
+    such a field existed is still the same dict)."""
 
     _OMIT_NONE: typing.ClassVar[tuple[str, ...]] = ()
+    _OMIT_DEFAULT: typing.ClassVar[typing.Mapping[str, Any]] = types.MappingProxyType({})
 
     def to_dict(self) -> dict[str, Any]:
         """The fields as JSON-able values: nested configs as dicts, tuples as lists."""
@@ -65,6 +67,8 @@ class Config:
         for f in dataclasses.fields(self):  # type: ignore[arg-type]
             v = getattr(self, f.name)
             if v is None and f.name in self._OMIT_NONE:
+                continue
+            if f.name in self._OMIT_DEFAULT and v == self._OMIT_DEFAULT[f.name]:
                 continue
             out[f.name] = _encode(v)
         return out

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, ClassVar
 
 from ._base import Config
 
@@ -34,9 +33,7 @@ class NeighbourSplit(Config):
     """
 
     _OMIT_NONE = ("min_heat",)  # configs written before it existed keep their digest
-    #: left out of :meth:`to_dict` at these values (configs written before they existed
-    #: keep their digest)
-    _OMIT_DEFAULT: ClassVar[dict[str, Any]] = {"max_frame_windows": 512}
+    _OMIT_DEFAULT = {"max_frame_windows": 512}
 
     min_aspect: float = 1.8
     min_weight: float = 0.5
@@ -46,13 +43,6 @@ class NeighbourSplit(Config):
     max_overlap: float = 0.3
     min_heat: float | None = None
     max_frame_windows: int = 512
-
-    def to_dict(self) -> dict[str, Any]:
-        out = super().to_dict()
-        for name, value in self._OMIT_DEFAULT.items():
-            if out.get(name) == value:
-                del out[name]
-        return out
 
     def __post_init__(self) -> None:
         for name in ("min_aspect", "bandwidth", "scale_bandwidth"):
