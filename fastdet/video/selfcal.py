@@ -72,15 +72,17 @@ class SelfCalStage(Stage):
     def done(self) -> bool:
         return self.offset is not None
 
-    def _want(self) -> bool:
-        return not self.done and self._index % self.every == 0 and len(self._kept) < self.config.scans
+    def _see(self, frame: np.ndarray) -> None:
+        """Count one of the video's first frames; keep a copy if the run would full-scan it and
+        the estimate still wants it."""
+        if not self.done and self._index % self.every == 0 and len(self._kept) < self.config.scans:
+            self._kept.append(np.array(frame, copy=True))
+        self._index += 1
 
     def tee(self, frames: Iterator[np.ndarray]) -> Iterator[np.ndarray]:
         """``frames`` (the video's first, BGR) passed on; those the run would full-scan kept for :meth:`prime`."""
         for f in frames:
-            if self._want():
-                self._kept.append(np.array(f, copy=True))
-            self._index += 1
+            self._see(f)
             yield f
 
     def prime(self, frames: Iterator[np.ndarray]) -> float | None:
@@ -92,9 +94,7 @@ class SelfCalStage(Stage):
             return self.offset
         if len(self._kept) < self.config.scans:
             for f in frames:
-                if self._want():
-                    self._kept.append(np.array(f, copy=True))
-                self._index += 1
+                self._see(f)
                 if len(self._kept) >= self.config.scans:
                     break
         det = self.detector
