@@ -143,20 +143,24 @@ def region_crops(frame: np.ndarray, boxes: np.ndarray, context: float, size: tup
 SIZE_INPUTS = ("log_width", "log_height", "log_aspect", "bottom")
 
 
+def _width_bound(name: str) -> float | None:
+    """``N`` of a size input ``width<N`` (a finite number > 0), else ``None``."""
+    if not name.startswith("width<"):
+        return None
+    try:
+        v = float(name[len("width<"):])
+    except ValueError:
+        return None
+    return v if math.isfinite(v) and v > 0 else None
+
+
 def check_size_inputs(names: tuple[str, ...] | list[str]) -> tuple[str, ...]:
     """``names`` as a tuple when each is one of :data:`SIZE_INPUTS` or ``width<N`` (``N`` a
     positive number of reference pixels), without repeats; else :class:`ValueError`."""
     out = tuple(str(n) for n in names)
     for n in out:
-        if n in SIZE_INPUTS:
+        if n in SIZE_INPUTS or _width_bound(n) is not None:
             continue
-        if n.startswith("width<"):
-            try:
-                v = float(n[len("width<"):])
-            except ValueError:
-                v = math.nan
-            if math.isfinite(v) and v > 0:
-                continue
         raise ValueError(f"unknown size input {n!r}: choose from {', '.join(SIZE_INPUTS)} or width<N (N > 0 px)")
     if len(set(out)) != len(out):
         raise ValueError(f"size inputs repeat: {list(out)}")
@@ -181,8 +185,8 @@ def size_features(shape: tuple[int, ...], boxes: np.ndarray, names: tuple[str, .
             cols.append(np.log(w / h))
         elif n == "bottom":
             cols.append(b[:, 3] / H)
-        elif n.startswith("width<"):
-            cols.append((w * ref < float(n[len("width<"):])).astype(np.float64))
+        elif (bound := _width_bound(n)) is not None:
+            cols.append((w * ref < bound).astype(np.float64))
         else:
             raise ValueError(f"unknown size input {n!r}")
     return np.stack(cols, axis=1) if cols else np.zeros((len(b), 0), np.float64)
