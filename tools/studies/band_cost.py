@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import replace
 from typing import Any
 
@@ -35,14 +35,20 @@ def parse_bands(text: str) -> tuple[SearchBand, ...]:
     return tuple(out)
 
 
-def scan_cost(det: Detector, shape: tuple[int, int] = (720, 1280)) -> dict[str, float]:
+def scan_cost(det: Detector, shape: tuple[int, int] = (720, 1280), parts: Collection[int] | None = None,
+              channels: bool = False) -> dict[str, float]:
     """HOG cells, windows and scoring multiply-adds of a full scan of a ``shape`` frame by every
-    model of ``det`` (its bands at its searches' horizons)."""
+    model of ``det`` (its bands at its searches' horizons); ``parts``: only these models' bands
+    (``det.parts``; ``None``: all); ``channels``: HOG cells counted once per channel the model
+    takes HOG of (channel-cells)."""
     cells = wins = macs = 0.0
     for p, scorer in zip(det.parts, det.scorers):
+        if parts is not None and p not in parts:
+            continue
         cfg = scorer.config
+        per_cell = len(cfg.hog_channels) if channels else 1
         for g in det.geometries(shape, p):
-            cells += (g.scaled_h // cfg.pixels_per_cell) * (g.scaled_w // cfg.pixels_per_cell)
+            cells += (g.scaled_h // cfg.pixels_per_cell) * (g.scaled_w // cfg.pixels_per_cell) * per_cell
             wins += g.n_windows
             macs += g.n_windows * cfg.n_features
     return {"hog_cells": cells, "windows": wins, "score_macs": macs}

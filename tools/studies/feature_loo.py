@@ -62,6 +62,7 @@ from fastdet.train.fit import _flip, features_in_chunks, fit_classifier, metrics
 from fastdet.train.keyframes import read_annotated_frames
 from fastdet.train.windows import score_frames
 from fastdet.video import make_detector
+from tools.studies.band_cost import scan_cost
 from tools.studies.loo import run_clip
 from tools.studies.options_table import summary_of
 
@@ -139,21 +140,11 @@ def cost(path: str | None, shape: tuple[int, int] = (720, 1280)) -> dict[str, fl
     ``path``: the main model's features per window, HOG channel-cells (HOG cells x channels),
     windows and scoring multiply-adds, and the channel-cells and multiply-adds of every model."""
     det = make_detector(PipelineConfig(model=path, horizon=None))
-    out = {"features": 0.0, "hog_channel_cells": 0.0, "windows": 0.0, "score_macs": 0.0,
-           "all_hog_channel_cells": 0.0, "all_score_macs": 0.0}
-    for i, (p, scorer) in enumerate(zip(det.parts, det.scorers)):
-        cfg = scorer.config
-        for g in det.geometries(shape, p):
-            cc = (g.scaled_h // cfg.pixels_per_cell) * (g.scaled_w // cfg.pixels_per_cell) * len(cfg.hog_channels)
-            macs = g.n_windows * cfg.n_features
-            out["all_hog_channel_cells"] += cc
-            out["all_score_macs"] += macs
-            if i == 0:
-                out["hog_channel_cells"] += cc
-                out["windows"] += g.n_windows
-                out["score_macs"] += macs
-                out["features"] = float(cfg.n_features)
-    return out
+    main = scan_cost(det, shape, parts=(det.parts[0],), channels=True)
+    every = scan_cost(det, shape, channels=True)
+    return {"features": float(det.scorers[0].config.n_features), "hog_channel_cells": main["hog_cells"],
+            "windows": main["windows"], "score_macs": main["score_macs"],
+            "all_hog_channel_cells": every["hog_cells"], "all_score_macs": every["score_macs"]}
 
 
 def least_offset(scores: np.ndarray, reference: np.ndarray, threshold: float = 0.0) -> float:
