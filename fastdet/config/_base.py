@@ -10,9 +10,10 @@ import hashlib
 import json
 import types
 import typing
-from typing import Any, TypeVar, Union, get_args, get_origin
+from typing import TYPE_CHECKING, Any, TypeVar, Union, get_args, get_origin
 
-from typing_extensions import Self
+if TYPE_CHECKING:  # typing.Self is 3.11+; typing_extensions is only needed by type checkers
+    from typing_extensions import Self
 
 C = TypeVar("C", bound="Config")
 
