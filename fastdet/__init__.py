@@ -7,6 +7,7 @@ Public API (the heavy parts are imported lazily, so ``import fastdet`` is cheap)
     from fastdet import Detector, VideoDetector      # one frame / a stream of frames
     from fastdet import load_model, Model            # the bundled or a trained model
     from fastdet import Detections                   # the box table: boxes + scores, scale, part, ids, frames ...
+    from fastdet import sample_video                 # the path of the sample clip that ships with fastdet
     from fastdet import PipelineConfig               # every setting of the video pipeline (fastdet.config)
     from fastdet import FeatureConfig, SearchConfig, SearchBand, HeatConfig, MotionGate, TrackerConfig
 
@@ -45,6 +46,7 @@ if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers and
     from .features import hog_channels as hog_channels
     from .features import hog_channels_batch as hog_channels_batch
     from .model import Model as Model
+    from .data import sample_video as sample_video
     from .model import load_model as load_model
     from .video import HeatMap as HeatMap
     from .video import VideoDetector as VideoDetector
@@ -69,6 +71,7 @@ _LAZY = {
     "HeatMap": "fastdet.video",
     "load_model": "fastdet.model",
     "Model": "fastdet.model",
+    "sample_video": "fastdet.data",
 }
 
 __all__ = ["__version__", "FastdetError", "ModelError", "DataError", *_LAZY]
