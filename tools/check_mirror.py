@@ -56,7 +56,7 @@ def unmirrored(root: Path = ROOT) -> list[Path]:
 def ratio(root: Path = ROOT) -> float:
     """The share of public modules with a mirrored test module (1.0 for none at all)."""
     public = public_modules(root)
-    return 1.0 - len(unmirrored(root)) / len(public) if public else 1.0
+    return (len(public) - len(unmirrored(root))) / len(public) if public else 1.0
 
 
 def main(argv: list[str] | None = None) -> int:
