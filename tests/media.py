@@ -58,6 +58,27 @@ def write_video(path: Path, n: int, codec: Sequence[str] = INTRA, w: int = 320, 
     return path
 
 
+def cut(src: Path, dst: Path, start: int, n: int) -> Path:
+    """Frames ``start .. start + n - 1`` of ``src`` re-encoded (mp4v) into ``dst``."""
+    cap = cv2.VideoCapture(str(src))
+    for _ in range(start):
+        assert cap.grab()
+    ok, frame = cap.read()
+    assert ok
+    h, w = frame.shape[:2]
+    out = cv2.VideoWriter(str(dst), cv2.VideoWriter_fourcc(*"mp4v"), 25, (w, h))
+    assert out.isOpened()
+    k = 0
+    while ok and k < n:
+        out.write(frame)
+        k += 1
+        ok, frame = cap.read()
+    out.release()
+    cap.release()
+    assert k == n
+    return dst
+
+
 def ffmpeg(*args: str) -> None:
     subprocess.run([FFMPEG, "-v", "error", "-y", *args], check=True)
 

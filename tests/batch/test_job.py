@@ -1,6 +1,7 @@
-"""``python -m fastdet batch``: inputs, manifest, and whole runs on a LocalCluster of 2
-workers and on a real ``dask scheduler`` + ``dask worker`` cluster, on short clips cut from
-the annotated clips in the test (plus a broken file)."""
+"""fastdet/batch/job.py: whole ``python -m fastdet batch`` runs on a LocalCluster of 2 workers
+and on a real ``dask scheduler`` + ``dask worker`` cluster, on short clips cut from the
+annotated clips in the test (plus a broken file). The modules it runs have their own test
+modules beside this one (inputs, manifest, progress, runs, task, cluster, ...)."""
 from __future__ import annotations
 
 import json
@@ -20,41 +21,15 @@ pytest.importorskip("distributed")
 pyarrow = pytest.importorskip("pyarrow")
 import pyarrow.parquet as pq
 
-from fastdet.batch import job
-from fastdet.batch.inputs import batch_writes, expand_inputs, output_names
-from fastdet.batch.job import BatchInterrupted, remove_run, remove_stale_runs, run_id
-from fastdet.batch.manifest import Manifest, input_stat
-from fastdet.batch.progress import BatchProgress
-from fastdet.batch.settings import MANIFEST_NAME, SUFFIXES, Settings, output_paths
-from fastdet.batch.task import PARTIAL_DIR, VideoTask, commit_outputs, partial_path, run_dir, run_video
-from fastdet.cli.main import main
-from fastdet.errors import DataError, FastdetError, WriteError
+from fastdet.batch.job import remove_run
+from fastdet.batch.settings import Settings
+from fastdet.batch.task import PARTIAL_DIR, VideoTask, commit_outputs, run_video
 from fastdet.io.atomic import process_token
 from fastdet.io.motfiles import read_predictions
+from tests.media import cut
 
 FASTDET = [sys.executable, "-m", "fastdet"]
 TIMEOUT = 240
-
-
-def cut(src: Path, dst: Path, start: int, n: int) -> Path:
-    """Frames ``start .. start + n - 1`` of ``src`` re-encoded (mp4v) into ``dst``."""
-    cap = cv2.VideoCapture(str(src))
-    for _ in range(start):
-        assert cap.grab()
-    ok, frame = cap.read()
-    assert ok
-    h, w = frame.shape[:2]
-    out = cv2.VideoWriter(str(dst), cv2.VideoWriter_fourcc(*"mp4v"), 25, (w, h))
-    assert out.isOpened()
-    k = 0
-    while ok and k < n:
-        out.write(frame)
-        k += 1
-        ok, frame = cap.read()
-    out.release()
-    cap.release()
-    assert k == n
-    return dst
 
 
 def batch(*args: str | Path, timeout: float = TIMEOUT, env: dict | None = None) -> subprocess.CompletedProcess:
@@ -79,196 +54,6 @@ def run_and_commit(task: VideoTask) -> dict:
         commit_outputs(summary, task.out_dir)
         remove_run(Path(task.out_dir), task.run or process_token())
     return summary
-
-
-# ------------------------------------------------------------------------------------------
-# inputs, names, manifest: no cluster
-
-
-def test_inputs_folders_globs_lists_in_order_each_once(tmp_path: Path) -> None:
-    (tmp_path / "d" / "sub").mkdir(parents=True)
-    (tmp_path / "d" / ".hidden").mkdir()
-    for rel in ("d/b.mp4", "d/a.MP4", "d/sub/c.avi", "d/notes.txt.bak", "d/.x.mp4", "d/.hidden/h.mp4", "e.mkv"):
-        (tmp_path / rel).write_bytes(b"x")
-    lst = tmp_path / "list.txt"
-    lst.write_text("# clips\n\ne.mkv\nd/b.mp4\n")
-    got = expand_inputs([str(tmp_path / "d"), str(tmp_path / "*.mkv"), str(lst)])
-    rel = [p.relative_to(tmp_path).as_posix() for p in got]
-    assert rel == ["d/a.MP4", "d/b.mp4", "d/sub/c.avi", "e.mkv"]
-    assert all(p.is_absolute() for p in got)
-    with pytest.raises(DataError, match="file not found"):
-        expand_inputs([str(tmp_path / "nope.mp4")])
-    with pytest.raises(DataError, match="matches no video"):
-        expand_inputs([str(tmp_path / "*.mov")])
-    (tmp_path / "empty").mkdir()
-    with pytest.raises(DataError, match="no video found"):
-        expand_inputs([str(tmp_path / "empty")])
-
-
-def test_output_names_unique_and_stable() -> None:
-    vids = [Path("/x/day1/clip.mp4"), Path("/x/day2/clip.mp4"), Path("/y/clip.avi"), Path("/y/clip.mp4"),
-            Path("/z/other clip.mp4")]
-    names = output_names(vids)
-    assert names[4] == "other_clip"
-    assert len({n.lower() for n in names}) == len(names)
-    assert names[:2] == ["day1_clip", "day2_clip"]
-    # a name depends on the videos, not on their order
-    assert output_names(vids[::-1]) == names[::-1]
-
-
-def test_manifest_resume_rules_and_a_cut_short_line(tmp_path: Path) -> None:
-    video = tmp_path / "v.mp4"
-    video.write_bytes(b"0123")
-    box = tmp_path / "v.boxes.txt"
-    box.write_text("1,-1,1,2,3,4,0.5,-1,-1,-1\n")
-    m = Manifest(tmp_path / "manifest.jsonl")
-    entry = {"input": str(video), "name": "v", "status": "done", "settings_hash": "h",
-             "outputs": {"boxes": box.name}, "sizes": {box.name: box.stat().st_size}, **input_stat(video)}
-    m.append(entry)
-    outs = {"boxes": box}
-    assert Manifest(m.path).is_complete(video, "v", "h", outs)
-    assert not Manifest(m.path).is_complete(video, "v", "other settings", outs)
-    assert not Manifest(m.path).is_complete(video, "w", "h", outs)
-    assert not Manifest(m.path).is_complete(video, "v", "h", {**outs, "json": tmp_path / "v.boxes.jsonl"})
-    box.write_text("1,-1,1,2,3,4,0.5,-1,-1,-1\n2,-1,1,2,3,4,0.5,-1,-1,-1\n")  # changed size
-    assert not Manifest(m.path).is_complete(video, "v", "h", outs)
-    # a crash mid-line: the line is ignored and the file rewritten without it
-    with open(m.path, "a") as fh:
-        fh.write('{"input": "/b.mp4", "sta')
-    m2 = Manifest(m.path)
-    assert list(m2.entries) == [str(video)]
-    assert m.path.read_text().endswith("\n") and len(manifest_lines(tmp_path)) == 1
-
-
-def test_progress_counts_a_retried_attempt_once() -> None:
-    p = BatchProgress(["a", "b"], enabled=False)
-    p.on_event((0.0, {"name": "a", "token": "t1", "frames": 5, "expected": 10}))
-    p.on_event((0.0, {"name": "a", "token": "t2", "frames": 2, "expected": 10}))  # the retry
-    p.on_event((0.0, {"name": "b", "token": "t3", "frames": 4, "expected": 8}))
-    p.on_event((0.0, "garbage"))
-    assert sum(f for _, f in p._frames.values()) == 6
-    p.close()
-
-
-def test_stale_runs_removed_live_ones_kept(tmp_path: Path) -> None:
-    """A run removes only its own temporary folder, and at start-up the folders of runs on
-    this host whose process is gone -- never those of a run still going (another batch)."""
-    s = Settings.create(video=True)
-    host, _, _ = run_id().rpartition("-")[0].rpartition("-")
-    dead = subprocess.Popen([sys.executable, "-c", "pass"])
-    dead.wait()
-    runs = {"mine": run_id(), "live": f"{host}-{os.getppid()}-0123abcd", "dead": f"{host}-{dead.pid}-0123abcd",
-            "other-host": f"elsewhere-{dead.pid}-0123abcd"}
-    for r in runs.values():
-        for p in output_paths(tmp_path, "a", s).values():
-            partial_path(run_dir(tmp_path, r), p, "0123456789abcdef").parent.mkdir(parents=True, exist_ok=True)
-            partial_path(run_dir(tmp_path, r), p, "0123456789abcdef").write_bytes(b"x")
-    assert remove_stale_runs(tmp_path) == [runs["dead"]]
-    left = {p.name for p in (tmp_path / PARTIAL_DIR).iterdir()}
-    assert left == {runs["mine"], runs["live"], runs["other-host"]}
-    remove_run(tmp_path, runs["mine"])
-    assert {p.name for p in (tmp_path / PARTIAL_DIR).iterdir()} == {runs["live"], runs["other-host"]}
-
-
-def test_batch_never_reads_what_it_writes(tmp_path: Path) -> None:
-    d = tmp_path / "d"
-    d.mkdir()
-    for n in ("a.mp4", "a.annotated.mp4", "b.mov"):
-        (d / n).write_bytes(b"v")
-    writes = batch_writes(d, SUFFIXES.values(), [d / MANIFEST_NAME])
-    # a folder (or glob) holding the batch's own outputs: they are left out
-    assert [p.name for p in expand_inputs([str(d)], writes)] == ["a.mp4", "b.mov"]
-    assert [p.name for p in expand_inputs([str(d / "*.mp4")], writes)] == ["a.mp4"]
-    # named as an input (directly, through a symlink, in a list file): refused in one line
-    (tmp_path / "link.mp4").symlink_to(d / "a.annotated.mp4")
-    (tmp_path / "list.txt").write_text(f"{d / 'a.mp4'}\n{d / 'a.annotated.mp4'}\n")
-    for arg in (d / "a.annotated.mp4", tmp_path / "link.mp4", tmp_path / "list.txt"):
-        with pytest.raises(DataError, match="is a file this batch writes"):
-            expand_inputs([str(d / "a.mp4"), str(arg)], writes)
-    # the same folder as input with the output folder elsewhere: every video is an input
-    assert len(expand_inputs([str(d)], batch_writes(tmp_path / "o", SUFFIXES.values()))) == 3
-
-
-def test_cli_refuses_an_output_as_input_before_any_work(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
-    d = tmp_path / "d"
-    d.mkdir()
-    (d / "a.mp4").write_bytes(b"v")
-    (d / "a.annotated.mp4").write_bytes(b"keep")
-    assert main(["batch", str(d / "a.mp4"), str(d / "a.annotated.mp4"), "--out", str(d), "--video"]) == 2
-    assert "a.annotated.mp4: is a file this batch writes" in capsys.readouterr().err
-    assert (d / "a.annotated.mp4").read_bytes() == b"keep" and sorted(p.name for p in d.iterdir()) == [
-        "a.annotated.mp4", "a.mp4"]
-
-
-@pytest.mark.parametrize("address", ["not a url", "tcp://", "tcp://host-without-port", "http//x:1"])
-def test_scheduler_address_that_is_not_one(tmp_path: Path, capsys: pytest.CaptureFixture, address: str) -> None:
-    (tmp_path / "a.mp4").write_bytes(b"v")
-    assert main(["batch", str(tmp_path / "a.mp4"), "--out", str(tmp_path / "o"), "--scheduler", address]) == 2
-    err = capsys.readouterr().err
-    assert len(err.strip().splitlines()) == 1 and "is not a scheduler address" in err
-    assert not (tmp_path / "o").exists()
-
-
-def test_scheduler_that_never_answers_is_given_up_and_a_stop_wakes_the_wait(tmp_path: Path) -> None:
-    """An HTTP server where the scheduler should be: a Dask client's handshake waits there for
-    ever. The connection is given up after its timeout, and a stop signal ends the wait."""
-    from fastdet import signals
-    from tests.media import http_server
-
-    with http_server(tmp_path) as url:
-        addr = "tcp://" + url.split("://", 1)[1]
-        with pytest.raises(FastdetError, match="no answer in 1 s"):
-            job._connect(addr, timeout=1)
-        with signals.handled():
-            threading_timer = __import__("threading").Timer(0.5, os.kill, (os.getpid(), signal.SIGTERM))
-            threading_timer.start()
-            with signals.deferred(repeats=False, raise_on_exit=False), pytest.raises(BatchInterrupted) as stop:
-                job._connect(addr, timeout=120)
-            threading_timer.join()
-        assert stop.value.signum == signal.SIGTERM
-
-
-def test_a_failed_write_is_not_a_property_of_the_video(tmp_path: Path, data: Path, monkeypatch) -> None:
-    """A full disk (a write that fails), a temporary file that vanished: recorded as failed
-    but not ``permanent``, so the next run tries the video again."""
-    clip = cut(data / "videos" / "test_small1.mp4", tmp_path / "c.mp4", 0, 3)
-    s = Settings.create()
-    from fastdet.io.motfiles import MotWriter
-
-    def full(self, *a, **kw):
-        raise WriteError(f"{self.name}: cannot write (No space left on device)")
-
-    with monkeypatch.context() as m:
-        m.setattr(MotWriter, "write_detections", full)
-        summary = run_video(VideoTask(str(clip), "c", str(tmp_path / "o1"), s, None, "r1"))
-    assert summary["status"] == "failed" and summary["permanent"] is False and "No space" in summary["error"]
-    # a done task whose temporary file vanished before the batch renamed it
-    (tmp_path / "o2").mkdir()
-    summary = run_video(VideoTask(str(clip), "c", str(tmp_path / "o2"), s, None, "r2"))
-    assert summary["status"] == "done" and not (tmp_path / "o2" / "c.boxes.txt").exists()  # not renamed yet
-    Path(summary["partials"]["boxes"]).unlink()
-    with pytest.raises(WriteError, match="vanished"):
-        commit_outputs(summary, tmp_path / "o2")
-    man = Manifest(tmp_path / "m.jsonl")
-    man.append({"input": str(clip), "name": "c", "status": "failed", "permanent": False, "settings_hash": s.digest(),
-                **input_stat(clip)})
-    assert man.known_failure(clip, "c", s.digest()) is None  # tried again next run
-    # a bad video is permanent
-    bad = tmp_path / "bad.mp4"
-    bad.write_bytes(b"not a video" * 50)
-    summary = run_video(VideoTask(str(bad), "bad", str(tmp_path / "o3"), s, None, "r3"))
-    assert summary["status"] == "failed" and summary["permanent"] is True
-
-
-def test_without_dask_says_how_to_get_it(tmp_path: Path) -> None:
-    code = ("import sys; sys.modules['distributed'] = None\n"
-            "from fastdet.cli.main import main\n"
-            f"sys.exit(main(['batch', {str(tmp_path)!r}, '--out', {str(tmp_path / 'o')!r}]))")
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
-    assert r.returncode == 2, r.stderr
-    lines = r.stderr.strip().splitlines()
-    assert len(lines) == 1 and "pip install fastdet[cluster]" in lines[0]
-    assert not (tmp_path / "o").exists()
 
 
 # ------------------------------------------------------------------------------------------
@@ -390,17 +175,6 @@ def test_batch_rerun_skips_then_overwrite_redoes(first_run, clips: Path) -> None
     assert set(redone) == {"road", "oncoming", "broken"}
     assert all(f.stat().st_ino != before[f.name] for f in out.glob("*.boxes.*"))
     assert (out / "road.boxes.txt").read_bytes() != ref.read_bytes()  # with track ids again
-
-
-def test_batch_bad_arguments_one_line(tmp_path: Path, clips: Path, capsys: pytest.CaptureFixture) -> None:
-    for args, msg in (([tmp_path / "nope"], "file not found"),
-                      ([clips, "--table", tmp_path / "t.xlsx"], ".parquet or .csv"),
-                      ([clips, "--model", tmp_path / "m.npz"], "model file not found"),
-                      ([clips, "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "--workers")):
-        assert main(["batch", *map(str, args), "--out", str(tmp_path / "o")]) == 2, args
-        err = capsys.readouterr().err
-        assert len(err.strip().splitlines()) == 1 and msg in err, (args, err)
-    assert not (tmp_path / "o").exists()
 
 
 # ------------------------------------------------------------------------------------------

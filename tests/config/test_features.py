@@ -1,5 +1,5 @@
 """The configuration dataclasses: validation, derived sizes, dict round trips, frame rescaling.
-(HeatConfig's validation is tested beside the heat map, in tests/video/test_heatmap.py.)"""
+(HeatConfig's checks: tests/config/test_heat.py; MotionGate's: tests/config/test_motion.py.)"""
 from __future__ import annotations
 
 import dataclasses
@@ -145,9 +145,3 @@ def test_wide_search_bands_hold_whole_cells():
         cell = 8 * b.scale
         assert b.x_start == 0 and (b.x_stop / cell) == int(b.x_stop / cell), b
         assert b.y_stop - b.y_start >= 24 * b.scale  # room for one 64x24 window
-
-
-@pytest.mark.parametrize("v", [-1.0, 256.0, float("nan")])
-def test_motion_gate_refuses(v):
-    with pytest.raises(ValueError, match="min_motion"):
-        MotionGate(v)

@@ -1,5 +1,5 @@
 """fastdet.config: one to_dict / from_dict / digest for every config, PipelineConfig's checks,
-the CLI's one builder of it and the batch settings made of it."""
+the CLI's one builder of it (the batch settings made of it: tests/config/test_batch.py)."""
 from __future__ import annotations
 
 import json
@@ -89,21 +89,3 @@ def test_the_cli_builds_one_pipeline_config(cmd):
         flags += ["--no-track"]
         want = replace(want, tracker=None)
     assert pipeline_config(parse([*cmd, *flags])) == want
-
-
-def test_batch_settings_hash_the_model_files(tmp_path):
-    pytest.importorskip("distributed")
-    from fastdet.config.batch import Settings
-    from fastdet.config.models import DEFAULT_MODEL_PATH
-    from fastdet.errors import ModelError
-
-    copy = tmp_path / "m.npz"
-    copy.write_bytes(DEFAULT_MODEL_PATH.read_bytes())
-    a = Settings.create(PipelineConfig(model=str(copy)))
-    assert a.digest() == Settings.create().digest()  # the same contents elsewhere: the same work
-    assert a.pipeline.model == str(copy) and a.record()["model_sha256"] == a.model_sha256
-    copy.write_bytes(DEFAULT_MODEL_PATH.read_bytes() + b"\0")
-    assert Settings.create(PipelineConfig(model=str(copy))).digest() != a.digest()
-    assert Settings.create(video=True).digest() != Settings.create().digest()
-    with pytest.raises(ModelError, match="not found"):
-        Settings.create(PipelineConfig(oncoming=str(tmp_path / "none.npz")))

@@ -105,15 +105,6 @@ def test_detection_on_ignore_region_is_dropped():
     assert r.pr_scores.size == 6  # dropped predictions are not ranked
 
 
-def test_match_frame_flags():
-    tp, dropped, gi = match_frame(
-        np.array([[0, 0, 10, 10], [100, 0, 110, 10], [50, 50, 60, 60]], float), np.array([0.1, 0.2, 0.3]),
-        np.array([[0, 0, 10, 10]], float), np.array([[95, 0, 120, 20]], float))
-    assert tp.tolist() == [True, False, False]
-    assert dropped.tolist() == [False, True, False]
-    assert gi.tolist() == [0, -1, -1]
-
-
 def test_two_predictions_on_one_gt():
     gt = gt_of((1, 1, 0, 0, 100, 100, 1))
     # the better-placed box has the lower score: greedy by confidence gives the GT to the other

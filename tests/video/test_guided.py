@@ -40,14 +40,6 @@ def _plan(p, det):
     return p.plan(det.geometries(SHAPE), cfg.win_w, cfg.pixels_per_cell, SHAPE)
 
 
-def test_config():
-    g = GuidedSearch()
-    assert GuidedSearch.from_dict(g.to_dict()) == g and not g.full and GuidedSearch(every=1).full
-    for bad in ({"every": 0}, {"every": 2.5}, {"margin": -1}, {"memory": 0}, {"scales": (2.0, 1.0)}):
-        with pytest.raises(ValueError):
-            GuidedSearch(**bad)
-
-
 def test_merge_spans():
     assert merge_spans([(5, 9), (0, 2), (3, 4), (20, 22), (8, 12), (7, 7)], gap=1) == [(0, 12), (20, 22)]
     assert merge_spans([(0, 2), (10, 12)], gap=8) == [(0, 12)]

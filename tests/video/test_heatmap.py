@@ -272,27 +272,6 @@ def test_empty_input_and_bad_arguments():
         HeatMap((10, 10), score_kind="votes")
 
 
-@pytest.mark.parametrize("kw", [
-    dict(n_frames=0), dict(decay=0.0), dict(decay=1.5), dict(threshold=-1), dict(threshold=float("nan")),
-    dict(score_lo=1.0), dict(score_lo=2.0, score_hi=1.0), dict(w_max=0.5), dict(cell=0), dict(min_width=-1),
-    dict(max_aspect=0), dict(single_frame_threshold=-0.5), dict(extent=-0.1), dict(extent=1.5),
-    dict(split_gap=-0.5), dict(split_gap=float("inf")), dict(split_gap=0.5, box_mode="mean"),
-])
-def test_heatconfig_validation(kw):
-    with pytest.raises(ValueError):
-        HeatConfig(**kw)
-
-
-def test_heatconfig_single_frame_and_round_trip():
-    cfg = HeatConfig(n_frames=6, threshold=1.0, single_frame_threshold=3.0)
-    sf = cfg.single_frame()
-    assert sf.n_frames == 1 and sf.threshold == 3.0 and sf.cell == cfg.cell
-    assert cfg.single_frame(5.0).threshold == 5.0
-    assert HeatConfig.from_dict(cfg.to_dict()) == cfg
-    with pytest.raises(ValueError):
-        HeatConfig.from_dict({"bogus": 1})
-
-
 # ------------------------------------------------------------------------- label kernel
 # The blob labelling kernel (fastdet.video._label_kernels) against scipy.ndimage.label and the
 # flood fill of tests.reference; HeatMap's blob boxes against the SciPy-based code it replaced.

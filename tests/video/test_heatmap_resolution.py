@@ -9,19 +9,6 @@ from fastdet.detections import Detections
 from fastdet.video.heatmap import HeatMap
 
 
-def test_heat_for_frame_scales_box_sizes():
-    cfg = HeatConfig()  # min 40 x 20 px at 720 rows
-    assert (cfg.for_frame(720).min_width, cfg.for_frame(720).min_height) == (40, 20)
-    assert (cfg.for_frame(360).min_width, cfg.for_frame(360).min_height) == (20, 10)
-    assert (cfg.for_frame(1080).min_width, cfg.for_frame(1080).min_height) == (60, 30)
-    assert cfg.for_frame(360).reference_rows is None
-    assert cfg.for_frame(360).for_frame(100) == cfg.for_frame(360)  # already in pixels
-    pixels = HeatConfig(reference_rows=None)
-    assert pixels.for_frame(360) == pixels
-    with pytest.raises(ValueError):
-        HeatConfig(reference_rows=0)
-
-
 @pytest.mark.parametrize("rows", [360, 720, 1080])
 def test_heatmap_keeps_the_same_car_at_every_resolution(rows):
     # a car 36 x 24 px at 720 rows (just under min_width 40): dropped at every resolution;

@@ -67,14 +67,6 @@ def test_frame_motion_restarts_after_reset_and_size_change():
     assert window_motion(fm.update(np.zeros((8, 12, 3), np.uint8)), [[0, 0, 12, 8]])[0] == 0.0
 
 
-def test_motion_gate_validates():
-    assert MotionGate().min_motion == 45.0
-    assert MotionGate.from_dict(MotionGate(30).to_dict()) == MotionGate(30)
-    for bad in (-1, 256, float("nan")):
-        with pytest.raises(ValueError):
-            MotionGate(bad)
-
-
 # ---------------------------------------------------------------- on real frames, real model
 
 

@@ -13,12 +13,6 @@ from fastdet.video import motion as motion_mod
 from fastdet.video.motion import FrameMotion, window_motion
 
 
-@pytest.mark.parametrize("fps, lag", [(None, 1), (25.0, 1), (29.97, 1), (12.5, 1), (50.0, 2), (59.94, 2),
-                                      (100.0, 4)])
-def test_lag_follows_the_frame_rate(fps, lag):
-    assert MotionGate().lag(fps) == lag
-
-
 def _moving(n: int) -> list[np.ndarray]:
     out = []
     for i in range(n):

@@ -10,23 +10,11 @@ import pytest
 
 from fastdet.cli import eval as eval_cmd
 from fastdet.cli.main import build_parser
-from fastdet.config import PipelineConfig, oncoming_search
+from fastdet.config import PipelineConfig
 from fastdet.errors import FastdetError
 from fastdet.io.reader import FrameReader
 from fastdet.video import VideoDetector, make_detector
 from fastdet.video.refine import BoxRegressor, RefineConfig, load_regressor, refine
-
-
-def test_make_detector_puts_the_oncoming_search_on_the_side_traffic_comes_from():
-    for side in ("right", "left", "both"):
-        det = make_detector(PipelineConfig(traffic=side))
-        assert det.scorers[1].search == oncoming_search(side)
-    assert make_detector().scorers[1].search == oncoming_search("right")
-    left = make_detector(PipelineConfig(traffic="left")).scorers[1].search.bands
-    right = make_detector(PipelineConfig(traffic="right")).scorers[1].search.bands
-    assert left != right
-    with pytest.raises(ValueError, match="traffic"):
-        make_detector(PipelineConfig(traffic="middle"))  # type: ignore[arg-type]
 
 
 def test_refinement_is_on_by_default_and_can_be_turned_off():

@@ -76,8 +76,6 @@ def test_refine_moves_clamps_parts_and_clips() -> None:
     out = refine(frame, dets, _shift_right(SMALL, (1.0,), 0.25), RefineConfig(iterations=2))
     np.testing.assert_array_equal(out.boxes[0], [50, 20, 130, 70])  # 0.25 twice
     with pytest.raises(ValueError):
-        RefineConfig(iterations=0)
-    with pytest.raises(ValueError):
         refine(frame[..., 0], dets, BoxRegressor.zero(SMALL))
 
 
@@ -111,12 +109,6 @@ def test_cascade_stopping_and_total_growth_cap() -> None:
     np.testing.assert_allclose(small[0, 2] - small[0, 0], 40 * np.exp(0.05))
     big = refine_boxes(frame, b, _grow(SMALL, 0.2), RefineConfig(iterations=3, min_step=0.1))
     np.testing.assert_allclose(big, grown)
-    # off by default, and left out of the config's dict (its digest as before they existed)
-    assert "min_step" not in RefineConfig().to_dict() and "max_total_log_scale" not in RefineConfig().to_dict()
-    assert RefineConfig.from_dict(RefineConfig(min_step=0.1).to_dict()).min_step == 0.1
-    for bad in ({"min_step": -1.0}, {"max_total_log_scale": float("inf")}, {"max_total_log_scale": float("nan")}):
-        with pytest.raises(ValueError):
-            RefineConfig(**bad)
 
 
 def test_jitter_boxes() -> None:

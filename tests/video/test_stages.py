@@ -7,7 +7,7 @@ import pytest
 
 from fastdet.config import PipelineConfig
 from fastdet.detections import Detections
-from fastdet.video import FrameDebug, VideoDetector, make_detector
+from fastdet.video import VideoDetector, make_detector
 from fastdet.video.stages import FrameState, Stage
 from tests.fakes import SquareDetector
 
@@ -47,20 +47,6 @@ def test_timings_name_every_stage_and_its_parts():
     assert set(vd.timings) == {"detect", "resize_colour", "hog", "score", "ownvehicle", "heatmap", "heat", "label",
                                "split", "weak", "track", "plausible"}
     assert all(v >= 0 for v in vd.timings.values())
-
-
-def test_frame_debug_is_a_new_record_every_frame_and_reset_clears_it():
-    vd = VideoDetector(SquareDetector(), PipelineConfig(refine=None, heat=PipelineConfig().heat.single_frame(1.0)))
-    assert isinstance(vd.debug, FrameDebug) and len(vd.debug.windows) == 0
-    out = vd.update(frame())
-    first = vd.debug
-    assert len(first.windows) == 3 and first.heat.shape == (90, 160) and first.mask.any()
-    assert first.labels.max() == 1 and len(first.boxes) == 1
-    assert [t[:2] for t in first.tracks] == [(1, "tracked")] and out.ids.tolist() == [1]
-    vd.update(frame())
-    assert vd.debug is not first and len(first.windows) == 3
-    vd.reset()
-    assert len(vd.debug.windows) == 0 and vd.debug.heat.shape == (0, 0)
 
 
 def test_a_stage_added_to_the_list_runs_on_the_state():

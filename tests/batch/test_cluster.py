@@ -1,0 +1,47 @@
+"""fastdet/batch/cluster.py: the scheduler's address checked, a scheduler that never answers
+given up, a stop signal during the wait; the Dask client's absence said in one line."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("distributed")
+
+from fastdet.batch import cluster
+from fastdet.batch.cluster import BatchInterrupted
+from fastdet.errors import FastdetError
+
+
+def test_scheduler_that_never_answers_is_given_up_and_a_stop_wakes_the_wait(tmp_path: Path) -> None:
+    """An HTTP server where the scheduler should be: a Dask client's handshake waits there for
+    ever. The connection is given up after its timeout, and a stop signal ends the wait."""
+    from fastdet import signals
+    from tests.media import http_server
+
+    with http_server(tmp_path) as url:
+        addr = "tcp://" + url.split("://", 1)[1]
+        with pytest.raises(FastdetError, match="no answer in 1 s"):
+            cluster._connect(addr, timeout=1)
+        with signals.handled():
+            threading_timer = __import__("threading").Timer(0.5, os.kill, (os.getpid(), signal.SIGTERM))
+            threading_timer.start()
+            with signals.deferred(repeats=False, raise_on_exit=False), pytest.raises(BatchInterrupted) as stop:
+                cluster._connect(addr, timeout=120)
+            threading_timer.join()
+        assert stop.value.signum == signal.SIGTERM
+
+
+def test_without_dask_says_how_to_get_it(tmp_path: Path) -> None:
+    code = ("import sys; sys.modules['distributed'] = None\n"
+            "from fastdet.cli.main import main\n"
+            f"sys.exit(main(['batch', {str(tmp_path)!r}, '--out', {str(tmp_path / 'o')!r}]))")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "pip install fastdet[cluster]" in lines[0]
+    assert not (tmp_path / "o").exists()

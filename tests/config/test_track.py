@@ -1,0 +1,30 @@
+"""fastdet/config/track.py: TrackerConfig's checks and round trip (the tracker it configures:
+tests/video/test_track.py)."""
+from __future__ import annotations
+
+import pytest
+
+from fastdet.config import TrackerConfig
+
+
+def test_tracker_config_is_checked():
+    with pytest.raises(ValueError):
+        TrackerConfig(low_heat=1.5)
+    with pytest.raises(ValueError):
+        TrackerConfig(min_hits=0)
+    with pytest.raises(ValueError):
+        TrackerConfig(output="kalman")
+    with pytest.raises(ValueError):
+        TrackerConfig(hold_row=1)
+    for bad in (-0.1, 1.0, 1.5):
+        with pytest.raises(ValueError):
+            TrackerConfig(exit_outside=bad)
+    for bad in (0, 1.5):
+        with pytest.raises(ValueError):
+            TrackerConfig(exit_after=bad)
+    for bad in (-0.1, float("inf"), float("nan")):
+        with pytest.raises(ValueError):
+            TrackerConfig(max_behind=bad)
+        with pytest.raises(ValueError):
+            TrackerConfig(behind_speed=bad)
+    assert TrackerConfig.from_dict(TrackerConfig().to_dict()) == TrackerConfig()
