@@ -21,6 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import DataError
+from ..io.images import read_image
+from ..io.reader import read_frames_at
+
 #: a vehicle narrower than this fraction of the picture's width is an ignore region (data README)
 MIN_WIDTH_FRACTION = 1 / 32
 #: ... and so is one narrower than this many pixels
@@ -70,9 +74,29 @@ class AnnotatedPicture:
         :func:`fastdet.io.images.read_image`, a video frame through the frame reader).
         Raises :class:`~fastdet.errors.DataError` when it does not decode or its size is not
         the labelled one."""
-        from .load import load_picture
-
         return load_picture(self)
+
+
+def _check_pixels(pic: AnnotatedPicture, img: np.ndarray) -> np.ndarray:
+    """``img`` if it is a colour picture of ``pic``'s size; DataError naming the file otherwise."""
+    if img.ndim != 3 or img.shape[2] != 3:
+        raise DataError(f"{pic.path}: not a colour picture (shape {img.shape})")
+    if img.shape[:2] != (pic.height, pic.width):
+        raise DataError(f"{pic.path}: the picture is {img.shape[1]}x{img.shape[0]}, "
+                        f"its labels are for {pic.width}x{pic.height}")
+    return img
+
+
+def load_picture(pic: AnnotatedPicture) -> np.ndarray:
+    """``(height, width, 3) uint8`` BGR pixels of ``pic``; :class:`DataError` if they do not
+    decode or are not the labelled size. (Here rather than in :mod:`.load` so that the two
+    modules do not import each other; :mod:`.load` re-exports it.)"""
+    if pic.frame is None:
+        return _check_pixels(pic, read_image(pic.path))
+    got = read_frames_at(pic.path, [pic.frame], notify=lambda _: None)
+    if pic.frame not in got:
+        raise DataError(f"{pic.path}: the video ends before frame {pic.frame}")
+    return _check_pixels(pic, got[pic.frame])
 
 
 def split_small(boxes: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray]:
