@@ -12,7 +12,9 @@ only. Boxes are ``x1, y1, x2, y2`` float64 in the picture's own pixels.
   and false alarms be counted on it; a set whose labels are partial (only some cars boxed,
   some vehicle kinds never) is *positives only* and has ``complete=False``.
 - ``camera``: which camera took it (``"dawn_fog/foggy-001"``, ``"idd_mini/frontFar"``,
-  ``"kitti_tiny"``, ``"clip:highway_640"``): the unit of leave-camera-out scoring.
+  ``"kitti"``, ``"clip:highway_640"``): the unit of leave-camera-out scoring.
+- ``labelled_by``: ``"human"`` or ``"teacher"`` (a CNN detector's output,
+  :mod:`fastdet.labels.teacher`): teacher boxes train, only human boxes judge.
 """
 from __future__ import annotations
 
@@ -29,6 +31,8 @@ from ..io.reader import read_frames_at
 MIN_WIDTH_FRACTION = 1 / 32
 #: ... and so is one narrower than this many pixels
 MIN_WIDTH_PX = 24.0
+#: who drew a picture's boxes (``AnnotatedPicture.labelled_by``)
+LABELLERS = ("human", "teacher")
 
 
 def _boxes(value: object) -> np.ndarray:
@@ -58,11 +62,19 @@ class AnnotatedPicture:
     ignores: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
     complete: bool = True
     frame: int | None = None
+    labelled_by: str = "human"
 
     def __post_init__(self) -> None:
+        if self.labelled_by not in LABELLERS:
+            raise ValueError(f"labelled_by must be one of {LABELLERS}, got {self.labelled_by!r}")
         object.__setattr__(self, "targets", _boxes(self.targets))
         object.__setattr__(self, "ignores", _boxes(self.ignores))
         object.__setattr__(self, "path", Path(self.path))
+
+    @property
+    def human(self) -> bool:
+        """The labels are a person's (ground truth), not a teacher's."""
+        return self.labelled_by == "human"
 
     @property
     def boxes(self) -> np.ndarray:

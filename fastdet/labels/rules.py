@@ -85,11 +85,13 @@ def apply_rules(boxes: Iterable[Box], width: int, height: int) -> tuple[np.ndarr
 
 
 def make_picture(*, source: str, camera: str, name: str, path: Path, width: int, height: int,
-                 boxes: Iterable[Box], complete: bool, frame: int | None = None) -> AnnotatedPicture:
+                 boxes: Iterable[Box], complete: bool, frame: int | None = None,
+                 labelled_by: str = "human") -> AnnotatedPicture:
     """An :class:`AnnotatedPicture` of ``boxes`` by :func:`apply_rules`."""
     targets, ignores = apply_rules(boxes, width, height)
     return AnnotatedPicture(source=source, camera=camera, name=name, path=path, width=width, height=height,
-                            targets=targets, ignores=ignores, complete=complete, frame=frame)
+                            targets=targets, ignores=ignores, complete=complete, frame=frame,
+                            labelled_by=labelled_by)
 
 
 def number(text: str, what: str, where: str) -> float:

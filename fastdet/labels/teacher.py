@@ -13,8 +13,8 @@ number them): 2 car, 5 bus, 7 truck are vehicles; 1 bicycle, 3 motorcycle are tw
 any other index below 80 is dropped (a person, a traffic light); 80 and above is refused.
 
 One :class:`~fastdet.labels.picture.AnnotatedPicture` per listed frame (a listed frame without
-lines: the teacher saw nothing there), ``complete=True`` (the teacher looked at the whole
-frame):
+lines: the teacher saw nothing there), ``labelled_by="teacher"``, ``complete=True`` (the
+teacher looked at the whole frame):
 
 - a vehicle with ``score >= min_score`` (default 0.3: the teacher's F1 is 0.96 there on the
   annotated clips) is a target;
@@ -87,17 +87,18 @@ def parse_teacher(text: str, source: str, min_score: float = MIN_SCORE) -> dict[
 
 
 def read_teacher_clip(path: str | Path, *, min_score: float = MIN_SCORE, source: str | None = None,
-                      camera: str | Callable[[str], str] | None = None,
+                      camera: str | Callable[[str], str] | None = None, complete: bool = True,
                       video: str | Path | None = None) -> list[AnnotatedPicture]:
     """The frames a teacher looked at in one clip (``CLIP.teacher.txt`` and ``CLIP.frames``
-    beside it; see the module docstring), in frame order. source: the set's name (default
-    ``CLIP``); camera: default ``teacher:CLIP``; the picture's name is ``CLIP:FRAME``; video:
-    the clip's video when it is not found by :func:`~fastdet.labels.mot.find_video`."""
+    beside it; see the module docstring), in frame order, ``labelled_by="teacher"``. source:
+    the set's name (default ``teacher:CLIP``); camera: default ``teacher:CLIP``; the picture's
+    name is ``CLIP:FRAME``; complete: False to use the frames as positives only; video: the
+    clip's video when it is not found by :func:`~fastdet.labels.mot.find_video`."""
     if not 0.0 <= min_score <= 1.0:
         raise DataError(f"min-score must be 0 to 1, got {min_score:g}")
     path = Path(path)
     clip = clip_name(path, TEACHER_SUFFIX)
-    source = source or clip
+    source = source or f"teacher:{clip}"
     frames_path = path.with_name(clip + FRAMES_SUFFIX)
     boxes = parse_teacher(read_text(path, "teacher file"), str(path), min_score)
     frames = [int(f) for f in read_keyframes(frames_path)]
@@ -113,18 +114,18 @@ def read_teacher_clip(path: str | Path, *, min_score: float = MIN_SCORE, source:
         name = f"{clip}:{f}"
         pictures.append(make_picture(source=source, camera=camera_for(camera, f"teacher:{clip}", name),
                                      name=name, path=vid, width=width, height=height, boxes=boxes.get(f, []),
-                                     complete=True, frame=f))
+                                     complete=complete, frame=f, labelled_by="teacher"))
     return not_empty(pictures, path, "frames")
 
 
 def read_teacher(path: str | Path, *, min_score: float = MIN_SCORE, source: str | None = None,
-                 camera: str | Callable[[str], str] | None = None) -> list[AnnotatedPicture]:
+                 camera: str | Callable[[str], str] | None = None, complete: bool = True) -> list[AnnotatedPicture]:
     """The teacher's frames of one clip (``path`` a ``CLIP.teacher.txt``) or of every clip of
     a folder (``ROOT`` with ``teacher/``, or the ``teacher/`` folder itself), clips in name
     order; see :func:`read_teacher_clip`."""
     path = Path(path)
     if path.is_file():
-        return read_teacher_clip(path, min_score=min_score, source=source, camera=camera)
+        return read_teacher_clip(path, min_score=min_score, source=source, camera=camera, complete=complete)
     folder = check_folder(path, "teacher")
     if (folder / "teacher").is_dir():
         folder = folder / "teacher"
@@ -133,5 +134,5 @@ def read_teacher(path: str | Path, *, min_score: float = MIN_SCORE, source: str 
         raise DataError(f"{folder}: no *{TEACHER_SUFFIX} teacher files")
     out: list[AnnotatedPicture] = []
     for f in files:
-        out.extend(read_teacher_clip(f, min_score=min_score, source=source, camera=camera))
+        out.extend(read_teacher_clip(f, min_score=min_score, source=source, camera=camera, complete=complete))
     return out
