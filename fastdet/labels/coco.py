@@ -129,12 +129,12 @@ def read_coco(path: str | Path, *, source: str | None = None, camera: str | Call
         bbox = a.get("bbox")
         if not isinstance(bbox, list) or len(bbox) != 4:
             raise DataError(f"{where}: bbox must be [x, y, width, height], got {json.dumps(bbox)[:60]}")
-        x, y, w, h = (_num(v, "bbox", where) for v in bbox)
+        bx, by, bw, bh = (_num(v, "bbox", where) for v in bbox)
         kind = kinds[cid]
         if kind is None:
             continue
         crowd = a.get("iscrowd", 0) not in (0, False, None)
-        boxes[iid].append(Box(x, y, x + w, y + h, kind and not crowd, where))
+        boxes[iid].append(Box(bx, by, bx + bw, by + bh, kind and not crowd, where))
 
     pictures = []
     for iid, (fn, w, h, where) in entries.items():

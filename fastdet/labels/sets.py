@@ -57,18 +57,18 @@ class FrameSpec:
 
     def read(self) -> list[AnnotatedPicture]:
         """The set's pictures (DataError on the first error of the whole set)."""
-        common = {"camera": self.camera, "complete": self.complete}
+        cam, complete = self.camera, self.complete
         if self.format == "yolo":
-            return read_yolo(self.path, **common)
+            return read_yolo(self.path, camera=cam, complete=complete)
         if self.format == "voc":
-            return read_voc(self.path, **common)
+            return read_voc(self.path, camera=cam, complete=complete)
         if self.format == "coco":
-            return read_coco(self.path, **common)
+            return read_coco(self.path, camera=cam, complete=complete)
         if self.format == "kitti":
-            return read_kitti(self.path, **common)
+            return read_kitti(self.path, camera=cam, complete=complete)
         if self.format == "mot":
-            return read_mot(self.path, every=self.every, **common)
-        return read_teacher(self.path, min_score=self.min_score, **common)
+            return read_mot(self.path, every=self.every, camera=cam, complete=complete)
+        return read_teacher(self.path, min_score=self.min_score, camera=cam, complete=complete)
 
 
 def _float(spec: str, key: str, value: str) -> float:

@@ -113,8 +113,8 @@ def read_yolo(root: str | Path, *, source: str | None = None, camera: str | Call
     for stem in sorted(images):
         path = images[stem]
         width, height = image_size(path)
-        label = labels.get(stem)
-        boxes = [] if label is None else parse_yolo(read_text(label), str(label), kinds, width, height)
+        lab = labels.get(stem)
+        boxes = [] if lab is None else parse_yolo(read_text(lab), str(lab), kinds, width, height)
         name = path.relative_to(images_dir).as_posix()
         pictures.append(make_picture(source=source, camera=camera_for(camera, source, name), name=name,
                                      path=path, width=width, height=height, boxes=boxes, complete=complete))
