@@ -22,9 +22,33 @@ _SOF = {0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7, 0xC9, 0xCA, 0xCB, 0xCD, 0xCE, 
 _NO_LENGTH = {0x01, *range(0xD0, 0xDA)}
 
 
-def _jpeg_size(fh: BinaryIO) -> tuple[int, int] | None:
-    """``(width, height)`` from the first SOFn segment of the JPEG ``fh`` (positioned after
-    its SOI marker); None when the file ends or is damaged before one."""
+def exif_orientation(app1: bytes) -> int:
+    """The EXIF orientation tag (1 to 8; 1 = as stored) of an APP1 segment's payload, 1 when
+    it has none (or is no EXIF)."""
+    if not app1.startswith(b"Exif\x00\x00") or len(app1) < 14:
+        return 1
+    tiff = app1[6:]
+    order = {b"II": "<", b"MM": ">"}.get(tiff[:2])
+    if order is None:
+        return 1
+    try:
+        (ifd,) = struct.unpack(order + "I", tiff[4:8])
+        (count,) = struct.unpack(order + "H", tiff[ifd:ifd + 2])
+        for k in range(count):
+            at = ifd + 2 + 12 * k
+            tag, _kind, _n = struct.unpack(order + "HHI", tiff[at:at + 8])
+            if tag == 0x0112:
+                (value,) = struct.unpack(order + "H", tiff[at + 8:at + 10])
+                return int(value)
+    except struct.error:
+        return 1
+    return 1
+
+
+def _jpeg_size(fh: BinaryIO) -> tuple[int, int, int] | None:
+    """``(width, height, EXIF orientation)`` from the segments of the JPEG ``fh`` (positioned
+    after its SOI marker) up to the first SOFn; None when the file ends or is damaged before."""
+    orientation = 1
     while True:
         b = fh.read(1)
         while b and b != b"\xff":  # stray bytes between segments: skip
@@ -49,18 +73,29 @@ def _jpeg_size(fh: BinaryIO) -> tuple[int, int] | None:
             if len(body) < 5:
                 return None
             height, width = struct.unpack(">HH", body[1:5])
-            return width, height
-        fh.seek(length - 2, os.SEEK_CUR)
+            return width, height, orientation
+        if marker == 0xE1 and orientation in (0, 1):
+            orientation = exif_orientation(fh.read(length - 2))
+        else:
+            fh.seek(length - 2, os.SEEK_CUR)
 
 
 def header_size(path: str | os.PathLike[str]) -> tuple[int, int] | None:
     """``(width, height)`` in pixels from a JPEG or PNG file's header, or None when the file
-    is neither (or its header is damaged). Reads only the header: no pixel is decoded."""
+    is neither (or its header is damaged). Reads only the header: no pixel is decoded.
+    A JPEG whose EXIF orientation says to turn it is a :class:`DataError`: OpenCV decodes it
+    turned, and whether a labelling tool drew the boxes on the stored or the turned picture
+    cannot be told."""
     with open(path, "rb") as fh:
         start = fh.read(8)
         if start.startswith(b"\xff\xd8"):
             fh.seek(2)
-            return _jpeg_size(fh)
+            got = _jpeg_size(fh)
+            if got is not None and 2 <= got[2] <= 8:  # 0 and other values: invalid, read as 1
+                raise DataError(f"{os.fspath(path)}: the JPEG says to turn it (EXIF orientation {got[2]}): "
+                                f"are its labels for the picture as stored or as turned? Save it turned "
+                                f"(without the orientation tag) and label that")
+            return None if got is None else got[:2]
         if start == _PNG_SIGNATURE:
             chunk = fh.read(16)  # length, b"IHDR", width, height
             if len(chunk) == 16 and chunk[4:8] == b"IHDR":

@@ -1,6 +1,8 @@
 """fastdet.labels.imagesize: picture sizes from file headers, video sizes from containers."""
 from __future__ import annotations
 
+import struct
+
 import cv2
 import numpy as np
 import pytest
@@ -77,3 +79,27 @@ def test_video_errors(tmp_path):
     one_error(lambda: video_size(tmp_path / "none.mp4"), tmp_path / "none.mp4", "not found")
     junk = write(tmp_path / "junk.mp4", "no video here")
     one_error(lambda: video_size(junk), junk, "not a video")
+
+
+def _with_orientation(path, orientation: int, order: str = "<"):
+    """A 91x37 JPEG with an EXIF APP1 segment holding ``orientation``."""
+    ok, data = cv2.imencode(".jpg", np.zeros((37, 91, 3), np.uint8))
+    bo = b"II" if order == "<" else b"MM"
+    tiff = bo + struct.pack(order + "HI", 42, 8) + struct.pack(order + "H", 1)
+    tiff += struct.pack(order + "HHIHH", 0x0112, 3, 1, orientation, 0) + struct.pack(order + "I", 0)
+    payload = b"Exif\x00\x00" + tiff
+    raw = data.tobytes()
+    path.write_bytes(raw[:2] + b"\xff\xe1" + (len(payload) + 2).to_bytes(2, "big") + payload + raw[2:])
+    return path
+
+
+@pytest.mark.parametrize("order", ["<", ">"])
+def test_exif_orientation(tmp_path, order):
+    """OpenCV decodes a JPEG turned by its EXIF orientation: its labels are ambiguous, refused."""
+    for value in (1, 0, 9):  # as stored; 0 and 9 are invalid and read as 1 (a real dawn_fog picture says 0)
+        upright = _with_orientation(tmp_path / f"up{value}.jpg", value, order)
+        assert image_size(upright) == (91, 37)
+        assert cv2.imread(str(upright)).shape[:2] == (37, 91)
+    turned = _with_orientation(tmp_path / "turned.jpg", 6, order)
+    assert cv2.imread(str(turned)).shape[:2] == (91, 37)  # what fastdet would decode: turned
+    one_error(lambda: image_size(turned), turned, "EXIF orientation 6")
