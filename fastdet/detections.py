@@ -197,7 +197,8 @@ class Detections:
     def from_frames(cls, frames: Iterable[tuple[int, Detections]], source: str = "<memory>") -> Detections:
         """One table of ``(frame number, detections)`` pairs (e.g. from
         :func:`fastdet.video.iter_video_detections`), in the order given: their rows with a
-        ``frames`` column and an ``ids`` column (-1 for the rows of frames without ids)."""
+        ``frames`` column and an ``ids`` column (-1 for the rows of frames without ids).
+        (The tables :func:`fastdet.detect_video` yields have both already: :meth:`concat` them.)"""
         rows = [d.with_frames(np.full(len(d), int(f), np.int64)) for f, d in frames]
         if not rows:
             e = cls.empty(source)
