@@ -5,8 +5,9 @@ Public API (the heavy parts are imported lazily, so ``import fastdet`` is cheap)
     from fastdet import hog, hog_channels            # skimage-compatible HOG, per-channel HOG
     from fastdet import hog_channels_batch           # per-channel HOG of a stack of crops
     from fastdet import Detector, VideoDetector      # one frame / a stream of frames
+    from fastdet import detect_video                 # a video file, as `python -m fastdet video` runs it
     from fastdet import load_model, Model            # the bundled or a trained model
-    from fastdet import Detections                   # the box table: boxes + scores, scale, part, ids, frames ...
+    from fastdet import Detections, Box              # the box table (boxes + scores, ids, frames ...), one row
     from fastdet import sample_video                 # the path of the sample clip that ships with fastdet
     from fastdet import PipelineConfig               # every setting of the video pipeline (fastdet.config)
     from fastdet import FeatureConfig, SearchConfig, SearchBand, HeatConfig, MotionGate, TrackerConfig
@@ -40,6 +41,7 @@ if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers and
     from .config import SearchConfig as SearchConfig
     from .config import TrackerConfig as TrackerConfig
     from .detect import Detector as Detector
+    from .detections import Box as Box
     from .detections import Detections as Detections
     from .features import extract_features as extract_features
     from .features import hog as hog
@@ -50,6 +52,7 @@ if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers and
     from .model import load_model as load_model
     from .video import HeatMap as HeatMap
     from .video import VideoDetector as VideoDetector
+    from .video import detect_video as detect_video
 
 # everything that imports NumPy is lazy: ``python -m fastdet`` imports this package before
 # its first line of its own runs, and installs its stop-signal handlers right after
@@ -62,12 +65,14 @@ _LAZY = {
     "SearchConfig": "fastdet.config",
     "TrackerConfig": "fastdet.config",
     "Detections": "fastdet.detections",
+    "Box": "fastdet.detections",
     "hog": "fastdet.features",
     "hog_channels": "fastdet.features",
     "hog_channels_batch": "fastdet.features",
     "extract_features": "fastdet.features",
     "Detector": "fastdet.detect",
     "VideoDetector": "fastdet.video",
+    "detect_video": "fastdet.video",
     "HeatMap": "fastdet.video",
     "load_model": "fastdet.model",
     "Model": "fastdet.model",

@@ -4,13 +4,15 @@ Every stage's result is one (a frame's windows, a frame's vehicles), and so is a
 clip's: the boxes of many frames with a ``frames`` column, as the MOTChallenge and
 JSON-lines readers of :mod:`fastdet.io.motfiles` return them and the evaluation scores them.
 Predictions have ``scores``; ground truth has none, and a ``consider`` column instead.
+Iterating over a table gives its rows, one :class:`Box` each; ``repr`` prints them as a
+small aligned table.
 """
 from __future__ import annotations
 
-import warnings
+import itertools
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, fields, replace
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -26,6 +28,36 @@ _DTYPES = {"scale": np.float32, "part": np.int8, "ids": np.int64, "frames": np.i
 #: what :meth:`Detections.concat` puts in a column for the rows of a part without it
 _FILL = {"scale": np.nan, "part": MAIN_PART, "ids": -1, "consider": True}
 _INT32 = np.iinfo(np.int32)
+#: the :class:`Box` field of each column, in :data:`COLUMNS` order
+ROW_FIELDS = {"scores": "score", "scale": "scale", "part": "part", "ids": "id", "frames": "frame",
+              "consider": "consider"}
+#: rows :meth:`Detections.__repr__` prints before ``... N more``
+REPR_ROWS = 10
+
+
+class Box(NamedTuple):
+    """One row of a :class:`Detections` table, as iterating over the table yields them
+    (``for box in d``): frozen, compared and unpacked as a tuple, fields by name.
+
+    x1, y1, x2, y2: the box (Python ``int`` for the pipeline's ``int32`` pixel boxes, ``x2, y2``
+        exclusive; ``float`` for a box file's continuous coordinates).
+    score, scale, part, id, frame, consider: the row's value of the table's ``scores``,
+        ``scale``, ``part``, ``ids``, ``frames`` and ``consider`` columns as Python scalars;
+        ``None`` where the table has no such column (ground truth has no ``score``, a
+        single frame's table no ``frame``). What ``score`` means depends on the stage: see
+        :class:`Detections`.
+    """
+
+    x1: float
+    y1: float
+    x2: float
+    y2: float
+    score: float | None = None
+    scale: float | None = None
+    part: int | None = None
+    id: int | None = None
+    frame: int | None = None
+    consider: bool | None = None
 
 
 def _boxes(value: Any) -> np.ndarray:
@@ -57,6 +89,17 @@ def _column(name: str, value: Any, n: int) -> np.ndarray:
     return a
 
 
+def _cell(name: str, v: Any) -> str:
+    """One value of :meth:`Detections.__repr__`'s table."""
+    if isinstance(v, int):  # bool too
+        return str(v)
+    if name == "score":
+        return f"{v:.4g}"
+    if name == "scale":
+        return f"{v:.3g}"
+    return f"{v:.6g}"  # a float box coordinate
+
+
 @dataclass(frozen=True, eq=False)
 class Detections:
     """Boxes, one row per box, with per-box columns (in the manner of supervision's ``Detections``).
@@ -67,9 +110,20 @@ class Detections:
         ``int32``, floating-point ones as ``float64`` (an empty table is ``int32``).
     scores: ``(N,) float32`` (``float64`` when given as ``float64``, e.g. read from a file),
         higher is more certain, or ``None`` (ground truth). What a score means depends on
-        the stage: for :meth:`fastdet.Detector.detect` windows, the probability of "vehicle"
-        (logistic-regression model) or the decision value (LinearSVC); for
-        :meth:`fastdet.VideoDetector.update` boxes, the peak heat of the box's blob.
+        the stage:
+
+        - a vehicle box -- :meth:`fastdet.VideoDetector.update`, :func:`fastdet.detect_video`,
+          ``python -m fastdet video`` (the ``conf`` of its box files), ``python -m fastdet
+          image`` -- scores the *peak heat* of the heat-map blob it came from: at its hottest
+          cell, the heat of the windows covering it over the recent frames (each window's heat
+          grows with its score; older frames decay), above the heat threshold
+          (``HeatConfig.threshold``, 4, in video; ``single_frame_threshold``, 8, in ``image``):
+          typically about 6 to 100. A weak blob that kept a track alive is at or below the
+          threshold, a box the offline pass added is 0;
+        - a window -- :meth:`fastdet.Detector.detect` -- scores the model's own value: the
+          probability of "vehicle" (0.5 to 1) for a logistic-regression model (the bundled
+          models), the decision value (> 0) for a LinearSVC one
+          (:attr:`Model.score_kind <fastdet.model.Model.score_kind>`).
     scale: ``(N,) float32`` or ``None``: the search band's scale of each window (a window
         is ``64 * scale`` frame pixels for 64-px windows).
     part: ``(N,) int8`` or ``None``: which model found each window: ``MAIN_PART`` (0) for
@@ -84,9 +138,12 @@ class Detections:
     source: where the rows came from (a file name), for messages; not a column.
 
     ``len(d)`` is the number of boxes, ``d[mask]`` / ``d[indices]`` / ``d[i:j]`` select rows
-    of every column, :meth:`concat` joins tables, :meth:`empty` has none, :meth:`by_frame`
-    splits a table of many frames. ``boxes, scores = d`` (the old tuple form) still works
-    but is deprecated: use ``d.boxes`` and ``d.scores``.
+    of every column (``d[i]`` is a one-row table), :meth:`concat` joins tables, :meth:`empty`
+    has none, :meth:`by_frame` splits a table of many frames. ``for box in d`` yields the
+    rows one :class:`Box` at a time (``box.x1 ... box.y2``, ``box.score``, ``box.id``,
+    ``box.frame``, ...; ``None`` for a column the table lacks); the columns themselves are
+    ``d.boxes``, ``d.scores``, ... ``repr(d)`` (and ``print(d)``) shows the rows as an aligned
+    table, the first :data:`REPR_ROWS` of them, then ``... N more``.
     """
 
     boxes: np.ndarray
@@ -140,7 +197,8 @@ class Detections:
     def from_frames(cls, frames: Iterable[tuple[int, Detections]], source: str = "<memory>") -> Detections:
         """One table of ``(frame number, detections)`` pairs (e.g. from
         :func:`fastdet.video.iter_video_detections`), in the order given: their rows with a
-        ``frames`` column and an ``ids`` column (-1 for the rows of frames without ids)."""
+        ``frames`` column and an ``ids`` column (-1 for the rows of frames without ids).
+        (The tables :func:`fastdet.detect_video` yields have both already: :meth:`concat` them.)"""
         rows = [d.with_frames(np.full(len(d), int(f), np.int64)) for f, d in frames]
         if not rows:
             e = cls.empty(source)
@@ -172,16 +230,30 @@ class Detections:
                 rows[name] = rows[name][index]
         return Detections(**rows)
 
-    def __iter__(self) -> Iterator[np.ndarray | None]:
-        warnings.warn("unpacking Detections as (boxes, scores) is deprecated; use .boxes and .scores",
-                      DeprecationWarning, stacklevel=2)
-        return iter((self.boxes, self.scores))
+    def __iter__(self) -> Iterator[Box]:
+        """The rows, one :class:`Box` at a time (Python scalars; ``None`` for absent columns)."""
+        n = len(self)
+        cols: list[Iterable[Any]] = [self.boxes[:, k].tolist() for k in range(4)]
+        for name in COLUMNS:
+            v = getattr(self, name)
+            cols.append(v.tolist() if v is not None else itertools.repeat(None, n))
+        return map(Box._make, zip(*cols))
 
     def __repr__(self) -> str:
-        extra = [n for n in COLUMNS if n != "scores" and getattr(self, n) is not None]
-        if self.scores is None:
-            extra.insert(0, "no scores")
-        return f"Detections({len(self)} boxes{', with ' + ', '.join(extra) if extra else ''})"
+        n = len(self)
+        head = f"Detections({n} box{'' if n == 1 else 'es'}"
+        head += (f" from {self.source}" if self.source != "<memory>" else "") + ")"
+        if n == 0:
+            return head
+        names = ["x1", "y1", "x2", "y2", *(ROW_FIELDS[c] for c in COLUMNS if getattr(self, c) is not None)]
+        shown = self[:REPR_ROWS]
+        table = [names] + [[_cell(name, v) for name, v in zip(Box._fields, row) if name in names]
+                           for row in shown]
+        widths = [max(len(r[k]) for r in table) for k in range(len(names))]
+        lines = [head, *("  ".join(c.rjust(w) for c, w in zip(r, widths)) for r in table)]
+        if n > REPR_ROWS:
+            lines.append(f"... {n - REPR_ROWS} more")
+        return "\n".join(lines)
 
     def by_frame(self) -> Iterator[tuple[int, Detections]]:
         """``(frame number, that frame's rows in table order)`` by ascending frame, for a

@@ -5,9 +5,12 @@ import dataclasses
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 
-from fastdet import Detections
-from fastdet.detections import MAIN_PART, ONCOMING_PART
+from fastdet import Box, Detections
+from fastdet.detections import COLUMNS, MAIN_PART, ONCOMING_PART, REPR_ROWS, ROW_FIELDS
 
 
 def _dets(n: int = 4, **cols) -> Detections:
@@ -135,11 +138,12 @@ def test_a_clip_table_from_frames_and_back_by_frame():
 def test_ground_truth_is_a_table_without_scores():
     gt = Detections(np.array([[0.5, 0, 10, 10], [1, 1, 5, 5]]), frames=[1, 2], ids=[1, 2], consider=[True, False])
     assert gt.scores is None and gt.num_considered == 1 and gt.targets.tolist() == [True, False]
-    assert repr(gt) == "Detections(2 boxes, with no scores, ids, frames, consider)"
+    assert repr(gt) == ("Detections(2 boxes)\n"
+                        " x1  y1  x2  y2  id  frame  consider\n"
+                        "0.5   0  10  10   1      1      True\n"
+                        "  1   1   5   5   2      2     False")
     assert Detections(gt.boxes).num_considered == 2 and Detections(gt.boxes).targets.all()
-    with pytest.warns(DeprecationWarning):
-        boxes, scores = gt
-    assert scores is None
+    assert [b.score for b in gt] == [None, None] and [b.consider for b in gt] == [True, False]
 
 
 def test_is_oncoming_and_with_ids():
@@ -153,13 +157,100 @@ def test_is_oncoming_and_with_ids():
         d.with_ids(np.array([1]))
 
 
-def test_tuple_unpacking_is_deprecated_but_works():
-    d = _dets(2)
-    with pytest.warns(DeprecationWarning, match=r"\.boxes and \.scores"):
-        boxes, scores = d
-    assert boxes is d.boxes and scores is d.scores
+def test_iteration_yields_one_box_a_row():
+    d = _dets(3, ids=[4, 5, 6])
+    rows = list(d)
+    assert len(rows) == 3 and all(isinstance(r, Box) for r in rows)
+    assert rows[1] == Box(1, 2, 11, 22, score=pytest.approx(0.1), id=5)
+    assert rows[1].x1 == 1 and rows[1].id == 5 and rows[1].frame is None and rows[1].scale is None
+    assert type(rows[0].x1) is int and type(rows[0].score) is float and type(rows[0].id) is int
+    x1, y1, x2, y2, *_ = rows[2]
+    assert (x1, y1, x2, y2) == (2, 4, 12, 24)
+    with pytest.raises(AttributeError):
+        rows[0].x1 = 7  # type: ignore[misc]  # a row is frozen
+    assert list(Detections.empty()) == []
+    # the old tuple unpacking is gone: a table of 2 rows unpacks into its 2 rows
+    a, b = _dets(2)
+    assert isinstance(a, Box) and b.x1 == 1
+    f = list(Detections([[0.5, 1, 2.25, 3]]))[0]
+    assert f == (0.5, 1.0, 2.25, 3.0, None, None, None, None, None, None) and type(f.y1) is float
 
 
-def test_repr_names_the_columns():
-    assert repr(_dets(2)) == "Detections(2 boxes)"
-    assert repr(_dets(2, scale=[1, 1], part=[0, 0])) == "Detections(2 boxes, with scale, part)"
+def test_repr_is_a_table_of_rows():
+    assert repr(Detections.empty()) == "Detections(0 boxes)"
+    assert repr(Detections(np.zeros((0, 4)), ids=np.zeros(0), frames=np.zeros(0))) == "Detections(0 boxes)"
+    d = Detections([[815, 395, 945, 505], [10, 20, 30, 40]], np.array([41.53, 6.2], np.float32), ids=[1, 12])
+    assert repr(d) == str(d) == ("Detections(2 boxes)\n"
+                                 " x1   y1   x2   y2  score  id\n"
+                                 "815  395  945  505  41.53   1\n"
+                                 " 10   20   30   40    6.2  12")
+    w = _dets(1, scale=[1.5], part=[ONCOMING_PART])
+    assert repr(w) == ("Detections(1 box)\n"
+                       "x1  y1  x2  y2  score  scale  part\n"
+                       " 0   0  10  20      0    1.5     1")
+    many = dataclasses.replace(_dets(25), source="preds.txt")
+    lines = repr(many).splitlines()
+    assert lines[0] == "Detections(25 boxes from preds.txt)" and lines[-1] == "... 15 more"
+    assert len(lines) == 2 + REPR_ROWS + 1 and lines[2].split() == ["0", "0", "10", "20", "0"]
+
+
+_cols = st.fixed_dictionaries({}, optional={
+    "scores": st.just("f"), "scale": st.just("f"), "part": st.just("i"), "ids": st.just("i"),
+    "frames": st.just("i"), "consider": st.just("b")})
+
+
+@st.composite
+def tables(draw) -> Detections:
+    n = draw(st.integers(0, 3 * REPR_ROWS))
+    if draw(st.booleans()):
+        boxes = draw(hnp.arrays(np.int32, (n, 4), elements=st.integers(-10**6, 10**6)))
+    else:
+        boxes = draw(hnp.arrays(np.float64, (n, 4), elements=st.floats(-1e6, 1e6, allow_nan=False)))
+    cols = {}
+    for name, kind in draw(_cols).items():
+        if kind == "f":
+            el = st.floats(-1e3, 1e3, allow_nan=False, width=32)
+            cols[name] = draw(hnp.arrays(np.float32, n, elements=el))
+        elif kind == "i":
+            cols[name] = draw(hnp.arrays(np.int8 if name == "part" else np.int64, n, elements=st.integers(-1, 120)))
+        else:
+            cols[name] = draw(hnp.arrays(np.bool_, n))
+    return Detections(boxes, **cols)
+
+
+@settings(max_examples=150, deadline=None)
+@given(tables())
+def test_rows_and_repr_of_random_tables(d):
+    rows = list(d)
+    assert len(rows) == len(d)
+    if len(d):  # the rows give back every column
+        np.testing.assert_array_equal(np.array([r[:4] for r in rows], d.boxes.dtype), d.boxes)
+        for name in COLUMNS:
+            got = [getattr(r, ROW_FIELDS[name]) for r in rows]
+            if getattr(d, name) is None:
+                assert got == [None] * len(d)
+            else:
+                np.testing.assert_array_equal(np.array(got, getattr(d, name).dtype), getattr(d, name))
+    for r, k in zip(rows, range(len(d))):  # and agree with d[i]
+        assert r == list(d[k])[0]
+    lines = repr(d).splitlines()
+    assert lines[0] == f"Detections({len(d)} box{'' if len(d) == 1 else 'es'})"
+    if not len(d):
+        assert lines == ["Detections(0 boxes)"]
+        return
+    shown = min(len(d), REPR_ROWS)
+    names = ["x1", "y1", "x2", "y2", *(ROW_FIELDS[c] for c in COLUMNS if getattr(d, c) is not None)]
+    assert lines[1].split() == names
+    assert len({len(line) for line in lines[1:2 + shown]}) == 1  # aligned: every row as wide
+    for line, r in zip(lines[2:2 + shown], rows):
+        cells = line.split()
+        assert len(cells) == len(names)
+        if d.boxes.dtype == np.int32:
+            assert [int(c) for c in cells[:4]] == list(r[:4])
+        else:  # 6 significant digits
+            np.testing.assert_allclose([float(c) for c in cells[:4]], r[:4], rtol=1e-5)
+        if r.id is not None:
+            assert int(cells[names.index("id")]) == r.id
+        if r.consider is not None:
+            assert cells[names.index("consider")] == str(r.consider)
+    assert lines[2 + shown:] == ([f"... {len(d) - REPR_ROWS} more"] if len(d) > REPR_ROWS else [])

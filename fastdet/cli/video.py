@@ -96,7 +96,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-o", "--output", metavar="OUTPUT.mp4",
                         help="annotated video (mp4v); written as .OUTPUT.partial.mp4, renamed when done")
     parser.add_argument("--boxes", metavar="BOXES.txt",
-                        help="boxes per frame, MOTChallenge: frame,id,left,top,width,height,conf,-1,-1,-1")
+                        help="boxes per frame, MOTChallenge: frame,id,left,top,width,height,conf,-1,-1,-1 "
+                             "(conf: the peak heat of the box's blob)")
     parser.add_argument("--json", metavar="BOXES.jsonl", help="boxes per frame as JSON lines")
     parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
     add_oncoming_arguments(parser)

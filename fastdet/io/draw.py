@@ -2,6 +2,11 @@
 
 Every function takes and returns BGR ``uint8`` images (OpenCV order). Functions named
 ``draw_*`` draw in place and return the same array; the others return new images.
+
+The number drawn on a vehicle's box (``python -m fastdet image``; beside the ``#id`` of the
+``video --debug`` overlay) is its score, the *peak heat* of its heat-map blob (about 6 to 100
+with the defaults; :class:`~fastdet.detections.Detections`), not a probability; the plain
+``video`` overlay labels a box with its track id ``#id`` only.
 """
 from __future__ import annotations
 
@@ -45,7 +50,9 @@ def label_color(label: int) -> tuple[int, int, int]:
 def draw_boxes(img: np.ndarray, boxes: np.ndarray, scores: np.ndarray | None = None,
                color: tuple[int, int, int] = BOX_COLOR, thickness: int = 2,
                fmt: str = "{:.1f}", scale: float = 1.0) -> np.ndarray:
-    """Draw ``x1, y1, x2, y2`` (exclusive) boxes, with ``scores`` as labels above them when given.
+    """Draw ``x1, y1, x2, y2`` (exclusive) boxes, with ``scores`` as labels above them when given
+    (for vehicle boxes the peak heat of their blob, for windows the model's score: the
+    module docstring).
 
     ``scale`` multiplies the coordinates first (to draw on a resized image)."""
     boxes = np.asarray(boxes).reshape(-1, 4)
@@ -99,8 +106,8 @@ class Trails:
 def draw_tracks(img: np.ndarray, dets: Detections, trails: Trails | None = None,
                 scores: bool = False, thickness: int = 2) -> np.ndarray:
     """Draw tracked boxes, each in the colour of its id (:func:`label_color`) with the label
-    ``#id`` (and its score with ``scores``), and the trail of its recent centres (thicker
-    towards now). Rows with id < 1 are drawn as :func:`draw_boxes` draws them."""
+    ``#id`` (and its score, the blob's peak heat, with ``scores``: ``#3 41.5``), and the trail
+    of its recent centres (thicker towards now). Rows with id < 1 are drawn as :func:`draw_boxes` draws them."""
     ids = dets.ids if dets.ids is not None else np.full(len(dets), -1, np.int64)
     font_scale = 0.5 if img.shape[0] >= 360 else 0.35
     for b, s, i in zip(dets.boxes, dets.scores, ids):

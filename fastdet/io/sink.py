@@ -64,7 +64,8 @@ class VideoSink:
     temporary name. ``put((frame, boxes, debug))`` then ``close()``.
 
     ``boxes`` is the frame's :class:`~fastdet.detections.Detections`; with ``ids`` they are
-    drawn as tracks (id label, colour and trail, :func:`fastdet.io.draw.draw_tracks`).
+    drawn as tracks (id label, colour and trail, :func:`fastdet.io.draw.draw_tracks`; with
+    ``debug`` the label is ``#id heat``, the box's score: its blob's peak heat).
     ``debug`` is ``None`` or ``(windows, heat, labels, mask[, tracks])`` for the debug
     panels (:func:`fastdet.io.draw.debug_panels`) and, with ``tracks``, every live track's
     predicted box (:func:`fastdet.io.draw.draw_track_states`)."""

@@ -10,8 +10,11 @@ Python API
     vd.debug.windows, vd.debug.heat, vd.debug.boxes, vd.debug.tracks   # the last frame (FrameDebug)
     vd.timings                                                         # seconds per stage
 
-``update`` runs a fixed sequence of stages (:mod:`fastdet.video.stages`); running a file is
-:func:`fastdet.video.run.iter_video_detections`.
+``update`` runs a fixed sequence of stages (:mod:`fastdet.video.stages`); running a file as
+``python -m fastdet video`` does is :func:`fastdet.detect_video` (:mod:`fastdet.video.run`),
+which also reads the first seconds ahead for the horizon and uses the file's frame rate: a
+loop like the one above gives other boxes and ids unless it does both
+(``VideoDetector(fps=fps)``, :meth:`VideoDetector.prime_horizon` before the first ``update``).
 """
 from __future__ import annotations
 
@@ -64,7 +67,9 @@ class VideoDetector:
 
     With ``horizon='auto'`` the bands follow the horizon estimated from the optical flow of
     the first frames (:mod:`fastdet.video.horizon`); :meth:`prime_horizon` gives it those
-    frames ahead of time; :meth:`reset` keeps it (a cut, same camera; another camera wants a
+    frames ahead of time (as :func:`fastdet.detect_video` and every command do for a file:
+    without it the first frames are searched at the reference horizon, and the boxes and ids
+    differ from theirs); :meth:`reset` keeps it (a cut, same camera; another camera wants a
     new VideoDetector). This needs a detector that can move its bands
     (:class:`~fastdet.video.detector.MovableHorizon`); the guided search needs one that scores
     only some columns (:class:`~fastdet.video.detector.ColumnSearch`); others search in full.
