@@ -6,6 +6,18 @@ writes what it saw as ``CLIP.teacher.txt`` + ``CLIP.frames`` (:mod:`.label`), th
 shared ``teacher/`` folder. onnxruntime is optional (``pip install 'fastdet[teacher]'``); it
 is imported only when a detector is made.
 """
+from .label import (
+    FRAMES_SUFFIX,
+    TEACHER_SUFFIX,
+    clip_name,
+    format_line,
+    label_frames,
+    label_video,
+    teacher_paths,
+    teacher_text,
+    write_teacher_files,
+)
 from .yolox import TeacherBoxes, TeacherDetector
 
-__all__ = ["TeacherBoxes", "TeacherDetector"]
+__all__ = ["FRAMES_SUFFIX", "TEACHER_SUFFIX", "TeacherBoxes", "TeacherDetector", "clip_name", "format_line",
+           "label_frames", "label_video", "teacher_paths", "teacher_text", "write_teacher_files"]
