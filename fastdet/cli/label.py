@@ -91,8 +91,8 @@ def _videos(source: str) -> list[str]:
     """The video files of VIDEO|DIR (a folder: its video files by name, sorted)."""
     from ..batch.inputs import is_video_name  # a table of extensions; no Dask imported
 
-    check_source(source)
     if not os.path.isdir(source):
+        check_source(source)
         return [source]
     found = sorted(os.path.join(source, f) for f in os.listdir(source)
                    if not f.startswith(".") and is_video_name(f) and os.path.isfile(os.path.join(source, f)))
