@@ -272,3 +272,28 @@ def test_a_stop_signal_leaves_no_file_under_the_final_name(model, long_clip, tmp
     assert "1 clip not labelled" in line and stdout == ""
     assert not (out / "long.teacher.txt").exists() and not (out / "long.frames").exists()
     assert not out.exists() or (list(out.iterdir()) == [] and leftovers(out) == [])
+
+
+@pytest.mark.slow
+def test_a_stop_keeps_the_clips_done_before_it(model, test_video, long_clip, tmp_path):
+    d = tmp_path / "in"
+    d.mkdir()
+    shutil.copy(test_video, d / "a.mp4")
+    shutil.copy(long_clip, d / "b.mp4")
+    out = tmp_path / "out"
+    p = subprocess.Popen(fastdet_cmd("label", d, "--teacher", model, "-o", out, "--every", "1", "--no-progress"),
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    end = time.monotonic() + 180
+    while not (out / "a.frames").exists():  # clip a done, b begun
+        assert p.poll() is None, p.communicate()
+        assert time.monotonic() < end
+        time.sleep(0.05)
+    time.sleep(0.5)
+    os.kill(p.pid, signal.SIGTERM)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 143, err
+    line = _one_line(err)
+    assert "interrupted (SIGTERM); 1 clip, 38 frames labelled" in line and "1 clip not labelled" in line, line
+    assert sorted(x.name for x in out.iterdir()) == ["a.frames", "a.teacher.txt"]
+    numbers, _ = parse_teacher(out / "a.teacher.txt", out / "a.frames")
+    assert numbers == list(range(1, 39))
