@@ -19,6 +19,8 @@ import os
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import FastdetError, WriteError
 from ..io.atomic import OutputSet, partial_name
 from ..io.reader import FrameReader
@@ -58,14 +60,14 @@ def format_line(frame: int, box: Iterable[float], score: float, cls: int) -> str
     return f"{frame},-1,{x1:.1f},{y1:.1f},{x2 - x1:.1f},{y2 - y1:.1f},{float(score):.3f},{int(cls)},-1,-1"
 
 
-def label_frames(frames: Iterable[tuple[int, object]], detector: TeacherDetector,
+def label_frames(frames: Iterable[tuple[int, np.ndarray]], detector: TeacherDetector,
                  every: int = 5) -> Iterator[Labelled]:
     """``(frame number, boxes)`` for every ``every``-th frame of ``frames`` (``(1-based
     number, (h, w, 3) uint8 BGR frame)`` pairs) from frame 1; the other frames are passed over."""
     every = check_every(every)
     for fno, frame in frames:
         if is_labelled(fno, every):
-            yield fno, detector.detect(frame)  # type: ignore[arg-type]
+            yield fno, detector.detect(frame)
 
 
 def label_video(source: str | os.PathLike[str], detector: TeacherDetector, every: int = 5,
