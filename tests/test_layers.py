@@ -10,7 +10,7 @@ ranked (a layer may import only layers of lower rank; a sub-package may import i
     2  config, boxes, detections               values and arithmetic
     3  features, io                            pixels in, files in and out
     4  model, labels                           a model file and its features; labelled pictures (read through io)
-    5  detect                                  one frame
+    5  detect, teacher                         one frame (teacher: a CNN detector that labels frames)
     6  video, eval, train                      a stream of frames; scoring; fitting
     7  batch                                   many videos
     8  fastdet (the package __init__)          the public API: re-exports the layers below
@@ -38,7 +38,7 @@ RANKS: dict[str, int] = {
     "config": 2, "boxes": 2, "detections": 2,
     "features": 3, "io": 3,
     "model": 4, "labels": 4,
-    "detect": 5,
+    "detect": 5, "teacher": 5,
     "video": 6, "eval": 6, "train": 6,
     "batch": 7,
     "": 8,  # fastdet/__init__.py

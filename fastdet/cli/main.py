@@ -35,6 +35,8 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "mine-negatives": ("fastdet.cli.mine", "save the windows the detector wrongly fires on as hard negatives"),
     "bench": ("fastdet.cli.bench", "time the pipeline stages on a video or image"),
     "batch": ("fastdet.cli.batch", "many videos in parallel on Dask (local or a cluster): boxes, manifest, resume"),
+    "label": ("fastdet.cli.label",
+              "a teacher CNN (ONNX) boxes every N-th frame of videos: CLIP.teacher.txt + CLIP.frames"),
     "warmup": ("fastdet.cli.warmup", "compile every numba kernel now (for images, CI and cluster workers)"),
 }
 

@@ -23,6 +23,7 @@ comparable, JSON round-trip through one :meth:`~fastdet.config.Config.to_dict` /
   perspective learnt from the tracked vehicles (:class:`PerspectiveConfig`);
 - :mod:`.models`: the bundled model files;
 - :mod:`.pipeline`: all of the video pipeline's settings in one value (:class:`PipelineConfig`);
+- :mod:`.teacher`: a teacher CNN that labels frames (:class:`TeacherConfig`);
 - :mod:`.batch`: a batch's settings and options (:class:`Settings`, :class:`BatchOptions`).
 
 A new setting goes into its stage's dataclass (a field with a default and a check in
@@ -59,16 +60,17 @@ from .search import (
 from .selfcal import SelfCalibration
 from .small import SMALL_FEATURES, SMALL_HEAT, SMALL_SEARCH, small_search
 from .split import NeighbourSplit
+from .teacher import COCO_VEHICLES, TeacherConfig
 from .track import TrackerConfig
 
-__all__ = ["BoxMode", "CELL", "COLOR_SPACES", "ColorSpace", "Config", "DEFAULT_MODEL_PATH", "FeatureConfig",
-           "GeometryConfig", "GuidedSearch", "HeatConfig", "Horizon", "JitterConfig", "MotionGate", "NeighbourSplit",
-           "ONCOMING_HEAT", "ONCOMING_MODEL_PATH", "ONCOMING_SEARCH", "OwnVehicleConfig", "PerspectiveConfig",
-           "PipelineConfig", "PlausibleConfig", "REFERENCE_HORIZON", "REFERENCE_SHAPE", "REFINE_MODEL_PATH",
-           "RefineConfig", "SIDE_HEAT", "SIDE_MODEL_PATH", "SIDE_SEARCH", "SMALL_FEATURES", "SMALL_HEAT",
-           "SMALL_MODEL_PATH", "SMALL_SEARCH", "ScoreKind", "SearchBand", "SearchConfig", "SelfCalibration",
-           "TRAFFIC_SIDES", "TrackerConfig", "Traffic", "WINDOW", "check_traffic", "oncoming_search", "side_search",
-           "small_search"]
+__all__ = ["BoxMode", "CELL", "COCO_VEHICLES", "COLOR_SPACES", "ColorSpace", "Config", "DEFAULT_MODEL_PATH",
+           "FeatureConfig", "GeometryConfig", "GuidedSearch", "HeatConfig", "Horizon", "JitterConfig", "MotionGate",
+           "NeighbourSplit", "ONCOMING_HEAT", "ONCOMING_MODEL_PATH", "ONCOMING_SEARCH", "OwnVehicleConfig",
+           "PerspectiveConfig", "PipelineConfig", "PlausibleConfig", "REFERENCE_HORIZON", "REFERENCE_SHAPE",
+           "REFINE_MODEL_PATH", "RefineConfig", "SIDE_HEAT", "SIDE_MODEL_PATH", "SIDE_SEARCH", "SMALL_FEATURES",
+           "SMALL_HEAT", "SMALL_MODEL_PATH", "SMALL_SEARCH", "ScoreKind", "SearchBand", "SearchConfig",
+           "SelfCalibration", "TRAFFIC_SIDES", "TeacherConfig", "TrackerConfig", "Traffic", "WINDOW", "check_traffic",
+           "oncoming_search", "side_search", "small_search"]
 
 #: former names, kept for code written against them: ``WIDE_HEAT``, ``WIDE_SEARCH``, ``wide_search``
 _RENAMED = {"WIDE_HEAT": "ONCOMING_HEAT", "WIDE_SEARCH": "ONCOMING_SEARCH", "wide_search": "oncoming_search"}
