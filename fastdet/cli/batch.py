@@ -25,7 +25,7 @@ from types import ModuleType
 
 from ..config.batch import BatchOptions
 from ..errors import FastdetError
-from ..io.paths import check_paths
+from ..io.paths import check_outside_package, check_paths
 from ..signals import Stopped
 from ._args import (
     add_camera_arguments,
@@ -98,6 +98,9 @@ def run(args: argparse.Namespace) -> int:
     if table is not None:
         table_mod.table_format(table)
     out_dir = Path(args.out)
+    check_outside_package(out_dir, "--out")  # before the folder is made
+    if table is not None:
+        check_outside_package(table, "--table")
     writes = inputs.batch_writes(out_dir, settings_mod.SUFFIXES.values(),
                                  [out_dir / settings_mod.MANIFEST_NAME, *([table] if table is not None else [])])
     videos = inputs.expand_inputs(args.inputs, writes)

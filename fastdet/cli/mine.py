@@ -18,9 +18,9 @@ from .. import signals as _signals
 from ..detect import Detector
 from ..detect.checks import check_frame
 from ..errors import DataError, FastdetError, WriteError
-from ..io.atomic import folder_writable
 from ..io.images import check_image, write_image
 from ..io.motfiles import read_gt
+from ..io.paths import check_output_folder
 from ..io.reader import FrameReader, source_kind
 from ..train.mine import hard_negatives
 from ._args import nonneg_int, positive_int
@@ -54,19 +54,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-progress", action="store_true")
 
 
-def _check_out(out: Path) -> None:
-    """``--out`` can be created (or is a writable folder): checked before any work."""
-    if out.exists():
-        if not out.is_dir():
-            raise DataError(f"--out {out}: exists and is not a folder")
-        if not folder_writable(out):
-            raise DataError(f"--out {out}: folder is not writable")
-        return
-    parent = next((p for p in out.absolute().parents if p.exists()), None)
-    if parent is None or not parent.is_dir() or not folder_writable(parent):
-        raise DataError(f"--out {out}: cannot create the folder ({parent} is not writable)")
-
-
 def _check_options(args: argparse.Namespace) -> None:
     """Numbers and names in their domain, before any work."""
     for flag, rng in (("--x-range", args.x_range), ("--y-range", args.y_range)):
@@ -92,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
         raise FastdetError("--part oncoming needs --oncoming-model")
     if source_kind(str(args.video)) == "file" and not args.video.exists():
         raise DataError(f"{args.video}: file not found")
-    _check_out(args.out)
+    check_output_folder(args.out, "--out")
     gt = None
     if args.gt is not None:
         gt = read_gt(args.gt)

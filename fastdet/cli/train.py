@@ -42,6 +42,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--data", type=Path, default=None,
                    help="folder with vehicles/ and non-vehicles/ PNG crops (default: $FASTDET_DATA)")
     p.add_argument("--out", type=Path, required=True, help="model file to write (.npz)")
+    p.add_argument("--into-package", action="store_true",
+                   help="allow --out inside the installed fastdet package (replacing a bundled model, "
+                        "which every later run uses; refused without this)")
     p.add_argument("--classifier", choices=("linearsvc", "logreg"), default="logreg",
                    help="linear classifier (default: logreg, which gives calibrated probabilities)")
     p.add_argument("--C", type=positive_float, default=None,
@@ -154,7 +157,7 @@ def run(args: argparse.Namespace) -> int:
     config = feature_config_from_args(args)
     # everything checked before the data is loaded (minutes of work)
     if not args.no_refit:
-        check_output(out, "model", "--out")
+        check_output(out, "model", "--out", into_package=args.into_package)
     _check_inputs(Path(data), args)
     q0, q1 = args.jpeg_quality
     k0, k1 = args.truncate_keep
