@@ -39,6 +39,13 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
+class _HelpFormatter(argparse.HelpFormatter):
+    """Every command's ``--help``: an option and its help on one line up to a 30-column option."""
+
+    def __init__(self, prog: str) -> None:
+        super().__init__(prog, max_help_position=32)
+
+
 def _prog() -> str:
     """``fastdet`` when run as the console script, ``python -m fastdet`` otherwise."""
     argv0 = os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else ""
@@ -63,7 +70,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"fastdet {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, (modname, help_) in SUBCOMMANDS.items():
-        p = sub.add_parser(name, help=help_, description=help_)
+        p = sub.add_parser(name, help=help_, description=help_, formatter_class=_HelpFormatter)
         if command is None or name == command:
             mod = importlib.import_module(modname)
             mod.add_arguments(p)

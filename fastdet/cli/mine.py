@@ -38,12 +38,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="MOTChallenge ground truth: windows touching any annotated box are not negatives")
     p.add_argument("--margin", type=int, default=8, help="px added around each annotated box (default 8)")
     p.add_argument("--model", type=Path, default=None, help="main model file (default: the bundled model)")
-    p.add_argument("--oncoming-model", "--wide-model", dest="oncoming_model", type=Path, default=None,
-                   help="oncoming-traffic (wide-window) model file, for --part oncoming (--wide-model: its "
-                        "former name)")
-    p.add_argument("--part", choices=("main", "oncoming", "wide"), default="main",
+    p.add_argument("--oncoming-model", dest="oncoming_model", type=Path, default=None,
+                   help="oncoming-traffic (wide-window) model file, for --part oncoming")
+    p.add_argument("--wide-model", dest="oncoming_model", type=Path, default=None,
+                   help=argparse.SUPPRESS)  # --oncoming-model's former name
+    p.add_argument("--part", choices=("main", "oncoming", "wide"), default="main", metavar="{main,oncoming}",
                    help="mine the windows of the main (square) model or of the oncoming-traffic (wide-window) "
-                        "model ('wide': its former name)")
+                        "model")  # 'wide': oncoming's former name, still accepted
     p.add_argument("--threshold", type=float, default=None,
                    help="decision value a window needs to count as positive (default: the search's own); "
                         "lower it to mine near misses too")
