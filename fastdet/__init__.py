@@ -19,9 +19,50 @@ writes), ``eval`` (metrics, report) and ``train`` (datasets, fitting, mining).
 """
 from __future__ import annotations
 
-import importlib
 import os
-from typing import TYPE_CHECKING, Any
+import sys
+
+# ``python -m fastdet`` and the ``fastdet`` script import this package before the first line of
+# ``fastdet/__main__.py`` runs, so a stop signal is caught from here on -- before any other
+# import: from the interpreter's start until now Python's own default applies, after this one
+# line and 128 + the signal (nothing has been written yet). ``fastdet.signals`` takes over when
+# the command starts. A program that imports fastdet keeps its own handlers.
+_STOP_NAMES: dict[int, str] = {}
+
+
+def _stop_while_starting(signum: int, frame: object) -> None:
+    try:
+        os.write(2, f"fastdet: interrupted ({_STOP_NAMES.get(signum, signum)}) while starting\n".encode())
+    finally:
+        os._exit(128 + signum)
+
+
+def _catch_stops_while_starting() -> None:
+    """Stop signals at their defaults end the process with one line (see above); idempotent."""
+    import _signal  # the C module, loaded by the interpreter at start-up (``signal`` builds enums)
+
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+        s = getattr(_signal, name, None)
+        if s is not None and _signal.getsignal(s) in (_signal.default_int_handler, _signal.SIG_DFL):
+            _STOP_NAMES[s] = name
+            _signal.signal(s, _stop_while_starting)
+
+
+def _started_as_command() -> bool:
+    """This process is ``python -m fastdet`` (runpy is importing the package: ``sys.argv[0]`` is
+    ``-m`` until it runs ``__main__``) or the ``fastdet`` console script."""
+    if sys.argv[:1] == ["-m"]:
+        argv = list(getattr(sys, "orig_argv", []))
+        i = next((i for i, a in enumerate(argv[1:], 1) if a.startswith("-m")), None)
+        return i is not None and (argv[i] == "-mfastdet" or argv[i:i + 2] == ["-m", "fastdet"])
+    return os.path.basename(getattr(sys.modules.get("__main__"), "__file__", None) or "") == "fastdet"
+
+
+if _started_as_command():
+    _catch_stops_while_starting()
+
+import importlib  # noqa: E402 - after the stop handlers
+from typing import TYPE_CHECKING, Any  # noqa: E402
 
 # numba's OpenMP workers busy-wait between parallel regions by default; on 2 cores shared with
 # the video reader/writer threads (or anything else) that spinning takes the cores the others
@@ -29,8 +70,8 @@ from typing import TYPE_CHECKING, Any
 # before any submodule can load numba's OpenMP layer; a user's own setting wins.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
-from ._version import __version__
-from .errors import DataError, FastdetError, ModelError
+from ._version import __version__  # noqa: E402
+from .errors import DataError, FastdetError, ModelError  # noqa: E402
 
 if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers and IDEs
     from .config import FeatureConfig as FeatureConfig
@@ -40,6 +81,7 @@ if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers and
     from .config import SearchBand as SearchBand
     from .config import SearchConfig as SearchConfig
     from .config import TrackerConfig as TrackerConfig
+    from .data import sample_video as sample_video
     from .detect import Detector as Detector
     from .detections import Box as Box
     from .detections import Detections as Detections
@@ -48,14 +90,12 @@ if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers and
     from .features import hog_channels as hog_channels
     from .features import hog_channels_batch as hog_channels_batch
     from .model import Model as Model
-    from .data import sample_video as sample_video
     from .model import load_model as load_model
     from .video import HeatMap as HeatMap
     from .video import VideoDetector as VideoDetector
     from .video import detect_video as detect_video
 
-# everything that imports NumPy is lazy: ``python -m fastdet`` imports this package before
-# its first line of its own runs, and installs its stop-signal handlers right after
+# everything that imports NumPy is lazy (``python -m fastdet`` imports this package first)
 _LAZY = {
     "FeatureConfig": "fastdet.config",
     "HeatConfig": "fastdet.config",

@@ -1,38 +1,47 @@
 """``python -m fastdet`` -> :func:`fastdet.cli.main.main`.
 
-A stop signal (Ctrl-C, SIGTERM, SIGHUP) that comes while the command's modules are still
-being imported -- before the dispatcher installs its handlers -- ends the process with one
-line and status 128 + the signal, not a ``KeyboardInterrupt`` traceback: nothing has been
-written yet. Once the command has returned, stop signals are ignored until the process exits,
-so its status is the command's.
+Stop signals (Ctrl-C, SIGTERM, SIGHUP) in the life of the process:
+
+- from the package's first line (``fastdet/__init__.py``, which runpy and the console script
+  import before this module) until the dispatcher's handlers are set: one line ``fastdet:
+  interrupted (SIGINT) while starting`` and status 128 + the signal (nothing written yet);
+- while the command runs: :mod:`fastdet.signals` (one line ``fastdet COMMAND: interrupted``);
+  a signal while those handlers are being set is held and raised inside the command's ``try``;
+- once the command's outcome is known: ignored until the process exits, so its status and its
+  one line are the command's.
+
+A ``KeyboardInterrupt`` that still reaches :func:`run` (a handler of someone else's) is
+reported as the same one line, never as a traceback.
 """
 import os
-import signal
 import sys
 
-
-def _early_stop(signum: int, frame: object) -> None:
-    try:
-        os.write(2, f"fastdet: interrupted ({signal.Signals(signum).name}) while starting\n".encode())
-    finally:
-        os._exit(128 + signum)
+from . import _catch_stops_while_starting
 
 
 def run() -> int:
     """The console script's and ``python -m fastdet``'s entry point."""
-    for s in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None)):
-        if s is not None and signal.getsignal(s) in (signal.default_int_handler, signal.SIG_DFL):
-            signal.signal(s, _early_stop)
-    from .cli.main import main
+    _catch_stops_while_starting()  # done on import when started as the command; a launcher's run
+    try:
+        from .cli.main import main
 
-    status = main()
-    # The command is over: its outputs are final and its status and line are out. A stop signal
-    # from here on stops nothing, and one that came while the interpreter shuts down (after it
-    # has put the default handlers back) would kill the process and hide that status.
-    for s in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None)):
-        if s is not None:
-            signal.signal(s, signal.SIG_IGN)
-    return status
+        status = main(stops_after="ignore")
+        # the command is over (its outputs final, its line out): a signal from here on -- also
+        # one while the interpreter shuts down -- cannot change its status
+        import signal
+
+        for s in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None)):
+            if s is not None:
+                signal.signal(s, signal.SIG_IGN)
+        return status
+    except KeyboardInterrupt as exc:
+        import signal
+
+        signum = int(getattr(exc, "signum", signal.SIGINT))  # a Stopped, or Python's own for SIGINT
+        try:
+            os.write(2, f"fastdet: interrupted ({signal.Signals(signum).name})\n".encode())
+        finally:
+            os._exit(128 + signum)
 
 
 if __name__ == "__main__":

@@ -122,24 +122,32 @@ def wait(done: Callable[[], bool], timeout: float, step: float = 0.1) -> bool:
 
 
 @contextmanager
-def handled() -> Iterator[None]:
+def handled(after: str = "restore") -> Iterator[None]:
     """Run a command with the stop signals turned into :class:`Stopped` (see the module
-    docstring); restores the previous handlers afterwards."""
+    docstring). A signal that comes while the handlers are being set only sets the flag: the
+    block should begin with :func:`check` inside its ``try``. When the block ends the signals
+    are ignored until the handlers are reset (a stop after the command cannot interrupt the
+    clean-up), then ``after="restore"`` restores the previous handlers and ``"ignore"`` leaves
+    them ignored (the process is the command: ``python -m fastdet``)."""
     global _received, _deferring, _patient, _active
     if threading.current_thread() is not threading.main_thread() or _active:
         yield  # another thread, or inside a handled() block already (a batch run by the CLI)
         return
+    if after not in ("restore", "ignore"):
+        raise ValueError(f"after must be 'restore' or 'ignore', got {after!r}")
     previous = {s: signal.getsignal(s) for s in STOP_SIGNALS}
-    _received, _deferring, _patient = None, 0, 0
+    _received, _deferring, _patient = None, 1, 0  # held while the handlers are being set
     for s in STOP_SIGNALS:
         signal.signal(s, _handler)
     _active += 1
+    _deferring = 0
     try:
         yield
     finally:
-        _active -= 1
+        _deferring, _patient = _deferring + 1, _patient + 1  # from here on a signal changes nothing
         for s, h in previous.items():
-            signal.signal(s, h if h is not None else signal.SIG_DFL)
+            signal.signal(s, signal.SIG_IGN if after == "ignore" else h if h is not None else signal.SIG_DFL)
+        _active -= 1
         _received, _deferring, _patient = None, 0, 0  # a stop belongs to the command it stopped
 
 

@@ -66,87 +66,78 @@ def horizon_value(s: str) -> float | str | None:
                                          f"got {s!r}") from None
 
 
-def add_horizon_argument(parser: argparse.ArgumentParser) -> None:
-    """``--horizon auto|off|F``, shared by ``video``, ``eval`` and ``batch``."""
+#: an argparse parser or argument group: what the ``add_*`` functions below add options to
+Options = argparse._ActionsContainer
+
+
+def add_horizon_argument(parser: Options) -> None:
+    """``--horizon auto|off|F`` and ``--perspective``, shared by ``video``, ``eval`` and ``batch``."""
     parser.add_argument("--horizon", type=horizon_value, default="auto", metavar="auto|off|F",
-                        help="where the search bands go: 'auto' (default) follows the horizon estimated "
-                             "from the first seconds of the video; F: the horizon row as a fraction of the "
-                             "frame height (another camera's known horizon); 'off': bands as configured")
+                        help="the horizon: estimated, none, or at F x height")
     parser.add_argument("--perspective", action="store_true",
-                        help="the search bands follow the horizon and the camera's ratio (vehicle width / how "
-                             "far below the horizon it stands) that the tracked vehicles show (off by default; "
-                             "docs/geometry.md)")
+                        help="bands from the camera's perspective")
 
 
-def add_search_argument(parser: argparse.ArgumentParser) -> None:
+def add_search_argument(parser: Options) -> None:
     """``--full-search``, shared by ``video``, ``eval``, ``bench`` and ``batch``."""
     parser.add_argument("--full-search", action="store_true",
-                        help="score every window of every band on every frame (default: every window every "
-                             "5 frames and after a cut or a lost track; in between only near the tracked "
-                             "vehicles and recent detections, plus a rotating strip)")
+                        help="score every window on every frame")
 
 
-def add_oncoming_arguments(parser: argparse.ArgumentParser) -> None:
+def add_oncoming_arguments(parser: Options) -> None:
     """``--oncoming-model`` / ``--no-oncoming``, ``--traffic``, ``--side`` / ``--side-model`` and
     ``--small`` / ``--small-model``, shared by ``video``, ``eval``, ``bench`` and ``batch``."""
     g = parser.add_mutually_exclusive_group()
     g.add_argument("--oncoming-model", metavar="WIDE.npz", default=None,
-                   help="wide-window model for oncoming traffic above the median "
-                        "(default: the bundled one; trained with `train --window-rows`)")
-    g.add_argument("--no-oncoming", action="store_true",
-                   help="no wide-window model: only the main model's square windows")
+                   help="oncoming-traffic model (default: bundled)")
+    g.add_argument("--no-oncoming", action="store_true", help="no oncoming-traffic model")
     parser.add_argument("--traffic", choices=("right", "left", "both"), default="right",
-                        help="the side of the road traffic drives on, which puts the oncoming cars on the "
-                             "other side of the view: 'right' (default; oncoming cars on the left), 'left' "
-                             "(UK, Japan, India, Australia ...: searched on the right), 'both' (the whole "
-                             "width, about 15%% more CPU a frame)")
+                        help="the side traffic drives on (default right)")
     s = parser.add_mutually_exclusive_group()
-    s.add_argument("--side", action="store_true",
-                   help="add the bundled side-view component (fastdet/models/side.npz: 64x32 windows for "
-                        "vehicles wider than tall, parked cars seen from the side; docs/components.md); off "
-                        "by default")
-    s.add_argument("--side-model", metavar="SIDE.npz", default=None,
-                   help="add this side-view component (built by `python -m tools.scripts.side_model`)")
+    s.add_argument("--side", action="store_true", help="add the side-view component")
+    s.add_argument("--side-model", metavar="SIDE.npz", default=None, help="add this side-view component")
     m = parser.add_mutually_exclusive_group()
-    m.add_argument("--small", action="store_true",
-                   help="add the bundled small-vehicle component (fastdet/models/small.npz: 32x32 windows on the "
-                        "frame at its own resolution about the horizon, for vehicles under 60 px wide of 1280; "
-                        "docs/components.md); off by default")
-    m.add_argument("--small-model", metavar="SMALL.npz", default=None,
-                   help="add this small-vehicle component (built by `python -m tools.scripts.small_model`)")
+    m.add_argument("--small", action="store_true", help="add the small-vehicle component")
+    m.add_argument("--small-model", metavar="SMALL.npz", default=None, help="add this small-vehicle component")
 
 
-def add_refine_argument(parser: argparse.ArgumentParser) -> None:
+def add_refine_argument(parser: Options) -> None:
     """``--no-refine``, shared by ``video``, ``eval``, ``bench`` and ``batch``."""
     parser.add_argument("--no-refine", action="store_true",
-                        help="report the heat map's boxes as they are, without the learned box refinement "
-                             "(fastdet/models/refine_cameras.npz, applied 3 times)")
+                        help="no learned box refinement")
 
 
-def add_camera_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--no-own-vehicle`` / ``--own-vehicle``, ``--no-split-neighbours`` / ``--split-neighbours`` and
-    ``--perspective-filter``: the optional stages for other cameras."""
+def add_camera_arguments(parser: Options) -> None:
+    """``--no-own-vehicle``, ``--no-split-neighbours``, ``--perspective-filter`` and ``--self-calibrate``:
+    the optional stages for other cameras. ``--own-vehicle`` and ``--split-neighbours`` (the
+    defaults, spelt out) are still accepted but not shown in ``--help``."""
     o = parser.add_mutually_exclusive_group()
     o.add_argument("--no-own-vehicle", action="store_true",
-                   help="search the own vehicle's picture regions too, instead of dropping the windows lying on "
-                        "what stays fixed at the picture's border while the scene moves in the first 3 s (hood, "
-                        "dashboard, mirrors, letterbox bars: the default)")
-    o.add_argument("--own-vehicle", action="store_true",
-                   help="drop the windows lying on the own vehicle (the default; kept for scripts that name it)")
+                   help="also search the own vehicle (hood, mirrors)")
+    o.add_argument("--own-vehicle", action="store_true", help=argparse.SUPPRESS)  # the default, spelt out
     g = parser.add_mutually_exclusive_group()
     g.add_argument("--no-split-neighbours", action="store_true",
-                   help="keep a wide heat blob whole (one box over vehicles side by side) instead of splitting it "
-                        "between the modes of its windows, one box per vehicle (the default)")
-    g.add_argument("--split-neighbours", action="store_true",
-                   help="split a wide heat blob between the modes of its windows (the default; kept for scripts "
-                        "that name it)")
+                   help="one box over vehicles side by side")
+    g.add_argument("--split-neighbours", action="store_true", help=argparse.SUPPRESS)  # the default, spelt out
     parser.add_argument("--perspective-filter", action="store_true",
-                        help="drop the boxes whose width no vehicle and no camera can have for how far below the "
-                             "horizon they stand (too narrow: 0.45x those rows, too wide: 12x); off by default")
+                        help="drop boxes too narrow or wide for their row")
     parser.add_argument("--self-calibrate", action="store_true",
-                        help="move the main model's decision values per video so that 10%% of the windows of its "
-                             "first 5 full scans reach the level the bundled model's reach on a typical camera "
-                             "(no labels; docs/training.md, 'Operating point from the video itself'); off by default")
+                        help="set the operating point from the video itself")
+
+
+def pipeline_groups(parser: argparse.ArgumentParser) -> tuple[Options, Options, Options]:
+    """The ``search``, ``tracking`` and ``advanced`` option groups of a command that runs the
+    pipeline, with the shared options added (``video``, ``eval``, ``bench``, ``batch``);
+    ``horizon``: with ``--horizon`` / ``--perspective`` (not ``bench``)."""
+    search = parser.add_argument_group("models and search")
+    tracking = parser.add_argument_group("tracking")
+    advanced = parser.add_argument_group("advanced")
+    search.add_argument("--model", metavar="MODEL.npz", help="main model (default: the bundled one)")
+    add_oncoming_arguments(search)
+    add_search_argument(advanced)
+    add_refine_argument(advanced)
+    add_camera_arguments(advanced)
+    return search, tracking, advanced
 
 
 def pipeline_config(args: argparse.Namespace) -> PipelineConfig:

@@ -25,18 +25,9 @@ from types import ModuleType
 
 from ..config.batch import BatchOptions
 from ..errors import FastdetError
-from ..io.paths import check_paths
+from ..io.paths import check_outside_package, check_paths
 from ..signals import Stopped
-from ._args import (
-    add_camera_arguments,
-    add_horizon_argument,
-    add_oncoming_arguments,
-    add_refine_argument,
-    add_search_argument,
-    nonneg_int,
-    pipeline_config,
-    positive_int,
-)
+from ._args import add_horizon_argument, nonneg_int, pipeline_config, pipeline_groups, positive_int
 
 _INSTALL = "pip install fastdet[cluster]"
 # the packages of the ``cluster`` extra that fastdet.batch imports
@@ -44,37 +35,30 @@ _CLUSTER_MODULES = {"dask", "distributed", "pyarrow"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("inputs", nargs="+", metavar="INPUT",
-                        help="video files, folders of videos, glob patterns (quoted) or .txt files listing paths")
-    parser.add_argument("-o", "--out", required=True, metavar="DIR",
-                        help="output folder (made if missing): NAME.boxes.txt per video, manifest.jsonl")
-    parser.add_argument("--video", action="store_true", help="also write the annotated video NAME.annotated.mp4")
-    parser.add_argument("--json", action="store_true", help="also write the boxes as JSON lines NAME.boxes.jsonl")
-    parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
-    add_oncoming_arguments(parser)
-    add_refine_argument(parser)
-    add_camera_arguments(parser)
-    add_horizon_argument(parser)
-    add_search_argument(parser)
-    parser.add_argument("--no-track", action="store_true",
-                        help="no tracker: boxes without ids (-1), as `fastdet video --no-track`")
-    parser.add_argument("--workers", type=positive_int, default=None, metavar="N",
-                        help="worker processes of the local cluster (default: one per core)")
-    parser.add_argument("--scheduler", metavar="ADDRESS", default=None,
-                        help="run on the Dask cluster of this scheduler, e.g. tcp://host:8786 "
-                             "(default: $DASK_SCHEDULER_ADDRESS, else a local cluster)")
-    g = parser.add_mutually_exclusive_group()
+    parser.usage = "%(prog)s INPUT... --out DIR [--video] [--json] [options]"
+    io = parser.add_argument_group("inputs and outputs")
+    io.add_argument("inputs", nargs="+", metavar="INPUT", help="videos, folders, quoted globs or .txt lists")
+    io.add_argument("-o", "--out", required=True, metavar="DIR",
+                    help="output folder: NAME.boxes.txt, manifest.jsonl")
+    io.add_argument("--video", action="store_true", help="also NAME.annotated.mp4")
+    io.add_argument("--json", action="store_true", help="also NAME.boxes.jsonl")
+    io.add_argument("--table", metavar="BOXES.parquet", help="also one table of all boxes (.parquet, .csv)")
+    io.add_argument("--no-progress", action="store_true", help="one line per video, no progress bar")
+    cluster = parser.add_argument_group("cluster")
+    cluster.add_argument("--workers", type=positive_int, default=None, metavar="N",
+                         help="local cluster's processes (default: cores)")
+    cluster.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                         help="a Dask scheduler, e.g. tcp://host:8786")
+    g = cluster.add_mutually_exclusive_group()
     g.add_argument("--resume", dest="overwrite", action="store_false",
-                   help="skip videos done before with the same settings (the default)")
+                   help="skip videos already done (the default)")
     g.add_argument("--overwrite", dest="overwrite", action="store_true", help="redo every video")
     parser.set_defaults(overwrite=False)
-    parser.add_argument("--retries", type=nonneg_int, default=2, metavar="N",
-                        help="extra attempts of a task that raised an error (default 2; a task whose "
-                             "worker died is rerun by the scheduler)")
-    parser.add_argument("--table", metavar="BOXES.parquet",
-                        help="also write one table of all boxes (video, frame, id, x1, y1, x2, y2, score): "
-                             ".parquet or .csv")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar: one line per video")
+    cluster.add_argument("--retries", type=nonneg_int, default=2, metavar="N",
+                         help="extra attempts of a failed task (default 2)")
+    search, tracking, _ = pipeline_groups(parser)
+    add_horizon_argument(search)
+    tracking.add_argument("--no-track", action="store_true", help="no tracker: boxes without ids (-1)")
 
 
 def _batch_modules() -> tuple[ModuleType, ...]:
@@ -98,6 +82,9 @@ def run(args: argparse.Namespace) -> int:
     if table is not None:
         table_mod.table_format(table)
     out_dir = Path(args.out)
+    check_outside_package(out_dir, "--out")  # before the folder is made
+    if table is not None:
+        check_outside_package(table, "--table")
     writes = inputs.batch_writes(out_dir, settings_mod.SUFFIXES.values(),
                                  [out_dir / settings_mod.MANIFEST_NAME, *([table] if table is not None else [])])
     videos = inputs.expand_inputs(args.inputs, writes)

@@ -54,14 +54,7 @@ from ..io.images import check_image
 from ..io.reader import FrameReader, check_source
 from ..video.detector import make_detector
 from ..video.pipeline import VideoDetector
-from ._args import (
-    add_camera_arguments,
-    add_oncoming_arguments,
-    add_refine_argument,
-    add_search_argument,
-    pipeline_config,
-    positive_int,
-)
+from ._args import pipeline_config, pipeline_groups, positive_int
 
 DEFAULT_IMAGE = Path("test_images") / "test1.jpg"
 
@@ -88,20 +81,17 @@ STAGES = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("input", metavar="INPUT", nargs="?", default=None,
-                        help=f"video, image sequence (img%%04d.jpg), stream URL or image file "
-                             f"(default: {DEFAULT_IMAGE} in the data folder)")
-    parser.add_argument("--frames", type=positive_int, default=30, metavar="N",
-                        help="frames per repeat: a video's first N frames, or the image N times (default 30)")
-    parser.add_argument("--threads", type=positive_int, default=None, metavar="T",
-                        help="Numba and OpenCV threads (default: NUMBA_NUM_THREADS)")
-    parser.add_argument("--repeat", type=positive_int, default=3, metavar="R",
-                        help="timed repeats of the N frames; the table shows the best and the median (default 3)")
-    parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
-    add_oncoming_arguments(parser)
-    add_refine_argument(parser)
-    add_camera_arguments(parser)
-    add_search_argument(parser)
+    parser.usage = "%(prog)s [INPUT] [--frames N] [--repeat R] [options]"
+    what = parser.add_argument_group("what to time")
+    what.add_argument("input", metavar="INPUT", nargs="?", default=None,
+                      help=f"video, image sequence, URL or image (default: {DEFAULT_IMAGE})")
+    what.add_argument("--frames", type=positive_int, default=30, metavar="N",
+                      help="frames per repeat (default 30)")
+    what.add_argument("--repeat", type=positive_int, default=3, metavar="R",
+                      help="timed repeats: best and median (default 3)")
+    what.add_argument("--threads", type=positive_int, default=None, metavar="T",
+                      help="Numba and OpenCV threads (default: all)")
+    pipeline_groups(parser)
 
 
 def load_frames(path: str | os.PathLike, n: int) -> tuple[list, str, float | None]:

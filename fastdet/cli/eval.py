@@ -17,14 +17,7 @@ from ..io.motfiles import read_gt, read_predictions
 from ..io.paths import bundled_models, check_paths
 from ..io.reader import check_source
 from ..video.run import iter_video_detections
-from ._args import (
-    add_camera_arguments,
-    add_horizon_argument,
-    add_oncoming_arguments,
-    add_refine_argument,
-    add_search_argument,
-    pipeline_config,
-)
+from ._args import add_horizon_argument, pipeline_config, pipeline_groups
 
 # ---------------------------------------------------------------------------------------
 # CLI
@@ -41,43 +34,29 @@ def _iou_arg(s: str) -> float:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--gt", metavar="GT.txt",
-                        help="MOTChallenge ground truth: frame,id,left,top,width,height,consider,class,visibility; "
-                             "when CLIP.frames lies beside CLIP.gt.txt, only the keyframes it lists are scored")
-    parser.add_argument("--keyframes", metavar="FILE",
-                        help="score only the frames listed in FILE, one frame number a line (default: the "
-                             "CLIP.frames beside CLIP.gt.txt if there is one, else every frame)")
-    parser.add_argument("--all", action="store_true",
-                        help="one report over every annotated clip of the data folder (annotations/CLIP.gt.txt "
-                             "with videos/CLIP.mp4): runs the video pipeline on each (or reads --pred-dir) and "
-                             "prints a markdown table, P / R / F1 / AP / false alarms per frame / recall by width")
-    parser.add_argument("--data", metavar="DIR",
-                        help="--all: the data folder (default: $FASTDET_DATA or ../shared/data)")
-    parser.add_argument("--clips", metavar="A,B", help="--all: only these clips (comma-separated names)")
-    parser.add_argument("--pred-dir", metavar="DIR",
-                        help="--all: read each clip's predictions from DIR/CLIP.txt (or DIR/CLIP.jsonl) instead of "
-                             "running the pipeline")
-    parser.add_argument("--out", metavar="REPORT.json", help="--all: also write the report as JSON to this file")
-    src = parser.add_mutually_exclusive_group()
-    src.add_argument("--pred", metavar="PRED.txt",
-                     help="predictions: MOTChallenge lines frame,id,left,top,width,height,conf,... "
-                          "(or the JSON lines of `fastdet video`, *.jsonl)")
-    src.add_argument("--video", metavar="CLIP.mp4",
-                     help="run the default video pipeline on this clip and evaluate its boxes")
-    parser.add_argument("--model", metavar="MODEL.npz", help="model for --video (default: the bundled one)")
-    add_oncoming_arguments(parser)
-    add_refine_argument(parser)
-    add_camera_arguments(parser)
-    add_horizon_argument(parser)
-    add_search_argument(parser)
-    track = parser.add_mutually_exclusive_group()
-    track.add_argument("--no-track", action="store_true",
-                       help="--video without the tracker (boxes without ids: no MOT metrics)")
-    track.add_argument("--offline", action="store_true",
-                       help="--video with the offline pass (gap interpolation, tracks extended back)")
-    parser.add_argument("--iou", type=_iou_arg, default=0.5, help="IoU a match needs (default 0.5)")
-    parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
-    parser.add_argument("--plot", metavar="PR.png", help="write the precision-recall curve as a PNG")
+    parser.usage = ("%(prog)s --gt GT.txt (--pred P.txt | --video C.mp4)\n"
+                    "       %(prog)s --all [--out R.json]")
+    what = parser.add_argument_group("what to score")
+    what.add_argument("--gt", metavar="GT.txt", help="MOTChallenge ground truth")
+    src = what.add_mutually_exclusive_group()
+    src.add_argument("--pred", metavar="PRED.txt", help="predicted boxes (MOTChallenge or *.jsonl)")
+    src.add_argument("--video", metavar="CLIP.mp4", help="run the video pipeline on this clip")
+    what.add_argument("--keyframes", metavar="FILE",
+                      help="score only these frames (default: CLIP.frames)")
+    what.add_argument("--iou", type=_iou_arg, default=0.5, help="IoU a match needs (default 0.5)")
+    what.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    what.add_argument("--plot", metavar="PR.png", help="write the precision-recall curve")
+    every = parser.add_argument_group("every annotated clip")
+    every.add_argument("--all", action="store_true", help="one row per annotated clip of the data folder")
+    every.add_argument("--data", metavar="DIR", help="the data folder (default: $FASTDET_DATA)")
+    every.add_argument("--clips", metavar="A,B", help="only these clips")
+    every.add_argument("--pred-dir", metavar="DIR", help="read DIR/CLIP.txt instead of running")
+    every.add_argument("--out", metavar="REPORT.json", help="also write the report as JSON")
+    search, tracking, _ = pipeline_groups(parser)
+    add_horizon_argument(search)
+    track = tracking.add_mutually_exclusive_group()
+    track.add_argument("--no-track", action="store_true", help="no tracker (no MOT metrics)")
+    track.add_argument("--offline", action="store_true", help="with the offline pass (gaps filled)")
 
 
 def _video_predictions(video: str, args: argparse.Namespace) -> Detections:

@@ -41,6 +41,13 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
+class _HelpFormatter(argparse.HelpFormatter):
+    """Every command's ``--help``: an option and its help on one line up to a 30-column option."""
+
+    def __init__(self, prog: str) -> None:
+        super().__init__(prog, max_help_position=32)
+
+
 def _prog() -> str:
     """``fastdet`` when run as the console script, ``python -m fastdet`` otherwise."""
     argv0 = os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else ""
@@ -65,7 +72,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"fastdet {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, (modname, help_) in SUBCOMMANDS.items():
-        p = sub.add_parser(name, help=help_, description=help_)
+        p = sub.add_parser(name, help=help_, description=help_, formatter_class=_HelpFormatter)
         if command is None or name == command:
             mod = importlib.import_module(modname)
             mod.add_arguments(p)
@@ -87,7 +94,10 @@ def _interrupted(name: str, signum: int, detail: str = "") -> int:
     return stopped.exit_status
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def main(argv: Sequence[str] | None = None, stops_after: str = "restore") -> int:
+    """Run the command ``argv`` names (default ``sys.argv[1:]``); its exit status. ``stops_after``:
+    the stop signals' handlers once the command is over (:func:`fastdet.signals.handled`:
+    ``"restore"`` the caller's, ``"ignore"`` when the process is the command)."""
     argv = list(sys.argv[1:] if argv is None else argv)
     command = _chosen(argv)
     threads = os.environ.get("NUMBA_NUM_THREADS")
@@ -112,7 +122,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if stdout is not None:
         sys.stdout = _GuardedStdout(stdout)  # type: ignore[assignment]
     try:
-        return _dispatch(args, name, debug)
+        return _dispatch(args, name, debug, stops_after)
     finally:
         if isinstance(sys.stdout, _GuardedStdout):
             try:
@@ -122,29 +132,39 @@ def main(argv: Sequence[str] | None = None) -> int:
             sys.stdout = stdout
 
 
-def _dispatch(args: argparse.Namespace, name: str, debug: bool) -> int:
-    """Run the command inside the stop-signal handlers (see the module docstring)."""
-    with _signals.handled():
-        try:
-            status = int(args._module.run(args) or 0)
-        except _signals.Stopped as exc:
-            return _interrupted(name, exc.signum, exc.detail)
-        except FastdetError as exc:
-            if _signals.received() is not None:
-                return _interrupted(name, _signals.received())
-            if debug:
-                raise
-            _say(f"fastdet {name}: error: {exc}")
-            return 2
-        except BaseException:
-            # an exception out of code that a signal interrupted (a compiler, a library)
-            # is the signal's doing, not a bug: one line
-            if _signals.received() is not None and not debug:
-                return _interrupted(name, _signals.received())
-            raise
-        if _signals.received() is not None:  # swallowed by a library: still a stop
-            return _interrupted(name, _signals.received())
-        return status
+def _dispatch(args: argparse.Namespace, name: str, debug: bool, stops_after: str = "restore") -> int:
+    """Run the command inside the stop-signal handlers (see the module docstring); the outcome
+    is reported once they are reset, so a late signal cannot interrupt its one line."""
+    signum: int | None = None
+    detail = ""
+    error: FastdetError | None = None
+    status = 0
+    try:
+        with _signals.handled(stops_after):
+            try:
+                _signals.check()  # a signal while the handlers were being set
+                status = int(args._module.run(args) or 0)
+                _signals.check()  # swallowed by a library: still a stop
+            except _signals.Stopped as exc:
+                signum, detail = exc.signum, exc.detail
+            except FastdetError as exc:
+                signum, error = _signals.received(), exc
+            except BaseException:
+                # an exception out of code that a signal interrupted (a compiler, a library)
+                # is the signal's doing, not a bug: one line
+                if _signals.received() is None or debug:
+                    raise
+                signum = _signals.received()
+    except _signals.Stopped as exc:  # a first signal just as the outcome was being taken
+        signum, detail = signum or exc.signum, detail or exc.detail
+    if signum is not None:
+        return _interrupted(name, signum, detail)
+    if error is not None:
+        if debug:
+            raise error
+        _say(f"fastdet {name}: error: {error}")
+        return 2
+    return status
 
 
 class StdoutError(FastdetError):

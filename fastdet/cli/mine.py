@@ -18,9 +18,9 @@ from .. import signals as _signals
 from ..detect import Detector
 from ..detect.checks import check_frame
 from ..errors import DataError, FastdetError, WriteError
-from ..io.atomic import folder_writable
 from ..io.images import check_image, write_image
 from ..io.motfiles import read_gt
+from ..io.paths import check_output_folder
 from ..io.reader import FrameReader, source_kind
 from ..train.mine import hard_negatives
 from ._args import nonneg_int, positive_int
@@ -38,12 +38,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="MOTChallenge ground truth: windows touching any annotated box are not negatives")
     p.add_argument("--margin", type=int, default=8, help="px added around each annotated box (default 8)")
     p.add_argument("--model", type=Path, default=None, help="main model file (default: the bundled model)")
-    p.add_argument("--oncoming-model", "--wide-model", dest="oncoming_model", type=Path, default=None,
-                   help="oncoming-traffic (wide-window) model file, for --part oncoming (--wide-model: its "
-                        "former name)")
-    p.add_argument("--part", choices=("main", "oncoming", "wide"), default="main",
+    p.add_argument("--oncoming-model", dest="oncoming_model", type=Path, default=None,
+                   help="oncoming-traffic (wide-window) model file, for --part oncoming")
+    p.add_argument("--wide-model", dest="oncoming_model", type=Path, default=None,
+                   help=argparse.SUPPRESS)  # --oncoming-model's former name
+    p.add_argument("--part", choices=("main", "oncoming", "wide"), default="main", metavar="{main,oncoming}",
                    help="mine the windows of the main (square) model or of the oncoming-traffic (wide-window) "
-                        "model ('wide': its former name)")
+                        "model")  # 'wide': oncoming's former name, still accepted
     p.add_argument("--threshold", type=float, default=None,
                    help="decision value a window needs to count as positive (default: the search's own); "
                         "lower it to mine near misses too")
@@ -52,19 +53,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--every", type=positive_int, default=1, help="mine every k-th frame")
     p.add_argument("--prefix", default=None, help="file name prefix (default: the video's name)")
     p.add_argument("--no-progress", action="store_true")
-
-
-def _check_out(out: Path) -> None:
-    """``--out`` can be created (or is a writable folder): checked before any work."""
-    if out.exists():
-        if not out.is_dir():
-            raise DataError(f"--out {out}: exists and is not a folder")
-        if not folder_writable(out):
-            raise DataError(f"--out {out}: folder is not writable")
-        return
-    parent = next((p for p in out.absolute().parents if p.exists()), None)
-    if parent is None or not parent.is_dir() or not folder_writable(parent):
-        raise DataError(f"--out {out}: cannot create the folder ({parent} is not writable)")
 
 
 def _check_options(args: argparse.Namespace) -> None:
@@ -92,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
         raise FastdetError("--part oncoming needs --oncoming-model")
     if source_kind(str(args.video)) == "file" and not args.video.exists():
         raise DataError(f"{args.video}: file not found")
-    _check_out(args.out)
+    check_output_folder(args.out, "--out")
     gt = None
     if args.gt is not None:
         gt = read_gt(args.gt)

@@ -39,55 +39,51 @@ MAX_HIST_BINS = 256
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--data", type=Path, default=None,
-                   help="folder with vehicles/ and non-vehicles/ PNG crops (default: $FASTDET_DATA)")
-    p.add_argument("--out", type=Path, required=True, help="model file to write (.npz)")
-    p.add_argument("--classifier", choices=("linearsvc", "logreg"), default="logreg",
-                   help="linear classifier (default: logreg, which gives calibrated probabilities)")
-    p.add_argument("--C", type=positive_float, default=None,
-                   help="inverse regularisation strength, > 0 (default: per classifier)")
-    p.add_argument("--split", choices=("both", "random", "sequence"), default="both",
-                   help="which held-out evaluations to run before the final fit (default: both)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (split, classifier)")
-    p.add_argument("--negatives", type=Path, action="append", default=[],
-                   help="folder of extra non-vehicle crops (hard negatives), any depth; repeatable")
-    p.add_argument("--positives", type=Path, action="append", default=[],
-                   help="folder of extra vehicle crops, any depth; repeatable (joins the training parts only)")
-    p.add_argument("--no-flip", action="store_true", help="do not add mirrored copies of the training crops")
-    p.add_argument("--truncate", type=fraction, default=0.0, metavar="F",
-                   help="add truncated copies of this fraction of the vehicle crops (and of the non-vehicles): "
-                        "cut at a random column on the left or right, 50..87.5%% of the crop kept, the rest "
-                        "filled by replicating the edge column as the detector pads windows over the frame "
-                        "edge (training parts only; default 0)")
-    p.add_argument("--truncate-keep", type=fraction, nargs=2, metavar=("A", "B"),
-                   default=[augment.MIN_KEEP, augment.MAX_KEEP],
-                   help="with --truncate: a copy keeps a random fraction in [A, B] of the crop's columns "
-                        f"(default {augment.MIN_KEEP:g} {augment.MAX_KEEP:g})")
-    p.add_argument("--truncate-vehicles-only", action="store_true",
-                   help="with --truncate: no truncated copies of the non-vehicle crops")
-    p.add_argument("--reencode", type=fraction, default=0.0, metavar="F",
-                   help="add re-encoded copies of this fraction of the crops (both labels): blown up 1..2x, "
-                        "JPEG at a random --jpeg-quality, scaled back, mild blur, +-2 grey levels of "
-                        "brightness and chroma (training parts only; default 0)")
-    p.add_argument("--jpeg-quality", type=int, nargs=2, metavar=("Q1", "Q2"), default=list(JPEG_QUALITY),
-                   help=f"JPEG quality range of --reencode (default {JPEG_QUALITY[0]} {JPEG_QUALITY[1]})")
-    p.add_argument("--photometric", type=fraction, default=0.0, metavar="F",
-                   help="add photometric copies of this fraction of the crops (both labels): another camera's "
-                        "white balance (blue and red gains 1/1.2..1.2), exposure (gain 1/1.5..1.5) and gamma "
-                        "(1/1.4..1.4) (training parts only; default 0)")
-    p.add_argument("--color-space", choices=COLOR_SPACES, default=None)
-    p.add_argument("--orientations", type=positive_int, default=None, help="HOG orientation bins (>= 1)")
-    p.add_argument("--spatial-size", type=nonneg_int, default=None, help="spatial-bin image side (0: none)")
-    p.add_argument("--hist-bins", type=nonneg_int, default=None, help="colour histogram bins (0: none)")
-    p.add_argument("--hog-channels", default=None, help="e.g. 0,1,2 or ALL")
-    p.add_argument("--window-rows", type=int, nargs=2, metavar=("A", "B"), default=None,
-                   help="train a wide-window model on rows [A, B) of the 64x64 crops (e.g. 16 48: "
-                        "the middle rows of the vehicles; non-vehicle crops give their top, middle and "
-                        "bottom row bands as negatives)")
-    p.add_argument("--max-per-folder", type=positive_int, default=None,
-                   help="use at most this many crops of each folder (evenly spaced; for quick runs)")
-    p.add_argument("--no-refit", action="store_true", help="skip the final fit on all data (no model written)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.usage = "%(prog)s --out M.npz [--data DIR] [--negatives DIR]"
+    io = p.add_argument_group("data and output")
+    io.add_argument("--out", type=Path, required=True, metavar="M.npz", help="model file to write (.npz)")
+    io.add_argument("--into-package", action="store_true",
+                    help="allow --out inside the installed package")
+    io.add_argument("--data", type=Path, default=None, metavar="DIR",
+                    help="vehicles/ and non-vehicles/ crops ($FASTDET_DATA)")
+    io.add_argument("--negatives", type=Path, action="append", default=[], metavar="DIR",
+                    help="extra non-vehicle crops (repeatable)")
+    io.add_argument("--positives", type=Path, action="append", default=[], metavar="DIR",
+                    help="extra vehicle crops (repeatable)")
+    io.add_argument("--max-per-folder", type=positive_int, default=None, metavar="N",
+                    help="at most N crops a folder (quick runs)")
+    io.add_argument("--no-refit", action="store_true", help="only the held-out figures: no model")
+    io.add_argument("--no-progress", action="store_true", help="no progress bars")
+    fit = p.add_argument_group("classifier")
+    fit.add_argument("--classifier", choices=("linearsvc", "logreg"), default="logreg",
+                     help="linear classifier (default logreg)")
+    fit.add_argument("--C", type=positive_float, default=None, metavar="C", help="inverse regularisation, > 0")
+    fit.add_argument("--split", choices=("both", "random", "sequence"), default="both",
+                     help="held-out evaluations (default both)")
+    fit.add_argument("--seed", type=int, default=0, metavar="N", help="random seed (default 0)")
+    aug = p.add_argument_group("augmentation (training parts only)")
+    aug.add_argument("--no-flip", action="store_true", help="no mirrored copies")
+    aug.add_argument("--truncate", type=fraction, default=0.0, metavar="F",
+                     help="truncated copies of this fraction (default 0)")
+    aug.add_argument("--truncate-keep", type=fraction, nargs=2, metavar=("A", "B"),
+                     default=[augment.MIN_KEEP, augment.MAX_KEEP],
+                     help=f"columns a copy keeps (default {augment.MIN_KEEP:g} {augment.MAX_KEEP:g})")
+    aug.add_argument("--truncate-vehicles-only", action="store_true",
+                     help="no truncated non-vehicles")
+    aug.add_argument("--reencode", type=fraction, default=0.0, metavar="F",
+                     help="re-encoded copies of this fraction (default 0)")
+    aug.add_argument("--jpeg-quality", type=int, nargs=2, metavar=("Q1", "Q2"), default=list(JPEG_QUALITY),
+                     help=f"their JPEG quality (default {JPEG_QUALITY[0]} {JPEG_QUALITY[1]})")
+    aug.add_argument("--photometric", type=fraction, default=0.0, metavar="F",
+                     help="other-camera colour copies (default 0)")
+    feat = p.add_argument_group("features")
+    feat.add_argument("--color-space", choices=COLOR_SPACES, default=None, help="colour space")
+    feat.add_argument("--orientations", type=positive_int, default=None, metavar="N", help="HOG orientation bins")
+    feat.add_argument("--spatial-size", type=nonneg_int, default=None, metavar="N", help="spatial-bin side (0: none)")
+    feat.add_argument("--hist-bins", type=nonneg_int, default=None, metavar="N", help="colour histogram bins (0: none)")
+    feat.add_argument("--hog-channels", default=None, metavar="LIST", help="e.g. 0,1,2 or ALL")
+    feat.add_argument("--window-rows", type=int, nargs=2, metavar=("A", "B"), default=None,
+                      help="a wide-window model on rows [A, B)")
 
 
 def _command_name() -> str:
@@ -154,7 +150,7 @@ def run(args: argparse.Namespace) -> int:
     config = feature_config_from_args(args)
     # everything checked before the data is loaded (minutes of work)
     if not args.no_refit:
-        check_output(out, "model", "--out")
+        check_output(out, "model", "--out", into_package=args.into_package)
     _check_inputs(Path(data), args)
     q0, q1 = args.jpeg_quality
     k0, k1 = args.truncate_keep

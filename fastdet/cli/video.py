@@ -78,60 +78,41 @@ from ..io.sink import VideoSink, check_video_path
 from ..video.count import CountLine, VehicleCounter
 from ..video.detector import make_detector
 from ..video.run import defer_plausible, offline_boxes, progress_bar, video_detector_for
-from ._args import (
-    add_camera_arguments,
-    add_horizon_argument,
-    add_oncoming_arguments,
-    add_refine_argument,
-    add_search_argument,
-    nonneg_int,
-    pipeline_config,
-    positive_int,
-)
+from ._args import add_horizon_argument, nonneg_int, pipeline_config, pipeline_groups, positive_int
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("input", metavar="INPUT",
-                        help="video file, image sequence (img%%04d.jpg), URL (rtsp://, http://) or camera index")
-    parser.add_argument("-o", "--output", metavar="OUTPUT.mp4",
-                        help="annotated video (mp4v); written as .OUTPUT.partial.mp4, renamed when done")
-    parser.add_argument("--boxes", metavar="BOXES.txt",
-                        help="boxes per frame, MOTChallenge: frame,id,left,top,width,height,conf,-1,-1,-1 "
-                             "(conf: the peak heat of the box's blob)")
-    parser.add_argument("--json", metavar="BOXES.jsonl", help="boxes per frame as JSON lines")
-    parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
-    add_oncoming_arguments(parser)
-    add_refine_argument(parser)
-    add_camera_arguments(parser)
-    parser.add_argument("--debug", action="store_true",
-                        help="add panels along the top: windows by scale, heat map, thresholded blobs; "
-                             "every live track's predicted box and state")
-    track = parser.add_mutually_exclusive_group()
+    parser.usage = ("%(prog)s INPUT [-o OUT.mp4] [--boxes B.txt]\n"
+                    "       [--json B.jsonl] [--summary S.json] [--count] [options]")
+    io = parser.add_argument_group("inputs and outputs")
+    io.add_argument("input", metavar="INPUT", help="video, image sequence (img%%04d.jpg), URL, camera")
+    io.add_argument("-o", "--output", metavar="OUT.mp4", help="annotated video")
+    io.add_argument("--boxes", metavar="BOXES.txt",
+                    help="MOTChallenge boxes with track ids (conf: the peak heat of the box's blob)")
+    io.add_argument("--json", metavar="BOXES.jsonl", help="boxes per frame as JSON lines")
+    io.add_argument("--summary", metavar="S.json", help="a JSON summary (frames, fps, outputs, counts)")
+    io.add_argument("--start", type=nonneg_int, default=0, metavar="S",
+                    help="skip the first S frames (frame numbers kept)")
+    io.add_argument("--frames", type=positive_int, default=None, metavar="N", help="at most N frames")
+    io.add_argument("--no-progress", action="store_true", help="no progress bar")
+    search, tracking, advanced = pipeline_groups(parser)
+    add_horizon_argument(search)
+    track = tracking.add_mutually_exclusive_group()
     track.add_argument("--no-track", action="store_true", help="no tracker: boxes without ids (-1)")
     track.add_argument("--offline", action="store_true",
-                       help="files only: after the last frame, fill short gaps of each track and extend "
-                            "tracks back; outputs are written when the whole file was read")
-    parser.add_argument("--count", action="store_true",
-                        help="print the number of distinct vehicles (track ids seen in 3 frames or more)")
-    parser.add_argument("--line", metavar="X1,Y1,X2,Y2", type=_line_arg,
-                        help="count the vehicles crossing this line, per direction (implies --count)")
-    parser.add_argument("--summary", metavar="SUMMARY.json",
-                        help="write a JSON summary (frames, fps, outputs, vehicle counts) when the run ends")
-    add_horizon_argument(parser)
-    add_search_argument(parser)
-    parser.add_argument("--profile", action="store_true", help="print a table of ms per frame per stage")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    parser.add_argument("--start", type=nonneg_int, default=0, metavar="S",
-                        help="skip the first S frames (frame numbers stay those of the file)")
-    parser.add_argument("--frames", type=positive_int, default=None, metavar="N",
-                        help="process at most N frames")
+                       help="files only: fill track gaps at the end")
+    tracking.add_argument("--count", action="store_true", help="print the number of distinct vehicles")
+    tracking.add_argument("--line", metavar="X1,Y1,X2,Y2", type=_line_arg,
+                          help="count crossings of this line, per direction")
     d = HeatConfig()
-    parser.add_argument("--heat-frames", type=positive_int, default=d.n_frames, metavar="N",
-                        help=f"frames the heat map remembers (default {d.n_frames})")
-    parser.add_argument("--heat-decay", type=float, default=d.decay, metavar="D",
-                        help=f"weight of a frame k frames old is D**k (default {d.decay})")
-    parser.add_argument("--heat-threshold", type=float, default=d.threshold, metavar="T",
-                        help=f"heat a pixel needs to be part of a vehicle (default {d.threshold})")
+    advanced.add_argument("--heat-frames", type=positive_int, default=d.n_frames, metavar="N",
+                          help=f"frames the heat map remembers (default {d.n_frames})")
+    advanced.add_argument("--heat-decay", type=float, default=d.decay, metavar="D",
+                          help=f"a frame k frames old weighs D**k (default {d.decay})")
+    advanced.add_argument("--heat-threshold", type=float, default=d.threshold, metavar="T",
+                          help=f"heat a vehicle needs (default {d.threshold})")
+    advanced.add_argument("--debug", action="store_true", help="panels: windows, heat map, blobs, tracks")
+    advanced.add_argument("--profile", action="store_true", help="print ms per frame per stage")
 
 
 def _line_arg(s: str) -> CountLine:

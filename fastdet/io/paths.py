@@ -8,12 +8,15 @@ inode as well (a hard link is the same file under another name). Refused in one 
 
 - an output that is one of the inputs (``eval --plot gt.txt``, ``video --boxes model.npz``);
 - two outputs that are one file (``-o x.mp4 --summary x.mp4``);
-- an output that is a folder, whose folder does not exist or cannot be written to.
+- an output that is a folder, whose folder does not exist or cannot be written to;
+- an output inside the installed ``fastdet`` package (:data:`PACKAGE_DIR`, real paths: a symlink
+  into it counts), unless the command was told so with ``--into-package`` (``train``, for the
+  scripts that rebuild a bundled model): every later run would use what it wrote
+  (:func:`check_outside_package`; folder outputs: :func:`check_output_folder`).
 
 Inputs that are not files (a URL, a camera index, an image sequence ``img%04d.jpg``) take
 no part. The bundled model files are inputs of every command that loads a model
-(:func:`bundled_models`): a run never writes over them unless they are its only purpose
-(``train --out``).
+(:func:`bundled_models`).
 """
 from __future__ import annotations
 
@@ -24,8 +27,12 @@ from pathlib import Path
 from ..errors import DataError
 from .atomic import folder_writable, partial_name
 
+#: the installed package's folder, real path (``Path(fastdet.__file__).parent``, symlinks resolved)
+PACKAGE_DIR = Path(__file__).resolve().parent.parent
 #: the folder of the model files shipped with fastdet
-MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
+MODELS_DIR = PACKAGE_DIR / "models"
+#: the option that lets a command write into :data:`PACKAGE_DIR`
+INTO_PACKAGE_FLAG = "--into-package"
 
 Named = tuple[str, "str | os.PathLike[str] | None"]
 
@@ -70,11 +77,43 @@ def _a(what: str) -> str:
     return f"{'an' if what[:1] in 'aeiou' else 'a'} {what}"
 
 
-def check_output(path: str | os.PathLike[str], what: str, label: str | None = None) -> None:
-    """One output location (no comparison with other files): its folder exists and is
-    writable, and the name is not a folder. ``DataError`` otherwise."""
+def check_outside_package(path: str | os.PathLike[str], label: str | None = None,
+                          into_package: bool = False) -> None:
+    """``DataError`` when ``path`` (a file or folder to write; real path) lies inside the installed
+    fastdet package, unless ``into_package`` (the command's ``--into-package``)."""
+    if into_package or not is_inside(path, PACKAGE_DIR):
+        return
+    name = os.fspath(path)
+    raise DataError(f"{f'{label} {name}' if label else name}: is inside the installed fastdet package "
+                    f"({PACKAGE_DIR}), whose files every later run uses; write elsewhere "
+                    f"(`train {INTO_PACKAGE_FLAG}` replaces a bundled model on purpose)")
+
+
+def check_output_folder(path: str | os.PathLike[str], label: str, into_package: bool = False) -> None:
+    """A folder output (made if missing): not a file, writable or creatable, and outside the
+    package (:func:`check_outside_package`). ``DataError`` otherwise."""
+    out = Path(path)
+    check_outside_package(out, label, into_package)
+    if out.exists():
+        if not out.is_dir():
+            raise DataError(f"{label} {out}: exists and is not a folder")
+        if not folder_writable(out):
+            raise DataError(f"{label} {out}: folder is not writable")
+        return
+    parent = next((p for p in out.absolute().parents if p.exists()), None)
+    if parent is None or not parent.is_dir() or not folder_writable(parent):
+        raise DataError(f"{label} {out}: cannot create the folder ({parent} is not writable)")
+
+
+def check_output(path: str | os.PathLike[str], what: str, label: str | None = None,
+                 into_package: bool = False) -> None:
+    """One output location (no comparison with other files): outside the package
+    (:func:`check_outside_package`), its folder exists and is writable, and the name is not a
+    folder. ``DataError`` otherwise."""
     name = os.fspath(path)
     shown = f"{label} {name}" if label else name
+    if name != "" and not name.endswith(os.sep):
+        check_outside_package(name, label, into_package)
     if name == "" or name.endswith(os.sep):
         raise DataError(f"{shown}: expected {_a(what)} file name")
     if os.path.isdir(name):
@@ -93,20 +132,22 @@ def check_output(path: str | os.PathLike[str], what: str, label: str | None = No
         raise DataError(f"{shown}: output folder {parent} is not writable")
 
 
-def check_paths(inputs: Iterable[Named], outputs: Iterable[tuple[str, str | os.PathLike[str] | None, str]]) -> None:
+def check_paths(inputs: Iterable[Named], outputs: Iterable[tuple[str, str | os.PathLike[str] | None, str]],
+                into_package: bool = False) -> None:
     """Check a command's files before any work (see the module docstring).
 
     inputs: ``(label, path)`` pairs, e.g. ``("--model", "m.npz")``; ``None`` paths and
         non-file sources are skipped, so are inputs that do not exist (their reader says so).
     outputs: ``(label, path, what)`` triples, e.g. ``("--boxes", "b.txt", "box")``;
         ``None`` paths are skipped.
+    into_package: the outputs may lie inside the installed package (``--into-package``).
     """
     ins = [(label, os.fspath(p)) for label, p in inputs
            if p is not None and os.fspath(p) != "" and _is_file_input(os.fspath(p))
            and os.path.exists(os.fspath(p))]
     outs = [(label, os.fspath(p), what) for label, p, what in outputs if p is not None]
     for label, out, what in outs:
-        check_output(out, what, label)
+        check_output(out, what, label, into_package)
     for label, out, what in outs:
         for ilabel, inp in ins:
             if not os.path.isdir(inp) and _same(out, inp):

@@ -223,3 +223,40 @@ def test_bad_numba_thread_count_is_one_line(value, capsys, monkeypatch):
     assert main(["image", "in.jpg", "-o", "out.jpg"]) == 2
     assert capsys.readouterr().err.strip() == (
         f"fastdet image: error: NUMBA_NUM_THREADS must be a whole number >= 1, got {value!r}")
+
+
+def _help(command: str) -> list[str]:
+    r = subprocess.run([sys.executable, "-m", "fastdet", command, "--help"], capture_output=True, text=True,
+                       env={**os.environ, "COLUMNS": "80"}, timeout=120, check=True)
+    return r.stdout.splitlines()
+
+
+def test_video_help_fits_a_screen_in_groups():
+    """Issue 33, item 6: ``video --help`` was 122 lines; grouped, one line an option, aliases hidden."""
+    lines = _help("video")
+    assert len(lines) <= 55, len(lines)
+    assert max(map(len, lines)) <= 80
+    for title in ("inputs and outputs:", "models and search:", "tracking:", "advanced:"):
+        assert title in lines
+    text = "\n".join(lines)
+    for hidden in ("--own-vehicle ", "--split-neighbours", "kept for scripts"):
+        assert hidden not in text.replace("--no-own-vehicle", "").replace("--no-split-neighbours", "")
+
+
+@pytest.mark.parametrize("command", ["eval", "train", "bench", "batch"])
+def test_long_helps_are_grouped(command):
+    lines = _help(command)
+    assert len(lines) <= 50 and max(map(len, lines)) <= 80, (len(lines), max(map(len, lines)))
+
+
+def test_hidden_aliases_are_still_accepted():
+    from fastdet.cli.main import build_parser
+
+    p = build_parser("video")
+    a = p.parse_args(["video", "x.mp4", "--own-vehicle", "--split-neighbours"])
+    assert a.own_vehicle and a.split_neighbours
+    p = build_parser("mine-negatives")
+    a = p.parse_args(["mine-negatives", "x.mp4", "--out", "d", "--wide-model", "w.npz", "--part", "wide"])
+    assert str(a.oncoming_model) == "w.npz" and a.part == "wide"
+    text = "\n".join(_help("mine-negatives"))
+    assert "--wide-model" not in text and "oncoming,wide" not in text and "former name" not in text

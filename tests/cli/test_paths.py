@@ -12,7 +12,7 @@ import pytest
 from fastdet.cli.main import main
 from fastdet.io.atomic import partial_name
 from fastdet.model import DEFAULT_MODEL_PATH, ONCOMING_MODEL_PATH
-from tests.media import leftovers, write_video
+from tests.media import frames, leftovers, write_video
 
 
 def _digest(p: Path) -> str:
@@ -70,7 +70,7 @@ def test_video_outputs_onto_model_files_are_refused(clip, tmp_path, capsys):
                  "--summary", str(w), "--no-progress"]) == 2
     assert "would overwrite the input --oncoming-model" in capsys.readouterr().err
     assert main(["video", str(clip), "--boxes", str(DEFAULT_MODEL_PATH), "--no-progress"]) == 2
-    assert "would overwrite the input the bundled model" in capsys.readouterr().err
+    assert "is inside the installed fastdet package" in capsys.readouterr().err  # (and an input)
     assert {p: _digest(p) for p in (m, w)} == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.npz", "w.npz"]
 
@@ -173,3 +173,40 @@ def test_two_runs_onto_the_same_outputs_never_share_a_temporary_file(tmp_path):
         n += 1
     cap.release()
     assert n == 90 and not leftovers(tmp_path)
+
+
+def test_train_into_the_package_needs_its_flag(tmp_path, capsys):
+    """``train --out fastdet/models/default.npz`` (the README's old command) is refused in one
+    line before the data is loaded, the bundled model untouched; ``--into-package`` allows it."""
+    before = _digest(DEFAULT_MODEL_PATH)
+    assert main(["train", "--out", str(DEFAULT_MODEL_PATH), "--data", str(tmp_path / "none")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "is inside the installed fastdet package" in err[0] and "--into-package" in err[0], err
+    assert _digest(DEFAULT_MODEL_PATH) == before
+    # told to: the output passes, and the next check (the missing data folder) speaks
+    assert main(["train", "--out", str(DEFAULT_MODEL_PATH), "--into-package", "--data", str(tmp_path / "none")]) == 2
+    err = capsys.readouterr().err
+    assert "data folder" in err and "inside the installed" not in err, err
+    assert _digest(DEFAULT_MODEL_PATH) == before
+
+
+@pytest.mark.parametrize("command", ["video", "image", "eval", "mine-negatives", "batch"])
+def test_other_commands_never_write_into_the_package(clip, box_files, tmp_path, capsys, command):
+    from fastdet.io.paths import PACKAGE_DIR
+
+    gt, pred = box_files
+    img = tmp_path / "in.jpg"
+    cv2.imwrite(str(img), next(frames(1, 480, 270)))
+    inside = PACKAGE_DIR / "models"
+    argv = {"video": ["video", str(clip), "--boxes", str(inside / "b.txt")],
+            "image": ["image", str(img), "-o", str(inside / "o.jpg")],
+            "eval": ["eval", "--gt", str(gt), "--pred", str(pred), "--plot", str(inside / "pr.png")],
+            "mine-negatives": ["mine-negatives", str(clip), "--x-range", "0", "100", "--out", str(inside / "hard")],
+            "batch": ["batch", str(clip), "--out", str(inside / "runs")]}[command]
+    if command == "batch":
+        pytest.importorskip("dask.distributed")
+    before = sorted(p.name for p in PACKAGE_DIR.rglob("*") if "__pycache__" not in p.parts)
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "inside the installed fastdet package" in err[0], err
+    assert sorted(p.name for p in PACKAGE_DIR.rglob("*") if "__pycache__" not in p.parts) == before

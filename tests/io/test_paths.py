@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import pytest
 
@@ -52,6 +53,8 @@ def test_bundled_models_are_inputs(tmp_path):
     assert any(str(p).endswith("default.npz") for _, p in models)
     _, default = next(m for m in models if str(m[1]).endswith("default.npz"))
     with pytest.raises(DataError, match="would overwrite the input the bundled model"):
+        check_paths(models, [("--boxes", default, "box")], into_package=True)
+    with pytest.raises(DataError, match="inside the installed fastdet package"):  # without the flag, first
         check_paths(models, [("--boxes", default, "box")])
 
 
@@ -90,3 +93,29 @@ def test_output_name_too_long_for_its_temporary_name(tmp_path):
     check_output(tmp_path / ("a" * 200 + ".txt"), "box")
     with pytest.raises(DataError, match="file name is too long"):
         check_output(tmp_path / ("a" * 240 + ".txt"), "box")
+
+
+def test_outputs_inside_the_package_are_refused(tmp_path):
+    """Issue 33, item 5: nothing is written into the installed package unless asked for
+    (``--into-package``); a symlink into it is followed."""
+    import fastdet
+    from fastdet.io.paths import PACKAGE_DIR, check_output_folder, check_outside_package
+
+    assert PACKAGE_DIR == Path(fastdet.__file__).resolve().parent
+    inside = PACKAGE_DIR / "models" / "default.npz"
+    link = tmp_path / "pkg"
+    link.symlink_to(PACKAGE_DIR / "models")
+    for out in (inside, PACKAGE_DIR / "new.txt", link / "x.npz", tmp_path / ".." / os.path.relpath(inside, tmp_path)):
+        with pytest.raises(DataError, match="inside the installed fastdet package") as e:
+            check_output(out, "model", "--out")
+        assert str(e.value).startswith(f"--out {out}: ")
+        with pytest.raises(DataError, match="inside the installed fastdet package"):
+            check_paths([], [("--boxes", out, "box")])
+        check_outside_package(out, "--out", into_package=True)  # told to
+    for folder in (PACKAGE_DIR, PACKAGE_DIR / "models" / "hard", link / "hard"):
+        with pytest.raises(DataError, match="inside the installed fastdet package"):
+            check_output_folder(folder, "--out")
+    check_output(tmp_path / "m.npz", "model", "--out")  # elsewhere: as before
+    check_output_folder(tmp_path / "new" / "hard", "--out")
+    sibling = PACKAGE_DIR.parent / (PACKAGE_DIR.name + "-other") / "m.npz"  # a name that only starts alike
+    check_outside_package(sibling, "--out")

@@ -41,4 +41,5 @@ negatives "$W/neg0"
 python -m fastdet train $T --positives "$W/pos" "${NEG[@]}" --out "$W/w1.npz"
 mine "$W/w1.npz" "$W/neg1"
 negatives "$W/neg0" "$W/neg1" "$W/zoom"
-python -m fastdet train $T --positives "$W/pos" "${NEG[@]}" --out "$OUT"
+# OUT is the bundled model by default: train writes into the package only when told to
+python -m fastdet train $T --positives "$W/pos" "${NEG[@]}" --out "$OUT" --into-package
