@@ -8,8 +8,8 @@ ranked (a layer may import only layers of lower rank; a sub-package may import i
     0  _version, errors, console, signals      no fastdet imports
     1  _numba, data                            numba options, the data folder (may note on the console)
     2  config, boxes, detections               values and arithmetic
-    3  features, io, labels                    pixels in, files in and out; labelled pictures
-    4  model                                   a model file and its features
+    3  features, io                            pixels in, files in and out
+    4  model, labels                           a model file and its features; labelled pictures (read through io)
     5  detect                                  one frame
     6  video, eval, train                      a stream of frames; scoring; fitting
     7  batch                                   many videos
@@ -36,8 +36,8 @@ RANKS: dict[str, int] = {
     "_version": 0, "errors": 0, "console": 0, "signals": 0,
     "_numba": 1, "data": 1,
     "config": 2, "boxes": 2, "detections": 2,
-    "features": 3, "io": 3, "labels": 3,
-    "model": 4,
+    "features": 3, "io": 3,
+    "model": 4, "labels": 4,
     "detect": 5,
     "video": 6, "eval": 6, "train": 6,
     "batch": 7,

@@ -7,29 +7,11 @@ from collections.abc import Iterator, Sequence
 import numpy as np
 
 from ..errors import DataError
-from ..io.images import read_image
 from ..io.reader import read_frames_at
-from .picture import AnnotatedPicture
+from .picture import AnnotatedPicture, load_picture
+from .picture import _check_pixels as _check
 
-
-def _check(pic: AnnotatedPicture, img: np.ndarray) -> np.ndarray:
-    if img.ndim != 3 or img.shape[2] != 3:
-        raise DataError(f"{pic.path}: not a colour picture (shape {img.shape})")
-    if img.shape[:2] != (pic.height, pic.width):
-        raise DataError(f"{pic.path}: the picture is {img.shape[1]}x{img.shape[0]}, "
-                        f"its labels are for {pic.width}x{pic.height}")
-    return img
-
-
-def load_picture(pic: AnnotatedPicture) -> np.ndarray:
-    """``(height, width, 3) uint8`` BGR pixels of ``pic``; :class:`DataError` if they do not
-    decode or are not the labelled size."""
-    if pic.frame is None:
-        return _check(pic, read_image(pic.path))
-    got = read_frames_at(pic.path, [pic.frame], notify=lambda _: None)
-    if pic.frame not in got:
-        raise DataError(f"{pic.path}: the video ends before frame {pic.frame}")
-    return _check(pic, got[pic.frame])
+__all__ = ["load_picture", "load_pictures"]
 
 
 def load_pictures(pics: Sequence[AnnotatedPicture]) -> Iterator[tuple[AnnotatedPicture, np.ndarray]]:

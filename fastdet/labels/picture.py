@@ -12,7 +12,9 @@ only. Boxes are ``x1, y1, x2, y2`` float64 in the picture's own pixels.
   and false alarms be counted on it; a set whose labels are partial (only some cars boxed,
   some vehicle kinds never) is *positives only* and has ``complete=False``.
 - ``camera``: which camera took it (``"dawn_fog/foggy-001"``, ``"idd_mini/frontFar"``,
-  ``"kitti_tiny"``, ``"clip:highway_640"``): the unit of leave-camera-out scoring.
+  ``"kitti"``, ``"clip:highway_640"``): the unit of leave-camera-out scoring.
+- ``labelled_by``: ``"human"`` or ``"teacher"`` (a CNN detector's output,
+  :mod:`fastdet.labels.teacher`): teacher boxes train, only human boxes judge.
 """
 from __future__ import annotations
 
@@ -21,10 +23,16 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import DataError
+from ..io.images import read_image
+from ..io.reader import read_frames_at
+
 #: a vehicle narrower than this fraction of the picture's width is an ignore region (data README)
 MIN_WIDTH_FRACTION = 1 / 32
 #: ... and so is one narrower than this many pixels
 MIN_WIDTH_PX = 24.0
+#: who drew a picture's boxes (``AnnotatedPicture.labelled_by``)
+LABELLERS = ("human", "teacher")
 
 
 def _boxes(value: object) -> np.ndarray:
@@ -54,11 +62,19 @@ class AnnotatedPicture:
     ignores: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
     complete: bool = True
     frame: int | None = None
+    labelled_by: str = "human"
 
     def __post_init__(self) -> None:
+        if self.labelled_by not in LABELLERS:
+            raise ValueError(f"labelled_by must be one of {LABELLERS}, got {self.labelled_by!r}")
         object.__setattr__(self, "targets", _boxes(self.targets))
         object.__setattr__(self, "ignores", _boxes(self.ignores))
         object.__setattr__(self, "path", Path(self.path))
+
+    @property
+    def human(self) -> bool:
+        """The labels are a person's (ground truth), not a teacher's."""
+        return self.labelled_by == "human"
 
     @property
     def boxes(self) -> np.ndarray:
@@ -70,9 +86,29 @@ class AnnotatedPicture:
         :func:`fastdet.io.images.read_image`, a video frame through the frame reader).
         Raises :class:`~fastdet.errors.DataError` when it does not decode or its size is not
         the labelled one."""
-        from .load import load_picture
-
         return load_picture(self)
+
+
+def _check_pixels(pic: AnnotatedPicture, img: np.ndarray) -> np.ndarray:
+    """``img`` if it is a colour picture of ``pic``'s size; DataError naming the file otherwise."""
+    if img.ndim != 3 or img.shape[2] != 3:
+        raise DataError(f"{pic.path}: not a colour picture (shape {img.shape})")
+    if img.shape[:2] != (pic.height, pic.width):
+        raise DataError(f"{pic.path}: the picture is {img.shape[1]}x{img.shape[0]}, "
+                        f"its labels are for {pic.width}x{pic.height}")
+    return img
+
+
+def load_picture(pic: AnnotatedPicture) -> np.ndarray:
+    """``(height, width, 3) uint8`` BGR pixels of ``pic``; :class:`DataError` if they do not
+    decode or are not the labelled size. (Here rather than in :mod:`.load` so that the two
+    modules do not import each other; :mod:`.load` re-exports it.)"""
+    if pic.frame is None:
+        return _check_pixels(pic, read_image(pic.path))
+    got = read_frames_at(pic.path, [pic.frame], notify=lambda _: None)
+    if pic.frame not in got:
+        raise DataError(f"{pic.path}: the video ends before frame {pic.frame}")
+    return _check_pixels(pic, got[pic.frame])
 
 
 def split_small(boxes: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray]:
