@@ -5,6 +5,7 @@ Public API (the heavy parts are imported lazily, so ``import fastdet`` is cheap)
     from fastdet import hog, hog_channels            # skimage-compatible HOG, per-channel HOG
     from fastdet import hog_channels_batch           # per-channel HOG of a stack of crops
     from fastdet import Detector, VideoDetector      # one frame / a stream of frames
+    from fastdet import detect_picture, PictureDetector  # the vehicles of one picture (whole picture, every scale)
     from fastdet import load_model, Model            # the bundled or a trained model
     from fastdet import Detections                   # the box table: boxes + scores, scale, part, ids, frames ...
     from fastdet import sample_video                 # the path of the sample clip that ships with fastdet
@@ -35,10 +36,12 @@ if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers and
     from .config import FeatureConfig as FeatureConfig
     from .config import HeatConfig as HeatConfig
     from .config import MotionGate as MotionGate
+    from .config import PictureSearch as PictureSearch
     from .config import PipelineConfig as PipelineConfig
     from .config import SearchBand as SearchBand
     from .config import SearchConfig as SearchConfig
     from .config import TrackerConfig as TrackerConfig
+    from .data import sample_video as sample_video
     from .detect import Detector as Detector
     from .detections import Detections as Detections
     from .features import extract_features as extract_features
@@ -46,10 +49,11 @@ if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers and
     from .features import hog_channels as hog_channels
     from .features import hog_channels_batch as hog_channels_batch
     from .model import Model as Model
-    from .data import sample_video as sample_video
     from .model import load_model as load_model
     from .video import HeatMap as HeatMap
+    from .video import PictureDetector as PictureDetector
     from .video import VideoDetector as VideoDetector
+    from .video import detect_picture as detect_picture
 
 # everything that imports NumPy is lazy: ``python -m fastdet`` imports this package before
 # its first line of its own runs, and installs its stop-signal handlers right after
@@ -57,6 +61,7 @@ _LAZY = {
     "FeatureConfig": "fastdet.config",
     "HeatConfig": "fastdet.config",
     "MotionGate": "fastdet.config",
+    "PictureSearch": "fastdet.config",
     "PipelineConfig": "fastdet.config",
     "SearchBand": "fastdet.config",
     "SearchConfig": "fastdet.config",
@@ -69,6 +74,8 @@ _LAZY = {
     "Detector": "fastdet.detect",
     "VideoDetector": "fastdet.video",
     "HeatMap": "fastdet.video",
+    "PictureDetector": "fastdet.video",
+    "detect_picture": "fastdet.video",
     "load_model": "fastdet.model",
     "Model": "fastdet.model",
     "sample_video": "fastdet.data",
