@@ -10,9 +10,10 @@ Outputs:
 - ``--boxes OUT.csv``: a header line ``image,x1,y1,x2,y2,score``, then one line a box; ``image``
   is the file name relative to the folder given (or the file name as given for a file);
   pixels, ``x2, y2`` exclusive; score: the box's peak heat (``--nms``: its decision value).
-- ``-o OUT_DIR``: the annotated pictures, under the same relative names (the folder is made).
+- ``-o OUT_DIR``: the annotated pictures, under the same relative names (the folder is made; a
+  file given with an absolute path or ``..`` goes there under its base name).
 - The single-file form of earlier versions, ``image IN.jpg -o OUT.jpg`` (one input file and an
-  ``-o`` with an image extension), writes that one annotated picture; ``--heat`` (only there)
+  ``-o`` with an extension that is not an existing folder), writes that one annotated picture; ``--heat`` (only there)
   also writes the heat map as ``OUT.heat.jpg``.
 
 ``--windows`` also draws the positive windows, coloured by scale.
@@ -102,10 +103,18 @@ def collect(inputs: list[str]) -> list[tuple[str, Path]]:
     return out
 
 
+def out_name(name: str) -> str:
+    """Where a picture named ``name`` goes in ``-o OUT_DIR``: ``name`` itself when it is a
+    relative path inside the folder (no ``..``), else its base name (a file given as
+    ``/abs/x.jpg`` or ``../x.jpg`` goes to ``OUT_DIR/x.jpg``)."""
+    p = Path(name)
+    return p.name if p.is_absolute() or ".." in p.parts else p.as_posix()
+
+
 def _legacy(args: argparse.Namespace) -> bool:
-    """The single-file form: one input file and ``-o`` with an image extension."""
+    """The single-file form: one input file and an ``-o`` with an extension that is not a folder."""
     return (args.output is not None and len(args.inputs) == 1 and not os.path.isdir(args.inputs[0])
-            and Path(args.output).suffix.lower() in IMAGE_EXTENSIONS)
+            and Path(args.output).suffix != "" and not os.path.isdir(args.output))
 
 
 def run(args: argparse.Namespace, detector: Any = None) -> int:
@@ -137,12 +146,16 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
                 raise DataError(f"-o {out_dir}: the folder is not writable")
         else:
             check_output(out_dir, "folder", "-o")  # its parent exists and is writable
+        outs: dict[str, str] = {}
         for name, _ in pictures:
-            if not cv2.haveImageWriter(str(out_dir / name)):
+            if out_name(name) in outs:
+                raise DataError(f"-o: {outs[out_name(name)]} and {name} would both be written as {out_name(name)}")
+            outs[out_name(name)] = name
+            if not cv2.haveImageWriter(str(out_dir / out_name(name))):
                 raise DataError(f"-o: cannot write {name} as an image (extension not supported)")
         inputs = {os.path.realpath(p) for _, p in pictures}
         for name, _ in pictures:
-            if os.path.realpath(out_dir / name) in inputs:
+            if os.path.realpath(out_dir / out_name(name)) in inputs:
                 raise DataError(f"-o {out_dir}: would overwrite the input {name}; give another folder")
     try:
         config = PictureSearch(boxes="nms" if args.nms else "heat",
@@ -185,7 +198,7 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
             for b, s in zip(boxes.boxes, boxes.scores):
                 csv.write(f"{name},{int(b[0])},{int(b[1])},{int(b[2])},{int(b[3])},{float(s):.4f}\n")
             if args.output is not None:
-                out = Path(args.output) if legacy else Path(args.output) / name
+                out = Path(args.output) if legacy else Path(args.output) / out_name(name)
                 ann = img.copy()
                 if args.windows:
                     draw.draw_windows(ann, windows, 1)
