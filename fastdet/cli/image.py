@@ -9,7 +9,8 @@ Outputs:
 
 - ``--boxes OUT.csv``: a header line ``image,x1,y1,x2,y2,score``, then one line a box; ``image``
   is the file name relative to the folder given (or the file name as given for a file);
-  pixels, ``x2, y2`` exclusive; score: the box's peak heat (``--nms``: its decision value).
+  pixels, ``x2, y2`` exclusive; score: the kept window's decision value (``--merge heat``: the
+  blob's peak heat).
 - ``-o OUT_DIR``: the annotated pictures, under the same relative names (the folder is made; a
   file given with an absolute path or ``..`` goes there under its base name).
 - The single-file form of earlier versions, ``image IN.jpg -o OUT.jpg`` (one input file and an
@@ -66,10 +67,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
     d = PictureSearch()
     parser.add_argument("--threshold", type=float, default=None, metavar="T",
-                        help=f"heat a pixel needs to be part of a vehicle (default "
+                        help=f"--merge heat: heat a pixel needs to be part of a vehicle (default "
                              f"PictureSearch.heat_threshold = {d.heat_threshold})")
-    parser.add_argument("--nms", action="store_true",
-                        help="boxes by non-maximum suppression of the windows instead of the heat map")
+    parser.add_argument("--merge", choices=("nms", "heat"), default=d.boxes,
+                        help=f"how windows become boxes: non-maximum suppression or a single-frame heat map "
+                             f"(default PictureSearch.boxes = {d.boxes})")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -126,8 +128,8 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
     legacy = _legacy(args)
     if args.boxes is None and args.output is None:
         raise FastdetError("give --boxes OUT.csv and/or -o OUT_DIR")
-    if args.heat and not legacy:
-        raise FastdetError("--heat only applies to the single-file form IN.jpg -o OUT.jpg")
+    if args.heat and (not legacy or args.merge != "heat"):
+        raise FastdetError("--heat only applies to the single-file form IN.jpg -o OUT.jpg with --merge heat")
     pictures = collect(list(args.inputs))
     out_dir = None if legacy or args.output is None else Path(args.output)
     hout = heat_path(args.output) if legacy and args.heat else None
@@ -158,7 +160,7 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
             if os.path.realpath(out_dir / out_name(name)) in inputs:
                 raise DataError(f"-o {out_dir}: would overwrite the input {name}; give another folder")
     try:
-        config = PictureSearch(boxes="nms" if args.nms else "heat",
+        config = PictureSearch(boxes=args.merge,
                                **({} if args.threshold is None else {"heat_threshold": args.threshold}))
     except ValueError as exc:
         raise FastdetError(f"--threshold: {exc}") from None

@@ -59,7 +59,7 @@ def parse(*argv):
 
 def test_image_boxes_windows_heat(image, tmp_path, capsys):
     out = tmp_path / "out.jpg"
-    assert imagecmd.run(parse(image, "-o", out, "--windows", "--heat"), detector=FAKE) == 0
+    assert imagecmd.run(parse(image, "-o", out, "--windows", "--heat", "--merge", "heat"), detector=FAKE) == 0
     assert "1 vehicle(s) in 1 picture(s)" in capsys.readouterr().out
     res = cv2.imread(str(out))
     heat = cv2.imread(str(tmp_path / "out.heat.jpg"))
