@@ -129,7 +129,8 @@ def _picture_sets(args: argparse.Namespace, shared: bool) -> list[tuple[str, lis
     for spec in args.frames:
         fs = parse_spec(spec)
         pics = fs.read()
-        out.append((f"{fs.format}:{fs.path.name or fs.path}", pics))
+        label = fs.path.parent.name if fs.path.is_file() else fs.path.name
+        out.append((f"{fs.format}:{label or fs.path}", pics))
     if shared:
         from ..data import data_dir
 
