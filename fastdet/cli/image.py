@@ -42,6 +42,7 @@ import cv2
 
 from .._numba import ensure_compiled
 from ..config import PictureSearch
+from ..detect.checks import check_colour
 from ..errors import DataError, FastdetError
 from ..io import draw
 from ..io.atomic import folder_writable, write_bytes
@@ -186,6 +187,7 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
         for name, path in pictures:
             try:
                 img = first if first is not None else read_image(path)
+                check_colour(detector.detector(img.shape), img, str(path))
                 windows = detector.windows(img)
             except (DataError, ValueError) as exc:
                 if len(pictures) == 1:

@@ -106,8 +106,9 @@ class PictureSearch(Config):
             px = cell * s
             bands.append(SearchBand(s, 0, h, 0, min(w, int(w // px * px)) or w))
         if not bands:
-            raise ValueError(f"a {w}x{h} picture is smaller than the smallest window "
-                             f"({window * max(self.min_width * w, 2 * cell) / window:.0f} px)")
+            n = math.ceil(max(self.min_width * w, 2 * cell))
+            raise ValueError(f"a {w}x{h} picture is too small for the picture search: its smallest window "
+                             f"({n}x{n} px) does not fit")
         return SearchConfig(bands=tuple(bands), cells_per_step=self.cells_per_step, threshold=self.threshold,
                             reference_shape=None, border=0.0, slack_threshold=None)
 

@@ -35,7 +35,7 @@ def test_bad_settings(bad):
 
 
 def test_too_small_picture():
-    with pytest.raises(ValueError, match="smaller than the smallest window"):
+    with pytest.raises(ValueError, match="too small for the picture search"):
         PictureSearch().search((12, 12))
 
 
