@@ -6,6 +6,7 @@ Public API (the heavy parts are imported lazily, so ``import fastdet`` is cheap)
     from fastdet import hog_channels_batch           # per-channel HOG of a stack of crops
     from fastdet import Detector, VideoDetector      # one frame / a stream of frames
     from fastdet import detect_video                 # a video file, as `python -m fastdet video` runs it
+    from fastdet import detect_picture, PictureDetector  # the vehicles of one picture (whole picture, every scale)
     from fastdet import load_model, Model            # the bundled or a trained model
     from fastdet import Detections, Box              # the box table (boxes + scores, ids, frames ...), one row
     from fastdet import sample_video                 # the path of the sample clip that ships with fastdet
@@ -77,6 +78,7 @@ if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers and
     from .config import FeatureConfig as FeatureConfig
     from .config import HeatConfig as HeatConfig
     from .config import MotionGate as MotionGate
+    from .config import PictureSearch as PictureSearch
     from .config import PipelineConfig as PipelineConfig
     from .config import SearchBand as SearchBand
     from .config import SearchConfig as SearchConfig
@@ -92,7 +94,9 @@ if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers and
     from .model import Model as Model
     from .model import load_model as load_model
     from .video import HeatMap as HeatMap
+    from .video import PictureDetector as PictureDetector
     from .video import VideoDetector as VideoDetector
+    from .video import detect_picture as detect_picture
     from .video import detect_video as detect_video
 
 # everything that imports NumPy is lazy (``python -m fastdet`` imports this package first)
@@ -100,6 +104,7 @@ _LAZY = {
     "FeatureConfig": "fastdet.config",
     "HeatConfig": "fastdet.config",
     "MotionGate": "fastdet.config",
+    "PictureSearch": "fastdet.config",
     "PipelineConfig": "fastdet.config",
     "SearchBand": "fastdet.config",
     "SearchConfig": "fastdet.config",
@@ -114,6 +119,8 @@ _LAZY = {
     "VideoDetector": "fastdet.video",
     "detect_video": "fastdet.video",
     "HeatMap": "fastdet.video",
+    "PictureDetector": "fastdet.video",
+    "detect_picture": "fastdet.video",
     "load_model": "fastdet.model",
     "Model": "fastdet.model",
     "sample_video": "fastdet.data",

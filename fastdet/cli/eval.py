@@ -1,4 +1,8 @@
-"""``python -m fastdet eval``: score predicted boxes against MOTChallenge ground truth."""
+"""``python -m fastdet eval``: score predicted boxes against MOTChallenge ground truth; with
+``--frames SPEC`` (repeatable) the single-picture search on labelled picture sets
+(:mod:`fastdet.eval.pictures`: recall only where labels are partial); ``--all`` adds the data
+folder's human-labelled picture sets (dawn_fog, dawn_weather, idd_mini, kitti_tiny) as rows
+after the clips (not with ``--pred-dir``)."""
 from __future__ import annotations
 
 import argparse
@@ -35,7 +39,8 @@ def _iou_arg(s: str) -> float:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.usage = ("%(prog)s --gt GT.txt (--pred P.txt | --video C.mp4)\n"
-                    "       %(prog)s --all [--out R.json]")
+                    "       %(prog)s --all [--out R.json]\n"
+                    "       %(prog)s --frames FORMAT:PATH [--model M.npz]")
     what = parser.add_argument_group("what to score")
     what.add_argument("--gt", metavar="GT.txt", help="MOTChallenge ground truth")
     src = what.add_mutually_exclusive_group()
@@ -52,6 +57,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     every.add_argument("--clips", metavar="A,B", help="only these clips")
     every.add_argument("--pred-dir", metavar="DIR", help="read DIR/CLIP.txt instead of running")
     every.add_argument("--out", metavar="REPORT.json", help="also write the report as JSON")
+    every.add_argument("--frames", metavar="SPEC", action="append", default=[],
+                       help="score the single-picture search (`fastdet image`) on a labelled set, "
+                            "FORMAT:PATH[,options]; repeatable (docs/labels.md)")
     search, tracking, _ = pipeline_groups(parser)
     add_horizon_argument(search)
     track = tracking.add_mutually_exclusive_group()
@@ -87,6 +95,64 @@ def _clip_predictions(pred_dir: str, name: str) -> Detections:
     raise DataError(f"{pred_dir}: no predictions for clip {name} ({name}.txt or {name}.jsonl)")
 
 
+#: the human-labelled picture sets of the data folder that ``--all`` scores
+PICTURE_SETS = ("dawn_fog", "dawn_weather", "idd_mini", "kitti_tiny")
+
+
+def _picture_sets(args: argparse.Namespace, shared: bool) -> list[tuple[str, list]]:
+    """``(name, pictures)`` of every ``--frames`` spec, then (``shared``) the data folder's
+    human-labelled picture sets; DataError (one line) for a spec that does not read."""
+    from ..labels.sets import parse_spec, shared_sets
+
+    out = []
+    for spec in args.frames:
+        fs = parse_spec(spec)
+        pics = fs.read()
+        label = fs.path.parent.name if fs.path.is_file() else fs.path.name
+        out.append((f"{fs.format}:{label or fs.path}", pics))
+    if shared:
+        from ..data import data_dir
+
+        sets = shared_sets(args.data or data_dir())
+        out += [(name, sets[name]) for name in PICTURE_SETS if name in sets]
+    return out
+
+
+def _score_picture_sets(sets: list[tuple[str, list]], args: argparse.Namespace) -> list:
+    """Each set scored with the single-picture search (:func:`fastdet.detect_picture`)."""
+    from ..eval.pictures import score_pictures
+    from ..video.picture import PictureDetector
+    from ..video.run import progress_bar
+
+    det = PictureDetector(args.model)
+    from .._numba import ensure_compiled
+
+    ensure_compiled(det.kernels)
+    scores = []
+    for name, pics in sets:
+        bar = progress_bar(len(pics), not getattr(args, "no_progress", False), name)
+        try:
+            scores.append(score_pictures(name, pics, det.detect, iou=args.iou, each=lambda _: bar.update(1)))
+        finally:
+            bar.close()
+    return scores
+
+
+def _run_frames(args: argparse.Namespace) -> int:
+    """``eval --frames SPEC ...`` without ``--all``: the picture sets only."""
+    from ..eval.clips import markdown_table, report_json
+
+    check_paths([("--model", args.model), *bundled_models()], [("--out", args.out, "report")])
+    scores = _score_picture_sets(_picture_sets(args, shared=False), args)
+    report = report_json([], {"iou": args.iou, "model": args.model or "bundled", "search": "picture"}, scores)
+    text = json.dumps(report, indent=1, allow_nan=False) + "\n"
+    if args.out is not None:
+        write_bytes(args.out, text.encode())
+    print(text, end="") if args.json else print(markdown_table([], scores))
+    sys.stdout.flush()
+    return 0
+
+
 def _run_all(args: argparse.Namespace) -> int:
     if args.gt is not None or args.pred is not None or args.video is not None or args.keyframes is not None \
             or args.plot is not None:
@@ -120,6 +186,7 @@ def _run_all(args: argparse.Namespace) -> int:
                  ("--small-model", getattr(args, "small_model", None)), *bundled_models(),
                  *[(f"clip {c.name}", p) for c in clips for p in (c.video, c.gt_path)], *preds_in],
                 [("--out", args.out, "report")])
+    picture_sets = _picture_sets(args, shared=True) if args.pred_dir is None else []
     scores = []
     for clip in clips:
         gt, kf = clip.gt(), clip.keyframes()
@@ -139,14 +206,15 @@ def _run_all(args: argparse.Namespace) -> int:
                         offline=args.offline, horizon=config.horizon, full_search=config.guided is None,
                         perspective=config.perspective is not None, split=config.split is not None,
                         perspective_filter=config.plausible is not None and config.plausible.perspective)
-    report = report_json(scores, settings)
+    pictures = _score_picture_sets(picture_sets, args) if picture_sets else []
+    report = report_json(scores, settings, pictures)
     text = json.dumps(report, indent=1, allow_nan=False) + "\n"
     if args.out is not None:
         write_bytes(args.out, text.encode())
     if args.json:
         print(text, end="")
     else:
-        print(markdown_table(scores))
+        print(markdown_table(scores, pictures))
         if args.out is not None:
             print(f"report written to {args.out}")
     sys.stdout.flush()
@@ -156,6 +224,10 @@ def _run_all(args: argparse.Namespace) -> int:
 def run(args: argparse.Namespace) -> int:
     if getattr(args, "all", False):
         return _run_all(args)
+    if getattr(args, "frames", None):
+        if args.gt is not None or args.pred is not None or args.video is not None or args.pred_dir is not None:
+            raise FastdetError("--frames scores labelled pictures: it takes no --gt, --pred, --video or --pred-dir")
+        return _run_frames(args)
     if getattr(args, "pred_dir", None) is not None or getattr(args, "out", None) is not None \
             or getattr(args, "clips", None) is not None or getattr(args, "data", None) is not None:
         raise FastdetError("--data, --clips, --pred-dir and --out only apply with --all")

@@ -21,6 +21,8 @@ comparable, JSON round-trip through one :meth:`~fastdet.config.Config.to_dict` /
   (:class:`JitterConfig`);
 - :mod:`.perspective`: bands from the camera's geometry (:class:`GeometryConfig`) and the
   perspective learnt from the tracked vehicles (:class:`PerspectiveConfig`);
+- :mod:`.picture`: how a single picture is searched, the whole of it at every scale
+  (:class:`PictureSearch`);
 - :mod:`.models`: the bundled model files;
 - :mod:`.pipeline`: all of the video pipeline's settings in one value (:class:`PipelineConfig`);
 - :mod:`.teacher`: a teacher CNN that labels frames (:class:`TeacherConfig`);
@@ -41,6 +43,7 @@ from .models import DEFAULT_MODEL_PATH, ONCOMING_MODEL_PATH, REFINE_MODEL_PATH, 
 from .motion import MotionGate
 from .ownvehicle import OwnVehicleConfig
 from .perspective import GeometryConfig, PerspectiveConfig
+from .picture import PICTURE_SEARCH, PictureBoxes, PictureSearch
 from .pipeline import Horizon, PipelineConfig
 from .plausible import PlausibleConfig
 from .refine import JitterConfig, RefineConfig
@@ -66,11 +69,11 @@ from .track import TrackerConfig
 __all__ = ["BoxMode", "CELL", "COCO_VEHICLES", "COLOR_SPACES", "ColorSpace", "Config", "DEFAULT_MODEL_PATH",
            "FeatureConfig", "GeometryConfig", "GuidedSearch", "HeatConfig", "Horizon", "JitterConfig", "MotionGate",
            "NeighbourSplit", "ONCOMING_HEAT", "ONCOMING_MODEL_PATH", "ONCOMING_SEARCH", "OwnVehicleConfig",
-           "PerspectiveConfig", "PipelineConfig", "PlausibleConfig", "REFERENCE_HORIZON", "REFERENCE_SHAPE",
-           "REFINE_MODEL_PATH", "RefineConfig", "SIDE_HEAT", "SIDE_MODEL_PATH", "SIDE_SEARCH", "SMALL_FEATURES",
-           "SMALL_HEAT", "SMALL_MODEL_PATH", "SMALL_SEARCH", "ScoreKind", "SearchBand", "SearchConfig",
-           "SelfCalibration", "TRAFFIC_SIDES", "TeacherConfig", "TrackerConfig", "Traffic", "WINDOW", "check_traffic",
-           "oncoming_search", "side_search", "small_search"]
+           "PICTURE_SEARCH", "PerspectiveConfig", "PictureBoxes", "PictureSearch", "PipelineConfig", "PlausibleConfig",
+           "REFERENCE_HORIZON", "REFERENCE_SHAPE", "REFINE_MODEL_PATH", "RefineConfig", "SIDE_HEAT", "SIDE_MODEL_PATH",
+           "SIDE_SEARCH", "SMALL_FEATURES", "SMALL_HEAT", "SMALL_MODEL_PATH", "SMALL_SEARCH", "ScoreKind",
+           "SearchBand", "SearchConfig", "SelfCalibration", "TRAFFIC_SIDES", "TeacherConfig", "TrackerConfig",
+           "Traffic", "WINDOW", "check_traffic", "oncoming_search", "side_search", "small_search"]
 
 #: former names, kept for code written against them: ``WIDE_HEAT``, ``WIDE_SEARCH``, ``wide_search``
 _RENAMED = {"WIDE_HEAT": "ONCOMING_HEAT", "WIDE_SEARCH": "ONCOMING_SEARCH", "wide_search": "oncoming_search"}

@@ -32,6 +32,7 @@ from ..detections import Detections
 from ..io.keyframes import GT_SUFFIX, keyframes_for
 from ..io.motfiles import read_gt
 from .metrics import EvalResult, evaluate
+from .pictures import SourceScore, markdown_rows
 from .sizes import REPORT_EDGES, WidthBin, recall_by_width
 
 #: version of the JSON report's layout (bumped when a field changes meaning)
@@ -102,9 +103,11 @@ def _f(x: float | None, digits: int = 2) -> str:
     return "n/a" if x is None or not math.isfinite(x) else f"{x:.{digits}f}"
 
 
-def markdown_table(scores: Sequence[ClipScore]) -> str:
-    """The report as a markdown table, one row per clip (no trailing newline)."""
-    labels = [b.label for b in scores[0].widths] if scores else []
+def markdown_table(scores: Sequence[ClipScore], pictures: Sequence[SourceScore] = ()) -> str:
+    """The report as a markdown table, one row per clip, then one per picture set of
+    ``pictures`` (:func:`fastdet.eval.pictures.markdown_rows`; no trailing newline)."""
+    first = scores[0].widths if scores else pictures[0].widths if pictures else ()
+    labels = [b.label for b in first]
     head = ["clip", "frames", "targets", "P", "R", "F1", "AP", "FA / frame", "TP", "FA"]
     head += [f"R w{lab}" for lab in labels]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
@@ -115,12 +118,18 @@ def markdown_table(scores: Sequence[ClipScore]) -> str:
                _f(r.fp_per_frame), str(r.tp), str(r.fp)]
         row += [f"{b.found}/{b.total}" if b.total else "-" for b in s.widths]
         lines.append("| " + " | ".join(row) + " |")
+    lines += markdown_rows(pictures)
     return "\n".join(lines)
 
 
-def report_json(scores: Sequence[ClipScore], settings: dict[str, Any] | None = None) -> dict[str, Any]:
+def report_json(scores: Sequence[ClipScore], settings: dict[str, Any] | None = None,
+                pictures: Sequence[SourceScore] = ()) -> dict[str, Any]:
     """The report as a JSON-ready dict: ``{"format", "iou", "settings", "clips": {name: ...}}``
-    (NaN as null; keys in a stable order, so two reports diff line by line)."""
-    iou = scores[0].result.iou_threshold if scores else None
-    return {"format": REPORT_FORMAT, "iou": iou, "settings": dict(settings or {}),
-            "clips": {s.name: s.to_dict() for s in scores}}
+    and, with ``pictures``, ``"pictures": {set name: ...}`` (NaN as null; keys in a stable
+    order, so two reports diff line by line)."""
+    iou = scores[0].result.iou_threshold if scores else pictures[0].iou if pictures else None
+    out = {"format": REPORT_FORMAT, "iou": iou, "settings": dict(settings or {}),
+           "clips": {s.name: s.to_dict() for s in scores}}
+    if pictures:
+        out["pictures"] = {s.name: s.to_dict() for s in pictures}
+    return out

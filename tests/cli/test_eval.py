@@ -123,3 +123,34 @@ def test_all_without_clips(tmp_path, capsys):
     (tmp_path / "annotations").mkdir()
     assert main(["eval", "--all", "--data", str(tmp_path)]) == 2
     assert "no annotated clips" in capsys.readouterr().err
+
+
+def test_frames_bad_specs_one_line(capsys):
+    from fastdet import cli as _cli
+
+    for spec, match in (("bogus:/x", "FORMAT:PATH"), ("voc:/nonexistent-set", "not found"),
+                        ("kitti:/x,every=3", "")):
+        rc = _cli.main(["eval", "--frames", spec])
+        err = capsys.readouterr().err
+        assert rc == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err and match in err, err
+
+
+def test_frames_scores_a_voc_set(data, tmp_path, capsys):
+    """One dawn_fog picture as a VOC set of its own: the row of the table and the JSON report."""
+    import json as _json
+    import shutil
+
+    from fastdet import cli as _cli
+
+    root = tmp_path / "fog"
+    (root / "images").mkdir(parents=True)
+    (root / "voc").mkdir()
+    src = data / "frames" / "dawn_fog"
+    shutil.copy(src / "images" / "foggy-001.jpg", root / "images")
+    shutil.copy(src / "voc" / "foggy-001.xml", root / "voc")
+    out = tmp_path / "r.json"
+    assert _cli.main(["eval", "--frames", f"voc:{root}", "--out", str(out)]) == 0
+    table = capsys.readouterr().out
+    assert "voc:fog" in table and "1 pic" in table
+    rep = _json.loads(out.read_text())["pictures"]["voc:fog"]
+    assert rep["pictures"] == 1 and rep["complete"] is True and rep["targets"] >= 1

@@ -16,7 +16,31 @@ from fastdet.errors import DataError
 from fastdet.video import detect_image
 from tests.fakes import BlobsDetector
 
-FAKE = BlobsDetector(score=2.0, scales=True)  # windows around each bright rectangle
+
+class FakePictures:
+    """What ``image`` needs of a :class:`fastdet.video.picture.PictureDetector`, around a fake
+    window detector (windows around each bright rectangle) and the single-frame heat map."""
+
+    kernels = ()
+
+    def __init__(self, threshold=None):
+        self.inner = BlobsDetector(score=2.0, scales=True)
+        self.heat = HeatConfig().single_frame(threshold)
+
+    def detector(self, shape):
+        return self.inner
+
+    def windows(self, img):
+        return self.inner.detect(img)
+
+    def boxes_from_windows(self, windows, shape):
+        from fastdet.video import HeatMap
+
+        hm = HeatMap(shape, self.heat, score_kind=self.inner.score_kind)
+        return hm.update(windows), hm
+
+
+FAKE = FakePictures()
 
 
 @pytest.fixture
@@ -35,8 +59,8 @@ def parse(*argv):
 
 def test_image_boxes_windows_heat(image, tmp_path, capsys):
     out = tmp_path / "out.jpg"
-    assert imagecmd.run(parse(image, "-o", out, "--windows", "--heat"), detector=FAKE) == 0
-    assert "1 vehicle(s) from 10 positive window(s)" in capsys.readouterr().out
+    assert imagecmd.run(parse(image, "-o", out, "--windows", "--heat", "--merge", "heat"), detector=FAKE) == 0
+    assert "1 vehicle(s) in 1 picture(s)" in capsys.readouterr().out
     res = cv2.imread(str(out))
     heat = cv2.imread(str(tmp_path / "out.heat.jpg"))
     assert res.shape == heat.shape == (240, 320, 3)
@@ -50,20 +74,20 @@ def test_image_boxes_windows_heat(image, tmp_path, capsys):
 def test_detect_image_single_frame_threshold(image):
     frame = cv2.imread(str(image))
     cfg = HeatConfig().single_frame()
-    windows, hm, boxes = detect_image(frame, FAKE, cfg)
+    windows, hm, boxes = detect_image(frame, FAKE.inner, cfg)
     assert hm.config.n_frames == 1 and hm.config.threshold == cfg.single_frame_threshold
     assert len(windows) == 10 and windows.scale.tolist() == [1.0, 1.5, 2.0, 2.5, 3.0] * 2
     assert len(hm.blobs.boxes) == 2 and len(boxes.boxes) == 1  # the pole is filtered out
     x1, y1, x2, y2 = boxes.boxes[0]
     assert abs(x1 - 40) <= 4 and abs(x2 - 120) <= 4 and abs(y1 - 100) <= 4 and abs(y2 - 160) <= 4
     # a threshold above every heat value leaves nothing
-    _, _, none = detect_image(frame, FAKE, HeatConfig().single_frame(1e6))
+    _, _, none = detect_image(frame, FAKE.inner, HeatConfig().single_frame(1e6))
     assert len(none.boxes) == 0
 
 
 def test_threshold_option(image, tmp_path, capsys):
     out = tmp_path / "o.png"
-    assert imagecmd.run(parse(image, "-o", out, "--threshold", "1000"), detector=FAKE) == 0
+    assert imagecmd.run(parse(image, "-o", out), detector=FakePictures(1000.0)) == 0
     assert "0 vehicle(s)" in capsys.readouterr().out
     assert cv2.imread(str(out)).shape == (240, 320, 3)
 
@@ -93,3 +117,43 @@ def test_unwritable_extension(image, tmp_path):
     with pytest.raises(DataError, match="cannot write an image"):
         imagecmd.run(parse(image, "-o", tmp_path / "o.unknownext"), detector=FAKE)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.png"]
+
+
+def test_folders_boxes_csv_and_out_dir(image, tmp_path, capsys):
+    """PATH... with folders (recursive, sorted, names relative to the folder) and a file (its
+    name as given); one CSV line a box after the header; annotated pictures under the same
+    names; a picture that does not decode is skipped with one note and exit status 1."""
+    src = tmp_path / "src"
+    (src / "b").mkdir(parents=True)
+    img = cv2.imread(str(image))
+    cv2.imwrite(str(src / "b" / "two.png"), img)
+    cv2.imwrite(str(src / "one.jpg"), img)
+    (src / "b" / "broken.jpg").write_bytes(b"not a picture")
+    (src / "notes.txt").write_text("not taken")
+    csv, out = tmp_path / "boxes.csv", tmp_path / "out"
+    rc = imagecmd.run(parse(src, image, "--boxes", csv, "-o", out, "--no-progress"), detector=FAKE)
+    cap = capsys.readouterr()
+    assert rc == imagecmd.SKIPPED_EXIT
+    assert "skipped" in cap.err and "b/broken.jpg" in cap.err
+    lines = csv.read_text().splitlines()
+    assert lines[0] == "image,x1,y1,x2,y2,score"
+    names = [ln.split(",")[0] for ln in lines[1:]]
+    assert names == ["b/two.png", "one.jpg", str(image)]
+    for ln in lines[1:]:
+        x1, y1, x2, y2 = (int(v) for v in ln.split(",")[1:5])
+        assert abs(x1 - 40) <= 6 and abs(x2 - 120) <= 6 and abs(y1 - 100) <= 6 and abs(y2 - 160) <= 6
+    written = sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file())
+    assert written == ["b/two.png", "in.png", "one.jpg"]
+    assert not [p for p in tmp_path.rglob(".*partial*")]
+
+
+def test_boxes_only_and_bad_runs(image, tmp_path, capsys):
+    csv = tmp_path / "b.csv"
+    assert imagecmd.run(parse(image, "--boxes", csv, "--no-progress"), detector=FAKE) == 0
+    assert len(csv.read_text().splitlines()) == 2
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    _main_fails([empty, "--boxes", tmp_path / "c.csv"], capsys, "no pictures")
+    _main_fails([image], capsys, "--boxes")
+    _main_fails([image, "--boxes", tmp_path / "nowhere" / "c.csv"], capsys, "does not exist")
+    assert not (tmp_path / "c.csv").exists()

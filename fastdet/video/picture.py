@@ -1,0 +1,136 @@
+"""Vehicles in one picture, with no video to place the search from: :class:`PictureDetector`
+and :func:`detect_picture`.
+
+The whole picture is searched at every scale (:class:`~fastdet.config.PictureSearch`: window
+sizes from 1/32 of the width up to the picture's height), and the positive windows become
+one box per vehicle by a single-frame heat map (:class:`~fastdet.video.heatmap.HeatMap`,
+``n_frames=1``) or by non-maximum suppression of the windows (``PictureSearch.boxes``).
+``python -m fastdet image`` runs exactly this, so the command and the call give the same boxes.
+"""
+from __future__ import annotations
+
+import os
+from collections import OrderedDict
+from typing import Any
+
+import numpy as np
+
+from ..config import HeatConfig, PictureSearch
+from ..detect import Detector
+from ..detections import Detections
+from ..model import Model, load_model
+from .heatmap import KERNELS as HEAT_KERNELS
+from .heatmap import HeatMap
+from .plausible import duplicates
+
+#: pictures sizes whose :class:`fastdet.Detector` a :class:`PictureDetector` keeps
+_CACHED_SHAPES = 8
+
+
+def _decision(scores: np.ndarray, score_kind: str) -> np.ndarray:
+    """Decision values of ``scores`` (probabilities of a logistic model -> their logit)."""
+    s = np.asarray(scores, np.float64)
+    if score_kind != "probability":
+        return s
+    p = np.clip(s, 1e-12, 1 - 1e-12)
+    return np.log(p / (1 - p))
+
+
+class PictureDetector:
+    """Finds the vehicles of single pictures of any size (module docstring).
+
+    model: a :class:`~fastdet.model.Model`, a model file, or ``None`` for the bundled model.
+    config: the :class:`~fastdet.config.PictureSearch` (default ``PictureSearch()``).
+
+    :meth:`detect` returns one box per vehicle; :meth:`windows` the positive windows it forms
+    them from. One :class:`fastdet.Detector` is kept per picture size (the last few sizes).
+    """
+
+    def __init__(self, model: Model | str | os.PathLike[str] | None = None,
+                 config: PictureSearch | None = None) -> None:
+        self.model = model if isinstance(model, Model) else load_model(model)
+        self.config = config if config is not None else PictureSearch()
+        if not isinstance(self.config, PictureSearch):
+            raise TypeError(f"config must be a PictureSearch, got {type(self.config).__name__}")
+        self.heat_config = HeatConfig().single_frame(self.config.heat_threshold)
+        self.score_kind = self.model.score_kind
+        self._detectors: OrderedDict[tuple[int, int], Detector] = OrderedDict()
+
+    @property
+    def kernels(self) -> tuple[Any, ...]:
+        """Every numba kernel :meth:`detect` runs (to compile them all at once)."""
+        return (*Detector.kernels, *HEAT_KERNELS)
+
+    def detector(self, shape: tuple[int, ...]) -> Detector:
+        """The :class:`fastdet.Detector` that searches pictures of ``shape = (H, W[, C])``
+        (:meth:`PictureSearch.search <fastdet.config.PictureSearch.search>`). ``ValueError``
+        when the picture is smaller than the smallest window."""
+        key = (int(shape[0]), int(shape[1]))
+        det = self._detectors.get(key)
+        if det is None:
+            cfg = self.model.config
+            det = Detector(self.model, self.config.search(key, cfg.win_w, cfg.pixels_per_cell))
+            self._detectors[key] = det
+            while len(self._detectors) > _CACHED_SHAPES:
+                self._detectors.popitem(last=False)[1].close()
+        else:
+            self._detectors.move_to_end(key)
+        return det
+
+    def windows(self, image: np.ndarray, rgb: bool = False) -> Detections:
+        """The positive windows of ``image`` (``(H, W, 3) uint8``, BGR or RGB with ``rgb``):
+        boxes ``(N, 4) int32`` px, scores in the model's kind (probability or decision value)."""
+        return self.detector(np.shape(image)).detect(image, rgb=rgb)
+
+    def boxes_from_windows(self, windows: Detections, shape: tuple[int, ...]) -> tuple[Detections, HeatMap | None]:
+        """One box per vehicle from a picture's positive ``windows`` (``shape``: the
+        picture's): ``(boxes, heat map or None)``. Heat: scores are each blob's peak heat;
+        NMS: each kept window's decision value."""
+        if self.config.boxes == "heat":
+            hm = HeatMap(shape, self.heat_config, score_kind=self.score_kind)
+            return hm.update(windows), hm
+        dec = _decision(windows.scores, self.score_kind)
+        strong = windows[dec > self.config.nms_min_score]
+        dec = dec[dec > self.config.nms_min_score]
+        keep = duplicates(strong.boxes, dec, self.config.nms_iou)
+        return Detections(strong.boxes[keep].astype(np.int32), dec[keep].astype(np.float32)), None
+
+    def detect(self, image: np.ndarray, rgb: bool = False) -> Detections:
+        """One box per vehicle in ``image`` (``(H, W, 3) uint8``, BGR or RGB with ``rgb``):
+        :class:`~fastdet.detections.Detections` with ``boxes (N, 4) int32`` x1, y1, x2, y2
+        (exclusive) px and ``scores (N,) float32`` (peak heat, or decision value with
+        ``boxes='nms'``)."""
+        return self.boxes_from_windows(self.windows(image, rgb), np.shape(image))[0]
+
+    def warmup(self) -> None:
+        """Compile (or load) the kernels and run them once on a small picture."""
+        Detector(self.model, self.config.search((128, 128))).warmup()
+        HeatMap((8, 8), self.heat_config).warmup()
+
+    def close(self) -> None:
+        """Stop the detectors' band threads."""
+        for det in self._detectors.values():
+            det.close()
+        self._detectors.clear()
+
+
+_DEFAULT: dict[Any, PictureDetector] = {}
+
+
+def detect_picture(image_bgr: np.ndarray, model: Model | str | os.PathLike[str] | None = None,
+                   config: PictureSearch | None = None) -> Detections:
+    """The vehicles of one picture: ``image_bgr (H, W, 3) uint8`` (OpenCV's BGR order), the
+    bundled model or ``model`` (a :class:`~fastdet.model.Model` or model file), the default
+    :class:`~fastdet.config.PictureSearch` or ``config``. Returns
+    :class:`~fastdet.detections.Detections` (``boxes (N, 4) int32`` x1, y1, x2, y2 px,
+    ``scores (N,) float32``): the same boxes as ``python -m fastdet image``. The detector of a
+    model given by path or the bundled one is kept between calls (pass a
+    :class:`PictureDetector` around yourself for other models)."""
+    key = (None if model is None else os.fspath(model) if not isinstance(model, Model) else id(model), config)
+    det = _DEFAULT.get(key) if not isinstance(model, Model) else None
+    if det is None:
+        det = PictureDetector(model, config)
+        if not isinstance(model, Model):
+            _DEFAULT.clear()  # keep one: a model is megabytes
+            _DEFAULT[key] = det
+    return det.detect(np.asarray(image_bgr))
