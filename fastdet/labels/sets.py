@@ -161,15 +161,20 @@ def shared_sets(data_dir: str | Path) -> dict[str, list[AnnotatedPicture]]:
       camera ``teacher:CLIP``. Teacher boxes are for training, never for scoring.
 
     Every picture says who labelled it (``labelled_by``, ``human``); :func:`human_sets` and
-    :func:`teacher_sets` pick either kind. DataError on the first error anywhere."""
+    :func:`teacher_sets` pick either kind. A source whose folder is missing is left out;
+    DataError on the first error anywhere else."""
     d = check_folder(Path(data_dir), "data")
     frames = d / "frames"
-    sets: dict[str, list[AnnotatedPicture]] = {
-        "dawn_fog": read_voc(frames / "dawn_fog", camera=_own_camera("dawn_fog")),
-        "dawn_weather": read_coco(frames / "dawn_weather", camera=_own_camera("dawn_weather"), complete=False),
-        "idd_mini": read_yolo(frames / "idd_mini", camera=_idd_camera, complete=False),
-        "kitti_tiny": read_kitti(frames / "kitti_tiny", camera=KITTI_CAMERA),
+    readers = {
+        "dawn_fog": lambda f: read_voc(f, camera=_own_camera("dawn_fog")),
+        "dawn_weather": lambda f: read_coco(f, camera=_own_camera("dawn_weather"), complete=False),
+        "idd_mini": lambda f: read_yolo(f, camera=_idd_camera, complete=False),
+        "kitti_tiny": lambda f: read_kitti(f, camera=KITTI_CAMERA),
     }
+    # a data folder may hold only some sources (a clips-only folder): a set whose folder is
+    # missing is left out; one that is there must read whole
+    sets: dict[str, list[AnnotatedPicture]] = {
+        name: read(frames / name) for name, read in readers.items() if (frames / name).is_dir()}
     for gt in sorted((d / "annotations").glob("*.gt.txt")):
         clip = gt.name.removesuffix(".gt.txt")
         sets[clip] = read_mot_clip(gt, camera=UDACITY_CAMERA if clip in UDACITY_CLIPS else None)
