@@ -31,8 +31,13 @@ DEFAULT_C = {"linearsvc": 1e-3, "logreg": 3e-2}
 
 
 def features_in_chunks(images: np.ndarray, config: FeatureConfig, progress: bool, desc: str = "features",
-                       chunk: int = 2048) -> np.ndarray:
-    out = np.empty((len(images), config.n_features), np.float64)
+                       chunk: int = 2048, out: np.ndarray | None = None) -> np.ndarray:
+    """``(N, n_features) float64`` window features of ``(N, h, w, 3) uint8`` crops, computed
+    ``chunk`` crops at a time; into ``out`` (rows of a bigger matrix) when given."""
+    if out is None:
+        out = np.empty((len(images), config.n_features), np.float64)
+    elif out.shape != (len(images), config.n_features):
+        raise ValueError(f"features_in_chunks: out is {out.shape}, want {(len(images), config.n_features)}")
     starts = range(0, len(images), chunk)
     if progress:
         starts = tqdm(starts, desc=desc, unit="chunk", leave=False)
@@ -168,22 +173,6 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
     log(f"data: {n_pos} vehicles, {n_neg} non-vehicles"
         + (f", {n_hard} hard negatives" if n_hard else "") + (f", {n_extra} extra positives" if n_extra else "")
         + f" ({time.perf_counter() - t0:.1f} s)")
-    x = features_in_chunks(crops.images, config, progress)
-    x_flip = features_in_chunks(_flip(crops.images), config, progress, "flipped") if flip else None
-    x_extra = features_in_chunks(extra.images, config, progress, "extra crops") if extra is not None else None
-    # extra positives are mirrored like the data set's crops; hard negatives are kept as mined
-    x_extra_flip = None
-    if extra is not None and flip and n_extra:
-        x_extra_flip = features_in_chunks(_flip(extra.images[extra.labels == 1]), config, progress, "flipped")
-    aug = augmented_copies(crops.images, crops.labels, seed, truncate, truncate_negatives, reencode, jpeg_quality,
-                           truncate_keep, photometric)
-    x_aug = features_in_chunks(aug.images, config, progress, "augmented") if len(aug) else None
-    if len(aug):
-        log(f"augmented copies: {len(aug)} ({int(aug.labels.sum())} vehicles; truncate {truncate:g}"
-            f"{'' if truncate_negatives else ' of vehicles only'}, reencode {reencode:g}"
-            f"{f', photometric {photometric:g}' if photometric else ''}) "
-            f"({time.perf_counter() - t0:.1f} s)")
-    log(f"features: {config.n_features} per crop ({time.perf_counter() - t0:.1f} s)")
 
     def training_part(idx):
         parts = [(x[idx], crops.labels[idx])]
@@ -199,6 +188,30 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
         xs, ys = zip(*parts)
         return np.concatenate(xs), np.concatenate(ys)
 
+    aug = augmented_copies(crops.images, crops.labels, seed, truncate, truncate_negatives, reencode, jpeg_quality,
+                           truncate_keep, photometric)
+    if split == "none" and refit:
+        return _fit_once(crops, extra, aug, config, flip, classifier, C, seed, progress, t0, log, report_base={
+            "C": C, "classifier": classifier, "seed": seed, "flip": flip, "window_top": top, "crop_size": crop_size,
+            "augment": {"truncate": truncate, "truncate_negatives": truncate_negatives,
+                        "truncate_keep": list(truncate_keep), "reencode": reencode,
+                        "jpeg_quality": list(jpeg_quality), **({"photometric": photometric} if photometric else {}),
+                        "copies": len(aug)},
+            "data": {"vehicles": n_pos, "non_vehicles": n_neg, "hard_negatives": n_hard, "extra_positives": n_extra}})
+    x = features_in_chunks(crops.images, config, progress)
+    x_flip = features_in_chunks(_flip(crops.images), config, progress, "flipped") if flip else None
+    x_extra = features_in_chunks(extra.images, config, progress, "extra crops") if extra is not None else None
+    # extra positives are mirrored like the data set's crops; hard negatives are kept as mined
+    x_extra_flip = None
+    if extra is not None and flip and n_extra:
+        x_extra_flip = features_in_chunks(_flip(extra.images[extra.labels == 1]), config, progress, "flipped")
+    x_aug = features_in_chunks(aug.images, config, progress, "augmented") if len(aug) else None
+    if len(aug):
+        log(f"augmented copies: {len(aug)} ({int(aug.labels.sum())} vehicles; truncate {truncate:g}"
+            f"{'' if truncate_negatives else ' of vehicles only'}, reencode {reencode:g}"
+            f"{f', photometric {photometric:g}' if photometric else ''}) "
+            f"({time.perf_counter() - t0:.1f} s)")
+    log(f"features: {config.n_features} per crop ({time.perf_counter() - t0:.1f} s)")
     report: dict[str, Any] = {"C": C, "classifier": classifier, "seed": seed, "flip": flip, "window_top": top,
                               "crop_size": crop_size,
                               "augment": {"truncate": truncate, "truncate_negatives": truncate_negatives,
@@ -231,3 +244,40 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
     return model, report
 
 
+
+
+def _fit_once(crops: CropSet, extra: CropSet | None, aug: Any, config: FeatureConfig, flip: bool, classifier: str,
+              C: float, seed: int, progress: bool, t0: float, log: Any, report_base: dict[str, Any]):
+    """:func:`train` with ``split="none"``: no held-out evaluation, so every training row's
+    features go straight into one preallocated matrix (the crops, their mirror images, the
+    augmented copies, the extra crops and the extra vehicles' mirror images) instead of into
+    parts that are then joined: half the peak memory of a large training set."""
+    parts: list[tuple[np.ndarray, np.ndarray, str]] = [(crops.images, crops.labels, "features")]
+    if flip:
+        parts.append((_flip(crops.images), crops.labels, "flipped"))
+    if len(aug):
+        parts.append((aug.images, aug.labels, "augmented"))
+    if extra is not None and len(extra):
+        parts.append((extra.images, extra.labels, "extra crops"))
+        if flip and (extra.labels == 1).any():
+            parts.append((_flip(extra.images[extra.labels == 1]), extra.labels[extra.labels == 1], "flipped"))
+    n = sum(len(p[0]) for p in parts)
+    xt = np.empty((n, config.n_features), np.float64)
+    yt = np.empty(n, np.int64)
+    row = 0
+    for images, labels, desc in parts:
+        features_in_chunks(images, config, progress, desc, out=xt[row: row + len(images)])
+        yt[row: row + len(images)] = labels
+        row += len(images)
+    if len(aug):
+        log(f"augmented copies: {len(aug)} ({int(aug.labels.sum())} vehicles) ({time.perf_counter() - t0:.1f} s)")
+    log(f"features: {config.n_features} per crop, {n} training rows ({time.perf_counter() - t0:.1f} s)")
+    scaler, clf = fit_classifier(xt, yt, classifier, C, seed, in_place=True)
+    report = dict(report_base)
+    report["train_accuracy"] = float((clf.predict(xt) == yt).mean())
+    model = Model(config=config, coef=clf.coef_.ravel(), intercept=float(clf.intercept_[0]),
+                  mean=scaler.mean_, scale=scaler.scale_, classifier=classifier,
+                  metadata={"training": report})
+    log(f"final fit on {n} crops: training accuracy {report['train_accuracy']:.4f} "
+        f"({time.perf_counter() - t0:.1f} s)")
+    return model, report
