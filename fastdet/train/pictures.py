@@ -9,7 +9,12 @@ camera's crops on one side.
 """
 from __future__ import annotations
 
+import dataclasses
+import time
 from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -93,3 +98,97 @@ def hard_negative_crops(model: Model, pictures: Sequence[AnnotatedPicture], per_
         if tick is not None:
             tick()
     return _crop_set(crops, 0, groups, win_h, win_w)
+
+
+@dataclass(frozen=True)
+class PictureRecipe:
+    """How a main model learns from labelled pictures besides the crop folders.
+
+    every_other: keep one picture in ``every_other`` of each video's labelled frames (its
+        neighbours are near copies); stills are all kept.
+    jitter: shifted / rescaled copies of every positive crop.
+    negatives_per_picture: random background windows of every complete picture.
+    hard_per_picture: the highest-scoring false windows of the bundled model on every complete
+        picture (dense search, ``mine_cells_per_step`` cells a step, ``mine_steps`` sizes an octave,
+        windows scoring above ``mine_min_score``).
+    C, truncate, truncate_keep, reencode: the logistic regression and the crop augmentation, as
+        :func:`fastdet.train.fit.train` takes them (the bundled model's values).
+    """
+
+    every_other: int = 2
+    jitter: int = 1
+    negatives_per_picture: int = 8
+    hard_per_picture: int = 10
+    mine_cells_per_step: int = 2
+    mine_steps: int = 2
+    mine_min_score: float = 0.0
+    C: float = 0.0218
+    truncate: float = 0.25
+    truncate_keep: tuple[float, float] = (0.75, 0.875)
+    reencode: float = 0.25
+
+    def __post_init__(self) -> None:
+        if self.every_other < 1 or self.jitter < 0 or self.negatives_per_picture < 0 or self.hard_per_picture < 0:
+            raise ValueError("every_other >= 1; jitter, negatives_per_picture, hard_per_picture >= 0")
+        if self.mine_cells_per_step < 1 or self.mine_steps < 1 or not self.C > 0:
+            raise ValueError("mine_cells_per_step and mine_steps must be >= 1, C > 0")
+
+
+def thin_video_frames(pictures: Sequence[AnnotatedPicture], every_other: int) -> list[AnnotatedPicture]:
+    """``pictures`` with only every ``every_other``-th labelled frame of each video kept (in
+    their order; stills all kept)."""
+    seen: dict[str, int] = {}
+    out = []
+    for p in pictures:
+        if p.frame is None:
+            out.append(p)
+            continue
+        k = seen.get(str(p.path), 0)
+        seen[str(p.path)] = k + 1
+        if k % every_other == 0:
+            out.append(p)
+    return out
+
+
+def train_on_pictures(data: Path, pictures: Sequence[AnnotatedPicture], recipe: PictureRecipe = PictureRecipe(),
+                      base: Model | None = None, progress: bool = True, log: Callable[[str], None] = print
+                      ) -> tuple[Model, dict[str, Any]]:
+    """A main model from the crop folders of ``data`` plus crops of ``pictures``
+    (:func:`picture_crops`, and :func:`hard_negative_crops` of ``base``, default the bundled
+    model, whose features it keeps): ``(model, report)``. The pictures are decoded once, kept
+    only while their crops are cut."""
+    from tqdm import tqdm
+
+    from ..model import load_model
+    from .fit import train
+
+    base = load_model() if base is None else base
+    pics = thin_video_frames(pictures, recipe.every_other)
+    t0 = time.perf_counter()
+    bar = tqdm(total=len(pics), desc="pictures", unit="picture", disable=not progress, leave=False)
+    pos_neg, hard = [], []
+    for pic, image in load_pictures(pics):
+        one = [(pic, image)]
+        pos_neg.append(picture_crops([pic], base.config, recipe.jitter, recipe.negatives_per_picture,
+                                     seed=len(pos_neg), frames=one))
+        if recipe.hard_per_picture and pic.complete:
+            hard.append(hard_negative_crops(base, [pic], recipe.hard_per_picture, recipe.mine_min_score, frames=one,
+                                            cells_per_step=recipe.mine_cells_per_step, steps=recipe.mine_steps,
+                                            threshold=recipe.mine_min_score))
+        bar.update(1)
+    bar.close()
+    extra = pos_neg[0] if pos_neg else None
+    for part in pos_neg[1:] + hard:
+        extra = part if extra is None else CropSet.concat(extra, part)
+    n_hard = sum(len(h) for h in hard)
+    log(f"pictures: {len(pics)} of {len(pictures)} ({len({p.camera for p in pics})} cameras): "
+        f"{0 if extra is None else int(extra.labels.sum())} vehicle crops, "
+        f"{0 if extra is None else int((extra.labels == 0).sum()) - n_hard} background, {n_hard} hard negatives "
+        f"({time.perf_counter() - t0:.0f} s)")
+    model, report = train(data, base.config, C=recipe.C, split="none", seed=0, extra_crops=extra,
+                          truncate=recipe.truncate, truncate_keep=recipe.truncate_keep, reencode=recipe.reencode,
+                          progress=progress, log=log)
+    report["pictures"] = {"recipe": recipe.to_dict() if hasattr(recipe, "to_dict") else dataclasses.asdict(recipe),
+                          "pictures": len(pics), "cameras": sorted({p.camera for p in pics}),
+                          "hard_negatives": n_hard}
+    return model, report
