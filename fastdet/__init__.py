@@ -40,6 +40,7 @@ if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers and
     from .config import SearchBand as SearchBand
     from .config import SearchConfig as SearchConfig
     from .config import TrackerConfig as TrackerConfig
+    from .data import sample_video as sample_video
     from .detect import Detector as Detector
     from .detections import Box as Box
     from .detections import Detections as Detections
@@ -48,7 +49,6 @@ if TYPE_CHECKING:  # what the lazy names below resolve to, for type checkers and
     from .features import hog_channels as hog_channels
     from .features import hog_channels_batch as hog_channels_batch
     from .model import Model as Model
-    from .data import sample_video as sample_video
     from .model import load_model as load_model
     from .video import HeatMap as HeatMap
     from .video import VideoDetector as VideoDetector
