@@ -202,7 +202,7 @@ def run(args: argparse.Namespace) -> int:
     _numba.ensure_compiled(_numba.all_kernels(), what="the kernels")
     w, h = footage.size
     print(f"{len(footage.clips)} video{'s' if len(footage.clips) != 1 else ''} of {w}x{h}: "
-          f"{sum(c.frames for c in footage.clips)} frames; sampling every {footage.step}-th "
+          f"{sum(c.frames for c in footage.clips)} frames; sampling 1 frame in {footage.step} "
           f"({footage.n_train} frames to train on), {footage.holdout_length} frames kept aside "
           f"({footage.n_holdout} labelled)", flush=True)
 
