@@ -37,6 +37,8 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "batch": ("fastdet.cli.batch", "many videos in parallel on Dask (local or a cluster): boxes, manifest, resume"),
     "label": ("fastdet.cli.label",
               "a teacher CNN (ONNX) boxes every N-th frame of videos: CLIP.teacher.txt + CLIP.frames"),
+    "adapt": ("fastdet.cli.adapt",
+              "fit a main model to one camera from its footage (a teacher CNN labels it): MYCAM.npz"),
     "warmup": ("fastdet.cli.warmup", "compile every numba kernel now (for images, CI and cluster workers)"),
 }
 

@@ -1,0 +1,281 @@
+"""``python -m fastdet adapt``: a main model fitted to one camera from its own footage.
+
+``python -m fastdet adapt FOOTAGE... (--teacher MODEL.onnx | --frames SPEC) -o MYCAM.npz
+[--every N] [--max-frames M] [--holdout F] [--weight W] [--offsets O...] [--teacher-size PX]
+[--threads N] [--data DIR] [--max-per-folder N] [--seed S] [--no-progress]``
+
+- FOOTAGE: video files, or folders whose video files are all taken, of one camera (one frame
+  size). Frames are sampled every N-th frame (more apart when more than M would be sampled);
+  the last ``--holdout`` fraction of each video is kept aside for the operating point.
+- ``--teacher``: a YOLOX-style ONNX detector labels the sampled frames (its boxes of score
+  >= 0.3 of car / bus / truck are targets, lower ones and motorcycles ignore regions). Its
+  labels are kept per video in the work folder ``.MYCAM.adapt/`` beside the output, so a
+  stopped run goes on where it was and never labels a finished video again.
+  ``--frames SPEC`` instead: the user's own labels (:mod:`fastdet.labels.sets`); those of
+  FOOTAGE frames in the kept-aside stretch set the operating point (none: the model's own).
+- The main model is trained from the bundled crop folders (``--data``, default
+  ``$FASTDET_DATA``) plus the camera's crops (repeated ``--weight`` times; hard negatives
+  mined with the bundled model), then moved by the decision offset of best F1 against the
+  labels of the kept-aside frames, through the ``video`` pipeline (:mod:`fastdet.train.adapt`).
+- Writes ONE model file (``video / image / batch --model`` take it), its metadata holding the
+  summary (``metadata["adapt"]``): frames, seconds per step, agreement with the labels of the
+  kept-aside frames before (bundled model) and after, the pipeline's ms per frame.
+- Bad input is one line and exit 2 before any long work: no video or frames, a teacher that is
+  not a YOLOX-style ONNX detector, mixed frame sizes, an output inside the installed package,
+  a missing crop folder. A stop signal ends the run cleanly (no model; finished videos' labels kept).
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import _numba
+from .. import signals as _signals
+from ..config.adapt import AdaptConfig
+from ..data import data_dir
+from ..detections import Detections
+from ..errors import DataError, FastdetError
+from ..io.paths import check_paths, is_inside
+from ..labels.picture import AnnotatedPicture
+from ..model import load_model
+from ..train import adapt as _adapt
+from ._args import fraction, positive_int
+from .label import _videos, teacher_size
+
+PACKAGE_DIR = Path(__file__).resolve().parents[1]
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    d = AdaptConfig()
+    p.add_argument("footage", nargs="+", metavar="FOOTAGE", help="video files or folders of them, of one camera")
+    p.add_argument("--teacher", default=None, metavar="MODEL.onnx",
+                   help="a YOLOX-style ONNX detector that labels the frames (e.g. teachers/yolox_nano.onnx)")
+    p.add_argument("--frames", default=None, metavar="SPEC",
+                   help="your own labels instead of a teacher (FORMAT:PATH[,OPTION...], see docs/labels.md)")
+    p.add_argument("-o", "--output", required=True, type=Path, metavar="MYCAM.npz", help="the model file to write")
+    p.add_argument("--every", type=positive_int, default=d.every, metavar="N",
+                   help=f"sample every N-th frame (default {d.every})")
+    p.add_argument("--max-frames", type=positive_int, default=d.max_frames, metavar="M",
+                   help=f"sample at most about M frames in all, spread evenly (default {d.max_frames})")
+    p.add_argument("--holdout", type=fraction, default=d.holdout, metavar="F",
+                   help=f"keep the last F of each video aside for the operating point (default {d.holdout:g})")
+    p.add_argument("--weight", type=positive_int, default=d.weight, metavar="W",
+                   help=f"the camera's crops join the training set W times (default {d.weight})")
+    p.add_argument("--offsets", type=float, nargs="+", default=list(d.offsets), metavar="O",
+                   help="decision offsets tried for the operating point (default "
+                        + " ".join(f"{o:g}" for o in d.offsets) + ")")
+    p.add_argument("--teacher-size", type=teacher_size, default=None, metavar="PX",
+                   help="the teacher's input width (default 640)")
+    p.add_argument("--threads", type=positive_int, default=None, metavar="N", help="onnxruntime threads")
+    p.add_argument("--data", type=Path, default=None,
+                   help="folder with the vehicles/ and non-vehicles/ crops (default: $FASTDET_DATA)")
+    p.add_argument("--max-per-folder", type=positive_int, default=None, metavar="N",
+                   help="use at most N crops of each bundled crop folder (quick runs)")
+    p.add_argument("--seed", type=int, default=0, help="random seed")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+
+def _config(args: argparse.Namespace) -> AdaptConfig:
+    try:
+        return AdaptConfig(every=args.every, max_frames=max(2, args.max_frames), holdout=args.holdout,
+                           weight=args.weight, offsets=tuple(args.offsets), max_per_folder=args.max_per_folder,
+                           seed=args.seed)
+    except ValueError as exc:
+        raise FastdetError(str(exc)) from None
+
+
+def _check_output(out: Path, inputs: list[tuple[str, str]]) -> None:
+    if out.suffix != ".npz":
+        raise DataError(f"-o {out}: the model file's name must end in .npz")
+    if is_inside(out.parent if out.parent != Path("") else Path("."), PACKAGE_DIR):
+        raise DataError(f"-o {out}: is inside the installed fastdet package ({PACKAGE_DIR}); write your model "
+                        f"elsewhere")
+    check_paths(inputs, [("-o", out, "model")])
+
+
+def _check_data(data: Path) -> None:
+    for sub in ("vehicles", "non-vehicles"):
+        if not (data / sub).is_dir():
+            raise DataError(f"crop folder {data / sub} not found (give --data or set FASTDET_DATA)")
+
+
+def work_folder(out: Path) -> Path:
+    """``.NAME.adapt/`` beside the output ``NAME.npz``: the teacher's labels, kept between runs."""
+    return out.parent / f".{out.stem}.adapt"
+
+
+def _gt(pictures: list[AnnotatedPicture]) -> Detections:
+    """The pictures' labels as a ground-truth table (targets ``consider`` 1, ignore regions 0)."""
+    boxes, frames, consider = [np.zeros((0, 4))], [np.zeros(0, np.int64)], [np.zeros(0, bool)]
+    for p in pictures:
+        boxes += [p.targets, p.ignores]
+        frames.append(np.full(len(p.targets) + len(p.ignores), p.frame, np.int64))
+        consider.append(np.r_[np.ones(len(p.targets), bool), np.zeros(len(p.ignores), bool)])
+    return Detections(np.concatenate(boxes), frames=np.concatenate(frames), consider=np.concatenate(consider),
+                      source="kept-aside labels")
+
+
+def holdout_run(held: dict[str, list[AnnotatedPicture]]) -> _adapt.HoldoutRun:
+    """The video pipeline (:func:`fastdet.detect_video`, as ``video`` runs it) over a clip's
+    kept-aside stretch with a model file, scored (:func:`fastdet.eval.evaluate`, IoU 0.5) on
+    the clip's kept-aside labelled frames."""
+    from ..eval.metrics import evaluate
+    from ..video.run import detect_video
+
+    def run(clip: _adapt.Clip, model: str | None) -> tuple[int, int, int, float, int]:
+        pics = held.get(clip.name, [])
+        if not pics:
+            return 0, 0, 0, 0.0, 0
+        t0 = time.perf_counter()
+        tables = list(detect_video(clip.path, model=model, start=clip.holdout_start - 1,
+                                   frames=clip.frames - clip.holdout_start + 1))
+        secs = time.perf_counter() - t0
+        preds = Detections.concat(tables) if tables else Detections.empty()
+        if preds.frames is None:
+            preds = Detections(np.zeros((0, 4), np.int32), np.zeros(0, np.float32), frames=np.zeros(0, np.int64))
+        res = evaluate(_gt(pics), preds, keyframes=np.array([p.frame for p in pics]), tracking=False)
+        return res.tp, res.fp, res.fn, secs, len(tables)
+
+    return run
+
+
+def _warm_up(video: str) -> None:
+    """A few frames through the video pipeline: its models and kernels loaded before the
+    timed runs."""
+    from ..video.run import detect_video
+
+    for _ in detect_video(video, frames=2):
+        pass
+
+
+def _fmt(a: dict[str, Any] | None) -> str:
+    if a is None:
+        return "not measured"
+
+    def n(v: float | None) -> str:
+        return "-" if v is None else f"{v:.2f}"
+
+    return (f"F1 {n(a['f1'])} (P {n(a['precision'])}, R {n(a['recall'])}; {a['tp']} hits, {a['fp']} false, "
+            f"{a['fn']} missed), {n(a['ms_per_frame'])} ms a frame")
+
+
+def run(args: argparse.Namespace) -> int:
+    """The ``adapt`` subcommand."""
+    t_start = time.perf_counter()
+    progress = not args.no_progress and sys.stderr.isatty()
+    config = _config(args)
+    out: Path = args.output
+    if (args.teacher is None) == (args.frames is None):
+        raise FastdetError("give --teacher MODEL.onnx (a CNN labels the footage) or --frames SPEC (your own "
+                           "labels), one of them")
+    videos: list[str] = []
+    for f in args.footage:
+        videos += _videos(f)
+    _check_output(out, [("FOOTAGE", v) for v in videos] + [("--teacher", args.teacher)])
+    data = Path(args.data or data_dir())
+    _check_data(data)
+    footage = _adapt.plan_footage(videos, config)
+    detector = user_pictures = None
+    if args.teacher is not None:
+        from ..teacher.yolox import TeacherDetector
+
+        if not os.path.isfile(args.teacher):
+            raise DataError(f"--teacher {args.teacher}: file not found")
+        detector = TeacherDetector(args.teacher, size=args.teacher_size, threads=args.threads)
+    else:
+        from ..labels.sets import read_spec
+
+        user_pictures = read_spec(args.frames)
+    bundled = load_model()
+    work = work_folder(out)
+    try:
+        work.mkdir(exist_ok=True)
+    except OSError as exc:
+        raise DataError(f"{work}: cannot make the work folder ({exc.strerror or exc})") from None
+    _numba.ensure_compiled(_numba.all_kernels(), what="the kernels")
+    w, h = footage.size
+    print(f"{len(footage.clips)} video{'s' if len(footage.clips) != 1 else ''} of {w}x{h}: "
+          f"{sum(c.frames for c in footage.clips)} frames; sampling 1 frame in {footage.step} "
+          f"({footage.n_train} frames to train on), {footage.holdout_length} frames kept aside "
+          f"({footage.n_holdout} labelled)", flush=True)
+
+    secs: dict[str, float] = {}
+    t = time.perf_counter()
+    if detector is not None:
+        folder = work / _adapt.label_key(args.teacher, args.teacher_size, detector.config.min_score)
+        labels, n_now = _adapt.label_clips(footage, detector, folder, progress)
+        pictures = _adapt.teacher_pictures(footage, labels, config.min_score)
+        labelled_by = "teacher"
+    else:
+        assert user_pictures is not None
+        pictures, n_now, labelled_by = user_pictures, 0, "user"
+    secs["label"] = time.perf_counter() - t
+    train_pics, held = _adapt.split_pictures(footage, pictures)
+    n_targets = sum(len(p.targets) for p in train_pics)
+    if not n_targets:
+        raise DataError(f"no vehicle labelled on the {len(train_pics)} frames to train on: nothing to adapt to")
+
+    crops, counts, crop_secs = _adapt.camera_crops(train_pics, bundled, config, progress)
+    secs.update(crop_secs)
+    t = time.perf_counter()
+    model = _adapt.fit_camera_model(data, bundled, crops, config, progress,
+                                    log=lambda s: print(s, flush=True))
+    secs["train"] = time.perf_counter() - t
+    _signals.check()
+
+    t = time.perf_counter()
+    run_holdout = holdout_run(held)
+    n_held = sum(len(v) for v in held.values())
+    before = after = None
+    chosen = 0.0
+    tried: dict[str, Any] = {}
+    if n_held:
+        _warm_up(footage.clips[0].path)
+        before = _adapt.agreement(footage, run_holdout, None).to_dict()
+        chosen, results = _adapt.choose_offset(model, footage, run_holdout, work / "operating-point",
+                                               config.offsets, progress)
+        after = results[chosen].to_dict()
+        tried = {f"{o:g}": r.to_dict()["f1"] for o, r in results.items()}
+    secs["operating_point"] = time.perf_counter() - t
+    secs["total"] = time.perf_counter() - t_start
+    _signals.check()
+
+    summary: dict[str, Any] = {
+        "command": "python -m fastdet adapt " + " ".join(sys.argv[2:]),
+        "footage": [{"video": os.path.abspath(c.path), "frames": c.frames, "kept_aside_from": c.holdout_start}
+                    for c in footage.clips],
+        "frame_size": [w, h], "labelled_by": labelled_by,
+        "teacher": None if args.teacher is None else {"model": os.path.abspath(args.teacher),
+                                                      "size": args.teacher_size},
+        "frames": {"step": footage.step, "trained": len(train_pics), "kept_aside_labelled": n_held,
+                   "kept_aside_read": footage.holdout_length, "labelled_now": n_now},
+        "targets_trained": n_targets, "crops": counts,
+        "seconds": {k: round(v, 2) for k, v in secs.items()},
+        "offset": chosen, "offsets_f1": tried,
+        "agreement": {"before": before, "after": after},
+        "config": config.to_dict(),
+    }
+    final = _adapt.offset(model, chosen, metadata={"adapt": summary})
+    final.save(out)
+    shutil.rmtree(work / "operating-point", ignore_errors=True)
+    print(f"frames: {len(train_pics)} trained on ({n_targets} {labelled_by} targets; {counts['positives']} "
+          f"positive, {counts['negatives']} background, {counts['hard_negatives']} hard negative crops x "
+          f"{config.weight}), {n_held} kept-aside frames scored")
+    print("seconds: " + ", ".join(f"{k} {v:.1f}" for k, v in secs.items()))
+    if n_held:
+        print("offsets tried (F1): " + ", ".join(f"{k} {'-' if v is None else f'{v:.2f}'}" for k, v in tried.items())
+              + f"; chosen {chosen:g}")
+    else:
+        print("no labelled frame kept aside: the model keeps its own operating point (offset 0)")
+    print(f"agreement with the {labelled_by} labels on the kept-aside frames:")
+    print(f"  before (bundled model): {_fmt(before)}")
+    print(f"  after  ({out.name}): {_fmt(after)}")
+    print(f"wrote {out} (its metadata['adapt'] holds this summary; labels kept in {work})", flush=True)
+    return 0

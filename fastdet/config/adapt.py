@@ -1,0 +1,92 @@
+"""How ``python -m fastdet adapt`` fits a main model to one camera (:class:`AdaptConfig`;
+the work itself: :mod:`fastdet.train.adapt`)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ._base import Config
+
+#: the decision offsets tried for the operating point (decision units; + is stricter)
+DEFAULT_OFFSETS: tuple[float, ...] = (-1.0, -0.5, 0.0, 0.5, 1.0, 1.5, 2.0)
+
+
+def _whole(name: str, v: object, low: int) -> None:
+    if isinstance(v, bool) or not isinstance(v, int) or v < low:
+        raise ValueError(f"{name} must be a whole number >= {low}, got {v!r}")
+
+
+@dataclass(frozen=True)
+class AdaptConfig(Config):
+    """Settings of an adaptation run.
+
+    every: frames are sampled every ``every``-th frame of each video from frame 1 (at least;
+        more apart when ``max_frames`` asks for it).
+    max_frames: at most this many sampled frames over all the footage, spread evenly (the
+        sampling step grows to ``ceil(total frames / max_frames)``).
+    holdout: the fraction of each video, at its end, kept aside for the operating point
+        (contiguous: the pipeline's heat map needs consecutive frames); never trained on.
+    holdout_max: at most this many frames kept aside over all the footage (split evenly
+        between the videos), so that long footage keeps the operating point's runs short.
+    weight: the camera's crops join the training set this many times (a sample weight).
+    jitter: shifted / rescaled copies of every positive crop (besides the crop itself).
+    negatives_per_picture: random background windows cut from each sampled frame.
+    hard_per_picture: at most this many hard negatives (windows the bundled model fires on
+        that touch no labelled box) from each sampled frame.
+    min_score: a teacher vehicle at least this sure is a target, below it an ignore region.
+    offsets: the decision offsets (:func:`fastdet.train.blend.offset`, decision units; + is
+        stricter) tried on the kept-aside footage; the one of best F1 against the teacher wins.
+    C, truncate, truncate_keep, reencode: the training recipe (default: the bundled model's).
+    max_per_folder: at most this many crops of each bundled crop folder (``None``: all; for
+        quick runs and tests).
+    seed: random seed (crops, classifier).
+    """
+
+    every: int = 5
+    max_frames: int = 400
+    holdout: float = 0.2
+    holdout_max: int = 1800
+    weight: int = 4
+    jitter: int = 2
+    negatives_per_picture: int = 8
+    hard_per_picture: int = 20
+    min_score: float = 0.3
+    offsets: tuple[float, ...] = DEFAULT_OFFSETS
+    C: float = 0.0218
+    truncate: float = 0.25
+    truncate_keep: tuple[float, float] = (0.75, 0.875)
+    reencode: float = 0.25
+    max_per_folder: int | None = None
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        _whole("every", self.every, 1)
+        _whole("max_frames", self.max_frames, 2)
+        _whole("holdout_max", self.holdout_max, 1)
+        _whole("weight", self.weight, 1)
+        _whole("jitter", self.jitter, 0)
+        _whole("negatives_per_picture", self.negatives_per_picture, 0)
+        _whole("hard_per_picture", self.hard_per_picture, 0)
+        if self.max_per_folder is not None:
+            _whole("max_per_folder", self.max_per_folder, 1)
+        if not (isinstance(self.holdout, (int, float)) and 0 < self.holdout < 1):
+            raise ValueError(f"holdout must be a fraction in (0, 1), got {self.holdout!r}")
+        if not (isinstance(self.min_score, (int, float)) and 0 <= self.min_score <= 1):
+            raise ValueError(f"min_score must be 0 to 1, got {self.min_score!r}")
+        if not self.offsets or not all(isinstance(o, (int, float)) and math.isfinite(o) for o in self.offsets):
+            raise ValueError(f"offsets must be finite numbers, at least one, got {self.offsets!r}")
+        object.__setattr__(self, "offsets", tuple(sorted({float(o) for o in self.offsets})))
+        if not (isinstance(self.C, (int, float)) and math.isfinite(self.C) and self.C > 0):
+            raise ValueError(f"C must be > 0, got {self.C!r}")
+        for name in ("truncate", "reencode"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and 0 <= v <= 1):
+                raise ValueError(f"{name} must be a fraction in [0, 1], got {v!r}")
+        k0, k1 = self.truncate_keep
+        if not 0 < k0 <= k1 <= 1:
+            raise ValueError(f"truncate_keep must satisfy 0 < A <= B <= 1, got {self.truncate_keep!r}")
+
+    def step(self, total_frames: int) -> int:
+        """The sampling step over footage of ``total_frames`` frames: ``every``, or larger so
+        that at most about ``max_frames`` frames are sampled."""
+        return max(self.every, math.ceil(total_frames / self.max_frames))

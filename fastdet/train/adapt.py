@@ -1,0 +1,384 @@
+"""A main model fitted to one camera from its own footage (``python -m fastdet adapt``).
+
+The steps, each a function here (the command, :mod:`fastdet.cli.adapt`, runs them in turn):
+
+1. :func:`plan_footage`: the videos of one camera (all of one frame size), the frames sampled
+   from them (every ``step``-th frame from frame 1, ``step`` = ``every`` or more so that at most
+   ``max_frames`` are sampled) and the stretch at the end of each video kept aside for the
+   operating point (contiguous: the heat map needs consecutive frames; it is never trained on,
+   and its frames are labelled every ``every``-th frame from its first);
+2. :func:`label_clips`: the teacher CNN boxes the planned frames of each video; each video's
+   labels are written to the work folder (``CLIP-KEY.teacher.txt`` + ``CLIP-KEY.frames``,
+   :func:`~fastdet.teacher.label.write_teacher_files`) when the video is done, so a stopped run
+   resumes with the next video and a finished video is never labelled again;
+3. :func:`camera_crops`: crops of the sampled frames outside the kept-aside stretch (positives
+   around the teacher's targets with jittered copies, background negatives, hard negatives the
+   bundled model fires on), repeated ``weight`` times;
+4. :func:`fit_camera_model`: the main model trained from the bundled crop folders plus those
+   crops, with the bundled model's recipe;
+5. :func:`choose_offset`: the kept-aside stretches run through the video pipeline with the new
+   model moved by each of a few decision offsets (:func:`~fastdet.train.blend.offset`), the one
+   of best F1 against the labels of those frames kept. The pipeline and the scoring are given
+   by the caller (the ``video`` and ``eval`` layers sit beside this one).
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import sys
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from .. import signals as _signals
+from ..config.adapt import AdaptConfig
+from ..errors import DataError
+from ..io.reader import FrameReader
+from ..labels.load import load_pictures
+from ..labels.picture import AnnotatedPicture
+from ..labels.teacher import read_teacher_clip
+from ..model import Model
+from ..teacher.label import Labelled, teacher_paths, write_teacher_files
+from ..teacher.yolox import TeacherDetector
+from .blend import offset
+from .dataset import CropSet
+from .fit import train
+from .pictures import hard_negative_crops, picture_crops
+
+#: the camera id of every adapted picture
+CAMERA = "adapt"
+
+
+@dataclass(frozen=True)
+class Clip:
+    """One video of the footage.
+
+    path: the video file; name: its name without extension (unique in the footage);
+    frames: its frame count (from the header); holdout_start: the first (1-based) frame of the
+    stretch kept aside, which runs to the last frame.
+    """
+
+    path: str
+    name: str
+    frames: int
+    holdout_start: int
+
+    @property
+    def key(self) -> str:
+        """``NAME-HASH``: the name of the video's label files in the work folder; the hash (8
+        hex digits) of its real path, size and modification time, so a changed video is labelled anew."""
+        st = os.stat(self.path)
+        h = hashlib.sha256(f"{os.path.realpath(self.path)}|{st.st_size}|{st.st_mtime_ns}".encode()).hexdigest()
+        return f"{self.name}-{h[:8]}"
+
+    def train_frames(self, step: int) -> list[int]:
+        """The sampled frames before the kept-aside stretch: 1, 1 + step, ..."""
+        return list(range(1, self.holdout_start, step))
+
+    def holdout_frames(self, every: int) -> list[int]:
+        """The labelled frames of the kept-aside stretch: its first, then every ``every``-th."""
+        return list(range(self.holdout_start, self.frames + 1, every))
+
+    def planned(self, step: int, every: int) -> list[int]:
+        """Every frame the teacher labels, in order."""
+        return self.train_frames(step) + self.holdout_frames(every)
+
+
+@dataclass(frozen=True)
+class Footage:
+    """The planned footage: ``clips``, the sampling ``step`` (frames), ``every`` (the
+    kept-aside stretch's labelling step) and the frame ``size`` ``(width, height)`` px."""
+
+    clips: tuple[Clip, ...]
+    step: int
+    every: int
+    size: tuple[int, int]
+
+    @property
+    def n_train(self) -> int:
+        return sum(len(c.train_frames(self.step)) for c in self.clips)
+
+    @property
+    def n_holdout(self) -> int:
+        return sum(len(c.holdout_frames(self.every)) for c in self.clips)
+
+    @property
+    def holdout_length(self) -> int:
+        """Frames in the kept-aside stretches (what each pipeline run reads)."""
+        return sum(c.frames - c.holdout_start + 1 for c in self.clips)
+
+
+def _frame_count(reader: FrameReader, path: str) -> int:
+    """The video's frame count: the header's, else counted by decoding (one pass)."""
+    if reader.frame_count is not None:
+        return reader.frame_count
+    n = sum(1 for _ in reader)
+    if n < 1:
+        raise DataError(f"{path}: the video has no frames")
+    return n
+
+
+def plan_footage(videos: Sequence[str], config: AdaptConfig) -> Footage:
+    """Open every video (its first frame decoded), check that all have one frame size and
+    plan the sampling (module docstring). Raises :class:`~fastdet.errors.DataError` in one line
+    for no video, a video that does not open, two videos of one name, mixed frame sizes, or a
+    plan with no frame to train on or none kept aside."""
+    if not videos:
+        raise DataError("no video files in the footage")
+    names: dict[str, str] = {}
+    opened: list[tuple[str, str, int]] = []
+    size: tuple[int, int] | None = None
+    first = ""
+    for v in videos:
+        name = Path(v).stem
+        if name in names:
+            raise DataError(f"{v} and {names[name]}: two videos named {name!r}; give each video its own name")
+        names[name] = v
+        with FrameReader(v, notify=lambda _n: None) as reader:
+            h, w = reader.shape[:2]
+            n = _frame_count(reader, v)
+        if size is None:
+            size, first = (w, h), v
+        elif (w, h) != size:
+            raise DataError(f"{v}: frames are {w}x{h}, {first}'s are {size[0]}x{size[1]}: the footage of one "
+                            f"camera has one frame size (adapt each camera on its own)")
+        opened.append((v, name, n))
+    assert size is not None
+    total = sum(n for _, _, n in opened)
+    step = config.step(total)
+    cap = max(1, config.holdout_max // len(opened))
+    clips = []
+    for v, name, n in opened:
+        kept = min(max(1, round(config.holdout * n)), cap, n - 1) if n > 1 else 0
+        clips.append(Clip(v, name, n, n - kept + 1))
+    fp = Footage(tuple(clips), step, config.every, size)
+    if fp.n_train == 0:
+        raise DataError(f"the footage ({total} frames) leaves no frame to train on before the kept-aside "
+                        f"{config.holdout:.0%} at the end of each video")
+    if fp.n_holdout == 0:
+        raise DataError(f"the footage ({total} frames) leaves no frame kept aside for the operating point: "
+                        f"the videos are too short")
+    return fp
+
+
+def label_key(teacher: str | os.PathLike[str], size: int | None, floor: float) -> str:
+    """The work folder's labels subfolder for a teacher file and its settings: ``labels-HASH``
+    (a changed teacher, input size or score floor labels anew)."""
+    st = os.stat(teacher)
+    h = hashlib.sha256(f"{os.path.realpath(teacher)}|{st.st_size}|{st.st_mtime_ns}|{size}|{floor}".encode())
+    return f"labels-{h.hexdigest()[:12]}"
+
+
+def cached_labels(folder: Path, clip: Clip, footage: Footage) -> Path | None:
+    """The clip's teacher file in ``folder`` when it is there, complete and of the planned
+    frames (else ``None``: the clip is labelled)."""
+    boxes, frames = teacher_paths(folder, clip.key)
+    if not (boxes.is_file() and frames.is_file()):
+        return None
+    try:
+        listed = [int(line) for line in frames.read_text().split()]
+    except (OSError, ValueError):
+        return None
+    return boxes if listed == clip.planned(footage.step, footage.every) else None
+
+
+def label_clips(footage: Footage, detector: TeacherDetector, folder: Path, progress: bool = True,
+                log: Callable[[str], None] = print) -> tuple[dict[str, Path], int]:
+    """The teacher's labels of every clip's planned frames: ``({clip name: CLIP-KEY.teacher.txt},
+    frames labelled now)``. A clip labelled before (:func:`cached_labels`) is not labelled
+    again; each other clip's files are written when it is done. Runs inside
+    :func:`fastdet.signals.deferred`: a stop signal ends the run after the current frame (the
+    clip being labelled gets no files) and raises :class:`~fastdet.signals.Stopped`."""
+    folder.mkdir(parents=True, exist_ok=True)
+    out: dict[str, Path] = {}
+    n_now = 0
+    with _signals.deferred(raise_on_exit=False):
+        for clip in footage.clips:
+            found = cached_labels(folder, clip, footage)
+            if found is not None:
+                out[clip.name] = found
+                log(f"{clip.name}: teacher labels of {len(clip.planned(footage.step, footage.every))} frames "
+                    f"read from {found.parent}")
+                continue
+            want = set(clip.planned(footage.step, footage.every))
+            last = max(want)
+            labelled: list[Labelled] = []
+            bar = tqdm(total=len(want), unit="frame", desc=f"teacher {clip.name}", file=sys.stderr,
+                       dynamic_ncols=True, disable=not progress)
+            try:
+                with FrameReader(clip.path) as reader:
+                    for fno, frame, _ in reader:
+                        if _signals.stop_requested():
+                            break
+                        if fno in want:
+                            labelled.append((fno, detector.detect(frame)))
+                            bar.update(1)
+                        if fno >= last:
+                            break
+            finally:
+                bar.close()
+            if _signals.stop_requested():
+                break
+            boxes, _ = write_teacher_files(folder, clip.key, labelled)
+            out[clip.name] = boxes
+            n_now += len(labelled)
+    signum = _signals.received()
+    if signum is not None:
+        raise _signals.Stopped(signum, f"{len(out)} of {len(footage.clips)} videos labelled (kept in {folder}: "
+                                       f"the next run goes on from there); no model written")
+    return out, n_now
+
+
+def teacher_pictures(footage: Footage, labels: dict[str, Path], min_score: float) -> list[AnnotatedPicture]:
+    """The labelled frames of every clip as pictures (camera :data:`CAMERA`), in clip and frame order."""
+    pics: list[AnnotatedPicture] = []
+    for clip in footage.clips:
+        pics.extend(read_teacher_clip(labels[clip.name], min_score=min_score, camera=CAMERA, video=clip.path,
+                                      source=f"teacher:{clip.name}"))
+    return pics
+
+
+def split_pictures(footage: Footage, pictures: Sequence[AnnotatedPicture]
+                   ) -> tuple[list[AnnotatedPicture], dict[str, list[AnnotatedPicture]]]:
+    """``(training pictures, {clip name: its kept-aside pictures})``: a frame of a footage video
+    at or after its ``holdout_start`` is kept aside; every other picture (a still, another
+    video's frame) trains."""
+    by_path = {os.path.realpath(c.path): c for c in footage.clips}
+    train_pics: list[AnnotatedPicture] = []
+    held: dict[str, list[AnnotatedPicture]] = {c.name: [] for c in footage.clips}
+    for p in pictures:
+        clip = by_path.get(os.path.realpath(p.path)) if p.frame is not None else None
+        if clip is not None and p.frame is not None and p.frame >= clip.holdout_start:
+            held[clip.name].append(p)
+        else:
+            train_pics.append(p)
+    return train_pics, held
+
+
+def _ticking(pictures: Sequence[AnnotatedPicture], desc: str, progress: bool
+             ) -> Iterator[tuple[AnnotatedPicture, np.ndarray]]:
+    bar = tqdm(total=len(pictures), unit="frame", desc=desc, file=sys.stderr, dynamic_ncols=True,
+               disable=not progress)
+    try:
+        for item in load_pictures(pictures):
+            yield item
+            bar.update(1)
+    finally:
+        bar.close()
+
+
+def camera_crops(pictures: Sequence[AnnotatedPicture], bundled: Model, config: AdaptConfig,
+                 progress: bool = True) -> tuple[CropSet, dict[str, int], dict[str, float]]:
+    """The camera's training crops of the window size, ``(N, 64, 64, 3) uint8`` in a
+    :class:`~fastdet.train.dataset.CropSet`, repeated ``config.weight`` times; with their
+    counts (once: ``positives``, ``negatives``, ``hard_negatives``) and the seconds of each
+    step (``crops``, ``hard_negatives``)."""
+    t0 = time.perf_counter()
+    base = picture_crops(pictures, bundled.config, jitter=config.jitter,
+                         negatives_per_picture=config.negatives_per_picture, seed=config.seed,
+                         frames=_ticking(pictures, "crops", progress))
+    t1 = time.perf_counter()
+    hard = hard_negative_crops(bundled, pictures, per_picture=config.hard_per_picture, min_score=0.0,
+                               seed=config.seed, frames=_ticking(pictures, "hard negatives", progress),
+                               cells_per_step=2, steps=2, threshold=0.0) if config.hard_per_picture else None
+    t2 = time.perf_counter()
+    once = base if hard is None or not len(hard) else CropSet.concat(base, hard)
+    crops = once
+    for _ in range(config.weight - 1):
+        crops = CropSet.concat(crops, once)
+    counts = {"positives": int((base.labels == 1).sum()), "negatives": int((base.labels == 0).sum()),
+              "hard_negatives": 0 if hard is None else len(hard), "weight": config.weight}
+    return crops, counts, {"crops": t1 - t0, "hard_negatives": t2 - t1}
+
+
+def fit_camera_model(data: Path, bundled: Model, crops: CropSet, config: AdaptConfig, progress: bool = True,
+                     log: Callable[[str], None] = print) -> Model:
+    """The main model trained on the bundled crop folders of ``data`` plus ``crops`` (logistic
+    regression, the bundled model's features, ``config``'s recipe; no held-out split)."""
+    model, _ = train(data, bundled.config, "logreg", config.C, split="none", seed=config.seed,
+                     max_per_folder=config.max_per_folder, progress=progress, truncate=config.truncate,
+                     truncate_keep=config.truncate_keep, reencode=config.reencode, extra_crops=crops, log=log)
+    assert model is not None
+    return model
+
+
+@dataclass(frozen=True)
+class Agreement:
+    """Boxes against the labels of the kept-aside frames (IoU 0.5): hits, false alarms, misses."""
+
+    tp: int
+    fp: int
+    fn: int
+    seconds: float
+    frames: int
+
+    @property
+    def precision(self) -> float:
+        return self.tp / (self.tp + self.fp) if self.tp + self.fp else math.nan
+
+    @property
+    def recall(self) -> float:
+        return self.tp / (self.tp + self.fn) if self.tp + self.fn else math.nan
+
+    @property
+    def f1(self) -> float:
+        d = 2 * self.tp + self.fp + self.fn
+        return 2 * self.tp / d if d else math.nan
+
+    @property
+    def ms_per_frame(self) -> float:
+        """The pipeline's wall time per frame read (ms), horizon estimate included."""
+        return 1000.0 * self.seconds / self.frames if self.frames else math.nan
+
+    def to_dict(self) -> dict[str, Any]:
+        def num(v: float) -> float | None:
+            return None if math.isnan(v) else round(v, 4)
+
+        return {"f1": num(self.f1), "precision": num(self.precision), "recall": num(self.recall),
+                "tp": self.tp, "fp": self.fp, "fn": self.fn, "ms_per_frame": num(self.ms_per_frame)}
+
+
+#: ``run(clip, model file or None for the bundled one) -> (tp, fp, fn, seconds, frames read)``:
+#: the video pipeline over the clip's kept-aside stretch, scored against its kept-aside labels
+HoldoutRun = Callable[[Clip, "str | None"], tuple[int, int, int, float, int]]
+
+
+def agreement(footage: Footage, run: HoldoutRun, model_path: str | None) -> Agreement:
+    """``run`` over every clip with kept-aside labels, summed."""
+    tp = fp = fn = frames = 0
+    secs = 0.0
+    for clip in footage.clips:
+        if not clip.holdout_frames(footage.every):
+            continue
+        a, b, c, s, n = run(clip, model_path)
+        tp, fp, fn, secs, frames = tp + a, fp + b, fn + c, secs + s, frames + n
+    return Agreement(tp, fp, fn, secs, frames)
+
+
+def choose_offset(model: Model, footage: Footage, run: HoldoutRun, folder: Path, offsets: Sequence[float],
+                  progress: bool = True) -> tuple[float, dict[float, Agreement]]:
+    """The decision offset of best F1 on the kept-aside footage (ties: the one nearest 0) and
+    every offset's :class:`Agreement`. Each offset's model is written to ``folder`` for the
+    pipeline to load (and removed after its run)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    results: dict[float, Agreement] = {}
+    for o in tqdm(list(offsets), desc="operating point", unit="offset", file=sys.stderr, dynamic_ncols=True,
+                  disable=not progress):
+        path = folder / f"offset{o:+.3f}.npz"
+        offset(model, o).save(path)
+        try:
+            results[o] = agreement(footage, run, str(path))
+        finally:
+            path.unlink(missing_ok=True)
+
+    def rank(o: float) -> tuple[float, float]:
+        f1 = results[o].f1
+        return (-1.0 if math.isnan(f1) else f1, -abs(o))
+
+    return max(results, key=rank), results

@@ -1,0 +1,173 @@
+"""``python -m fastdet adapt``: a small end-to-end run that writes a loadable model holding its
+summary, a stopped run that resumes without labelling a finished video again, stop signals,
+and every bad input ending in one line before any work."""
+from __future__ import annotations
+
+import os
+import re
+import signal
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fastdet.cli import adapt as adapt_cli
+from fastdet.cli.main import main
+from fastdet.model import load_model
+from fastdet.teacher.yolox import TeacherBoxes
+from tests.media import leftovers, write_video
+from tests.teacher.onnx_bytes import FLOAT, write_identity_model
+
+pytest.importorskip("onnxruntime")
+
+
+@pytest.fixture(scope="module")
+def teacher(data: Path) -> Path:
+    p = data / "teachers" / "yolox_nano.onnx"
+    if not p.exists():
+        pytest.skip(f"{p} not found")
+    return p
+
+
+def _one_line(err: str) -> str:
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+def _adapt(*args: object) -> int:
+    return main(["adapt", *map(str, args), "--no-progress"])
+
+
+# ------------------------------------------------------------------------------ bad input
+
+
+def test_bad_inputs_are_one_line_before_any_work(teacher, data, tmp_path, capsys):
+    small = write_video(tmp_path / "small.mp4", 20)
+    other = write_video(tmp_path / "other.mp4", 20, w=160, h=120)
+    empty_dir = tmp_path / "empty"
+    empty_dir.mkdir()
+    not_video = tmp_path / "nothing.mp4"
+    not_video.write_bytes(b"not a video")
+    text_teacher = tmp_path / "t.onnx"
+    text_teacher.write_text("not a model")
+    identity = write_identity_model(tmp_path / "id.onnx", [((1, 3, "h", "w"), FLOAT)])
+    out = tmp_path / "cam.npz"
+    inside = Path(adapt_cli.__file__).resolve().parents[1] / "models" / "mine.npz"
+    cases = [
+        ((small, other, "--teacher", teacher, "-o", out), "160x120, .*small.mp4's are 320x240"),
+        ((empty_dir, "--teacher", teacher, "-o", out), "no video files in this folder"),
+        ((not_video, "--teacher", teacher, "-o", out), "nothing.mp4: not a video"),
+        ((small, "--teacher", text_teacher, "-o", out), "t.onnx"),
+        ((small, "--teacher", identity, "-o", out), "id.onnx: not a YOLOX-style detector"),
+        ((small, "--teacher", tmp_path / "missing.onnx", "-o", out), "missing.onnx: file not found"),
+        ((small, "-o", out), "give --teacher MODEL.onnx .* or --frames SPEC"),
+        ((small, "--teacher", teacher, "--frames", "mot:x", "-o", out), "one of them"),
+        ((small, "--teacher", teacher, "-o", inside), "inside the installed fastdet package"),
+        ((small, "--teacher", teacher, "-o", tmp_path / "cam.txt"), "must end in .npz"),
+        ((small, "--teacher", teacher, "-o", tmp_path / "no" / "cam.npz"), "does not exist"),
+        ((small, "--teacher", teacher, "-o", out, "--data", tmp_path), "crop folder .* not found"),
+        ((small, "--frames", "nope:x", "-o", out), "nope"),
+        ((write_video(tmp_path / "one.mp4", 1), "--teacher", teacher, "-o", out), "too short"),
+    ]
+    for args, msg in cases:
+        assert _adapt(*args) == 2, (args, msg)
+        line = _one_line(capsys.readouterr().err)
+        assert line.startswith("fastdet adapt: error: ") and re.search(msg, line), (msg, line)
+        assert not out.exists() and not inside.exists()
+        assert not (tmp_path / ".cam.adapt").exists(), msg  # nothing made before the checks passed
+    assert not leftovers(tmp_path)
+
+
+# ----------------------------------------------------------------------- stop and resume
+
+
+class _Teacher:
+    """Stands in for the CNN's ``detect``: one car in every frame, calls counted; sends
+    ``signum`` to this process at call ``stop_at`` (1-based)."""
+
+    def __init__(self, stop_at: int | None = None, signum: int = signal.SIGINT) -> None:
+        self.calls = 0
+        self.stop_at, self.signum = stop_at, signum
+
+    def __call__(self, frame: np.ndarray) -> TeacherBoxes:
+        self.calls += 1
+        if self.calls == self.stop_at:
+            os.kill(os.getpid(), self.signum)
+        h, w = frame.shape[:2]
+        return TeacherBoxes(np.array([[w * 0.3, h * 0.4, w * 0.6, h * 0.8]]), np.array([0.9], np.float32),
+                            np.array([2], np.int16))
+
+
+def test_a_stopped_run_resumes_without_labelling_a_finished_video_again(teacher, data, tmp_path, capsys,
+                                                                         monkeypatch):
+    from fastdet.teacher.yolox import TeacherDetector
+    from fastdet.train import adapt
+
+    footage = tmp_path / "cam"
+    footage.mkdir()
+    write_video(footage / "a.mp4", 30)
+    write_video(footage / "b.mp4", 30)
+    out = tmp_path / "cam.npz"
+    args = (footage, "--teacher", teacher, "-o", out, "--every", "5")
+    per_clip = 5 + 2  # 1, 6, ..., 21 before the kept-aside stretch (frames 25-30), labelled at 25 and 30
+
+    # 1. Ctrl-C while the second video is labelled: the first one's labels are kept, nothing else
+    first = _Teacher(stop_at=per_clip + 2)
+    monkeypatch.setattr(TeacherDetector, "detect", lambda _self, frame: first(frame))
+    assert _adapt(*args) == 130
+    err = capsys.readouterr().err
+    assert "interrupted (SIGINT); 1 of 2 videos labelled" in err and "no model written" in err
+    assert first.calls == per_clip + 2
+    labels = list((tmp_path / ".cam.adapt").glob("labels-*/*.teacher.txt"))
+    assert [p.name.split("-")[0] for p in labels] == ["a"] and not out.exists()
+
+    # 2. the next run labels the second video only; a SIGTERM in the next step ends it
+    def stop_now(*_a: object, **_k: object) -> None:
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    second = _Teacher()
+    monkeypatch.setattr(TeacherDetector, "detect", lambda _self, frame: second(frame))
+    monkeypatch.setattr(adapt, "camera_crops", stop_now)
+    assert _adapt(*args) == 143
+    assert "interrupted (SIGTERM)" in capsys.readouterr().err
+    assert second.calls == per_clip and not out.exists()
+    assert sorted(p.name.split("-")[0] for p in (tmp_path / ".cam.adapt").glob("labels-*/*.teacher.txt")) == \
+        ["a", "b"]
+
+    # 3. and the one after it labels nothing
+    third = _Teacher()
+    monkeypatch.setattr(TeacherDetector, "detect", lambda _self, frame: third(frame))
+    assert _adapt(*args) == 143
+    assert third.calls == 0 and not out.exists()
+    assert "teacher labels of 7 frames read from" in capsys.readouterr().out
+    assert not leftovers(tmp_path) and not leftovers(tmp_path / ".cam.adapt")
+
+
+# ----------------------------------------------------------------------------- end to end
+
+
+@pytest.mark.slow
+def test_adapt_writes_a_model_with_its_summary(teacher, data, tmp_path, capsys):
+    """test_video (38 frames): 6 frames trained on, the last 8 kept aside; a reduced crop set."""
+    out = tmp_path / "tv.npz"
+    assert _adapt(data / "videos" / "test_video.mp4", "--teacher", teacher, "-o", out, "--max-frames", "10",
+                  "--max-per-folder", "20", "--offsets", "0", "1") == 0
+    text = capsys.readouterr().out
+    assert "agreement with the teacher labels on the kept-aside frames" in text and f"wrote {out}" in text
+    model = load_model(out)  # allow_pickle=False: the format video / image / batch --model read
+    s = model.metadata["adapt"]
+    assert s["frames"]["trained"] == 6 and s["frames"]["kept_aside_labelled"] == 2
+    assert s["frames"]["kept_aside_read"] == 8 and s["labelled_by"] == "teacher"
+    assert s["offset"] in (0.0, 1.0) and model.metadata["offset"] == s["offset"]
+    assert set(s["seconds"]) >= {"label", "crops", "hard_negatives", "train", "operating_point", "total"}
+    for when in ("before", "after"):
+        a = s["agreement"][when]
+        assert 0 <= a["f1"] <= 1 and a["tp"] + a["fn"] >= 2 and a["ms_per_frame"] > 0
+    assert s["agreement"]["after"]["f1"] == max(v for v in s["offsets_f1"].values())
+    assert model.metadata["training"]["data"]["hard_negatives"] > 0
+    # the model file is what `image --model` takes
+    assert main(["image", str(data / "test_images" / "test1.jpg"), "--model", str(out),
+                 "-o", str(tmp_path / "x.jpg")]) == 0
+    assert (tmp_path / "x.jpg").is_file()
+    assert not (tmp_path / ".tv.adapt" / "operating-point").exists() and not leftovers(tmp_path)

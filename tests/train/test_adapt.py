@@ -1,0 +1,131 @@
+"""fastdet.train.adapt: the footage's plan (sampling, the kept-aside stretch, mixed sizes), the
+teacher's labels kept per clip and never recomputed, the split of the pictures, and the choice
+of the operating point. The whole command: tests/cli/test_adapt.py."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fastdet.config.adapt import AdaptConfig
+from fastdet.errors import DataError
+from fastdet.labels.picture import AnnotatedPicture
+from fastdet.model import load_model
+from fastdet.teacher.yolox import TeacherBoxes
+from fastdet.train import adapt
+from tests.media import write_video
+
+
+class CountingTeacher:
+    """Boxes one car in the middle of every frame; counts its calls by frame size."""
+
+    def __init__(self) -> None:
+        self.calls = 0
+
+    def detect(self, frame: np.ndarray) -> TeacherBoxes:
+        self.calls += 1
+        h, w = frame.shape[:2]
+        return TeacherBoxes(np.array([[w * 0.4, h * 0.5, w * 0.6, h * 0.7]]), np.array([0.9], np.float32),
+                            np.array([2], np.int16))
+
+
+def test_config_checks_and_step():
+    c = AdaptConfig(every=5, max_frames=100)
+    assert c.step(300) == 5 and c.step(1000) == 10 and c.step(1001) == 11
+    assert AdaptConfig(offsets=(1, 0, 1)).offsets == (0.0, 1.0)
+    for bad in ({"every": 0}, {"holdout": 1.0}, {"holdout": 0}, {"weight": 0}, {"offsets": ()},
+                {"offsets": (math.nan,)}, {"truncate_keep": (0.9, 0.8)}, {"max_frames": 1}):
+        with pytest.raises(ValueError):
+            AdaptConfig(**bad)  # type: ignore[arg-type]
+    assert AdaptConfig.from_dict(c.to_dict()) == c
+
+
+def test_plan_samples_evenly_and_keeps_the_end_of_each_video_aside(tmp_path):
+    a = write_video(tmp_path / "a.mp4", 50)
+    b = write_video(tmp_path / "b.mp4", 30)
+    fp = adapt.plan_footage([str(a), str(b)], AdaptConfig(every=2, max_frames=20, holdout=0.2))
+    assert fp.step == 4 and fp.size == (320, 240)  # 80 frames / 20
+    ca, cb = fp.clips
+    assert (ca.frames, ca.holdout_start, cb.frames, cb.holdout_start) == (50, 41, 30, 25)
+    assert ca.train_frames(fp.step) == list(range(1, 41, 4))
+    assert ca.holdout_frames(fp.every) == [41, 43, 45, 47, 49]  # a contiguous stretch, labelled every 2nd
+    assert fp.holdout_length == 10 + 6 and fp.n_train == 10 + 6
+
+
+def test_plan_refuses_mixed_sizes_and_clashing_names(tmp_path):
+    a = write_video(tmp_path / "a.mp4", 10)
+    b = write_video(tmp_path / "b.mp4", 10, w=160, h=120)
+    with pytest.raises(DataError, match=r"160x120, .*a.mp4's are 320x240"):
+        adapt.plan_footage([str(a), str(b)], AdaptConfig())
+    (tmp_path / "x").mkdir()
+    a2 = write_video(tmp_path / "x" / "a.mp4", 10)
+    with pytest.raises(DataError, match="two videos named 'a'"):
+        adapt.plan_footage([str(a), str(a2)], AdaptConfig())
+    with pytest.raises(DataError, match="no video"):
+        adapt.plan_footage([], AdaptConfig())
+
+
+def test_labels_are_kept_per_clip_and_not_recomputed(tmp_path):
+    a = write_video(tmp_path / "a.mp4", 20)
+    b = write_video(tmp_path / "b.mp4", 20)
+    fp = adapt.plan_footage([str(a), str(b)], AdaptConfig(every=5, holdout=0.25))
+    work = tmp_path / "work"
+    teacher = CountingTeacher()
+    labels, now = adapt.label_clips(fp, teacher, work, progress=False, log=lambda s: None)  # type: ignore[arg-type]
+    planned = [c.planned(fp.step, fp.every) for c in fp.clips]
+    assert planned[0] == [1, 6, 11, 16] and teacher.calls == now == 8
+    again = CountingTeacher()
+    labels2, now2 = adapt.label_clips(fp, again, work, progress=False, log=lambda s: None)  # type: ignore[arg-type]
+    assert again.calls == now2 == 0 and labels2 == labels
+    # the pictures: targets from the teacher, split at each clip's kept-aside stretch
+    pics = adapt.teacher_pictures(fp, labels, 0.3)
+    train, held = adapt.split_pictures(fp, pics)
+    assert [p.frame for p in train] == [1, 6, 11, 1, 6, 11] and all(len(p.targets) == 1 for p in pics)
+    assert {k: [p.frame for p in v] for k, v in held.items()} == {"a": [16], "b": [16]}
+    # another plan (other frames) is labelled anew (it replaces the clip's labels)
+    fp2 = adapt.plan_footage([str(a), str(b)], AdaptConfig(every=4, holdout=0.25))
+    third = CountingTeacher()
+    adapt.label_clips(fp2, third, work, progress=False, log=lambda s: None)  # type: ignore[arg-type]
+    assert third.calls == sum(len(c.planned(fp2.step, fp2.every)) for c in fp2.clips)
+
+
+def test_a_still_picture_always_trains(tmp_path):
+    a = write_video(tmp_path / "a.mp4", 20)
+    fp = adapt.plan_footage([str(a)], AdaptConfig(every=5))
+    still = AnnotatedPicture("s", "c", "x.jpg", tmp_path / "x.jpg", 320, 240)
+    late = AnnotatedPicture("s", "c", "a:20", a, 320, 240, frame=20)
+    train, held = adapt.split_pictures(fp, [still, late])
+    assert train == [still] and held == {"a": [late]}
+
+
+def test_the_offset_of_best_f1_is_chosen(tmp_path):
+    a = write_video(tmp_path / "a.mp4", 20)
+    fp = adapt.plan_footage([str(a)], AdaptConfig(every=5))
+    seen: list[float] = []
+
+    def run(clip, model_path):  # F1 peaks at an intercept lowered by 1 (offset 1), ties broken towards 0
+        m = load_model(model_path)
+        o = load_model().intercept - m.intercept
+        seen.append(round(o, 6))
+        tp = {-1.0: 2, 0.0: 3, 1.0: 5, 2.0: 5}[round(o, 6)]
+        return tp, 5 - tp, 5 - tp, 0.5, 10
+
+    best, results = adapt.choose_offset(load_model(), fp, run, tmp_path / "op", (2, 1, 0, -1), progress=False)
+    assert best == 1.0 and sorted(seen) == [-1.0, 0.0, 1.0, 2.0]
+    assert results[1.0].f1 == 1.0 and results[0.0].to_dict()["f1"] == 0.6 and results[1.0].ms_per_frame == 50
+    assert not list((tmp_path / "op").iterdir())  # the offset models are removed
+
+
+def test_agreement_without_boxes_is_not_a_number():
+    a = adapt.Agreement(0, 0, 0, 0.0, 0)
+    assert math.isnan(a.f1) and a.to_dict()["f1"] is None and a.to_dict()["ms_per_frame"] is None
+
+
+def test_clip_key_changes_with_the_video(tmp_path: Path):
+    a = write_video(tmp_path / "a.mp4", 5)
+    clip = adapt.Clip(str(a), "a", 5, 5)
+    k = clip.key
+    write_video(tmp_path / "a.mp4", 6)
+    assert clip.key != k and k.startswith("a-")
