@@ -39,8 +39,7 @@ def _iou_arg(s: str) -> float:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.usage = ("%(prog)s --gt GT.txt (--pred P.txt | --video C.mp4)\n"
-                    "       %(prog)s --all [--out R.json]\n"
-                    "       %(prog)s --frames FORMAT:PATH [--model M.npz]")
+                    "       %(prog)s (--all | --frames FORMAT:PATH) [--out R.json]")
     what = parser.add_argument_group("what to score")
     what.add_argument("--gt", metavar="GT.txt", help="MOTChallenge ground truth")
     src = what.add_mutually_exclusive_group()
