@@ -51,14 +51,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     what.add_argument("--json", action="store_true", help="print the result as one JSON object")
     what.add_argument("--plot", metavar="PR.png", help="write the precision-recall curve")
     every = parser.add_argument_group("every annotated clip")
-    every.add_argument("--all", action="store_true", help="one row per annotated clip of the data folder")
+    every.add_argument("--all", action="store_true", help="every annotated clip and picture set of the data folder")
     every.add_argument("--data", metavar="DIR", help="the data folder (default: $FASTDET_DATA)")
     every.add_argument("--clips", metavar="A,B", help="only these clips")
     every.add_argument("--pred-dir", metavar="DIR", help="read DIR/CLIP.txt instead of running")
     every.add_argument("--out", metavar="REPORT.json", help="also write the report as JSON")
     every.add_argument("--frames", metavar="SPEC", action="append", default=[],
-                       help="score the single-picture search (`fastdet image`) on a labelled set, "
-                            "FORMAT:PATH[,options]; repeatable (docs/labels.md)")
+                       help="a labelled picture set FORMAT:PATH[,opts] (repeatable)")
     search, tracking, _ = pipeline_groups(parser)
     add_horizon_argument(search)
     track = tracking.add_mutually_exclusive_group()
