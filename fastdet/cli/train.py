@@ -50,6 +50,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                     help="extra non-vehicle crops (repeatable)")
     io.add_argument("--positives", type=Path, action="append", default=[], metavar="DIR",
                     help="extra vehicle crops (repeatable)")
+    io.add_argument("--frames", action="append", default=[], metavar="SPEC",
+                    help="labelled pictures to learn from too, FORMAT:PATH[,opts] (repeatable; docs/labels.md)")
     io.add_argument("--max-per-folder", type=positive_int, default=None, metavar="N",
                     help="at most N crops a folder (quick runs)")
     io.add_argument("--no-refit", action="store_true", help="only the held-out figures: no model")
@@ -142,6 +144,22 @@ def _check_inputs(data: Path, args: argparse.Namespace) -> None:
                 raise DataError(f"{flag} {f}: folder not found")
 
 
+def _read_frames(specs: list[str]) -> list:
+    """Every picture of the ``--frames`` specs (:func:`fastdet.labels.sets.read_spec`): a set
+    that does not read is one line (DataError) before any training."""
+    if not specs:
+        return []
+    from ..labels.sets import read_spec
+
+    pictures = []
+    for spec in specs:
+        got = read_spec(spec)
+        if not got:
+            raise DataError(f"--frames {spec}: no labelled picture in it")
+        pictures += got
+    return pictures
+
+
 def run(args: argparse.Namespace) -> int:
     data = args.data or data_dir()
     out: Path = args.out
@@ -158,14 +176,25 @@ def run(args: argparse.Namespace) -> int:
         raise FastdetError(f"--truncate-keep must satisfy 0 < A <= B <= 1, got {k0:g} {k1:g}")
     if not 1 <= q0 <= q1 <= 100:
         raise FastdetError(f"--jpeg-quality must satisfy 1 <= Q1 <= Q2 <= 100, got {q0} {q1}")
+    pictures = _read_frames(args.frames)  # every set read (and checked) before the long work
     ensure_compiled(FEATURE_KERNELS, what="the feature kernels")
     progress = not args.no_progress and sys.stderr.isatty()
+    extra = None
+    if pictures:
+        from ..model import load_model
+        from ..train.pictures import PictureRecipe, picture_training_crops
+
+        bundled = load_model()
+        # hard negatives: the bundled model's false windows on complete pictures (its features only)
+        extra = picture_training_crops(pictures, config, PictureRecipe(),
+                                       bundled if bundled.config == config else None, progress)
     model, report = train(data, config, args.classifier, args.C, args.split, args.seed, args.negatives,
                           not args.no_flip, args.max_per_folder, not args.no_refit, progress,
                           window_top=args.window_rows[0] if args.window_rows else None,
                           positives=args.positives, truncate=args.truncate,
                           truncate_negatives=not args.truncate_vehicles_only, reencode=args.reencode,
-                          jpeg_quality=(q0, q1), truncate_keep=(k0, k1), photometric=args.photometric)
+                          jpeg_quality=(q0, q1), truncate_keep=(k0, k1), photometric=args.photometric,
+                          extra_crops=extra)
     if model is not None:
         _signals.check()  # a stop that a library swallowed: no model
         model.metadata["training"]["command"] = f"{_command_name()} train " + " ".join(sys.argv[2:])

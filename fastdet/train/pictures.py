@@ -150,45 +150,60 @@ def thin_video_frames(pictures: Sequence[AnnotatedPicture], every_other: int) ->
     return out
 
 
+def picture_training_crops(pictures: Sequence[AnnotatedPicture], config: FeatureConfig,
+                           recipe: PictureRecipe = PictureRecipe(), base: Model | None = None,
+                           progress: bool = True, log: Callable[[str], None] = print) -> CropSet | None:
+    """Every crop :func:`train_on_pictures` adds to the crop folders, as one labelled
+    :class:`CropSet` of ``config``'s window (``None`` when there are none): positives and
+    background of :func:`picture_crops`, and, when ``base`` (a model of the same features) is
+    given, its hard negatives (:func:`hard_negative_crops`). Pictures are decoded one video at a
+    time and dropped once cut."""
+    from tqdm import tqdm
+
+    if base is not None and base.config != config:
+        raise ValueError("picture_training_crops: the mining model's features differ from the config's")
+    pics = thin_video_frames(pictures, recipe.every_other)
+    t0 = time.perf_counter()
+    bar = tqdm(total=len(pics), desc="pictures", unit="picture", disable=not progress, leave=False)
+    parts, n_hard = [], 0
+    for pic, image in load_pictures(pics):
+        one = [(pic, image)]
+        parts.append(picture_crops([pic], config, recipe.jitter, recipe.negatives_per_picture,
+                                   seed=len(parts), frames=one))
+        if base is not None and recipe.hard_per_picture and pic.complete:
+            h = hard_negative_crops(base, [pic], recipe.hard_per_picture, recipe.mine_min_score, frames=one,
+                                    cells_per_step=recipe.mine_cells_per_step, steps=recipe.mine_steps,
+                                    threshold=recipe.mine_min_score)
+            parts.append(h)
+            n_hard += len(h)
+        bar.update(1)
+    bar.close()
+    if not parts:
+        return None
+    extra = parts[0]
+    for part in parts[1:]:
+        extra = CropSet.concat(extra, part)
+    log(f"pictures: {len(pics)} of {len(pictures)} ({len({p.camera for p in pics})} cameras): "
+        f"{int(extra.labels.sum())} vehicle crops, {int((extra.labels == 0).sum()) - n_hard} background, "
+        f"{n_hard} hard negatives ({time.perf_counter() - t0:.0f} s)")
+    return extra
+
+
 def train_on_pictures(data: Path, pictures: Sequence[AnnotatedPicture], recipe: PictureRecipe = PictureRecipe(),
                       base: Model | None = None, progress: bool = True, log: Callable[[str], None] = print
                       ) -> tuple[Model, dict[str, Any]]:
     """A main model from the crop folders of ``data`` plus crops of ``pictures``
-    (:func:`picture_crops`, and :func:`hard_negative_crops` of ``base``, default the bundled
-    model, whose features it keeps): ``(model, report)``. The pictures are decoded once, kept
-    only while their crops are cut."""
-    from tqdm import tqdm
-
+    (:func:`picture_training_crops` with the hard negatives of ``base``, default the bundled
+    model, whose features it keeps): ``(model, report)``."""
     from ..model import load_model
     from .fit import train
 
     base = load_model() if base is None else base
-    pics = thin_video_frames(pictures, recipe.every_other)
-    t0 = time.perf_counter()
-    bar = tqdm(total=len(pics), desc="pictures", unit="picture", disable=not progress, leave=False)
-    pos_neg, hard = [], []
-    for pic, image in load_pictures(pics):
-        one = [(pic, image)]
-        pos_neg.append(picture_crops([pic], base.config, recipe.jitter, recipe.negatives_per_picture,
-                                     seed=len(pos_neg), frames=one))
-        if recipe.hard_per_picture and pic.complete:
-            hard.append(hard_negative_crops(base, [pic], recipe.hard_per_picture, recipe.mine_min_score, frames=one,
-                                            cells_per_step=recipe.mine_cells_per_step, steps=recipe.mine_steps,
-                                            threshold=recipe.mine_min_score))
-        bar.update(1)
-    bar.close()
-    extra = pos_neg[0] if pos_neg else None
-    for part in pos_neg[1:] + hard:
-        extra = part if extra is None else CropSet.concat(extra, part)
-    n_hard = sum(len(h) for h in hard)
-    log(f"pictures: {len(pics)} of {len(pictures)} ({len({p.camera for p in pics})} cameras): "
-        f"{0 if extra is None else int(extra.labels.sum())} vehicle crops, "
-        f"{0 if extra is None else int((extra.labels == 0).sum()) - n_hard} background, {n_hard} hard negatives "
-        f"({time.perf_counter() - t0:.0f} s)")
+    extra = picture_training_crops(pictures, base.config, recipe, base, progress, log)
     model, report = train(data, base.config, C=recipe.C, split="none", seed=0, extra_crops=extra,
                           truncate=recipe.truncate, truncate_keep=recipe.truncate_keep, reencode=recipe.reencode,
                           progress=progress, log=log)
-    report["pictures"] = {"recipe": recipe.to_dict() if hasattr(recipe, "to_dict") else dataclasses.asdict(recipe),
-                          "pictures": len(pics), "cameras": sorted({p.camera for p in pics}),
-                          "hard_negatives": n_hard}
+    pics = thin_video_frames(pictures, recipe.every_other)
+    report["pictures"] = {"recipe": dataclasses.asdict(recipe), "pictures": len(pics),
+                          "cameras": sorted({p.camera for p in pics})}
     return model, report

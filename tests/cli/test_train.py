@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import contextlib
+import re
 
 import numpy as np
 import pytest
@@ -101,3 +102,42 @@ def test_train_cli_refuses_bad_augmentation_options(data, tmp_path, capsys, opts
         rc = main(["train", "--data", str(data), "--out", str(tmp_path / "m.npz"), "--no-progress", *opts])
         assert rc == 2
     assert msg in capsys.readouterr().err and not (tmp_path / "m.npz").exists()
+
+
+def _yolo_set(root, data):
+    """A YOLO set of two Udacity test pictures, the black car of test1 boxed (class 0 car)."""
+    import shutil
+
+    (root / "images").mkdir(parents=True)
+    (root / "labels").mkdir()
+    (root / "classes.txt").write_text("car\n")
+    for name in ("test1", "test4"):
+        shutil.copy(data / "test_images" / f"{name}.jpg", root / "images" / f"{name}.jpg")
+        # the black car at x 815-945, y 395-505 of 1280x720 (README's crop), normalised
+        (root / "labels" / f"{name}.txt").write_text(
+            f"0 {880 / 1280:.6f} {450 / 720:.6f} {130 / 1280:.6f} {110 / 720:.6f}\n")
+    return root
+
+
+def test_train_learns_from_labelled_pictures_too(data, tmp_path, capsys):
+    spec = f"yolo:{_yolo_set(tmp_path / 'set', data)}"
+    out = tmp_path / "m.npz"
+    args = ["train", "--data", str(data), "--out", str(out), "--max-per-folder", "20", "--split", "random",
+            "--no-progress", "--frames", spec]
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    # 2 pictures: 2 boxes + 2 jittered copies each, mirrored; 8 background windows each + hard negatives
+    m = re.search(r"(\d+) vehicle crops, (\d+) background, (\d+) hard negatives", text)
+    assert m and int(m.group(1)) == 4 and int(m.group(2)) == 16, text
+    from fastdet.model import load_model
+
+    model = load_model(out)
+    assert model.metadata["training"]["data"]["extra_positives"] == 4
+
+
+def test_train_frames_spec_errors_are_one_line_before_work(data, tmp_path, capsys):
+    rc = main(["train", "--data", str(data), "--out", str(tmp_path / "m.npz"), "--frames", f"voc:{tmp_path}/nope"])
+    assert rc == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "nope" in err
+    assert not (tmp_path / "m.npz").exists()
