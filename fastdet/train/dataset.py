@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 
 from ..errors import DataError
+from ..io.files import check_input
 
 _NUM = re.compile(r"(\d+)")
 
@@ -59,6 +60,7 @@ def find_pngs(folder: Path) -> dict[Path, list[Path]]:
 
 
 def _read(path: Path, size: int | None) -> np.ndarray:
+    check_input(path, "training crop")  # a FIFO would block the reader thread for ever
     img = cv2.imread(str(path), cv2.IMREAD_COLOR)
     if img is None:
         raise DataError(f"{path}: not a readable image")
