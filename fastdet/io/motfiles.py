@@ -183,6 +183,8 @@ def parse_jsonl_predictions(text: str, source: str = "<string>") -> Detections:
             obj = json.loads(line)
         except json.JSONDecodeError as exc:
             raise DataError(f"{where}: not JSON ({exc.msg})") from None
+        except RecursionError:
+            raise DataError(f"{where}: not a box line (JSON nested too deeply)") from None
         if not isinstance(obj, dict) or "frame" not in obj or "boxes" not in obj:
             raise DataError(f"{where}: expected an object with 'frame', 'boxes', 'scores'")
         try:
