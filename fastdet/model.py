@@ -31,13 +31,25 @@ import numpy as np
 from ._version import __version__
 from .config import FeatureConfig, ScoreKind
 from .config.models import DEFAULT_MODEL_PATH, ONCOMING_MODEL_PATH  # noqa: F401  (the bundled models, named here too)
-from .errors import ModelError
+from .errors import DataError, ModelError
 from .features import extract_features
 from .io.atomic import atomic_path
+from .io.files import open_input
 
 FORMAT_VERSION = 1
 CLASSIFIERS = ("linearsvc", "logreg")
 _ARRAYS = ("coef", "intercept", "mean", "scale", "metadata")
+#: the largest ``metadata`` array (JSON bytes) a model or regressor file may declare (the
+#: bundled ones hold 1-3 KB)
+MAX_METADATA_BYTES = 16 * 2**20
+#: the largest any other array of a model file may declare (the bundled ones: 100 KB; a
+#: window's features are bounded by :data:`~fastdet.config.features.MAX_FEATURES`)
+MAX_ARRAY_BYTES = 64 * 2**20
+#: the largest magnitude of a weight, a mean, the intercept and a folded weight
+#: ``coef / scale`` (the bundled models: below 2,000); and the smallest ``scale``. Past them a
+#: window's score overflows to infinity or NaN (``scale 1e-310``, ``coef 1e308``)
+MAX_ABS_VALUE = 1e12
+MIN_SCALE = 1e-12
 
 
 @dataclass(frozen=True, eq=False)
@@ -71,7 +83,22 @@ class Model:
             object.__setattr__(self, name, arr)
         if np.any(self.scale == 0):
             raise ModelError("'scale' holds zeros")
+        for name in ("coef", "mean"):
+            big = float(np.max(np.abs(getattr(self, name)), initial=0.0))
+            if big > MAX_ABS_VALUE:
+                raise ModelError(f"'{name}' holds {big:.3g}, beyond the +-{MAX_ABS_VALUE:.0e} a model's values may "
+                                 f"take (a window's score would overflow)")
+        small = float(np.min(np.abs(self.scale), initial=np.inf))
+        if small < MIN_SCALE or float(np.max(np.abs(self.scale), initial=0.0)) > MAX_ABS_VALUE:
+            raise ModelError(f"'scale' holds values outside [{MIN_SCALE:.0e}, {MAX_ABS_VALUE:.0e}] "
+                             f"(the smallest is {small:.3g}): the folded weights would overflow")
+        folded = float(np.max(np.abs(self.coef / self.scale), initial=0.0))
+        if not folded <= MAX_ABS_VALUE:
+            raise ModelError(f"'coef' / 'scale' reaches {folded:.3g}, beyond +-{MAX_ABS_VALUE:.0e} (a window's "
+                             f"score would overflow)")
         object.__setattr__(self, "intercept", float(self.intercept))
+        if not abs(self.intercept) <= MAX_ABS_VALUE:
+            raise ModelError(f"'intercept' is {self.intercept:.3g}, beyond +-{MAX_ABS_VALUE:.0e}")
         if self.classifier not in CLASSIFIERS:
             raise ModelError(f"unknown classifier {self.classifier!r}; expected one of {CLASSIFIERS}")
 
@@ -144,21 +171,33 @@ def read_npz(path: Path, names: tuple[str, ...], what: str = "model",
     folder, unreadable, not an ``.npz``, truncated, holds pickled objects, lacks an array, has
     metadata that is not a JSON object or of another ``format_version`` than ``version``, or an
     array other than the metadata holds non-numbers."""
-    if not path.exists():
-        raise ModelError(f"{what} file {path} not found")
     if path.is_dir():
         raise ModelError(f"{what} path {path} is a folder, not a file (an .npz is expected)")
+    if not path.exists() and not path.is_symlink():
+        raise ModelError(f"{what} file {path} not found")
     try:
-        with open(path, "rb") as fh:
-            magic = fh.read(4)
+        fh = open_input(path, f"{what} file")  # a FIFO, a device, a symlink loop: one line, no wait
+    except DataError as exc:
+        raise ModelError(f"{what} file {exc}") from None
+    with fh:
+        return _read_npz(fh, path, names, what, version)
+
+
+def _read_npz(fh: Any, path: Path, names: tuple[str, ...], what: str,
+              version: int) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """:func:`read_npz` of the opened file ``fh``."""
+    try:
+        magic = fh.read(4)
+        fh.seek(0)
     except OSError as exc:
         raise ModelError(f"{what} file {path}: cannot read ({exc.strerror or exc})") from None
     if magic != b"PK\x03\x04":
         raise ModelError(f"{path} is not a fastdet {what}: not an .npz (zip) archive"
                          + (" (empty file)" if not magic else ""))
-    _check_members(path, names, what)
+    _check_members(fh, path, names, what)
+    fh.seek(0)
     try:
-        with np.load(path, allow_pickle=False) as npz:
+        with np.load(fh, allow_pickle=False) as npz:
             if not isinstance(npz, np.lib.npyio.NpzFile):
                 raise ModelError(f"{path} is a single .npy array, not a fastdet {what} (.npz)")
             missing = [k for k in names if k not in npz.files]
@@ -182,6 +221,8 @@ def read_npz(path: Path, names: tuple[str, ...], what: str = "model",
             raise ValueError("not a JSON object")
     except (ValueError, UnicodeDecodeError) as exc:
         raise ModelError(f"{path}: metadata is not valid JSON: {exc}") from None
+    except RecursionError:
+        raise ModelError(f"{path}: metadata is not valid JSON: nested too deeply") from None
     found = meta.get("format_version")
     if found != version or isinstance(found, bool):
         if not isinstance(found, int) or isinstance(found, bool):
@@ -196,13 +237,14 @@ def read_npz(path: Path, names: tuple[str, ...], what: str = "model",
     return arrays, meta
 
 
-def _check_members(path: Path, names: tuple[str, ...], what: str) -> None:
-    """Each array ``names`` of the archive has a valid ``.npy`` header of a plain dtype whose
-    shape fits the bytes stored (a header may claim any shape: reading it would allocate
-    that much before noticing). ``ModelError`` otherwise; a damaged archive is left to
-    ``np.load``'s own checks."""
+def _check_members(fh: Any, path: Path, names: tuple[str, ...], what: str) -> None:
+    """Each array ``names`` of the archive (the open file ``fh``) has a valid ``.npy`` header of
+    a plain dtype whose shape fits the bytes stored (a header may claim any shape: reading it
+    would allocate that much before noticing) and the memory budget
+    (:data:`MAX_METADATA_BYTES`, :data:`MAX_ARRAY_BYTES`: 250 M zeros compress to 2 MB).
+    ``ModelError`` otherwise; a damaged archive is left to ``np.load``'s own checks."""
     try:
-        zf = zipfile.ZipFile(path)
+        zf = zipfile.ZipFile(fh)
     except (zipfile.BadZipFile, OSError, EOFError, ValueError):
         return
     with zf:
@@ -231,6 +273,10 @@ def _check_members(path: Path, names: tuple[str, ...], what: str) -> None:
             if need > info.file_size - header:
                 raise ModelError(f"{path} is not a readable .npz {what} file: '{name}' claims shape {shape} "
                                  f"({need} bytes) but holds {info.file_size - header} bytes")
+            budget = MAX_METADATA_BYTES if name == "metadata" else MAX_ARRAY_BYTES
+            if need > budget:
+                raise ModelError(f"{path} is not a usable fastdet {what}: '{name}' declares shape {shape} "
+                                 f"({need} bytes), more than the {budget // 2**20} MB such an array may hold")
 
 
 def load_model(path: str | os.PathLike | None = None, expected_config: FeatureConfig | None = None) -> Model:

@@ -172,3 +172,95 @@ def test_npy_header_claiming_a_huge_shape_allocates_nothing(tmp_path):
     p = _replace_member(_rewrite(tmp_path), "coef.npy", buf.getvalue() + b"\0" * 64)
     with pytest.raises(ModelError, match=r"claims shape \(1000000000000,\)"):
         load_model(p)
+
+
+# ---- issue 34, items 11 and 15: absurd model files refused before allocating -------------
+
+
+def _compressed_member(tmp_path, name, shape, dtype="<f8"):
+    """A model whose ``name`` array declares ``shape`` of zeros (deflated: a few MB on disk)."""
+    import io
+    import zipfile
+    p = _rewrite(tmp_path)
+    header = io.BytesIO()
+    np.lib.format.write_array_header_1_0(header, {"descr": dtype, "fortran_order": False, "shape": shape})
+    with zipfile.ZipFile(p) as zf:
+        members = {i.filename: zf.read(i) for i in zf.infolist() if i.filename != f"{name}.npy"}
+    with zipfile.ZipFile(p, "w", zipfile.ZIP_DEFLATED) as zf:
+        for k, v in members.items():
+            zf.writestr(k, v)
+        with zf.open(f"{name}.npy", "w", force_zip64=True) as fh:
+            fh.write(header.getvalue())
+            zero = bytes(2**22)
+            n = int(np.prod(shape)) * np.dtype(dtype).itemsize
+            for _ in range(n // len(zero)):
+                fh.write(zero)
+            fh.write(bytes(n % len(zero)))
+    return p
+
+
+def test_array_declaring_a_huge_shape_of_zeros_is_refused_before_it_is_read(tmp_path):
+    import tracemalloc
+    p = _compressed_member(tmp_path, "coef", (40_000_000,))  # 320 MB of zeros, deflated to 0.3 MB
+    assert p.stat().st_size < 2**20
+    tracemalloc.start()
+    with pytest.raises(ModelError, match=r"'coef' declares shape \(40000000,\).*more than the 64 MB"):
+        load_model(p)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 50 * 2**20
+
+
+def test_huge_metadata_is_refused(tmp_path):
+    p = _compressed_member(tmp_path, "metadata", (20 * 2**20,), "|u1")
+    with pytest.raises(ModelError, match="'metadata' declares shape .* more than the 16 MB"):
+        load_model(p)
+
+
+def test_metadata_nested_too_deeply_is_one_line(tmp_path):
+    meta = np.frombuffer(b"[" * 200_000, np.uint8)
+    with pytest.raises(ModelError, match="metadata is not valid JSON"):
+        load_model(_rewrite(tmp_path, metadata=meta))
+
+
+@pytest.mark.parametrize("change, msg", [
+    ({"orientations": 16.5}, "orientations must be of type int, got float 16.5"),
+    ({"window": 64.0}, "window must be of type int, got float 64.0"),
+    ({"pixels_per_cell": True}, "pixels_per_cell must be of type int"),
+    ({"hog_channels": [0, "1"]}, "hog_channels must be of type"),
+    ({"pixels_per_cell": 1, "cells_per_block": 64}, "values per pixel and channel"),
+    ({"window": 100000, "pixels_per_cell": 1000}, "window and window_height must be in"),
+])
+def test_feature_config_of_wrong_type_or_absurd_size_is_one_line(tmp_path, change, msg):
+    cfg = {**CFG.to_dict(), **change}
+    with pytest.raises(ModelError, match=f"bad feature configuration in metadata: .*{msg}"):
+        load_model(_rewrite(tmp_path, meta={"feature_config": cfg}))
+
+
+def test_feature_count_is_bounded():
+    from fastdet.config.features import MAX_FEATURES
+    with pytest.raises(ValueError, match=f"features per window .at most {MAX_FEATURES}"):
+        FeatureConfig(pixels_per_cell=4, cells_per_block=4, orientations=16, window=256)
+
+
+@pytest.mark.parametrize("name, value, msg", [
+    ("scale", 1e-310, "'scale' holds values outside"),
+    ("coef", 1e308, "'coef' holds 1e\\+308"),
+    ("mean", -1e300, "'mean' holds 1e\\+300"),
+])
+def test_absurd_values_are_refused_on_load(tmp_path, name, value, msg):
+    m = _model()
+    arr = getattr(m, name).copy()
+    arr[3] = value
+    with pytest.raises(ModelError, match=msg):
+        load_model(_rewrite(tmp_path, **{name: arr}))
+
+
+def test_absurd_intercept_and_folded_weights_are_refused(tmp_path):
+    with pytest.raises(ModelError, match="'intercept' is 1e\\+200"):
+        load_model(_rewrite(tmp_path, intercept=np.float64(1e200)))
+    m = _model()
+    coef, scale = m.coef.copy(), m.scale.copy()
+    coef[0], scale[0] = 1e6, 1e-9
+    with pytest.raises(ModelError, match="'coef' / 'scale' reaches"):
+        load_model(_rewrite(tmp_path, coef=coef, scale=scale))

@@ -25,12 +25,21 @@ from typing import Any
 
 from ..errors import DataError
 from ..io.atomic import write_bytes
+from ..io.files import read_input_bytes
 
 
 def input_stat(path: str | os.PathLike) -> dict[str, int]:
     """``input_size`` and ``input_mtime_ns`` of a file (what says "the same input")."""
     st = os.stat(path)
     return {"input_size": int(st.st_size), "input_mtime_ns": int(st.st_mtime_ns)}
+
+
+def _well_formed(obj: Any) -> bool:
+    """A manifest entry of the shape this module reads: an object whose ``input`` is a string
+    and whose ``outputs`` / ``sizes`` / ``settings``, where present, are objects (a line whose
+    ``outputs`` is a list is as damaged as one cut short)."""
+    return (isinstance(obj, dict) and isinstance(obj.get("input"), str)
+            and all(obj.get(k) is None or isinstance(obj[k], dict) for k in ("outputs", "sizes", "settings")))
 
 
 class Manifest:
@@ -43,22 +52,19 @@ class Manifest:
         self._load()
 
     def _load(self) -> None:
-        try:
-            data = self.path.read_bytes()
-        except FileNotFoundError:
+        if not self.path.exists() and not self.path.is_symlink():
             return
-        except OSError as exc:
-            raise DataError(f"{self.path}: cannot read the manifest ({exc.strerror or exc})") from None
+        data = read_input_bytes(self.path, "batch manifest")  # a FIFO, a device, a symlink loop: one line
         lines = data.split(b"\n")
         for raw in lines:
             if not raw.strip():
                 continue
             try:
                 obj = json.loads(raw)
-            except (json.JSONDecodeError, UnicodeDecodeError):
+            except (json.JSONDecodeError, UnicodeDecodeError, RecursionError):  # RecursionError: nesting too deep
                 self.dropped += 1
                 continue
-            if isinstance(obj, dict) and isinstance(obj.get("input"), str):
+            if _well_formed(obj):
                 self.entries[obj["input"]] = obj
             else:
                 self.dropped += 1

@@ -18,6 +18,7 @@ from .. import signals as _signals
 from ..detect import Detector
 from ..detect.checks import check_frame
 from ..errors import DataError, FastdetError, WriteError
+from ..io.files import stat_error
 from ..io.images import check_image, write_image
 from ..io.motfiles import read_gt
 from ..io.paths import check_output_folder
@@ -27,7 +28,7 @@ from ._args import nonneg_int, positive_int
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("video", type=Path, help="video, image, or image sequence (e.g. test_images/test%%d.jpg) to mine")
+    p.add_argument("video", type=str, help="video, image, or image sequence (e.g. test_images/test%%d.jpg) to mine")
     p.add_argument("--out", type=Path, required=True,
                    help="folder for the 64x64 PNG crops (created once the input has been opened)")
     p.add_argument("--x-range", type=int, nargs=2, metavar=("A", "B"), default=None,
@@ -78,8 +79,11 @@ def run(args: argparse.Namespace) -> int:
         args.part = "oncoming"
     if args.part == "oncoming" and args.oncoming_model is None:
         raise FastdetError("--part oncoming needs --oncoming-model")
-    if source_kind(str(args.video)) == "file" and not args.video.exists():
-        raise DataError(f"{args.video}: file not found")
+    if source_kind(args.video) == "file":
+        try:
+            os.stat(args.video)
+        except OSError as exc:  # "file not found", "symlink loop"
+            raise stat_error(args.video, exc) from None
     check_output_folder(args.out, "--out")
     gt = None
     if args.gt is not None:
@@ -89,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
         for sc in det.scorers:
             sc.search = replace(sc.search, threshold=args.threshold)
     win_cfg = det.config if args.part == "main" else det.oncoming_model.config
-    if args.video.is_file() and cv2.haveImageReader(str(args.video)):
+    if Path(args.video).is_file() and cv2.haveImageReader(args.video):
         check_image(args.video)  # a truncated JPEG: one line, before any output
     # the input is opened (and its first frame checked) before --out is created
     reader = FrameReader(args.video, args.start, args.frames)
@@ -97,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
         check_frame(det, reader.first_frame, str(args.video))
         det.warmup()  # compiles on a first run, after saying so
         args.out.mkdir(parents=True, exist_ok=True)
-        prefix = args.prefix or args.video.stem.replace("%", "")
+        prefix = args.prefix or Path(args.video).stem.replace("%", "")
         bar = None
         if not args.no_progress and sys.stderr.isatty():
             bar = tqdm(total=reader.expected, desc="mining", unit="frame")

@@ -53,6 +53,35 @@ def _decode(tp: Any, value: Any) -> Any:
     return value
 
 
+def _type_name(tp: Any) -> str:
+    return tp.__name__ if isinstance(tp, type) else str(tp).replace("typing.", "")
+
+
+def _type_ok(tp: Any, value: Any) -> bool:
+    """``value`` (from JSON) is of the field type ``tp`` as far as JSON can say: an ``int``
+    field takes whole numbers of type ``int`` only (``16.5``, ``64.0`` and ``true`` are not),
+    a ``float`` field numbers (not ``true``), a ``str`` field strings; unions take what one
+    of their types takes; other types (literals, tuples, configs) are left to the class."""
+    if tp is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    if tp is float:
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+    if tp is str:
+        return isinstance(value, str)
+    if tp is bool:
+        return isinstance(value, bool)
+    origin = get_origin(tp)
+    if origin is Union or origin is types.UnionType:
+        return any(arg is not type(None) and _type_ok(arg, value) for arg in get_args(tp)) or (
+            value is None and type(None) in get_args(tp))
+    if origin is tuple and isinstance(value, (list, tuple)):
+        args = get_args(tp)
+        if len(args) == 2 and args[1] is Ellipsis:
+            return all(_type_ok(args[0], v) for v in value)
+        return len(args) != len(value) or all(_type_ok(a, v) for a, v in zip(args, value))
+    return True
+
+
 class Config:
     """Mixin of the frozen configuration dataclasses: :meth:`to_dict`, :meth:`from_dict` and
     :meth:`digest`. ``_OMIT_NONE`` names fields left out of :meth:`to_dict` while ``None``, and
@@ -77,12 +106,20 @@ class Config:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Self:
         """The config of ``d`` (as :meth:`to_dict` gives it; missing keys take their
-        defaults). ``ValueError`` for a key that is not a field."""
+        defaults). ``ValueError`` for a key that is not a field, or a value not of its field's
+        type (``orientations: 16.5``, ``window: 64.0``: a number's type is checked here, once,
+        for every config read from a file)."""
+        if not isinstance(d, dict):
+            raise ValueError(f"{cls.__name__} must be a JSON object, got {type(d).__name__}")
         names = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
         unknown = set(d) - names
         if unknown:
             raise ValueError(f"unknown {cls.__name__} fields: {sorted(unknown)}")
         hints = typing.get_type_hints(cls)
+        for k, v in d.items():
+            if not _type_ok(hints.get(k), v):
+                raise ValueError(f"{cls.__name__}.{k} must be of type {_type_name(hints.get(k))}, "
+                                 f"got {type(v).__name__} {json.dumps(v)[:40]}")
         return cls(**{k: _decode(hints.get(k), v) for k, v in d.items()})
 
     def digest(self) -> str:

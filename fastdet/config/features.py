@@ -9,6 +9,15 @@ from ._base import Config
 
 ColorSpace = Literal["RGB", "HSV", "HLS", "LUV", "YCrCb", "YUV"]
 COLOR_SPACES: tuple[str, ...] = ("RGB", "HSV", "HLS", "LUV", "YCrCb", "YUV")
+#: the most features one window may have (the default has 12,576; ``train``'s largest options
+#: about 51,000): the weights, every training row and the search's correlation blocks grow with it
+MAX_FEATURES = 65_536
+#: the most HOG values a search band's block map holds per pixel and channel
+#: (``cells_per_block**2 * orientations / pixels_per_cell**2``; the default 1, ``train``'s
+#: largest options 4): the block map of a 1280x256 band is that many times its pixels
+MAX_BLOCK_VALUES_PER_PIXEL = 16
+#: the widest (and tallest) window in pixels
+MAX_WINDOW = 1024
 
 
 @dataclass(frozen=True)
@@ -54,6 +63,9 @@ class FeatureConfig(Config):
             raise ValueError("orientations must be >= 1")
         if self.pixels_per_cell < 1 or self.cells_per_block < 1:
             raise ValueError("pixels_per_cell and cells_per_block must be >= 1")
+        if not 1 <= self.window <= MAX_WINDOW or (self.window_height is not None
+                                                   and not 1 <= self.window_height <= MAX_WINDOW):
+            raise ValueError(f"window and window_height must be in 1..{MAX_WINDOW}")
         if self.window_height is not None and self.window_height == self.window:
             object.__setattr__(self, "window_height", None)
         if self.win_w % self.pixels_per_cell or self.win_h % self.pixels_per_cell:
@@ -67,6 +79,13 @@ class FeatureConfig(Config):
             raise ValueError("window (and window_height) must be multiples of window // spatial_size")
         if self.hist_bins and 256 % self.hist_bins:
             raise ValueError("hist_bins must divide 256")
+        per_pixel = self.block_len / self.pixels_per_cell ** 2
+        if per_pixel > MAX_BLOCK_VALUES_PER_PIXEL:
+            raise ValueError(f"cells_per_block**2 * orientations / pixels_per_cell**2 is {per_pixel:g}: a search "
+                             f"band's HOG block map would hold that many values per pixel and channel "
+                             f"(at most {MAX_BLOCK_VALUES_PER_PIXEL})")
+        if self.n_features > MAX_FEATURES:
+            raise ValueError(f"{self.n_features} features per window (at most {MAX_FEATURES})")
 
     @property
     def win_w(self) -> int:

@@ -7,6 +7,11 @@ from typing import ClassVar, Literal
 
 from ._base import Config
 
+#: the most frames a heat map remembers (400 s at 25 fps; the ring and its weights grow with it)
+MAX_HEAT_FRAMES = 10_000
+#: the coarsest heat-map cell in pixels
+MAX_HEAT_CELL = 256
+
 BoxMode = Literal["extent", "mean"]
 ScoreKind = Literal["probability", "decision"]
 
@@ -84,6 +89,8 @@ class HeatConfig(Config):
     def __post_init__(self) -> None:
         if int(self.n_frames) != self.n_frames or self.n_frames < 1:
             raise ValueError("n_frames must be an integer >= 1")
+        if self.n_frames > MAX_HEAT_FRAMES:
+            raise ValueError(f"n_frames must be at most {MAX_HEAT_FRAMES}, got {self.n_frames}")
         if not 0 < self.decay <= 1:
             raise ValueError("decay must be in (0, 1]")
         for name in ("threshold", "single_frame_threshold"):
@@ -104,8 +111,8 @@ class HeatConfig(Config):
             raise ValueError(f"split_gap must be a finite number >= 0, got {self.split_gap!r}")
         if self.split_gap > 0 and self.box_mode != "extent":
             raise ValueError("split_gap needs box_mode 'extent'")
-        if int(self.cell) != self.cell or self.cell < 1:
-            raise ValueError("cell must be an integer >= 1")
+        if int(self.cell) != self.cell or not 1 <= self.cell <= MAX_HEAT_CELL:
+            raise ValueError(f"cell must be an integer in 1..{MAX_HEAT_CELL}")
         if self.min_width < 0 or self.min_height < 0:
             raise ValueError("min_width and min_height must be >= 0")
         if not self.max_aspect > 0:

@@ -162,6 +162,39 @@ class EvalResult:
 # evaluation
 
 
+#: memory budgets of :func:`evaluate` (a file controls them: refused in one line above them).
+#: Boxes of ground truth x predictions on one frame: every frame's IoU matrix (and the
+#: Hungarian matching's cost matrix) is that many float64 values (2**24: 4,096 x 4,096 boxes,
+#: 128 MB a matrix)
+MAX_FRAME_PAIRS = 2**24
+#: ground-truth ids + predicted ids (each untracked box an id) of the MOT metrics: motmetrics'
+#: IDF1 assigns them globally with a dense square matrix of that side (6,000: 288 MB)
+MAX_TRACK_IDS = 6000
+
+
+def _check_budget(gt: Detections, preds: Detections, g_groups: dict[int, np.ndarray],
+                  p_groups: dict[int, np.ndarray], tracking: bool) -> None:
+    """:class:`DataError` (one line, before any matching) when a frame holds more box pairs
+    than :data:`MAX_FRAME_PAIRS` or the MOT metrics would see more ids than :data:`MAX_TRACK_IDS`."""
+    for f, pidx in p_groups.items():
+        gidx = g_groups.get(f)
+        if gidx is not None and len(gidx) * len(pidx) > MAX_FRAME_PAIRS:
+            raise DataError(f"{preds.source}: frame {f} holds {len(gidx)} ground-truth and {len(pidx)} predicted "
+                            f"boxes: more than the {MAX_FRAME_PAIRS} pairs a frame may have (about "
+                            f"{int(MAX_FRAME_PAIRS ** 0.5)} x {int(MAX_FRAME_PAIRS ** 0.5)} boxes; "
+                            f"docs/reliability.md)")
+    if tracking:
+        rows = np.concatenate(list(p_groups.values())) if p_groups else np.zeros(0, np.int64)
+        pids = preds.ids[rows] if preds.ids is not None else np.full(len(rows), -1)
+        grows = np.concatenate(list(g_groups.values())) if g_groups else np.zeros(0, np.int64)
+        n_ids = (np.unique(gt.ids[grows]).size if gt.ids is not None else 0) \
+            + np.unique(pids[pids != -1]).size + int((pids == -1).sum())
+        if n_ids > MAX_TRACK_IDS:
+            raise DataError(f"{preds.source}: the MOT metrics would match {n_ids} ground-truth and predicted ids "
+                            f"(each untracked box is an id): more than the {MAX_TRACK_IDS} they may have "
+                            f"(docs/reliability.md); score fewer frames (--keyframes) or split the file")
+
+
 def _frame_groups(frames: np.ndarray) -> dict[int, np.ndarray]:
     """frame number -> row indices (in file order) of the rows on that frame."""
     if frames.size == 0:
@@ -227,6 +260,9 @@ def evaluate(
     p_groups = _frame_groups(np.where(p_in, preds.frames, 0))
     g_groups.pop(0, None)
     p_groups.pop(0, None)
+    if tracking is None:
+        tracking = preds.has_ids
+    _check_budget(gt, preds, g_groups, p_groups, bool(tracking))
 
     n = len(preds)
     tp = np.zeros(n, bool)
@@ -254,8 +290,6 @@ def evaluate(
     ap, rec, prec = average_precision(tp[kept], num_gt)
 
     mot: dict[str, Any] = {}
-    if tracking is None:
-        tracking = preds.has_ids
     if tracking:
         # a scored frame with no box adds nothing to any of these metrics: only the frames
         # with boxes are visited (time and memory follow the files, not the largest frame number)

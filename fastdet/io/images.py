@@ -18,6 +18,10 @@ import numpy as np
 from ..console import quiet_native_stderr
 from ..errors import DataError, WriteError
 from .atomic import atomic_path
+from .files import check_input, read_input_bytes
+
+#: the largest image file read (a 16-bit 8K PNG is under 200 MB)
+MAX_IMAGE_BYTES = 512 * 2**20
 
 _SOI, _SOS, _EOI = b"\xff\xd8", b"\xff\xda", b"\xff\xd9"
 
@@ -35,11 +39,7 @@ def check_image(path: str | os.PathLike) -> None:
     """``DataError`` when the image file ``path`` is a JPEG cut short (see the module
     docstring)."""
     name = os.fspath(path)
-    try:
-        with open(name, "rb") as fh:
-            data = fh.read()
-    except OSError as exc:
-        raise DataError(f"{name}: cannot read ({exc.strerror or exc})") from None
+    data = read_input_bytes(name, "image", MAX_IMAGE_BYTES)
     if not jpeg_complete(data):
         raise DataError(f"{name}: the JPEG file is cut short (truncated or damaged): "
                         f"part of the picture is missing")
@@ -49,10 +49,12 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     """The image at ``path`` as ``(H, W, 3) uint8`` BGR; ``DataError`` for a missing file, a
     folder, a file OpenCV cannot decode, or a truncated JPEG."""
     name = os.fspath(path)
-    if not os.path.exists(name):
-        raise DataError(f"{name}: file not found")
     if os.path.isdir(name):
         raise DataError(f"{name}: is a folder, not an image")
+    st = check_input(name, "image")  # a FIFO or a device: refused before OpenCV opens it
+    if st.st_size > MAX_IMAGE_BYTES:
+        raise DataError(f"{name}: is {st.st_size // 2**20} MB, larger than an image may be "
+                        f"({MAX_IMAGE_BYTES // 2**20} MB)")
     with quiet_native_stderr():  # libpng / libjpeg complaints: we say it in one line
         frame = cv2.imread(name, cv2.IMREAD_COLOR)
     if frame is None:

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataError
+from .files import read_input_text
 
 #: suffix of a ground-truth file, and of the keyframe list that goes with it
 GT_SUFFIX = ".gt.txt"
@@ -58,16 +59,9 @@ def parse_keyframes(text: str, source: str = "<string>") -> np.ndarray:
 def read_keyframes(path: str | os.PathLike[str]) -> np.ndarray:
     """:func:`parse_keyframes` of a file (missing or unreadable file: DataError)."""
     name = os.fspath(path)
-    p = Path(name)
-    if not p.is_file():
-        raise DataError(f"{name}: " + ("is a directory, expected a keyframe list" if p.is_dir() else "file not found"))
-    try:
-        text = p.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise DataError(f"{name}: not a text file ({exc.reason} at byte {exc.start})") from None
-    except OSError as exc:
-        raise DataError(f"{name}: cannot read ({exc.strerror or exc})") from None
-    return parse_keyframes(text, name)
+    if os.path.isdir(name):
+        raise DataError(f"{name}: is a directory, expected a keyframe list")
+    return parse_keyframes(read_input_text(name, "keyframe list"), name)
 
 
 def keyframes_for(gt_path: str | os.PathLike[str]) -> np.ndarray | None:

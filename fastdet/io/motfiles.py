@@ -39,7 +39,6 @@ from __future__ import annotations
 import json
 import math
 import os
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -48,6 +47,7 @@ from ..boxes import ltwh_to_xyxy
 from ..detections import Detections
 from ..errors import DataError
 from .boxwriters import JsonLinesWriter, MotWriter, PathLike
+from .files import read_input_text
 
 __all__ = [
     "GT_COLUMNS", "PRED_COLUMNS", "MIN_GT_COLUMNS", "MIN_PRED_COLUMNS", "MAX_COLUMNS", "MAX_FRAME", "MAX_ID",
@@ -67,19 +67,11 @@ MAX_COLUMNS = 10
 
 
 def _read_text(path: PathLike) -> tuple[str, str]:
+    """The text of a box file: one bounded read of a regular file
+    (:func:`fastdet.io.files.read_input_text`: a FIFO, ``/dev/zero``, a symlink loop, a binary
+    or a file past :data:`~fastdet.io.files.MAX_TEXT_BYTES` are refused in one line)."""
     name = os.fspath(path)
-    p = Path(name)
-    if not p.exists():
-        raise DataError(f"{name}: file not found")
-    if p.is_dir():
-        raise DataError(f"{name}: is a directory, expected a box file")
-    try:
-        with open(p, "r", encoding="utf-8-sig", newline=None) as f:
-            return f.read(), name
-    except UnicodeDecodeError as exc:
-        raise DataError(f"{name}: not a text file ({exc.reason} at byte {exc.start})") from None
-    except OSError as exc:
-        raise DataError(f"{name}: cannot read ({exc.strerror or exc})") from None
+    return read_input_text(name, "box file"), name
 
 
 #: largest frame number and largest id magnitude a box file may hold (int32: a video of
@@ -191,6 +183,8 @@ def parse_jsonl_predictions(text: str, source: str = "<string>") -> Detections:
             obj = json.loads(line)
         except json.JSONDecodeError as exc:
             raise DataError(f"{where}: not JSON ({exc.msg})") from None
+        except RecursionError:
+            raise DataError(f"{where}: not a box line (JSON nested too deeply)") from None
         if not isinstance(obj, dict) or "frame" not in obj or "boxes" not in obj:
             raise DataError(f"{where}: expected an object with 'frame', 'boxes', 'scores'")
         try:

@@ -14,6 +14,7 @@ import cv2
 
 from ..console import quiet_native_stderr, quiet_opencv
 from ..errors import DataError
+from ..io.files import check_input
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 #: JPEG start-of-frame markers that carry the picture's size (every SOFn but DHT C4, JPG C8, DAC CC)
@@ -111,8 +112,11 @@ def image_size(path: str | os.PathLike[str]) -> tuple[int, int]:
     file that is no image."""
     name = os.fspath(path)
     p = Path(name)
-    if not p.is_file():
-        raise DataError(f"{name}: " + ("is a folder, not an image" if p.is_dir() else "image file not found"))
+    if p.is_dir():
+        raise DataError(f"{name}: is a folder, not an image")
+    if not p.exists() and not p.is_symlink():
+        raise DataError(f"{name}: image file not found")
+    check_input(p, "image")  # a FIFO or a device: refused before it is opened
     try:
         size = header_size(p)
     except OSError as exc:

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataError
+from ..io.files import read_input_text
 from .picture import AnnotatedPicture, split_small
 
 
@@ -108,14 +109,11 @@ def number(text: str, what: str, where: str) -> float:
 def read_text(path: Path, what: str = "label file") -> str:
     """The text of ``path`` (UTF-8, a BOM allowed); DataError for a missing, unreadable or
     binary file."""
-    if not path.is_file():
-        raise DataError(f"{path}: " + (f"is a folder, expected a {what}" if path.is_dir() else f"{what} not found"))
-    try:
-        return path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise DataError(f"{path}: not a text file ({exc.reason} at byte {exc.start})") from None
-    except OSError as exc:
-        raise DataError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if path.is_dir():
+        raise DataError(f"{path}: is a folder, expected a {what}")
+    if not path.exists() and not path.is_symlink():
+        raise DataError(f"{path}: {what} not found")
+    return read_input_text(path, what)
 
 
 def check_folder(path: Path, what: str) -> Path:

@@ -38,6 +38,7 @@ from pathlib import Path
 from xml.parsers import expat
 
 from ..errors import DataError
+from ..io.files import read_input_bytes
 from .imagesize import IMAGE_SUFFIXES, image_size
 from .picture import AnnotatedPicture
 from .rules import Box, camera_for, check_folder, class_kind, make_picture, not_empty, number
@@ -178,10 +179,7 @@ def read_voc(root: str | Path, *, source: str | None = None, camera: str | Calla
     xml_dir, images = _folders(root)
     pictures = []
     for xml in sorted(xml_dir.glob("*.xml")):
-        try:
-            data = xml.read_bytes()
-        except OSError as exc:
-            raise DataError(f"{xml}: cannot read ({exc.strerror or exc})") from None
+        data = read_input_bytes(xml, "VOC xml file", text=True)
         filename, size, boxes = parse_voc(data, str(xml))
         path = _image_for(xml, filename, images)
         width, height = image_size(path)

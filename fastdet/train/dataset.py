@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 
 from ..errors import DataError
+from ..io.files import check_input
 
 _NUM = re.compile(r"(\d+)")
 
@@ -59,6 +60,7 @@ def find_pngs(folder: Path) -> dict[Path, list[Path]]:
 
 
 def _read(path: Path, size: int | None) -> np.ndarray:
+    check_input(path, "training crop")  # a FIFO would block the reader thread for ever
     img = cv2.imread(str(path), cv2.IMREAD_COLOR)
     if img is None:
         raise DataError(f"{path}: not a readable image")
@@ -128,6 +130,35 @@ def random_split(labels: np.ndarray, seed: int, test_size: float = 0.2) -> tuple
     idx = np.arange(len(labels))
     tr, te = train_test_split(idx, test_size=test_size, random_state=seed, stratify=labels)
     return np.sort(tr), np.sort(te)
+
+
+#: crops of each class the random split needs: a fifth of each is held out, so 5 give the
+#: test part one and the training part four
+MIN_RANDOM_SPLIT = 5
+
+
+def check_splits(labels: np.ndarray, groups: np.ndarray, order: np.ndarray, split: str, seed: int) -> None:
+    """:class:`DataError` (one line saying what each split needs) when a split ``train`` will
+    make (``'random'``, ``'sequence'``, ``'both'``; ``'none'``: the final fit) would leave a
+    class out of its training or its test part: scikit-learn would fail with a traceback
+    (1 + 1 or 2 + 2 crops, or ``--split sequence`` with too few crops in the folders)."""
+    n_pos, n_neg = int((labels == 1).sum()), int((labels == 0).sum())
+    got = f"got {n_pos} vehicle and {n_neg} non-vehicle crops"
+    if min(n_pos, n_neg) < 1:
+        raise DataError(f"training needs vehicle and non-vehicle crops, {got}")
+    names = {"both": ("random", "sequence"), "none": ()}.get(split, (split,))
+    if "random" in names and min(n_pos, n_neg) < MIN_RANDOM_SPLIT:
+        raise DataError(f"the random split holds out a fifth of each class: it needs at least {MIN_RANDOM_SPLIT} "
+                        f"crops of each, {got} (--split none trains without a held-out test)")
+    if "sequence" in names:
+        tr, te = sequence_split(groups, order, seed)
+        parts = {"training": labels[tr], "test": labels[te]}
+        short = [f"its {part} part has no {'vehicle' if c else 'non-vehicle'} crop"
+                 for part, y in parts.items() for c in (1, 0) if not (y == c).any()]
+        if short:
+            raise DataError(f"the sequence split cuts every folder into 5 blocks in time order and holds out one "
+                            f"block of each: {short[0]} ({got} in {len(np.unique(groups))} folder(s); each class "
+                            f"needs a folder of at least 5 crops, or use --split random / none)")
 
 
 def sequence_split(groups: np.ndarray, order: np.ndarray, seed: int,

@@ -25,7 +25,7 @@ from ..config import FeatureConfig
 from ..features import extract_features
 from ..model import Model
 from .augment import JPEG_QUALITY, MAX_KEEP, MIN_KEEP, augmented_copies
-from .dataset import CropSet, load_crops, load_folder, random_split, sequence_split
+from .dataset import CropSet, check_splits, load_crops, load_folder, random_split, sequence_split
 
 DEFAULT_C = {"linearsvc": 1e-3, "logreg": 3e-2}
 
@@ -167,6 +167,7 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
         extra = part if extra is None else CropSet.concat(extra, part)
     if extra_crops is not None and len(extra_crops):
         extra = extra_crops if extra is None else CropSet.concat(extra, extra_crops)
+    check_splits(crops.labels, crops.groups, crops.order, split, seed)  # before any feature is computed
     n_pos, n_neg = int(crops.labels.sum()), int((crops.labels == 0).sum())
     n_hard = 0 if extra is None else int((extra.labels == 0).sum())
     n_extra = 0 if extra is None else int((extra.labels == 1).sum())

@@ -31,3 +31,21 @@ def test_manifest_resume_rules_and_a_cut_short_line(tmp_path: Path) -> None:
     assert list(m2.entries) == [str(video)]
     assert m.path.read_text().endswith("\n") and [json.loads(line) for line in m.path.read_text().splitlines()] != []
     assert len(m.path.read_text().splitlines()) == 1
+
+
+def test_manifest_lines_nested_too_deeply_or_of_the_wrong_shape_are_dropped(tmp_path: Path, capsys) -> None:
+    """issue 34, item 19: 200,000 nested ``[`` (RecursionError) and a line whose ``outputs`` is a
+    list (AttributeError in the resume test) are damaged lines: dropped with one note."""
+    video = tmp_path / "v.mp4"
+    video.write_bytes(b"x")
+    good = {"input": str(video), "status": "done", "name": "v", "settings_hash": "h",
+            "outputs": {"boxes": "v.boxes.txt"}, "sizes": {"v.boxes.txt": 3}, **input_stat(video)}
+    (tmp_path / "v.boxes.txt").write_text("abc")
+    bad_outputs = {**good, "input": str(tmp_path / "w.mp4"), "outputs": ["v.boxes.txt"]}
+    path = tmp_path / "manifest.jsonl"
+    path.write_text(json.dumps(good) + "\n" + "[" * 200_000 + "\n" + json.dumps(bad_outputs) + "\n")
+    m = Manifest(path)
+    assert m.dropped == 2 and list(m.entries) == [str(video)]
+    assert "ignored 2 damaged line(s)" in capsys.readouterr().err
+    assert m.is_complete(video, "v", "h", {"boxes": tmp_path / "v.boxes.txt"})
+    assert not m.is_complete(tmp_path / "w.mp4", "v", "h", {"boxes": tmp_path / "v.boxes.txt"})

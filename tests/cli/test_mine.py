@@ -48,3 +48,19 @@ def test_a_failed_run_removes_the_crops_it_wrote(tmp_path, capsys, test_images, 
                  "--threshold", "-100", "--no-progress"]) == 2
     assert "the crops this run wrote before it were removed" in capsys.readouterr().err
     assert len(calls) == 4 and sorted(p.name for p in out.iterdir()) == ["keep.png"]
+
+
+def test_a_url_is_a_source_and_a_symlink_loop_says_so(tmp_path, capsys):
+    """issue 34, item 19: ``http://`` given to ``mine-negatives`` said "http:/...: file not found"
+    (the argument was a Path, which folds ``//``); a symlink loop said "file not found"."""
+    out = tmp_path / "neg"
+    assert main(["mine-negatives", "http://127.0.0.1:1/clip.mp4", "--out", str(out), "--x-range", "0", "100",
+                 "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "http:/127" not in err and "file not found" not in err and "http://127.0.0.1:1/clip.mp4" in err, err
+    (tmp_path / "a.mp4").symlink_to(tmp_path / "b.mp4")
+    (tmp_path / "b.mp4").symlink_to(tmp_path / "a.mp4")
+    assert main(["mine-negatives", str(tmp_path / "a.mp4"), "--out", str(out), "--x-range", "0", "100",
+                 "--no-progress"]) == 2
+    assert "symlink loop" in capsys.readouterr().err
+    assert not out.exists()

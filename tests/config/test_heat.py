@@ -39,3 +39,27 @@ def test_heat_for_frame_scales_box_sizes():
     assert pixels.for_frame(360) == pixels
     with pytest.raises(ValueError):
         HeatConfig(reference_rows=0)
+
+
+def test_heat_frames_and_cell_are_bounded():
+    """issue 34, item 12: ``--heat-frames 100000000`` built a list of 10**8 weights (4.2 GB)."""
+    import time
+
+    from fastdet.config.heat import MAX_HEAT_CELL, MAX_HEAT_FRAMES
+    from fastdet.video.heatmap import HeatMap
+    for kw in ({"n_frames": 100_000_000}, {"n_frames": 3 * 10**9}, {"n_frames": MAX_HEAT_FRAMES + 1},
+               {"cell": MAX_HEAT_CELL + 1}):
+        with pytest.raises(ValueError, match="at most|in 1\\.\\."):
+            HeatConfig(**kw)
+    t0 = time.perf_counter()
+    HeatMap((720, 1280), HeatConfig(n_frames=MAX_HEAT_FRAMES))
+    assert time.perf_counter() - t0 < 1
+
+
+def test_cli_heat_frames_out_of_domain_is_one_line():
+    import argparse
+
+    from fastdet.cli._args import pipeline_config
+    from fastdet.errors import FastdetError
+    with pytest.raises(FastdetError, match="heat map: n_frames must be at most"):
+        pipeline_config(argparse.Namespace(heat_frames=100_000_000))

@@ -416,3 +416,30 @@ def test_default_pipeline_accuracy_on_the_annotated_clips(data):
         gt = read_gt(data / "annotations" / f"{name}.gt.txt")
         r = evaluate(gt, Detections.from_frames(iter_video_detections(video, progress=False)), iou=0.5)
         assert r.f1 >= min_f1 and r.fp_per_frame <= max_fp, (name, r.f1, r.fp_per_frame)
+
+
+def test_evaluate_refuses_a_frame_past_the_pair_budget_in_one_line():
+    """issue 34, item 10: 15,000 + 15,000 boxes on one frame were OOM-killed at 23.7 GB."""
+    import tracemalloc
+
+    from fastdet.eval.metrics import MAX_FRAME_PAIRS, MAX_TRACK_IDS
+    from tests.eval.test_hota import _box as hota_box
+    from tests.eval.test_hota import _gt as hota_gt
+    from tests.eval.test_hota import _pred as hota_pred
+    n = 15_000
+    xs = np.arange(n, dtype=float)
+    gt = hota_gt([(1, k, hota_box(x)) for k, x in enumerate(xs)])
+    pred = hota_pred([(1, k, hota_box(x + 1)) for k, x in enumerate(xs)])
+    tracemalloc.start()
+    with pytest.raises(DataError, match=f"frame 1 holds 15000 ground-truth and 15000 predicted boxes: more than "
+                                        f"the {MAX_FRAME_PAIRS} pairs"):
+        evaluate(gt, pred)
+    assert tracemalloc.get_traced_memory()[1] < 100 * 2**20
+    tracemalloc.stop()
+    # ids past the MOT metrics' budget, a few boxes a frame
+    m = MAX_TRACK_IDS
+    gt = hota_gt([(k + 1, k, hota_box(10.0)) for k in range(m)])
+    pred = hota_pred([(k + 1, k, hota_box(11.0)) for k in range(m)])
+    with pytest.raises(DataError, match=f"would match {2 * m} ground-truth and predicted ids"):
+        evaluate(gt, pred)
+    assert evaluate(gt, pred, tracking=False).tp == m

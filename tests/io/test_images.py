@@ -49,7 +49,7 @@ def test_read_image_refuses_what_is_not_a_whole_image(tmp_path):
                       (tmp_path / "text.png", "not an image")):
         with pytest.raises(DataError, match=msg):
             read_image(path)
-    with pytest.raises(DataError, match="cannot read"):
+    with pytest.raises(DataError, match="file not found"):
         check_image(tmp_path / "none.jpg")
 
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from fastdet.errors import DataError
-from fastdet.io.motfiles import MAX_FRAME, parse_gt, parse_jsonl_predictions, parse_predictions
+from fastdet.io.motfiles import MAX_FRAME, parse_gt, parse_jsonl_predictions, parse_predictions, read_predictions
 
 
 @pytest.mark.parametrize("line", ["1e30,1,1,1,5,5,1,1,1", "9223372036854775807,1,1,1,5,5,1,1,1",
@@ -61,3 +61,11 @@ def test_files_read_into_the_one_box_table():
     assert p.frames.tolist() == [3] and p.ids.tolist() == [-1] and not p.has_ids
     none = parse_predictions("", "p.txt")
     assert len(none) == 0 and none.frames is not None and none.scores is not None
+
+
+def test_jsonl_nested_too_deeply_is_one_line(tmp_path):
+    """issue 34, item 19: 200,000 nested ``[`` gave a RecursionError traceback."""
+    p = tmp_path / "p.jsonl"
+    p.write_text('{"frame": 1, "boxes": [], "scores": []}\n' + "[" * 200_000 + "\n")
+    with pytest.raises(DataError, match="line 2: not a box line .JSON nested too deeply"):
+        read_predictions(p)

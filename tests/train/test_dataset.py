@@ -57,3 +57,33 @@ def test_the_crops_left_out_are_not_read(tmp_path: Path) -> None:
     np.testing.assert_array_equal(thinned(12, 2), [0, 11])
     np.testing.assert_array_equal(thinned(5, None), np.arange(5))
     np.testing.assert_array_equal(thinned(5, 0), np.arange(5))
+
+
+def _tiny(root: Path, n_pos: int, n_neg: int) -> Path:
+    rng = np.random.default_rng(0)
+    for folder, n in (("vehicles/a", n_pos), ("non-vehicles/b", n_neg)):
+        (root / folder).mkdir(parents=True)
+        for i in range(n):
+            cv2.imwrite(str(root / folder / f"{i}.png"), rng.integers(0, 256, (64, 64, 3), np.uint8))
+    return root
+
+
+@pytest.mark.parametrize("n, split, msg", [
+    (1, "both", "the random split holds out a fifth of each class: it needs at least 5 crops of each, got 1 vehicle"),
+    (2, "random", "at least 5 crops of each, got 2 vehicle and 2 non-vehicle crops"),
+    (1, "sequence", "the sequence split .* its training part has no vehicle crop .* a folder of at least 5 crops"),
+])
+def test_train_on_too_few_crops_for_its_split_is_one_line(tmp_path: Path, n: int, split: str, msg: str) -> None:
+    """issue 34, item 14: ``train`` on 1 + 1, 2 + 2 crops, or 1 + 1 with ``--split sequence``
+    ended in a scikit-learn traceback; now one line saying what the split needs, before any
+    feature is computed."""
+    from fastdet.config import FeatureConfig
+    from fastdet.train.fit import train
+    with pytest.raises(DataError, match=msg):
+        train(_tiny(tmp_path, n, n), FeatureConfig(), split=split, flip=False, refit=False)
+
+
+def test_train_on_one_crop_each_without_a_split_fits() -> None:
+    from fastdet.train.dataset import check_splits
+    check_splits(np.array([1, 0]), np.array(["a", "b"]), np.array([0, 0]), "none", 0)
+    check_splits(np.array([1] * 5 + [0] * 5), np.array(["a"] * 5 + ["b"] * 5), np.tile(np.arange(5), 2), "both", 0)
