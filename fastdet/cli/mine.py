@@ -94,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
     # the input is opened (and its first frame checked) before --out is created
     reader = FrameReader(args.video, args.start, args.frames)
     try:
-        check_frame(det, reader.first_frame, str(args.video))
+        check_frame(det, reader.first_frame, str(args.video), more=reader.colour_sample)
         det.warmup()  # compiles on a first run, after saying so
         args.out.mkdir(parents=True, exist_ok=True)
         prefix = args.prefix or args.video.stem.replace("%", "")

@@ -47,6 +47,12 @@ CLOSE_TIMEOUT_S = 10.0
 #: is reported when a frame decodes again within this many reads; reads at the true end
 #: of a file fail at once, so trying costs nothing there)
 MAX_BAD_READS = 256
+#: frames after the first that :meth:`FrameReader.colour_sample` decodes ahead (about 2 s)
+COLOUR_AHEAD = 50
+#: at most this many bytes of frames decoded ahead for that look
+COLOUR_AHEAD_BYTES = 128 * 2**20
+#: frames at even positions through a file that :meth:`FrameReader.colour_sample` then reads
+COLOUR_SPREAD = 8
 _END = object()
 _URL = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*://")
 
@@ -190,6 +196,39 @@ class FrameReader:
     def first_frame(self) -> np.ndarray:
         """The first frame (decoded when the reader was opened), for checks before any output."""
         return self._first[1]
+
+    def colour_sample(self) -> Iterator[np.ndarray]:
+        """More frames than the first to judge the picture by (a video whose first frames are
+        grey, a faded intro, is still colour footage): the next :data:`COLOUR_AHEAD` frames
+        (at most :data:`COLOUR_AHEAD_BYTES`; decoded ahead with :meth:`peek`, so iterating yields
+        them and each is decoded once), then, for a file with a frame count,
+        :data:`COLOUR_SPREAD` frames at even positions through the rest of it (a second
+        capture that seeks). Lazy: a caller that stops at the first colour frame decodes no
+        more; nothing is read unless it is asked for (the first frame alone usually
+        answers)."""
+        ahead = max(1, min(COLOUR_AHEAD, COLOUR_AHEAD_BYTES // max(1, self.first_frame.nbytes)))
+        if self.limit is not None:
+            ahead = min(ahead, self.limit - 1)
+        for k in range(1, ahead + 1):  # one more frame a time: stop as soon as one is colour
+            got = self.peek(k)
+            if len(got) < k:
+                break
+            yield got[-1]
+        if self.live or self.kind != "file" or self.frame_count is None:
+            return
+        first = self.start + ahead + 1
+        end = self.frame_count if self.limit is None else min(self.frame_count, self.start + self.limit)
+        if end <= first:
+            return
+        cap = cv2.VideoCapture(self.path)
+        try:
+            for k in range(COLOUR_SPREAD):
+                cap.set(cv2.CAP_PROP_POS_FRAMES, first + (end - first) * k // COLOUR_SPREAD)
+                ok, frame = cap.read()
+                if ok and frame is not None and frame.shape == self.shape:
+                    yield frame
+        finally:
+            cap.release()
 
     def _put(self, item: Any) -> bool:
         while not self._stop.is_set():
