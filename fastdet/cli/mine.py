@@ -119,6 +119,11 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def crop_name(prefix: str, frame_no: int, x1: int, y1: int, x2: int, y2: int) -> str:
+    """A crop's file name: ``PREFIX_fFRAME_X1_Y1_W_H.png`` (unique for a window of a frame)."""
+    return f"{prefix}_f{frame_no:05d}_{x1}_{y1}_{x2 - x1}_{y2 - y1}.png"
+
+
 def _mine(args: argparse.Namespace, det: Detector, reader: FrameReader, gt: Any, win_cfg: Any, prefix: str,
           bar: Any, written: list[Path]) -> tuple[int, int]:
     """The frame loop: ``(crops saved, frames read)``; each new crop's path joins ``written``."""
@@ -133,9 +138,15 @@ def _mine(args: argparse.Namespace, det: Detector, reader: FrameReader, gt: Any,
         if gt is not None:
             gb = gt.boxes[gt.frames == frame_no]
             gt_boxes = gb + np.array([-args.margin, -args.margin, args.margin, args.margin])
+        seen: set[str] = set()
         for (x1, y1, x2, y2), crop in hard_negatives(det, frame, args.part, win_cfg, args.x_range,
                                                      args.y_range, gt_boxes):
-            path = args.out / f"{prefix}_f{frame_no:05d}_{x1}_{y1}_{x2 - x1}.png"
+            # the whole box names the crop (two windows may share x1, y1 and the width); the
+            # same box twice (two search bands) is the same crop: written and counted once
+            path = args.out / crop_name(prefix, frame_no, x1, y1, x2, y2)
+            if path.name in seen:
+                continue
+            seen.add(path.name)
             new = not path.exists()  # a crop an earlier run wrote is not this run's to remove
             try:
                 write_image(path, crop)

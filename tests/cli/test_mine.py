@@ -48,3 +48,20 @@ def test_a_failed_run_removes_the_crops_it_wrote(tmp_path, capsys, test_images, 
                  "--threshold", "-100", "--no-progress"]) == 2
     assert "the crops this run wrote before it were removed" in capsys.readouterr().err
     assert len(calls) == 4 and sorted(p.name for p in out.iterdir()) == ["keep.png"]
+
+
+def test_windows_sharing_x1_y1_and_width_get_their_own_files(tmp_path, capsys, test_images, monkeypatch):
+    """Issue 34 (4): "mined 1090 windows" but 1074 files (windows with the same x1, y1 and
+    width shared a name); the same box twice is one crop, counted once."""
+    import numpy as np
+
+    crop = np.zeros((64, 64, 3), np.uint8)
+    boxes = [(0, 0, 64, 64), (0, 0, 64, 80), (0, 0, 64, 64), (8, 0, 72, 64)]
+    monkeypatch.setattr(mine_cmd, "hard_negatives",
+                        lambda *a, **k: [(np.array(b), crop + i) for i, b in enumerate(boxes)])
+    out = tmp_path / "crops"
+    assert main(["mine-negatives", str(test_images[0]), "--out", str(out), "--x-range", "0", "1280",
+                 "--no-progress"]) == 0
+    said = capsys.readouterr().out
+    files = sorted(p.name for p in out.iterdir())
+    assert "mined 3 false-positive windows" in said and len(files) == 3, (said, files)
