@@ -20,7 +20,8 @@ from ..detect.checks import check_frame
 from ..errors import DataError, FastdetError, WriteError
 from ..io.images import check_image, write_image
 from ..io.motfiles import read_gt
-from ..io.paths import check_output_folder
+from ..io.atomic import partial_name
+from ..io.paths import check_output_folder, name_max
 from ..io.reader import FrameReader, source_kind
 from ..train.mine import hard_negatives
 from ._args import nonneg_int, positive_int
@@ -95,9 +96,10 @@ def run(args: argparse.Namespace) -> int:
     reader = FrameReader(args.video, args.start, args.frames)
     try:
         check_frame(det, reader.first_frame, str(args.video), more=reader.colour_sample)
+        prefix = args.prefix or args.video.stem.replace("%", "")
+        _check_crop_names(args, prefix, reader)
         det.warmup()  # compiles on a first run, after saying so
         args.out.mkdir(parents=True, exist_ok=True)
-        prefix = args.prefix or args.video.stem.replace("%", "")
         bar = None
         if not args.no_progress and sys.stderr.isatty():
             bar = tqdm(total=reader.expected, desc="mining", unit="frame")
@@ -117,6 +119,21 @@ def run(args: argparse.Namespace) -> int:
         reader.close()
     print(f"mined {saved} false-positive windows from {done} frames into {args.out}")
     return 0
+
+
+def _check_crop_names(args: argparse.Namespace, prefix: str, reader: FrameReader) -> None:
+    """``DataError`` (one line, before ``--out`` is made) when the longest crop name this run
+    can write -- its temporary name while written -- is longer than ``--out``'s file system
+    takes (``NAME_MAX``: a 240-character video name or ``--prefix``)."""
+    h, w = reader.shape[:2]
+    last = reader.frame_count if reader.frame_count is not None else 2**31 - 1
+    longest = crop_name(prefix, max(last, 99999), -w, -h, w, h)  # x1, y1 may lie off the frame
+    size, limit = len(os.fsencode(partial_name(longest).name)), name_max(args.out)
+    if size > limit:
+        whose = f"--prefix {prefix[:40]}..." if args.prefix else f"{args.video} (the crops are named after it)"
+        raise DataError(f"{whose}: crop names would be up to {size} bytes with the temporary name's "
+                        f"{size - len(os.fsencode(longest))}, longer than the {limit} the file system of "
+                        f"{args.out} takes; give a shorter --prefix")
 
 
 def crop_name(prefix: str, frame_no: int, x1: int, y1: int, x2: int, y2: int) -> str:

@@ -65,12 +65,18 @@ def _is_file_input(path: str) -> bool:
     return source_kind(path) == "file"
 
 
-def _name_max(folder: str) -> int:
-    """The longest file name the file system of ``folder`` takes (255 when it cannot say)."""
+def name_max(folder: str | os.PathLike[str]) -> int:
+    """The longest file name (bytes) the file system of ``folder`` takes -- of its nearest
+    existing folder when it does not exist yet (255 when it cannot say)."""
+    f = Path(os.path.abspath(folder))
+    f = next((p for p in (f, *f.parents) if p.is_dir()), f)
     try:
-        return int(os.pathconf(folder, "PC_NAME_MAX"))
+        return int(os.pathconf(f, "PC_NAME_MAX"))
     except (OSError, ValueError):
         return 255
+
+
+_name_max = name_max
 
 
 def _a(what: str) -> str:

@@ -65,3 +65,23 @@ def test_windows_sharing_x1_y1_and_width_get_their_own_files(tmp_path, capsys, t
     said = capsys.readouterr().out
     files = sorted(p.name for p in out.iterdir())
     assert "mined 3 false-positive windows" in said and len(files) == 3, (said, files)
+
+
+@pytest.mark.parametrize("long_video", [True, False])
+def test_names_too_long_for_the_file_system_are_one_line(tmp_path, capsys, test_images, long_video):
+    """Issue 34 (16): a 240-character video name or --prefix was an ``OSError: File name too
+    long`` traceback, with an empty --out folder left."""
+    import shutil
+
+    video = test_images[0]
+    opts = []
+    if long_video:
+        video = tmp_path / f"{'v' * 240}.jpg"
+        shutil.copy(test_images[0], video)
+    else:
+        opts = ["--prefix", "p" * 240]
+    out = tmp_path / "crops"
+    rc = main(["mine-negatives", str(video), "--out", str(out), "--x-range", "0", "1280", *opts, "--no-progress"])
+    err = capsys.readouterr().err
+    assert rc == 2 and len(err.strip().splitlines()) == 1 and "give a shorter --prefix" in err, err
+    assert not out.exists()
