@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -18,7 +19,7 @@ from ..eval.report import format_table, plot_pr
 from ..io.atomic import write_bytes
 from ..io.keyframes import keyframes_for, keyframes_path, read_keyframes
 from ..io.motfiles import read_gt, read_predictions
-from ..io.paths import bundled_models, check_paths
+from ..io.paths import bundled_models, check_paths, is_inside
 from ..io.reader import check_source
 from ..video.run import iter_video_detections
 from ._args import add_horizon_argument, pipeline_config, pipeline_groups
@@ -142,7 +143,14 @@ def _run_frames(args: argparse.Namespace) -> int:
     """``eval --frames SPEC ...`` without ``--all``: the picture sets only."""
     from ..eval.clips import markdown_table, report_json
 
-    check_paths([("--model", args.model), *bundled_models()], [("--out", args.out, "report")])
+    from ..labels.sets import parse_spec
+
+    specs = [parse_spec(spec).path for spec in args.frames]
+    check_paths([("--model", args.model), *bundled_models(), *[("--frames", p) for p in specs]],
+                [("--out", args.out, "report")])
+    for p in specs:  # a labelled set's folder is read whole
+        if args.out is not None and p.is_dir() and is_inside(args.out, p):
+            raise DataError(f"--out {args.out}: is inside {p}, which --frames reads; write the report elsewhere")
     scores = _score_picture_sets(_picture_sets(args, shared=False), args)
     report = report_json([], {"iou": args.iou, "model": args.model or "bundled", "search": "picture"}, scores)
     text = json.dumps(report, indent=1, allow_nan=False) + "\n"
@@ -151,6 +159,30 @@ def _run_frames(args: argparse.Namespace) -> int:
     print(text, end="") if args.json else print(markdown_table([], scores))
     sys.stdout.flush()
     return 0
+
+
+def _data_folder_inputs(root: Path) -> list[tuple[str, Path]]:
+    """The data folder's files that ``eval --all`` reads besides the clips' own (the picture
+    sets read every ground truth, keyframe list and teacher file): ``(label, path)`` inputs."""
+    return [("the data folder's", p) for sub in ("annotations", "teacher") for p in sorted((root / sub).glob("*"))
+            if p.is_file()]
+
+
+def _check_report_path(out: str, root: Path, clips: list, picture_sets: bool) -> None:
+    """``DataError`` for a ``--out`` that a later ``eval --all`` would read: a clip's keyframe
+    list even where the clip has none yet (the report would make it sparsely annotated), or
+    a file inside a picture-set folder (``frames/SET``, read whole)."""
+    for c in clips:
+        kf = keyframes_path(c.gt_path)
+        if os.path.realpath(out) == os.path.realpath(kf):
+            raise DataError(f"--out {out}: is the keyframe list of clip {c.name} ({kf}), which eval reads; "
+                            f"give the report another name")
+    if picture_sets:
+        for name in PICTURE_SETS:
+            folder = root / "frames" / name
+            if folder.is_dir() and is_inside(out, folder):
+                raise DataError(f"--out {out}: is inside the picture set {folder}, which eval reads; "
+                                f"write the report elsewhere")
 
 
 def _run_all(args: argparse.Namespace) -> int:
@@ -181,11 +213,20 @@ def _run_all(args: argparse.Namespace) -> int:
         raise DataError(f"{args.data or data_dir()}: no annotated clips (annotations/CLIP.gt.txt with videos/CLIP.mp4)")
     preds_in = [("--pred-dir", Path(args.pred_dir) / f"{c.name}{ext}") for c in clips for ext in (".txt", ".jsonl")
                 ] if args.pred_dir is not None else []
+    root = Path(args.data) if args.data is not None else None
+    if root is None:
+        from ..data import data_dir
+
+        root = data_dir()
+    data_in = _data_folder_inputs(root) if args.pred_dir is None else []
     check_paths([("--model", args.model), ("--oncoming-model", args.oncoming_model),
                  ("--side-model", getattr(args, "side_model", None)),
                  ("--small-model", getattr(args, "small_model", None)), *bundled_models(),
-                 *[(f"clip {c.name}", p) for c in clips for p in (c.video, c.gt_path)], *preds_in],
+                 *[(f"clip {c.name}", p) for c in clips for p in (c.video, c.gt_path, keyframes_path(c.gt_path))],
+                 *preds_in, *data_in],
                 [("--out", args.out, "report")])
+    if args.out is not None:
+        _check_report_path(args.out, root, clips, args.pred_dir is None)
     picture_sets = _picture_sets(args, shared=True) if args.pred_dir is None else []
     scores = []
     for clip in clips:

@@ -154,3 +154,33 @@ def test_frames_scores_a_voc_set(data, tmp_path, capsys):
     assert "voc:fog" in table and "1 pic" in table
     rep = _json.loads(out.read_text())["pictures"]["voc:fog"]
     assert rep["pictures"] == 1 and rep["complete"] is True and rep["targets"] >= 1
+
+
+@pytest.mark.parametrize("target", ["annotations/cam.frames", "annotations/other.gt.txt", "frames/dawn_fog/x.json",
+                                    "teacher/t.teacher.txt", "NEW_KEYFRAMES"])
+def test_all_never_writes_its_report_over_what_it_reads(clip, capsys, monkeypatch, target):
+    """Issue 34 (2): ``eval --all --out D/annotations/CLIP.frames`` replaced the keyframe list
+    with the JSON report. Every file --all reads is an input: the clips' keyframe lists (also
+    one a clip does not have yet: the report would become it), the data folder's other
+    annotations and teacher files, the picture-set folders."""
+    (clip / "videos").mkdir()
+    write_video(clip / "videos" / "cam.mp4", 3, w=640, h=360)
+    (clip / "annotations" / "other.gt.txt").write_text(GT)  # no video: not a clip, but read by the sets
+    (clip / "frames" / "dawn_fog").mkdir(parents=True)
+    (clip / "teacher").mkdir()
+    (clip / "teacher" / "t.teacher.txt").write_text("x\n")
+    # the run itself is faked: only where its report goes is tested
+    monkeypatch.setattr(ev, "_picture_sets", lambda args, shared: [])
+    monkeypatch.setattr(ev, "iter_video_detections", lambda *a, **k: iter([]))
+    argv = ["eval", "--all", "--data", str(clip), "--clips", "cam"]
+    if target in ("annotations/cam.frames", "NEW_KEYFRAMES"):
+        argv += ["--pred-dir", str(clip / "preds")]
+    if target == "NEW_KEYFRAMES":
+        (clip / "annotations" / "cam.frames").unlink()
+        target = "annotations/cam.frames"
+    out = clip / target
+    before = out.read_bytes() if out.exists() else None
+    rc = main([*argv, "--out", str(out)])
+    err = capsys.readouterr().err
+    assert rc == 2 and len(err.strip().splitlines()) == 1, err
+    assert (out.read_bytes() if out.exists() else None) == before
