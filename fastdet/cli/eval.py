@@ -2,15 +2,22 @@
 ``--frames SPEC`` (repeatable) the single-picture search on labelled picture sets
 (:mod:`fastdet.eval.pictures`: recall only where labels are partial); ``--all`` adds the data
 folder's human-labelled picture sets (dawn_fog, dawn_weather, idd_mini, kitti_tiny) as rows
-after the clips (not with ``--pred-dir``)."""
+after the clips (not with ``--pred-dir``). With ``--video`` (and ``--all`` running the pipeline)
+a video that ends before its ground truth's last frame (or keyframe) is scored on the frames
+it gave, after one note "the video ended at frame N, before the ground truth's last frame M"
+(:func:`decoded_only`): the frames never decoded say nothing about the detector."""
 from __future__ import annotations
 
 import argparse
 import json
 import os
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
+
+from ..console import note
 from ..detections import Detections
 from ..errors import DataError, FastdetError
 from ..eval.clips import annotated_clips, markdown_table, report_json, score_clip
@@ -68,10 +75,39 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     track.add_argument("--offline", action="store_true", help="with the offline pass (gaps filled)")
 
 
-def _video_predictions(video: str, args: argparse.Namespace) -> Detections:
+def _video_predictions(video: str, args: argparse.Namespace) -> tuple[Detections, int]:
+    """The pipeline's boxes of every frame of ``video`` and the last frame number decoded."""
     check_source(video)
     frames = iter_video_detections(video, pipeline_config(args), progress=True, offline=getattr(args, "offline", False))
-    return Detections.from_frames(frames, source=video)
+    seen = [0]
+
+    def counted() -> Iterator[tuple[int, Detections]]:
+        for fno, d in frames:
+            seen[0] = max(seen[0], fno)
+            yield fno, d
+
+    return Detections.from_frames(counted(), source=video), seen[0]
+
+
+def decoded_only(video: str, gt: Detections, keyframes: np.ndarray | None,
+                 last: int) -> tuple[Detections, np.ndarray | None]:
+    """Ground truth and keyframes cut to the frames the video gave (``1..last``), with one note
+    when the video ended before the ground truth's last frame: those frames were never seen,
+    so they are not scored (as misses they would only say the file is short). ``DataError``
+    when no keyframe is left."""
+    gt_last = int(gt.frames.max()) if len(gt) else 0
+    if keyframes is not None:
+        gt_last = max(gt_last, int(keyframes.max()))
+    if last >= gt_last:
+        return gt, keyframes
+    note(f"{video}: the video ended at frame {last}, before the ground truth's last frame {gt_last}; "
+         f"only frames 1-{last} are scored")
+    gt = gt[gt.frames <= last]
+    if keyframes is not None:
+        keyframes = keyframes[keyframes <= last]
+        if keyframes.size == 0:
+            raise DataError(f"{video}: the video ended at frame {last}, before the first keyframe: nothing to score")
+    return gt, keyframes
 
 
 def _frame_rows(video: str | Path) -> int:
@@ -142,7 +178,6 @@ def _score_picture_sets(sets: list[tuple[str, list]], args: argparse.Namespace) 
 def _run_frames(args: argparse.Namespace) -> int:
     """``eval --frames SPEC ...`` without ``--all``: the picture sets only."""
     from ..eval.clips import markdown_table, report_json
-
     from ..labels.sets import parse_spec
 
     specs = [parse_spec(spec).path for spec in args.frames]
@@ -234,7 +269,8 @@ def _run_all(args: argparse.Namespace) -> int:
         if args.pred_dir is not None:
             preds = _clip_predictions(args.pred_dir, clip.name)
         else:
-            preds = _video_predictions(str(clip.video), args)
+            preds, last = _video_predictions(str(clip.video), args)
+            gt, kf = decoded_only(str(clip.video), gt, kf, last)
         scores.append(score_clip(clip.name, gt, preds, _frame_rows(clip.video), kf, iou=args.iou))
     settings = {"iou": args.iou}
     if args.pred_dir is not None:
@@ -295,7 +331,8 @@ def run(args: argparse.Namespace) -> int:
     kf_file = getattr(args, "keyframes", None)
     keyframes = read_keyframes(kf_file) if kf_file is not None else keyframes_for(args.gt)
     if args.video is not None:
-        preds = _video_predictions(args.video, args)
+        preds, last = _video_predictions(args.video, args)
+        gt, keyframes = decoded_only(args.video, gt, keyframes, last)
     else:
         preds = read_predictions(args.pred)
     result = evaluate(gt, preds, iou=args.iou, keyframes=keyframes)

@@ -184,3 +184,22 @@ def test_all_never_writes_its_report_over_what_it_reads(clip, capsys, monkeypatc
     err = capsys.readouterr().err
     assert rc == 2 and len(err.strip().splitlines()) == 1, err
     assert (out.read_bytes() if out.exists() else None) == before
+
+
+def test_a_video_shorter_than_its_ground_truth_is_said_and_scored_on_its_frames(tmp_path, monkeypatch, capsys):
+    """Issue 34 (5): a 20-frame clip against an 88-frame ground truth scored frames 21-88 as
+    misses (recall 0.16) without a word."""
+    gt = tmp_path / "g.txt"
+    gt.write_text("1,1,100,100,60,40\n3,1,100,100,60,40\n20,1,100,100,60,40\n")
+    video = write_video(tmp_path / "c.mp4", 3, w=640, h=360)
+
+    def fake_iter(path, config, progress=True, **kw):
+        for f in (1, 2, 3):
+            yield f, Detections(np.array([[100, 100, 160, 140]], np.int32), np.array([0.9], np.float32))
+
+    monkeypatch.setattr(ev, "iter_video_detections", fake_iter)
+    assert main(["eval", "--gt", str(gt), "--video", str(video), "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert "the video ended at frame 3, before the ground truth's last frame 20; only frames 1-3 are scored" in err
+    res = json.loads(out)
+    assert res["recall"] == 1.0, res
