@@ -57,13 +57,52 @@ _END = object()
 _URL = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*://")
 
 
+#: extensions FFmpeg (OpenCV's backend) reads as an image sequence when the name holds a
+#: ``%d`` pattern (its image2 demuxer); any other name -- ``a%d.mp4`` -- it opens literally
+SEQUENCE_EXTENSIONS = frozenset({
+    ".bmp", ".dib", ".dpx", ".exr", ".jp2", ".j2k", ".jpe", ".jpeg", ".jpg", ".pam", ".pbm", ".pcx", ".pgm",
+    ".png", ".pnm", ".ppm", ".ras", ".sgi", ".sr", ".sun", ".tga", ".tif", ".tiff", ".webp", ".xbm", ".xwd",
+})
+#: the frame numbers FFmpeg tries for a sequence's first frame (``start_number_range``)
+SEQUENCE_FIRST = range(5)
+# FFmpeg's pattern syntax (av_get_frame_filename): %d with an optional zero-padded width; %%
+_SEQ_TOKEN = re.compile(r"%(%|0?\d*d)")
+
+
+def sequence_regex(name: str) -> re.Pattern[str] | None:
+    """A regex of the file names (not folders) that the image-sequence pattern ``name``'s last
+    part gives (``img%04d.jpg``: ``img0003.jpg``, ``img12345.jpg``); ``None`` when the name
+    holds no ``%d`` or a ``%`` that FFmpeg does not take."""
+    base = os.path.basename(name)
+    out, pos, numbered = [], 0, False
+    for m in _SEQ_TOKEN.finditer(base):
+        if "%" in base[pos:m.start()]:
+            return None
+        out.append(re.escape(base[pos:m.start()]))
+        if m.group(1) == "%":
+            out.append("%")
+        else:
+            numbered = True
+            width = m.group(1)[:-1]
+            digits = int(width) if width.lstrip("0") else 0
+            out.append(rf"\d{{{max(digits, 1)},}}" if width.startswith("0") else rf" *\d+")
+        pos = m.end()
+    if "%" in base[pos:] or not numbered or "%" in os.path.dirname(name):
+        return None
+    out.append(re.escape(base[pos:]))
+    return re.compile("".join(out))
+
+
 def is_image_sequence(path: str | os.PathLike) -> bool:
-    """``path`` is a printf-style image sequence (``test%d.jpg``) whose frame 0 or 1 exists."""
+    """``path`` is what OpenCV reads as a printf-style image sequence (``test%d.jpg``): a
+    ``%d`` pattern, an image extension (:data:`SEQUENCE_EXTENSIONS`: FFmpeg opens ``a%d.mp4``
+    as the file of that very name, even with ``a1.mp4`` beside it) and one of its first
+    frames (:data:`SEQUENCE_FIRST`) exists."""
     name = os.fspath(path)
-    if "%" not in name:
+    if "%" not in name or Path(name).suffix.lower() not in SEQUENCE_EXTENSIONS or sequence_regex(name) is None:
         return False
     try:
-        return any(Path(name % i).exists() for i in (0, 1))
+        return any(Path(name % i).exists() for i in SEQUENCE_FIRST)
     except (TypeError, ValueError):
         return False
 
