@@ -18,9 +18,9 @@ from .. import signals as _signals
 from ..detect import Detector
 from ..detect.checks import check_frame
 from ..errors import DataError, FastdetError, WriteError
+from ..io.atomic import partial_name
 from ..io.images import check_image, write_image
 from ..io.motfiles import read_gt
-from ..io.atomic import partial_name
 from ..io.paths import check_output_folder, name_max
 from ..io.reader import FrameReader, source_kind
 from ..train.mine import hard_negatives

@@ -85,7 +85,7 @@ def sequence_regex(name: str) -> re.Pattern[str] | None:
             numbered = True
             width = m.group(1)[:-1]
             digits = int(width) if width.lstrip("0") else 0
-            out.append(rf"\d{{{max(digits, 1)},}}" if width.startswith("0") else rf" *\d+")
+            out.append(rf"\d{{{max(digits, 1)},}}" if width.startswith("0") else r" *\d+")
         pos = m.end()
     if "%" in base[pos:] or not numbered or "%" in os.path.dirname(name):
         return None
