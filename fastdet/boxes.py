@@ -9,8 +9,13 @@ from __future__ import annotations
 
 import numpy as np
 
+#: the largest magnitude of a box coordinate, width or height (frame pixels) read from a file
+#: or an option: 2**24, far past any frame and exact in float32; products of two (areas,
+#: cross products) stay finite in float64, where 1e200 or 1e308 overflowed to inf and NaN
+MAX_COORD = 2.0**24
+
 __all__ = [
-    "ltwh_to_xyxy", "xyxy_to_ltwh", "area", "intersection", "iou", "overlap_fraction",
+    "MAX_COORD", "ltwh_to_xyxy", "xyxy_to_ltwh", "area", "intersection", "iou", "overlap_fraction",
     "clip", "window_offsets", "window_grid_boxes",
 ]
 

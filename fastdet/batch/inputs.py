@@ -145,14 +145,17 @@ def _safe(part: str) -> str:
     return _UNSAFE.sub("_", part).strip("._") or "video"
 
 
-def output_names(videos: Iterable[Path]) -> list[str]:
+def output_names(videos: Iterable[Path], max_len: int | None = None) -> list[str]:
     """One output name per video (no extension; used as ``NAME.boxes.txt`` etc.), unique
     within the batch and independent of the order of the videos.
 
     The name is the file's stem; videos sharing a stem get as many parent folder names as
     it takes to tell them apart (``day1_clip``, ``day2_clip``), and the extension too when
     that is what differs (``clip_mp4``, ``clip_avi``). Characters other than letters,
-    digits and ``._+-`` become ``_``.
+    digits and ``._+-`` become ``_``. A name longer than ``max_len`` characters (the output
+    folder's longest file name less the longest suffix: a 245-character video name) is cut
+    and ends in a checksum of the video's path (``LONG_PREFIX_1a2b3c4d``), so every output
+    name fits the file system.
     """
     videos = [Path(v) for v in videos]
     names = [_safe(v.stem) for v in videos]
@@ -162,11 +165,20 @@ def output_names(videos: Iterable[Path]) -> list[str]:
             groups.setdefault(n.lower(), []).append(i)
         clashes = [idx for idx in groups.values() if len(idx) > 1]
         if not clashes:
-            return names
+            return [_fit(n, v, max_len) for n, v in zip(names, videos)]
         for idx in clashes:
             for i in idx:
                 names[i] = _longer_name(videos[i], names[i])
     raise DataError("cannot give the videos unique output names")  # pragma: no cover - paths end
+
+
+def _fit(name: str, video: Path, max_len: int | None) -> str:
+    """``name`` cut to ``max_len`` characters (ASCII: one byte each), a checksum of the video's
+    path at its end keeping it unique; as it is when it fits."""
+    if max_len is None or len(name) <= max_len:
+        return name
+    tag = f"_{zlib.crc32(os.fsencode(video)):08x}"
+    return name[: max(1, max_len - len(tag))] + tag
 
 
 def _longer_name(video: Path, current: str) -> str:

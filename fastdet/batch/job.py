@@ -77,7 +77,7 @@ from .inputs import output_names
 from .manifest import Manifest, input_stat
 from .progress import BatchProgress
 from .runs import _pid_alive, remove_run, remove_stale_runs, run_id  # noqa: F401  (re-exported)
-from .settings import MANIFEST_NAME, Settings, output_paths
+from .settings import MANIFEST_NAME, Settings, max_name_length, output_paths
 from .summary import format_summary as _format_summary
 from .table import write_table
 from .task import VideoTask, commit_outputs, discard_outputs, run_video
@@ -210,7 +210,7 @@ def _run_batch(videos: Sequence[Path], opts: BatchOptions) -> BatchReport:
     topic = f"fastdet-batch-{uuid.uuid4().hex[:12]}"
     run = run_id()
     report = BatchReport()
-    names = output_names(videos)
+    names = output_names(videos, max_name_length(out_dir))
     tasks: list[VideoTask] = []
     stats: dict[str, dict[str, int]] = {}
     for video, name in zip(videos, names):

@@ -10,11 +10,19 @@ from ..config.batch import Settings, file_sha256
 from ..video.detector import make_detector
 from ..video.refine import load_regressor
 
-__all__ = ["MANIFEST_NAME", "SUFFIXES", "Settings", "check", "file_sha256", "output_paths"]
+__all__ = ["MANIFEST_NAME", "SUFFIXES", "Settings", "check", "max_name_length", "file_sha256", "output_paths"]
 
 #: output kind -> file name suffix after the video's output name
 SUFFIXES = {"boxes": ".boxes.txt", "json": ".boxes.jsonl", "video": ".annotated.mp4"}
 MANIFEST_NAME = "manifest.jsonl"
+
+
+def max_name_length(out_dir: str | os.PathLike) -> int:
+    """The longest output name (:func:`~fastdet.batch.inputs.output_names`) whose files, with
+    the longest suffix, fit the file system of ``out_dir`` (its ``NAME_MAX``)."""
+    from ..io.paths import name_max
+
+    return max(16, name_max(out_dir) - max(len(s) for s in SUFFIXES.values()))
 
 
 def check(settings: Settings) -> None:

@@ -97,12 +97,13 @@ def detector_for(settings: Settings) -> Any:
         return det
 
 
-def partial_path(folder: str | os.PathLike, final: Path, token: str) -> Path:
-    """Temporary name of ``final`` for the attempt ``token`` in ``folder`` (the run's
-    :func:`run_dir`): ``FOLDER/STEM.TOKEN.EXT``."""
-    name = final.name
-    stem, dot, ext = name.rpartition(".")
-    return Path(folder) / (f"{stem}.{token}.{ext}" if dot else f"{name}.{token}")
+def partial_path(folder: str | os.PathLike, final: Path, token: str, kind: str = "out") -> Path:
+    """Temporary name of the output ``kind`` (``final``) for the attempt ``token`` in ``folder``
+    (the run's :func:`run_dir`, which only this run writes): ``FOLDER/TOKEN.KIND.EXT``, short
+    whatever the video's name (a 240-character name plus a token did not fit the file
+    system); the extension is kept (it picks the container)."""
+    ext = final.suffix
+    return Path(folder) / f"{token}.{kind}{ext}"
 
 
 def commit_outputs(summary: dict[str, Any], out_dir: str | os.PathLike) -> None:
@@ -176,7 +177,7 @@ def run_video(task: VideoTask) -> dict[str, Any]:
     s = task.settings
     finals = output_paths(task.out_dir, task.name, s)
     folder = run_dir(task.out_dir, task.run or process_token())
-    tmps = {k: partial_path(folder, p, token) for k, p in finals.items()}
+    tmps = {k: partial_path(folder, p, token, k) for k, p in finals.items()}
     summary: dict[str, Any] = {"input": task.input, "name": task.name, "host": socket.gethostname(),
                                "token": token, "frames": 0}
     report = _reporter(task, token)

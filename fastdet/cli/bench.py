@@ -195,7 +195,7 @@ def run(args: argparse.Namespace) -> int:
     cv2.setNumThreads(threads)
     try:
         det = _detector(args)
-        check_frame(det, frames[0], args.input)
+        check_frame(det, frames[0], args.input, more=lambda: frames[1:])
         vd = VideoDetector(det, pipeline_config(args))
         t0 = time.perf_counter()
         vd.warmup()

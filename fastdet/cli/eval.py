@@ -2,14 +2,22 @@
 ``--frames SPEC`` (repeatable) the single-picture search on labelled picture sets
 (:mod:`fastdet.eval.pictures`: recall only where labels are partial); ``--all`` adds the data
 folder's human-labelled picture sets (dawn_fog, dawn_weather, idd_mini, kitti_tiny) as rows
-after the clips (not with ``--pred-dir``)."""
+after the clips (not with ``--pred-dir``). With ``--video`` (and ``--all`` running the pipeline)
+a video that ends before its ground truth's last frame (or keyframe) is scored on the frames
+it gave, after one note "the video ended at frame N, before the ground truth's last frame M"
+(:func:`decoded_only`): the frames never decoded say nothing about the detector."""
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
+
+from ..console import note
 from ..detections import Detections
 from ..errors import DataError, FastdetError
 from ..eval.clips import annotated_clips, markdown_table, report_json, score_clip
@@ -18,7 +26,7 @@ from ..eval.report import format_table, plot_pr
 from ..io.atomic import write_bytes
 from ..io.keyframes import keyframes_for, keyframes_path, read_keyframes
 from ..io.motfiles import read_gt, read_predictions
-from ..io.paths import bundled_models, check_paths
+from ..io.paths import bundled_models, check_paths, is_inside
 from ..io.reader import check_source
 from ..video.run import iter_video_detections
 from ._args import add_horizon_argument, pipeline_config, pipeline_groups
@@ -65,10 +73,39 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     track.add_argument("--offline", action="store_true", help="with the offline pass (gaps filled)")
 
 
-def _video_predictions(video: str, args: argparse.Namespace) -> Detections:
+def _video_predictions(video: str, args: argparse.Namespace) -> tuple[Detections, int]:
+    """The pipeline's boxes of every frame of ``video`` and the last frame number decoded."""
     check_source(video)
     frames = iter_video_detections(video, pipeline_config(args), progress=True, offline=getattr(args, "offline", False))
-    return Detections.from_frames(frames, source=video)
+    seen = [0]
+
+    def counted() -> Iterator[tuple[int, Detections]]:
+        for fno, d in frames:
+            seen[0] = max(seen[0], fno)
+            yield fno, d
+
+    return Detections.from_frames(counted(), source=video), seen[0]
+
+
+def decoded_only(video: str, gt: Detections, keyframes: np.ndarray | None,
+                 last: int) -> tuple[Detections, np.ndarray | None]:
+    """Ground truth and keyframes cut to the frames the video gave (``1..last``), with one note
+    when the video ended before the ground truth's last frame: those frames were never seen,
+    so they are not scored (as misses they would only say the file is short). ``DataError``
+    when no keyframe is left."""
+    gt_last = int(gt.frames.max()) if len(gt) else 0
+    if keyframes is not None:
+        gt_last = max(gt_last, int(keyframes.max()))
+    if last >= gt_last:
+        return gt, keyframes
+    note(f"{video}: the video ended at frame {last}, before the ground truth's last frame {gt_last}; "
+         f"only frames 1-{last} are scored")
+    gt = gt[gt.frames <= last]
+    if keyframes is not None:
+        keyframes = keyframes[keyframes <= last]
+        if keyframes.size == 0:
+            raise DataError(f"{video}: the video ended at frame {last}, before the first keyframe: nothing to score")
+    return gt, keyframes
 
 
 def _frame_rows(video: str | Path) -> int:
@@ -139,8 +176,14 @@ def _score_picture_sets(sets: list[tuple[str, list]], args: argparse.Namespace) 
 def _run_frames(args: argparse.Namespace) -> int:
     """``eval --frames SPEC ...`` without ``--all``: the picture sets only."""
     from ..eval.clips import markdown_table, report_json
+    from ..labels.sets import parse_spec
 
-    check_paths([("--model", args.model), *bundled_models()], [("--out", args.out, "report")])
+    specs = [parse_spec(spec).path for spec in args.frames]
+    check_paths([("--model", args.model), *bundled_models(), *[("--frames", p) for p in specs]],
+                [("--out", args.out, "report")])
+    for p in specs:  # a labelled set's folder is read whole
+        if args.out is not None and p.is_dir() and is_inside(args.out, p):
+            raise DataError(f"--out {args.out}: is inside {p}, which --frames reads; write the report elsewhere")
     scores = _score_picture_sets(_picture_sets(args, shared=False), args)
     report = report_json([], {"iou": args.iou, "model": args.model or "bundled", "search": "picture"}, scores)
     text = json.dumps(report, indent=1, allow_nan=False) + "\n"
@@ -149,6 +192,30 @@ def _run_frames(args: argparse.Namespace) -> int:
     print(text, end="") if args.json else print(markdown_table([], scores))
     sys.stdout.flush()
     return 0
+
+
+def _data_folder_inputs(root: Path) -> list[tuple[str, Path]]:
+    """The data folder's files that ``eval --all`` reads besides the clips' own (the picture
+    sets read every ground truth, keyframe list and teacher file): ``(label, path)`` inputs."""
+    return [("the data folder's", p) for sub in ("annotations", "teacher") for p in sorted((root / sub).glob("*"))
+            if p.is_file()]
+
+
+def _check_report_path(out: str, root: Path, clips: list, picture_sets: bool) -> None:
+    """``DataError`` for a ``--out`` that a later ``eval --all`` would read: a clip's keyframe
+    list even where the clip has none yet (the report would make it sparsely annotated), or
+    a file inside a picture-set folder (``frames/SET``, read whole)."""
+    for c in clips:
+        kf = keyframes_path(c.gt_path)
+        if os.path.realpath(out) == os.path.realpath(kf):
+            raise DataError(f"--out {out}: is the keyframe list of clip {c.name} ({kf}), which eval reads; "
+                            f"give the report another name")
+    if picture_sets:
+        for name in PICTURE_SETS:
+            folder = root / "frames" / name
+            if folder.is_dir() and is_inside(out, folder):
+                raise DataError(f"--out {out}: is inside the picture set {folder}, which eval reads; "
+                                f"write the report elsewhere")
 
 
 def _run_all(args: argparse.Namespace) -> int:
@@ -179,11 +246,20 @@ def _run_all(args: argparse.Namespace) -> int:
         raise DataError(f"{args.data or data_dir()}: no annotated clips (annotations/CLIP.gt.txt with videos/CLIP.mp4)")
     preds_in = [("--pred-dir", Path(args.pred_dir) / f"{c.name}{ext}") for c in clips for ext in (".txt", ".jsonl")
                 ] if args.pred_dir is not None else []
+    root = Path(args.data) if args.data is not None else None
+    if root is None:
+        from ..data import data_dir
+
+        root = data_dir()
+    data_in = _data_folder_inputs(root) if args.pred_dir is None else []
     check_paths([("--model", args.model), ("--oncoming-model", args.oncoming_model),
                  ("--side-model", getattr(args, "side_model", None)),
                  ("--small-model", getattr(args, "small_model", None)), *bundled_models(),
-                 *[(f"clip {c.name}", p) for c in clips for p in (c.video, c.gt_path)], *preds_in],
+                 *[(f"clip {c.name}", p) for c in clips for p in (c.video, c.gt_path, keyframes_path(c.gt_path))],
+                 *preds_in, *data_in],
                 [("--out", args.out, "report")])
+    if args.out is not None:
+        _check_report_path(args.out, root, clips, args.pred_dir is None)
     picture_sets = _picture_sets(args, shared=True) if args.pred_dir is None else []
     scores = []
     for clip in clips:
@@ -191,7 +267,8 @@ def _run_all(args: argparse.Namespace) -> int:
         if args.pred_dir is not None:
             preds = _clip_predictions(args.pred_dir, clip.name)
         else:
-            preds = _video_predictions(str(clip.video), args)
+            preds, last = _video_predictions(str(clip.video), args)
+            gt, kf = decoded_only(str(clip.video), gt, kf, last)
         scores.append(score_clip(clip.name, gt, preds, _frame_rows(clip.video), kf, iou=args.iou))
     settings = {"iou": args.iou}
     if args.pred_dir is not None:
@@ -252,7 +329,8 @@ def run(args: argparse.Namespace) -> int:
     kf_file = getattr(args, "keyframes", None)
     keyframes = read_keyframes(kf_file) if kf_file is not None else keyframes_for(args.gt)
     if args.video is not None:
-        preds = _video_predictions(args.video, args)
+        preds, last = _video_predictions(args.video, args)
+        gt, keyframes = decoded_only(args.video, gt, keyframes, last)
     else:
         preds = read_predictions(args.pred)
     result = evaluate(gt, preds, iou=args.iou, keyframes=keyframes)

@@ -9,7 +9,11 @@ write that failed) becomes one line ``fastdet COMMAND: error: MESSAGE`` on stder
 status 2. Anything else is a bug in fastdet and shows its traceback (exit 1). Ctrl-C,
 SIGTERM and SIGHUP (:mod:`fastdet.signals`) print ``fastdet COMMAND: interrupted
 (SIGTERM)`` and exit with 128 + the signal's number (130 for Ctrl-C), whatever exception
-the interrupted code then raised. ``FASTDET_DEBUG=1`` shows the traceback of user errors too.
+the interrupted code then raised. Standard output closed by its reader (``fastdet eval ... |
+head -1``, ``| true``: ``EPIPE``) ends the command quietly with status 141 (128 + SIGPIPE, what
+a shell shows for a program that a closed pipe stops, so ``set -o pipefail`` sees it); it can
+only happen when the results are printed, after the output files are complete.
+``FASTDET_DEBUG=1`` shows the traceback of user errors too.
 An argument the command does not know is reported with the command's own usage.
 """
 from __future__ import annotations
@@ -25,6 +29,9 @@ from .. import console
 from .. import signals as _signals
 from .._version import __version__
 from ..errors import FastdetError
+
+#: exit status when standard output was closed by its reader (128 + SIGPIPE)
+EXIT_BROKEN_PIPE = 141
 
 # name -> (module, one-line help)
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
@@ -124,7 +131,10 @@ def main(argv: Sequence[str] | None = None, stops_after: str = "restore") -> int
     if stdout is not None:
         sys.stdout = _GuardedStdout(stdout)  # type: ignore[assignment]
     try:
-        return _dispatch(args, name, debug, stops_after)
+        status = _dispatch(args, name, debug, stops_after)
+        if status == EXIT_BROKEN_PIPE and stdout is not None and stdout is sys.__stdout__:
+            _quiet_stdout(stdout)
+        return status
     finally:
         if isinstance(sys.stdout, _GuardedStdout):
             try:
@@ -149,6 +159,10 @@ def _dispatch(args: argparse.Namespace, name: str, debug: bool, stops_after: str
                 _signals.check()  # swallowed by a library: still a stop
             except _signals.Stopped as exc:
                 signum, detail = exc.signum, exc.detail
+            except BrokenPipeError:
+                # the reader of standard output is gone (`| head -1`, `| true`): nothing to
+                # tell it; the results were being printed, the output files are complete
+                status = EXIT_BROKEN_PIPE
             except FastdetError as exc:
                 signum, error = _signals.received(), exc
             except BaseException:
@@ -167,6 +181,20 @@ def _dispatch(args: argparse.Namespace, name: str, debug: bool, stops_after: str
         _say(f"fastdet {name}: error: {error}")
         return 2
     return status
+
+
+def _quiet_stdout(stream: Any) -> None:
+    """``stream``'s file descriptor pointed at ``/dev/null``: what is still buffered for the
+    closed pipe does not fail again when the interpreter flushes it at exit."""
+    try:
+        fd = stream.fileno()
+        null = os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(null, fd)
+        finally:
+            os.close(null)
+    except (OSError, ValueError, AttributeError):
+        pass
 
 
 class StdoutError(FastdetError):

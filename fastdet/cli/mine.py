@@ -18,10 +18,11 @@ from .. import signals as _signals
 from ..detect import Detector
 from ..detect.checks import check_frame
 from ..errors import DataError, FastdetError, WriteError
+from ..io.atomic import partial_name
 from ..io.files import stat_error
 from ..io.images import check_image, write_image
 from ..io.motfiles import read_gt
-from ..io.paths import check_output_folder
+from ..io.paths import check_output_folder, name_max
 from ..io.reader import FrameReader, source_kind
 from ..train.mine import hard_negatives
 from ._args import nonneg_int, positive_int
@@ -98,10 +99,11 @@ def run(args: argparse.Namespace) -> int:
     # the input is opened (and its first frame checked) before --out is created
     reader = FrameReader(args.video, args.start, args.frames)
     try:
-        check_frame(det, reader.first_frame, str(args.video))
+        check_frame(det, reader.first_frame, str(args.video), more=reader.colour_sample)
+        prefix = args.prefix or Path(args.video).stem.replace("%", "")
+        _check_crop_names(args, prefix, reader)
         det.warmup()  # compiles on a first run, after saying so
         args.out.mkdir(parents=True, exist_ok=True)
-        prefix = args.prefix or Path(args.video).stem.replace("%", "")
         bar = None
         if not args.no_progress and sys.stderr.isatty():
             bar = tqdm(total=reader.expected, desc="mining", unit="frame")
@@ -123,6 +125,26 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_crop_names(args: argparse.Namespace, prefix: str, reader: FrameReader) -> None:
+    """``DataError`` (one line, before ``--out`` is made) when the longest crop name this run
+    can write -- its temporary name while written -- is longer than ``--out``'s file system
+    takes (``NAME_MAX``: a 240-character video name or ``--prefix``)."""
+    h, w = reader.shape[:2]
+    last = reader.frame_count if reader.frame_count is not None else 2**31 - 1
+    longest = crop_name(prefix, max(last, 99999), -w, -h, w, h)  # x1, y1 may lie off the frame
+    size, limit = len(os.fsencode(partial_name(longest).name)), name_max(args.out)
+    if size > limit:
+        whose = f"--prefix {prefix[:40]}..." if args.prefix else f"{args.video} (the crops are named after it)"
+        raise DataError(f"{whose}: crop names would be up to {size} bytes with the temporary name's "
+                        f"{size - len(os.fsencode(longest))}, longer than the {limit} the file system of "
+                        f"{args.out} takes; give a shorter --prefix")
+
+
+def crop_name(prefix: str, frame_no: int, x1: int, y1: int, x2: int, y2: int) -> str:
+    """A crop's file name: ``PREFIX_fFRAME_X1_Y1_W_H.png`` (unique for a window of a frame)."""
+    return f"{prefix}_f{frame_no:05d}_{x1}_{y1}_{x2 - x1}_{y2 - y1}.png"
+
+
 def _mine(args: argparse.Namespace, det: Detector, reader: FrameReader, gt: Any, win_cfg: Any, prefix: str,
           bar: Any, written: list[Path]) -> tuple[int, int]:
     """The frame loop: ``(crops saved, frames read)``; each new crop's path joins ``written``."""
@@ -137,9 +159,15 @@ def _mine(args: argparse.Namespace, det: Detector, reader: FrameReader, gt: Any,
         if gt is not None:
             gb = gt.boxes[gt.frames == frame_no]
             gt_boxes = gb + np.array([-args.margin, -args.margin, args.margin, args.margin])
+        seen: set[str] = set()
         for (x1, y1, x2, y2), crop in hard_negatives(det, frame, args.part, win_cfg, args.x_range,
                                                      args.y_range, gt_boxes):
-            path = args.out / f"{prefix}_f{frame_no:05d}_{x1}_{y1}_{x2 - x1}.png"
+            # the whole box names the crop (two windows may share x1, y1 and the width); the
+            # same box twice (two search bands) is the same crop: written and counted once
+            path = args.out / crop_name(prefix, frame_no, x1, y1, x2, y2)
+            if path.name in seen:
+                continue
+            seen.add(path.name)
             new = not path.exists()  # a crop an earlier run wrote is not this run's to remove
             try:
                 write_image(path, crop)

@@ -20,6 +20,8 @@
   (:mod:`fastdet.video.offline`: short gaps of a track filled, tracks extended back); the
   outputs are then written after the whole file was read (the video by reading the file a
   second time), without the ``--debug`` panels (the heat maps of every frame are not kept).
+  A stop signal during that second reading keeps the box files and the summary (complete)
+  but not the video (it would hold fewer frames): the line says "OUT not written".
 - ``--boxes`` writes MOTChallenge lines ``frame,id,left,top,width,height,conf,-1,-1,-1``
   and ``--json`` one JSON object per frame (:mod:`fastdet.io.motfiles`); both are flushed after
   every frame. ``conf`` is the peak heat of the vehicle's blob
@@ -204,22 +206,27 @@ def _emit(fno: int, dets: Detections, mot: MotWriter | None, jsl: JsonLinesWrite
         counter.update(dets)
 
 
-def _redraw(args: argparse.Namespace, sink: VideoSink, frames: list[tuple[int, Detections]]) -> None:
+def _redraw(args: argparse.Namespace, sink: VideoSink, frames: list[tuple[int, Detections]]) -> bool:
     """``--offline``: read INPUT again and give the sink each frame with its final boxes (no
-    debug panels: the heat maps of every frame are not kept)."""
+    debug panels: the heat maps of every frame are not kept). ``False`` when a stop signal
+    came during the redraw (the video then holds fewer frames than the box files: the caller
+    keeps no video)."""
     by_frame = dict(frames)
     last = frames[-1][0]
     stopped = _signals.stop_requested()  # a stop during detection: still draw the frames done
     reader = FrameReader(args.input, args.start, last - args.start)
     try:
         for fno, frame, _ in reader:
-            if fno > last or (_signals.stop_requested() and not stopped):
+            if fno > last:
                 break
+            if _signals.stop_requested() and not stopped:
+                return False
             dets = by_frame.get(fno)
             if dets is not None:
                 sink.put((frame, dets, None))
     finally:
         reader.close()
+    return not (_signals.stop_requested() and not stopped)
 
 
 def run(args: argparse.Namespace, detector: Any = None) -> int:
@@ -278,6 +285,7 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
         t_start = time.perf_counter()
         bar = progress_bar(reader.expected, not args.no_progress, os.path.basename(args.input))
         failed, stop = True, None
+        redraw_stopped: VideoSink | None = None
         try:
             with _signals.deferred():  # a stop signal ends the loop after the current frame
                 for fno, frame, t_dec in reader:
@@ -308,8 +316,12 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
                     final = offline_boxes(vd, done, reader.shape)
                     for fno, dets in final:
                         _emit(fno, dets, mot, jsl, counter)
-                    if sink is not None:
-                        _redraw(args, sink, final)
+                    if sink is not None and not _redraw(args, sink, final):
+                        # stopped while the video was redrawn: it holds fewer frames than the
+                        # box files, so it is not kept (never a truncated video under its name)
+                        redraw_stopped = sink
+                        sink = None
+                        redraw_stopped.close(discard=True)
             failed = False
         except KeyboardInterrupt as exc:  # a stop (Ctrl-C, SIGTERM, SIGHUP): keep the frames done
             failed = False
@@ -334,7 +346,9 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
                 summary = (f"{n} frames in {wall:.2f} s, {n / wall:.1f} fps "
                            f"({process_seconds():.1f} s in all, start-up included)"
                            + (f"; {reader.n_skipped} damaged frames skipped" if reader.n_skipped else "")
-                           + (f"; wrote {', '.join(outs)}" if outs else ""))
+                           + (f"; wrote {', '.join(outs)}" if outs else "")
+                           + (f"; {out} not written (stopped while the video was redrawn)"
+                              if redraw_stopped is not None else ""))
                 if counting and counter is not None:
                     summary += f"; {counter.text()}"
                 if stop is not None:

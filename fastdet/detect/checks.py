@@ -9,11 +9,15 @@
   spatial bins); on a greyscale picture -- the three channels equal, as OpenCV gives a
   grey JPEG or video -- they find nothing (0 positive windows in the grey copies of the six
   test images against 123 in the colour ones), so a grey picture is refused rather than
-  giving an empty answer that looks like "no vehicles".
+  giving an empty answer that looks like "no vehicles". A video is judged on more than its
+  first frame when that one is grey (``more``: the next frames and a sample through the
+  file, :meth:`~fastdet.io.reader.FrameReader.colour_sample`): a colour video with a grey
+  or faded intro runs; only the first frame is looked at when it is colour (no cost).
 """
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterable
 from dataclasses import replace
 from typing import Any
 
@@ -109,12 +113,21 @@ def is_grey(frame: np.ndarray) -> bool:
     return bool(np.mean(spread <= GREY_TOLERANCE) >= 0.99)
 
 
-def check_colour(detector: Any, frame: np.ndarray, source: str) -> None:
+def check_colour(detector: Any, frame: np.ndarray, source: str,
+                 more: Callable[[], Iterable[np.ndarray]] | None = None) -> None:
     """``DataError`` for a greyscale picture (see the module docstring); only for fastdet's
-    own :class:`~fastdet.detect.Detector` (an injected detector may not need colour)."""
-    if hasattr(detector, "scorers") and is_grey(frame):
-        raise DataError(f"{source}: the picture is greyscale; fastdet's models use colour and find no "
-                        f"vehicles in grey pictures: give it the colour original")
+    own :class:`~fastdet.detect.Detector` (an injected detector may not need colour). A video:
+    when ``frame`` (its first) is grey, ``more()`` gives further frames, and any one in colour
+    makes it colour footage."""
+    if not hasattr(detector, "scorers") or not is_grey(frame):
+        return
+    what = "picture is"
+    for f in more() if more is not None else ():
+        if not is_grey(f):
+            return
+        what = "video is (its first frames and a sample through it)"
+    raise DataError(f"{source}: the {what} greyscale; fastdet's models use colour and find no "
+                    f"vehicles in grey pictures: give it the colour original")
 
 
 def _horizon_fits(detector: Any, shape: tuple[int, int], horizon: float) -> bool:
@@ -145,9 +158,11 @@ def check_horizon(detector: Any, shape: tuple[int, ...], horizon: Any, source: s
                     f"{w}x{h} frames; {room}")
 
 
-def check_frame(detector: Any, frame: np.ndarray, source: str, horizon: Any = None) -> None:
-    """The checks on a first frame: size (:func:`check_frame_size`), colour, and a fixed
-    ``horizon`` that leaves room for the search bands (:func:`check_horizon`)."""
+def check_frame(detector: Any, frame: np.ndarray, source: str, horizon: Any = None,
+                more: Callable[[], Iterable[np.ndarray]] | None = None) -> None:
+    """The checks on a first frame: size (:func:`check_frame_size`), colour (``more``: the
+    video's further frames, :func:`check_colour`), and a fixed ``horizon`` that leaves room
+    for the search bands (:func:`check_horizon`)."""
     check_frame_size(detector, frame.shape, source)
-    check_colour(detector, frame, source)
+    check_colour(detector, frame, source, more)
     check_horizon(detector, frame.shape, horizon, source)

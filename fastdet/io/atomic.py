@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 import secrets
+import stat
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -48,13 +49,41 @@ def _unlink_quietly(p: Path) -> None:
         pass
 
 
-def commit(tmp: str | os.PathLike, path: str | os.PathLike, mode: int | None = 0o644) -> Path:
+def current_umask() -> int:
+    """The process's umask (read from ``/proc/self/status`` where it can be: setting it to
+    read it back is not thread-safe; else set and restored at once)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    old = os.umask(0o022)
+    os.umask(old)
+    return old
+
+
+def output_mode(path: str | os.PathLike) -> int:
+    """The permission bits an output written to ``path`` gets: those of the regular file it
+    replaces, else what ``open()`` gives a new file (``0o666`` less the umask)."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        st = None
+    if st is not None and stat.S_ISREG(st.st_mode):
+        return stat.S_IMODE(st.st_mode)
+    return 0o666 & ~current_umask()
+
+
+def commit(tmp: str | os.PathLike, path: str | os.PathLike, mode: int | None = None) -> Path:
     """Give the finished temporary file ``tmp`` its final name ``path``; ``DataError`` (and
-    ``tmp`` removed) when the rename fails."""
+    ``tmp`` removed) when the rename fails. ``mode``: its permission bits (default
+    :func:`output_mode`: the replaced file's, or ``0o666`` less the umask for a new one, as
+    any program's ``open()`` would give; the temporary file may have been made otherwise)."""
     tmp, path = Path(tmp), Path(path)
     try:
-        if mode is not None:
-            os.chmod(tmp, mode)
+        os.chmod(tmp, output_mode(path) if mode is None else mode)
         os.replace(tmp, path)
     except OSError as exc:
         _unlink_quietly(tmp)

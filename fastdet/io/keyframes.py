@@ -15,6 +15,8 @@ import numpy as np
 from ..errors import DataError
 from .files import read_input_text
 
+#: largest frame number a keyframe list may hold (as box files: int32)
+MAX_FRAME = 2**31 - 1
 #: suffix of a ground-truth file, and of the keyframe list that goes with it
 GT_SUFFIX = ".gt.txt"
 KEYFRAMES_SUFFIX = ".frames"
@@ -32,7 +34,7 @@ def keyframes_path(gt_path: str | os.PathLike[str]) -> Path:
 def parse_keyframes(text: str, source: str = "<string>") -> np.ndarray:
     """The frame numbers of a keyframe list: ``(K,) int64``, sorted, each >= 1, no repeats.
 
-    A line that is not a whole number >= 1, a frame listed twice, or a list without any
+    A line that is not a whole number in 1..:data:`MAX_FRAME`, a frame listed twice, or a list without any
     frame raises :class:`~fastdet.errors.DataError` naming the source and the line.
     """
     frames: list[int] = []
@@ -47,6 +49,8 @@ def parse_keyframes(text: str, source: str = "<string>") -> np.ndarray:
             raise DataError(f"{source}: line {lineno}: expected a frame number, got {line[:40]!r}") from None
         if f < 1:
             raise DataError(f"{source}: line {lineno}: frame must be >= 1 (frames are 1-based), got {f}")
+        if f > MAX_FRAME:
+            raise DataError(f"{source}: line {lineno}: frame {line[:40]} is out of range (at most {MAX_FRAME})")
         if f in seen:
             raise DataError(f"{source}: line {lineno}: frame {f} is listed twice (first on line {seen[f]})")
         seen[f] = lineno

@@ -22,7 +22,8 @@ prediction lines 7 to 10 (column 7 is the confidence). Columns past those are re
 numbers and otherwise ignored (``class``, ``visibility``, the 3-D world coordinates).
 Blank lines are skipped. Anything else wrong -- a wrong column count, a field that is not a
 finite number, a fractional frame or id, a negative width or height, a frame < 1, a
-``consider`` other than 0/1 -- raises :class:`~fastdet.errors.DataError` whose message
+``consider`` other than 0/1, a frame or id out of range, a coordinate, width or height
+beyond :data:`~fastdet.boxes.MAX_COORD` pixels -- raises :class:`~fastdet.errors.DataError` whose message
 names the file and the line.
 
 JSON lines (written by :class:`JsonLinesWriter`, also read by :func:`read_predictions` for
@@ -43,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from ..boxes import ltwh_to_xyxy
+from ..boxes import MAX_COORD, ltwh_to_xyxy
 from ..detections import Detections
 from ..errors import DataError
 from .boxwriters import JsonLinesWriter, MotWriter, PathLike
@@ -131,6 +132,9 @@ def _parse_rows(text: str, source: str, min_cols: int, kind: str) -> tuple[np.nd
         _check_range(where, frame, tid)
         if w < 0 or h < 0:
             raise DataError(f"{where}: negative box size width={fields[4]} height={fields[5]}")
+        for k in range(2, 6):
+            if abs(vals[k]) > MAX_COORD:
+                raise DataError(f"{where}: {names[k]} {fields[k]} is out of range (at most {MAX_COORD:.0f} px)")
         vals.extend([math.nan] * (MAX_COLUMNS - len(vals)))
         rows.append(vals)
         linenos.append(lineno)
@@ -216,6 +220,8 @@ def parse_jsonl_predictions(text: str, source: str = "<string>") -> Detections:
                 raise ValueError(f"{n} boxes but {ids.shape[0]} ids")
             if not (np.isfinite(boxes).all() and np.isfinite(scores).all()):
                 raise ValueError("boxes and scores must be finite numbers")
+            if boxes.size and np.abs(boxes).max() > MAX_COORD:
+                raise ValueError(f"a box coordinate is out of range (at most {MAX_COORD:.0f} px)")
             if np.any(boxes[:, 2] < boxes[:, 0]) or np.any(boxes[:, 3] < boxes[:, 1]):
                 raise ValueError("negative box size (x2 < x1 or y2 < y1)")
         except (TypeError, ValueError) as exc:

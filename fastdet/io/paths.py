@@ -14,8 +14,11 @@ inode as well (a hard link is the same file under another name). Refused in one 
   scripts that rebuild a bundled model): every later run would use what it wrote
   (:func:`check_outside_package`; folder outputs: :func:`check_output_folder`).
 
-Inputs that are not files (a URL, a camera index, an image sequence ``img%04d.jpg``) take
-no part. The bundled model files are inputs of every command that loads a model
+Inputs that are not files (a URL, a camera index) take no part; an output that is a frame
+of an input image sequence (``img%04d.jpg`` and ``--boxes img0003.jpg``, existing or not) is
+refused (:func:`is_sequence_frame`). Whether a name is a sequence is what OpenCV makes of it
+(:func:`~fastdet.io.reader.is_image_sequence`: a file literally named ``a%d.mp4`` is that
+file, an input like any other). The bundled model files are inputs of every command that loads a model
 (:func:`bundled_models`).
 """
 from __future__ import annotations
@@ -65,12 +68,42 @@ def _is_file_input(path: str) -> bool:
     return source_kind(path) == "file"
 
 
-def _name_max(folder: str) -> int:
-    """The longest file name the file system of ``folder`` takes (255 when it cannot say)."""
+def _is_sequence(path: str) -> bool:
+    from .reader import source_kind
+
+    return source_kind(path) == "sequence"
+
+
+def is_sequence_frame(path: str | os.PathLike[str], pattern: str | os.PathLike[str]) -> bool:
+    """``path`` names a frame of the image sequence ``pattern`` (``img%04d.jpg``): it lies in the
+    pattern's folder (real paths, a symlink followed) and its name is one the pattern gives,
+    whether that frame exists or not."""
+    from .reader import sequence_regex
+
+    rx = sequence_regex(os.fspath(pattern))
+    if rx is None:
+        return False
+    folder = os.path.realpath(os.path.dirname(os.path.abspath(os.fspath(pattern))))
+    name = os.fspath(path)
+    beside = os.path.join(os.path.realpath(os.path.dirname(os.path.abspath(name))), os.path.basename(name))
+    for p in (os.path.realpath(name), beside):
+        if os.path.dirname(p) == folder and rx.fullmatch(os.path.basename(p)):
+            return True
+    return False
+
+
+def name_max(folder: str | os.PathLike[str]) -> int:
+    """The longest file name (bytes) the file system of ``folder`` takes -- of its nearest
+    existing folder when it does not exist yet (255 when it cannot say)."""
+    f = Path(os.path.abspath(folder))
+    f = next((p for p in (f, *f.parents) if p.is_dir()), f)
     try:
-        return int(os.pathconf(folder, "PC_NAME_MAX"))
+        return int(os.pathconf(f, "PC_NAME_MAX"))
     except (OSError, ValueError):
         return 255
+
+
+_name_max = name_max
 
 
 def _a(what: str) -> str:
@@ -142,12 +175,19 @@ def check_paths(inputs: Iterable[Named], outputs: Iterable[tuple[str, str | os.P
         ``None`` paths are skipped.
     into_package: the outputs may lie inside the installed package (``--into-package``).
     """
+    inputs = list(inputs)
     ins = [(label, os.fspath(p)) for label, p in inputs
            if p is not None and os.fspath(p) != "" and _is_file_input(os.fspath(p))
            and os.path.exists(os.fspath(p))]
     outs = [(label, os.fspath(p), what) for label, p, what in outputs if p is not None]
     for label, out, what in outs:
         check_output(out, what, label, into_package)
+    for ilabel, p in inputs:
+        if p is not None and _is_sequence(os.fspath(p)):
+            for label, out, what in outs:
+                if is_sequence_frame(out, os.fspath(p)):
+                    raise DataError(f"{label} {out}: is a frame of the input image sequence {ilabel} {os.fspath(p)}; "
+                                    f"give the {what} another name")
     for label, out, what in outs:
         for ilabel, inp in ins:
             if not os.path.isdir(inp) and _same(out, inp):

@@ -47,17 +47,62 @@ CLOSE_TIMEOUT_S = 10.0
 #: is reported when a frame decodes again within this many reads; reads at the true end
 #: of a file fail at once, so trying costs nothing there)
 MAX_BAD_READS = 256
+#: frames after the first that :meth:`FrameReader.colour_sample` decodes ahead (about 2 s)
+COLOUR_AHEAD = 50
+#: at most this many bytes of frames decoded ahead for that look
+COLOUR_AHEAD_BYTES = 128 * 2**20
+#: frames at even positions through a file that :meth:`FrameReader.colour_sample` then reads
+COLOUR_SPREAD = 8
 _END = object()
 _URL = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*://")
 
 
+#: extensions FFmpeg (OpenCV's backend) reads as an image sequence when the name holds a
+#: ``%d`` pattern (its image2 demuxer); any other name -- ``a%d.mp4`` -- it opens literally
+SEQUENCE_EXTENSIONS = frozenset({
+    ".bmp", ".dib", ".dpx", ".exr", ".jp2", ".j2k", ".jpe", ".jpeg", ".jpg", ".pam", ".pbm", ".pcx", ".pgm",
+    ".png", ".pnm", ".ppm", ".ras", ".sgi", ".sr", ".sun", ".tga", ".tif", ".tiff", ".webp", ".xbm", ".xwd",
+})
+#: the frame numbers FFmpeg tries for a sequence's first frame (``start_number_range``)
+SEQUENCE_FIRST = range(5)
+# FFmpeg's pattern syntax (av_get_frame_filename): %d with an optional zero-padded width; %%
+_SEQ_TOKEN = re.compile(r"%(%|0?\d*d)")
+
+
+def sequence_regex(name: str) -> re.Pattern[str] | None:
+    """A regex of the file names (not folders) that the image-sequence pattern ``name``'s last
+    part gives (``img%04d.jpg``: ``img0003.jpg``, ``img12345.jpg``); ``None`` when the name
+    holds no ``%d`` or a ``%`` that FFmpeg does not take."""
+    base = os.path.basename(name)
+    out, pos, numbered = [], 0, False
+    for m in _SEQ_TOKEN.finditer(base):
+        if "%" in base[pos:m.start()]:
+            return None
+        out.append(re.escape(base[pos:m.start()]))
+        if m.group(1) == "%":
+            out.append("%")
+        else:
+            numbered = True
+            width = m.group(1)[:-1]
+            digits = int(width) if width.lstrip("0") else 0
+            out.append(rf"\d{{{max(digits, 1)},}}" if width.startswith("0") else r" *\d+")
+        pos = m.end()
+    if "%" in base[pos:] or not numbered or "%" in os.path.dirname(name):
+        return None
+    out.append(re.escape(base[pos:]))
+    return re.compile("".join(out))
+
+
 def is_image_sequence(path: str | os.PathLike) -> bool:
-    """``path`` is a printf-style image sequence (``test%d.jpg``) whose frame 0 or 1 exists."""
+    """``path`` is what OpenCV reads as a printf-style image sequence (``test%d.jpg``): a
+    ``%d`` pattern, an image extension (:data:`SEQUENCE_EXTENSIONS`: FFmpeg opens ``a%d.mp4``
+    as the file of that very name, even with ``a1.mp4`` beside it) and one of its first
+    frames (:data:`SEQUENCE_FIRST`) exists."""
     name = os.fspath(path)
-    if "%" not in name:
+    if "%" not in name or Path(name).suffix.lower() not in SEQUENCE_EXTENSIONS or sequence_regex(name) is None:
         return False
     try:
-        return any(Path(name % i).exists() for i in (0, 1))
+        return any(Path(name % i).exists() for i in SEQUENCE_FIRST)
     except (TypeError, ValueError):
         return False
 
@@ -190,6 +235,39 @@ class FrameReader:
     def first_frame(self) -> np.ndarray:
         """The first frame (decoded when the reader was opened), for checks before any output."""
         return self._first[1]
+
+    def colour_sample(self) -> Iterator[np.ndarray]:
+        """More frames than the first to judge the picture by (a video whose first frames are
+        grey, a faded intro, is still colour footage): the next :data:`COLOUR_AHEAD` frames
+        (at most :data:`COLOUR_AHEAD_BYTES`; decoded ahead with :meth:`peek`, so iterating yields
+        them and each is decoded once), then, for a file with a frame count,
+        :data:`COLOUR_SPREAD` frames at even positions through the rest of it (a second
+        capture that seeks). Lazy: a caller that stops at the first colour frame decodes no
+        more; nothing is read unless it is asked for (the first frame alone usually
+        answers)."""
+        ahead = max(1, min(COLOUR_AHEAD, COLOUR_AHEAD_BYTES // max(1, self.first_frame.nbytes)))
+        if self.limit is not None:
+            ahead = min(ahead, self.limit - 1)
+        for k in range(1, ahead + 1):  # one more frame a time: stop as soon as one is colour
+            got = self.peek(k)
+            if len(got) < k:
+                break
+            yield got[-1]
+        if self.live or self.kind != "file" or self.frame_count is None:
+            return
+        first = self.start + ahead + 1
+        end = self.frame_count if self.limit is None else min(self.frame_count, self.start + self.limit)
+        if end <= first:
+            return
+        cap = cv2.VideoCapture(self.path)
+        try:
+            for k in range(COLOUR_SPREAD):
+                cap.set(cv2.CAP_PROP_POS_FRAMES, first + (end - first) * k // COLOUR_SPREAD)
+                ok, frame = cap.read()
+                if ok and frame is not None and frame.shape == self.shape:
+                    yield frame
+        finally:
+            cap.release()
 
     def _put(self, item: Any) -> bool:
         while not self._stop.is_set():

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from ..boxes import MAX_COORD
 from ..detections import Detections
 
 
@@ -52,6 +53,8 @@ class CountLine:
             raise ValueError(f"expected x1,y1,x2,y2 (four numbers), got {text!r}") from None
         if not all(np.isfinite(vals)):
             raise ValueError(f"line coordinates must be finite numbers, got {text!r}")
+        if max(abs(v) for v in vals) > MAX_COORD:
+            raise ValueError(f"line coordinates must be within +-{MAX_COORD:.0f} px, got {text!r}")
         return cls(*vals)
 
     def side(self, p: np.ndarray) -> np.ndarray:

@@ -73,7 +73,7 @@ def video_detector_for(reader: FrameReader, detector: WindowDetector,
     :meth:`FrameReader.peek <fastdet.io.reader.FrameReader.peek>`, when they fit in
     :data:`PRIME_BUFFER_BYTES` and the run reads at least that many)."""
     config = config if config is not None else PipelineConfig()
-    check_frame(detector, reader.first_frame, reader.path, horizon=config.horizon)
+    check_frame(detector, reader.first_frame, reader.path, horizon=config.horizon, more=reader.colour_sample)
     vd = VideoDetector(detector, config, fps=reader.fps)
     if (_primes(vd.config) and reader.kind == "file" and os.path.isfile(reader.path)
             and (reader.limit is None or reader.limit >= HORIZON_FRAMES)

@@ -59,3 +59,18 @@ def test_batch_never_reads_what_it_writes(tmp_path: Path) -> None:
             expand_inputs([str(d / "a.mp4"), str(arg)], writes)
     # the same folder as input with the output folder elsewhere: every video is an input
     assert len(expand_inputs([str(d)], batch_writes(tmp_path / "o", SUFFIXES.values()))) == 3
+
+
+def test_long_video_names_give_output_names_that_fit(tmp_path: Path) -> None:
+    """Issue 34 (16): a video name of 236-245 characters gave outputs (and temporary files)
+    longer than the file system takes; the run failed on every rerun."""
+    from fastdet.batch.settings import SUFFIXES, max_name_length
+
+    limit = max_name_length(tmp_path)
+    vids = [Path("/v") / f"{'x' * n}.mp4" for n in (236, 240, 245, 251)] + [Path("/w") / f"{'x' * 245}.mp4"]
+    names = output_names(vids, limit)
+    assert len({n.lower() for n in names}) == len(names)
+    for n in names:
+        for suffix in SUFFIXES.values():
+            (tmp_path / f"{n}{suffix}").write_bytes(b"")  # fits the file system
+    assert output_names([Path("/v/short.mp4")], limit) == ["short"]

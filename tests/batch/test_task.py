@@ -45,3 +45,19 @@ def test_a_failed_write_is_not_a_property_of_the_video(tmp_path: Path, data: Pat
     bad.write_bytes(b"not a video" * 50)
     summary = run_video(VideoTask(str(bad), "bad", str(tmp_path / "o3"), s, None, "r3"))
     assert summary["status"] == "failed" and summary["permanent"] is True
+
+
+def test_a_video_with_a_long_name_runs(tmp_path: Path, data: Path) -> None:
+    """Issue 34 (16): the temporary names held the output name and a token: a 240-character
+    name failed at run time naming the temporary file."""
+    from fastdet.batch.inputs import output_names
+
+    clip = cut(data / "videos" / "test_small1.mp4", tmp_path / f"{'c' * 240}.mp4", 0, 3)
+    s = Settings.create(video=True, json=True)
+    out = tmp_path / "o"
+    out.mkdir()
+    [name] = output_names([clip])  # 240 characters: NAME.annotated.mp4 fits in 255
+    summary = run_video(VideoTask(str(clip), name, str(out), s, None, "r1"))
+    assert summary["status"] == "done", summary.get("error")
+    commit_outputs(summary, out)
+    assert (out / f"{name}.boxes.txt").exists() and (out / f"{name}.annotated.mp4").exists()

@@ -154,3 +154,52 @@ def test_frames_scores_a_voc_set(data, tmp_path, capsys):
     assert "voc:fog" in table and "1 pic" in table
     rep = _json.loads(out.read_text())["pictures"]["voc:fog"]
     assert rep["pictures"] == 1 and rep["complete"] is True and rep["targets"] >= 1
+
+
+@pytest.mark.parametrize("target", ["annotations/cam.frames", "annotations/other.gt.txt", "frames/dawn_fog/x.json",
+                                    "teacher/t.teacher.txt", "NEW_KEYFRAMES"])
+def test_all_never_writes_its_report_over_what_it_reads(clip, capsys, monkeypatch, target):
+    """Issue 34 (2): ``eval --all --out D/annotations/CLIP.frames`` replaced the keyframe list
+    with the JSON report. Every file --all reads is an input: the clips' keyframe lists (also
+    one a clip does not have yet: the report would become it), the data folder's other
+    annotations and teacher files, the picture-set folders."""
+    (clip / "videos").mkdir()
+    write_video(clip / "videos" / "cam.mp4", 3, w=640, h=360)
+    (clip / "annotations" / "other.gt.txt").write_text(GT)  # no video: not a clip, but read by the sets
+    (clip / "frames" / "dawn_fog").mkdir(parents=True)
+    (clip / "teacher").mkdir()
+    (clip / "teacher" / "t.teacher.txt").write_text("x\n")
+    # the run itself is faked: only where its report goes is tested
+    monkeypatch.setattr(ev, "_picture_sets", lambda args, shared: [])
+    monkeypatch.setattr(ev, "iter_video_detections", lambda *a, **k: iter([]))
+    argv = ["eval", "--all", "--data", str(clip), "--clips", "cam"]
+    if target in ("annotations/cam.frames", "NEW_KEYFRAMES"):
+        argv += ["--pred-dir", str(clip / "preds")]
+    if target == "NEW_KEYFRAMES":
+        (clip / "annotations" / "cam.frames").unlink()
+        target = "annotations/cam.frames"
+    out = clip / target
+    before = out.read_bytes() if out.exists() else None
+    rc = main([*argv, "--out", str(out)])
+    err = capsys.readouterr().err
+    assert rc == 2 and len(err.strip().splitlines()) == 1, err
+    assert (out.read_bytes() if out.exists() else None) == before
+
+
+def test_a_video_shorter_than_its_ground_truth_is_said_and_scored_on_its_frames(tmp_path, monkeypatch, capsys):
+    """Issue 34 (5): a 20-frame clip against an 88-frame ground truth scored frames 21-88 as
+    misses (recall 0.16) without a word."""
+    gt = tmp_path / "g.txt"
+    gt.write_text("1,1,100,100,60,40\n3,1,100,100,60,40\n20,1,100,100,60,40\n")
+    video = write_video(tmp_path / "c.mp4", 3, w=640, h=360)
+
+    def fake_iter(path, config, progress=True, **kw):
+        for f in (1, 2, 3):
+            yield f, Detections(np.array([[100, 100, 160, 140]], np.int32), np.array([0.9], np.float32))
+
+    monkeypatch.setattr(ev, "iter_video_detections", fake_iter)
+    assert main(["eval", "--gt", str(gt), "--video", str(video), "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert "the video ended at frame 3, before the ground truth's last frame 20; only frames 1-3 are scored" in err
+    res = json.loads(out)
+    assert res["recall"] == 1.0, res

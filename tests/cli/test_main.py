@@ -260,3 +260,34 @@ def test_hidden_aliases_are_still_accepted():
     assert str(a.oncoming_model) == "w.npz" and a.part == "wide"
     text = "\n".join(_help("mine-negatives"))
     assert "--wide-model" not in text and "oncoming,wide" not in text and "former name" not in text
+
+
+class _ClosedPipe:
+    """A standard output whose reader is gone."""
+
+    def write(self, text):
+        raise BrokenPipeError(32, "Broken pipe")
+
+    def flush(self):
+        raise BrokenPipeError(32, "Broken pipe")
+
+
+def test_a_closed_standard_output_ends_quietly_with_141(fake_command, capsys, monkeypatch):
+    """Issue 34 (18): ``... | true`` was a BrokenPipeError traceback."""
+    fake_command["run"] = lambda args: print("results") or 0
+    monkeypatch.setattr(sys, "stdout", _ClosedPipe())
+    assert main(["fake"]) == 141
+    assert capsys.readouterr().err == ""
+
+
+def test_eval_into_a_closed_pipe_is_quiet(tmp_path):
+    """``fastdet eval ... | true`` in a real process: exit 141, nothing on stderr."""
+    gt, pred = tmp_path / "g.txt", tmp_path / "p.txt"
+    gt.write_text("1,1,10,10,40,30\n")
+    pred.write_text("1,1,10,10,40,30,0.9\n")
+    env = {k: v for k, v in os.environ.items() if k != "FASTDET_DEBUG"}
+    p = subprocess.Popen([sys.executable, "-m", "fastdet", "eval", "--gt", str(gt), "--pred", str(pred)],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    p.stdout.close()  # the reader is gone before the results are printed
+    err = p.stderr.read().decode()
+    assert p.wait(timeout=120) == 141 and err == "", err

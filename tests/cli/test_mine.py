@@ -63,4 +63,40 @@ def test_a_url_is_a_source_and_a_symlink_loop_says_so(tmp_path, capsys):
     assert main(["mine-negatives", str(tmp_path / "a.mp4"), "--out", str(out), "--x-range", "0", "100",
                  "--no-progress"]) == 2
     assert "symlink loop" in capsys.readouterr().err
+
+
+def test_windows_sharing_x1_y1_and_width_get_their_own_files(tmp_path, capsys, test_images, monkeypatch):
+    """Issue 34 (4): "mined 1090 windows" but 1074 files (windows with the same x1, y1 and
+    width shared a name); the same box twice is one crop, counted once."""
+    import numpy as np
+
+    crop = np.zeros((64, 64, 3), np.uint8)
+    boxes = [(0, 0, 64, 64), (0, 0, 64, 80), (0, 0, 64, 64), (8, 0, 72, 64)]
+    monkeypatch.setattr(mine_cmd, "hard_negatives",
+                        lambda *a, **k: [(np.array(b), crop + i) for i, b in enumerate(boxes)])
+    out = tmp_path / "crops"
+    assert main(["mine-negatives", str(test_images[0]), "--out", str(out), "--x-range", "0", "1280",
+                 "--no-progress"]) == 0
+    said = capsys.readouterr().out
+    files = sorted(p.name for p in out.iterdir())
+    assert "mined 3 false-positive windows" in said and len(files) == 3, (said, files)
+
+
+@pytest.mark.parametrize("long_video", [True, False])
+def test_names_too_long_for_the_file_system_are_one_line(tmp_path, capsys, test_images, long_video):
+    """Issue 34 (16): a 240-character video name or --prefix was an ``OSError: File name too
+    long`` traceback, with an empty --out folder left."""
+    import shutil
+
+    video = test_images[0]
+    opts = []
+    if long_video:
+        video = tmp_path / f"{'v' * 240}.jpg"
+        shutil.copy(test_images[0], video)
+    else:
+        opts = ["--prefix", "p" * 240]
+    out = tmp_path / "crops"
+    rc = main(["mine-negatives", str(video), "--out", str(out), "--x-range", "0", "1280", *opts, "--no-progress"])
+    err = capsys.readouterr().err
+    assert rc == 2 and len(err.strip().splitlines()) == 1 and "give a shorter --prefix" in err, err
     assert not out.exists()

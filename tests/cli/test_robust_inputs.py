@@ -51,6 +51,35 @@ def test_grey_image_and_grey_video_are_refused(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["grey.jpg", "grey.mp4"]
 
 
+def _faded_intro(path: Path, grey_frames: int, n: int) -> Path:
+    """A colour clip whose first ``grey_frames`` frames are grey (a faded intro)."""
+    import subprocess
+
+    from tests.media import FFMPEG, INTRA, frames
+
+    p = subprocess.Popen([FFMPEG, "-v", "error", "-y", "-f", "rawvideo", "-pix_fmt", "bgr24", "-s", "320x240",
+                          "-r", "25", "-i", "-", *INTRA, str(path)], stdin=subprocess.PIPE)
+    assert p.stdin is not None
+    for i, f in enumerate(frames(n)):
+        if i < grey_frames:
+            f[:] = f.mean(axis=2, keepdims=True).astype(np.uint8)
+        p.stdin.write(f.tobytes())
+    p.stdin.close()
+    assert p.wait() == 0
+    return path
+
+
+@pytest.mark.parametrize("grey_frames", [5, 70])
+def test_colour_video_with_a_grey_intro_runs(tmp_path, capsys, grey_frames):
+    """Issue 34 (6): a colour video whose first 5 frames are grey was refused as greyscale.
+    70 grey frames: past the frames decoded ahead, found by the sample through the file."""
+    clip = _faded_intro(tmp_path / "intro.mp4", grey_frames, 80)
+    rc = main(["video", str(clip), "--boxes", str(tmp_path / "b.txt"), "--no-progress", "--frames", "80"])
+    err = capsys.readouterr().err
+    assert rc == 0 and "greyscale" not in err, err
+    assert (tmp_path / "b.txt").exists()
+
+
 def test_truncated_jpeg_is_refused(data, tmp_path, capsys):
     src = (data / "test_images" / "test1.jpg").read_bytes()
     cut = tmp_path / "cut.jpg"

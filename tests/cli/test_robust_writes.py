@@ -80,3 +80,35 @@ def test_mine_negatives_on_a_full_disk_says_so(tmp_path):
     _one_line_failure(r, "could not write the crop")
     assert "mined" not in r.stdout
     assert leftovers(out) == []
+
+
+def test_a_stop_during_the_offline_redraw_keeps_no_truncated_video(clip, tmp_path, capsys, monkeypatch):
+    """Issue 34 (3): ``video --offline`` stopped by SIGTERM while the video was redrawn said
+    "60 frames ... wrote o.mp4, b.txt, ..." with o.mp4 holding 15 frames. The box files
+    (complete: every frame) are kept, the video is not, and the line says exactly that."""
+    import json
+    import os
+    import signal
+
+    from fastdet.cli import video as video_cmd
+    from fastdet.cli.main import main
+
+    real_put = video_cmd.VideoSink.put
+    puts = []
+
+    def put(self, item):  # --offline: the sink gets frames only in the redraw
+        puts.append(1)
+        if len(puts) == 15:
+            os.kill(os.getpid(), signal.SIGTERM)
+        return real_put(self, item)
+
+    monkeypatch.setattr(video_cmd.VideoSink, "put", put)
+    out, boxes, summary = tmp_path / "o.mp4", tmp_path / "b.txt", tmp_path / "s.json"
+    rc = main(["video", str(clip), "--offline", "-o", str(out), "--boxes", str(boxes), "--summary", str(summary),
+               "--no-progress", "--no-oncoming"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 143 and len(err) == 1, err
+    assert f"wrote {boxes}, {summary}" in err[0] and f"{out} not written" in err[0], err
+    assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["b.txt", "s.json"]
+    assert {int(line.split(",")[0]) for line in boxes.read_text().splitlines()} <= set(range(1, 61))
+    assert json.loads(summary.read_text())["outputs"] == [str(boxes)]

@@ -143,3 +143,27 @@ def test_commit_failure_removes_the_temporary_file(tmp_path):
     ok = tmp_path / ".p.partial.txt"
     ok.write_text("z")
     assert commit(ok, tmp_path / "p.txt", mode=None) == tmp_path / "p.txt"
+
+
+def test_commit_follows_the_umask_for_a_new_file(tmp_path):
+    """Issue 34 (7): outputs were chmod 0644 whatever the umask (world-readable under 077)."""
+    old = os.umask(0o077)
+    try:
+        write_bytes(tmp_path / "new.txt", b"x")
+    finally:
+        os.umask(old)
+    assert (tmp_path / "new.txt").stat().st_mode & 0o777 == 0o600
+
+
+def test_commit_keeps_the_mode_of_the_file_it_replaces(tmp_path):
+    out = tmp_path / "old.txt"
+    out.write_bytes(b"old")
+    out.chmod(0o640)
+    write_bytes(out, b"new")
+    assert out.read_bytes() == b"new" and out.stat().st_mode & 0o777 == 0o640
+    out.chmod(0o604)
+    tmp = partial_name(out)
+    tmp.write_bytes(b"newer")
+    tmp.chmod(0o600)  # a temporary file made with a private mode (mkstemp)
+    commit(tmp, out)
+    assert out.stat().st_mode & 0o777 == 0o604

@@ -24,6 +24,8 @@ def test_parse_sorts_and_skips_blank_lines():
     ("0\n", "line 1: frame must be >= 1"),
     ("3\n4\n3\n", "line 3: frame 3 is listed twice (first on line 1)"),
     ("\n \n", "no frame numbers"),
+    ("1\n" + "1" + "0" * 29 + "\n", "line 2: frame 1" + "0" * 29 + " is out of range (at most 2147483647)"),
+    ("2147483648\n", "line 1: frame 2147483648 is out of range"),
 ])
 def test_parse_refuses_bad_lists(text, words):
     with pytest.raises(DataError, match="kf.frames: " + r".*" + words.replace("(", r"\(").replace(")", r"\)")):

@@ -69,3 +69,19 @@ def test_jsonl_nested_too_deeply_is_one_line(tmp_path):
     p.write_text('{"frame": 1, "boxes": [], "scores": []}\n' + "[" * 200_000 + "\n")
     with pytest.raises(DataError, match="line 2: not a box line .JSON nested too deeply"):
         read_predictions(p)
+
+
+@pytest.mark.parametrize("line", ["1,1,1e200,10,40,30,0.9", "1,1,1e308,10,1e308,30,0.9", "1,1,10,10,40,-1e300,0.9",
+                                  "1,1,-1e200,10,40,30,0.9"])
+def test_huge_coordinates_are_one_line(line):
+    """Issue 34 (17): boxes of 1e200 or 1e308 + 1e308 gave overflow warnings and metrics over
+    infinite boxes."""
+    with pytest.raises(DataError, match="p.txt: line 1: .*(is out of range|negative box size)"):
+        parse_predictions(line + "\n", "p.txt")
+    with pytest.raises(DataError, match="g.txt: line 1: .*(is out of range|negative box size)"):
+        parse_gt(line.rsplit(",", 1)[0] + "\n", "g.txt")
+
+
+def test_huge_json_coordinates_are_one_line():
+    with pytest.raises(DataError, match="line 1: a box coordinate is out of range"):
+        parse_jsonl_predictions('{"frame": 1, "boxes": [[0, 0, 1e200, 5]], "scores": [1]}\n', "p.jsonl")

@@ -119,3 +119,61 @@ def test_outputs_inside_the_package_are_refused(tmp_path):
     check_output_folder(tmp_path / "new" / "hard", "--out")
     sibling = PACKAGE_DIR.parent / (PACKAGE_DIR.name + "-other") / "m.npz"  # a name that only starts alike
     check_outside_package(sibling, "--out")
+
+
+def _images(folder, names):
+    import cv2
+    import numpy as np
+
+    for n in names:
+        cv2.imwrite(str(folder / n), np.full((8, 8, 3), 90, np.uint8))
+
+
+def test_an_output_onto_a_frame_of_an_input_image_sequence(tmp_path, monkeypatch):
+    """Issue 34 (1): ``video 'seq2/img%04d.jpg' --boxes seq2/img0003.jpg`` wrote box text over
+    frame 3 of the sequence it read."""
+    seq = tmp_path / "seq2"
+    seq.mkdir()
+    _images(seq, [f"img{i:04d}.jpg" for i in (1, 2, 3)])
+    pattern = str(seq / "img%04d.jpg")
+    monkeypatch.chdir(tmp_path)
+    for out in (seq / "img0003.jpg", "seq2/img0003.jpg", "./seq2/../seq2/img0002.jpg", seq / "img0099.jpg",
+                seq / "img12345.jpg"):
+        with pytest.raises(DataError, match="is a frame of the input image sequence INPUT"):
+            check_paths([("INPUT", pattern)], [("--boxes", out, "box")])
+    link = tmp_path / "link.jpg"
+    link.symlink_to(seq / "img0001.jpg")
+    with pytest.raises(DataError, match="is a frame of the input image sequence"):
+        check_paths([("INPUT", pattern)], [("--boxes", link, "box")])
+    for out in (seq / "img003.jpg", seq / "img0003.txt", tmp_path / "img0003.jpg"):  # not frames of it
+        check_paths([("INPUT", pattern)], [("--boxes", out, "box")])
+    assert sorted(p.name for p in seq.iterdir()) == ["img0001.jpg", "img0002.jpg", "img0003.jpg"]
+
+
+def test_a_file_literally_named_like_a_sequence_is_that_file(tmp_path, monkeypatch):
+    """``a%d.mp4`` beside ``a1.mp4``: OpenCV (FFmpeg) opens the literal file, so the check must
+    treat it as the input file (it took it for a sequence and let ``-o 'a%d.mp4'`` replace it)."""
+    from fastdet.io.reader import source_kind
+
+    monkeypatch.chdir(tmp_path)
+    Path("a%d.mp4").write_bytes(b"the input")
+    Path("a1.mp4").write_bytes(b"another")
+    assert source_kind("a%d.mp4") == "file"
+    with pytest.raises(DataError, match="would overwrite the input INPUT a%d.mp4"):
+        check_paths([("INPUT", "a%d.mp4")], [("-o", "a%d.mp4", "video")])
+    check_paths([("INPUT", "a%d.mp4")], [("-o", "a1.mp4", "video")])  # not read: OpenCV reads the literal file
+    _images(tmp_path, ["img1.png"])
+    assert source_kind("img%d.png") == "sequence"  # an image extension: FFmpeg's pattern
+
+
+def test_video_refuses_boxes_over_a_frame_of_its_sequence(tmp_path, capsys):
+    from fastdet.cli.main import main
+
+    seq = tmp_path / "seq2"
+    seq.mkdir()
+    _images(seq, [f"img{i:04d}.jpg" for i in (1, 2, 3)])
+    before = (seq / "img0003.jpg").read_bytes()
+    rc = main(["video", str(seq / "img%04d.jpg"), "--boxes", str(seq / "img0003.jpg")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "is a frame of the input image sequence" in err[0], err
+    assert (seq / "img0003.jpg").read_bytes() == before

@@ -80,10 +80,10 @@ def test_mine_image_sequence_with_annotations(data, tmp_path, capsys):
     files = sorted(out.glob("*.png"))
     assert files and all(cv2.imread(str(f)).shape == (24, 64, 3) for f in files)
     gt = read_gt(gt_path)
-    for f in files:  # test_fNNNNN_x_y_w.png
-        _, fr, x, y, w = f.stem.split("_")
-        frame, x, y, w = int(fr[1:]), int(x), int(y), int(w)
-        box = np.array([x, y, x + w, y + round(w * 24 / 64)])
+    for f in files:  # test_fNNNNN_x_y_w_h.png
+        _, fr, x, y, w, h = f.stem.split("_")
+        frame, x, y, w, h = int(fr[1:]), int(x), int(y), int(w), int(h)
+        box = np.array([x, y, x + w, y + h])
         g = gt.boxes[gt.frames == frame]
         inter_w = np.minimum(box[2], g[:, 2] + 8) - np.maximum(box[0], g[:, 0] - 8)
         inter_h = np.minimum(box[3], g[:, 3] + 8) - np.maximum(box[1], g[:, 1] - 8)

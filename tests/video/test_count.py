@@ -19,7 +19,8 @@ def test_count_line_sides_and_crossings():
     assert ln.crossed(np.array([50, 90]), np.array([60, 95])) == 0
     assert ln.crossed(np.array([50, 90]), np.array([50, 100])) == 0  # touching is not crossing
     assert CountLine.parse(" 1, 2,3,4") == CountLine(1, 2, 3, 4)
-    for bad in ("1,2,3", "a,b,c,d", "1,2,1,2", "1,2,3,inf"):
+    # issue 34 (17): 1e308 is finite but its cross products are not (NaN crossing tests)
+    for bad in ("1,2,3", "a,b,c,d", "1,2,1,2", "1,2,3,inf", "0,0,1e308,1e308", "0,0,1e200,5"):
         with pytest.raises(ValueError):
             CountLine.parse(bad)
 
