@@ -81,3 +81,32 @@ def test_hard_negatives_touch_no_box_and_skip_partial_pictures(tmp_path) -> None
     assert len(hard) == 7 and set(hard.labels) == {0} and set(hard.groups) == {"cam/d"}
     b = boxes_seen[0]
     assert not np.any(intersection(b, pics[0].boxes) > 0)
+
+
+def test_thin_video_frames_keeps_every_nth_frame_of_each_video_and_every_still(tmp_path) -> None:
+    from fastdet.train.pictures import thin_video_frames
+
+    def pic(path, frame):
+        return AnnotatedPicture("s", "c", f"{path}:{frame}", tmp_path / path, 64, 64, frame=frame)
+
+    pics = [pic("a.mp4", f) for f in (1, 6, 11, 16, 21)] + [pic("s.jpg", None), pic("b.mp4", 3), pic("b.mp4", 8),
+                                                             pic("t.jpg", None)]
+    kept = thin_video_frames(pics, 2)
+    # a plain loop: the k-th labelled frame of its video is kept when k is even; stills always
+    seen: dict[str, int] = {}
+    want = []
+    for p in pics:
+        k = seen.get(p.name.split(":")[0], 0)
+        seen[p.name.split(":")[0]] = k + 1
+        if p.frame is None or k % 2 == 0:
+            want.append(p.name)
+    assert [p.name for p in kept] == want == ["a.mp4:1", "a.mp4:11", "a.mp4:21", "s.jpg:None", "b.mp4:3", "t.jpg:None"]
+    assert thin_video_frames(pics, 1) == pics
+
+
+def test_picture_recipe_checks_its_numbers() -> None:
+    from fastdet.train.pictures import PictureRecipe
+
+    for bad in ({"every_other": 0}, {"jitter": -1}, {"C": 0.0}, {"mine_steps": 0}):
+        with pytest.raises(ValueError):
+            PictureRecipe(**bad)
