@@ -106,6 +106,12 @@ class PictureRecipe:
 
     every_other: keep one picture in ``every_other`` of each video's labelled frames (its
         neighbours are near copies); stills are all kept.
+    aspect_range, min_box_width: the target boxes that become positives of a square window:
+        width / height in ``[lo, hi)`` and at least this many pixels wide (a smaller box is a
+        blur when scaled up to 64 px; a side view or a bus is not this window's shape); the
+        other targets become ignore regions (no background crop is cut on them).
+    rounds: rounds of hard negatives: the first mined with the bundled model, each next one
+        with the model the previous round trained; every round's negatives are kept.
     jitter: shifted / rescaled copies of every positive crop.
     negatives_per_picture: random background windows of every complete picture.
     hard_per_picture: the highest-scoring false windows of the bundled model on every complete
@@ -116,6 +122,9 @@ class PictureRecipe:
     """
 
     every_other: int = 2
+    aspect_range: tuple[float, float] = (0.7, 1.6)
+    min_box_width: float = 40.0
+    rounds: int = 2
     jitter: int = 1
     negatives_per_picture: int = 8
     hard_per_picture: int = 10
@@ -130,8 +139,22 @@ class PictureRecipe:
     def __post_init__(self) -> None:
         if self.every_other < 1 or self.jitter < 0 or self.negatives_per_picture < 0 or self.hard_per_picture < 0:
             raise ValueError("every_other >= 1; jitter, negatives_per_picture, hard_per_picture >= 0")
-        if self.mine_cells_per_step < 1 or self.mine_steps < 1 or not self.C > 0:
-            raise ValueError("mine_cells_per_step and mine_steps must be >= 1, C > 0")
+        if self.mine_cells_per_step < 1 or self.mine_steps < 1 or not self.C > 0 or self.rounds < 1:
+            raise ValueError("mine_cells_per_step, mine_steps and rounds must be >= 1, C > 0")
+        lo, hi = self.aspect_range
+        if not 0 <= lo < hi or self.min_box_width < 0:
+            raise ValueError(f"aspect_range must be 0 <= lo < hi and min_box_width >= 0, got {self.aspect_range}, "
+                             f"{self.min_box_width}")
+
+    def window_targets(self, pic: AnnotatedPicture) -> AnnotatedPicture:
+        """``pic`` with only the targets of this window's kind (``aspect_range``,
+        ``min_box_width``); the others moved to its ignore regions."""
+        t = pic.targets
+        w, h = t[:, 2] - t[:, 0], np.maximum(t[:, 3] - t[:, 1], 1e-9)
+        ok = (w / h >= self.aspect_range[0]) & (w / h < self.aspect_range[1]) & (w >= self.min_box_width)
+        if ok.all():
+            return pic
+        return dataclasses.replace(pic, targets=t[ok], ignores=np.concatenate([pic.ignores, t[~ok]]))
 
 
 def thin_video_frames(pictures: Sequence[AnnotatedPicture], every_other: int) -> list[AnnotatedPicture]:
@@ -152,12 +175,14 @@ def thin_video_frames(pictures: Sequence[AnnotatedPicture], every_other: int) ->
 
 def picture_training_crops(pictures: Sequence[AnnotatedPicture], config: FeatureConfig,
                            recipe: PictureRecipe = PictureRecipe(), base: Model | None = None,
-                           progress: bool = True, log: Callable[[str], None] = print) -> CropSet | None:
+                           progress: bool = True, log: Callable[[str], None] = print,
+                           positives: bool = True) -> CropSet | None:
     """Every crop :func:`train_on_pictures` adds to the crop folders, as one labelled
     :class:`CropSet` of ``config``'s window (``None`` when there are none): positives and
     background of :func:`picture_crops`, and, when ``base`` (a model of the same features) is
-    given, its hard negatives (:func:`hard_negative_crops`). Pictures are decoded one video at a
-    time and dropped once cut."""
+    given, its hard negatives (:func:`hard_negative_crops`; only those with ``positives``
+    false). Targets not of the window's kind are ignore regions (:meth:`PictureRecipe.window_targets`).
+    Pictures are decoded one video at a time and dropped once cut."""
     from tqdm import tqdm
 
     if base is not None and base.config != config:
@@ -167,9 +192,11 @@ def picture_training_crops(pictures: Sequence[AnnotatedPicture], config: Feature
     bar = tqdm(total=len(pics), desc="pictures", unit="picture", disable=not progress, leave=False)
     parts, n_hard = [], 0
     for pic, image in load_pictures(pics):
+        pic = recipe.window_targets(pic)
         one = [(pic, image)]
-        parts.append(picture_crops([pic], config, recipe.jitter, recipe.negatives_per_picture,
-                                   seed=len(parts), frames=one))
+        if positives:
+            parts.append(picture_crops([pic], config, recipe.jitter, recipe.negatives_per_picture,
+                                       seed=len(parts), frames=one))
         if base is not None and recipe.hard_per_picture and pic.complete:
             h = hard_negative_crops(base, [pic], recipe.hard_per_picture, recipe.mine_min_score, frames=one,
                                     cells_per_step=recipe.mine_cells_per_step, steps=recipe.mine_steps,
@@ -189,21 +216,43 @@ def picture_training_crops(pictures: Sequence[AnnotatedPicture], config: Feature
     return extra
 
 
+def _joined(parts: Sequence[CropSet | None]) -> CropSet | None:
+    out = None
+    for p in parts:
+        if p is not None and len(p):
+            out = p if out is None else CropSet.concat(out, p)
+    return out
+
+
 def train_on_pictures(data: Path, pictures: Sequence[AnnotatedPicture], recipe: PictureRecipe = PictureRecipe(),
                       base: Model | None = None, progress: bool = True, log: Callable[[str], None] = print
                       ) -> tuple[Model, dict[str, Any]]:
-    """A main model from the crop folders of ``data`` plus crops of ``pictures``
-    (:func:`picture_training_crops` with the hard negatives of ``base``, default the bundled
-    model, whose features it keeps): ``(model, report)``."""
+    """A main-window model from the crop folders of ``data`` plus crops of ``pictures``:
+    positives and background (:func:`picture_training_crops`), then ``recipe.rounds`` rounds of
+    hard negatives -- the first of ``base`` (default the bundled model, whose features it keeps),
+    each next of the model the round before trained -- each round retrained on everything so
+    far: ``(model, report)``."""
     from ..model import load_model
     from .fit import train
 
-    base = load_model() if base is None else base
-    extra = picture_training_crops(pictures, base.config, recipe, base, progress, log)
-    model, report = train(data, base.config, C=recipe.C, split="none", seed=0, extra_crops=extra,
-                          truncate=recipe.truncate, truncate_keep=recipe.truncate_keep, reencode=recipe.reencode,
-                          progress=progress, log=log)
+    miner = load_model() if base is None else base
+    config = miner.config
+    crops = picture_training_crops(pictures, config, recipe, None, progress, log)
+    hard: list[CropSet | None] = []
+    rounds = []
+    model, report = miner, {}
+    for r in range(recipe.rounds):
+        t0 = time.perf_counter()
+        hard.append(picture_training_crops(pictures, config, recipe, miner, progress, log, positives=False))
+        model, report = train(data, config, C=recipe.C, split="none", seed=0, extra_crops=_joined([crops, *hard]),
+                              truncate=recipe.truncate, truncate_keep=recipe.truncate_keep, reencode=recipe.reencode,
+                              progress=progress, log=log)
+        rounds.append({"hard_negatives": 0 if hard[-1] is None else len(hard[-1]),
+                       "seconds": round(time.perf_counter() - t0, 1)})
+        log(f"round {r + 1} of {recipe.rounds}: {rounds[-1]['hard_negatives']} hard negatives "
+            f"({rounds[-1]['seconds']:.0f} s)")
+        miner = model
     pics = thin_video_frames(pictures, recipe.every_other)
     report["pictures"] = {"recipe": dataclasses.asdict(recipe), "pictures": len(pics),
-                          "cameras": sorted({p.camera for p in pics})}
+                          "cameras": sorted({p.camera for p in pics}), "rounds": rounds}
     return model, report
