@@ -235,7 +235,14 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
     if not refit:
         return None, report
     xt, yt = training_part(np.arange(len(crops)))
-    scaler, clf = fit_classifier(xt, yt, classifier, C, seed, in_place=True)  # xt is standardised now
+    return _final_fit(xt, yt, config, classifier, C, seed, report, t0, log)
+
+
+def _final_fit(xt: np.ndarray, yt: np.ndarray, config: FeatureConfig, classifier: str, C: float, seed: int,
+               report: dict[str, Any], t0: float, log: Any) -> tuple[Model, dict[str, Any]]:
+    """The model fitted on every training row ``xt`` (standardised in place), its training
+    accuracy in ``report``, which becomes its ``metadata["training"]``."""
+    scaler, clf = fit_classifier(xt, yt, classifier, C, seed, in_place=True)
     report["train_accuracy"] = float((clf.predict(xt) == yt).mean())
     model = Model(config=config, coef=clf.coef_.ravel(), intercept=float(clf.intercept_[0]),
                   mean=scaler.mean_, scale=scaler.scale_, classifier=classifier,
@@ -243,8 +250,6 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
     log(f"final fit on {len(yt)} crops: training accuracy {report['train_accuracy']:.4f} "
         f"({time.perf_counter() - t0:.1f} s)")
     return model, report
-
-
 
 
 def _fit_once(crops: CropSet, extra: CropSet | None, aug: Any, config: FeatureConfig, flip: bool, classifier: str,
@@ -273,12 +278,4 @@ def _fit_once(crops: CropSet, extra: CropSet | None, aug: Any, config: FeatureCo
     if len(aug):
         log(f"augmented copies: {len(aug)} ({int(aug.labels.sum())} vehicles) ({time.perf_counter() - t0:.1f} s)")
     log(f"features: {config.n_features} per crop, {n} training rows ({time.perf_counter() - t0:.1f} s)")
-    scaler, clf = fit_classifier(xt, yt, classifier, C, seed, in_place=True)
-    report = dict(report_base)
-    report["train_accuracy"] = float((clf.predict(xt) == yt).mean())
-    model = Model(config=config, coef=clf.coef_.ravel(), intercept=float(clf.intercept_[0]),
-                  mean=scaler.mean_, scale=scaler.scale_, classifier=classifier,
-                  metadata={"training": report})
-    log(f"final fit on {n} crops: training accuracy {report['train_accuracy']:.4f} "
-        f"({time.perf_counter() - t0:.1f} s)")
-    return model, report
+    return _final_fit(xt, yt, config, classifier, C, seed, dict(report_base), t0, log)
