@@ -1,0 +1,80 @@
+"""fastdet's ``video --boxes`` pipeline against the teacher CNN (YOLOX-nano through onnxruntime,
+the model of ``fastdet label``) on the same clip, side by side in one run, at 1 and 2 threads
+(issue 31's speed goal: fastdet at least 3x the teacher's frame rate at 640 px).
+
+Each measurement is a fresh process (``NUMBA_NUM_THREADS`` = the thread count; the teacher's
+onnxruntime threads the same) that decodes the whole clip and runs its detector on every frame:
+fastdet through :func:`fastdet.video.run.iter_video_detections` (what ``video --boxes`` runs,
+kernels compiled and the models loaded before the clock starts), the teacher through
+:class:`fastdet.teacher.TeacherDetector` (``--size``, default 640). Systems and thread counts take
+turns, ``--repeats`` times; the table has the best fps of each and the ratio.
+
+    python -m tools.studies.vs_teacher [--video V] [--size 640] [--repeats 3]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+
+from fastdet.data import data_dir
+
+_FASTDET = """
+import sys, time
+from fastdet._numba import ensure_compiled
+from fastdet.config import PipelineConfig
+from fastdet.video.detector import detector_kernels, make_detector
+from fastdet.video.run import iter_video_detections
+ensure_compiled(detector_kernels(make_detector(PipelineConfig())))
+t0 = time.perf_counter(); n = 0
+for _ in iter_video_detections(sys.argv[1], PipelineConfig(), progress=False):
+    n += 1
+print(n / (time.perf_counter() - t0))
+"""
+
+_TEACHER = """
+import sys, time
+from fastdet.io.reader import FrameReader
+from fastdet.teacher import TeacherDetector
+det = TeacherDetector(sys.argv[2], size=int(sys.argv[3]), threads=int(sys.argv[4]))
+t0 = time.perf_counter(); n = 0
+with FrameReader(sys.argv[1], notify=lambda _: None) as reader:
+    for i, (number, frame, _) in enumerate(reader):
+        if i == 0:
+            det.detect(frame); t0 = time.perf_counter()  # onnxruntime plans its first run
+        det.detect(frame); n += 1
+print(n / (time.perf_counter() - t0))
+"""
+
+
+def _fps(code: str, args: list[str], threads: int) -> float:
+    env = dict(os.environ, NUMBA_NUM_THREADS=str(threads), OMP_NUM_THREADS=str(threads))
+    out = subprocess.run([sys.executable, "-c", code, *args], env=env, capture_output=True, text=True, check=True)
+    return float(out.stdout.strip().splitlines()[-1])
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--video", default=str(data_dir() / "videos" / "test_small1.mp4"))
+    ap.add_argument("--teacher", default=str(data_dir() / "teachers" / "yolox_nano.onnx"))
+    ap.add_argument("--size", type=int, default=640)
+    ap.add_argument("--repeats", type=int, default=3)
+    args = ap.parse_args(argv)
+    best: dict[tuple[str, int], float] = {}
+    for _ in range(args.repeats):
+        for threads in (1, 2):
+            for name, code, extra in (("fastdet", _FASTDET, []),
+                                      ("teacher", _TEACHER, [args.teacher, str(args.size), str(threads)])):
+                fps = _fps(code, [args.video, *extra], threads)
+                best[name, threads] = max(best.get((name, threads), 0.0), fps)
+    print(f"| threads | fastdet `video --boxes` fps (ms / frame) | teacher {args.size} px fps (ms / frame) | ratio |")
+    print("|---:|---:|---:|---:|")
+    for t in (1, 2):
+        f, c = best["fastdet", t], best["teacher", t]
+        print(f"| {t} | {f:.1f} ({1000 / f:.1f}) | {c:.1f} ({1000 / c:.1f}) | {f / c:.2f}x |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
