@@ -225,13 +225,14 @@ def _joined(parts: Sequence[CropSet | None]) -> CropSet | None:
 
 
 def train_on_pictures(data: Path, pictures: Sequence[AnnotatedPicture], recipe: PictureRecipe = PictureRecipe(),
-                      base: Model | None = None, progress: bool = True, log: Callable[[str], None] = print
-                      ) -> tuple[Model, dict[str, Any]]:
+                      base: Model | None = None, progress: bool = True, log: Callable[[str], None] = print,
+                      max_per_folder: int | None = None) -> tuple[Model, dict[str, Any]]:
     """A main-window model from the crop folders of ``data`` plus crops of ``pictures``:
     positives and background (:func:`picture_training_crops`), then ``recipe.rounds`` rounds of
     hard negatives -- the first of ``base`` (default the bundled model, whose features it keeps),
     each next of the model the round before trained -- each round retrained on everything so
-    far: ``(model, report)``."""
+    far: ``(model, report)``. ``max_per_folder``: at most that many crops of each crop folder
+    (quick runs)."""
     from ..model import load_model
     from .fit import train
 
@@ -246,7 +247,7 @@ def train_on_pictures(data: Path, pictures: Sequence[AnnotatedPicture], recipe: 
         hard.append(picture_training_crops(pictures, config, recipe, miner, progress, log, positives=False))
         model, report = train(data, config, C=recipe.C, split="none", seed=0, extra_crops=_joined([crops, *hard]),
                               truncate=recipe.truncate, truncate_keep=recipe.truncate_keep, reencode=recipe.reencode,
-                              progress=progress, log=log)
+                              progress=progress, log=log, max_per_folder=max_per_folder)
         rounds.append({"hard_negatives": 0 if hard[-1] is None else len(hard[-1]),
                        "seconds": round(time.perf_counter() - t0, 1)})
         log(f"round {r + 1} of {recipe.rounds}: {rounds[-1]['hard_negatives']} hard negatives "

@@ -67,6 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--sets", help="only these teacher sets (comma-separated, e.g. teacher:tmo_night); default all")
     p.add_argument("--every-other", type=int, default=PictureRecipe.every_other,
                    help="keep one of every N labelled frames of a clip")
+    p.add_argument("--rounds", type=int, default=PictureRecipe.rounds, help="rounds of hard negatives")
+    p.add_argument("--max-per-folder", type=int, default=None, help="at most N crops a crop folder (quick runs)")
     p.add_argument("--no-progress", action="store_true")
     args = p.parse_args(argv)
     try:
@@ -80,8 +82,9 @@ def main(argv: list[str] | None = None) -> int:
             sets = {k: sets[k] for k in want}
         pictures = [pic for pics in sets.values() for pic in pics]
         t0 = time.perf_counter()
-        model, report = train_on_pictures(data, pictures, PictureRecipe(every_other=args.every_other),
-                                          progress=not args.no_progress)
+        recipe = PictureRecipe(every_other=args.every_other, rounds=args.rounds)
+        model, report = train_on_pictures(data, pictures, recipe, progress=not args.no_progress,
+                                          max_per_folder=args.max_per_folder)
         given = sys.argv[1:] if argv is None else argv
         report["command"] = "python -m tools.scripts.cameras_model " + shlex.join(given)
         report["sets"] = sorted(sets)
