@@ -39,8 +39,14 @@ from ._base import Config
 from .features import CELL, COLOR_SPACES, WINDOW, ColorSpace, FeatureConfig
 from .guided import GuidedSearch
 from .heat import ONCOMING_HEAT, SIDE_HEAT, BoxMode, HeatConfig, ScoreKind
-from .models import (DEFAULT_MODEL_PATH, ONCOMING_MODEL_PATH, PICTURE_MODEL_PATH, REFINE_MODEL_PATH, SIDE_MODEL_PATH,
-                     SMALL_MODEL_PATH)
+from .models import (
+    DEFAULT_MODEL_PATH,
+    ONCOMING_MODEL_PATH,
+    PICTURE_MODEL_PATH,
+    REFINE_MODEL_PATH,
+    SIDE_MODEL_PATH,
+    SMALL_MODEL_PATH,
+)
 from .motion import MotionGate
 from .ownvehicle import OwnVehicleConfig
 from .perspective import GeometryConfig, PerspectiveConfig
@@ -49,17 +55,17 @@ from .pipeline import Horizon, PipelineConfig
 from .plausible import PlausibleConfig
 from .refine import JitterConfig, RefineConfig
 from .search import (
-                     ONCOMING_SEARCH,
-                     REFERENCE_HORIZON,
-                     REFERENCE_SHAPE,
-                     SIDE_SEARCH,
-                     TRAFFIC_SIDES,
-                     SearchBand,
-                     SearchConfig,
-                     Traffic,
-                     check_traffic,
-                     oncoming_search,
-                     side_search,
+    ONCOMING_SEARCH,
+    REFERENCE_HORIZON,
+    REFERENCE_SHAPE,
+    SIDE_SEARCH,
+    TRAFFIC_SIDES,
+    SearchBand,
+    SearchConfig,
+    Traffic,
+    check_traffic,
+    oncoming_search,
+    side_search,
 )
 from .selfcal import SelfCalibration
 from .small import SMALL_FEATURES, SMALL_HEAT, SMALL_SEARCH, small_search
