@@ -76,11 +76,12 @@ from .track import TrackerConfig
 __all__ = ["BoxMode", "CELL", "COCO_VEHICLES", "COLOR_SPACES", "ColorSpace", "Config", "DEFAULT_MODEL_PATH",
            "FeatureConfig", "GeometryConfig", "GuidedSearch", "HeatConfig", "Horizon", "JitterConfig", "MotionGate",
            "NeighbourSplit", "ONCOMING_HEAT", "ONCOMING_MODEL_PATH", "ONCOMING_SEARCH", "OwnVehicleConfig",
-           "PICTURE_MODEL_PATH", "PICTURE_SEARCH", "PerspectiveConfig", "PictureBoxes", "PictureSearch", "PipelineConfig", "PlausibleConfig",
-           "REFERENCE_HORIZON", "REFERENCE_SHAPE", "REFINE_MODEL_PATH", "RefineConfig", "SIDE_HEAT", "SIDE_MODEL_PATH",
-           "SIDE_SEARCH", "SMALL_FEATURES", "SMALL_HEAT", "SMALL_MODEL_PATH", "SMALL_SEARCH", "ScoreKind",
-           "SearchBand", "SearchConfig", "SelfCalibration", "TRAFFIC_SIDES", "TeacherConfig", "TrackerConfig",
-           "Traffic", "WINDOW", "check_traffic", "oncoming_search", "side_search", "small_search"]
+           "PICTURE_MODEL_PATH", "PICTURE_SEARCH", "PerspectiveConfig", "PictureBoxes", "PictureSearch",
+           "PipelineConfig", "PlausibleConfig", "REFERENCE_HORIZON", "REFERENCE_SHAPE", "REFINE_MODEL_PATH",
+           "RefineConfig", "SIDE_HEAT", "SIDE_MODEL_PATH", "SIDE_SEARCH", "SMALL_FEATURES", "SMALL_HEAT",
+           "SMALL_MODEL_PATH", "SMALL_SEARCH", "ScoreKind", "SearchBand", "SearchConfig", "SelfCalibration",
+           "TRAFFIC_SIDES", "TeacherConfig", "TrackerConfig", "Traffic", "WINDOW", "check_traffic", "oncoming_search",
+           "side_search", "small_search"]
 
 #: former names, kept for code written against them: ``WIDE_HEAT``, ``WIDE_SEARCH``, ``wide_search``
 _RENAMED = {"WIDE_HEAT": "ONCOMING_HEAT", "WIDE_SEARCH": "ONCOMING_SEARCH", "wide_search": "oncoming_search"}

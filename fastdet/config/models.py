@@ -1,6 +1,7 @@
 """Where the bundled model files are: the main model, the oncoming-traffic (wide-window) model,
-the picture model, the side-view and small-vehicle components and the box regressor. :class:`~fastdet.config.PipelineConfig` names a
-model file by path, or ``None`` for the bundled one (:func:`resolve_model`)."""
+the picture model, the side-view and small-vehicle components and the box regressor.
+:class:`~fastdet.config.PipelineConfig` names a model file by path, or ``None`` for the bundled
+one (:func:`resolve_model`)."""
 from __future__ import annotations
 
 import os
