@@ -42,7 +42,6 @@ from .heat import ONCOMING_HEAT, SIDE_HEAT, BoxMode, HeatConfig, ScoreKind
 from .models import (
     DEFAULT_MODEL_PATH,
     ONCOMING_MODEL_PATH,
-    PICTURE_MODEL_PATH,
     REFINE_MODEL_PATH,
     SIDE_MODEL_PATH,
     SMALL_MODEL_PATH,
@@ -76,7 +75,7 @@ from .track import TrackerConfig
 __all__ = ["BoxMode", "CELL", "COCO_VEHICLES", "COLOR_SPACES", "ColorSpace", "Config", "DEFAULT_MODEL_PATH",
            "FeatureConfig", "GeometryConfig", "GuidedSearch", "HeatConfig", "Horizon", "JitterConfig", "MotionGate",
            "NeighbourSplit", "ONCOMING_HEAT", "ONCOMING_MODEL_PATH", "ONCOMING_SEARCH", "OwnVehicleConfig",
-           "PICTURE_MODEL_PATH", "PICTURE_SEARCH", "PerspectiveConfig", "PictureBoxes", "PictureSearch",
+           "PICTURE_SEARCH", "PerspectiveConfig", "PictureBoxes", "PictureSearch",
            "PipelineConfig", "PlausibleConfig", "REFERENCE_HORIZON", "REFERENCE_SHAPE", "REFINE_MODEL_PATH",
            "RefineConfig", "SIDE_HEAT", "SIDE_MODEL_PATH", "SIDE_SEARCH", "SMALL_FEATURES", "SMALL_HEAT",
            "SMALL_MODEL_PATH", "SMALL_SEARCH", "ScoreKind", "SearchBand", "SearchConfig", "SelfCalibration",

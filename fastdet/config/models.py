@@ -1,5 +1,5 @@
 """Where the bundled model files are: the main model, the oncoming-traffic (wide-window) model,
-the picture model, the side-view and small-vehicle components and the box regressor.
+the side-view and small-vehicle components and the box regressor.
 :class:`~fastdet.config.PipelineConfig` names a model file by path, or ``None`` for the bundled
 one (:func:`resolve_model`)."""
 from __future__ import annotations
@@ -11,11 +11,6 @@ from pathlib import Path
 MODELS_DIR = Path(__file__).resolve().parents[1] / "models"
 #: the bundled main model (64x64 windows)
 DEFAULT_MODEL_PATH = MODELS_DIR / "default.npz"
-#: the bundled picture model (64x64 windows, the main model's features): the single-picture search's
-#: (``fastdet image``, ``detect_picture``, ``eval --frames``), trained on the crops and the teacher-labelled
-#: frames of 17 cameras with rounds of hard negatives from whole frames, its operating point set on
-#: teacher frames it did not train on (``python -m tools.scripts.cameras_model``; docs/training.md)
-PICTURE_MODEL_PATH = MODELS_DIR / "pictures.npz"
 #: the bundled wide-window model for oncoming traffic above the median (``tools/scripts/oncoming_model.sh``)
 ONCOMING_MODEL_PATH = MODELS_DIR / "oncoming.npz"
 #: the bundled side-view component, 64x32 windows (``python -m tools.scripts.side_model``; docs/components.md)

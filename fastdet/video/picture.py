@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from ..config import PICTURE_MODEL_PATH, HeatConfig, PictureSearch
+from ..config import HeatConfig, PictureSearch
 from ..detect import Detector
 from ..detections import Detections
 from ..model import Model, load_model
@@ -39,10 +39,7 @@ def _decision(scores: np.ndarray, score_kind: str) -> np.ndarray:
 class PictureDetector:
     """Finds the vehicles of single pictures of any size (module docstring).
 
-    model: a :class:`~fastdet.model.Model`, a model file, or ``None`` for the bundled picture
-        model (``fastdet/models/pictures.npz``: trained with hard negatives from whole frames of
-        many cameras, so a search over the whole picture fires on less road and wall than the
-        video's main model does; docs/training.md).
+    model: a :class:`~fastdet.model.Model`, a model file, or ``None`` for the bundled model.
     config: the :class:`~fastdet.config.PictureSearch` (default ``PictureSearch()``).
 
     :meth:`detect` returns one box per vehicle; :meth:`windows` the positive windows it forms
@@ -51,8 +48,7 @@ class PictureDetector:
 
     def __init__(self, model: Model | str | os.PathLike[str] | None = None,
                  config: PictureSearch | None = None) -> None:
-        self.model = model if isinstance(model, Model) else load_model(
-            PICTURE_MODEL_PATH if model is None else model)
+        self.model = model if isinstance(model, Model) else load_model(model)
         self.config = config if config is not None else PictureSearch()
         if not isinstance(self.config, PictureSearch):
             raise TypeError(f"config must be a PictureSearch, got {type(self.config).__name__}")

@@ -1,5 +1,6 @@
-"""Build the picture model from the crop folders plus the teacher-labelled frames of many cameras
-(issue 31): ``fastdet/models/pictures.npz``, the model of the single-picture search.
+"""Build a picture model from the crop folders plus the teacher-labelled frames of many cameras
+(issue 31), for the single-picture search (``fastdet image --model M.npz``); measured, not
+shipped: docs/training.md "Learning from many cameras".
 
 Training material: the data folder's 64x64 crops (``vehicles/``, ``non-vehicles/``) and every
 teacher-labelled set of :func:`fastdet.labels.sets.shared_sets` (the 17 clips of ``teacher/``,
@@ -16,7 +17,7 @@ it never saw (``kitti_tiny`` excepted: the KITTI crops are that camera; the Udac
 
 Usage (from the repository root)::
 
-    python -m tools.scripts.cameras_model --out fastdet/models/pictures.npz [--data DIR] [--sets A,B] [--no-progress]
+    python -m tools.scripts.cameras_model --out pictures.npz [--rounds 2] [--data DIR] [--sets A,B] [--no-progress]
 
 The command that made a model is in its metadata (``metadata["training"]["command"]``).
 """
