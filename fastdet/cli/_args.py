@@ -12,7 +12,7 @@ from ..config import (
     PlausibleConfig,
     SelfCalibration,
 )
-from ..errors import FastdetError
+from ..errors import DataError, FastdetError
 
 
 def positive_int(s: str) -> int:
@@ -169,3 +169,33 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
     off = [name for name, flag in (("tracker", "no_track"), ("guided", "full_search"), ("refine", "no_refine"))
            if getattr(args, flag, False)]
     return config.without(*off)  # type: ignore[arg-type]
+
+
+def teacher_size(s: str) -> int:
+    """argparse type of ``--size``: whole px from 32 to 4096."""
+    from ..config.teacher import MAX_TEACHER_SIZE, MIN_TEACHER_SIZE
+
+    try:
+        v = int(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number of px, got {s!r}") from None
+    if not MIN_TEACHER_SIZE <= v <= MAX_TEACHER_SIZE:
+        raise argparse.ArgumentTypeError(f"must be from {MIN_TEACHER_SIZE} to {MAX_TEACHER_SIZE} px, got {v}")
+    return v
+
+
+def video_files(source: str) -> list[str]:
+    """The video files of VIDEO|DIR (a folder: its video files by name, sorted)."""
+    import os
+
+    from ..batch.inputs import is_video_name  # a table of extensions; no Dask imported
+    from ..io.reader import check_source
+
+    if not os.path.isdir(source):
+        check_source(source)
+        return [source]
+    found = sorted(os.path.join(source, f) for f in os.listdir(source)
+                   if not f.startswith(".") and is_video_name(f) and os.path.isfile(os.path.join(source, f)))
+    if not found:
+        raise DataError(f"{source}: no video files in this folder")
+    return found

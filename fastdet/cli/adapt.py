@@ -46,8 +46,7 @@ from ..io.paths import check_paths, is_inside
 from ..labels.picture import AnnotatedPicture
 from ..model import load_model
 from ..train import adapt as _adapt
-from ._args import fraction, positive_int
-from .label import _videos, teacher_size
+from ._args import fraction, positive_int, teacher_size, video_files
 
 PACKAGE_DIR = Path(__file__).resolve().parents[1]
 
@@ -177,7 +176,7 @@ def run(args: argparse.Namespace) -> int:
                            "labels), one of them")
     videos: list[str] = []
     for f in args.footage:
-        videos += _videos(f)
+        videos += video_files(f)
     _check_output(out, [("FOOTAGE", v) for v in videos] + [("--teacher", args.teacher)])
     data = Path(args.data or data_dir())
     _check_data(data)

@@ -35,27 +35,15 @@ from pathlib import Path
 from tqdm import tqdm
 
 from .. import signals as _signals
-from ..config.teacher import MAX_TEACHER_SIZE, MIN_TEACHER_SIZE
 from ..console import prog
 from ..errors import DataError
 from ..io.paths import check_paths
-from ..io.reader import FrameReader, check_source
+from ..io.reader import FrameReader
 from ..teacher.label import check_every, clip_name, is_labelled, teacher_paths, write_teacher_files
 from ..teacher.yolox import TeacherBoxes, TeacherDetector
-from ._args import positive_int
+from ._args import positive_int, teacher_size, video_files
 
 DEFAULT_EVERY = 5
-
-
-def teacher_size(s: str) -> int:
-    """argparse type of ``--size``: whole px from 32 to 4096."""
-    try:
-        v = int(s)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number of px, got {s!r}") from None
-    if not MIN_TEACHER_SIZE <= v <= MAX_TEACHER_SIZE:
-        raise argparse.ArgumentTypeError(f"must be from {MIN_TEACHER_SIZE} to {MAX_TEACHER_SIZE} px, got {v}")
-    return v
 
 
 def score_floor(s: str) -> float:
@@ -85,20 +73,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--threads", type=positive_int, default=None, metavar="N",
                         help="onnxruntime threads (default NUMBA_NUM_THREADS, else every core)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-
-
-def _videos(source: str) -> list[str]:
-    """The video files of VIDEO|DIR (a folder: its video files by name, sorted)."""
-    from ..batch.inputs import is_video_name  # a table of extensions; no Dask imported
-
-    if not os.path.isdir(source):
-        check_source(source)
-        return [source]
-    found = sorted(os.path.join(source, f) for f in os.listdir(source)
-                   if not f.startswith(".") and is_video_name(f) and os.path.isfile(os.path.join(source, f)))
-    if not found:
-        raise DataError(f"{source}: no video files in this folder")
-    return found
 
 
 def _check_videos(videos: list[str]) -> None:
@@ -137,7 +111,7 @@ def run(args: argparse.Namespace) -> int:
     """The ``label`` subcommand."""
     t_start = time.perf_counter()
     every = check_every(args.every)
-    videos = _videos(args.input)
+    videos = video_files(args.input)
     _check_videos(videos)
     detector = TeacherDetector(args.teacher, size=args.size, min_score=args.min_score,
                                threads=getattr(args, "threads", None))
