@@ -240,7 +240,7 @@ def test_real_cluster_worker_killed_mid_task_nothing_lost(long_clips, tmp_path: 
 
         running = wait_for(two_running, 120, "two running tasks")
         # temporary names are TOKEN.KIND.EXT (short whatever the video's name): the attempts' tokens
-        in_progress = {m["token"] for m in (re.match(r"^(?P<token>[0-9a-f]{16})\.boxes\.", p.name) for p in running)
+        in_progress = {m["token"] for m in (re.match(r"^\.?(?P<token>[0-9a-f]{16})\.boxes\.", p.name) for p in running)
                        if m}
         assert len(in_progress) >= 2, running
         workers[0].send_signal(signal.SIGKILL)
