@@ -35,7 +35,7 @@ from pathlib import Path
 from ..errors import DataError
 from .imagesize import IMAGE_SUFFIXES, image_size
 from .picture import AnnotatedPicture
-from .rules import Box, camera_for, check_folder, make_picture, normal_name, not_empty, number, read_text
+from .rules import Box, camera_for, check_folder, make_picture, normal_name, not_empty, number, read_text, text_lines
 
 #: a vehicle more than this fraction out of the picture is an ignore region
 MAX_TRUNCATED = 0.5
@@ -54,11 +54,7 @@ def parse_kitti(text: str, source: str) -> list[Box]:
     """The boxes of one KITTI label file's ``text`` (pixels; dropped types left out);
     ``source`` names the file in errors."""
     boxes: list[Box] = []
-    for lineno, raw in enumerate(text.splitlines(), start=1):
-        line = raw.strip()
-        if not line:
-            continue
-        where = f"{source}: line {lineno}"
+    for where, line in text_lines(text, source):
         fields = line.split()
         if len(fields) not in (15, 16):
             raise DataError(f"{where}: expected 15 fields (16 with a score), got {len(fields)}: {line[:60]!r}")

@@ -34,7 +34,7 @@ from ..io.keyframes import GT_SUFFIX, keyframes_for
 from ..io.motfiles import parse_gt
 from .imagesize import video_size
 from .picture import AnnotatedPicture
-from .rules import Box, camera_for, check_folder, make_picture, not_empty, read_text
+from .rules import Box, camera_for, make_picture, not_empty, read_clips, read_text
 
 #: video file suffixes looked for beside a clip's labels (lower case)
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg", ".wmv")
@@ -114,16 +114,5 @@ def read_mot(path: str | Path, *, every: int = EVERY, source: str | None = None,
     """The annotated frames of one clip (``path`` a ``CLIP.gt.txt``) or of every clip of a
     folder (``ROOT`` with ``annotations/*.gt.txt``, or the annotations folder itself), clips
     in name order; see :func:`read_mot_clip`."""
-    path = Path(path)
-    if path.is_file():
-        return read_mot_clip(path, every=every, source=source, camera=camera, complete=complete)
-    folder = check_folder(path, "MOTChallenge clips")
-    if (folder / "annotations").is_dir():
-        folder = folder / "annotations"
-    gts = sorted(folder.glob("*" + GT_SUFFIX))
-    if not gts:
-        raise DataError(f"{folder}: no *{GT_SUFFIX} ground-truth files")
-    out: list[AnnotatedPicture] = []
-    for gt in gts:
-        out.extend(read_mot_clip(gt, every=every, source=source, camera=camera, complete=complete))
-    return out
+    return read_clips(path, GT_SUFFIX, "annotations", "MOTChallenge clips", "ground-truth",
+                      lambda f: read_mot_clip(f, every=every, source=source, camera=camera, complete=complete))

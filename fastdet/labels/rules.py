@@ -18,7 +18,7 @@ where it was read (``"FILE: line N"``) -- and :func:`make_picture` turns them in
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -191,3 +191,33 @@ def camera_for(camera: str | Callable[[str], str] | None, default: str, name: st
     if camera is None:
         return default
     return camera if isinstance(camera, str) else camera(name)
+
+
+def text_lines(text: str, source: str) -> Iterator[tuple[str, str]]:
+    """``(where, line)`` of every non-blank line of a label file's ``text``, stripped;
+    ``where`` is ``"SOURCE: line N"`` (1-based) for its errors."""
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        line = raw.strip()
+        if line:
+            yield f"{source}: line {lineno}", line
+
+
+def read_clips(path: str | Path, suffix: str, subfolder: str, folder_what: str, what: str,
+               read_one: Callable[[Path], list[AnnotatedPicture]]) -> list[AnnotatedPicture]:
+    """The pictures of one clip's file (``path`` a file: ``read_one(path)``) or of every
+    ``*SUFFIX`` file of a folder (``ROOT`` with ``SUBFOLDER/``, or that folder itself), clips in
+    name order; DataError when it is no folder (``folder_what`` names it) or has none of them
+    (``what`` names the kind of file)."""
+    path = Path(path)
+    if path.is_file():
+        return read_one(path)
+    folder = check_folder(path, folder_what)
+    if (folder / subfolder).is_dir():
+        folder = folder / subfolder
+    files = sorted(folder.glob("*" + suffix))
+    if not files:
+        raise DataError(f"{folder}: no *{suffix} {what} files")
+    out: list[AnnotatedPicture] = []
+    for f in files:
+        out.extend(read_one(f))
+    return out

@@ -37,7 +37,7 @@ from ..io.keyframes import read_keyframes
 from .imagesize import video_size
 from .mot import clip_name, find_video
 from .picture import AnnotatedPicture
-from .rules import Box, camera_for, check_folder, make_picture, not_empty, number, read_text
+from .rules import Box, camera_for, make_picture, not_empty, number, read_clips, read_text, text_lines
 
 #: suffix of a teacher detection file and of its list of frames looked at
 TEACHER_SUFFIX = ".teacher.txt"
@@ -54,11 +54,7 @@ def parse_teacher(text: str, source: str, min_score: float = MIN_SCORE) -> dict[
     """``{frame: boxes}`` of a teacher file's ``text`` (frames with boxes only; dropped classes
     left out); ``source`` names the file in errors."""
     out: dict[int, list[Box]] = {}
-    for lineno, raw in enumerate(text.splitlines(), start=1):
-        line = raw.strip()
-        if not line:
-            continue
-        where = f"{source}: line {lineno}"
+    for where, line in text_lines(text, source):
         fields = [f.strip() for f in line.split(",")]
         if not 8 <= len(fields) <= 10:
             raise DataError(f"{where}: expected 10 comma-separated fields "
@@ -123,16 +119,6 @@ def read_teacher(path: str | Path, *, min_score: float = MIN_SCORE, source: str 
     """The teacher's frames of one clip (``path`` a ``CLIP.teacher.txt``) or of every clip of
     a folder (``ROOT`` with ``teacher/``, or the ``teacher/`` folder itself), clips in name
     order; see :func:`read_teacher_clip`."""
-    path = Path(path)
-    if path.is_file():
-        return read_teacher_clip(path, min_score=min_score, source=source, camera=camera, complete=complete)
-    folder = check_folder(path, "teacher")
-    if (folder / "teacher").is_dir():
-        folder = folder / "teacher"
-    files = sorted(folder.glob("*" + TEACHER_SUFFIX))
-    if not files:
-        raise DataError(f"{folder}: no *{TEACHER_SUFFIX} teacher files")
-    out: list[AnnotatedPicture] = []
-    for f in files:
-        out.extend(read_teacher_clip(f, min_score=min_score, source=source, camera=camera, complete=complete))
-    return out
+    return read_clips(path, TEACHER_SUFFIX, "teacher", "teacher", "teacher",
+                      lambda f: read_teacher_clip(f, min_score=min_score, source=source, camera=camera,
+                                                  complete=complete))

@@ -31,7 +31,7 @@ from pathlib import Path
 from ..errors import DataError
 from .imagesize import IMAGE_SUFFIXES, image_size
 from .picture import AnnotatedPicture
-from .rules import Box, camera_for, check_folder, class_kind, make_picture, not_empty, number, read_text
+from .rules import Box, camera_for, check_folder, class_kind, make_picture, not_empty, number, read_text, text_lines
 
 #: the class map's file name
 CLASSES_FILE = "classes.txt"
@@ -57,11 +57,7 @@ def parse_yolo(text: str, source: str, kinds: list[bool | None], width: int, hei
     """The boxes of one YOLO label file's ``text`` in pixels of a ``width x height`` picture
     (dropped classes left out); ``source`` names the file in errors."""
     boxes: list[Box] = []
-    for lineno, raw in enumerate(text.splitlines(), start=1):
-        line = raw.strip()
-        if not line:
-            continue
-        where = f"{source}: line {lineno}"
+    for where, line in text_lines(text, source):
         fields = line.split()
         if len(fields) != 5:
             raise DataError(f"{where}: expected 5 fields 'class cx cy w h', got {len(fields)}: {line[:60]!r}")
