@@ -33,6 +33,15 @@ def test_images(data: Path) -> list[Path]:
     return paths
 
 
+@pytest.fixture(scope="session")
+def yolox_nano(data: Path) -> Path:
+    """The data folder's teacher CNN, ``teachers/yolox_nano.onnx`` (skipped where it is not)."""
+    p = data / "teachers" / "yolox_nano.onnx"
+    if not p.exists():
+        pytest.skip(f"{p} not found")
+    return p
+
+
 # ------------------------------------------------------------------------- slow tests
 # Tests marked ``@pytest.mark.slow`` (several seconds each: training, every window of every
 # band against the classic pipeline, ...) are left out of a plain ``pytest`` run; ``--slow``

@@ -22,11 +22,8 @@ pytest.importorskip("onnxruntime")
 
 
 @pytest.fixture(scope="module")
-def teacher(data: Path) -> Path:
-    p = data / "teachers" / "yolox_nano.onnx"
-    if not p.exists():
-        pytest.skip(f"{p} not found")
-    return p
+def teacher(yolox_nano: Path) -> Path:
+    return yolox_nano
 
 
 def _one_line(err: str) -> str:

@@ -70,11 +70,8 @@ def matched_f1(ours: np.ndarray, theirs: np.ndarray, frames: list[int], score: f
 
 
 @pytest.fixture(scope="module")
-def model(data: Path) -> Path:
-    p = data / "teachers" / "yolox_nano.onnx"
-    if not p.exists():
-        pytest.skip(f"{p} not found")
-    return p
+def model(yolox_nano: Path) -> Path:
+    return yolox_nano
 
 
 @pytest.fixture(scope="module")

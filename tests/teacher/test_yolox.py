@@ -25,11 +25,8 @@ VEHICLES = (2, 3, 5, 7)
 
 
 @pytest.fixture(scope="module")
-def model(data: Path) -> Path:
-    p = data / "teachers" / "yolox_nano.onnx"
-    if not p.exists():
-        pytest.skip(f"{p} not found")
-    return p
+def model(yolox_nano: Path) -> Path:
+    return yolox_nano
 
 
 # ------------------------------------------------------------------ the slow reference
