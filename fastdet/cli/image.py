@@ -73,6 +73,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--merge", choices=("nms", "heat"), default=d.boxes,
                         help=f"how windows become boxes: non-maximum suppression or a single-frame heat map "
                              f"(default PictureSearch.boxes = {d.boxes})")
+    parser.add_argument("--no-refine", action="store_true",
+                        help="no learned box refinement (the boxes are the windows or blobs as found)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -161,7 +163,7 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
             if os.path.realpath(out_dir / out_name(name)) in inputs:
                 raise DataError(f"-o {out_dir}: would overwrite the input {name}; give another folder")
     try:
-        config = PictureSearch(boxes=args.merge,
+        config = PictureSearch(boxes=args.merge, **({"refine": None} if args.no_refine else {}),
                                **({} if args.threshold is None else {"heat_threshold": args.threshold}))
     except ValueError as exc:
         raise FastdetError(f"--threshold: {exc}") from None
@@ -198,6 +200,7 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
                 bar.update(1)
                 continue
             boxes, hm = detector.boxes_from_windows(windows, img.shape)
+            boxes = detector.refine(img, boxes)
             n_boxes += len(boxes)
             for b, s in zip(boxes.boxes, boxes.scores):
                 csv.write(f"{name},{int(b[0])},{int(b[1])},{int(b[2])},{int(b[3])},{float(s):.4f}\n")

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 from ._base import Config
+from .refine import RefineConfig
 from .search import SearchBand, SearchConfig
 
 #: how positive windows become boxes on one picture
@@ -46,6 +47,9 @@ class PictureSearch(Config):
         :attr:`HeatConfig.threshold <fastdet.config.HeatConfig>`).
     nms_iou: two windows overlapping at more than this IoU see the same vehicle (``'nms'``).
     nms_min_score: decision value a window needs to become a box (``'nms'``; at least ``threshold``).
+    refine: how the learned box regressor moves each box onto its vehicle
+        (:class:`~fastdet.config.RefineConfig`, the video's; :mod:`fastdet.video.refine`);
+        ``None``: the boxes are the windows (or blobs) as found.
     """
 
     min_width: float = 1 / 32
@@ -57,6 +61,7 @@ class PictureSearch(Config):
     heat_threshold: float = 8.0
     nms_iou: float = 0.3
     nms_min_score: float = 2.0
+    refine: RefineConfig | None = RefineConfig()
 
     def __post_init__(self) -> None:
         if not 0 < self.min_width <= 1:

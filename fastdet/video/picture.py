@@ -4,7 +4,10 @@ and :func:`detect_picture`.
 The whole picture is searched at every scale (:class:`~fastdet.config.PictureSearch`: window
 sizes from 1/32 of the width up to the picture's height), and the positive windows become
 one box per vehicle by a single-frame heat map (:class:`~fastdet.video.heatmap.HeatMap`,
-``n_frames=1``) or by non-maximum suppression of the windows (``PictureSearch.boxes``).
+``n_frames=1``) or by non-maximum suppression of the windows (``PictureSearch.boxes``). Then
+the video's learned box regressor (:mod:`fastdet.video.refine`, ``PictureSearch.refine``) moves
+each box onto its vehicle: a square window on a car wider than tall reaches IoU 0.5 with it only
+when the car is at most twice as wide as tall, and the regressor fits the box to the car.
 ``python -m fastdet image`` runs exactly this, so the command and the call give the same boxes.
 """
 from __future__ import annotations
@@ -22,6 +25,8 @@ from ..model import Model, load_model
 from .heatmap import KERNELS as HEAT_KERNELS
 from .heatmap import HeatMap
 from .plausible import duplicates
+from .refine import KERNELS as REFINE_KERNELS
+from .refine import BoxRegressor, load_regressor, refine
 
 #: pictures sizes whose :class:`fastdet.Detector` a :class:`PictureDetector` keeps
 _CACHED_SHAPES = 8
@@ -41,17 +46,25 @@ class PictureDetector:
 
     model: a :class:`~fastdet.model.Model`, a model file, or ``None`` for the bundled model.
     config: the :class:`~fastdet.config.PictureSearch` (default ``PictureSearch()``).
+    refine_model: the box regressor (a :class:`~fastdet.video.refine.BoxRegressor` or its file;
+        ``None``: the bundled one), used when ``config.refine`` is set.
 
-    :meth:`detect` returns one box per vehicle; :meth:`windows` the positive windows it forms
-    them from. One :class:`fastdet.Detector` is kept per picture size (the last few sizes).
+    :meth:`detect` returns one box per vehicle: :meth:`windows`, the positive windows,
+    :meth:`boxes_from_windows`, one box per vehicle as found, then :meth:`refine`. One
+    :class:`fastdet.Detector` is kept per picture size (the last few sizes).
     """
 
     def __init__(self, model: Model | str | os.PathLike[str] | None = None,
-                 config: PictureSearch | None = None) -> None:
+                 config: PictureSearch | None = None,
+                 refine_model: BoxRegressor | str | os.PathLike[str] | None = None) -> None:
         self.model = model if isinstance(model, Model) else load_model(model)
         self.config = config if config is not None else PictureSearch()
         if not isinstance(self.config, PictureSearch):
             raise TypeError(f"config must be a PictureSearch, got {type(self.config).__name__}")
+        self.regressor: BoxRegressor | None = None
+        if self.config.refine is not None:
+            self.regressor = (refine_model if isinstance(refine_model, BoxRegressor)
+                              else load_regressor(refine_model))
         self.heat_config = HeatConfig().single_frame(self.config.heat_threshold)
         self.score_kind = self.model.score_kind
         self._detectors: OrderedDict[tuple[int, int], Detector] = OrderedDict()
@@ -59,7 +72,7 @@ class PictureDetector:
     @property
     def kernels(self) -> tuple[Any, ...]:
         """Every numba kernel :meth:`detect` runs (to compile them all at once)."""
-        return (*Detector.kernels, *HEAT_KERNELS)
+        return (*Detector.kernels, *HEAT_KERNELS, *(REFINE_KERNELS if self.regressor is not None else ()))
 
     def detector(self, shape: tuple[int, ...]) -> Detector:
         """The :class:`fastdet.Detector` that searches pictures of ``shape = (H, W[, C])``
@@ -95,17 +108,30 @@ class PictureDetector:
         keep = duplicates(strong.boxes, dec, self.config.nms_iou)
         return Detections(strong.boxes[keep].astype(np.int32), dec[keep].astype(np.float32)), None
 
+    def refine(self, image: np.ndarray, boxes: Detections, rgb: bool = False) -> Detections:
+        """``boxes`` of ``image`` (``(H, W, 3) uint8``, BGR or RGB with ``rgb``) moved onto
+        their vehicles by the box regressor (``config.refine``; unchanged when it is ``None``);
+        scores as they were."""
+        if self.regressor is None or self.config.refine is None or len(boxes) == 0:
+            return boxes
+        bgr = np.ascontiguousarray(np.asarray(image)[..., ::-1]) if rgb else np.asarray(image)
+        return refine(bgr, boxes, self.regressor, self.config.refine)
+
     def detect(self, image: np.ndarray, rgb: bool = False) -> Detections:
         """One box per vehicle in ``image`` (``(H, W, 3) uint8``, BGR or RGB with ``rgb``):
         :class:`~fastdet.detections.Detections` with ``boxes (N, 4) int32`` x1, y1, x2, y2
         (exclusive) px and ``scores (N,) float32`` (peak heat, or decision value with
         ``boxes='nms'``)."""
-        return self.boxes_from_windows(self.windows(image, rgb), np.shape(image))[0]
+        found = self.boxes_from_windows(self.windows(image, rgb), np.shape(image))[0]
+        return self.refine(image, found, rgb)
 
     def warmup(self) -> None:
         """Compile (or load) the kernels and run them once on a small picture."""
         Detector(self.model, self.config.search((128, 128))).warmup()
         HeatMap((8, 8), self.heat_config).warmup()
+        if self.regressor is not None:
+            self.refine(np.zeros((64, 64, 3), np.uint8), Detections(np.array([[8, 8, 56, 56]], np.int32),
+                                                                    np.ones(1, np.float32)))
 
     def close(self) -> None:
         """Stop the detectors' band threads."""
