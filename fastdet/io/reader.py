@@ -34,7 +34,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from .. import signals
+from .. import exiting, signals
 from ..console import note, quiet_opencv
 from ..errors import DataError, FastdetError
 
@@ -150,6 +150,7 @@ def _open_capture(name: str, kind: str, timeout: float | None = None) -> Any:
     t = threading.Thread(target=open_it, name="fastdet-open", daemon=True)
     t.start()
     if not signals.wait(lambda: not t.is_alive(), limit):
+        exiting.leave_behind(t)  # still inside OpenCV: the process must not wait for it at exit
         signals.check()  # a stop signal: Stopped
         raise DataError(f"{name}: the source did not open within {limit:g} s (a pipe nobody writes to, "
                         f"a stream that does not answer?)")
@@ -408,6 +409,8 @@ class FrameReader:
                     pass
             # a decoder blocked in a read of a stalled stream is left behind (a daemon thread)
             self._thread.join(timeout=0.1)
+            if self._thread.is_alive():
+                exiting.leave_behind(self._thread)
         else:
             self._cap.release()
 
