@@ -77,10 +77,41 @@ class _WorkerSetup(WorkerPlugin):
         _glibc_malloc_defaults()
 
 
+#: the loggers of Dask's client side in this process, quiet while a batch runs
+DASK_LOGGERS = ("distributed", "tornado")
+
+
+@contextlib.contextmanager
+def _quiet_dask() -> Iterator[None]:
+    """Dask's own log records of this process (the client's) at ``CRITICAL`` only: a remote
+    scheduler killed mid-run printed "distributed.client - ERROR -" with two tracebacks of its
+    reconnect attempts (issue 34, item 19). What it means is said by the batch itself: each
+    video it cancelled is "failed: the connection to the Dask scheduler was lost", in the
+    progress lines, the summary and the manifest."""
+    names = {n for n in logging.root.manager.loggerDict if n.split(".")[0] in DASK_LOGGERS} | set(DASK_LOGGERS)
+    loggers = [logging.getLogger(name) for name in sorted(names)]  # Dask's config sets levels on the children too
+    levels = [lg.level for lg in loggers]
+    for lg in loggers:
+        lg.setLevel(logging.CRITICAL)
+    try:
+        yield
+    finally:
+        for lg, level in zip(loggers, levels):
+            lg.setLevel(level)
+
+
 @contextlib.contextmanager
 def _client(opts: BatchOptions) -> Iterator[tuple[Client, int]]:
     """A client on the local cluster or on ``opts.scheduler``, closed (with the local
-    cluster) on exit; yields ``(client, number of workers)``."""
+    cluster) on exit; yields ``(client, number of workers)``. Dask's log records are quiet
+    meanwhile (:func:`_quiet_dask`)."""
+    with _quiet_dask():
+        with _client_of(opts) as made:
+            yield made
+
+
+@contextlib.contextmanager
+def _client_of(opts: BatchOptions) -> Iterator[tuple[Client, int]]:
     cluster = None
     try:
         if opts.scheduler:

@@ -59,6 +59,20 @@ def stat_error(name: str, exc: OSError) -> DataError:
     return DataError(f"{name}: cannot read ({exc.strerror or exc})")
 
 
+def not_found(path: str | os.PathLike[str], message: str) -> DataError:
+    """The error for ``path`` found missing (``os.path.exists`` / ``is_file`` / ``is_dir`` said
+    no): ``message`` when it is absent, else why it cannot be reached -- a symlink loop
+    ("symlink loop", not "file not found": ``exists`` is ``False`` for both), a name too long,
+    no permission (:func:`stat_error`)."""
+    name = os.fspath(path)
+    try:
+        os.stat(name)
+    except OSError as exc:
+        if exc.errno not in (errno.ENOENT, errno.ENOTDIR):
+            return stat_error(name, exc)
+    return DataError(message)
+
+
 def check_input(path: str | os.PathLike[str], what: str = "file") -> os.stat_result:
     """``path``'s ``stat`` when it is a regular file; :class:`DataError` (one line: "file not
     found", "symlink loop", "is a folder", "is a named pipe (FIFO) ...") otherwise. Nothing is

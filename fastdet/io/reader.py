@@ -37,6 +37,7 @@ import numpy as np
 from .. import exiting, signals
 from ..console import note, quiet_opencv
 from ..errors import DataError, FastdetError
+from .files import not_found
 
 QUEUE_SIZE = 8
 #: seconds a live source (pipe, stream, camera) may take to open
@@ -127,7 +128,7 @@ def check_source(source: str | os.PathLike | int) -> str:
     if kind == "file":
         name = os.fspath(source)
         if not os.path.exists(name):
-            raise DataError(f"{name}: file not found")
+            raise not_found(name, f"{name}: file not found")
         if os.path.isdir(name):
             raise DataError(f"{name}: is a folder, not a video")
     return kind

@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import DataError
+from ..io.files import not_found
 from .imagesize import image_size
 from .picture import AnnotatedPicture
 from .rules import Box, camera_for, class_kind, make_picture, not_empty, read_text
@@ -69,7 +70,7 @@ def _paths(path: Path) -> tuple[Path, Path]:
     if path.is_dir():
         path = path / INSTANCES_FILE
     if not path.is_file():
-        raise DataError(f"{path}: COCO json not found")
+        raise not_found(path, f"{path}: COCO json not found")
     images = path.parent / "images"
     return path, images if images.is_dir() else path.parent
 

@@ -43,6 +43,7 @@ import numpy as np
 from ..config.teacher import TeacherConfig
 from ..detections import Detections
 from ..errors import FastdetError, ModelError
+from ..io.files import not_found
 
 #: the grid strides of a YOLOX head, in the order of the output's rows
 STRIDES: tuple[int, ...] = (8, 16, 32)
@@ -179,7 +180,7 @@ class TeacherDetector:
         self.path = Path(path)
         name = os.fspath(path)
         if not os.path.exists(name):
-            raise ModelError(f"{name}: file not found")
+            raise ModelError(str(not_found(name, f"{name}: file not found")))
         if not os.path.isfile(name):
             raise ModelError(f"{name}: is not a file (expected an .onnx model)")
         ort = _import_onnxruntime()

@@ -45,3 +45,30 @@ def test_without_dask_says_how_to_get_it(tmp_path: Path) -> None:
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and "pip install fastdet[cluster]" in lines[0]
     assert not (tmp_path / "o").exists()
+
+
+def test_dask_log_records_are_quiet_while_a_batch_runs() -> None:
+    """A remote scheduler killed mid-run: Dask's client logged "distributed.client - ERROR -" with
+    two tracebacks of its reconnect attempts (issue 34, item 19). Its loggers (Dask's config sets
+    levels on the children too) are at CRITICAL while the client lives, and restored after."""
+    import logging
+
+    client_log = logging.getLogger("distributed.client")
+    before = client_log.level
+    client_log.setLevel(logging.WARNING)  # what Dask's default config sets
+    try:
+        with cluster._quiet_dask():
+            assert not client_log.isEnabledFor(logging.ERROR)
+            assert not logging.getLogger("distributed").isEnabledFor(logging.ERROR)
+        assert client_log.level == logging.WARNING
+    finally:
+        client_log.setLevel(before)
+
+
+def test_a_lost_scheduler_connection_is_said_in_words() -> None:
+    from distributed.client import FutureCancelledError
+
+    from fastdet.batch.job import _one_line
+
+    exc = FutureCancelledError("fastdet-batch-x-v2", "scheduler-connection-lost")
+    assert _one_line(exc) == "the connection to the Dask scheduler was lost (the video is run again on the next run)"
