@@ -186,8 +186,6 @@ def run(args: argparse.Namespace) -> int:
     if args.teacher is not None:
         from ..teacher.yolox import TeacherDetector
 
-        if not os.path.isfile(args.teacher):
-            raise not_found(args.teacher, f"--teacher {args.teacher}: file not found")
         detector = TeacherDetector(args.teacher, size=args.teacher_size, threads=args.threads)
     else:
         from ..labels.sets import read_spec

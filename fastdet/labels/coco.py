@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import DataError
-from ..io.files import not_found
+from ..io.files import JsonError, not_found, parse_json
 from .imagesize import image_size
 from .picture import AnnotatedPicture
 from .rules import Box, camera_for, class_kind, make_picture, not_empty, read_text
@@ -88,9 +88,9 @@ def read_coco(path: str | Path, *, source: str | None = None, camera: str | Call
     source = source or json_path.parent.name
     src = str(json_path)
     try:
-        doc = json.loads(read_text(json_path, "COCO json"))
-    except json.JSONDecodeError as exc:
-        raise DataError(f"{src}: line {exc.lineno}: not valid json ({exc.msg}, column {exc.colno})") from None
+        doc = parse_json(read_text(json_path, "COCO json"))
+    except JsonError as exc:
+        raise DataError(f"{src}: not valid json ({exc})") from None
     if not isinstance(doc, dict):
         raise DataError(f"{src}: expected a COCO json object with 'images', 'annotations', 'categories'")
 

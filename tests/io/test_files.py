@@ -122,3 +122,16 @@ def test_every_input_found_missing_says_symlink_loop(tmp_path, loop):
                lambda: expand_inputs([str(loop)])):
         exc = _within(5, fn)
         assert isinstance(exc, (DataError, ModelError)) and "symlink loop" in str(exc), exc
+
+
+def test_parse_json_fails_in_one_line_for_every_input():
+    """Every JSON input (COCO files, JSON-lines boxes, the manifest, model metadata) parses through
+    one function whose failures are a JsonError with a few words: 200,000 ``[`` was a
+    RecursionError traceback, a 5,000-digit number a ValueError traceback (issue 34)."""
+    from fastdet.io.files import JsonError, parse_json
+
+    assert parse_json('{"a": [1, 2.5]}') == {"a": [1, 2.5]}
+    for text, words in (("[" * 200_000, "nested too deeply"), ("9" * 5000, "a number too long"),
+                        ('{"a": 1,}', "line 1: Expecting property name"), (b"\xff", "not UTF-8")):
+        with pytest.raises(JsonError, match=words):
+            parse_json(text)
