@@ -333,3 +333,23 @@ def test_a_cache_error_that_is_not_the_places_still_shows(tmp_path, monkeypatch)
     with pytest.raises(OSError, match="Bad file descriptor"):
         caching.Cache.save_overload(object(), "sig", None)
     assert calls == ["sig"]
+
+
+def test_no_writable_cache_folder_anywhere_is_one_note(tmp_path):
+    """A read-only container (``NUMBA_CACHE_DIR`` read-only, the package read-only, no writable
+    user cache folder): Numba raised ``RuntimeError: cannot cache function ...: no locator
+    available`` when a kernel module was imported; now one note and the code compiles in memory."""
+    (tmp_path / "cached_mod.py").write_text("import numba\n\n@numba.njit(cache=True)\ndef add_one(x):\n"
+                                            "    return x + 1\n")
+    code = ("from numba.core import caching\n"
+            "import fastdet._numba\n"
+            "caching.CacheImpl._locator_classes = []  # no folder Numba could write\n"
+            "import cached_mod\n"
+            "print(cached_mod.add_one(2), fastdet._numba.cache_failed())\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), str(ROOT.parent)])}
+    env.pop("NUMBA_CACHE_DIR", None)
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.strip() == "3 no folder can be written", p.stdout
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and "no folder for the Numba cache can be written" in lines[0], p.stderr

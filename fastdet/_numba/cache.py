@@ -14,13 +14,16 @@ them from memory; later runs compile them again until the cache can be written" 
 run goes on. A warning and going on, not an error: the user's command and inputs are fine,
 only the next start-up is slower; an error would stop a run that can finish (a video whose
 outputs go to another disk). ``warmup``, whose whole job is the cache, says at the end that
-nothing was stored (:func:`failed`) and exits 2. The save's own partial files are removed by
+nothing was stored (:func:`failed`) and exits 2. When no folder at all can be written (a
+read-only container: Numba's ``RuntimeError: ... no locator available`` when a kernel module
+was imported), the kernels are compiled without a cache, after one note. The save's own partial files are removed by
 Numba (``_open_for_write``).
 """
 from __future__ import annotations
 
 import errno
 import functools
+import os
 from typing import Any
 
 from .. import console
@@ -71,3 +74,35 @@ def tolerate_cache_writes() -> None:
 
     save_overload._fastdet_tolerant = True  # type: ignore[attr-defined]
     caching.Cache.save_overload = save_overload  # type: ignore[method-assign]
+    _tolerate_no_cache_folder()
+
+
+def _tolerate_no_cache_folder() -> None:
+    """Numba's ``Dispatcher.enable_caching`` (``cache=True``, when a kernel module is imported)
+    raised ``RuntimeError: cannot cache function ...: no locator available`` when no folder can
+    be written -- ``NUMBA_CACHE_DIR`` read-only or full, the package read-only, no writable user
+    cache folder (a read-only container) -- a traceback before any work. The kernel is then
+    compiled without a cache (Numba's ``NullCache``), after one note."""
+    try:
+        from numba.core.dispatcher import Dispatcher
+    except ImportError:  # pragma: no cover - numba is a dependency
+        return
+    enable = getattr(Dispatcher, "enable_caching", None)
+    if enable is None or getattr(enable, "_fastdet_tolerant", False):
+        return
+
+    @functools.wraps(enable)
+    def enable_caching(self: Any) -> None:
+        try:
+            enable(self)
+        except RuntimeError as exc:
+            if "no locator available" not in str(exc):
+                raise
+            _failures.append("no folder can be written")
+            where = os.environ.get("NUMBA_CACHE_DIR") or "NUMBA_CACHE_DIR (unset)"
+            console.note(f"no folder for the Numba cache can be written ({where}, the package's __pycache__, the "
+                         "user cache folder): the kernels are compiled in memory, on every run; set NUMBA_CACHE_DIR "
+                         "to a writable folder", once="numba-cache-folder")
+
+    enable_caching._fastdet_tolerant = True  # type: ignore[attr-defined]
+    Dispatcher.enable_caching = enable_caching  # type: ignore[method-assign]
