@@ -18,8 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from .._version import __version__
-from ..errors import ModelError
-from ..io.files import not_found
+from ..errors import ModelError, not_found
 from .models import (
     DEFAULT_MODEL_PATH,
     ONCOMING_MODEL_PATH,

@@ -20,13 +20,12 @@ byte is read), and :func:`read_input_text` refuses binary data (a NUL byte) at o
 """
 from __future__ import annotations
 
-import errno
 import json
 import os
 import stat
 from typing import Any, BinaryIO
 
-from ..errors import DataError
+from ..errors import DataError, not_found, stat_error  # noqa: F401  (re-exported)
 
 #: the largest text input (ground truth, predictions, keyframe lists, label files, the
 #: batch manifest): 128 MB, about 3 million box lines (parsed, a line takes some 10 times its bytes)
@@ -46,32 +45,6 @@ def _kind(mode: int) -> str:
 
 def _a(what: str) -> str:
     return f"{'an' if what[:1].lower() in 'aeiou' else 'a'} {what}"
-
-
-def stat_error(name: str, exc: OSError) -> DataError:
-    """The one-line :class:`DataError` for a failed ``stat`` / ``open`` of the input ``name``."""
-    if exc.errno == errno.ELOOP:
-        return DataError(f"{name}: symlink loop (the link leads back to itself; too many levels of "
-                         f"symbolic links)")
-    if exc.errno in (errno.ENOENT, errno.ENOTDIR):
-        return DataError(f"{name}: file not found")
-    if exc.errno == errno.ENAMETOOLONG:
-        return DataError(f"{name}: file name too long")
-    return DataError(f"{name}: cannot read ({exc.strerror or exc})")
-
-
-def not_found(path: str | os.PathLike[str], message: str) -> DataError:
-    """The error for ``path`` found missing (``os.path.exists`` / ``is_file`` / ``is_dir`` said
-    no): ``message`` when it is absent, else why it cannot be reached -- a symlink loop
-    ("symlink loop", not "file not found": ``exists`` is ``False`` for both), a name too long,
-    no permission (:func:`stat_error`)."""
-    name = os.fspath(path)
-    try:
-        os.stat(name)
-    except OSError as exc:
-        if exc.errno not in (errno.ENOENT, errno.ENOTDIR):
-            return stat_error(name, exc)
-    return DataError(message)
 
 
 def check_input(path: str | os.PathLike[str], what: str = "file") -> os.stat_result:
