@@ -21,7 +21,10 @@ _left: list[threading.Thread] = []
 
 
 def leave_behind(thread: threading.Thread) -> None:
-    """``thread`` (a daemon) is given up on while it may still be inside native code."""
+    """``thread`` (a daemon) may be inside native code when the process ends: one given up on
+    after a bounded wait, or a worker (the decoder, the encoder) whose owner's clean-up was cut
+    short. A thread that has ended by then changes nothing."""
+    _left[:] = [t for t in _left if t.is_alive()]
     _left.append(thread)
 
 

@@ -14,7 +14,8 @@ every command inside :func:`handled`; a command then only decides *where* it may
   signal while the flag is set raises at once (an impatient second Ctrl-C).
 - Once a :class:`Stopped` is raised, a later signal while it is being handled (the ``except``
   and ``finally`` blocks that close and remove the outputs) is ignored: the clean-up is bounded
-  by its own timeouts and must not be cut short (a second Ctrl-C 0.02 s after the first).
+  by its own timeouts and must not be cut short (a second Ctrl-C 0.02 s after the first). Only
+  a third repeat of it stops the clean-up too (:data:`IGNORED_REPEATS`).
 - A :class:`Stopped` raised where Python cannot propagate it (a ``__del__``, a ctypes callback
   inside the Numba compiler) is not printed as "Exception ignored": the signal is raised again
   and lands in the code that runs next.
@@ -55,6 +56,11 @@ _deferring = 0
 _patient = 0  # deferred blocks in which repeated signals are ignored too
 _active = 0  # handled() blocks entered (nested ones are no-ops)
 _in_hook = False  # the unraisable hook runs (a Stopped raised there would be lost again)
+_ignored: list[int] = []  # signals ignored while a Stopped was being handled
+#: repeats of a signal ignored while its clean-up runs; the one after stops at once (a clean-up
+#: that hangs -- a write to a dead network disk -- can still be ended; the temporary files are
+#: then removed at exit, fastdet.io.atomic)
+IGNORED_REPEATS = 2
 
 
 class Stopped(KeyboardInterrupt):
@@ -82,7 +88,8 @@ def _handler(signum: int, frame: FrameType | None) -> None:
         _received = signum
     if _deferring and (first or _patient):
         return  # the loop stops after its current frame (a patient block: after its clean-up)
-    if not first and _unwinding():
+    if not first and _unwinding() and _ignored.count(signum) < IGNORED_REPEATS:
+        _ignored.append(signum)
         return  # a Stopped is being handled (its clean-up runs): a second one would cut it short
     if _in_hook:
         _raise_again(signum)  # inside the unraisable hook: raised where it can propagate
@@ -212,6 +219,7 @@ def handled(after: str = "restore") -> Iterator[None]:
         sys.unraisablehook = hook
         _active -= 1
         _received, _deferring, _patient = None, 0, 0  # a stop belongs to the command it stopped
+        _ignored.clear()
 
 
 def reset() -> None:

@@ -265,6 +265,21 @@ def test_a_second_signal_does_not_cut_the_clean_up_of_the_first_short():
                 time.sleep(0.05)
                 cleaned.append("done")
     assert cleaned == ["done"]
+    # a clean-up that hangs can still be ended: the third repeat stops it too
+    with signals.handled():
+        with pytest.raises(signals.Stopped):
+            try:
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(5)
+            finally:
+                for _ in range(signals.IGNORED_REPEATS):
+                    os.kill(os.getpid(), signal.SIGINT)
+                    time.sleep(0.05)
+                cleaned.append("repeats ignored")
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(5)
+                cleaned.append("not reached")
+    assert cleaned == ["done", "repeats ignored"]
     with signals.handled():
         with pytest.raises(signals.Stopped):
             with signals.deferred():

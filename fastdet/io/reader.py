@@ -335,6 +335,7 @@ class FrameReader:
         if not self._started:
             self._started = True
             self._thread.start()
+            exiting.leave_behind(self._thread)  # inside OpenCV while it runs: an exit before close() must not wait
         while True:
             try:
                 item = self._q.get(timeout=0.1)
@@ -410,8 +411,6 @@ class FrameReader:
                     pass
             # a decoder blocked in a read of a stalled stream is left behind (a daemon thread)
             self._thread.join(timeout=0.1)
-            if self._thread.is_alive():
-                exiting.leave_behind(self._thread)
         else:
             self._cap.release()
 
