@@ -1,4 +1,9 @@
-"""Exceptions that mean "the user gave us something wrong" (one-line message, no traceback)."""
+"""Exceptions that mean "the user gave us something wrong" (one-line message, no traceback),
+and the one-line error for an input path that cannot be reached (:func:`not_found`)."""
+from __future__ import annotations
+
+import errno
+import os
 
 
 class FastdetError(Exception):
@@ -27,3 +32,29 @@ def one_line(exc: BaseException) -> str:
         return type(exc).__name__
     first = text.splitlines()[0]
     return first if isinstance(exc, FastdetError) else f"{type(exc).__name__}: {first}"
+
+
+def stat_error(name: str, exc: OSError) -> DataError:
+    """The one-line :class:`DataError` for a failed ``stat`` / ``open`` of the input ``name``."""
+    if exc.errno == errno.ELOOP:
+        return DataError(f"{name}: symlink loop (the link leads back to itself; too many levels of "
+                         f"symbolic links)")
+    if exc.errno in (errno.ENOENT, errno.ENOTDIR):
+        return DataError(f"{name}: file not found")
+    if exc.errno == errno.ENAMETOOLONG:
+        return DataError(f"{name}: file name too long")
+    return DataError(f"{name}: cannot read ({exc.strerror or exc})")
+
+
+def not_found(path: str | os.PathLike[str], message: str) -> DataError:
+    """The error for ``path`` found missing (``os.path.exists`` / ``is_file`` / ``is_dir`` said
+    no): ``message`` when it is absent, else why it cannot be reached -- a symlink loop
+    ("symlink loop", not "file not found": ``exists`` is ``False`` for both), a name too long,
+    no permission (:func:`stat_error`)."""
+    name = os.fspath(path)
+    try:
+        os.stat(name)
+    except OSError as exc:
+        if exc.errno not in (errno.ENOENT, errno.ENOTDIR):
+            return stat_error(name, exc)
+    return DataError(message)

@@ -34,7 +34,7 @@ from .config.models import DEFAULT_MODEL_PATH, ONCOMING_MODEL_PATH  # noqa: F401
 from .errors import DataError, ModelError
 from .features import extract_features
 from .io.atomic import atomic_path
-from .io.files import open_input
+from .io.files import open_input, parse_json
 
 FORMAT_VERSION = 1
 CLASSIFIERS = ("linearsvc", "logreg")
@@ -216,13 +216,11 @@ def _read_npz(fh: Any, path: Path, names: tuple[str, ...], what: str,
     except (zipfile.BadZipFile, EOFError, KeyError) as exc:
         raise ModelError(f"{path} is not a readable .npz {what} file (truncated or another format): {exc}") from None
     try:
-        meta = json.loads(arrays["metadata"].astype(np.uint8).tobytes().decode("utf-8"))
+        meta = parse_json(arrays["metadata"].astype(np.uint8).tobytes())
         if not isinstance(meta, dict):
             raise ValueError("not a JSON object")
-    except (ValueError, UnicodeDecodeError) as exc:
+    except ValueError as exc:  # JsonError: a syntax error, nesting too deep, a number too long, not UTF-8
         raise ModelError(f"{path}: metadata is not valid JSON: {exc}") from None
-    except RecursionError:
-        raise ModelError(f"{path}: metadata is not valid JSON: nested too deeply") from None
     found = meta.get("format_version")
     if found != version or isinstance(found, bool):
         if not isinstance(found, int) or isinstance(found, bool):

@@ -12,6 +12,13 @@ every command inside :func:`handled`; a command then only decides *where* it may
   :func:`stop_requested` once per frame, finishes the frame it is on, leaves the loop and
   closes (renames) its outputs; leaving the block then raises :class:`Stopped`. A second
   signal while the flag is set raises at once (an impatient second Ctrl-C).
+- Once a :class:`Stopped` is raised, a later signal while it is being handled (the ``except``
+  and ``finally`` blocks that close and remove the outputs) is ignored: the clean-up is bounded
+  by its own timeouts and must not be cut short (a second Ctrl-C 0.02 s after the first). Only
+  a third repeat of it stops the clean-up too (:data:`IGNORED_REPEATS`).
+- A :class:`Stopped` raised where Python cannot propagate it (a ``__del__``, a ctypes callback
+  inside the Numba compiler) is not printed as "Exception ignored": the signal is raised again
+  and lands in the code that runs next.
 - A long step that may swallow an exception (third-party code) is followed by
   :func:`check`, which raises :class:`Stopped` when a signal came meanwhile.
 
@@ -30,12 +37,15 @@ Handlers are installed only in the main thread, and the previous ones are restor
 """
 from __future__ import annotations
 
+import _thread
 import signal
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from types import FrameType
+from typing import Any
 
 #: the signals that stop a command
 STOP_SIGNALS: tuple[int, ...] = tuple(s for s in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None))
@@ -45,6 +55,12 @@ _received: int | None = None
 _deferring = 0
 _patient = 0  # deferred blocks in which repeated signals are ignored too
 _active = 0  # handled() blocks entered (nested ones are no-ops)
+_in_hook = False  # the unraisable hook runs (a Stopped raised there would be lost again)
+_ignored: list[int] = []  # signals ignored while a Stopped was being handled
+#: repeats of a signal ignored while its clean-up runs; the one after stops at once (a clean-up
+#: that hangs -- a write to a dead network disk -- can still be ended; the temporary files are
+#: then removed at exit, fastdet.io.atomic)
+IGNORED_REPEATS = 2
 
 
 class Stopped(KeyboardInterrupt):
@@ -72,7 +88,58 @@ def _handler(signum: int, frame: FrameType | None) -> None:
         _received = signum
     if _deferring and (first or _patient):
         return  # the loop stops after its current frame (a patient block: after its clean-up)
+    if not first and _unwinding() and _ignored.count(signum) < IGNORED_REPEATS:
+        _ignored.append(signum)
+        return  # a Stopped is being handled (its clean-up runs): a second one would cut it short
+    if _in_hook:
+        _raise_again(signum)  # inside the unraisable hook: raised where it can propagate
+        return
     raise Stopped(signum)
+
+
+def _unwinding() -> bool:
+    """The main thread is handling a :class:`Stopped` (an ``except`` or ``finally`` block, a
+    context manager's exit on the way out): its clean-up -- closing the video, removing the
+    temporary files, bounded by its own timeouts -- must not be cut short by a second signal
+    (issue 34, item 13: a second Ctrl-C 0.02 s after the first left ``.o.partial.PID-TOKEN.mp4``
+    and a decoder thread inside OpenCV, which aborted the process). A Stopped that was caught
+    and swallowed (by a library) is no longer being handled: the next signal raises again."""
+    return isinstance(sys.exc_info()[1], Stopped)
+
+
+def _unraisable(hook: Callable[[Any], object]) -> Callable[[Any], object]:
+    """``sys.unraisablehook`` while :func:`handled` runs: a :class:`Stopped` raised where Python
+    cannot propagate it -- a ``__del__``, a ctypes callback (llvmlite's object-cache hook while
+    Numba compiles), a weakref callback -- printed an "Exception ignored ... Stopped" block and
+    was lost. It is dropped quietly and the signal is raised again a moment later, so it lands
+    in the code that runs next; anything else goes to ``hook``."""
+
+    def unraisable(info: Any) -> object:
+        global _in_hook
+        exc = getattr(info, "exc_value", None)
+        if not (isinstance(exc, Stopped) and _active):
+            return hook(info)
+        _in_hook = True
+        try:
+            _raise_again(exc.signum)
+        finally:
+            _in_hook = False
+        return None
+
+    return unraisable
+
+
+def _raise_again(signum: int) -> None:
+    """``signum`` marked as arrived again in a moment (from a helper thread, as the C handler
+    marks a signal: the handler then runs at the main thread's next bytecode -- not here, inside
+    the hook or a ``__del__``), while this module's handler is still the one set."""
+
+    def later() -> None:
+        time.sleep(0.005)
+        if _active and signal.getsignal(signum) is _handler:
+            _thread.interrupt_main(signum)
+
+    threading.Thread(target=later, name="fastdet-signal-again", daemon=True).start()
 
 
 def received() -> int | None:
@@ -140,6 +207,8 @@ def handled(after: str = "restore") -> Iterator[None]:
     for s in STOP_SIGNALS:
         signal.signal(s, _handler)
     _active += 1
+    hook = sys.unraisablehook
+    sys.unraisablehook = _unraisable(hook)
     _deferring = 0
     try:
         yield
@@ -147,8 +216,10 @@ def handled(after: str = "restore") -> Iterator[None]:
         _deferring, _patient = _deferring + 1, _patient + 1  # from here on a signal changes nothing
         for s, h in previous.items():
             signal.signal(s, signal.SIG_IGN if after == "ignore" else h if h is not None else signal.SIG_DFL)
+        sys.unraisablehook = hook
         _active -= 1
         _received, _deferring, _patient = None, 0, 0  # a stop belongs to the command it stopped
+        _ignored.clear()
 
 
 def reset() -> None:

@@ -5,7 +5,8 @@ Every ``import`` in every module of ``fastdet/`` (at the top, inside functions, 
 layer of its top-level name (``fastdet.video.heatmap`` -> ``video``), and the layers are
 ranked (a layer may import only layers of lower rank; a sub-package may import itself)::
 
-    0  _version, errors, console, signals      no fastdet imports
+    0  _version, errors, console, signals,     no fastdet imports
+       exiting
     1  _numba, data                            numba options, the data folder (may note on the console)
     2  config, boxes, detections               values and arithmetic
     3  features, io                            pixels in, files in and out
@@ -33,7 +34,7 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "fastdet"
 
 RANKS: dict[str, int] = {
-    "_version": 0, "errors": 0, "console": 0, "signals": 0,
+    "_version": 0, "errors": 0, "console": 0, "signals": 0, "exiting": 0,
     "_numba": 1, "data": 1,
     "config": 2, "boxes": 2, "detections": 2,
     "features": 3, "io": 3,

@@ -281,3 +281,75 @@ def test_summary_reports_the_whole_wall_time(tmp_path):
     m = re.search(r"5 frames in ([\d.]+) s, [\d.]+ fps \(([\d.]+) s in all, start-up included\)", r.stdout)
     assert m, r.stdout
     assert float(m.group(2)) >= float(m.group(1))
+
+
+#: a child process whose Numba cache saves fail as on a full disk: one cached function compiled
+_FULL_CACHE = """\
+import errno, sys
+from numba.core import caching
+import fastdet._numba  # noqa: F401  (what every kernel module imports first)
+def full(self, *args, **kwargs):
+    raise OSError(errno.ENOSPC, "No space left on device")
+caching.IndexDataCacheFile.save = full
+import cached_mod
+print(cached_mod.add_one(2), cached_mod.add_one(3.5))
+print(fastdet._numba.cache_failed())
+"""
+
+
+def test_a_cache_that_cannot_be_written_is_one_note_and_the_run_goes_on(tmp_path):
+    """A full disk (or a read-only folder) under the Numba cache: before, Numba's ``OSError: [Errno
+    28] No space left on device`` traceback ended ``warmup`` and a first ``video`` run (issue 34,
+    item 13); now one note, once, and the compiled code is used from memory."""
+    (tmp_path / "cached_mod.py").write_text("import numba\n\n@numba.njit(cache=True)\ndef add_one(x):\n"
+                                            "    return x + 1\n")
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"),
+           "PYTHONPATH": os.pathsep.join([str(tmp_path), str(ROOT.parent)])}
+    p = subprocess.run([sys.executable, "-c", _FULL_CACHE], capture_output=True, text=True, env=env, timeout=300,
+                       cwd=tmp_path)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.split("\n")[:2] == ["3 4.5", "No space left on device"], p.stdout
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and "cannot write the compiled kernels to the Numba cache" in lines[0], p.stderr
+    assert "No space left on device" in lines[0] and "Traceback" not in p.stderr
+
+
+def test_a_cache_error_that_is_not_the_places_still_shows(tmp_path, monkeypatch):
+    """Only errors of the place written to are tolerated: anything else is Numba's (a bug)."""
+    import errno
+
+    from numba.core import caching
+
+    from fastdet._numba import cache
+
+    calls = []
+
+    def broken(self, sig, data):
+        calls.append(sig)
+        raise OSError(errno.EBADF, "Bad file descriptor")
+
+    monkeypatch.setattr(caching.Cache, "save_overload", broken)
+    cache.tolerate_cache_writes()
+    with pytest.raises(OSError, match="Bad file descriptor"):
+        caching.Cache.save_overload(object(), "sig", None)
+    assert calls == ["sig"]
+
+
+def test_no_writable_cache_folder_anywhere_is_one_note(tmp_path):
+    """A read-only container (``NUMBA_CACHE_DIR`` read-only, the package read-only, no writable
+    user cache folder): Numba raised ``RuntimeError: cannot cache function ...: no locator
+    available`` when a kernel module was imported; now one note and the code compiles in memory."""
+    (tmp_path / "cached_mod.py").write_text("import numba\n\n@numba.njit(cache=True)\ndef add_one(x):\n"
+                                            "    return x + 1\n")
+    code = ("from numba.core import caching\n"
+            "import fastdet._numba\n"
+            "caching.CacheImpl._locator_classes = []  # no folder Numba could write\n"
+            "import cached_mod\n"
+            "print(cached_mod.add_one(2), fastdet._numba.cache_failed())\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), str(ROOT.parent)])}
+    env.pop("NUMBA_CACHE_DIR", None)
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.strip() == "3 no folder can be written", p.stdout
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and "no folder for the Numba cache can be written" in lines[0], p.stderr

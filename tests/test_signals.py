@@ -220,3 +220,92 @@ def test_stop_after_the_command_ended_keeps_its_status():
             "sys.exit(status)\n")
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert p.returncode == 2 and p.stderr == "", (p.returncode, p.stderr)
+
+
+def test_a_stop_raised_inside_a_del_is_not_printed_and_still_stops(capfd):
+    """A Stopped raised where Python cannot propagate it (a ``__del__``; a ctypes callback of the
+    Numba compiler) printed an "Exception ignored ... fastdet.signals.Stopped" block and the stop
+    was lost until the command's end (issue 34, item 13): now it is raised again in the code
+    that runs next."""
+    from fastdet import signals
+
+    class Signals:
+        def __del__(self):
+            os.kill(os.getpid(), signal.SIGTERM)
+            for _ in range(100):  # bytecodes for the handler to run in
+                pass
+
+    with signals.handled():
+        with pytest.raises(signals.Stopped) as stopped:
+            obj = Signals()
+            del obj
+            end = time.monotonic() + 5
+            while time.monotonic() < end:
+                time.sleep(0.01)
+        assert stopped.value.signum == signal.SIGTERM
+    err = capfd.readouterr().err
+    assert "Exception ignored" not in err and "Stopped" not in err, err
+
+
+def test_a_second_signal_does_not_cut_the_clean_up_of_the_first_short():
+    """Ctrl-C, then a second one 0.02 s later while the first one's clean-up runs (closing the
+    video, renaming the outputs): the clean-up finishes (before: the second Stopped cut it short
+    and left ``.o.partial.PID-TOKEN.mp4``). A second signal before the first is acted on (the
+    frame loop's deferred stop) still raises at once."""
+    from fastdet import signals
+
+    cleaned = []
+    with signals.handled():
+        with pytest.raises(signals.Stopped):
+            try:
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(5)
+            finally:
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(0.05)
+                cleaned.append("done")
+    assert cleaned == ["done"]
+    # a clean-up that hangs can still be ended: the third repeat stops it too
+    with signals.handled():
+        with pytest.raises(signals.Stopped):
+            try:
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(5)
+            finally:
+                for _ in range(signals.IGNORED_REPEATS):
+                    os.kill(os.getpid(), signal.SIGINT)
+                    time.sleep(0.05)
+                cleaned.append("repeats ignored")
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(5)
+                cleaned.append("not reached")
+    assert cleaned == ["done", "repeats ignored"]
+    with signals.handled():
+        with pytest.raises(signals.Stopped):
+            with signals.deferred():
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(0.05)
+                assert signals.stop_requested()
+                os.kill(os.getpid(), signal.SIGINT)  # impatient: raised at once
+                time.sleep(5)
+                pytest.fail("the second signal did not stop the block")
+
+
+@pytest.mark.parametrize("gap", [0.0, 0.02, 0.2])
+def test_a_second_ctrl_c_in_the_frame_loop_leaves_nothing_behind(long_clip, tmp_path, gap):
+    """Two Ctrl-C ``gap`` seconds apart while frames are written: one line, exit 130, the outputs
+    complete or absent, no temporary file left, no "Exception ignored" and no abort (before: a
+    ``.o.partial.PID-TOKEN.mp4`` left, now and then "terminate called without an active
+    exception" and exit 134 from a decoder thread still inside OpenCV)."""
+    p, paths = _start(long_clip, tmp_path)
+    _wait_for_frames(p, paths["json"])
+    os.kill(p.pid, signal.SIGINT)
+    time.sleep(gap)
+    os.kill(p.pid, signal.SIGINT)
+    out, err = p.communicate(timeout=120)
+    assert p.returncode == 130, err
+    assert len(err.strip().splitlines()) == 1 and "interrupted (SIGINT)" in err, err
+    assert leftovers(tmp_path) == []
+    if paths["json"].exists():
+        n = paths["json"].read_text().count("\n")
+        assert _frames_in_video(paths["video"]) == n

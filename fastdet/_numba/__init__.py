@@ -23,11 +23,15 @@ which fill the same cache; then this process loads the machine code. It says so 
 an estimate (the kernels still to compile x their cost on this machine: measured by earlier
 compiles here, else the reference figure scaled by a quick speed probe), and shows the
 progress on a terminal. ``python -m fastdet warmup`` compiles every kernel ahead of time.
+A cache that cannot be written (a full disk, a read-only folder) is one note and the run goes
+on with the code in memory (:mod:`.cache`).
 """
 from __future__ import annotations
 
 from typing import Any
 
+from .cache import failed as cache_failed  # noqa: F401  (re-exported)
+from .cache import tolerate_cache_writes
 from .compile_time import (  # noqa: F401  (re-exported)
     _TIMES_FILE,
     COMPILER_INIT_SECONDS,
@@ -56,6 +60,8 @@ from .compiling import (  # noqa: F401  (re-exported; ``_worker`` is what a comp
 )
 from .registry import KERNEL_MODULES, Task, all_kernels, is_cached, tasks_of  # noqa: F401  (re-exported)
 from .threads import split_range  # noqa: F401  (re-exported)
+
+tolerate_cache_writes()  # before any kernel compiles: a full or read-only cache is a note (see .cache)
 
 EXACT: dict[str, Any] = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
 REASSOC: dict[str, Any] = dict(cache=True, nogil=True, fastmath={"reassoc", "contract"}, error_model="numpy")

@@ -15,7 +15,8 @@ from typing import Any
 
 import numba
 
-from .. import console
+from .. import console, exiting
+from .cache import failed as cache_failed
 from .compile_time import WORKERS_ENV, Estimate, _save_times, _times_path, estimate
 from .registry import Task, is_cached, tasks_of
 
@@ -94,7 +95,9 @@ def _compile(missing: list[Task], est: Estimate) -> dict[str, float]:
                 continue
             procs.append(p)
             threading.Thread(target=_read_worker, args=(p, done), daemon=True).start()
-        threading.Thread(target=_compile_here, args=(est.plan[0], done), daemon=True).start()
+        here = threading.Thread(target=_compile_here, args=(est.plan[0], done), daemon=True)
+        here.start()
+        exiting.leave_behind(here)  # inside LLVM until it ends: the process must not wait for it at exit
         show(0)
         finished = 0
         # bounded: a worker that hangs is given far more than the estimate, then left to
@@ -161,4 +164,6 @@ def _worker() -> None:
         except Exception as exc:  # noqa: BLE001 - reported by the parent's own compile
             print(f"error {key} {type(exc).__name__}", flush=True)
             continue
+        if cache_failed() is not None:
+            return  # the cache cannot be written: what this process compiles is lost with it
         print(f"done {key} {time.thread_time() - c0:.3f}", flush=True)

@@ -77,10 +77,41 @@ class _WorkerSetup(WorkerPlugin):
         _glibc_malloc_defaults()
 
 
+#: the loggers of Dask's client side in this process, quiet while a batch runs
+DASK_LOGGERS = ("distributed", "tornado")
+
+
+@contextlib.contextmanager
+def _quiet_dask() -> Iterator[None]:
+    """Dask's own log records of this process (the client's) at ``CRITICAL`` only: a remote
+    scheduler killed mid-run printed "distributed.client - ERROR -" with two tracebacks of its
+    reconnect attempts (issue 34, item 19). What it means is said by the batch itself: each
+    video it cancelled is "failed: the connection to the Dask scheduler was lost", in the
+    progress lines, the summary and the manifest."""
+    names = {n for n in logging.root.manager.loggerDict if n.split(".")[0] in DASK_LOGGERS} | set(DASK_LOGGERS)
+    loggers = [logging.getLogger(name) for name in sorted(names)]  # Dask's config sets levels on the children too
+    levels = [lg.level for lg in loggers]
+    for lg in loggers:
+        lg.setLevel(logging.CRITICAL)
+    try:
+        yield
+    finally:
+        for lg, level in zip(loggers, levels):
+            lg.setLevel(level)
+
+
 @contextlib.contextmanager
 def _client(opts: BatchOptions) -> Iterator[tuple[Client, int]]:
     """A client on the local cluster or on ``opts.scheduler``, closed (with the local
-    cluster) on exit; yields ``(client, number of workers)``."""
+    cluster) on exit; yields ``(client, number of workers)``. Dask's log records are quiet
+    meanwhile (:func:`_quiet_dask`)."""
+    with _quiet_dask():
+        with _client_of(opts) as made:
+            yield made
+
+
+@contextlib.contextmanager
+def _client_of(opts: BatchOptions) -> Iterator[tuple[Client, int]]:
     cluster = None
     try:
         if opts.scheduler:
@@ -144,20 +175,44 @@ def _connect(address: str, timeout: float | None = None) -> Client:
 
     def connect() -> None:
         try:
-            box["client"] = Client(address, timeout=limit, set_as_default=False)
+            box["client"] = _BoundedClient(address, timeout=limit, set_as_default=False)
         except BaseException as exc:  # noqa: BLE001 - reported by the waiting thread
-            box["error"] = exc
+            # only the message: the traceback holds the half-made client, collected here (in
+            # this thread, within _BoundedClient's bound), not in the main thread at exit
+            box["error"] = (type(exc), str(exc))
+            del exc
 
     t = threading.Thread(target=connect, name="fastdet-connect", daemon=True)
     t.start()
-    finished = signals.wait(lambda: not t.is_alive(), limit + 1)
+    finished = signals.wait(lambda: bool(box) or not t.is_alive(), limit + 1)
     if not finished:
         if signals.stop_requested():
             raise BatchInterrupted(signals.received() or signal.SIGINT, 0)
         raise FastdetError(f"cannot connect to the Dask scheduler at {address}: no answer in {limit:g} s "
                            f"(is it a Dask scheduler?)")
     if "error" in box:
-        exc = box["error"]
+        kind, text = box["error"]
+        if not issubclass(kind, (OSError, TimeoutError)):
+            # Dask read what answered as its own framing: "Unable to allocate 2.82 EiB" for
+            # a banner, "Maximum allowed dimension exceeded" for a bogus frame length
+            raise FastdetError(f"cannot connect to the Dask scheduler at {address}: what answered there does not "
+                               f"speak Dask's protocol (is it a Dask scheduler?)")
         raise FastdetError(f"cannot connect to the Dask scheduler at {address}: "
-                           f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
+                           f"{text.splitlines()[0] if text else kind.__name__}") from None
     return box["client"]
+
+
+#: seconds a client that is collected (never closed: one whose handshake failed) may take to close
+DEL_CLOSE_TIMEOUT_S = 2.0
+
+
+class _BoundedClient(Client):
+    """A Dask client whose collection is bounded: ``Client.__del__`` closes with twice the
+    connect timeout (40 s) and, for a client whose handshake failed (a server that is not Dask),
+    waited all of it and then printed a ``TimeoutError`` traceback (issue 34, item 9). Closed
+    clients are not affected (the batch closes its client itself)."""
+
+    def __del__(self) -> None:
+        with contextlib.suppress(Exception):
+            if getattr(self, "status", "closed") not in ("closed", "newly-created"):
+                self.close(timeout=DEL_CLOSE_TIMEOUT_S)

@@ -30,6 +30,7 @@ from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 from ..errors import DataError
+from ..io.files import not_found
 
 VIDEO_EXTENSIONS = frozenset({".mp4", ".avi", ".mov", ".mkv", ".m4v", ".mpg", ".mpeg", ".wmv", ".webm",
                               ".ts", ".mts", ".m2ts", ".flv", ".3gp", ".h264", ".h265", ".hevc"})
@@ -103,7 +104,7 @@ def _expand_one(arg: str, base: Path | None, depth: int, writes: Writes = _never
         return videos
     if p.exists():
         raise DataError(f"{where}: not a file or folder")
-    raise DataError(f"{where}: file not found")
+    raise not_found(p, f"{where}: file not found")
 
 
 def _read_list(path: Path, writes: Writes = _never) -> list[Path]:

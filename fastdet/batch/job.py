@@ -106,6 +106,8 @@ def format_summary(report: BatchReport) -> str:
 def _one_line(exc: BaseException) -> str:
     if isinstance(exc, KilledWorker):
         return "its worker died every time it ran it (Dask KilledWorker)"
+    if getattr(exc, "reason", None) == "scheduler-connection-lost":  # Dask's FutureCancelledError
+        return "the connection to the Dask scheduler was lost (the video is run again on the next run)"
     return one_line(exc)
 
 

@@ -25,7 +25,7 @@ from typing import Any
 
 from ..errors import DataError
 from ..io.atomic import write_bytes
-from ..io.files import read_input_bytes
+from ..io.files import JsonError, parse_json, read_input_bytes
 
 
 def input_stat(path: str | os.PathLike) -> dict[str, int]:
@@ -60,8 +60,8 @@ class Manifest:
             if not raw.strip():
                 continue
             try:
-                obj = json.loads(raw)
-            except (json.JSONDecodeError, UnicodeDecodeError, RecursionError):  # RecursionError: nesting too deep
+                obj = parse_json(raw)
+            except JsonError:  # a syntax error, nesting too deep, a 5,000-digit number
                 self.dropped += 1
                 continue
             if _well_formed(obj):

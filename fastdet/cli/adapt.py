@@ -42,6 +42,7 @@ from ..config.adapt import AdaptConfig
 from ..data import data_dir
 from ..detections import Detections
 from ..errors import DataError, FastdetError
+from ..io.files import not_found
 from ..io.paths import check_paths, is_inside
 from ..labels.picture import AnnotatedPicture
 from ..model import load_model
@@ -102,7 +103,7 @@ def _check_output(out: Path, inputs: list[tuple[str, str]]) -> None:
 def _check_data(data: Path) -> None:
     for sub in ("vehicles", "non-vehicles"):
         if not (data / sub).is_dir():
-            raise DataError(f"crop folder {data / sub} not found (give --data or set FASTDET_DATA)")
+            raise not_found(data / sub, f"crop folder {data / sub} not found (give --data or set FASTDET_DATA)")
 
 
 def work_folder(out: Path) -> Path:
@@ -185,8 +186,6 @@ def run(args: argparse.Namespace) -> int:
     if args.teacher is not None:
         from ..teacher.yolox import TeacherDetector
 
-        if not os.path.isfile(args.teacher):
-            raise DataError(f"--teacher {args.teacher}: file not found")
         detector = TeacherDetector(args.teacher, size=args.teacher_size, threads=args.threads)
     else:
         from ..labels.sets import read_spec

@@ -46,6 +46,7 @@ from ..detect.checks import check_colour
 from ..errors import DataError, FastdetError
 from ..io import draw
 from ..io.atomic import folder_writable, write_bytes
+from ..io.files import not_found
 from ..io.images import read_image, write_image
 from ..io.paths import bundled_models, check_output, check_paths
 
@@ -91,7 +92,7 @@ def collect(inputs: list[str]) -> list[tuple[str, Path]]:
     for inp in inputs:
         p = Path(inp)
         if not p.exists():
-            raise DataError(f"{inp}: file not found")
+            raise not_found(p, f"{inp}: file not found")
         if p.is_dir():
             found = sorted((f.relative_to(p).as_posix(), f) for f in p.rglob("*")
                            if f.is_file() and f.suffix.lower() in IMAGE_EXTENSIONS)

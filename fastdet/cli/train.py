@@ -26,6 +26,7 @@ from ..config import COLOR_SPACES, FeatureConfig
 from ..data import data_dir
 from ..errors import DataError, FastdetError
 from ..features.window import KERNELS as FEATURE_KERNELS
+from ..io.files import not_found
 from ..io.paths import check_output
 from ..train import augment
 from ..train.augment import JPEG_QUALITY
@@ -132,7 +133,7 @@ def _check_inputs(data: Path, args: argparse.Namespace) -> None:
     if data.exists() and not data.is_dir():
         raise DataError(f"--data {data}: is a file, expected a folder with vehicles/ and non-vehicles/")
     if not data.is_dir():
-        raise DataError(f"data folder {data} not found (give --data or set FASTDET_DATA)")
+        raise not_found(data, f"data folder {data} not found (give --data or set FASTDET_DATA)")
     for sub in ("vehicles", "non-vehicles"):
         if not (data / sub).is_dir():
             raise DataError(f"data folder {data} has no {sub}/ folder")

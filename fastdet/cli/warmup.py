@@ -16,6 +16,7 @@ import argparse
 import time
 
 from .. import _numba, console
+from ..errors import FastdetError
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -28,6 +29,7 @@ def run(args: argparse.Namespace) -> int:
     kernels = _numba.all_kernels()
     if not args.profile:
         _numba.ensure_compiled(kernels, what="every kernel", always_report=True)
+        _stored()
         return 0
     tasks = _numba.tasks_of(kernels)
     total = cpu_total = 0.0
@@ -43,4 +45,14 @@ def run(args: argparse.Namespace) -> int:
         print(f"{dt:7.2f} {cpu:7.2f}  {t.module.rsplit('.', 1)[-1]}.{t.name}({sig})"
               f"{'  [loaded from the cache]' if cached else ''}", flush=True)
     console.note(f"{len(tasks)} kernel signatures in {total:.1f} s wall, {cpu_total:.1f} s CPU")
+    _stored()
     return 0
+
+
+def _stored() -> None:
+    """warmup's job is the cache: one that could not be written is its failure (exit 2), where
+    another command only notes it and goes on (:mod:`fastdet._numba.cache`)."""
+    why = _numba.cache_failed()
+    if why is not None:
+        raise FastdetError(f"the kernels compiled but could not be stored in the Numba cache ({why}); later runs "
+                           "will compile them again: free space there or set NUMBA_CACHE_DIR to a writable folder")

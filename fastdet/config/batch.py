@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from .._version import __version__
-from ..errors import ModelError
+from ..errors import ModelError, not_found
 from .models import (
     DEFAULT_MODEL_PATH,
     ONCOMING_MODEL_PATH,
@@ -69,7 +69,7 @@ class Settings:
         refine = None if p.refine is None else resolve_model(p.refine_model, REFINE_MODEL_PATH)
         for f in (main, wide, refine):
             if f is not None and not os.path.isfile(f):
-                raise ModelError(f"{f}: model file not found")
+                raise ModelError(str(not_found(f, f"{f}: model file not found")))
         p = replace(p, model=main, oncoming=wide if wide is not None else False, refine_model=refine)
         return cls(p, bool(video), bool(json), file_sha256(main), file_sha256(wide) if wide else "",
                    file_sha256(refine) if refine else "")

@@ -9,9 +9,16 @@ The temporary name holds the process id and a random token (:func:`process_token
 runs writing the same output never share a temporary file: each writes its own, the last
 rename wins whole, and a run removes only its own temporary files. :class:`OutputSet`
 renames a run's outputs together, after all of them were written, or removes them all.
+
+Every temporary name this process hands out is remembered until it is renamed or removed;
+:func:`remove_partials` removes what is left when the process ends (``atexit``, and
+:mod:`fastdet.__main__` before it exits without the interpreter's teardown), so no exit path
+-- a second Ctrl-C that cut a clean-up short, an exception out of a library -- leaves a
+``.NAME.partial.PID-TOKEN.EXT`` behind. Only SIGKILL does (nothing runs then).
 """
 from __future__ import annotations
 
+import atexit
 import os
 import secrets
 import stat
@@ -23,6 +30,9 @@ from pathlib import Path
 from ..errors import DataError, WriteError
 
 _token: tuple[int, str] | None = None
+#: the temporary names this process handed out and has not yet renamed or removed (a forked
+#: child starts with none: the parent's are the parent's)
+_own: tuple[int, set[Path]] = (os.getpid(), set())
 
 
 def process_token() -> str:
@@ -39,7 +49,16 @@ def partial_name(path: str | os.PathLike) -> Path:
     ``dir/.NAME.partial.PID-RANDOM.EXT`` (:func:`process_token`; the extension is kept:
     OpenCV picks the container / image format from it)."""
     p = Path(path)
-    return p.with_name(f".{p.stem}.partial.{process_token()}{p.suffix}")
+    tmp = p.with_name(f".{p.stem}.partial.{process_token()}{p.suffix}")
+    _owned().add(tmp)
+    return tmp
+
+
+def _owned() -> set[Path]:
+    global _own
+    if _own[0] != os.getpid():
+        _own = (os.getpid(), set())
+    return _own[1]
 
 
 def _unlink_quietly(p: Path) -> None:
@@ -47,6 +66,17 @@ def _unlink_quietly(p: Path) -> None:
         p.unlink(missing_ok=True)
     except OSError:
         pass
+    _owned().discard(p)
+
+
+def remove_partials() -> None:
+    """Remove every temporary file of this process still under its temporary name (see the
+    module docstring); run at exit."""
+    for p in list(_owned()):
+        _unlink_quietly(p)
+
+
+atexit.register(remove_partials)
 
 
 def current_umask() -> int:
@@ -88,6 +118,7 @@ def commit(tmp: str | os.PathLike, path: str | os.PathLike, mode: int | None = N
     except OSError as exc:
         _unlink_quietly(tmp)
         raise WriteError(f"{path}: cannot write ({exc.strerror or exc})") from None
+    _owned().discard(tmp)
     return path
 
 

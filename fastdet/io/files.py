@@ -20,12 +20,12 @@ byte is read), and :func:`read_input_text` refuses binary data (a NUL byte) at o
 """
 from __future__ import annotations
 
-import errno
+import json
 import os
 import stat
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
-from ..errors import DataError
+from ..errors import DataError, not_found, stat_error  # noqa: F401  (re-exported)
 
 #: the largest text input (ground truth, predictions, keyframe lists, label files, the
 #: batch manifest): 128 MB, about 3 million box lines (parsed, a line takes some 10 times its bytes)
@@ -44,19 +44,7 @@ def _kind(mode: int) -> str:
 
 
 def _a(what: str) -> str:
-    return f"{'an' if what[:1] in 'aeiou' else 'a'} {what}"
-
-
-def stat_error(name: str, exc: OSError) -> DataError:
-    """The one-line :class:`DataError` for a failed ``stat`` / ``open`` of the input ``name``."""
-    if exc.errno == errno.ELOOP:
-        return DataError(f"{name}: symlink loop (the link leads back to itself; too many levels of "
-                         f"symbolic links)")
-    if exc.errno in (errno.ENOENT, errno.ENOTDIR):
-        return DataError(f"{name}: file not found")
-    if exc.errno == errno.ENAMETOOLONG:
-        return DataError(f"{name}: file name too long")
-    return DataError(f"{name}: cannot read ({exc.strerror or exc})")
+    return f"{'an' if what[:1].lower() in 'aeiou' else 'a'} {what}"
 
 
 def check_input(path: str | os.PathLike[str], what: str = "file") -> os.stat_result:
@@ -143,3 +131,27 @@ def read_input_text(path: str | os.PathLike[str], what: str = "text file", limit
     except UnicodeDecodeError as exc:
         raise DataError(f"{name}: not a text file ({exc.reason} at byte {exc.start})") from None
     return text.replace("\r\n", "\n").replace("\r", "\n")
+
+
+class JsonError(ValueError):
+    """JSON text that does not parse; the message is the reason in a few words (``line 3: Expecting
+    value, column 5``, ``nested too deeply``), for the caller to put after the file's name."""
+
+
+def parse_json(text: str | bytes) -> Any:
+    """``json.loads(text)`` whose every failure on input text is a :class:`JsonError`: a syntax
+    error, nesting deeper than the interpreter's recursion limit (``RecursionError``: 200,000
+    ``[``), an integer of more than 4,300 digits (Python's ``int_max_str_digits``, a plain
+    ``ValueError``), bytes that are not UTF-8. One place for every JSON input (COCO files, JSON-lines
+    boxes, the batch manifest, model metadata), so none of them shows a traceback for a file."""
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise JsonError(f"line {exc.lineno}: {exc.msg}, column {exc.colno}") from None
+    except RecursionError:
+        raise JsonError("nested too deeply") from None
+    except UnicodeDecodeError as exc:
+        raise JsonError(f"not UTF-8 ({exc.reason} at byte {exc.start})") from None
+    except ValueError as exc:  # int_max_str_digits
+        why = str(exc).split(";")[0]
+        raise JsonError(f"a number too long ({why})") from None

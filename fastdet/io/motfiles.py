@@ -37,7 +37,6 @@ Boxes inside fastdet are ``x1, y1, x2, y2`` with ``x2 = left + width`` and
 """
 from __future__ import annotations
 
-import json
 import math
 import os
 from typing import Any
@@ -48,7 +47,7 @@ from ..boxes import MAX_COORD, ltwh_to_xyxy
 from ..detections import Detections
 from ..errors import DataError
 from .boxwriters import JsonLinesWriter, MotWriter, PathLike
-from .files import read_input_text
+from .files import JsonError, parse_json, read_input_text
 
 __all__ = [
     "GT_COLUMNS", "PRED_COLUMNS", "MIN_GT_COLUMNS", "MIN_PRED_COLUMNS", "MAX_COLUMNS", "MAX_FRAME", "MAX_ID",
@@ -184,11 +183,9 @@ def parse_jsonl_predictions(text: str, source: str = "<string>") -> Detections:
             continue
         where = f"{source}: line {lineno}"
         try:
-            obj = json.loads(line)
-        except json.JSONDecodeError as exc:
-            raise DataError(f"{where}: not JSON ({exc.msg})") from None
-        except RecursionError:
-            raise DataError(f"{where}: not a box line (JSON nested too deeply)") from None
+            obj = parse_json(line)
+        except JsonError as exc:
+            raise DataError(f"{where}: not a box line (JSON: {exc})") from None
         if not isinstance(obj, dict) or "frame" not in obj or "boxes" not in obj:
             raise DataError(f"{where}: expected an object with 'frame', 'boxes', 'scores'")
         try:

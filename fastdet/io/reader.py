@@ -34,9 +34,10 @@ from typing import Any
 import cv2
 import numpy as np
 
-from .. import signals
+from .. import exiting, signals
 from ..console import note, quiet_opencv
 from ..errors import DataError, FastdetError
+from .files import not_found
 
 QUEUE_SIZE = 8
 #: seconds a live source (pipe, stream, camera) may take to open
@@ -127,7 +128,7 @@ def check_source(source: str | os.PathLike | int) -> str:
     if kind == "file":
         name = os.fspath(source)
         if not os.path.exists(name):
-            raise DataError(f"{name}: file not found")
+            raise not_found(name, f"{name}: file not found")
         if os.path.isdir(name):
             raise DataError(f"{name}: is a folder, not a video")
     return kind
@@ -150,6 +151,7 @@ def _open_capture(name: str, kind: str, timeout: float | None = None) -> Any:
     t = threading.Thread(target=open_it, name="fastdet-open", daemon=True)
     t.start()
     if not signals.wait(lambda: not t.is_alive(), limit):
+        exiting.leave_behind(t)  # still inside OpenCV: the process must not wait for it at exit
         signals.check()  # a stop signal: Stopped
         raise DataError(f"{name}: the source did not open within {limit:g} s (a pipe nobody writes to, "
                         f"a stream that does not answer?)")
@@ -333,6 +335,7 @@ class FrameReader:
         if not self._started:
             self._started = True
             self._thread.start()
+            exiting.leave_behind(self._thread)  # inside OpenCV while it runs: an exit before close() must not wait
         while True:
             try:
                 item = self._q.get(timeout=0.1)

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import cv2
 
+from .. import exiting
 from ..console import note, quiet_native_stderr, quiet_opencv
 from ..errors import DataError, WriteError
 from . import draw
@@ -103,6 +104,7 @@ class VideoSink:
         self._q: queue.Queue = queue.Queue(maxsize=QUEUE_SIZE)
         self._thread = threading.Thread(target=self._run, name="fastdet-encode", daemon=True)
         self._thread.start()
+        exiting.leave_behind(self._thread)  # inside OpenCV while it runs: an exit before close() must not wait
         self._closed = False
         self._result: Path | None = None
 

@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import DataError
+from ..io.files import JsonError, not_found, parse_json
 from .imagesize import image_size
 from .picture import AnnotatedPicture
 from .rules import Box, camera_for, class_kind, make_picture, not_empty, read_text
@@ -69,7 +70,7 @@ def _paths(path: Path) -> tuple[Path, Path]:
     if path.is_dir():
         path = path / INSTANCES_FILE
     if not path.is_file():
-        raise DataError(f"{path}: COCO json not found")
+        raise not_found(path, f"{path}: COCO json not found")
     images = path.parent / "images"
     return path, images if images.is_dir() else path.parent
 
@@ -87,9 +88,9 @@ def read_coco(path: str | Path, *, source: str | None = None, camera: str | Call
     source = source or json_path.parent.name
     src = str(json_path)
     try:
-        doc = json.loads(read_text(json_path, "COCO json"))
-    except json.JSONDecodeError as exc:
-        raise DataError(f"{src}: line {exc.lineno}: not valid json ({exc.msg}, column {exc.colno})") from None
+        doc = parse_json(read_text(json_path, "COCO json"))
+    except JsonError as exc:
+        raise DataError(f"{src}: not valid json ({exc})") from None
     if not isinstance(doc, dict):
         raise DataError(f"{src}: expected a COCO json object with 'images', 'annotations', 'categories'")
 

@@ -14,7 +14,7 @@ import cv2
 
 from ..console import quiet_native_stderr, quiet_opencv
 from ..errors import DataError
-from ..io.files import check_input
+from ..io.files import check_input, not_found
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 #: JPEG start-of-frame markers that carry the picture's size (every SOFn but DHT C4, JPG C8, DAC CC)
@@ -136,7 +136,9 @@ def video_size(path: str | os.PathLike[str]) -> tuple[int, int]:
     name = os.fspath(path)
     p = Path(name)
     if not p.is_file():
-        raise DataError(f"{name}: " + ("is a folder, not a video" if p.is_dir() else "video file not found"))
+        if p.is_dir():
+            raise DataError(f"{name}: is a folder, not a video")
+        raise not_found(p, f"{name}: video file not found")
     quiet_opencv()
     cap = cv2.VideoCapture(name)
     try:

@@ -42,7 +42,8 @@ import numpy as np
 
 from ..config.teacher import TeacherConfig
 from ..detections import Detections
-from ..errors import FastdetError, ModelError
+from ..errors import DataError, FastdetError, ModelError
+from ..io.files import check_input
 
 #: the grid strides of a YOLOX head, in the order of the output's rows
 STRIDES: tuple[int, ...] = (8, 16, 32)
@@ -178,10 +179,10 @@ class TeacherDetector:
         self.config = cfg
         self.path = Path(path)
         name = os.fspath(path)
-        if not os.path.exists(name):
-            raise ModelError(f"{name}: file not found")
-        if not os.path.isfile(name):
-            raise ModelError(f"{name}: is not a file (expected an .onnx model)")
+        try:  # missing, a symlink loop, a folder, a FIFO or a device: one line, before onnxruntime opens it
+            check_input(name, "ONNX model")
+        except DataError as exc:
+            raise ModelError(str(exc)) from None
         ort = _import_onnxruntime()
         self.threads = cfg.threads if cfg.threads is not None else default_threads()
         opts = ort.SessionOptions()

@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 
 from ..errors import DataError
-from ..io.files import check_input
+from ..io.files import check_input, not_found
 
 _NUM = re.compile(r"(\d+)")
 
@@ -86,7 +86,7 @@ def load_folder(folder: Path, label: int, root: Path | None = None, size: int | 
     ``order`` is still their position among all of the folder's crops)."""
     folder = Path(folder)
     if not folder.is_dir():
-        raise DataError(f"folder {folder} not found")
+        raise not_found(folder, f"folder {folder} not found")
     groups = find_pngs(folder)
     if not any(groups.values()):
         raise DataError(f"no .png files under {folder}")

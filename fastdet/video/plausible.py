@@ -31,6 +31,9 @@ from ..config import REFERENCE_HORIZON, PlausibleConfig
 from ..detections import Detections
 from .state import FrameState, Stage
 
+#: up to this many boxes :func:`duplicates` builds the whole IoU matrix (8 MB); above, one row a kept box
+DENSE_DUPLICATES = 1024
+
 
 def duplicates(boxes: np.ndarray, scores: np.ndarray, max_iou: float) -> np.ndarray:
     """``(N,) bool``, True for each box to keep of ``boxes (N, 4)`` (x1, y1, x2, y2) scored
@@ -43,12 +46,23 @@ def duplicates(boxes: np.ndarray, scores: np.ndarray, max_iou: float) -> np.ndar
     keep = np.ones(len(b), bool)
     if len(b) < 2:
         return keep
-    over = iou(b, b) > max_iou
     order = np.argsort(-s, kind="stable")
-    for k, i in enumerate(order):
-        if keep[i]:
-            rest = order[k + 1:]
-            keep[rest[over[i, rest]]] = False
+    if len(b) <= DENSE_DUPLICATES:
+        over = iou(b, b) > max_iou
+        for k, i in enumerate(order):
+            if keep[i]:
+                rest = order[k + 1:]
+                keep[rest[over[i, rest]]] = False
+        return keep
+    # many boxes (a picture of noise: 15,000 windows over the threshold): the (N, N) IoU matrix
+    # and its temporaries took 4.1 GB; each kept box's row against the boxes after it gives the
+    # same IoUs, pair by pair, in O(N) memory
+    ranked = b[order]
+    alive = np.ones(len(b), bool)
+    for k in range(len(b)):
+        if alive[k]:
+            alive[k + 1:] &= ~(iou(ranked[k:k + 1], ranked[k + 1:])[0] > max_iou)
+    keep[order] = alive
     return keep
 
 

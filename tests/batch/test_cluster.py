@@ -45,3 +45,65 @@ def test_without_dask_says_how_to_get_it(tmp_path: Path) -> None:
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and "pip install fastdet[cluster]" in lines[0]
     assert not (tmp_path / "o").exists()
+
+
+_NOT_DASK = """\
+import socket, sys, threading
+srv = socket.socket()
+srv.bind(("127.0.0.1", 0))
+srv.listen(8)
+reply = bytes.fromhex(sys.argv[1])
+def serve():
+    held = []
+    while True:
+        c, _ = srv.accept()
+        held.append(c)
+        c.sendall(reply)
+threading.Thread(target=serve, daemon=True).start()
+from fastdet.cli.main import main
+sys.exit(main(["batch", sys.argv[2], "--out", sys.argv[3], "--scheduler", "tcp://127.0.0.1:%d" % srv.getsockname()[1]]))
+"""
+
+
+@pytest.mark.parametrize("reply", [b"SSH-2.0-OpenSSH_8.9\r\n", b"\xff" * 64], ids=["banner", "bogus-length"])
+def test_a_server_that_is_not_dask_is_one_line_at_once(tmp_path: Path, reply: bytes) -> None:
+    """A server that answers, but not in Dask's protocol (a banner; a bogus frame length): before,
+    "Unable to allocate 2.82 EiB ..." as the message, then 40 s more ignoring SIGINT and SIGTERM
+    and a ``Client.__del__`` TimeoutError traceback (issue 34, item 9); now one line, the half-made
+    client collected within its bound."""
+    from tests.media import write_video
+
+    clip = write_video(tmp_path / "c.mp4", 5)
+    r = subprocess.run([sys.executable, "-c", _NOT_DASK, reply.hex(), str(clip), str(tmp_path / "o")],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "does not speak Dask's protocol (is it a Dask scheduler?)" in lines[0], r.stderr
+    assert not (tmp_path / "o").exists() or not any((tmp_path / "o").rglob("*"))  # nothing written
+
+
+def test_dask_log_records_are_quiet_while_a_batch_runs() -> None:
+    """A remote scheduler killed mid-run: Dask's client logged "distributed.client - ERROR -" with
+    two tracebacks of its reconnect attempts (issue 34, item 19). Its loggers (Dask's config sets
+    levels on the children too) are at CRITICAL while the client lives, and restored after."""
+    import logging
+
+    client_log = logging.getLogger("distributed.client")
+    before = client_log.level
+    client_log.setLevel(logging.WARNING)  # what Dask's default config sets
+    try:
+        with cluster._quiet_dask():
+            assert not client_log.isEnabledFor(logging.ERROR)
+            assert not logging.getLogger("distributed").isEnabledFor(logging.ERROR)
+        assert client_log.level == logging.WARNING
+    finally:
+        client_log.setLevel(before)
+
+
+def test_a_lost_scheduler_connection_is_said_in_words() -> None:
+    from distributed.client import FutureCancelledError
+
+    from fastdet.batch.job import _one_line
+
+    exc = FutureCancelledError("fastdet-batch-x-v2", "scheduler-connection-lost")
+    assert _one_line(exc) == "the connection to the Dask scheduler was lost (the video is run again on the next run)"

@@ -43,9 +43,11 @@ def test_manifest_lines_nested_too_deeply_or_of_the_wrong_shape_are_dropped(tmp_
     (tmp_path / "v.boxes.txt").write_text("abc")
     bad_outputs = {**good, "input": str(tmp_path / "w.mp4"), "outputs": ["v.boxes.txt"]}
     path = tmp_path / "manifest.jsonl"
-    path.write_text(json.dumps(good) + "\n" + "[" * 200_000 + "\n" + json.dumps(bad_outputs) + "\n")
+    long_number = '{"input": "x", "frames": ' + "9" * 5000 + "}"  # a ValueError traceback (int_max_str_digits)
+    lines = [json.dumps(good), "[" * 200_000, json.dumps(bad_outputs), long_number]
+    path.write_text("\n".join(lines) + "\n")
     m = Manifest(path)
-    assert m.dropped == 2 and list(m.entries) == [str(video)]
-    assert "ignored 2 damaged line(s)" in capsys.readouterr().err
+    assert m.dropped == 3 and list(m.entries) == [str(video)]
+    assert "ignored 3 damaged line(s)" in capsys.readouterr().err
     assert m.is_complete(video, "v", "h", {"boxes": tmp_path / "v.boxes.txt"})
     assert not m.is_complete(tmp_path / "w.mp4", "v", "h", {"boxes": tmp_path / "v.boxes.txt"})

@@ -26,3 +26,16 @@ def test_warmup_then_profile():
     lines = [x for x in r.stdout.splitlines()[1:] if x.strip()]
     assert len(lines) == n and all("[loaded from the cache]" in x for x in lines), r.stdout
     assert f"{n} kernel signatures in" in r.stderr
+
+
+def test_warmup_whose_cache_cannot_be_written_fails_in_one_line(monkeypatch, capsys):
+    """``warmup``'s job is the cache: when Numba could not write it (a full disk), the run says
+    so in one line and exits 2 (issue 34, item 13: before, Numba's ENOSPC traceback); other
+    commands note it and go on (tests/test_numba.py)."""
+    from fastdet.cli.main import main
+
+    monkeypatch.setattr(_numba, "ensure_compiled", lambda *a, **k: {})
+    monkeypatch.setattr(_numba, "cache_failed", lambda: "No space left on device")
+    assert main(["warmup"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "could not be stored in the Numba cache (No space left on device)" in err[0], err

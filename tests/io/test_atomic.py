@@ -167,3 +167,41 @@ def test_commit_keeps_the_mode_of_the_file_it_replaces(tmp_path):
     tmp.chmod(0o600)  # a temporary file made with a private mode (mkstemp)
     commit(tmp, out)
     assert out.stat().st_mode & 0o777 == 0o604
+
+
+def test_a_process_leaves_no_temporary_file_on_any_exit_path(tmp_path):
+    """A temporary file the process did not rename or remove (an exit path whose clean-up was cut
+    short: a second Ctrl-C, an exception out of a library) is removed when the process ends;
+    what was renamed stays (issue 34, item 13: ``.o.partial.PID-TOKEN.mp4`` was left)."""
+    import subprocess
+    import sys
+    code = ("import sys; from pathlib import Path\n"
+            "from fastdet.io.atomic import commit, partial_name\n"
+            "d = Path(sys.argv[1])\n"
+            "partial_name(d / 'a.txt').write_text('half')\n"
+            "done = partial_name(d / 'b.txt'); done.write_text('whole'); commit(done, d / 'b.txt')\n"
+            "partial_name(d / 'never.txt')\n"  # a name handed out, no file made: nothing to do
+            "raise RuntimeError('cut short')\n")
+    p = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 1 and "cut short" in p.stderr
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["b.txt"]
+    assert (tmp_path / "b.txt").read_text() == "whole"
+
+
+def test_a_forked_child_leaves_its_parents_temporary_files(tmp_path):
+    """The names a parent handed out are the parent's: a forked child (a worker) ending does not
+    remove them."""
+    from fastdet.io import atomic
+
+    tmp = partial_name(tmp_path / "p.txt")
+    tmp.write_text("parent's")
+    pid = os.fork()
+    if pid == 0:  # the child: its exit handlers run
+        try:
+            atomic.remove_partials()
+        finally:
+            os._exit(0)
+    os.waitpid(pid, 0)
+    assert tmp.read_text() == "parent's"
+    atomic.remove_partials()
+    assert not tmp.exists()

@@ -99,3 +99,39 @@ def test_every_file_reader_refuses_a_fifo_at_once(tmp_path, fifo, loop):
         assert isinstance(exc, (DataError, ModelError)) and "symlink loop" in str(exc), exc
     exc = _within(5, lambda: read_gt("/dev/zero"))
     assert isinstance(exc, DataError) and "is a device" in str(exc), exc
+
+
+def test_every_input_found_missing_says_symlink_loop(tmp_path, loop):
+    """A symlink loop given where a video, a folder, a teacher, a COCO file or a batch input is
+    expected said "file not found" (``exists()`` is False for both; issue 34, item 19): every
+    check that finds an input missing now says why (:func:`fastdet.io.files.not_found`)."""
+    from fastdet.batch.inputs import expand_inputs
+    from fastdet.io.files import not_found
+    from fastdet.io.reader import FrameReader, check_source
+    from fastdet.labels.coco import read_coco
+    from fastdet.labels.imagesize import video_size
+    from fastdet.teacher.yolox import TeacherDetector
+    from fastdet.train.dataset import load_folder
+
+    assert "file not found" in str(not_found(tmp_path / "none", "none: file not found"))
+    assert "symlink loop" in str(not_found(loop, "file not found"))
+    folder_loop = tmp_path / "d"
+    folder_loop.symlink_to(folder_loop)
+    for fn in (lambda: check_source(loop), lambda: FrameReader(loop), lambda: video_size(loop),
+               lambda: read_coco(loop), lambda: load_folder(folder_loop, 1), lambda: TeacherDetector(loop),
+               lambda: expand_inputs([str(loop)])):
+        exc = _within(5, fn)
+        assert isinstance(exc, (DataError, ModelError)) and "symlink loop" in str(exc), exc
+
+
+def test_parse_json_fails_in_one_line_for_every_input():
+    """Every JSON input (COCO files, JSON-lines boxes, the manifest, model metadata) parses through
+    one function whose failures are a JsonError with a few words: 200,000 ``[`` was a
+    RecursionError traceback, a 5,000-digit number a ValueError traceback (issue 34)."""
+    from fastdet.io.files import JsonError, parse_json
+
+    assert parse_json('{"a": [1, 2.5]}') == {"a": [1, 2.5]}
+    for text, words in (("[" * 200_000, "nested too deeply"), ("9" * 5000, "a number too long"),
+                        ('{"a": 1,}', "line 1: Expecting property name"), (b"\xff", "not UTF-8")):
+        with pytest.raises(JsonError, match=words):
+            parse_json(text)

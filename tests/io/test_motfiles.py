@@ -67,7 +67,10 @@ def test_jsonl_nested_too_deeply_is_one_line(tmp_path):
     """issue 34, item 19: 200,000 nested ``[`` gave a RecursionError traceback."""
     p = tmp_path / "p.jsonl"
     p.write_text('{"frame": 1, "boxes": [], "scores": []}\n' + "[" * 200_000 + "\n")
-    with pytest.raises(DataError, match="line 2: not a box line .JSON nested too deeply"):
+    with pytest.raises(DataError, match="line 2: not a box line .JSON: nested too deeply"):
+        read_predictions(p)
+    p.write_text('{"frame": 1, "boxes": [], "scores": []}\n{"frame": ' + "9" * 5000 + ', "boxes": []}\n')
+    with pytest.raises(DataError, match="line 2: not a box line .JSON: a number too long"):  # a ValueError traceback
         read_predictions(p)
 
 

@@ -300,3 +300,27 @@ def test_named_pipe_nobody_writes_to_is_bounded_and_a_stop_ends_it(tmp_path, mon
             pass
         time.sleep(0.05)
     assert not any(t.name == "fastdet-open" for t in threading.enumerate())
+
+
+@pytest.mark.slow
+def test_an_http_source_that_never_answers_ends_in_one_line(tmp_path):
+    """``video http://HOST:PORT/c.mp4`` where the server accepts and never answers: the 30 s line
+    and exit 2 (before: the helper thread still inside OpenCV's open woke as the interpreter shut
+    down: "terminate called without an active exception", exit 134)."""
+    import socket
+    import subprocess
+    import sys
+
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen(8)
+    try:
+        url = f"http://127.0.0.1:{srv.getsockname()[1]}/c.mp4"
+        p = subprocess.run([sys.executable, "-m", "fastdet", "video", url, "--boxes", str(tmp_path / "b.txt")],
+                           capture_output=True, text=True, timeout=120)
+    finally:
+        srv.close()
+    assert p.returncode == 2, (p.returncode, p.stderr)
+    assert p.stderr.strip().splitlines() == [f"fastdet video: error: {url}: the source did not open within 30 s "
+                                             "(a pipe nobody writes to, a stream that does not answer?)"], p.stderr
+    assert list(tmp_path.iterdir()) == []

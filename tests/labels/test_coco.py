@@ -59,7 +59,7 @@ def test_pictures_beside_the_json_without_sizes(tmp_path):
 
 def test_malformed(tmp_path):
     cases = {
-        "json": ('{"images": [\n  {"id": 1,}\n]}', "line 2: not valid json"),
+        "json": ('{"images": [\n  {"id": 1,}\n]}', "not valid json (line 2: "),
         "notobject": ("[1, 2]", "expected a COCO json object"),
         "noimages": (json.dumps({"annotations": [], "categories": CATS}), "'images' must be a list"),
         "category": (doc([ann(cat=7)]), "annotations[0]: unknown class: category_id 7"),
@@ -75,6 +75,11 @@ def test_malformed(tmp_path):
                   "images[1]: image id 1 is used twice"),
         "missing": (doc([], images=[{"id": 1, "file_name": "c.jpg"}]), "images[0]: the picture"),
         "empty": (doc([], images=[]), "no images in the COCO json"),
+        # issue 34's walk: a RecursionError and a ValueError traceback before
+        "deep": ("[" * 200_000, "not valid json (nested too deeply)"),
+        "longint": (json.dumps(doc([], images=[{"id": 7, "file_name": "a.jpg"}])).replace('"id": 7',
+                                                                                           '"id": ' + "9" * 5000),
+                    "not valid json (a number too long"),
     }
     for name, (text, words) in cases.items():
         root = coco_set(tmp_path / name, text)

@@ -5,6 +5,7 @@ in one line."""
 from __future__ import annotations
 
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -181,8 +182,14 @@ def test_frame_without_vehicles_and_other_classes(model):
 def test_missing_and_non_onnx_files(tmp_path):
     with pytest.raises(ModelError, match="file not found"):
         TeacherDetector(tmp_path / "nope.onnx")
-    with pytest.raises(ModelError, match="is not a file"):
+    with pytest.raises(ModelError, match="is a folder, expected an ONNX model file"):
         TeacherDetector(tmp_path)
+    fifo = tmp_path / "pipe.onnx"  # issue 34's walk: adapt said "file not found" for a FIFO
+    os.mkfifo(fifo)
+    with pytest.raises(ModelError, match=r"is a named pipe \(FIFO\), not a regular file"):
+        TeacherDetector(fifo)
+    with pytest.raises(ModelError, match="is a device"):
+        TeacherDetector("/dev/zero")
     junk = tmp_path / "junk.onnx"
     junk.write_bytes(b"this is not a model\n" * 10)
     with pytest.raises(ModelError, match="not an ONNX model") as err:

@@ -208,3 +208,38 @@ def test_with_the_offline_pass_the_rules_run_after_it():
     assert final[1][1].boxes.tolist() == [a]
     with pytest.raises(ValueError, match="needs the tracker"):
         offline_boxes(VideoDetector(SquareDetector(), PipelineConfig(refine=None, tracker=None)), done, (360, 640))
+
+
+def test_duplicates_of_many_boxes_stay_small_and_equal_the_dense_answer():
+    """``image --merge nms`` of a 640x360 picture of noise: about 15,000 windows over the threshold,
+    and the (N, N) IoU matrix with its temporaries peaked at 4.1 GB (issue 34's walk through
+    ``image``); above ``DENSE_DUPLICATES`` boxes the rows of the kept boxes are computed one by
+    one: the same boxes kept, memory linear in N."""
+    import tracemalloc
+
+    from fastdet.video import plausible
+
+    rng = np.random.default_rng(3)
+
+    def boxes(n):
+        xy = rng.uniform(0, 600, (n, 2))
+        wh = rng.uniform(16, 128, (n, 2))
+        return np.hstack([xy, xy + wh]), rng.normal(size=n).round(1)  # ties in the scores too
+
+    b, s = boxes(3000)
+    dense = duplicates(b, s, 0.3)
+    old = plausible.DENSE_DUPLICATES
+    try:
+        plausible.DENSE_DUPLICATES = 10**9
+        assert np.array_equal(duplicates(b, s, 0.3), dense)
+    finally:
+        plausible.DENSE_DUPLICATES = old
+    b, s = boxes(20_000)
+    tracemalloc.start()
+    try:
+        keep = duplicates(b, s, 0.5)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 20 * 2**20, peak  # the dense matrix alone: 3.2 GB
+    assert 0 < keep.sum() < len(keep)
