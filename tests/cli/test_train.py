@@ -123,7 +123,7 @@ def _yolo_set(root, data):
 def test_train_learns_from_labelled_pictures_too(data, tmp_path, capsys):
     spec = f"yolo:{_yolo_set(tmp_path / 'set', data)}"
     out = tmp_path / "m.npz"
-    args = ["train", "--data", str(data), "--out", str(out), "--max-per-folder", "20", "--split", "random",
+    args = ["train", "--data", str(data), "--out", str(out), "--max-per-folder", "8", "--split", "random",
             "--no-progress", "--frames", spec]
     assert main(args) == 0
     text = capsys.readouterr().out
