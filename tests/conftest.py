@@ -1,23 +1,35 @@
-"""Shared fixtures. The tests need ``../shared/data``: a missing folder skips locally and
-fails in CI (``CI=true``)."""
+"""Shared fixtures. The tests need ``../shared/data`` and its teacher model
+``teachers/yolox_nano.onnx``: a missing one skips locally and fails in CI (``CI=true``)."""
 from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import NoReturn
 
 import pytest
 
 from fastdet.data import data_dir
 
 
+def _missing(msg: str) -> NoReturn:
+    """What a missing part of the shared data does: fail in CI (it must be there), else skip."""
+    if _ci():
+        pytest.fail(msg)
+    pytest.skip(msg)
+
+
 def _require_data() -> Path:
     d = data_dir()
     if not (d / "test_images").is_dir():
-        msg = f"data folder {d} not found (set FASTDET_DATA)"
-        if os.environ.get("CI", "").lower() in ("1", "true", "yes"):
-            pytest.fail(msg)
-        pytest.skip(msg)
+        _missing(f"data folder {d} not found (set FASTDET_DATA)")
     return d
+
+
+def _require_teacher(data: Path) -> Path:
+    p = data / "teachers" / "yolox_nano.onnx"
+    if not p.exists():
+        _missing(f"teacher model {p} not found")
+    return p
 
 
 @pytest.fixture(scope="session")
@@ -35,11 +47,9 @@ def test_images(data: Path) -> list[Path]:
 
 @pytest.fixture(scope="session")
 def yolox_nano(data: Path) -> Path:
-    """The data folder's teacher CNN, ``teachers/yolox_nano.onnx`` (skipped where it is not)."""
-    p = data / "teachers" / "yolox_nano.onnx"
-    if not p.exists():
-        pytest.skip(f"{p} not found")
-    return p
+    """The data folder's teacher CNN, ``teachers/yolox_nano.onnx`` (skipped where it is not,
+    a failure in CI)."""
+    return _require_teacher(data)
 
 
 # ------------------------------------------------------------------------- slow tests

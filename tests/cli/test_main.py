@@ -160,27 +160,53 @@ def test_real_process_user_error_bug_and_interrupt():
     assert r.returncode == 130 and r.stderr.startswith("fastdet fake: interrupted") and "Traceback" not in r.stderr
 
 
+#: a fresh interpreter imports the dispatcher, then runs each command's ``--help`` in a forked
+#: child of its own (each child starts from that interpreter: nothing a command imports is seen
+#: by another) and prints the modules loaded then, one JSON line a command
 _IMPORTED = """
-    import json, sys
+    import json, os, sys
     from fastdet.cli.main import main
-    try:
-        main([{name!r}, "--help"])
-    except SystemExit:
-        pass
-    print(json.dumps(sorted(sys.modules)))
+    for name in {names!r}:
+        sys.stdout.flush()
+        pid = os.fork()
+        if pid == 0:
+            code = 0
+            try:
+                sys.stdout = open(os.devnull, "w")  # the help text
+                try:
+                    main([name, "--help"])
+                except SystemExit:
+                    pass
+                sys.stdout = sys.__stdout__
+                print(json.dumps([name, sorted(sys.modules)]), flush=True)
+            except BaseException:
+                import traceback
+                traceback.print_exc()
+                code = 1
+            os._exit(code)
+        _, status = os.waitpid(pid, 0)
+        assert os.waitstatus_to_exitcode(status) == 0, name
 """
 
+_TEST_IMPORTS = "test_only_the_chosen_command_module_is_imported"
 
-def _modules_after_help(name: str) -> set[str]:
-    r = _python(_IMPORTED.format(name=name))
+
+@pytest.fixture(scope="module")
+def modules_after_help(request) -> dict[str, set[str]]:
+    """Command -> the modules loaded after its ``--help``, for the commands this run tests (one
+    interpreter's start-up for all of them, not one each)."""
+    names = [item.callspec.params["name"] for item in request.session.items
+             if getattr(item, "originalname", None) == _TEST_IMPORTS and item.module is request.module]
+    r = _python(_IMPORTED.format(names=names))
     assert r.returncode == 0, r.stderr
-    return set(json.loads(r.stdout.strip().splitlines()[-1]))
+    found = dict(json.loads(line) for line in r.stdout.splitlines() if line.startswith("["))
+    return {name: set(mods) for name, mods in found.items()}
 
 
 @pytest.mark.parametrize("name", [pytest.param(n, marks=() if n == "video" else pytest.mark.slow)
                                   for n in SUBCOMMANDS])
-def test_only_the_chosen_command_module_is_imported(name):
-    mods = _modules_after_help(name)
+def test_only_the_chosen_command_module_is_imported(name, modules_after_help):
+    mods = modules_after_help[name]
     commands = {m for m, _ in SUBCOMMANDS.values()}
     assert commands & mods == {SUBCOMMANDS[name][0]}
     if name in ("video", "image"):  # the detection commands do not pay for training or clusters
@@ -225,15 +251,25 @@ def test_bad_numba_thread_count_is_one_line(value, capsys, monkeypatch):
         f"fastdet image: error: NUMBA_NUM_THREADS must be a whole number >= 1, got {value!r}")
 
 
-def _help(command: str) -> list[str]:
-    r = subprocess.run([sys.executable, "-m", "fastdet", command, "--help"], capture_output=True, text=True,
-                       env={**os.environ, "COLUMNS": "80"}, timeout=120, check=True)
-    return r.stdout.splitlines()
+@pytest.fixture
+def help_of(capsys, monkeypatch):
+    """``fastdet COMMAND --help`` on an 80-column terminal (argparse reads $COLUMNS), in this
+    process: the text is the same as a fresh interpreter's (the program name too)."""
+    monkeypatch.setenv("COLUMNS", "80")
+
+    def run(command: str) -> list[str]:
+        capsys.readouterr()
+        with pytest.raises(SystemExit) as exc:
+            main([command, "--help"])
+        assert exc.value.code == 0
+        return capsys.readouterr().out.splitlines()
+
+    return run
 
 
-def test_video_help_fits_a_screen_in_groups():
+def test_video_help_fits_a_screen_in_groups(help_of):
     """Issue 33, item 6: ``video --help`` was 122 lines; grouped, one line an option, aliases hidden."""
-    lines = _help("video")
+    lines = help_of("video")
     assert len(lines) <= 55, len(lines)
     assert max(map(len, lines)) <= 80
     for title in ("inputs and outputs:", "models and search:", "tracking:", "advanced:"):
@@ -244,12 +280,12 @@ def test_video_help_fits_a_screen_in_groups():
 
 
 @pytest.mark.parametrize("command", ["eval", "train", "bench", "batch"])
-def test_long_helps_are_grouped(command):
-    lines = _help(command)
+def test_long_helps_are_grouped(command, help_of):
+    lines = help_of(command)
     assert len(lines) <= 50 and max(map(len, lines)) <= 80, (len(lines), max(map(len, lines)))
 
 
-def test_hidden_aliases_are_still_accepted():
+def test_hidden_aliases_are_still_accepted(help_of):
     from fastdet.cli.main import build_parser
 
     p = build_parser("video")
@@ -258,7 +294,7 @@ def test_hidden_aliases_are_still_accepted():
     p = build_parser("mine-negatives")
     a = p.parse_args(["mine-negatives", "x.mp4", "--out", "d", "--wide-model", "w.npz", "--part", "wide"])
     assert str(a.oncoming_model) == "w.npz" and a.part == "wide"
-    text = "\n".join(_help("mine-negatives"))
+    text = "\n".join(help_of("mine-negatives"))
     assert "--wide-model" not in text and "oncoming,wide" not in text and "former name" not in text
 
 

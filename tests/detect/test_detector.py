@@ -40,7 +40,9 @@ def _compare_all_windows(det: Detector, frame: np.ndarray, part: int = 0) -> int
 @pytest.mark.slow
 def test_every_window_of_every_default_band_matches_classic(frames):
     det = Detector()  # bundled model, default search
-    n = sum(_compare_all_windows(det, f) for f in frames)
+    # two of the test images: every window of every band either way (1,364 a frame), a third
+    # of the classic pipeline's time
+    n = sum(_compare_all_windows(det, f) for f in frames[::3])
     assert n > 1000
 
 

@@ -80,7 +80,7 @@ def test_grey_test_image_block_norms(test_images, block_norm):
 def test_luv_per_channel_test_images(test_images):
     ours_kw, ref_kw = hc_kwargs()
     for path in test_images:
-        luv = cv2.cvtColor(cv2.imread(str(path)), cv2.COLOR_BGR2LUV)
+        luv = cv2.cvtColor(cv2.imread(str(path))[::2, ::2], cv2.COLOR_BGR2LUV)  # a quarter of skimage's time
         out = fastdet.hog_channels(luv, **ours_kw)
         assert out.flags.c_contiguous and out.dtype == np.float64
         assert_same(out, sk_channels(luv, **ref_kw))
