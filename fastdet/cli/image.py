@@ -164,7 +164,8 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
             if os.path.realpath(out_dir / out_name(name)) in inputs:
                 raise DataError(f"-o {out_dir}: would overwrite the input {name}; give another folder")
     try:
-        config = PictureSearch(boxes=args.merge, **({"refine": None} if args.no_refine else {}),
+        config = PictureSearch(boxes=args.merge, verify=args.merge == "nms",
+                               **({"refine": None} if args.no_refine else {}),
                                **({} if args.threshold is None else {"heat_threshold": args.threshold}))
     except ValueError as exc:
         raise FastdetError(f"--threshold: {exc}") from None
@@ -201,7 +202,7 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
                 bar.update(1)
                 continue
             boxes, hm = detector.boxes_from_windows(windows, img.shape)
-            boxes = detector.refine(img, boxes)
+            boxes = detector.second_stage(img, boxes)
             n_boxes += len(boxes)
             for b, s in zip(boxes.boxes, boxes.scores):
                 csv.write(f"{name},{int(b[0])},{int(b[1])},{int(b[2])},{int(b[3])},{float(s):.4f}\n")

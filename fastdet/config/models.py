@@ -28,6 +28,10 @@ REFINE_MODEL_PATH = MODELS_DIR / "refine_cameras.npz"
 #: the earlier box regressor, fitted on test_video and the test images alone
 #: (``tools/scripts/refine_model.py``); meant for one iteration: ``RefineConfig(iterations=1)``
 REFINE_UDACITY_MODEL_PATH = MODELS_DIR / "refine.npz"
+#: the bundled box verifier of the single-picture search (:mod:`fastdet.detect.verifier`): trained
+#: on the first stage's boxes on the 17 teacher-labelled clips of the data folder, no human label
+#: (``python -m tools.scripts.verifier_model``; docs/accuracy.md)
+VERIFIER_MODEL_PATH = MODELS_DIR / "verifier.npz"
 
 
 def resolve_model(path: str | os.PathLike | None, bundled: Path) -> str:

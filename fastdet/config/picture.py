@@ -50,6 +50,9 @@ class PictureSearch(Config):
     refine: how the learned box regressor moves each box onto its vehicle
         (:class:`~fastdet.config.RefineConfig`, the video's; :mod:`fastdet.video.refine`);
         ``None``: the boxes are the windows (or blobs) as found.
+    verify: the box verifier (:mod:`fastdet.detect.verifier`) takes a second look at each
+        (refined) box and keeps those it scores above its threshold, scored by its decision
+        value; ``False``: every box the first stage found, scored by its window's decision value.
     """
 
     min_width: float = 1 / 32
@@ -62,8 +65,11 @@ class PictureSearch(Config):
     nms_iou: float = 0.3
     nms_min_score: float = 2.0
     refine: RefineConfig | None = RefineConfig()
+    verify: bool = True
 
     def __post_init__(self) -> None:
+        if self.verify and self.boxes != "nms":
+            raise ValueError("verify takes the NMS boxes' decision values: give boxes='nms' or verify=False")
         if not 0 < self.min_width <= 1:
             raise ValueError(f"min_width must be a fraction of the picture width in (0, 1], got {self.min_width!r}")
         if not 0 < self.max_height <= 1:

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..config import HeatConfig, PictureSearch
 from ..detect import Detector
+from ..detect.verifier import BoxVerifier, load_verifier
 from ..detections import Detections
 from ..model import Model, load_model
 from .heatmap import KERNELS as HEAT_KERNELS
@@ -48,15 +49,19 @@ class PictureDetector:
     config: the :class:`~fastdet.config.PictureSearch` (default ``PictureSearch()``).
     refine_model: the box regressor (a :class:`~fastdet.video.refine.BoxRegressor` or its file;
         ``None``: the bundled one), used when ``config.refine`` is set.
+    verifier: the box verifier (a :class:`~fastdet.detect.verifier.BoxVerifier` or its file;
+        ``None``: the bundled one), used when ``config.verify`` is set.
 
     :meth:`detect` returns one box per vehicle: :meth:`windows`, the positive windows,
-    :meth:`boxes_from_windows`, one box per vehicle as found, then :meth:`refine`. One
-    :class:`fastdet.Detector` is kept per picture size (the last few sizes).
+    :meth:`boxes_from_windows`, one box per vehicle as found, then :meth:`second_stage`
+    (:meth:`refine`, then :meth:`verify`). One :class:`fastdet.Detector` is kept per picture
+    size (the last few sizes).
     """
 
     def __init__(self, model: Model | str | os.PathLike[str] | None = None,
                  config: PictureSearch | None = None,
-                 refine_model: BoxRegressor | str | os.PathLike[str] | None = None) -> None:
+                 refine_model: BoxRegressor | str | os.PathLike[str] | None = None,
+                 verifier: BoxVerifier | str | os.PathLike[str] | None = None) -> None:
         self.model = model if isinstance(model, Model) else load_model(model)
         self.config = config if config is not None else PictureSearch()
         if not isinstance(self.config, PictureSearch):
@@ -65,6 +70,9 @@ class PictureDetector:
         if self.config.refine is not None:
             self.regressor = (refine_model if isinstance(refine_model, BoxRegressor)
                               else load_regressor(refine_model))
+        self.verifier: BoxVerifier | None = None
+        if self.config.verify:
+            self.verifier = verifier if isinstance(verifier, BoxVerifier) else load_verifier(verifier)
         self.heat_config = HeatConfig().single_frame(self.config.heat_threshold)
         self.score_kind = self.model.score_kind
         self._detectors: OrderedDict[tuple[int, int], Detector] = OrderedDict()
@@ -72,7 +80,8 @@ class PictureDetector:
     @property
     def kernels(self) -> tuple[Any, ...]:
         """Every numba kernel :meth:`detect` runs (to compile them all at once)."""
-        return (*Detector.kernels, *HEAT_KERNELS, *(REFINE_KERNELS if self.regressor is not None else ()))
+        second = self.regressor is not None or self.verifier is not None
+        return (*Detector.kernels, *HEAT_KERNELS, *(REFINE_KERNELS if second else ()))
 
     def detector(self, shape: tuple[int, ...]) -> Detector:
         """The :class:`fastdet.Detector` that searches pictures of ``shape = (H, W[, C])``
@@ -117,21 +126,37 @@ class PictureDetector:
         bgr = np.ascontiguousarray(np.asarray(image)[..., ::-1]) if rgb else np.asarray(image)
         return refine(bgr, boxes, self.regressor, self.config.refine)
 
+    def verify(self, image: np.ndarray, boxes: Detections, rgb: bool = False) -> Detections:
+        """The ``boxes`` of ``image`` (``(H, W, 3) uint8``, BGR or RGB with ``rgb``; scores: the
+        windows' decision values) that the verifier keeps, scored by its decision value
+        (unchanged when ``config.verify`` is off)."""
+        if self.verifier is None or len(boxes) == 0:
+            return boxes
+        bgr = np.ascontiguousarray(np.asarray(image)[..., ::-1]) if rgb else np.asarray(image)
+        v = self.verifier.decision_function(bgr, boxes.boxes, boxes.scores)
+        keep = v > self.verifier.threshold
+        return Detections(boxes.boxes[keep], v[keep].astype(np.float32))
+
+    def second_stage(self, image: np.ndarray, found: Detections, rgb: bool = False) -> Detections:
+        """The boxes :meth:`boxes_from_windows` ``found`` in ``image``, refined (:meth:`refine`)
+        and verified (:meth:`verify`)."""
+        return self.verify(image, self.refine(image, found, rgb), rgb)
+
     def detect(self, image: np.ndarray, rgb: bool = False) -> Detections:
         """One box per vehicle in ``image`` (``(H, W, 3) uint8``, BGR or RGB with ``rgb``):
         :class:`~fastdet.detections.Detections` with ``boxes (N, 4) int32`` x1, y1, x2, y2
         (exclusive) px and ``scores (N,) float32`` (peak heat, or decision value with
-        ``boxes='nms'``)."""
+        ``boxes='nms'``; the verifier's decision value when ``config.verify``)."""
         found = self.boxes_from_windows(self.windows(image, rgb), np.shape(image))[0]
-        return self.refine(image, found, rgb)
+        return self.second_stage(image, found, rgb)
 
     def warmup(self) -> None:
         """Compile (or load) the kernels and run them once on a small picture."""
         Detector(self.model, self.config.search((128, 128))).warmup()
         HeatMap((8, 8), self.heat_config).warmup()
-        if self.regressor is not None:
-            self.refine(np.zeros((64, 64, 3), np.uint8), Detections(np.array([[8, 8, 56, 56]], np.int32),
-                                                                    np.ones(1, np.float32)))
+        if self.regressor is not None or self.verifier is not None:
+            self.second_stage(np.zeros((64, 64, 3), np.uint8), Detections(np.array([[8, 8, 56, 56]], np.int32),
+                                                                          np.ones(1, np.float32)))
 
     def close(self) -> None:
         """Stop the detectors' band threads."""

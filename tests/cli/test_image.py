@@ -39,7 +39,7 @@ class FakePictures:
         hm = HeatMap(shape, self.heat, score_kind=self.inner.score_kind)
         return hm.update(windows), hm
 
-    def refine(self, img, boxes):
+    def second_stage(self, img, boxes):
         return boxes
 
 

@@ -60,14 +60,14 @@ def test_the_boxes_found_are_refined_by_the_video_regressor(test_images):
     from fastdet.video.refine import load_regressor, refine
 
     img = cv2.imread(str(test_images[0]))
-    pd = PictureDetector()
+    pd = PictureDetector(config=PictureSearch(verify=False))
     found = pd.boxes_from_windows(pd.windows(img), img.shape)[0]
     assert len(found) > 0
     want = refine(img, found, load_regressor(), PictureSearch().refine)
     got = pd.detect(img)
     assert got.boxes.tolist() == want.boxes.tolist() and got.boxes.tolist() != found.boxes.tolist()
     assert got.scores.tolist() == found.scores.tolist()
-    plain = PictureDetector(config=PictureSearch(refine=None)).detect(img)
+    plain = PictureDetector(config=PictureSearch(refine=None, verify=False)).detect(img)
     assert plain.boxes.tolist() == found.boxes.tolist()
     # RGB input: the same boxes
     assert pd.detect(np.ascontiguousarray(img[..., ::-1]), rgb=True).boxes.tolist() == got.boxes.tolist()
@@ -82,7 +82,7 @@ def test_refined_boxes_match_more_annotated_vehicles(data):
     from fastdet.video.picture import PictureDetector
 
     pics = read_kitti(data / "frames" / "kitti_tiny")[:8]
-    pd = PictureDetector()
+    pd = PictureDetector(config=PictureSearch(verify=False))
     hits = {"found": 0, "refined": 0}
     for pic in pics:
         img = pic.load()
@@ -92,3 +92,25 @@ def test_refined_boxes_match_more_annotated_vehicles(data):
                                     pic.targets, pic.ignores, 0.5)
             hits[name] += int(hit.sum())
     assert hits["refined"] > hits["found"], hits
+
+
+def test_the_verifier_keeps_the_refined_boxes_it_scores_above_its_threshold(test_images):
+    """detect = the refined boxes the bundled verifier scores above its threshold, scored by its
+    decision value (the plain formula on its inputs); verify=False keeps every refined box."""
+    from fastdet.detect.verifier import load_verifier
+    from fastdet.video.picture import PictureDetector
+
+    img = cv2.imread(str(test_images[3]))
+    v = load_verifier()
+    pd = PictureDetector()
+    refined = PictureDetector(config=PictureSearch(verify=False)).detect(img)
+    assert len(refined) > 0
+    x = v.features(img, refined.boxes, refined.scores)
+    dv = ((x - v.mean) / v.scale) @ v.coef + v.intercept
+    keep = dv > v.threshold
+    got = pd.detect(img)
+    assert got.boxes.tolist() == refined.boxes[keep].tolist()
+    np.testing.assert_allclose(got.scores, dv[keep], rtol=1e-5)
+    assert PictureSearch(boxes="heat", verify=False).verify is False
+    with pytest.raises(ValueError, match="verify takes the NMS boxes"):
+        PictureSearch(boxes="heat")
