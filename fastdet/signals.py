@@ -34,6 +34,12 @@ came, e.g. from inside a compiler that was interrupted -- into one line
 
 Handlers are installed only in the main thread, and the previous ones are restored when
 :func:`handled` ends (so calling ``main()`` from tests leaves the test runner as it was).
+
+A signal that is ignored when :func:`handled` starts stays ignored: a process started with
+SIGINT ignored (a background job ``fastdet video ... &`` of a shell script: POSIX shells start
+those with SIGINT and SIGQUIT ignored; ``nohup`` ignores SIGHUP) keeps ignoring it for its whole
+life, as its parent meant -- Python itself and the start-up handlers in ``fastdet/__init__.py``
+keep an inherited ``SIG_IGN`` too (issue 34). The other stop signals still stop it.
 """
 from __future__ import annotations
 
@@ -205,7 +211,8 @@ def handled(after: str = "restore") -> Iterator[None]:
     previous = {s: signal.getsignal(s) for s in STOP_SIGNALS}
     _received, _deferring, _patient = None, 1, 0  # held while the handlers are being set
     for s in STOP_SIGNALS:
-        signal.signal(s, _handler)
+        if previous[s] != signal.SIG_IGN:  # an ignored signal stays ignored (see the docstring)
+            signal.signal(s, _handler)
     _active += 1
     hook = sys.unraisablehook
     sys.unraisablehook = _unraisable(hook)

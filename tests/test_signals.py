@@ -14,6 +14,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -28,12 +29,13 @@ def long_clip(tmp_path_factory) -> Path:
     return write_video(tmp_path_factory.mktemp("long") / "long.mp4", 1500, ("-c:v", "mpeg4", "-q:v", "8"))
 
 
-def _start(clip: Path, out: Path, env: dict | None = None) -> tuple[subprocess.Popen, dict[str, Path]]:
+def _start(clip: Path, out: Path, env: dict | None = None,
+           preexec_fn: Callable[[], None] | None = None) -> tuple[subprocess.Popen, dict[str, Path]]:
     paths = {"video": out / "o.mp4", "boxes": out / "b.txt", "json": out / "b.jsonl"}
     p = subprocess.Popen(fastdet_cmd("video", clip, "-o", paths["video"], "--boxes", paths["boxes"],
                                      "--json", paths["json"], "--no-progress", "--no-oncoming"),
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         env={**os.environ, **(env or {})})
+                         env={**os.environ, **(env or {})}, preexec_fn=preexec_fn)
     return p, paths
 
 
@@ -153,7 +155,19 @@ elif _kind == "stderr":
 """
 
 
-def _signal_at(tmp_path: Path, command: str, at: str, sig: int = signal.SIGINT) -> subprocess.CompletedProcess:
+def _ignoring(*sigs: int) -> Callable[[], None]:
+    """A ``preexec_fn``: the child starts with ``sigs`` ignored, as a POSIX shell starts a
+    background job (SIGINT) or ``nohup`` a command (SIGHUP)."""
+
+    def ignore() -> None:
+        for s in sigs:
+            signal.signal(s, signal.SIG_IGN)
+
+    return ignore
+
+
+def _signal_at(tmp_path: Path, command: str, at: str, sig: int = signal.SIGINT,
+               ignored: tuple[int, ...] = ()) -> subprocess.CompletedProcess:
     hook = tmp_path / "hook"
     hook.mkdir(exist_ok=True)
     (hook / "sitecustomize.py").write_text(SIGNAL_AT)
@@ -162,7 +176,7 @@ def _signal_at(tmp_path: Path, command: str, at: str, sig: int = signal.SIGINT) 
     env = {**os.environ, "FASTDET_TEST_SIGNAL_AT": at, "FASTDET_TEST_SIGNAL": str(int(sig)),
            "PYTHONPATH": os.pathsep.join([str(hook), *filter(None, [os.environ.get("PYTHONPATH")])])}
     return subprocess.run(fastdet_cmd(command, *args), capture_output=True, text=True, env=env, timeout=300,
-                          check=False)
+                          check=False, preexec_fn=_ignoring(*ignored))
 
 
 @pytest.mark.parametrize("at", ["import:fastdet._version",  # the package's own imports (runpy's frames)
@@ -309,3 +323,71 @@ def test_a_second_ctrl_c_in_the_frame_loop_leaves_nothing_behind(long_clip, tmp_
     if paths["json"].exists():
         n = paths["json"].read_text().count("\n")
         assert _frames_in_video(paths["video"]) == n
+
+
+def test_an_ignored_signal_stays_ignored_inside_handled():
+    """A stop signal ignored when the command starts (inherited ``SIG_IGN``) is not handled: the
+    command's handlers are set for the others only, and the ignored one is ignored again after."""
+    from fastdet import signals
+
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        with signals.handled():
+            assert signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+            assert signal.getsignal(signal.SIGTERM) is signals._handler
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)
+            assert not signals.stop_requested()
+        assert signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP])
+def test_an_inherited_sig_ign_is_kept_as_the_command_sets_its_handlers(tmp_path, sig):
+    """Started with ``sig`` ignored, the process ignores it also just after the dispatcher set
+    its handlers (deterministic: the child signals itself then); the command's own outcome
+    stands (a missing input: one line, exit 2). Before: 128 + the signal."""
+    p = _signal_at(tmp_path, "video", "handler:_handler", sig, ignored=(sig,))
+    assert p.returncode == 2 and "interrupted" not in p.stderr, (p.returncode, p.stderr)
+    assert "file not found" in p.stderr and len(p.stderr.strip().splitlines()) == 1, p.stderr
+
+
+@pytest.fixture(scope="module")
+def short_clip(tmp_path_factory) -> Path:
+    """Long enough for a signal to reach the frame loop, short enough to run to its end."""
+    return write_video(tmp_path_factory.mktemp("short") / "short.mp4", 60, ("-c:v", "mpeg4", "-q:v", "8"))
+
+
+def test_a_background_job_ignoring_sigint_runs_to_its_end(short_clip, tmp_path):
+    """``fastdet video ... &`` in a shell script starts with SIGINT ignored: Ctrl-C of the script
+    (SIGINT to the job) must not stop it, in the frame loop or later; it completes, exit 0
+    (before: the command's handler, set 1-3.5 s in, stopped it with exit 130)."""
+    p, paths = _start(short_clip, tmp_path, preexec_fn=_ignoring(signal.SIGINT))
+    _wait_for_frames(p, paths["json"])
+    for _ in range(3):
+        os.kill(p.pid, signal.SIGINT)
+        time.sleep(0.05)
+    out, err = p.communicate(timeout=300)
+    assert p.returncode == 0, err
+    assert "interrupted" not in err and "Traceback" not in err, err
+    assert leftovers(tmp_path) == []
+    frames = [json.loads(ln)["frame"] for ln in paths["json"].read_text().splitlines()]
+    assert frames == list(range(1, 61))
+    assert _frames_in_video(paths["video"]) == 60
+
+
+def test_sigterm_still_stops_a_job_ignoring_sigint(long_clip, tmp_path):
+    """Only the ignored signal is kept ignored: SIGTERM still ends the run cleanly."""
+    p, paths = _start(long_clip, tmp_path, preexec_fn=_ignoring(signal.SIGINT))
+    _wait_for_frames(p, paths["json"])
+    os.kill(p.pid, signal.SIGINT)
+    time.sleep(0.1)
+    os.kill(p.pid, signal.SIGTERM)
+    out, err = p.communicate(timeout=120)
+    assert p.returncode == 143, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "interrupted (SIGTERM)" in lines[0], err
+    assert leftovers(tmp_path) == []
+    n = paths["json"].read_text().count("\n")
+    assert 3 <= n < 1500 and _frames_in_video(paths["video"]) == n

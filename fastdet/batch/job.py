@@ -49,7 +49,8 @@ import contextlib
 import os
 import time
 import uuid
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 from pathlib import Path
@@ -61,6 +62,7 @@ from distributed.scheduler import KilledWorker
 from .. import signals
 from ..config.batch import BatchOptions
 from ..errors import DataError, WriteError, one_line
+from ..io.atomic import new_folders
 from .cluster import (  # noqa: F401  (re-exported)
     CLOSE_TIMEOUT_S,
     CONNECT_TIMEOUT_S,
@@ -183,29 +185,38 @@ def _run_tasks(client: Client, tasks: list[VideoTask], stats: dict[str, dict[str
         progress.close()
 
 
-def prepare_out_dir(out_dir: Path) -> None:
-    """Make the output folder if missing; :class:`DataError` when it cannot be used."""
+@contextmanager
+def out_dir_for_run(out_dir: Path) -> Iterator[None]:
+    """``with out_dir_for_run(out):`` makes the output folder (and its missing parents)
+    if missing -- :class:`DataError` when it cannot be used -- and, when the block raises (a
+    scheduler that does not answer or is not Dask, a refused ``--table``, a stop signal before
+    any video was done), removes the folders it made that are still empty: a failed start leaves
+    no empty ``--out`` behind (issue 34). A folder that existed stays; one that holds anything
+    (a manifest line, an output) stays."""
     if out_dir.exists() and not out_dir.is_dir():
         raise DataError(f"{out_dir}: exists and is not a folder")
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise DataError(f"{out_dir}: cannot create the output folder ({exc.strerror or exc})") from None
-    if not os.access(out_dir, os.W_OK):
-        raise DataError(f"{out_dir}: output folder is not writable")
+    with contextlib.ExitStack() as stack:
+        try:
+            stack.enter_context(new_folders(out_dir))
+        except OSError as exc:
+            raise DataError(f"{out_dir}: cannot create the output folder ({exc.strerror or exc})") from None
+        if not os.access(out_dir, os.W_OK):
+            raise DataError(f"{out_dir}: output folder is not writable")
+        yield
 
 
 def run_batch(videos: Sequence[Path], opts: BatchOptions) -> BatchReport:
     """Run the batch of ``videos`` (absolute paths, see :func:`~fastdet.batch.inputs.expand_inputs`)
-    and return what happened; raises :class:`BatchInterrupted` after a signal (cleaned up)."""
+    and return what happened; raises :class:`BatchInterrupted` after a signal (cleaned up). A
+    run that fails to start leaves no output folder it made (:func:`out_dir_for_run`)."""
     with signals.handled():  # a no-op under the CLI's dispatcher, which has them already
-        return _run_batch(videos, opts)
+        with out_dir_for_run(Path(os.path.abspath(opts.out_dir))):
+            return _run_batch(videos, opts)
 
 
 def _run_batch(videos: Sequence[Path], opts: BatchOptions) -> BatchReport:
     t0 = time.perf_counter()
     out_dir = Path(os.path.abspath(opts.out_dir))
-    prepare_out_dir(out_dir)
     manifest = Manifest(out_dir / MANIFEST_NAME)
     settings = opts.settings
     digest = settings.digest()

@@ -92,22 +92,22 @@ def run(args: argparse.Namespace) -> int:
     settings_mod.check(settings)
     if scheduler:
         job.check_address(scheduler)
-    job.prepare_out_dir(out_dir)
-    if table is not None:  # after the output folder exists: the table may go into it
-        check_paths([("--model", args.model), ("--oncoming-model", args.oncoming_model),
-                     ("--side-model", getattr(args, "side_model", None)),
-                     ("--small-model", getattr(args, "small_model", None)),
-                     *[("INPUT", v) for v in videos]], [("--table", table, "table")])
-        if os.path.realpath(table.parent) == os.path.realpath(out_dir) \
-                and table.name.endswith(tuple(settings_mod.SUFFIXES.values())):
-            raise FastdetError(f"--table {table}: is a name the batch gives a video's outputs; choose another")
-    opts = BatchOptions(out_dir=Path(args.out), settings=settings, workers=args.workers, scheduler=scheduler,
-                        overwrite=args.overwrite, retries=args.retries, table=table, progress=not args.no_progress)
-    try:
-        report = job.run_batch(videos, opts)
-    except job.BatchInterrupted as exc:  # the dispatcher's one line, with what was done
-        raise Stopped(exc.signum, f"{exc.done} video(s) done in this run, {exc.stopped} stopped (no output kept); "
-                                  f"run the same command again to do the rest") from None
+    with job.out_dir_for_run(out_dir):  # a failed start leaves no folder it made
+        if table is not None:  # after the output folder exists: the table may go into it
+            check_paths([("--model", args.model), ("--oncoming-model", args.oncoming_model),
+                         ("--side-model", getattr(args, "side_model", None)),
+                         ("--small-model", getattr(args, "small_model", None)),
+                         *[("INPUT", v) for v in videos]], [("--table", table, "table")])
+            if os.path.realpath(table.parent) == os.path.realpath(out_dir) \
+                    and table.name.endswith(tuple(settings_mod.SUFFIXES.values())):
+                raise FastdetError(f"--table {table}: is a name the batch gives a video's outputs; choose another")
+        opts = BatchOptions(out_dir=Path(args.out), settings=settings, workers=args.workers, scheduler=scheduler,
+                            overwrite=args.overwrite, retries=args.retries, table=table, progress=not args.no_progress)
+        try:
+            report = job.run_batch(videos, opts)
+        except job.BatchInterrupted as exc:  # the dispatcher's one line, with what was done
+            raise Stopped(exc.signum, f"{exc.done} video(s) done in this run, {exc.stopped} stopped (no output kept); "
+                                      f"run the same command again to do the rest") from None
     print(job.format_summary(report), flush=True)
     if report.table_rows is not None:
         print(f"table: {table} ({report.table_rows} boxes)", flush=True)

@@ -21,8 +21,9 @@ Outputs:
 
 Reliability: bad input (a missing path, a folder without pictures, a model that does not load,
 an unwritable output, two inputs with one name) is one line, exit 2, before any output exists.
-A picture that does not decode (or is too small for the smallest window) in a run of several
-is skipped with one note on stderr; the other pictures are processed and written, and the
+A picture that does not decode (or is too small for the smallest window, or is not a regular
+file: a named pipe, a symlink loop, a dangling link with a picture's name in a folder) in a run
+of several is skipped with one note on stderr naming it; the other pictures are processed and written, and the
 command exits with status 1 at the end ("N of M pictures skipped"). With one input picture it
 is an error (exit 2, no output). The box file is written under a temporary name and renamed
 when complete; annotated pictures each through :func:`fastdet.io.images.write_image`. A stop
@@ -94,8 +95,10 @@ def collect(inputs: list[str]) -> list[tuple[str, Path]]:
         if not p.exists():
             raise not_found(p, f"{inp}: file not found")
         if p.is_dir():
+            # every entry with a picture's name but a folder: a named pipe, a symlink loop, a
+            # dangling link are taken too, and skipped by name when read (read_image's line)
             found = sorted((f.relative_to(p).as_posix(), f) for f in p.rglob("*")
-                           if f.is_file() and f.suffix.lower() in IMAGE_EXTENSIONS)
+                           if f.suffix.lower() in IMAGE_EXTENSIONS and not f.is_dir())
             if not found:
                 raise DataError(f"{inp}: no pictures in this folder ({' '.join(IMAGE_EXTENSIONS)})")
             out += found
@@ -229,7 +232,8 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
     wrote = [w for w in (args.boxes, args.output) if w is not None]
     print(f"fastdet image: {n_boxes} vehicle(s) in {done} picture(s); wrote {', '.join(map(str, wrote))}")
     if skipped:
-        print(f"fastdet image: {len(skipped)} of {len(pictures)} picture(s) skipped (they do not decode or are "
-              f"too small): {', '.join(skipped[:5])}{' ...' if len(skipped) > 5 else ''}", file=sys.stderr)
+        print(f"fastdet image: {len(skipped)} of {len(pictures)} picture(s) skipped (they do not decode, are "
+              f"too small or are not regular files): {', '.join(skipped[:5])}{' ...' if len(skipped) > 5 else ''}",
+              file=sys.stderr)
         return SKIPPED_EXIT
     return 0

@@ -166,6 +166,48 @@ def folder_writable(folder: str | os.PathLike) -> bool:
     return True
 
 
+@contextmanager
+def new_folders(folder: str | os.PathLike) -> Iterator[list[Path]]:
+    """``with new_folders(out):`` makes ``out`` and its missing parents (an ``OSError`` as
+    ``mkdir`` raises it) and yields the folders it made, outermost first. When the block ends
+    in an exception (a failed start, a stop signal), the folders made here that are still empty
+    are removed, innermost first: a run that fails leaves no folder it made. A folder that
+    existed before stays, and so does one that holds anything (a file of this run or of
+    another's: only ``rmdir``, which removes empty folders only)."""
+    target = Path(os.path.abspath(folder))
+    missing: list[Path] = []
+    p = target
+    while not os.path.lexists(p) and p != p.parent:
+        missing.append(p)
+        p = p.parent
+    made: list[Path] = []
+    try:
+        for d in reversed(missing):
+            try:
+                os.mkdir(d)
+            except FileExistsError:
+                if not d.is_dir():
+                    raise
+                continue  # made meanwhile by someone else: theirs
+            made.append(d)
+        if not target.is_dir():
+            os.mkdir(target)  # a dangling symlink, a symlink loop: mkdir's own error
+        yield list(made)
+    except BaseException:
+        remove_empty_folders(made)
+        raise
+
+
+def remove_empty_folders(folders: list[Path]) -> None:
+    """``rmdir`` each of ``folders`` (outermost first, as :func:`new_folders` yields them),
+    innermost first, where it is empty; any other is left as it is."""
+    for d in reversed(folders):
+        try:
+            os.rmdir(d)
+        except OSError:
+            pass
+
+
 class OutputSet:
     """A run's outputs, renamed together when all are complete.
 

@@ -32,7 +32,7 @@ from ..errors import DataError
 from ..io.files import JsonError, not_found, parse_json
 from .imagesize import image_size
 from .picture import AnnotatedPicture
-from .rules import Box, camera_for, class_kind, make_picture, not_empty, read_text
+from .rules import Box, camera_for, class_kind, make_picture, not_empty, picture_in, read_text
 
 #: the json's file name in a set's folder
 INSTANCES_FILE = "instances.json"
@@ -103,7 +103,7 @@ def read_coco(path: str | Path, *, source: str | None = None, camera: str | Call
             raise DataError(f"{where}: a category needs a 'name'")
         kinds[_int(c.get("id"), "id", where)] = class_kind(name, where)
 
-    entries: dict[int, tuple[str, int, int, str]] = {}  # id -> file_name, width, height, where
+    entries: dict[int, tuple[str, int, int, str, Path]] = {}  # id -> file_name, width, height, where, picture
     for k, im in enumerate(_list(doc, "images", src)):
         where = f"{src}: images[{k}]"
         im = _entry(im, where)
@@ -113,9 +113,10 @@ def read_coco(path: str | Path, *, source: str | None = None, camera: str | Call
         fn = im.get("file_name")
         if not isinstance(fn, str) or not fn:
             raise DataError(f"{where}: an image needs a 'file_name'")
+        p = picture_in(image_dir, fn, where, f"file_name {json.dumps(fn)}")  # not a picture outside the set
         w = _int(im["width"], "width", where) if "width" in im else 0
         h = _int(im["height"], "height", where) if "height" in im else 0
-        entries[iid] = (fn, w, h, where)
+        entries[iid] = (fn, w, h, where, p)
 
     boxes: dict[int, list[Box]] = {iid: [] for iid in entries}
     for k, a in enumerate(_list(doc, "annotations", src, required=False)):
@@ -138,8 +139,7 @@ def read_coco(path: str | Path, *, source: str | None = None, camera: str | Call
         boxes[iid].append(Box(bx, by, bx + bw, by + bh, kind and not crowd, where))
 
     pictures = []
-    for iid, (fn, w, h, where) in entries.items():
-        p = image_dir / fn
+    for iid, (fn, w, h, where, p) in entries.items():
         if not p.is_file():
             raise DataError(f"{where}: the picture {p} is not there")
         width, height = image_size(p)

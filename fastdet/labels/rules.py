@@ -18,6 +18,8 @@ where it was read (``"FILE: line N"``) -- and :func:`make_picture` turns them in
 from __future__ import annotations
 
 import math
+import os
+import posixpath
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -122,6 +124,22 @@ def check_folder(path: Path, what: str) -> Path:
         raise DataError(f"{path}: " + (f"is a file, expected the {what} folder" if path.exists()
                                        else f"{what} folder not found"))
     return path
+
+
+def picture_in(folder: Path, name: str, where: str, entry: str) -> Path:
+    """``folder / name`` (``name`` normalised: ``a/../b.jpg`` is ``b.jpg``), the picture a label
+    entry names (a VOC ``<filename>``, a COCO ``file_name``), when ``name`` is a relative path
+    that stays inside ``folder``; a
+    :class:`DataError` naming ``where`` (the file, and the entry: ``images[3]``) and ``entry``
+    (how the name was written) when it leads out of it -- an absolute path, ``../x.jpg``,
+    ``a/../../x.jpg``: labels must describe pictures of the set, and a label file is not a way
+    to have any file of the machine read. Checked on the name as written (a symlink inside the
+    folder to pictures kept elsewhere is the set's own business)."""
+    norm = posixpath.normpath(name.replace(os.sep, "/"))
+    if posixpath.isabs(norm) or os.path.isabs(name) or norm == ".." or norm.startswith("../"):
+        raise DataError(f"{where}: {entry} names a picture outside the set's picture folder {folder} "
+                        f"(labels must describe pictures of the set)")
+    return folder / norm
 
 
 def not_empty(pictures: list[AnnotatedPicture], where: Path, what: str) -> list[AnnotatedPicture]:

@@ -41,7 +41,7 @@ from ..errors import DataError
 from ..io.files import read_input_bytes
 from .imagesize import IMAGE_SUFFIXES, image_size
 from .picture import AnnotatedPicture
-from .rules import Box, camera_for, check_folder, class_kind, make_picture, not_empty, number
+from .rules import Box, camera_for, check_folder, class_kind, make_picture, not_empty, number, picture_in
 
 
 @dataclass(frozen=True)
@@ -157,7 +157,7 @@ def _folders(root: Path) -> tuple[Path, Path]:
 
 def _image_for(xml: Path, filename: str | None, images: Path) -> Path:
     if filename is not None:
-        p = images / filename
+        p = picture_in(images, filename, str(xml), f"<filename>{filename}</filename>")
         if p.is_file():
             return p
         raise DataError(f"{xml}: the picture {p} is not there (<filename>{filename}</filename>)")

@@ -306,3 +306,54 @@ def test_sigterm_leaves_no_incomplete_output_and_a_rerun_finishes(long_clips, tm
     assert int(skipped.split()[1]) == len(done_before)
     for name, content in want.items():
         assert (out / f"{name}.boxes.txt").read_bytes() == content, name
+
+
+class _NotDask:
+    """A server that answers every connection with an SSH banner (not Dask's protocol)."""
+
+    def __enter__(self) -> str:
+        import threading
+
+        self.srv = socket.socket()
+        self.srv.bind(("127.0.0.1", 0))
+        self.srv.listen(8)
+        self.held: list[socket.socket] = []
+
+        def serve() -> None:
+            while True:
+                try:
+                    c, _ = self.srv.accept()
+                except OSError:
+                    return
+                self.held.append(c)
+                c.sendall(b"SSH-2.0-OpenSSH_8.9\r\n")
+
+        threading.Thread(target=serve, daemon=True).start()
+        return f"tcp://127.0.0.1:{self.srv.getsockname()[1]}"
+
+    def __exit__(self, *exc: object) -> None:
+        self.srv.close()
+        for c in self.held:
+            c.close()
+
+
+def test_a_failed_start_leaves_no_out_folder_it_made(tmp_path: Path) -> None:
+    """``batch --scheduler`` to a server that is not Dask (or a refused ``--table``): one line,
+    exit 2, and no ``--out`` folder (nor a parent) left that the run made (issue 34: an empty
+    ``--out`` was left behind); an ``--out`` that existed stays."""
+    from tests.media import write_video
+
+    clip = write_video(tmp_path / "c.mp4", 3)
+    with _NotDask() as addr:
+        r = batch(clip, "--out", tmp_path / "new" / "o", "--scheduler", addr, "--no-progress")
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+        assert "cannot connect to the Dask scheduler" in r.stderr, r.stderr
+        assert not (tmp_path / "new").exists()
+        (tmp_path / "kept").mkdir()
+        r = batch(clip, "--out", tmp_path / "kept", "--scheduler", addr, "--no-progress")
+        assert r.returncode == 2, r.stderr
+        assert (tmp_path / "kept").is_dir() and list((tmp_path / "kept").iterdir()) == []
+    r = batch(clip, "--out", tmp_path / "o2", "--table", tmp_path / "o2" / "missing" / "t.csv")
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert not (tmp_path / "o2").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["c.mp4", "kept"]

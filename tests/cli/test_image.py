@@ -150,6 +150,30 @@ def test_folders_boxes_csv_and_out_dir(image, tmp_path, capsys):
     assert not [p for p in tmp_path.rglob(".*partial*")]
 
 
+def test_a_fifo_and_a_symlink_loop_in_a_folder_are_named_and_counted(image, tmp_path, capsys):
+    """A named pipe and a symlink loop with pictures' names inside a folder were passed over
+    without a word (issue 34): each is now skipped with its own note naming it, counted in the
+    "N of M skipped" line, exit status 1 as for a picture that does not decode; the FIFO is
+    never opened (the run would wait on it)."""
+    import os
+
+    src = tmp_path / "src"
+    src.mkdir()
+    cv2.imwrite(str(src / "a.jpg"), cv2.imread(str(image)))
+    os.mkfifo(src / "pipe.jpg")
+    (src / "loop.png").symlink_to("loop.png")
+    (src / "not-a-picture").symlink_to("not-a-picture")  # not a picture's name: not taken
+    out = tmp_path / "out"
+    rc = imagecmd.run(parse(src, "-o", out, "--no-progress"), detector=FAKE)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == imagecmd.SKIPPED_EXIT, err
+    assert len(err) == 3, err
+    assert "skipped" in err[0] and "loop.png: symlink loop" in err[0], err
+    assert "skipped" in err[1] and "pipe.jpg: is a named pipe (FIFO)" in err[1], err
+    assert "2 of 3 picture(s) skipped" in err[2] and "loop.png, pipe.jpg" in err[2], err
+    assert [p.name for p in out.iterdir()] == ["a.jpg"]
+
+
 def test_boxes_only_and_bad_runs(image, tmp_path, capsys):
     csv = tmp_path / "b.csv"
     assert imagecmd.run(parse(image, "--boxes", csv, "--no-progress"), detector=FAKE) == 0

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from fastdet.errors import DataError
-from fastdet.io.atomic import OutputSet, atomic_path, commit, partial_name, process_token, write_bytes
+from fastdet.io.atomic import OutputSet, atomic_path, commit, new_folders, partial_name, process_token, write_bytes
 
 
 def test_partial_name_keeps_the_folder_and_extension():
@@ -205,3 +205,34 @@ def test_a_forked_child_leaves_its_parents_temporary_files(tmp_path):
     assert tmp.read_text() == "parent's"
     atomic.remove_partials()
     assert not tmp.exists()
+
+
+def test_new_folders_are_removed_when_the_block_fails_and_kept_when_it_succeeds(tmp_path):
+    """A run that fails to start leaves no folder it made (issue 34: an empty ``batch --out``
+    left by a failed connection); folders that existed, or hold anything, stay."""
+    out = tmp_path / "a" / "b" / "c"
+    with pytest.raises(RuntimeError):
+        with new_folders(out) as made:
+            assert made == [tmp_path / "a", tmp_path / "a" / "b", out] and out.is_dir()
+            raise RuntimeError("the scheduler did not answer")
+    assert list(tmp_path.iterdir()) == []
+    (tmp_path / "a").mkdir()  # existed before: stays
+    with pytest.raises(KeyboardInterrupt):
+        with new_folders(out) as made:
+            assert made == [tmp_path / "a" / "b", out]
+            raise KeyboardInterrupt
+    assert [p.name for p in tmp_path.rglob("*")] == ["a"]
+    with pytest.raises(RuntimeError):
+        with new_folders(out):
+            (out / "manifest.jsonl").write_text("{}\n")  # something written: the folders stay
+            raise RuntimeError
+    assert (out / "manifest.jsonl").is_file()
+    with new_folders(tmp_path / "d" / "e") as made:
+        pass
+    assert (tmp_path / "d" / "e").is_dir()
+    with new_folders(tmp_path / "d" / "e") as made:
+        assert made == []
+    (tmp_path / "link").symlink_to(tmp_path / "nowhere")
+    with pytest.raises(FileExistsError):
+        with new_folders(tmp_path / "link"):
+            pass

@@ -85,3 +85,17 @@ def test_malformed(tmp_path):
         root = coco_set(tmp_path / name, text)
         one_error(lambda r=root: read_coco(r), root / "instances.json", words)
     one_error(lambda: read_coco(tmp_path / "nowhere"), tmp_path / "nowhere", "COCO json not found")
+
+
+def test_a_file_name_outside_the_set_is_refused(tmp_path):
+    """A ``file_name`` leading out of the picture folder (``../x.jpg``, an absolute path) named a
+    picture elsewhere on the machine, which was read as the set's (issue 34); now one line naming
+    the json and the entry."""
+    outside = picture(tmp_path / "elsewhere.jpg")
+    for k, name in enumerate(("../../elsewhere.jpg", str(outside), "a/../../elsewhere.jpg", "/etc/hostname")):
+        root = coco_set(tmp_path / f"s{k}", doc([], images=[{"id": 1, "file_name": "a.jpg"},
+                                                           {"id": 2, "file_name": name}]))
+        one_error(lambda r=root: read_coco(r), root / "instances.json", f"images[1]: file_name \"{name}\"",
+                  "outside the set's picture folder", "labels must describe pictures of the set")
+    root = coco_set(tmp_path / "in", doc([], images=[{"id": 1, "file_name": "x/../a.jpg"}]))
+    assert [p.name for p in read_coco(root)] == ["x/../a.jpg"]

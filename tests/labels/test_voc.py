@@ -101,3 +101,18 @@ def test_missing_picture_and_empty_set(tmp_path):
     (empty / "images").mkdir()
     one_error(lambda: read_voc(empty), empty / "voc", "no Pascal VOC xml files")
     one_error(lambda: read_voc(tmp_path), tmp_path, "no voc/")
+
+
+def test_a_filename_outside_the_set_is_refused(tmp_path):
+    """A ``<filename>`` leading out of the picture folder (``../x.jpg``, an absolute path) named a
+    picture elsewhere on the machine, which was read as the set's (issue 34); now one line naming
+    the xml and the entry, whether the file is there or not."""
+    outside = picture(tmp_path / "elsewhere.jpg")
+    root = voc_set(tmp_path / "s", {"a": xml("a.jpg", "")})
+    for name in ("../../elsewhere.jpg", str(outside), "sub/../../../elsewhere.jpg", "../../etc/x.jpg", "/etc/hostname"):
+        write(root / "voc" / "b.xml", xml(name, ""))
+        one_error(lambda: read_voc(root), root / "voc" / "b.xml", f"<filename>{name}</filename>",
+                  "outside the set's picture folder", "labels must describe pictures of the set")
+    picture(root / "images" / "sub" / "c.jpg")
+    write(root / "voc" / "b.xml", xml("sub/../sub/c.jpg", ""))  # inside, however written
+    assert [p.name for p in read_voc(root)] == ["a.jpg", "sub/c.jpg"]
