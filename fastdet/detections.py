@@ -112,14 +112,18 @@ class Detections:
         higher is more certain, or ``None`` (ground truth). What a score means depends on
         the stage:
 
-        - a vehicle box -- :meth:`fastdet.VideoDetector.update`, :func:`fastdet.detect_video`,
-          ``python -m fastdet video`` (the ``conf`` of its box files), ``python -m fastdet
-          image`` -- scores the *peak heat* of the heat-map blob it came from: at its hottest
+        - a vehicle box in video -- :meth:`fastdet.VideoDetector.update`,
+          :func:`fastdet.detect_video`, ``python -m fastdet video`` (the ``conf`` of its box
+          files) -- scores the *peak heat* of the heat-map blob it came from: at its hottest
           cell, the heat of the windows covering it over the recent frames (each window's heat
           grows with its score; older frames decay), above the heat threshold
-          (``HeatConfig.threshold``, 4, in video; ``single_frame_threshold``, 8, in ``image``):
-          typically about 6 to 100. A weak blob that kept a track alive is at or below the
-          threshold, a box the offline pass added is 0;
+          (``HeatConfig.threshold``, 4): typically about 6 to 100. A weak blob that kept a track
+          alive is at or below the threshold, a box the offline pass added is 0;
+        - a vehicle box in a single picture -- :func:`fastdet.detect_picture`, ``python -m
+          fastdet image`` -- scores the box verifier's decision value (above its threshold,
+          about -6; :mod:`fastdet.detect.verifier`); without the verifier
+          (``PictureSearch(verify=False)``), the kept window's decision value, or with
+          ``--merge heat`` the blob's peak heat (above ``single_frame_threshold``, 8);
         - a window -- :meth:`fastdet.Detector.detect` -- scores the model's own value: the
           probability of "vehicle" (0.5 to 1) for a logistic-regression model (the bundled
           models), the decision value (> 0) for a LinearSVC one

@@ -1,4 +1,4 @@
-"""``python -m fastdet image PATH... [--boxes OUT.csv] [-o OUT_DIR] [--no-progress]``
+"""``python -m fastdet image PATH... [--boxes OUT.csv] [-o OUT_DIR] [--no-refine] [--no-progress]``
 
 Finds the vehicles of single pictures: the whole picture searched at every scale
 (:class:`~fastdet.config.PictureSearch`, :class:`~fastdet.video.picture.PictureDetector`:
@@ -9,8 +9,9 @@ Outputs:
 
 - ``--boxes OUT.csv``: a header line ``image,x1,y1,x2,y2,score``, then one line a box; ``image``
   is the file name relative to the folder given (or the file name as given for a file);
-  pixels, ``x2, y2`` exclusive; score: the kept window's decision value (``--merge heat``: the
-  blob's peak heat).
+  pixels, ``x2, y2`` exclusive; score: the box verifier's decision value, higher is more
+  certain (:mod:`fastdet.detect.verifier`; ``--merge heat``, which has no verifier: the blob's
+  peak heat).
 - ``-o OUT_DIR``: the annotated pictures, under the same relative names (the folder is made; a
   file given with an absolute path or ``..`` goes there under its base name).
 - The single-file form of earlier versions, ``image IN.jpg -o OUT.jpg`` (one input file and an
