@@ -1,7 +1,8 @@
 """Single pictures: the whole-picture search (``fastdet image`` / :func:`fastdet.detect_picture`,
-:class:`fastdet.config.PictureSearch`) side by side with the former ``image`` path (the video's
-horizon-relative bands and a single-frame heat map), ms per 1280x720 picture at 1 and 2 Numba
-threads.
+:class:`fastdet.config.PictureSearch`) side by side with its first stage alone (the windows
+above decision value 2 after NMS, no refinement or verifier: the default before the second
+stage) and the former ``image`` path (the video's horizon-relative bands and a single-frame heat
+map), ms per 1280x720 picture at 1 and 2 Numba threads.
 
 Run::
 
@@ -27,7 +28,7 @@ import time
 def _measure(rounds: int) -> dict[str, dict[str, float]]:
     import cv2
 
-    from fastdet.config import HeatConfig, PipelineConfig
+    from fastdet.config import HeatConfig, PictureSearch, PipelineConfig
     from fastdet.data import data_dir
     from fastdet.video.detector import make_detector
     from fastdet.video.heatmap import detect_image
@@ -37,7 +38,9 @@ def _measure(rounds: int) -> dict[str, dict[str, float]]:
     old = make_detector(PipelineConfig(oncoming=False))
     heat = HeatConfig().single_frame()
     new = PictureDetector()
+    first = PictureDetector(config=PictureSearch(nms_min_score=2.0, refine=None, verify=False))
     cases = {"former image path (video bands + heat map)": lambda f: detect_image(f, old, heat),
+             "picture search, first stage only (NMS above 2)": first.detect,
              "picture search (PictureSearch defaults)": new.detect}
     out = {}
     for name, fn in cases.items():

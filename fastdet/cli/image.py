@@ -37,6 +37,7 @@ import argparse
 import io
 import os
 import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -44,6 +45,7 @@ import cv2
 
 from .._numba import ensure_compiled
 from ..config import PictureSearch
+from ..config.picture import FIRST_STAGE_ONLY
 from ..detect.checks import check_colour
 from ..errors import DataError, FastdetError
 from ..io import draw
@@ -77,7 +79,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"how windows become boxes: non-maximum suppression or a single-frame heat map "
                              f"(default PictureSearch.boxes = {d.boxes})")
     parser.add_argument("--no-refine", action="store_true",
-                        help="no learned box refinement (the boxes are the windows or blobs as found)")
+                        help="the first stage alone: no box refinement and no verifier (windows above "
+                             "decision value 2 after NMS, or the heat map's blobs, as found)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -168,9 +171,9 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
             if os.path.realpath(out_dir / out_name(name)) in inputs:
                 raise DataError(f"-o {out_dir}: would overwrite the input {name}; give another folder")
     try:
-        config = PictureSearch(boxes=args.merge, verify=args.merge == "nms",
-                               **({"refine": None} if args.no_refine else {}),
-                               **({} if args.threshold is None else {"heat_threshold": args.threshold}))
+        base = FIRST_STAGE_ONLY if args.no_refine else PictureSearch()
+        config = replace(base, boxes=args.merge, verify=base.verify and args.merge == "nms",
+                         **({} if args.threshold is None else {"heat_threshold": args.threshold}))
     except ValueError as exc:
         raise FastdetError(f"--threshold: {exc}") from None
     first = read_image(pictures[0][1]) if len(pictures) == 1 else None  # one picture: its errors are errors

@@ -114,3 +114,23 @@ def test_the_verifier_keeps_the_refined_boxes_it_scores_above_its_threshold(test
     assert PictureSearch(boxes="heat", verify=False).verify is False
     with pytest.raises(ValueError, match="verify takes the NMS boxes"):
         PictureSearch(boxes="heat")
+
+
+def test_no_refine_is_the_first_stage_alone(test_images, tmp_path):
+    """``image --no-refine``: the windows above decision value 2 after NMS, as found (no
+    refinement, no verifier); the verifier needs refined boxes."""
+    from fastdet import cli
+    from fastdet.config.picture import FIRST_STAGE_ONLY
+    from fastdet.video.picture import PictureDetector
+
+    img = cv2.imread(str(test_images[0]))
+    want = PictureDetector(config=FIRST_STAGE_ONLY).detect(img)
+    pd = PictureDetector(config=FIRST_STAGE_ONLY)
+    assert want.boxes.tolist() == pd.boxes_from_windows(pd.windows(img), img.shape)[0].boxes.tolist()
+    assert (want.scores > 2).all()
+    csv = tmp_path / "b.csv"
+    assert cli.main(["image", str(test_images[0]), "--boxes", str(csv), "--no-refine", "--no-progress"]) == 0
+    rows = [ln.split(",") for ln in csv.read_text().splitlines()[1:]]
+    assert [[int(v) for v in r[1:5]] for r in rows] == want.boxes.tolist()
+    with pytest.raises(ValueError, match="verify looks at refined boxes"):
+        PictureSearch(refine=None)
