@@ -155,12 +155,12 @@ def _picture_sets(args: argparse.Namespace, shared: bool) -> list[tuple[str, lis
 
 def _score_picture_sets(sets: list[tuple[str, list]], args: argparse.Namespace) -> list:
     """Each set scored with the single-picture search (:func:`fastdet.detect_picture`)."""
-    from ..config import PictureSearch
+    from ..config.picture import FIRST_STAGE_ONLY
     from ..eval.pictures import score_pictures
     from ..video.picture import PictureDetector
     from ..video.run import progress_bar
 
-    det = PictureDetector(args.model, PictureSearch(refine=None) if getattr(args, "no_refine", False) else None)
+    det = PictureDetector(args.model, FIRST_STAGE_ONLY if getattr(args, "no_refine", False) else None)
     from .._numba import ensure_compiled
 
     ensure_compiled(det.kernels)

@@ -154,6 +154,16 @@ def test_frames_scores_a_voc_set(data, tmp_path, capsys):
     assert "voc:fog" in table and "1 pic" in table
     rep = _json.loads(out.read_text())["pictures"]["voc:fog"]
     assert rep["pictures"] == 1 and rep["complete"] is True and rep["targets"] >= 1
+    # --no-refine: the first stage alone, every box it finds in the picture scored
+    import cv2
+
+    from fastdet.config.picture import FIRST_STAGE_ONLY
+    from fastdet.video.picture import PictureDetector
+
+    assert _cli.main(["eval", "--frames", f"voc:{root}", "--out", str(out), "--no-refine"]) == 0
+    rep = _json.loads(out.read_text())["pictures"]["voc:fog"]
+    n = len(PictureDetector(config=FIRST_STAGE_ONLY).detect(cv2.imread(str(root / "images" / "foggy-001.jpg"))))
+    assert rep["tp"] + rep["fp"] + rep["dropped"] == n
 
 
 @pytest.mark.parametrize("target", ["annotations/cam.frames", "annotations/other.gt.txt", "frames/dawn_fog/x.json",
