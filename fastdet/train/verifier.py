@@ -79,14 +79,13 @@ def collect(pictures: Sequence[AnnotatedPicture], first_stage: Callable[[np.ndar
     ys: list[np.ndarray] = []
     cams: list[str] = []
     idx: list[np.ndarray] = []
-    where = {id(p): i for i, p in enumerate(pictures)}
-    for pic, image in load_pictures(pictures):
+    for i, (pic, image) in enumerate(load_pictures(pictures)):  # in the pictures' order
         d = first_stage(image)
         if len(d):
             xs.append(verifier_inputs(image, d.boxes, d.scores).astype(np.float32))
             ys.append(label_boxes(d.boxes, pic.targets, pic.ignores, pic.complete))
             cams.extend([pic.camera] * len(d))
-            idx.append(np.full(len(d), where[id(pic)], np.int64))
+            idx.append(np.full(len(d), i, np.int64))
         if tick is not None:
             tick()
     n_f = len(VERIFIER_CONTEXTS) * VERIFIER_FEATURES.n_features + 1

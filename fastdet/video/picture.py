@@ -140,6 +140,8 @@ class PictureDetector:
     def second_stage(self, image: np.ndarray, found: Detections, rgb: bool = False) -> Detections:
         """The boxes :meth:`boxes_from_windows` ``found`` in ``image``, refined (:meth:`refine`)
         and verified (:meth:`verify`)."""
+        if rgb and (self.regressor is not None or self.verifier is not None) and len(found):
+            image, rgb = np.ascontiguousarray(np.asarray(image)[..., ::-1]), False  # converted once for both
         return self.verify(image, self.refine(image, found, rgb), rgb)
 
     def detect(self, image: np.ndarray, rgb: bool = False) -> Detections:
