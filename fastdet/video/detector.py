@@ -9,7 +9,7 @@ from typing import Any, Literal, Protocol, runtime_checkable
 import numpy as np
 
 from ..config import PipelineConfig, SearchBand, oncoming_search
-from ..config.models import ONCOMING_MODEL_PATH, SIDE_MODEL_PATH, SMALL_MODEL_PATH
+from ..config.models import ONCOMING_MODEL_PATH, SMALL_MODEL_PATH
 from ..detect import BandGeometry, Detector, DetectStats
 from ..detections import FIRST_COMPONENT_PART, Detections
 from ..model import Model
@@ -116,16 +116,13 @@ def make_detector(config: PipelineConfig | None = None) -> Detector:
     """The video pipeline's :class:`fastdet.Detector` for ``config`` (default
     ``PipelineConfig()``): its main model and search, and its oncoming-traffic model
     searching the side of the view :attr:`PipelineConfig.traffic` puts oncoming cars on
-    (:func:`fastdet.config.oncoming_search`), and the side-view component when
-    :attr:`PipelineConfig.side` asks for it (searching :attr:`PipelineConfig.side_search`), then
-    the small-vehicle component when :attr:`PipelineConfig.small` asks for it (the last
-    component: :func:`small_part`). Raises :class:`~fastdet.errors.ModelError` when a model does
-    not load."""
+    (:func:`fastdet.config.oncoming_search`), and the small-vehicle component when
+    :attr:`PipelineConfig.small` asks for it (the last component: :func:`small_part`).
+    Raises :class:`~fastdet.errors.ModelError` when a model does not load."""
     c = config if config is not None else PipelineConfig()
     oncoming = ONCOMING_MODEL_PATH if c.oncoming is True else (c.oncoming or None)
-    side = SIDE_MODEL_PATH if c.side is True else (c.side or None)
     small = SMALL_MODEL_PATH if c.small is True else (c.small or None)
-    components = [(m, s) for m, s in ((side, c.side_search), (small, c.small_search)) if m is not None]
+    components = [(small, c.small_search)] if small is not None else []
     return Detector(model=c.model, search=c.search, oncoming=oncoming, oncoming_search=oncoming_search(c.traffic),
                     components=components)
 

@@ -13,7 +13,6 @@ In the order they run (:func:`build_stages`; a stage whose setting is off is lef
 ``ownvehicle``   drop the windows on the own vehicle (:class:`OwnVehicleStage`; off by default)
 ``heatmap``      the main heat map's boxes (:class:`HeatStage`)
 ``split``        wide boxes split between vehicles side by side (:class:`SplitStage`; on by default)
-``components``   the components' heat map's boxes where the main one found none (:class:`ComponentStage`)
 ``small``        the small-vehicle component's heat map's boxes the main model does not reject, where none
                  was found (:class:`ComponentStage`, :class:`~fastdet.video.small.MainModelCheck`; off by default)
 ``fusion``       the oncoming heat map's boxes where the main one found none (:class:`FusionStage`)
@@ -38,7 +37,6 @@ from __future__ import annotations
 
 from ..config import GuidedSearch, PipelineConfig
 from ..detect import Detector
-from ..detections import FIRST_COMPONENT_PART
 from .blobsplit import SplitStage
 from .box_stages import (
     ClipStage,
@@ -109,19 +107,12 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
     stages.append(heat[0])
     if config.split is not None:  # on the main heat map's boxes, before the others are added
         stages.append(SplitStage(config.split))
-    components = getattr(detector, "components", None)
-    if components:
-        small = small_part(config, detector)
-        if small is None:
-            heat.append(ComponentStage(detector, config.side_heat))
-        else:
-            others = tuple(p for p in range(FIRST_COMPONENT_PART, FIRST_COMPONENT_PART + len(components)) if p != small)
-            if others:
-                heat.append(ComponentStage(detector, config.side_heat, others))
-            check = None
-            if config.small_check is not None and isinstance(detector, Detector):
-                check = MainModelCheck(detector.model, config.small_check)
-            heat.append(ComponentStage(detector, config.small_heat, (small,), name="small", check=check))
+    small = small_part(config, detector)
+    if small is not None:
+        check = None
+        if config.small_check is not None and isinstance(detector, Detector):
+            check = MainModelCheck(detector.model, config.small_check)
+        heat.append(ComponentStage(detector, config.small_heat, (small,), name="small", check=check))
     if oncoming:
         heat.append(FusionStage(detector, config.oncoming_heat))
     stages += heat[1:]

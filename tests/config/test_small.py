@@ -54,7 +54,7 @@ def test_pipeline_config_small():
     assert c.small is False and c.small_search == SMALL_SEARCH and c.small_heat == SMALL_HEAT
     assert PipelineConfig(small=SMALL_MODEL_PATH).small == str(SMALL_MODEL_PATH)
     on = PipelineConfig(small=True)
-    assert on.without("small").small is False and on.without("side").small is True
+    assert on.without("small").small is False and on.without("refine").small is True
     assert PipelineConfig.from_dict(on.to_dict()) == on
     with pytest.raises(TypeError, match="small"):
         PipelineConfig(small=None)  # type: ignore[arg-type]
