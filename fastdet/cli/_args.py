@@ -85,17 +85,14 @@ def add_search_argument(parser: Options) -> None:
 
 
 def add_oncoming_arguments(parser: Options) -> None:
-    """``--oncoming-model`` / ``--no-oncoming``, ``--traffic`` and ``--small`` /
-    ``--small-model``, shared by ``video``, ``eval``, ``bench`` and ``batch``."""
+    """``--oncoming-model`` / ``--no-oncoming`` and ``--traffic``, shared by ``video``, ``eval``,
+    ``bench`` and ``batch``."""
     g = parser.add_mutually_exclusive_group()
     g.add_argument("--oncoming-model", metavar="WIDE.npz", default=None,
                    help="oncoming-traffic model (default: bundled)")
     g.add_argument("--no-oncoming", action="store_true", help="no oncoming-traffic model")
     parser.add_argument("--traffic", choices=("right", "left", "both"), default="right",
                         help="the side traffic drives on (default right)")
-    m = parser.add_mutually_exclusive_group()
-    m.add_argument("--small", action="store_true", help="add the small-vehicle component")
-    m.add_argument("--small-model", metavar="SMALL.npz", default=None, help="add this small-vehicle component")
 
 
 def add_refine_argument(parser: Options) -> None:
@@ -155,7 +152,6 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
     config = PipelineConfig(model=getattr(args, "model", None),
                             oncoming=False if getattr(args, "no_oncoming", False)
                             else (getattr(args, "oncoming_model", None) or True),
-                            small=getattr(args, "small_model", None) or bool(getattr(args, "small", False)),
                             traffic=getattr(args, "traffic", "right"), horizon=getattr(args, "horizon", "auto"),
                             heat=heat, perspective=PerspectiveConfig() if getattr(args, "perspective", False) else None,
                             own_vehicle=None if getattr(args, "no_own_vehicle", False) else OwnVehicleConfig(),

@@ -5,8 +5,6 @@ comparable, JSON round-trip through one :meth:`~fastdet.config.Config.to_dict` /
 - :mod:`.features`: what a model computes of a window (:class:`FeatureConfig`);
 - :mod:`.search`: where to search (:class:`SearchBand`, :class:`SearchConfig`, the
   oncoming-traffic search by traffic side, :func:`oncoming_search`);
-- :mod:`.small`: the small-vehicle component's features, search and heat map
-  (:data:`SMALL_FEATURES`, :func:`small_search`, :data:`SMALL_HEAT`);
 - :mod:`.heat`: how the heat map makes boxes (:class:`HeatConfig`, :data:`ONCOMING_HEAT`);
 - :mod:`.motion`: the oncoming model's motion gate (:class:`MotionGate`);
 - :mod:`.ownvehicle`: the own vehicle's region and the windows dropped there (:class:`OwnVehicleConfig`);
@@ -41,7 +39,6 @@ from .models import (
     DEFAULT_MODEL_PATH,
     ONCOMING_MODEL_PATH,
     REFINE_MODEL_PATH,
-    SMALL_MODEL_PATH,
 )
 from .motion import MotionGate
 from .ownvehicle import OwnVehicleConfig
@@ -62,7 +59,6 @@ from .search import (
     oncoming_search,
 )
 from .selfcal import SelfCalibration
-from .small import SMALL_FEATURES, SMALL_HEAT, SMALL_SEARCH, small_search
 from .split import NeighbourSplit
 from .teacher import COCO_VEHICLES, TeacherConfig
 from .track import TrackerConfig
@@ -72,10 +68,8 @@ __all__ = ["BoxMode", "CELL", "COCO_VEHICLES", "COLOR_SPACES", "ColorSpace", "Co
            "NeighbourSplit", "ONCOMING_HEAT", "ONCOMING_MODEL_PATH", "ONCOMING_SEARCH", "OwnVehicleConfig",
            "PICTURE_SEARCH", "PerspectiveConfig", "PictureBoxes", "PictureSearch",
            "PipelineConfig", "PlausibleConfig", "REFERENCE_HORIZON", "REFERENCE_SHAPE", "REFINE_MODEL_PATH",
-           "RefineConfig", "SMALL_FEATURES", "SMALL_HEAT",
-           "SMALL_MODEL_PATH", "SMALL_SEARCH", "ScoreKind", "SearchBand", "SearchConfig", "SelfCalibration",
-           "TRAFFIC_SIDES", "TeacherConfig", "TrackerConfig", "Traffic", "WINDOW", "check_traffic", "oncoming_search",
-           "small_search"]
+           "RefineConfig", "ScoreKind", "SearchBand", "SearchConfig", "SelfCalibration",
+           "TRAFFIC_SIDES", "TeacherConfig", "TrackerConfig", "Traffic", "WINDOW", "check_traffic", "oncoming_search"]
 
 #: former names, kept for code written against them: ``WIDE_HEAT``, ``WIDE_SEARCH``, ``wide_search``
 _RENAMED = {"WIDE_HEAT": "ONCOMING_HEAT", "WIDE_SEARCH": "ONCOMING_SEARCH", "wide_search": "oncoming_search"}

@@ -1,7 +1,6 @@
 """Every setting of the video pipeline in one frozen value (:class:`PipelineConfig`)."""
 from __future__ import annotations
 
-import math
 import os
 from dataclasses import dataclass, replace
 from types import MappingProxyType
@@ -17,7 +16,6 @@ from .plausible import PlausibleConfig
 from .refine import RefineConfig
 from .search import SearchBand, SearchConfig, Traffic, check_traffic
 from .selfcal import SelfCalibration
-from .small import SMALL_CHECK, SMALL_HEAT, SMALL_SEARCH
 from .split import NeighbourSplit
 from .track import TrackerConfig
 
@@ -32,7 +30,13 @@ def _retired() -> dict[str, object]:
             "side_search": SearchConfig(bands=bands((1.25, 367, 503), (1.75, 360, 521), (2.5, 349, 549),
                                                     (3.5, 334, 586), (5.0, 313, 641), (7.0, 284, 714)),
                                         cells_per_step=2, threshold=0.0).to_dict(),
-            "side_heat": HeatConfig(max_aspect=1.0, min_height=10).to_dict()}
+            "side_heat": HeatConfig(max_aspect=1.0, min_height=10).to_dict(),
+            "small": False,
+            "small_search": SearchConfig(bands=bands((1.25, 383, 492), (1.5, 378, 503), (1.75, 373, 514),
+                                                     (2.0, 368, 525)),
+                                         cells_per_step=1, threshold=0.0, shrink="area").to_dict(),
+            "small_heat": HeatConfig(threshold=3.5, split_gap=0.5).to_dict(),
+            "small_check": -4.6}
 
 
 #: where the search bands go: ``'auto'`` (estimated from the video), a fraction of the frame
@@ -56,10 +60,6 @@ class PipelineConfig(Config):
     model: the main model file; ``None``: the bundled one (:data:`~fastdet.config.models.DEFAULT_MODEL_PATH`).
     oncoming: the oncoming-traffic (wide-window) model: ``True`` the bundled one, a path for
         another, ``False`` none.
-    small: the small-vehicle component (32x32 windows on the frame at its own resolution about
-        the horizon, for vehicles under 60 px wide of 1280; docs/components.md): ``False``
-        (default) none, ``True`` the bundled one (:data:`~fastdet.config.models.SMALL_MODEL_PATH`),
-        a path for another.
     refine_model: the box regressor file; ``None``: the bundled one.
     traffic: the side of the road traffic drives on (:data:`~fastdet.config.TRAFFIC_SIDES`),
         which decides where the oncoming model searches (:func:`~fastdet.config.oncoming_search`).
@@ -68,11 +68,6 @@ class PipelineConfig(Config):
         of the first seconds (:mod:`fastdet.video.horizon`), a number is the horizon row as a
         fraction of the frame height in [0, 1], ``None`` leaves the bands where they are written.
     heat: the main model's heat map; oncoming_heat: the oncoming model's.
-    small_search, small_heat: where the small-vehicle component searches and its heat map (a
-        heat map of its own, whose boxes join the main ones where those found nothing).
-    small_check: the small component's boxes are kept only where the main model's decision value
-        on their square crop exceeds this (:class:`fastdet.video.small.MainModelCheck`); ``None``:
-        no check.
     motion: the motion gate of the oncoming model.
     tracker: the tracker that gives every vehicle an id; ``None``: no tracking (boxes
         without ids).
@@ -107,16 +102,12 @@ class PipelineConfig(Config):
 
     model: str | None = None
     oncoming: str | bool = True
-    small: str | bool = False
     refine_model: str | None = None
     traffic: Traffic = "right"
     search: SearchConfig = SearchConfig()
     horizon: Horizon = "auto"
     heat: HeatConfig = HeatConfig()
     oncoming_heat: HeatConfig = ONCOMING_HEAT
-    small_search: SearchConfig = SMALL_SEARCH
-    small_heat: HeatConfig = SMALL_HEAT
-    small_check: float | None = SMALL_CHECK
     motion: MotionGate = MotionGate()
     tracker: TrackerConfig | None = TrackerConfig()
     guided: GuidedSearch | None = GuidedSearch()
@@ -134,20 +125,12 @@ class PipelineConfig(Config):
             object.__setattr__(self, "oncoming", _path(self.oncoming, "oncoming"))
             if self.oncoming is None:
                 raise TypeError("oncoming must be True, False or a path, got None")
-        if not isinstance(self.small, bool):
-            object.__setattr__(self, "small", _path(self.small, "small"))
-            if self.small is None:
-                raise TypeError("small must be True, False or a path, got None")
         check_traffic(self.traffic)
-        sc = self.small_check
-        if sc is not None and (isinstance(sc, bool) or not isinstance(sc, (int, float)) or not math.isfinite(sc)):
-            raise ValueError(f"small_check must be a finite decision value or None, got {sc!r}")
         h = self.horizon
         if not (h is None or h == "auto" or (isinstance(h, (int, float)) and not isinstance(h, bool) and 0 <= h <= 1)):
             raise ValueError(f"horizon must be 'auto', a fraction of the frame height in [0, 1] or None, got {h!r}")
         for name, cls, optional in (("search", SearchConfig, False), ("heat", HeatConfig, False),
-                                    ("oncoming_heat", HeatConfig, False), ("small_search", SearchConfig, False),
-                                    ("small_heat", HeatConfig, False), ("motion", MotionGate, False),
+                                    ("oncoming_heat", HeatConfig, False), ("motion", MotionGate, False),
                                     ("tracker", TrackerConfig, True), ("guided", GuidedSearch, True),
                                     ("refine", RefineConfig, True), ("perspective", PerspectiveConfig, True),
                                     ("own_vehicle", OwnVehicleConfig, True), ("split", NeighbourSplit, True),
@@ -165,12 +148,10 @@ class PipelineConfig(Config):
             return None
         return self.guided
 
-    def without(self, *stages: Literal["tracker", "guided", "refine", "oncoming", "small"]) -> PipelineConfig:
+    def without(self, *stages: Literal["tracker", "guided", "refine", "oncoming"]) -> PipelineConfig:
         """This config with the named optional stages off (``tracker``, ``guided``: the full
-        search, ``refine``, ``oncoming``: no oncoming model, ``small``: no small-vehicle
-        component)."""
+        search, ``refine``, ``oncoming``: no oncoming model)."""
         return replace(self, tracker=None if "tracker" in stages else self.tracker,
                        guided=None if "guided" in stages else self.guided,
                        refine=None if "refine" in stages else self.refine,
-                       oncoming=False if "oncoming" in stages else self.oncoming,
-                       small=False if "small" in stages else self.small)
+                       oncoming=False if "oncoming" in stages else self.oncoming)

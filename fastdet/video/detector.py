@@ -9,9 +9,9 @@ from typing import Any, Literal, Protocol, runtime_checkable
 import numpy as np
 
 from ..config import PipelineConfig, SearchBand, oncoming_search
-from ..config.models import ONCOMING_MODEL_PATH, SMALL_MODEL_PATH
+from ..config.models import ONCOMING_MODEL_PATH
 from ..detect import BandGeometry, Detector, DetectStats
-from ..detections import FIRST_COMPONENT_PART, Detections
+from ..detections import Detections
 from ..model import Model
 
 
@@ -116,21 +116,8 @@ def make_detector(config: PipelineConfig | None = None) -> Detector:
     """The video pipeline's :class:`fastdet.Detector` for ``config`` (default
     ``PipelineConfig()``): its main model and search, and its oncoming-traffic model
     searching the side of the view :attr:`PipelineConfig.traffic` puts oncoming cars on
-    (:func:`fastdet.config.oncoming_search`), and the small-vehicle component when
-    :attr:`PipelineConfig.small` asks for it (the last component: :func:`small_part`).
-    Raises :class:`~fastdet.errors.ModelError` when a model does not load."""
+    (:func:`fastdet.config.oncoming_search`). Raises :class:`~fastdet.errors.ModelError` when a
+    model does not load."""
     c = config if config is not None else PipelineConfig()
     oncoming = ONCOMING_MODEL_PATH if c.oncoming is True else (c.oncoming or None)
-    small = SMALL_MODEL_PATH if c.small is True else (c.small or None)
-    components = [(small, c.small_search)] if small is not None else []
-    return Detector(model=c.model, search=c.search, oncoming=oncoming, oncoming_search=oncoming_search(c.traffic),
-                    components=components)
-
-
-def small_part(config: PipelineConfig, detector: object) -> int | None:
-    """The ``Detections.part`` of the small-vehicle component's windows in ``detector``'s output
-    when ``config`` turns it on (:func:`make_detector` makes it the last component), else ``None``."""
-    n = len(getattr(detector, "components", ()) or ())
-    if config.small is False or n == 0:
-        return None
-    return FIRST_COMPONENT_PART + n - 1
+    return Detector(model=c.model, search=c.search, oncoming=oncoming, oncoming_search=oncoming_search(c.traffic))

@@ -13,8 +13,6 @@ In the order they run (:func:`build_stages`; a stage whose setting is off is lef
 ``ownvehicle``   drop the windows on the own vehicle (:class:`OwnVehicleStage`; off by default)
 ``heatmap``      the main heat map's boxes (:class:`HeatStage`)
 ``split``        wide boxes split between vehicles side by side (:class:`SplitStage`; on by default)
-``small``        the small-vehicle component's heat map's boxes the main model does not reject, where none
-                 was found (:class:`ComponentStage`, :class:`~fastdet.video.small.MainModelCheck`; off by default)
 ``fusion``       the oncoming heat map's boxes where the main one found none (:class:`FusionStage`)
 ``weak``         the weak blobs the tracker may keep a track alive with (:class:`WeakStage`)
 ``track``        track ids (:class:`TrackStage`)
@@ -40,7 +38,6 @@ from ..detect import Detector
 from .blobsplit import SplitStage
 from .box_stages import (
     ClipStage,
-    ComponentStage,
     FusionStage,
     HeatStage,
     ObserveStage,
@@ -48,7 +45,7 @@ from .box_stages import (
     TrackStage,
     WeakStage,
 )
-from .detector import ColumnSearch, MovableHorizon, WindowDetector, small_part
+from .detector import ColumnSearch, MovableHorizon, WindowDetector
 from .guided import SearchPlanner
 from .ownvehicle import OwnVehicleStage
 from .perspective import PerspectiveStage, PerspectiveUpdater
@@ -56,11 +53,10 @@ from .plausible import PlausibleStage
 from .refine import BoxRegressor
 from .search_stages import DetectStage, GateStage, HorizonStage, MotionStage, PlanStage
 from .selfcal import SelfCalStage
-from .small import MainModelCheck
 from .state import FrameDebug, FrameState, Stage, TrackView
 from .track import Tracker
 
-__all__ = ["ClipStage", "ComponentStage", "DetectStage", "FrameDebug", "FrameState", "FusionStage", "GateStage",
+__all__ = ["ClipStage", "DetectStage", "FrameDebug", "FrameState", "FusionStage", "GateStage",
            "HeatStage", "HorizonStage", "MotionStage", "ObserveStage", "OwnVehicleStage", "PerspectiveStage",
            "PlausibleStage", "PlanStage", "RefineStage", "SelfCalStage", "SplitStage", "Stage", "TrackStage",
            "TrackView", "WeakStage", "build_stages", "planner_for"]
@@ -103,16 +99,10 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
         if planner is not None:  # on the first frame too: a full scan on the second frame
             planner.reset()
 
-    heat: list[HeatStage | ComponentStage | FusionStage] = [HeatStage(detector, config.heat, oncoming, new_size)]
+    heat: list[HeatStage | FusionStage] = [HeatStage(detector, config.heat, oncoming, new_size)]
     stages.append(heat[0])
     if config.split is not None:  # on the main heat map's boxes, before the others are added
         stages.append(SplitStage(config.split))
-    small = small_part(config, detector)
-    if small is not None:
-        check = None
-        if config.small_check is not None and isinstance(detector, Detector):
-            check = MainModelCheck(detector.model, config.small_check)
-        heat.append(ComponentStage(detector, config.small_heat, (small,), name="small", check=check))
     if oncoming:
         heat.append(FusionStage(detector, config.oncoming_heat))
     stages += heat[1:]

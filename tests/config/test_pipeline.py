@@ -103,3 +103,10 @@ def test_a_deleted_stage_s_fields_load_when_off_and_keep_the_digest():
         PipelineConfig.from_dict({**old, "side": True})
     with pytest.raises(ValueError, match="side_heat"):
         PipelineConfig.from_dict({"side_heat": HeatConfig(threshold=1).to_dict()})
+
+
+def test_the_small_vehicle_component_s_fields_are_retired_too():
+    old = {**PipelineConfig().to_dict(), "small": False, "small_check": -4.6}
+    assert PipelineConfig.from_dict(old) == PipelineConfig()
+    with pytest.raises(ValueError, match="PipelineConfig.small: this stage was deleted"):
+        PipelineConfig.from_dict({"small": "small.npz"})
