@@ -11,7 +11,6 @@ comparable, JSON round-trip through one :meth:`~fastdet.config.Config.to_dict` /
 - :mod:`.split`: heat blobs over vehicles side by side split (:class:`NeighbourSplit`);
 - :mod:`.plausible`: returned boxes that cannot be vehicles dropped (:class:`PlausibleConfig`);
 - :mod:`.track`: the tracker (:class:`TrackerConfig`);
-- :mod:`.selfcal`: the main model's operating point set from each video (:class:`SelfCalibration`);
 - :mod:`.guided`: the search between full scans (:class:`GuidedSearch`);
 - :mod:`.refine`: the box refinement (:class:`RefineConfig`) and its training boxes
   (:class:`JitterConfig`);
@@ -58,7 +57,6 @@ from .search import (
     check_traffic,
     oncoming_search,
 )
-from .selfcal import SelfCalibration
 from .split import NeighbourSplit
 from .teacher import COCO_VEHICLES, TeacherConfig
 from .track import TrackerConfig
@@ -68,7 +66,7 @@ __all__ = ["BoxMode", "CELL", "COCO_VEHICLES", "COLOR_SPACES", "ColorSpace", "Co
            "NeighbourSplit", "ONCOMING_HEAT", "ONCOMING_MODEL_PATH", "ONCOMING_SEARCH", "OwnVehicleConfig",
            "PICTURE_SEARCH", "PerspectiveConfig", "PictureBoxes", "PictureSearch",
            "PipelineConfig", "PlausibleConfig", "REFERENCE_HORIZON", "REFERENCE_SHAPE", "REFINE_MODEL_PATH",
-           "RefineConfig", "ScoreKind", "SearchBand", "SearchConfig", "SelfCalibration",
+           "RefineConfig", "ScoreKind", "SearchBand", "SearchConfig",
            "TRAFFIC_SIDES", "TeacherConfig", "TrackerConfig", "Traffic", "WINDOW", "check_traffic", "oncoming_search"]
 
 #: former names, kept for code written against them: ``WIDE_HEAT``, ``WIDE_SEARCH``, ``wide_search``

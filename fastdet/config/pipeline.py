@@ -15,7 +15,6 @@ from .perspective import PerspectiveConfig
 from .plausible import PlausibleConfig
 from .refine import RefineConfig
 from .search import SearchBand, SearchConfig, Traffic, check_traffic
-from .selfcal import SelfCalibration
 from .split import NeighbourSplit
 from .track import TrackerConfig
 
@@ -36,7 +35,8 @@ def _retired() -> dict[str, object]:
                                                      (2.0, 368, 525)),
                                          cells_per_step=1, threshold=0.0, shrink="area").to_dict(),
             "small_heat": HeatConfig(threshold=3.5, split_gap=0.5).to_dict(),
-            "small_check": -4.6}
+            "small_check": -4.6,
+            "selfcal": None}
 
 
 #: where the search bands go: ``'auto'`` (estimated from the video), a fraction of the frame
@@ -90,12 +90,8 @@ class PipelineConfig(Config):
         by default a second box on one vehicle (IoU above 0.5 with a higher-scored box); with
         ``PlausibleConfig(perspective=True)`` also the boxes whose width does not fit how far
         below the horizon they stand. ``None``: every box the tracker (and the refinement) gives.
-    selfcal: the main model's decision values moved per video so that a set fraction of the
-        windows of its first full scans reaches a set level (:mod:`fastdet.video.selfcal`,
-        :class:`SelfCalibration`); ``None`` (the default): the model's own.
     """
 
-    _OMIT_NONE = ("selfcal",)  # configs written before it existed keep their digest
     #: the deleted stages' fields at their off values (docs/accuracy.md, "Deleted stages"): an
     #: older config's dict still loads, and today's default config keeps its digest
     _RETIRED = MappingProxyType(_retired())
@@ -116,7 +112,6 @@ class PipelineConfig(Config):
     own_vehicle: OwnVehicleConfig | None = OwnVehicleConfig()
     split: NeighbourSplit | None = NeighbourSplit()
     plausible: PlausibleConfig | None = PlausibleConfig()
-    selfcal: SelfCalibration | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "model", _path(self.model, "model"))
@@ -134,7 +129,7 @@ class PipelineConfig(Config):
                                     ("tracker", TrackerConfig, True), ("guided", GuidedSearch, True),
                                     ("refine", RefineConfig, True), ("perspective", PerspectiveConfig, True),
                                     ("own_vehicle", OwnVehicleConfig, True), ("split", NeighbourSplit, True),
-                                    ("plausible", PlausibleConfig, True), ("selfcal", SelfCalibration, True)):
+                                    ("plausible", PlausibleConfig, True)):
             v = getattr(self, name)
             if not (isinstance(v, cls) or (optional and v is None)):
                 allowed = f"a {cls.__name__}" + (" or None" if optional else "")

@@ -139,8 +139,6 @@ class Detector:
             self.scorers.append(_Scorer(m, comp_search))
             self.parts.append(FIRST_COMPONENT_PART + i)
         self._scorer_of = dict(zip(self.parts, self.scorers))
-        self._main_bias = self.scorers[0].bias  # the main model's own bias, before any decision offset
-        self._offset = 0.0
         if horizon is not None:
             self.set_horizon(horizon)
         self.score_kind = self.model.score_kind
@@ -172,23 +170,6 @@ class Detector:
         <fastdet.config.SearchConfig.for_frame>`). Call it between frames, not during one."""
         for sc in self.scorers:
             sc.search = replace(sc.search, horizon=None if horizon is None else float(horizon))
-
-    @property
-    def decision_offset(self) -> float:
-        """What :meth:`set_decision_offset` subtracts from the main model's decision values (0: none)."""
-        return self._offset
-
-    def set_decision_offset(self, delta: float) -> None:
-        """Subtract ``delta`` from every decision value of the main model from now on (its bias
-        lowered by ``delta``, as :func:`fastdet.train.blend.offset` lowers a model's intercept):
-        its windows above a threshold ``t`` are then those the model gives more than
-        ``t + delta``. Replaces an earlier offset; the oncoming model and the components keep
-        their own. Call it between frames, not during one."""
-        delta = float(delta)
-        if not np.isfinite(delta):
-            raise ValueError(f"decision offset must be finite, got {delta!r}")
-        self._offset = delta
-        self.scorers[0].bias = self._main_bias - delta
 
     def warmup(self) -> None:
         """Load (or compile) the numba kernels now rather than on the first frame (a first

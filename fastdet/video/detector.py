@@ -83,22 +83,6 @@ class ComponentBands(Protocol):
 
 
 @runtime_checkable
-class DecisionOffset(Protocol):
-    """A detector whose main model's decision values can be moved by a constant
-    (:mod:`fastdet.video.selfcal`): ``set_decision_offset(delta)`` subtracts ``delta`` from them
-    (``decision_offset`` the one in force); ``band_scores(frame, geo)`` gives the decision values
-    of every window of one of its main bands (``geometries(shape, 0)``), offset included."""
-
-    @property
-    def decision_offset(self) -> float: ...
-
-    def set_decision_offset(self, delta: float) -> None: ...
-
-    def band_scores(self, frame: np.ndarray, geo: BandGeometry, timings: dict[str, float] | None = None,
-                    part: int = 0) -> np.ndarray: ...
-
-
-@runtime_checkable
 class HasKernels(Protocol):
     """A detector that names the numba kernels its ``detect`` runs (``kernels``), so a
     warm-up compiles them at once with the rest of the pipeline's

@@ -8,7 +8,6 @@ In the order they run (:func:`build_stages`; a stage whose setting is off is lef
 ``plan``         which windows of the main bands to score (guided search, :class:`PlanStage`)
 ``motion``       where the picture moves: the oncoming bands to search (:class:`MotionStage`)
 ``detect``       the positive windows of both models (:class:`DetectStage`)
-``selfcal``      the main model's decision offset from the first full scans (:class:`SelfCalStage`; off)
 ``motion``       drop the oncoming windows that did not move enough (:class:`GateStage`)
 ``ownvehicle``   drop the windows on the own vehicle (:class:`OwnVehicleStage`; off by default)
 ``heatmap``      the main heat map's boxes (:class:`HeatStage`)
@@ -52,13 +51,12 @@ from .perspective import PerspectiveStage, PerspectiveUpdater
 from .plausible import PlausibleStage
 from .refine import BoxRegressor
 from .search_stages import DetectStage, GateStage, HorizonStage, MotionStage, PlanStage
-from .selfcal import SelfCalStage
 from .state import FrameDebug, FrameState, Stage, TrackView
 from .track import Tracker
 
 __all__ = ["ClipStage", "DetectStage", "FrameDebug", "FrameState", "FusionStage", "GateStage",
            "HeatStage", "HorizonStage", "MotionStage", "ObserveStage", "OwnVehicleStage", "PerspectiveStage",
-           "PlausibleStage", "PlanStage", "RefineStage", "SelfCalStage", "SplitStage", "Stage", "TrackStage",
+           "PlausibleStage", "PlanStage", "RefineStage", "SplitStage", "Stage", "TrackStage",
            "TrackView", "WeakStage", "build_stages", "planner_for"]
 
 
@@ -85,9 +83,6 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
     if gated:
         stages.append(MotionStage(detector, config.motion, fps))
     stages.append(DetectStage(detector))
-    if config.selfcal is not None:  # right after the full scans it reads
-        guided = config.planned if planner is not None else None
-        stages.append(SelfCalStage(detector, config.selfcal, guided.every if guided is not None else 1))  # type: ignore[arg-type]
     if gated:
         stages.append(GateStage())
     if config.own_vehicle is not None:

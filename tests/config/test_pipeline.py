@@ -110,3 +110,10 @@ def test_the_small_vehicle_component_s_fields_are_retired_too():
     assert PipelineConfig.from_dict(old) == PipelineConfig()
     with pytest.raises(ValueError, match="PipelineConfig.small: this stage was deleted"):
         PipelineConfig.from_dict({"small": "small.npz"})
+
+
+def test_self_calibration_is_retired_and_off_is_read():
+    assert PipelineConfig.from_dict({"selfcal": None}) == PipelineConfig()
+    assert "selfcal" not in PipelineConfig().digest_dict()  # it was left out of the dict while off
+    with pytest.raises(ValueError, match="PipelineConfig.selfcal: this stage was deleted"):
+        PipelineConfig.from_dict({"selfcal": {"scans": 5}})
