@@ -151,7 +151,7 @@ class SearchConfig(Config):
     shrink: how a band is shrunk to its windows' scale (scale > 1): ``'linear'`` (default:
         ``cv2.INTER_LINEAR``, what the main model's bands have always used) or ``'area'``
         (``cv2.INTER_AREA``: the mean of the pixels each scaled pixel covers, as a model trained
-        on crops shrunk with ``INTER_AREA`` saw them; the small-vehicle component's). A band
+        on crops shrunk with ``INTER_AREA`` saw them; the deleted small-vehicle component's). A band
         enlarged (scale < 1) is always ``INTER_LINEAR``.
     """
 

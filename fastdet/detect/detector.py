@@ -76,12 +76,11 @@ class Detector:
         (:attr:`SearchConfig.horizon <fastdet.config.SearchConfig>`: the bands move with it);
         ``None`` keeps the searches' own. Change it later with :meth:`set_horizon`.
     components: more whole-vehicle models, each with its own search: ``(model, search)``
-        pairs, e.g. a model of side views with windows twice as wide as tall beside the
-        rear-view main model, as the components of a deformable-parts model (Felzenszwalb et
-        al., PAMI 2010) without the parts. Their windows are tagged ``FIRST_COMPONENT_PART + i``
-        and join the main model's heat map in :class:`fastdet.VideoDetector`; the guided
-        search plans their bands as the main model's (``columns``). All models must give the
-        same kind of score (:attr:`Model.score_kind <fastdet.model.Model.score_kind>`).
+        pairs. Their windows are tagged ``FIRST_COMPONENT_PART + i``; the guided search plans
+        their bands as the main model's (``columns``). The video pipeline makes none (its
+        side-view and small-vehicle components were deleted); :func:`fastdet.train.windows.false_window_scores`
+        scores several models on the same windows with them. All models must give the same
+        kind of score (:attr:`Model.score_kind <fastdet.model.Model.score_kind>`).
     wide, wide_search: the former names of ``oncoming`` and ``oncoming_search``; deprecated
         (a :class:`DeprecationWarning`), they will be removed.
 
