@@ -10,7 +10,6 @@ from ..config import (
     PerspectiveConfig,
     PipelineConfig,
     PlausibleConfig,
-    SelfCalibration,
 )
 from ..errors import DataError, FastdetError
 
@@ -85,20 +84,14 @@ def add_search_argument(parser: Options) -> None:
 
 
 def add_oncoming_arguments(parser: Options) -> None:
-    """``--oncoming-model`` / ``--no-oncoming``, ``--traffic``, ``--side`` / ``--side-model`` and
-    ``--small`` / ``--small-model``, shared by ``video``, ``eval``, ``bench`` and ``batch``."""
+    """``--oncoming-model`` / ``--no-oncoming`` and ``--traffic``, shared by ``video``, ``eval``,
+    ``bench`` and ``batch``."""
     g = parser.add_mutually_exclusive_group()
     g.add_argument("--oncoming-model", metavar="WIDE.npz", default=None,
                    help="oncoming-traffic model (default: bundled)")
     g.add_argument("--no-oncoming", action="store_true", help="no oncoming-traffic model")
     parser.add_argument("--traffic", choices=("right", "left", "both"), default="right",
                         help="the side traffic drives on (default right)")
-    s = parser.add_mutually_exclusive_group()
-    s.add_argument("--side", action="store_true", help="add the side-view component")
-    s.add_argument("--side-model", metavar="SIDE.npz", default=None, help="add this side-view component")
-    m = parser.add_mutually_exclusive_group()
-    m.add_argument("--small", action="store_true", help="add the small-vehicle component")
-    m.add_argument("--small-model", metavar="SMALL.npz", default=None, help="add this small-vehicle component")
 
 
 def add_refine_argument(parser: Options) -> None:
@@ -108,7 +101,7 @@ def add_refine_argument(parser: Options) -> None:
 
 
 def add_camera_arguments(parser: Options) -> None:
-    """``--no-own-vehicle``, ``--no-split-neighbours``, ``--perspective-filter`` and ``--self-calibrate``:
+    """``--no-own-vehicle``, ``--no-split-neighbours``, and ``--perspective-filter``:
     the optional stages for other cameras. ``--own-vehicle`` and ``--split-neighbours`` (the
     defaults, spelt out) are still accepted but not shown in ``--help``."""
     o = parser.add_mutually_exclusive_group()
@@ -121,8 +114,6 @@ def add_camera_arguments(parser: Options) -> None:
     g.add_argument("--split-neighbours", action="store_true", help=argparse.SUPPRESS)  # the default, spelt out
     parser.add_argument("--perspective-filter", action="store_true",
                         help="drop boxes too narrow or wide for their row")
-    parser.add_argument("--self-calibrate", action="store_true",
-                        help="set the operating point from the video itself")
 
 
 def pipeline_groups(parser: argparse.ArgumentParser) -> tuple[Options, Options, Options]:
@@ -148,7 +139,7 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
     ``--heat-frames`` / ``--heat-decay`` / ``--heat-threshold``: the main heat map (a bad
     value: :class:`~fastdet.errors.FastdetError`); ``--no-own-vehicle``: the own-vehicle stage off;
     ``--no-split-neighbours``: the neighbour split off; ``--perspective-filter``: the perspective test of the
-    plausibility stage on; ``--self-calibrate``: the main model's operating point set from the video."""
+    plausibility stage on."""
     d = HeatConfig()
     try:
         heat = HeatConfig(n_frames=getattr(args, "heat_frames", d.n_frames), decay=getattr(args, "heat_decay", d.decay),
@@ -158,14 +149,11 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
     config = PipelineConfig(model=getattr(args, "model", None),
                             oncoming=False if getattr(args, "no_oncoming", False)
                             else (getattr(args, "oncoming_model", None) or True),
-                            side=getattr(args, "side_model", None) or bool(getattr(args, "side", False)),
-                            small=getattr(args, "small_model", None) or bool(getattr(args, "small", False)),
                             traffic=getattr(args, "traffic", "right"), horizon=getattr(args, "horizon", "auto"),
                             heat=heat, perspective=PerspectiveConfig() if getattr(args, "perspective", False) else None,
                             own_vehicle=None if getattr(args, "no_own_vehicle", False) else OwnVehicleConfig(),
                             split=None if getattr(args, "no_split_neighbours", False) else NeighbourSplit(),
-                            plausible=PlausibleConfig(perspective=bool(getattr(args, "perspective_filter", False))),
-                            selfcal=SelfCalibration() if getattr(args, "self_calibrate", False) else None)
+                            plausible=PlausibleConfig(perspective=bool(getattr(args, "perspective_filter", False))))
     off = [name for name, flag in (("tracker", "no_track"), ("guided", "full_search"), ("refine", "no_refine"))
            if getattr(args, flag, False)]
     return config.without(*off)  # type: ignore[arg-type]

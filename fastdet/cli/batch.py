@@ -95,8 +95,6 @@ def run(args: argparse.Namespace) -> int:
     with job.out_dir_for_run(out_dir):  # a failed start leaves no folder it made
         if table is not None:  # after the output folder exists: the table may go into it
             check_paths([("--model", args.model), ("--oncoming-model", args.oncoming_model),
-                         ("--side-model", getattr(args, "side_model", None)),
-                         ("--small-model", getattr(args, "small_model", None)),
                          *[("INPUT", v) for v in videos]], [("--table", table, "table")])
             if os.path.realpath(table.parent) == os.path.realpath(out_dir) \
                     and table.name.endswith(tuple(settings_mod.SUFFIXES.values())):

@@ -225,12 +225,10 @@ def _run_all(args: argparse.Namespace) -> int:
         raise FastdetError("--all scores every annotated clip: "
                            "it takes no --gt, --pred, --video, --keyframes or --plot")
     if args.pred_dir is not None and (args.model is not None or args.oncoming_model is not None or args.no_oncoming
-                                      or args.side or args.side_model is not None
-                                      or args.small or args.small_model is not None
                                       or args.no_track or args.offline or getattr(args, "no_refine", False)
                                       or getattr(args, "traffic", "right") != "right"
                                       or getattr(args, "perspective", False)):
-        raise FastdetError("--model, --oncoming-model, --no-oncoming, --side, --side-model, --small, --small-model, "
+        raise FastdetError("--model, --oncoming-model, --no-oncoming, "
                            "--traffic, --no-refine, --no-track, --offline and --perspective only apply when --all "
                            "runs the pipeline (not with --pred-dir)")
     clips = annotated_clips(args.data)
@@ -253,9 +251,7 @@ def _run_all(args: argparse.Namespace) -> int:
 
         root = data_dir()
     data_in = _data_folder_inputs(root) if args.pred_dir is None else []
-    check_paths([("--model", args.model), ("--oncoming-model", args.oncoming_model),
-                 ("--side-model", getattr(args, "side_model", None)),
-                 ("--small-model", getattr(args, "small_model", None)), *bundled_models(),
+    check_paths([("--model", args.model), ("--oncoming-model", args.oncoming_model), *bundled_models(),
                  *[(f"clip {c.name}", p) for c in clips for p in (c.video, c.gt_path, keyframes_path(c.gt_path))],
                  *preds_in, *data_in],
                 [("--out", args.out, "report")])
@@ -277,7 +273,6 @@ def _run_all(args: argparse.Namespace) -> int:
     else:
         config = pipeline_config(args)
         settings.update(model=args.model or "bundled", oncoming=args.oncoming_model or not args.no_oncoming,
-                        side=config.side, small=config.small,
                         traffic=config.traffic, refine=config.refine is not None, track=config.tracker is not None,
                         offline=args.offline, horizon=config.horizon, full_search=config.guided is None,
                         perspective=config.perspective is not None, split=config.split is not None,
@@ -311,16 +306,12 @@ def run(args: argparse.Namespace) -> int:
         raise FastdetError("give --gt GT.txt and one of --pred PRED.txt or --video CLIP.mp4 (or --all)")
     no_track, offline = getattr(args, "no_track", False), getattr(args, "offline", False)
     if args.video is None and (args.model is not None or args.oncoming_model is not None or args.no_oncoming
-                               or args.side or args.side_model is not None
-                               or args.small or args.small_model is not None
                                or no_track or offline or getattr(args, "no_refine", False)
                                or getattr(args, "traffic", "right") != "right" or getattr(args, "perspective", False)):
-        raise FastdetError("--model, --oncoming-model, --no-oncoming, --side, --side-model, --small, --small-model, "
+        raise FastdetError("--model, --oncoming-model, --no-oncoming, "
                            "--traffic, --no-refine, --no-track, --offline and --perspective only apply with --video")
     check_paths([("--gt", args.gt), ("--pred", args.pred), ("--video", args.video), ("--model", args.model),
                  ("--oncoming-model", getattr(args, "oncoming_model", None)),
-                 ("--side-model", getattr(args, "side_model", None)),
-                 ("--small-model", getattr(args, "small_model", None)),
                  ("--keyframes", getattr(args, "keyframes", None) or keyframes_path(args.gt)),
                  *(bundled_models() if args.video is not None else [])],
                 [("--plot", args.plot, "PNG")])

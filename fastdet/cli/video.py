@@ -246,9 +246,7 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
     heat = config.heat
     check_source(args.input)
     check_paths([("INPUT", args.input), ("--model", args.model),
-                 ("--oncoming-model", getattr(args, "oncoming_model", None)),
-                 ("--side-model", getattr(args, "side_model", None)),
-                 ("--small-model", getattr(args, "small_model", None)), *bundled_models()],
+                 ("--oncoming-model", getattr(args, "oncoming_model", None)), *bundled_models()],
                 [("-o", out, "video"), ("--boxes", boxes_path, "box"), ("--json", json_path, "JSON"),
                  ("--summary", summary_path, "summary")])
     if out:

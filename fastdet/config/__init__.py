@@ -4,18 +4,13 @@ comparable, JSON round-trip through one :meth:`~fastdet.config.Config.to_dict` /
 
 - :mod:`.features`: what a model computes of a window (:class:`FeatureConfig`);
 - :mod:`.search`: where to search (:class:`SearchBand`, :class:`SearchConfig`, the
-  oncoming-traffic search by traffic side, :func:`oncoming_search`; the side-view
-  component's, :func:`side_search`);
-- :mod:`.small`: the small-vehicle component's features, search and heat map
-  (:data:`SMALL_FEATURES`, :func:`small_search`, :data:`SMALL_HEAT`);
-- :mod:`.heat`: how the heat map makes boxes (:class:`HeatConfig`, :data:`ONCOMING_HEAT`,
-  :data:`SIDE_HEAT`);
+  oncoming-traffic search by traffic side, :func:`oncoming_search`);
+- :mod:`.heat`: how the heat map makes boxes (:class:`HeatConfig`, :data:`ONCOMING_HEAT`);
 - :mod:`.motion`: the oncoming model's motion gate (:class:`MotionGate`);
 - :mod:`.ownvehicle`: the own vehicle's region and the windows dropped there (:class:`OwnVehicleConfig`);
 - :mod:`.split`: heat blobs over vehicles side by side split (:class:`NeighbourSplit`);
 - :mod:`.plausible`: returned boxes that cannot be vehicles dropped (:class:`PlausibleConfig`);
 - :mod:`.track`: the tracker (:class:`TrackerConfig`);
-- :mod:`.selfcal`: the main model's operating point set from each video (:class:`SelfCalibration`);
 - :mod:`.guided`: the search between full scans (:class:`GuidedSearch`);
 - :mod:`.refine`: the box refinement (:class:`RefineConfig`) and its training boxes
   (:class:`JitterConfig`);
@@ -38,13 +33,11 @@ from typing import Any
 from ._base import Config
 from .features import CELL, COLOR_SPACES, WINDOW, ColorSpace, FeatureConfig
 from .guided import GuidedSearch
-from .heat import ONCOMING_HEAT, SIDE_HEAT, BoxMode, HeatConfig, ScoreKind
+from .heat import ONCOMING_HEAT, BoxMode, HeatConfig, ScoreKind
 from .models import (
     DEFAULT_MODEL_PATH,
     ONCOMING_MODEL_PATH,
     REFINE_MODEL_PATH,
-    SIDE_MODEL_PATH,
-    SMALL_MODEL_PATH,
 )
 from .motion import MotionGate
 from .ownvehicle import OwnVehicleConfig
@@ -57,17 +50,13 @@ from .search import (
     ONCOMING_SEARCH,
     REFERENCE_HORIZON,
     REFERENCE_SHAPE,
-    SIDE_SEARCH,
     TRAFFIC_SIDES,
     SearchBand,
     SearchConfig,
     Traffic,
     check_traffic,
     oncoming_search,
-    side_search,
 )
-from .selfcal import SelfCalibration
-from .small import SMALL_FEATURES, SMALL_HEAT, SMALL_SEARCH, small_search
 from .split import NeighbourSplit
 from .teacher import COCO_VEHICLES, TeacherConfig
 from .track import TrackerConfig
@@ -77,10 +66,8 @@ __all__ = ["BoxMode", "CELL", "COCO_VEHICLES", "COLOR_SPACES", "ColorSpace", "Co
            "NeighbourSplit", "ONCOMING_HEAT", "ONCOMING_MODEL_PATH", "ONCOMING_SEARCH", "OwnVehicleConfig",
            "PICTURE_SEARCH", "PerspectiveConfig", "PictureBoxes", "PictureSearch",
            "PipelineConfig", "PlausibleConfig", "REFERENCE_HORIZON", "REFERENCE_SHAPE", "REFINE_MODEL_PATH",
-           "RefineConfig", "SIDE_HEAT", "SIDE_MODEL_PATH", "SIDE_SEARCH", "SMALL_FEATURES", "SMALL_HEAT",
-           "SMALL_MODEL_PATH", "SMALL_SEARCH", "ScoreKind", "SearchBand", "SearchConfig", "SelfCalibration",
-           "TRAFFIC_SIDES", "TeacherConfig", "TrackerConfig", "Traffic", "WINDOW", "check_traffic", "oncoming_search",
-           "side_search", "small_search"]
+           "RefineConfig", "ScoreKind", "SearchBand", "SearchConfig",
+           "TRAFFIC_SIDES", "TeacherConfig", "TrackerConfig", "Traffic", "WINDOW", "check_traffic", "oncoming_search"]
 
 #: former names, kept for code written against them: ``WIDE_HEAT``, ``WIDE_SEARCH``, ``wide_search``
 _RENAMED = {"WIDE_HEAT": "ONCOMING_HEAT", "WIDE_SEARCH": "ONCOMING_SEARCH", "wide_search": "oncoming_search"}

@@ -86,10 +86,15 @@ class Config:
     """Mixin of the frozen configuration dataclasses: :meth:`to_dict`, :meth:`from_dict` and
     :meth:`digest`. ``_OMIT_NONE`` names fields left out of :meth:`to_dict` while ``None``, and
     ``_OMIT_DEFAULT`` fields left out while at the value it gives them (so a dict written before
-    such a field existed is still the same dict)."""
+    such a field existed is still the same dict). ``_RETIRED`` maps the fields of a deleted stage
+    to the dict value they had while it was off: :meth:`from_dict` drops such a key holding that
+    value and refuses one holding another (the stage is gone), and :meth:`digest_dict` (what
+    :meth:`digest` hashes) still holds those that were written (not ``None``), so the digest of
+    a config is what it was before the stage was deleted."""
 
     _OMIT_NONE: typing.ClassVar[tuple[str, ...]] = ()
     _OMIT_DEFAULT: typing.ClassVar[typing.Mapping[str, Any]] = types.MappingProxyType({})
+    _RETIRED: typing.ClassVar[typing.Mapping[str, Any]] = types.MappingProxyType({})
 
     def to_dict(self) -> dict[str, Any]:
         """The fields as JSON-able values: nested configs as dicts, tuples as lists."""
@@ -112,6 +117,11 @@ class Config:
         if not isinstance(d, dict):
             raise ValueError(f"{cls.__name__} must be a JSON object, got {type(d).__name__}")
         names = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+        for k in sorted(set(d) & set(cls._RETIRED) - names):
+            if d[k] != cls._RETIRED[k]:
+                raise ValueError(f"{cls.__name__}.{k}: this stage was deleted (docs/accuracy.md, "
+                                 f"'Deleted stages'); only its off value {json.dumps(cls._RETIRED[k])[:40]} is read")
+            d = {key: v for key, v in d.items() if key != k}
         unknown = set(d) - names
         if unknown:
             raise ValueError(f"unknown {cls.__name__} fields: {sorted(unknown)}")
@@ -122,8 +132,13 @@ class Config:
                                  f"got {type(v).__name__} {json.dumps(v)[:40]}")
         return cls(**{k: _decode(hints.get(k), v) for k, v in d.items()})
 
+    def digest_dict(self) -> dict[str, Any]:
+        """:meth:`to_dict` with the deleted stages' fields at their off values (``_RETIRED``):
+        what :meth:`digest` hashes."""
+        return {**{k: v for k, v in self._RETIRED.items() if v is not None}, **self.to_dict()}
+
     def digest(self) -> str:
-        """16 hex digits of the SHA-256 of :meth:`to_dict` as canonical JSON: equal configs
+        """16 hex digits of the SHA-256 of :meth:`digest_dict` as canonical JSON: equal configs
         give equal digests, run after run."""
-        text = json.dumps(self.to_dict(), sort_keys=True, separators=(",", ":"))
+        text = json.dumps(self.digest_dict(), sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(text.encode()).hexdigest()[:16]

@@ -151,7 +151,3 @@ class HeatConfig(Config):
 #: peak heat, wider than tall
 ONCOMING_HEAT = HeatConfig(n_frames=1, threshold=8.0, extent=0.3, box_mode="extent", split_gap=0.5, min_height=10,
                            max_aspect=0.8)
-#: heat map of the side-view component's windows (:class:`~fastdet.VideoDetector`): the main
-#: heat map's memory and threshold, boxes wider than tall; its boxes join the main heat map's
-#: where those found nothing (docs/components.md)
-SIDE_HEAT = HeatConfig(max_aspect=1.0, min_height=10)

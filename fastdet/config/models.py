@@ -1,5 +1,5 @@
 """Where the bundled model files are: the main model, the oncoming-traffic (wide-window) model,
-the side-view and small-vehicle components and the box regressor.
+and the box regressor.
 :class:`~fastdet.config.PipelineConfig` names a model file by path, or ``None`` for the bundled
 one (:func:`resolve_model`)."""
 from __future__ import annotations
@@ -13,11 +13,6 @@ MODELS_DIR = Path(__file__).resolve().parents[1] / "models"
 DEFAULT_MODEL_PATH = MODELS_DIR / "default.npz"
 #: the bundled wide-window model for oncoming traffic above the median (``tools/scripts/oncoming_model.sh``)
 ONCOMING_MODEL_PATH = MODELS_DIR / "oncoming.npz"
-#: the bundled side-view component, 64x32 windows (``python -m tools.scripts.side_model``; docs/components.md)
-SIDE_MODEL_PATH = MODELS_DIR / "side.npz"
-#: the bundled small-vehicle component, 32x32 windows on the frame at its own resolution, trained on
-#: the data set's crops shrunk to 32x32 (``python -m tools.scripts.small_model``; docs/components.md)
-SMALL_MODEL_PATH = MODELS_DIR / "small.npz"
 #: the bundled box regressor (:mod:`fastdet.detect.regressor`), applied
 #: ``RefineConfig.iterations`` (3) times: fitted on test_video, the three keyframe clips of other
 #: cameras and the test images, never on test_small1, on boxes jittered about their vehicles and

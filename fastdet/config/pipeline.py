@@ -1,24 +1,43 @@
 """Every setting of the video pipeline in one frozen value (:class:`PipelineConfig`)."""
 from __future__ import annotations
 
-import math
 import os
 from dataclasses import dataclass, replace
+from types import MappingProxyType
 from typing import Literal
 
 from ._base import Config
 from .guided import GuidedSearch
-from .heat import ONCOMING_HEAT, SIDE_HEAT, HeatConfig
+from .heat import ONCOMING_HEAT, HeatConfig
 from .motion import MotionGate
 from .ownvehicle import OwnVehicleConfig
 from .perspective import PerspectiveConfig
 from .plausible import PlausibleConfig
 from .refine import RefineConfig
-from .search import SIDE_SEARCH, SearchConfig, Traffic, check_traffic
-from .selfcal import SelfCalibration
-from .small import SMALL_CHECK, SMALL_HEAT, SMALL_SEARCH
+from .search import SearchBand, SearchConfig, Traffic, check_traffic
 from .split import NeighbourSplit
 from .track import TrackerConfig
+
+
+def _retired() -> dict[str, object]:
+    """The dict values the deleted stages' fields had while off (:attr:`PipelineConfig._RETIRED`;
+    docs/accuracy.md, "Deleted stages")."""
+    def bands(*rows: tuple[float, int, int]) -> tuple[SearchBand, ...]:
+        return tuple(SearchBand(*r) for r in rows)
+
+    return {"side": False,
+            "side_search": SearchConfig(bands=bands((1.25, 367, 503), (1.75, 360, 521), (2.5, 349, 549),
+                                                    (3.5, 334, 586), (5.0, 313, 641), (7.0, 284, 714)),
+                                        cells_per_step=2, threshold=0.0).to_dict(),
+            "side_heat": HeatConfig(max_aspect=1.0, min_height=10).to_dict(),
+            "small": False,
+            "small_search": SearchConfig(bands=bands((1.25, 383, 492), (1.5, 378, 503), (1.75, 373, 514),
+                                                     (2.0, 368, 525)),
+                                         cells_per_step=1, threshold=0.0, shrink="area").to_dict(),
+            "small_heat": HeatConfig(threshold=3.5, split_gap=0.5).to_dict(),
+            "small_check": -4.6,
+            "selfcal": None}
+
 
 #: where the search bands go: ``'auto'`` (estimated from the video), a fraction of the frame
 #: height, or ``None`` (the bands as the search writes them)
@@ -41,13 +60,6 @@ class PipelineConfig(Config):
     model: the main model file; ``None``: the bundled one (:data:`~fastdet.config.models.DEFAULT_MODEL_PATH`).
     oncoming: the oncoming-traffic (wide-window) model: ``True`` the bundled one, a path for
         another, ``False`` none.
-    side: the side-view component (boxes wider than tall: parked cars seen from the side;
-        docs/components.md): ``False`` (default) none, ``True`` the bundled one
-        (:data:`~fastdet.config.models.SIDE_MODEL_PATH`), a path for another.
-    small: the small-vehicle component (32x32 windows on the frame at its own resolution about
-        the horizon, for vehicles under 60 px wide of 1280; docs/components.md): ``False``
-        (default) none, ``True`` the bundled one (:data:`~fastdet.config.models.SMALL_MODEL_PATH`),
-        a path for another.
     refine_model: the box regressor file; ``None``: the bundled one.
     traffic: the side of the road traffic drives on (:data:`~fastdet.config.TRAFFIC_SIDES`),
         which decides where the oncoming model searches (:func:`~fastdet.config.oncoming_search`).
@@ -56,12 +68,6 @@ class PipelineConfig(Config):
         of the first seconds (:mod:`fastdet.video.horizon`), a number is the horizon row as a
         fraction of the frame height in [0, 1], ``None`` leaves the bands where they are written.
     heat: the main model's heat map; oncoming_heat: the oncoming model's.
-    side_search, side_heat: where the side-view component searches and its heat map (whose
-        boxes join the main ones where those found nothing).
-    small_search, small_heat: the same for the small-vehicle component (a heat map of its own).
-    small_check: the small component's boxes are kept only where the main model's decision value
-        on their square crop exceeds this (:class:`fastdet.video.small.MainModelCheck`); ``None``:
-        no check.
     motion: the motion gate of the oncoming model.
     tracker: the tracker that gives every vehicle an id; ``None``: no tracking (boxes
         without ids).
@@ -84,28 +90,20 @@ class PipelineConfig(Config):
         by default a second box on one vehicle (IoU above 0.5 with a higher-scored box); with
         ``PlausibleConfig(perspective=True)`` also the boxes whose width does not fit how far
         below the horizon they stand. ``None``: every box the tracker (and the refinement) gives.
-    selfcal: the main model's decision values moved per video so that a set fraction of the
-        windows of its first full scans reaches a set level (:mod:`fastdet.video.selfcal`,
-        :class:`SelfCalibration`); ``None`` (the default): the model's own.
     """
 
-    _OMIT_NONE = ("selfcal",)  # configs written before it existed keep their digest
+    #: the deleted stages' fields at their off values (docs/accuracy.md, "Deleted stages"): an
+    #: older config's dict still loads, and today's default config keeps its digest
+    _RETIRED = MappingProxyType(_retired())
 
     model: str | None = None
     oncoming: str | bool = True
-    side: str | bool = False
-    small: str | bool = False
     refine_model: str | None = None
     traffic: Traffic = "right"
     search: SearchConfig = SearchConfig()
     horizon: Horizon = "auto"
     heat: HeatConfig = HeatConfig()
     oncoming_heat: HeatConfig = ONCOMING_HEAT
-    side_search: SearchConfig = SIDE_SEARCH
-    side_heat: HeatConfig = SIDE_HEAT
-    small_search: SearchConfig = SMALL_SEARCH
-    small_heat: HeatConfig = SMALL_HEAT
-    small_check: float | None = SMALL_CHECK
     motion: MotionGate = MotionGate()
     tracker: TrackerConfig | None = TrackerConfig()
     guided: GuidedSearch | None = GuidedSearch()
@@ -114,7 +112,6 @@ class PipelineConfig(Config):
     own_vehicle: OwnVehicleConfig | None = OwnVehicleConfig()
     split: NeighbourSplit | None = NeighbourSplit()
     plausible: PlausibleConfig | None = PlausibleConfig()
-    selfcal: SelfCalibration | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "model", _path(self.model, "model"))
@@ -123,27 +120,16 @@ class PipelineConfig(Config):
             object.__setattr__(self, "oncoming", _path(self.oncoming, "oncoming"))
             if self.oncoming is None:
                 raise TypeError("oncoming must be True, False or a path, got None")
-        for name in ("side", "small"):
-            v = getattr(self, name)
-            if not isinstance(v, bool):
-                object.__setattr__(self, name, _path(v, name))
-                if getattr(self, name) is None:
-                    raise TypeError(f"{name} must be True, False or a path, got None")
         check_traffic(self.traffic)
-        sc = self.small_check
-        if sc is not None and (isinstance(sc, bool) or not isinstance(sc, (int, float)) or not math.isfinite(sc)):
-            raise ValueError(f"small_check must be a finite decision value or None, got {sc!r}")
         h = self.horizon
         if not (h is None or h == "auto" or (isinstance(h, (int, float)) and not isinstance(h, bool) and 0 <= h <= 1)):
             raise ValueError(f"horizon must be 'auto', a fraction of the frame height in [0, 1] or None, got {h!r}")
         for name, cls, optional in (("search", SearchConfig, False), ("heat", HeatConfig, False),
-                                    ("oncoming_heat", HeatConfig, False), ("side_search", SearchConfig, False),
-                                    ("side_heat", HeatConfig, False), ("small_search", SearchConfig, False),
-                                    ("small_heat", HeatConfig, False), ("motion", MotionGate, False),
+                                    ("oncoming_heat", HeatConfig, False), ("motion", MotionGate, False),
                                     ("tracker", TrackerConfig, True), ("guided", GuidedSearch, True),
                                     ("refine", RefineConfig, True), ("perspective", PerspectiveConfig, True),
                                     ("own_vehicle", OwnVehicleConfig, True), ("split", NeighbourSplit, True),
-                                    ("plausible", PlausibleConfig, True), ("selfcal", SelfCalibration, True)):
+                                    ("plausible", PlausibleConfig, True)):
             v = getattr(self, name)
             if not (isinstance(v, cls) or (optional and v is None)):
                 allowed = f"a {cls.__name__}" + (" or None" if optional else "")
@@ -157,13 +143,10 @@ class PipelineConfig(Config):
             return None
         return self.guided
 
-    def without(self, *stages: Literal["tracker", "guided", "refine", "oncoming", "side", "small"]) -> PipelineConfig:
+    def without(self, *stages: Literal["tracker", "guided", "refine", "oncoming"]) -> PipelineConfig:
         """This config with the named optional stages off (``tracker``, ``guided``: the full
-        search, ``refine``, ``oncoming``: no oncoming model, ``side``: no side-view component,
-        ``small``: no small-vehicle component)."""
+        search, ``refine``, ``oncoming``: no oncoming model)."""
         return replace(self, tracker=None if "tracker" in stages else self.tracker,
                        guided=None if "guided" in stages else self.guided,
                        refine=None if "refine" in stages else self.refine,
-                       oncoming=False if "oncoming" in stages else self.oncoming,
-                       side=False if "side" in stages else self.side,
-                       small=False if "small" in stages else self.small)
+                       oncoming=False if "oncoming" in stages else self.oncoming)

@@ -151,7 +151,7 @@ class SearchConfig(Config):
     shrink: how a band is shrunk to its windows' scale (scale > 1): ``'linear'`` (default:
         ``cv2.INTER_LINEAR``, what the main model's bands have always used) or ``'area'``
         (``cv2.INTER_AREA``: the mean of the pixels each scaled pixel covers, as a model trained
-        on crops shrunk with ``INTER_AREA`` saw them; the small-vehicle component's). A band
+        on crops shrunk with ``INTER_AREA`` saw them; the deleted small-vehicle component's). A band
         enlarged (scale < 1) is always ``INTER_LINEAR``.
     """
 
@@ -291,38 +291,6 @@ def oncoming_search(traffic: Traffic = "right", slack_below: float | None = None
 #: (:class:`~fastdet.config.MotionGate`).
 ONCOMING_SEARCH = oncoming_search("right")
 
-#: the side-view component's windows, ``(width, height)`` px (:data:`fastdet.train.components.SIDE_RECIPE`)
-SIDE_WINDOW = (WINDOW, 32)
-#: window widths of the side-view component's bands, in units of its window width at the
-#: reference frame (80 .. 448 px of 1280: parked cars seen from the side, close cars at an angle)
-SIDE_SCALES = (1.25, 1.75, 2.5, 3.5, 5.0, 7.0)
-
-
-def _side_bands(scales: tuple[float, ...] = SIDE_SCALES, slack: float = 0.05) -> tuple[SearchBand, ...]:
-    # A vehicle seen from the side with its top near the horizon (a camera about as high as the
-    # vehicle) and its bottom about its height below: each window size is searched from 0.45
-    # window heights above to 1.15 below the reference horizon, plus ``slack`` x H above and
-    # below for cameras whose horizon or height differ.
-    rows, hz = REFERENCE_SHAPE[0], REFERENCE_HORIZON * REFERENCE_SHAPE[0]
-    out = []
-    for s in scales:
-        h = SIDE_WINDOW[1] * s
-        y1 = min(rows, int(hz + 1.15 * h + slack * rows))
-        y0 = max(0, min(int(hz - 0.45 * h - slack * rows), y1 - int(-(-h // 1))))
-        out.append(SearchBand(s, y0, y1))
-    return tuple(out)
-
-
-def side_search() -> SearchConfig:
-    """The default search of the side-view component (:class:`fastdet.Detector`
-    ``components=``): :data:`SIDE_SCALES` over the whole width, windows two HOG cells apart,
-    positive above decision value 0 (probability 0.5)."""
-    return SearchConfig(bands=_side_bands(), cells_per_step=2, threshold=0.0)
-
-
-#: default search of the side-view component
-SIDE_SEARCH = side_search()
-
 #: window widths of the large-vehicle search, in units of the main model's window (64 px) at
 #: the reference frame: 240 .. 448 px of 1280, past the main search's largest (192 px)
 LARGE_SCALES = (3.75, 4.5, 5.5, 7.0)
@@ -352,8 +320,8 @@ def large_search() -> SearchConfig:
     240-448 px wide at 1280x720, over the whole width and past its edges as the main search's,
     positive above :data:`LARGE_THRESHOLD`). **Not part of the default search**: its windows
     need a heat map of their own whose boxes join the main ones where those found nothing, as
-    a component's (``PipelineConfig(side=DEFAULT_MODEL_PATH, side_search=LARGE_SEARCH,
-    side_heat=HeatConfig())``; docs/geometry.md, "Large and near vehicles")."""
+    a component's (docs/geometry.md, "Large and near vehicles"); :class:`fastdet.Detector`
+    ``search=LARGE_SEARCH`` runs it alone."""
     return SearchConfig(bands=_large_bands(), threshold=LARGE_THRESHOLD)
 
 

@@ -76,12 +76,11 @@ class Detector:
         (:attr:`SearchConfig.horizon <fastdet.config.SearchConfig>`: the bands move with it);
         ``None`` keeps the searches' own. Change it later with :meth:`set_horizon`.
     components: more whole-vehicle models, each with its own search: ``(model, search)``
-        pairs, e.g. a model of side views with windows twice as wide as tall beside the
-        rear-view main model, as the components of a deformable-parts model (Felzenszwalb et
-        al., PAMI 2010) without the parts. Their windows are tagged ``FIRST_COMPONENT_PART + i``
-        and join the main model's heat map in :class:`fastdet.VideoDetector`; the guided
-        search plans their bands as the main model's (``columns``). All models must give the
-        same kind of score (:attr:`Model.score_kind <fastdet.model.Model.score_kind>`).
+        pairs. Their windows are tagged ``FIRST_COMPONENT_PART + i``; the guided search plans
+        their bands as the main model's (``columns``). The video pipeline makes none (its
+        side-view and small-vehicle components were deleted); :func:`fastdet.train.windows.false_window_scores`
+        scores several models on the same windows with them. All models must give the same
+        kind of score (:attr:`Model.score_kind <fastdet.model.Model.score_kind>`).
     wide, wide_search: the former names of ``oncoming`` and ``oncoming_search``; deprecated
         (a :class:`DeprecationWarning`), they will be removed.
 
@@ -139,8 +138,6 @@ class Detector:
             self.scorers.append(_Scorer(m, comp_search))
             self.parts.append(FIRST_COMPONENT_PART + i)
         self._scorer_of = dict(zip(self.parts, self.scorers))
-        self._main_bias = self.scorers[0].bias  # the main model's own bias, before any decision offset
-        self._offset = 0.0
         if horizon is not None:
             self.set_horizon(horizon)
         self.score_kind = self.model.score_kind
@@ -172,23 +169,6 @@ class Detector:
         <fastdet.config.SearchConfig.for_frame>`). Call it between frames, not during one."""
         for sc in self.scorers:
             sc.search = replace(sc.search, horizon=None if horizon is None else float(horizon))
-
-    @property
-    def decision_offset(self) -> float:
-        """What :meth:`set_decision_offset` subtracts from the main model's decision values (0: none)."""
-        return self._offset
-
-    def set_decision_offset(self, delta: float) -> None:
-        """Subtract ``delta`` from every decision value of the main model from now on (its bias
-        lowered by ``delta``, as :func:`fastdet.train.blend.offset` lowers a model's intercept):
-        its windows above a threshold ``t`` are then those the model gives more than
-        ``t + delta``. Replaces an earlier offset; the oncoming model and the components keep
-        their own. Call it between frames, not during one."""
-        delta = float(delta)
-        if not np.isfinite(delta):
-            raise ValueError(f"decision offset must be finite, got {delta!r}")
-        self._offset = delta
-        self.scorers[0].bias = self._main_bias - delta
 
     def warmup(self) -> None:
         """Load (or compile) the numba kernels now rather than on the first frame (a first

@@ -149,7 +149,7 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
 
     ``crop_size``: the data set's crops are resized to ``crop_size`` x ``crop_size`` first
     (``cv2.INTER_AREA``; 64: as they are): a small-window model learns from crops downscaled
-    to its window (:mod:`fastdet.train.small`)."""
+    to its window."""
     if split not in ("both", "random", "sequence", "none"):
         raise ValueError(f"split must be 'both', 'random', 'sequence' or 'none', got {split!r}")
     if extra_crops is not None and extra_crops.images.shape[1:3] != (config.win_h, config.win_w):

@@ -49,7 +49,7 @@ class KeyframeRecipe:
     margin: context around a positive, a fraction of its window on each side.
     jitter: moved (up to 5% of the window) and rescaled (0.9-1.1x) copies per positive.
     max_aspect: only targets narrower than this (width / height) are positives (the wider ones
-        are a side component's, :mod:`fastdet.train.components`); ``inf``: all.
+        are left out); ``inf``: all.
     background: random windows per frame touching no annotated box.
     hard_per_frame: at most this many hard negatives per frame and round; hard_threshold: the
         probability above which a window is one (the search's 0.5).

@@ -152,9 +152,9 @@ def window_score(windows: Sequence[FrameWindows], half: float = 0.5,
 
 def dense_detector(model: Model, frame_shape: tuple[int, int], components: Sequence[Model] = (),
                    **search: Any) -> Any:
-    """A :class:`fastdet.Detector` of ``model`` (and ``components``, e.g. a side-view model)
-    with :func:`dense_search` for frames of ``frame_shape``, each model's for its own window
-    (``search``: its keyword arguments)."""
+    """A :class:`fastdet.Detector` of ``model`` (and ``components``: more models scored on the
+    same windows, :func:`false_window_scores`) with :func:`dense_search` for frames of
+    ``frame_shape``, each model's for its own window (``search``: its keyword arguments)."""
     from ..detect import Detector
 
     def dense(m: Model) -> SearchConfig:
@@ -165,18 +165,17 @@ def dense_detector(model: Model, frame_shape: tuple[int, int], components: Seque
 
 def score_frames(model: Model, frames: Sequence[AnnotatedFrame], iou_min: float = 0.5,
                  on_frame: Callable[[AnnotatedFrame, FrameWindows], None] | None = None,
-                 components: Sequence[Model] = (), near_iou: float | None = None, **search: Any) -> WindowScore:
+                 near_iou: float | None = None, **search: Any) -> WindowScore:
     """:func:`window_score` of ``model`` over ``frames``, every window of :func:`dense_search`
-    (``search``: its keyword arguments) searched; with ``components`` the windows of every
-    model count (a target's best window is the best of any model, the false windows are all
-    of theirs). ``on_frame`` sees each frame's :class:`FrameWindows` (e.g. to keep its false
-    windows as hard negatives; its near windows with ``near_iou``, :func:`frame_windows`)."""
+    (``search``: its keyword arguments) searched. ``on_frame`` sees each frame's
+    :class:`FrameWindows` (e.g. to keep its false windows as hard negatives; its near windows
+    with ``near_iou``, :func:`frame_windows`)."""
     detectors: dict[tuple[int, int], Any] = {}
     out = []
     for f in frames:
         shape = f.image.shape[:2]
         if shape not in detectors:
-            detectors[shape] = dense_detector(model, shape, components, **search)
+            detectors[shape] = dense_detector(model, shape, **search)
         fw = frame_windows(detectors[shape], f, iou_min, parts=None, near_iou=near_iou)
         if on_frame is not None:
             on_frame(f, fw)

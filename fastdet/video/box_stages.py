@@ -5,11 +5,9 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-import numpy as np
-
 from ..boxes import clip, overlap_fraction
 from ..config import HeatConfig, RefineConfig
-from ..detections import FIRST_COMPONENT_PART, MAIN_PART, Detections
+from ..detections import MAIN_PART, Detections
 from .detector import WindowDetector
 from .fusion import merge_oncoming
 from .guided import SearchPlanner
@@ -84,40 +82,6 @@ class FusionStage(_ExtraHeatStage):
         return s
 
 
-class ComponentStage(_ExtraHeatStage):
-    """The heat map of the detector's components' windows (e.g. the side-view component,
-    ``Detector(components=...)``: parts ``FIRST_COMPONENT_PART`` and up, or those of ``parts``);
-    its boxes are added where the earlier heat maps found nothing
-    (:func:`fastdet.video.fusion.merge_oncoming`). One heat map for them all, apart from the main
-    model's: windows of another shape in the main heat map stretch the boxes of the cars the main
-    model finds (docs/components.md). ``name``: its stage name (its seconds in the timings);
-    ``check``: ``check(bgr frame, boxes (N, 4)) -> keep (N,) bool``, a second look at the heat
-    map's boxes before they join (e.g. :class:`fastdet.video.small.MainModelCheck`)."""
-
-    name = "components"
-
-    def __init__(self, detector: WindowDetector, config: HeatConfig, parts: tuple[int, ...] | None = None,
-                 name: str = "components",
-                 check: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> None:
-        super().__init__(detector, config)
-        self.parts, self.name, self.check = parts, name, check
-
-    def __call__(self, s: FrameState) -> FrameState:
-        hm = self._heatmap_for(s)
-        w = s.windows
-        if w.part is None:
-            mine = w[:0]
-        elif self.parts is None:
-            mine = w[w.part >= FIRST_COMPONENT_PART]
-        else:
-            mine = w[np.isin(w.part, self.parts)]
-        found = hm.update(mine)
-        if self.check is not None and len(found):
-            found = found[np.asarray(self.check(s.bgr, found.boxes), bool)]
-        s.boxes = s.out = merge_oncoming(s.boxes, found)
-        return s
-
-
 class WeakStage(Stage):
     """The tracker's low-confidence boxes: the weak blobs of the heat maps above ``low_heat``
     x their thresholds (:meth:`HeatMap.weak_boxes`), less those with more than 0.2 of their
@@ -125,7 +89,7 @@ class WeakStage(Stage):
 
     name = "weak"
 
-    def __init__(self, low_heat: float, heat_stages: list[HeatStage | ComponentStage | FusionStage]) -> None:
+    def __init__(self, low_heat: float, heat_stages: list[HeatStage | FusionStage]) -> None:
         self.low_heat, self.heat_stages = low_heat, heat_stages
 
     def __call__(self, s: FrameState) -> FrameState:

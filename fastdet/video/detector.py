@@ -9,9 +9,9 @@ from typing import Any, Literal, Protocol, runtime_checkable
 import numpy as np
 
 from ..config import PipelineConfig, SearchBand, oncoming_search
-from ..config.models import ONCOMING_MODEL_PATH, SIDE_MODEL_PATH, SMALL_MODEL_PATH
+from ..config.models import ONCOMING_MODEL_PATH
 from ..detect import BandGeometry, Detector, DetectStats
-from ..detections import FIRST_COMPONENT_PART, Detections
+from ..detections import Detections
 from ..model import Model
 
 
@@ -83,22 +83,6 @@ class ComponentBands(Protocol):
 
 
 @runtime_checkable
-class DecisionOffset(Protocol):
-    """A detector whose main model's decision values can be moved by a constant
-    (:mod:`fastdet.video.selfcal`): ``set_decision_offset(delta)`` subtracts ``delta`` from them
-    (``decision_offset`` the one in force); ``band_scores(frame, geo)`` gives the decision values
-    of every window of one of its main bands (``geometries(shape, 0)``), offset included."""
-
-    @property
-    def decision_offset(self) -> float: ...
-
-    def set_decision_offset(self, delta: float) -> None: ...
-
-    def band_scores(self, frame: np.ndarray, geo: BandGeometry, timings: dict[str, float] | None = None,
-                    part: int = 0) -> np.ndarray: ...
-
-
-@runtime_checkable
 class HasKernels(Protocol):
     """A detector that names the numba kernels its ``detect`` runs (``kernels``), so a
     warm-up compiles them at once with the rest of the pipeline's
@@ -116,24 +100,8 @@ def make_detector(config: PipelineConfig | None = None) -> Detector:
     """The video pipeline's :class:`fastdet.Detector` for ``config`` (default
     ``PipelineConfig()``): its main model and search, and its oncoming-traffic model
     searching the side of the view :attr:`PipelineConfig.traffic` puts oncoming cars on
-    (:func:`fastdet.config.oncoming_search`), and the side-view component when
-    :attr:`PipelineConfig.side` asks for it (searching :attr:`PipelineConfig.side_search`), then
-    the small-vehicle component when :attr:`PipelineConfig.small` asks for it (the last
-    component: :func:`small_part`). Raises :class:`~fastdet.errors.ModelError` when a model does
-    not load."""
+    (:func:`fastdet.config.oncoming_search`). Raises :class:`~fastdet.errors.ModelError` when a
+    model does not load."""
     c = config if config is not None else PipelineConfig()
     oncoming = ONCOMING_MODEL_PATH if c.oncoming is True else (c.oncoming or None)
-    side = SIDE_MODEL_PATH if c.side is True else (c.side or None)
-    small = SMALL_MODEL_PATH if c.small is True else (c.small or None)
-    components = [(m, s) for m, s in ((side, c.side_search), (small, c.small_search)) if m is not None]
-    return Detector(model=c.model, search=c.search, oncoming=oncoming, oncoming_search=oncoming_search(c.traffic),
-                    components=components)
-
-
-def small_part(config: PipelineConfig, detector: object) -> int | None:
-    """The ``Detections.part`` of the small-vehicle component's windows in ``detector``'s output
-    when ``config`` turns it on (:func:`make_detector` makes it the last component), else ``None``."""
-    n = len(getattr(detector, "components", ()) or ())
-    if config.small is False or n == 0:
-        return None
-    return FIRST_COMPONENT_PART + n - 1
+    return Detector(model=c.model, search=c.search, oncoming=oncoming, oncoming_search=oncoming_search(c.traffic))

@@ -43,7 +43,6 @@ from .stages import (
     HorizonStage,
     OwnVehicleStage,
     PlanStage,
-    SelfCalStage,
     Stage,
     build_stages,
 )
@@ -147,18 +146,13 @@ class VideoDetector:
         """With ``horizon='auto'``: estimate the horizon from ``frames`` (the first frames of
         the video, BGR or RGB alike; at most HORIZON_FRAMES are used) before :meth:`update`
         sees them, so the first frames are searched at it too; with ``own_vehicle``, the same
-        frames (as many as its estimate takes) give the own vehicle's region; with ``selfcal``,
-        the full scans of the first of them, at the horizon found, give the main model's decision
-        offset (:mod:`fastdet.video.selfcal`; these frames must be BGR). Returns the horizon the
-        bands are now at (``None``: the reference)."""
+        frames (as many as its estimate takes) give the own vehicle's region. Returns the horizon
+        the bands are now at (``None``: the reference)."""
         st = self.stage(HorizonStage)
         own = self.stage(OwnVehicleStage)
-        cal = self.stage(SelfCalStage)
         it = iter(frames)
         if isinstance(own, OwnVehicleStage):
             it = own.tee(it)
-        if isinstance(cal, SelfCalStage):
-            it = cal.tee(it)
         try:
             if isinstance(st, HorizonStage):
                 return st.prime(it)
@@ -167,8 +161,6 @@ class VideoDetector:
         finally:
             if isinstance(own, OwnVehicleStage):
                 own.prime(it)  # the frames the horizon did not need
-            if isinstance(cal, SelfCalStage):
-                cal.prime(it)  # the bands are at the horizon now
 
     def warmup(self) -> None:
         """Compile / load the numba kernels now, not on the first frame: every kernel the

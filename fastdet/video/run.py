@@ -49,9 +49,8 @@ def _first_frames(path: str, start: int) -> Iterator[np.ndarray]:
 
 
 def _primes(config: PipelineConfig) -> bool:
-    """Whether a file's first seconds are read ahead: for the horizon (``'auto'``) or the
-    main model's decision offset (``selfcal``)."""
-    return config.horizon == "auto" or config.selfcal is not None
+    """Whether a file's first seconds are read ahead: for the horizon (``'auto'``)."""
+    return config.horizon == "auto"
 
 
 def prime_horizon_from_file(vd: VideoDetector, path: str | os.PathLike, start: int = 0) -> None:
@@ -191,7 +190,7 @@ def detect_video(source: str | os.PathLike | int, config: PipelineConfig | None 
     - the horizon read ahead: for a file, the first seconds (``HORIZON_FRAMES``, 75 frames)
       are decoded before the first frame is searched and the horizon is estimated from
       them (:meth:`VideoDetector.prime_horizon <fastdet.VideoDetector.prime_horizon>`; the
-      same frames give the own vehicle's region and, with ``selfcal``, the operating point).
+      same frames give the own vehicle's region).
       A bare ``VideoDetector().update(frame)`` loop estimates the horizon as the frames come,
       so its first frames (until the estimate settles, one to three seconds) are searched
       at the reference horizon, 0.585 of the height (``akin_highway``'s is 0.485): it misses

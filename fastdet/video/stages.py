@@ -8,14 +8,10 @@ In the order they run (:func:`build_stages`; a stage whose setting is off is lef
 ``plan``         which windows of the main bands to score (guided search, :class:`PlanStage`)
 ``motion``       where the picture moves: the oncoming bands to search (:class:`MotionStage`)
 ``detect``       the positive windows of both models (:class:`DetectStage`)
-``selfcal``      the main model's decision offset from the first full scans (:class:`SelfCalStage`; off)
 ``motion``       drop the oncoming windows that did not move enough (:class:`GateStage`)
 ``ownvehicle``   drop the windows on the own vehicle (:class:`OwnVehicleStage`; off by default)
 ``heatmap``      the main heat map's boxes (:class:`HeatStage`)
 ``split``        wide boxes split between vehicles side by side (:class:`SplitStage`; on by default)
-``components``   the components' heat map's boxes where the main one found none (:class:`ComponentStage`)
-``small``        the small-vehicle component's heat map's boxes the main model does not reject, where none
-                 was found (:class:`ComponentStage`, :class:`~fastdet.video.small.MainModelCheck`; off by default)
 ``fusion``       the oncoming heat map's boxes where the main one found none (:class:`FusionStage`)
 ``weak``         the weak blobs the tracker may keep a track alive with (:class:`WeakStage`)
 ``track``        track ids (:class:`TrackStage`)
@@ -38,11 +34,9 @@ from __future__ import annotations
 
 from ..config import GuidedSearch, PipelineConfig
 from ..detect import Detector
-from ..detections import FIRST_COMPONENT_PART
 from .blobsplit import SplitStage
 from .box_stages import (
     ClipStage,
-    ComponentStage,
     FusionStage,
     HeatStage,
     ObserveStage,
@@ -50,21 +44,19 @@ from .box_stages import (
     TrackStage,
     WeakStage,
 )
-from .detector import ColumnSearch, MovableHorizon, WindowDetector, small_part
+from .detector import ColumnSearch, MovableHorizon, WindowDetector
 from .guided import SearchPlanner
 from .ownvehicle import OwnVehicleStage
 from .perspective import PerspectiveStage, PerspectiveUpdater
 from .plausible import PlausibleStage
 from .refine import BoxRegressor
 from .search_stages import DetectStage, GateStage, HorizonStage, MotionStage, PlanStage
-from .selfcal import SelfCalStage
-from .small import MainModelCheck
 from .state import FrameDebug, FrameState, Stage, TrackView
 from .track import Tracker
 
-__all__ = ["ClipStage", "ComponentStage", "DetectStage", "FrameDebug", "FrameState", "FusionStage", "GateStage",
+__all__ = ["ClipStage", "DetectStage", "FrameDebug", "FrameState", "FusionStage", "GateStage",
            "HeatStage", "HorizonStage", "MotionStage", "ObserveStage", "OwnVehicleStage", "PerspectiveStage",
-           "PlausibleStage", "PlanStage", "RefineStage", "SelfCalStage", "SplitStage", "Stage", "TrackStage",
+           "PlausibleStage", "PlanStage", "RefineStage", "SplitStage", "Stage", "TrackStage",
            "TrackView", "WeakStage", "build_stages", "planner_for"]
 
 
@@ -91,9 +83,6 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
     if gated:
         stages.append(MotionStage(detector, config.motion, fps))
     stages.append(DetectStage(detector))
-    if config.selfcal is not None:  # right after the full scans it reads
-        guided = config.planned if planner is not None else None
-        stages.append(SelfCalStage(detector, config.selfcal, guided.every if guided is not None else 1))  # type: ignore[arg-type]
     if gated:
         stages.append(GateStage())
     if config.own_vehicle is not None:
@@ -105,23 +94,10 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
         if planner is not None:  # on the first frame too: a full scan on the second frame
             planner.reset()
 
-    heat: list[HeatStage | ComponentStage | FusionStage] = [HeatStage(detector, config.heat, oncoming, new_size)]
+    heat: list[HeatStage | FusionStage] = [HeatStage(detector, config.heat, oncoming, new_size)]
     stages.append(heat[0])
     if config.split is not None:  # on the main heat map's boxes, before the others are added
         stages.append(SplitStage(config.split))
-    components = getattr(detector, "components", None)
-    if components:
-        small = small_part(config, detector)
-        if small is None:
-            heat.append(ComponentStage(detector, config.side_heat))
-        else:
-            others = tuple(p for p in range(FIRST_COMPONENT_PART, FIRST_COMPONENT_PART + len(components)) if p != small)
-            if others:
-                heat.append(ComponentStage(detector, config.side_heat, others))
-            check = None
-            if config.small_check is not None and isinstance(detector, Detector):
-                check = MainModelCheck(detector.model, config.small_check)
-            heat.append(ComponentStage(detector, config.small_heat, (small,), name="small", check=check))
     if oncoming:
         heat.append(FusionStage(detector, config.oncoming_heat))
     stages += heat[1:]

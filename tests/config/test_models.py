@@ -11,7 +11,7 @@ from fastdet.config import models
 from fastdet.detect.regressor import load_regressor
 from fastdet.model import load_model
 
-MODELS = ["DEFAULT_MODEL_PATH", "ONCOMING_MODEL_PATH", "SIDE_MODEL_PATH", "SMALL_MODEL_PATH"]
+MODELS = ["DEFAULT_MODEL_PATH", "ONCOMING_MODEL_PATH"]
 REGRESSORS = ["REFINE_MODEL_PATH", "REFINE_UDACITY_MODEL_PATH"]
 
 

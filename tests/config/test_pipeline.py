@@ -89,3 +89,31 @@ def test_the_cli_builds_one_pipeline_config(cmd):
         flags += ["--no-track"]
         want = replace(want, tracker=None)
     assert pipeline_config(parse([*cmd, *flags])) == want
+
+
+def test_a_deleted_stage_s_fields_load_when_off_and_keep_the_digest():
+    # the side-view component was deleted (docs/accuracy.md, "Deleted stages"): a config written
+    # with it off still loads, one with it on is refused in one line, and the digest of today's
+    # default config is what it was while the stage existed (batch manifests resume)
+    old = {**PipelineConfig().to_dict(), **PipelineConfig._RETIRED}
+    assert PipelineConfig.from_dict(old) == PipelineConfig()
+    assert "side" not in PipelineConfig().to_dict() and "side" in PipelineConfig().digest_dict()
+    assert PipelineConfig().digest() == "73f1a5b6c40c08e5"
+    with pytest.raises(ValueError, match="PipelineConfig.side: this stage was deleted"):
+        PipelineConfig.from_dict({**old, "side": True})
+    with pytest.raises(ValueError, match="side_heat"):
+        PipelineConfig.from_dict({"side_heat": HeatConfig(threshold=1).to_dict()})
+
+
+def test_the_small_vehicle_component_s_fields_are_retired_too():
+    old = {**PipelineConfig().to_dict(), "small": False, "small_check": -4.6}
+    assert PipelineConfig.from_dict(old) == PipelineConfig()
+    with pytest.raises(ValueError, match="PipelineConfig.small: this stage was deleted"):
+        PipelineConfig.from_dict({"small": "small.npz"})
+
+
+def test_self_calibration_is_retired_and_off_is_read():
+    assert PipelineConfig.from_dict({"selfcal": None}) == PipelineConfig()
+    assert "selfcal" not in PipelineConfig().digest_dict()  # it was left out of the dict while off
+    with pytest.raises(ValueError, match="PipelineConfig.selfcal: this stage was deleted"):
+        PipelineConfig.from_dict({"selfcal": {"scans": 5}})

@@ -100,8 +100,10 @@ def test_shared_padded_frame_gives_the_same_scaled_bands(frame, detector, mode):
 
 @pytest.mark.parametrize("scale", [1.25, 1.75, 2.0, 0.75])
 def test_area_shrink_is_inter_area_of_the_band(frame, scale):
-    from fastdet.config import SMALL_FEATURES, SearchConfig
+    from fastdet.config import FeatureConfig, SearchConfig
     from fastdet.model import Model
+
+    SMALL_FEATURES = FeatureConfig(window=32, spatial_size=16, orientations=9)  # a small-window model's
 
     band = SearchBand(scale, 380, 380 + int(48 * scale))
     geo = band_geometry(band, frame.shape[:2], SMALL_FEATURES, 1, shrink="area")

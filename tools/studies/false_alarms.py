@@ -65,7 +65,7 @@ REF_ROWS = 720
 def _sources(vd: VideoDetector) -> dict[int, str]:
     """Where each track matched on this frame got its box: ``'main'`` (the main heat map),
     ``'oncoming'`` (the oncoming model's), ``'weak'`` (a low-confidence box), ``'other'``
-    (a side component's box, or a box the tracker cut between two tracks)."""
+    (a box the tracker cut between two tracks)."""
     if vd.tracker is None:
         return {}
     tables = [("weak", vd.debug.low.boxes)]

@@ -8,8 +8,7 @@ the others: the hand-read ones) each large target is compared with
   the reference one when the flow gives none): the best IoU any of its windows can have with
   the target (geometry alone, scores not looked at);
 * a search at every size, each scale over the whole frame height (``--scales``, windows two
-  cells apart as the default search, the main model, and with ``--side`` the side-view
-  component's 2:1 windows): per target the best decision value of a window at IoU >= 0.5
+  cells apart as the default search, the main model): per target the best decision value of a window at IoU >= 0.5
   (``match``) and at IoU >= 0.3 (``near``), and how many *false* windows of the same scale
   there are per frame at that value or above (a false window: IoU < 0.3 with every target
   and less than half of it on ignore regions), on this clip.
@@ -18,12 +17,13 @@ the others: the hand-read ones) each large target is compared with
 search's bands given by ``--bands`` (default: today's) and says for every large target where
 it is lost: no positive main window at IoU >= 0.5 (``detector``), a window but no heat-map box
 at IoU >= 0.5 (``heat map``), a heat-map box but no output box (``tracker``); then the
-``fastdet eval --all`` table of the run.
+``fastdet eval --all`` table of the run. (Its ``--large`` and ``--side`` runs, the large search or
+the side-view component as a component with a heat map of its own, went with the side-view
+component: docs/accuracy.md, "Deleted stages".)
 
-    python -m tools.studies.large_vehicles --windows [--side] [--clips A,B] [--scales 3,3.75,...]
+    python -m tools.studies.large_vehicles --windows [--clips A,B] [--scales 3,3.75,...]
     NUMBA_NUM_THREADS=1 python -m tools.studies.large_vehicles --cost
-    python -m tools.studies.large_vehicles --pipeline [--bands 4:300:720,...] [--side] [--clips A,B]
-        [--large default|BANDS [--large-threshold T]] [--verbose]
+    python -m tools.studies.large_vehicles --pipeline [--bands 4:300:720,...] [--clips A,B] [--verbose]
 """
 from __future__ import annotations
 
@@ -34,12 +34,11 @@ from dataclasses import replace
 import numpy as np
 
 from fastdet.boxes import iou, overlap_fraction
-from fastdet.config import HeatConfig, PipelineConfig, SearchBand, SearchConfig
-from fastdet.config.models import DEFAULT_MODEL_PATH, SIDE_MODEL_PATH
+from fastdet.config import PipelineConfig, SearchBand, SearchConfig
 from fastdet.config.search import LARGE_SEARCH
 from fastdet.detect.bands import window_boxes
 from fastdet.detect.detector import Detector, DetectStats
-from fastdet.detections import FIRST_COMPONENT_PART, MAIN_PART, Detections
+from fastdet.detections import MAIN_PART, Detections
 from fastdet.eval.clips import AnnotatedClip, annotated_clips, markdown_table, score_clip
 from fastdet.io.reader import FrameReader, read_frames, read_frames_at
 from fastdet.video import make_detector
@@ -82,15 +81,14 @@ def frame_truth(gt, fno: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return gt.boxes[m & gt.consider], gt.ids[m & gt.consider], gt.boxes[m & ~gt.consider]
 
 
-def windows_study(clips: list[AnnotatedClip], scales: tuple[float, ...], side: bool,
-                  bands: tuple[SearchBand, ...] | None = None, side_loo: str | None = None) -> None:
+def windows_study(clips: list[AnnotatedClip], scales: tuple[float, ...],
+                  bands: tuple[SearchBand, ...] | None = None) -> None:
     today = SearchConfig()
     whole = bands is None
     study = replace(today, bands=bands if bands is not None else tuple(SearchBand(s, 0, 720) for s in scales))
     print("| clip | frame | id | w x h (ref px) | bottom (ref px) | today: best IoU (scale) | "
-          "main: match dec (scale) | FA/frame >= it | near dec (scale) | "
-          + ("side: match dec (scale) | FA/frame >= it |" if side else ""))
-    print("|---|---|---|---|---|---|---|---|---|" + ("---|---|" if side else ""))
+          "main: match dec (scale) | FA/frame >= it | near dec (scale) |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for clip in clips:
         gt = clip.gt()
         frames_wanted = scored_frames(clip)
@@ -100,9 +98,7 @@ def windows_study(clips: list[AnnotatedClip], scales: tuple[float, ...], side: b
         todays = replace(today, horizon=hz).for_frame(shape)
         # the whole-height bands stay where they are; bands given follow the horizon as the pipeline's do
         search = study if whole else replace(study, horizon=hz)
-        side_model = f"{side_loo}/side_without_{clip.name}.npz" if side_loo else SIDE_MODEL_PATH
-        components = [(side_model, replace(search, threshold=0.0))] if side else []
-        det = Detector(search=search, components=components)
+        det = Detector(search=search)
         tgeos = [band_geo for band_geo in Detector(search=todays).geometries(shape)]
         tboxes = [(g.band.scale, all_windows(g, det.config)) for g in tgeos]
         f = 720.0 / shape[0]
@@ -115,8 +111,7 @@ def windows_study(clips: list[AnnotatedClip], scales: tuple[float, ...], side: b
             det.detect(frames[fno], stats=stats)
             per_band = []
             for part, geo, dec in stats.bands:
-                cfg = det.config if part == MAIN_PART else det.components[part - FIRST_COMPONENT_PART].config
-                boxes = all_windows(geo, cfg)
+                boxes = all_windows(geo, det.config)
                 d = dec.reshape(-1)
                 ious = iou(boxes, targets) if len(targets) else np.zeros((len(boxes), 0))
                 on_ign = np.zeros(len(boxes), bool)
@@ -136,8 +131,7 @@ def windows_study(clips: list[AnnotatedClip], scales: tuple[float, ...], side: b
                             if p == part and (ious[:, k] >= thr).any()]
                     return max(cand) if cand else None
 
-                rows.append((fno, int(tid), w, h, t[3] * f, best_t, best(MAIN_PART, 0.5), best(MAIN_PART, 0.3),
-                             best(FIRST_COMPONENT_PART, 0.5) if side else None))
+                rows.append((fno, int(tid), w, h, t[3] * f, best_t, best(MAIN_PART, 0.5), best(MAIN_PART, 0.3)))
         n = len(frames)
 
         def fa_rate(part: int, hit) -> str:
@@ -149,71 +143,24 @@ def windows_study(clips: list[AnnotatedClip], scales: tuple[float, ...], side: b
         def fmt(hit) -> str:
             return "-" if hit is None else f"{hit[0]:+.2f} ({hit[1]:g})"
 
-        for fno, tid, w, h, bottom, bt, m, near, sm in rows:
+        for fno, tid, w, h, bottom, bt, m, near in rows:
             cells = [clip.name, str(fno), str(tid), f"{w:.0f} x {h:.0f}", f"{bottom:.0f}",
                      f"{bt[0]:.3f} ({bt[1]:g})", fmt(m), fa_rate(MAIN_PART, m), fmt(near)]
-            if side:
-                cells += [fmt(sm), fa_rate(FIRST_COMPONENT_PART, sm)]
             print("| " + " | ".join(cells) + " |")
         # false windows per frame above decision values 0 .. 8, per scale
-        parts = [MAIN_PART] + ([FIRST_COMPONENT_PART] if side else [])
-        for part in parts:
-            name = "main" if part == MAIN_PART else "side"
-            per = []
-            for (p, s), ds in sorted(false_dec.items()):
-                if p == part:
-                    d = np.concatenate(ds)
-                    per.append(f"{s:g}: " + "/".join(f"{(d > t).sum() / n:.1f}" for t in FA_LEVELS))
-            print(f"<!-- {clip.name} {name}: false windows / frame above {'/'.join(map(str, FA_LEVELS))}, "
-                  f"by scale: {', '.join(per)}; horizon {hz if hz is None else round(hz, 3)} -->")
+        per = []
+        for (_, s), ds in sorted(false_dec.items()):
+            d = np.concatenate(ds)
+            per.append(f"{s:g}: " + "/".join(f"{(d > t).sum() / n:.1f}" for t in FA_LEVELS))
+        print(f"<!-- {clip.name} main: false windows / frame above {'/'.join(map(str, FA_LEVELS))}, "
+              f"by scale: {', '.join(per)}; horizon {hz if hz is None else round(hz, 3)} -->")
 
 
-def replace_inside(inside: float) -> None:
-    """Study only: the components' heat-map boxes also join where main boxes lie inside them
-    (at least ``inside`` of a main box's area), and those main boxes go: a large vehicle the
-    main heat map boxes in part gets the large box. Patches ``ComponentStage.__call__``."""
-    from fastdet.detections import Detections
-    from fastdet.video import box_stages
-    from fastdet.video.fusion import merge_oncoming
-
-    def call(self, s):
-        hm = self._heatmap_for(s)
-        w = s.windows
-        mine = w[w.part >= FIRST_COMPONENT_PART] if w.part is not None else w[:0]
-        big = hm.update(mine)
-        main = s.boxes
-        if len(big) and len(main):
-            inner = overlap_fraction(main.boxes, big.boxes)  # (main, big): fraction of the main box inside
-            outer = overlap_fraction(big.boxes, main.boxes)  # (big, main)
-            # a big box whose overlapping main boxes all lie inside it replaces them
-            takes = [j for j in range(len(big)) if (outer[j] > 0.2).any()
-                     and (inner[outer[j] > 0.0, j] >= inside).all()]
-            if takes:
-                drop = (inner[:, takes] >= inside).any(axis=1)
-                keep = ~drop
-                main = Detections(main.boxes[keep], main.scores[keep])
-                rest = np.setdiff1d(np.arange(len(big)), takes)
-                joined = Detections(np.concatenate([main.boxes, big.boxes[takes]]).astype(np.int32),
-                                    np.concatenate([main.scores, big.scores[takes]]).astype(np.float32))
-                s.boxes = s.out = merge_oncoming(joined, big[rest])
-                return s
-        s.boxes = s.out = merge_oncoming(main, big)
-        return s
-
-    box_stages.ComponentStage.__call__ = call
-
-
-def pipeline_study(clips: list[AnnotatedClip], bands: tuple[SearchBand, ...] | None, side: bool,
-                   verbose: bool = False, large: tuple[SearchBand, ...] | None = None,
-                   large_threshold: float = 0.0, horizon: float | str | None = "auto", large_step: int = 2) -> None:
-    config = PipelineConfig(side=side, horizon=horizon)
+def pipeline_study(clips: list[AnnotatedClip], bands: tuple[SearchBand, ...] | None,
+                   verbose: bool = False, horizon: float | str | None = "auto") -> None:
+    config = PipelineConfig(horizon=horizon)
     if bands is not None:
         config = replace(config, search=replace(config.search, bands=bands))
-    if large is not None:
-        # the main model once more as a component: the large bands, their own threshold and heat map
-        config = replace(config, side=str(DEFAULT_MODEL_PATH), side_heat=HeatConfig(),
-                         side_search=replace(config.search, bands=large, threshold=large_threshold,
-                                             cells_per_step=large_step))
     scores = []
     losses: dict[str, dict[str, int]] = {}
     for clip in clips:
@@ -235,8 +182,7 @@ def pipeline_study(clips: list[AnnotatedClip], bands: tuple[SearchBand, ...] | N
                     continue
                 targets, ids, _ = frame_truth(gt, fno)
                 w = vd.debug.windows
-                # the main model's windows and the components' (the large search run as one)
-                main = w[(w.part == MAIN_PART) | (w.part >= FIRST_COMPONENT_PART)] if w.part is not None else w
+                main = w[w.part == MAIN_PART] if w.part is not None else w
                 for t, tid in zip(targets, ids):
                     if (t[2] - t[0]) * fr < LARGE:
                         continue
@@ -269,11 +215,12 @@ def pipeline_study(clips: list[AnnotatedClip], bands: tuple[SearchBand, ...] | N
 def cost_study(clip: str = "test_small1", frames: int = 20, repeat: int = 5) -> None:
     """HOG cells and windows per 1280x720 frame of the main search, the oncoming search and the
     large search, and the CPU of ``Detector.detect`` (full search, the video pipeline's
-    detector) with and without the large search as a component, alternating, median of
-    ``repeat`` passes over ``frames`` frames (``time.process_time``: all threads)."""
+    detector) and of the large search alone (the main model on :data:`LARGE_SEARCH`), alternating,
+    median of ``repeat`` passes over ``frames`` frames (``time.process_time``: all threads); "with
+    the large search" is their sum."""
     shape = (720, 1280)
     today = make_detector(PipelineConfig())
-    large = make_detector(replace(PipelineConfig(), side=str(DEFAULT_MODEL_PATH), side_search=LARGE_SEARCH))
+    large = Detector(search=LARGE_SEARCH)
 
     def count(det: Detector) -> tuple[int, int]:
         cells = windows = 0
@@ -283,10 +230,12 @@ def cost_study(clip: str = "test_small1", frames: int = 20, repeat: int = 5) -> 
                 windows += g.n_windows
         return cells, windows
 
-    (c0, w0), (c1, w1) = count(today), count(large)
+    (c0, w0), (cl, wl) = count(today), count(large)
+    c1, w1 = c0 + cl, w0 + wl
     print(f"HOG cells / windows per 1280x720 frame (full search, every model): today {c0} / {w0}, "
           f"with the large search {c1} / {w1}: {c1 / c0:.3f}x / {w1 / w0:.3f}x")
-    a, b = detect_cpu_ms([today, large], read_frames(annotated_clip(clip).video, frames=frames), repeat)
+    a, alone = detect_cpu_ms([today, large], read_frames(annotated_clip(clip).video, frames=frames), repeat)
+    b = a + alone
     print(f"Detector.detect CPU: today {a:.1f} ms/frame, with the large search {b:.1f}: {b / a:.2f}x "
           f"({frames} frames of {clip}, median of {repeat}; NUMBA_NUM_THREADS as set)")
 
@@ -302,18 +251,7 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--windows", action="store_true")
     ap.add_argument("--pipeline", action="store_true")
-    ap.add_argument("--side", action="store_true")
     ap.add_argument("--cost", action="store_true", help="cells, windows and CPU of the large search (cost_study)")
-    ap.add_argument("--large", default=None, help="--pipeline: bands of the main model run as a component "
-                    "(own threshold, own heat map whose boxes join where the main one found nothing), "
-                    "or 'default' for LARGE_SEARCH")
-    ap.add_argument("--large-threshold", type=float, default=None,
-                    help="--large: its decision-value threshold (default 0, LARGE_SEARCH's with --large default)")
-    ap.add_argument("--side-loo", default=None, help="--windows --side: DIR/side_without_CLIP.npz scores CLIP "
-                    "(the held-out models of tools.studies.components_loo) instead of the bundled side model")
-    ap.add_argument("--large-step", type=int, default=2, help="--large: window step in cells")
-    ap.add_argument("--large-replace", type=float, default=None,
-                    help="--large: its boxes replace the main boxes lying at least this much inside them (study only)")
     ap.add_argument("--horizon", default="auto", help="--pipeline: auto, off or a fraction of the height")
     ap.add_argument("--verbose", action="store_true", help="--pipeline: every large target's fate")
     ap.add_argument("--clips", default=None)
@@ -327,22 +265,10 @@ def main() -> None:
         clips = [c for c in clips if c.name in want]
     if args.windows:
         scales = tuple(float(s) for s in args.scales.split(",")) if args.scales else STUDY_SCALES
-        windows_study(clips, scales, args.side or bool(args.side_loo), parse_bands(args.bands) if args.bands else None,
-                      args.side_loo)
+        windows_study(clips, scales, parse_bands(args.bands) if args.bands else None)
     if args.pipeline:
-        if args.large_replace is not None:
-            replace_inside(args.large_replace)
-        if args.large and args.side:
-            ap.error("--large runs the main model as the component: not with --side")
-        large, thr = None, args.large_threshold
-        if args.large == "default":
-            large, thr = LARGE_SEARCH.bands, (LARGE_SEARCH.threshold if thr is None else thr)
-        elif args.large:
-            large = parse_bands(args.large)
-        pipeline_study(clips, parse_bands(args.bands) if args.bands else None, args.side, args.verbose,
-                       large, 0.0 if thr is None else thr,
-                       None if args.horizon == "off" else "auto" if args.horizon == "auto" else float(args.horizon),
-                       args.large_step)
+        pipeline_study(clips, parse_bands(args.bands) if args.bands else None, args.verbose,
+                       None if args.horizon == "off" else "auto" if args.horizon == "auto" else float(args.horizon))
     if args.cost:
         cost_study()
     if not (args.windows or args.pipeline or args.cost):

@@ -1,4 +1,4 @@
-"""Pieces shared by the leave-one-clip-out studies (``components_loo``, ``model_loo``): the folds
+"""Pieces shared by the leave-one-clip-out studies (``model_loo``, ``options_table``): the folds
 (which clips a held-out model may not see) and one clip's pipeline score.
 
 A *fold* holds out one camera: every clip of it is scored only by a model trained on the clips

@@ -21,11 +21,6 @@ Folds (:func:`tools.studies.loo.folds`): each camera is held out in turn; the tw
 (one drive) together. ``WORK/main[_TAG]_without_FOLD.npz`` is trained on the other clips
 (kept when it exists, so a rerun only scores); one training at a time, single process.
 
-``--side``: also a side-view component per fold (``WORK/side_without_FOLD.npz``,
-``tools/scripts/side_model.py`` on the same clips): (a) the pipeline with the held-out main
-model and it (``PipelineConfig(side=...)``), (b) the windows of both models together (a
-target's best window is the best of either; every false window of either counts).
-
 ``--refine-loo DIR``: each clip's box regressor is ``DIR/refine_without_CLIP.npz`` (fitted on the
 other cameras, ``python -m tools.studies.refine_loo --out-dir DIR``), for the bundled model and the
 held-out one alike, so that nothing that saw the clip scores it; without it the bundled
@@ -60,7 +55,7 @@ Usage (from the repository root)::
         [--jitter N] [--background N] [--hard-per-frame N] [--hard-rounds N [--reuse-round1]] [--C C]
         [--no-train] [--no-baseline] [--refine-loo DIR] [--mix M] [--calibrate [--calibrate-on near]]
         [--offset D] [--held-out-rate] [--no-windows]
-        [--side] [--json OUT.json]
+        [--json OUT.json]
 
 About 4 minutes of CPU per fold to train, 1-2 to score.
 """
@@ -83,7 +78,6 @@ from fastdet.model import Model, load_model
 from fastdet.train.blend import blend, offset, rate_offset
 from fastdet.train.keyframes import read_annotated_frames
 from fastdet.train.windows import FALSE_RATES, WindowScore, false_window_scores, near_window_scores, score_frames
-from tools.scripts import side_model
 from tools.scripts.keyframe_model import add_recipe_arguments, build, recipe_from_args
 from tools.studies.loo import folds, misplaced, run_clip
 
@@ -145,7 +139,6 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--C", type=float, default=None)
     p.add_argument("--no-train", action="store_true", help="only score: every held-out model must exist")
     p.add_argument("--no-baseline", action="store_true", help="do not score the bundled model")
-    p.add_argument("--side", action="store_true", help="also a side-view component trained on the same clips")
     p.add_argument("--refine-loo", type=Path, default=None,
                    help="the held-out box regressors, DIR/refine_without_CLIP.npz (refine_loo --out-dir)")
     p.add_argument("--mix", type=float, default=None, help="score the bundled and the held-out model blended, "
@@ -178,7 +171,7 @@ def main(argv: list[str] | None = None) -> int:
     args.work.mkdir(parents=True, exist_ok=True)
     bundled = load_model(None)
     tag = f"_{args.tag}" if args.tag else ""
-    pipe_base, pipe_new, win_rows, pipe_side, side_rows = [], [], [], [], []
+    pipe_base, pipe_new, win_rows = [], [], []
     out: dict[str, Any] = {"recipe": recipe.to_dict(), "C": args.C, "clips": {}}
     for fold in folds(list(clips)):
         scored = [c for c in fold.held_out if c in want]
@@ -217,14 +210,8 @@ def main(argv: list[str] | None = None) -> int:
                   f"{args.calibrate_on} windows; above 0: bundled {rate['bundled_above_0']}, "
                   f"model {rate['model_above_0']}; "
                   f"the offset matching the bundled model's rate {rate['offset']:+.3f}", flush=True)
-        side_path = args.work / f"side_without_{fold.name}.npz"
-        if args.side and not side_path.exists():
-            if args.no_train:
-                print(f"model_loo: {side_path} missing (run without --no-train)", file=sys.stderr)
-                return 2
-            side_model.build(side_path, list(fold.train), data)
         for name in scored:
-            frames = [] if args.no_windows and not args.side else read_annotated_frames(data, name)
+            frames = [] if args.no_windows else read_annotated_frames(data, name)
             base_w = None if args.no_baseline or args.no_windows else score_frames(bundled, frames)
             new_w = None if args.no_windows else score_frames(model, frames)
             refine = None
@@ -242,12 +229,6 @@ def main(argv: list[str] | None = None) -> int:
                 pipe_base.append(run_clip(clips[name], held, keep=kept))
             pipe_new.append(run_clip(clips[name], replace(held, model=str(path)), keep=kept))
             wrong = [misplaced(clips[name], k) for k in kept]
-            if args.side:
-                if new_w is not None:
-                    side_rows.append((name, new_w, score_frames(model, frames, components=[load_model(side_path)])))
-                pipe_side.append(run_clip(clips[name], replace(held, model=str(path), side=str(side_path))))
-                out["clips"][name + "+side"] = {"windows": side_rows[-1][2].to_dict() if new_w is not None else None,
-                                                "pipeline": pipe_side[-1].to_dict()}
             out["clips"][name] = {"model": str(path), "trained_on": list(fold.train),
                                   "refine_model": None if refine is None else str(refine),
                                   "false_alarms_near_target_and_clear": wrong,
@@ -271,12 +252,6 @@ def main(argv: list[str] | None = None) -> int:
     if win_rows:
         print("\n(b) placement-free windows" + ("" if args.no_baseline else ": bundled -> held-out model") + "\n")
         print(window_table(win_rows))
-    if args.side:
-        print("\n(a) pipeline, held-out main model + held-out side component\n")
-        print(markdown_table(pipe_side))
-        if side_rows:
-            print("\n(b) placement-free windows: held-out main model -> with the held-out side component\n")
-            print(window_table(side_rows))
     if args.json:
         write_bytes(args.json, json.dumps(out, indent=1, sort_keys=True).encode())
     return 0

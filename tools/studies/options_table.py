@@ -1,11 +1,10 @@
 """Every off-by-default pipeline option, alone and combined, on every annotated clip (run by hand;
 docs/accuracy.md "Every option on every clip, today").
 
-A *setting* is ``base`` (today's defaults) or option names joined by ``+`` (``small+side``):
+A *setting* is ``base`` (today's defaults) or option names joined by ``+`` (``persp+pfilter``;
+the small-vehicle and side-view components and the large-vehicle search it also measured were
+deleted: docs/accuracy.md, "Deleted stages"):
 
-- ``small``: the small-vehicle component (``--small``); ``side``: the side-view component
-  (``--side``); ``large``: the main model's large-vehicle search (``LARGE_SEARCH`` as a component,
-  in the side component's place, so not with ``side``);
 - ``split``: ``--split-neighbours`` (the default since this table was measured: a no-op today);
   ``nosplit``: ``--no-split-neighbours``; ``own``: ``--own-vehicle`` (the default now, a no-op);
   ``noown``: ``--no-own-vehicle``; ``persp``: ``--perspective``;
@@ -14,13 +13,9 @@ A *setting* is ``base`` (today's defaults) or option names joined by ``+`` (``sm
 Each setting runs on every clip as ``fastdet eval --all`` runs it (:func:`tools.studies.loo.run_clip`)
 twice:
 
-- *in-sample*: the bundled models, as ``fastdet eval --all`` (the bundled box regressor and side
-  component saw the clips);
+- *in-sample*: the bundled models, as ``fastdet eval --all`` (the bundled box regressor saw the clips);
 - *held out* (``--loo DIR``): each clip's box regressor fitted without it, ``DIR/refine_without_CLIP.npz``
-  (``python -m tools.studies.refine_loo --out-dir DIR``), and, with ``side``, the side component
-  trained without the clip's camera, ``SIDE_DIR/side_without_FOLD.npz`` (``FOLD``: the clip, or
-  ``test_small1+test_video`` for the two Udacity clips; ``python -m tools.studies.components_loo`` /
-  ``tools.scripts.side_model --exclude``).
+  (``python -m tools.studies.refine_loo --out-dir DIR``).
 
 Cost: HOG cells and windows of a full scan of a 1280x720 frame at the reference horizon, every
 model's bands (:func:`search_cost`), as a ratio of today's; options that change no band are 1.00x.
@@ -32,7 +27,7 @@ Results are kept in ``--out-dir`` (``cost.json``, ``in.json``, ``loo.json``) as 
 skips what is there; ``--tables-only`` prints them).
 
     python -m tools.studies.options_table --out-dir /tmp/s3-combos --loo /tmp/s3-combos-loo \\
-        --side-loo /tmp/fastdet-model-loo [--settings base,small,side,small+side] [--clips A,B] [--no-in-sample]
+        [--settings base,persp,pfilter] [--clips A,B] [--no-in-sample]
 """
 from __future__ import annotations
 
@@ -44,16 +39,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from fastdet.config import (
-    DEFAULT_MODEL_PATH,
-    HeatConfig,
-    NeighbourSplit,
-    OwnVehicleConfig,
-    PerspectiveConfig,
-    PipelineConfig,
-    PlausibleConfig,
-)
-from fastdet.config.search import LARGE_SEARCH
+from fastdet.config import NeighbourSplit, OwnVehicleConfig, PerspectiveConfig, PipelineConfig, PlausibleConfig
 from fastdet.eval.clips import AnnotatedClip, ClipScore, annotated_clips
 from fastdet.io.atomic import write_bytes
 from fastdet.video import make_detector
@@ -67,10 +53,6 @@ def _plausible_perspective(c: PipelineConfig) -> PipelineConfig:
 
 #: option name -> (the CLI flag it stands for, what it does to a PipelineConfig)
 OPTIONS: dict[str, tuple[str, Callable[[PipelineConfig], PipelineConfig]]] = {
-    "small": ("--small", lambda c: replace(c, small=True)),
-    "side": ("--side", lambda c: replace(c, side=True)),
-    "large": ("LARGE_SEARCH", lambda c: replace(c, side=str(DEFAULT_MODEL_PATH), side_search=LARGE_SEARCH,
-                                                side_heat=HeatConfig())),
     "split": ("--split-neighbours", lambda c: replace(c, split=NeighbourSplit())),
     "nosplit": ("--no-split-neighbours", lambda c: replace(c, split=None)),
     "own": ("--own-vehicle", lambda c: replace(c, own_vehicle=OwnVehicleConfig())),
@@ -80,9 +62,8 @@ OPTIONS: dict[str, tuple[str, Callable[[PipelineConfig], PipelineConfig]]] = {
     "both": ("--traffic both", lambda c: replace(c, traffic="both")),
 }
 
-#: every option alone, then the combinations of the components and the split
-DEFAULT_SETTINGS = ("base", *OPTIONS, "small+side", "small+split", "side+split", "small+side+split",
-                    "small+large", "small+side+split+pfilter")
+#: every option alone, then the perspective stage with its filter
+DEFAULT_SETTINGS = ("base", *OPTIONS, "persp+pfilter")
 
 #: the result files of an --out-dir (:func:`load`)
 KEYS = ("cost", "in", "loo")
@@ -96,7 +77,7 @@ TOLERANCE = 0.005
 
 def parse_setting(name: str) -> tuple[str, ...]:
     """The option names of a setting (``()`` for ``base``); ValueError for an unknown option,
-    one named twice, or ``side`` with ``large`` (both take the side component's place)."""
+    or one named twice."""
     if name == "base":
         return ()
     opts = tuple(name.split("+"))
@@ -108,51 +89,31 @@ def parse_setting(name: str) -> tuple[str, ...]:
     for on, off in (("split", "nosplit"), ("own", "noown")):
         if on in opts and off in opts:
             raise ValueError(f"{name!r}: {on} and {off}")
-    if "side" in opts and "large" in opts:
-        raise ValueError(f"{name!r}: side and large both take the side component's place")
     return opts
 
 
-def config_for(setting: str, refine_model: str | None = None, side_model: str | None = None) -> PipelineConfig:
-    """The pipeline of ``setting`` (today's defaults plus its options); ``refine_model`` /
-    ``side_model``: held-out models in place of the bundled ones (the side model only with ``side``)."""
+def config_for(setting: str, refine_model: str | None = None) -> PipelineConfig:
+    """The pipeline of ``setting`` (today's defaults plus its options); ``refine_model``: a
+    held-out box regressor in place of the bundled one."""
     config = PipelineConfig(refine_model=refine_model)
     opts = parse_setting(setting)
     for o in opts:
         config = OPTIONS[o][1](config)
-    if side_model is not None and "side" in opts:
-        config = replace(config, side=side_model)
     return config
 
 
 def search_cost(config: PipelineConfig, shape: tuple[int, int] = (720, 1280)) -> dict[str, float]:
     """HOG cells, windows and scoring multiply-adds of a full scan of a ``shape`` frame at the reference horizon, over
-    every model's bands (main, oncoming, components)."""
+    every model's bands (main, oncoming)."""
     return scan_cost(make_detector(replace(config, horizon=None)), shape)
 
 
-def fold_of(clip: str, same_camera: Sequence[Sequence[str]] = SAME_CAMERA) -> str:
-    """The leave-one-camera-out fold name of ``clip`` (its camera's clips joined by ``+``)."""
-    for group in same_camera:
-        if clip in group:
-            return "+".join(group)
-    return clip
-
-
-def held_out_models(clip: str, loo: Path, side_loo: Path | None, setting: str) -> tuple[str, str | None]:
-    """``(regressor, side model or None)`` that never saw ``clip``; SystemExit naming a missing file."""
+def held_out_model(clip: str, loo: Path) -> str:
+    """The box regressor that never saw ``clip``; SystemExit naming it when missing."""
     refine = loo / f"refine_without_{clip}.npz"
-    need = [refine]
-    side = None
-    if "side" in parse_setting(setting):
-        if side_loo is None:
-            raise SystemExit(f"options_table: {setting!r} held out needs --side-loo")
-        side = side_loo / f"side_without_{fold_of(clip)}.npz"
-        need.append(side)
-    for p in need:
-        if not p.is_file():
-            raise SystemExit(f"options_table: {p} missing (see the module docstring for how it is built)")
-    return str(refine), None if side is None else str(side)
+    if not refine.is_file():
+        raise SystemExit(f"options_table: {refine} missing (see the module docstring for how it is built)")
+    return str(refine)
 
 
 def summary_of(score: ClipScore) -> dict[str, Any]:
@@ -235,7 +196,7 @@ def load(out_dir: Path) -> dict[str, Any]:
 
 
 def run(settings: Sequence[str], clips: Sequence[AnnotatedClip], out_dir: Path, loo: Path | None,
-        side_loo: Path | None, in_sample: bool = True) -> dict[str, Any]:
+        in_sample: bool = True) -> dict[str, Any]:
     """Measure every setting (module docstring), keeping ``out_dir/{cost,in,loo}.json`` up to date
     (a rerun skips what they hold)."""
     results = load(out_dir)
@@ -251,7 +212,7 @@ def run(settings: Sequence[str], clips: Sequence[AnnotatedClip], out_dir: Path, 
                     continue
                 if mode == "loo":
                     assert loo is not None
-                    config = config_for(s, *held_out_models(clip.name, loo, side_loo, s))
+                    config = config_for(s, held_out_model(clip.name, loo))
                 else:
                     config = config_for(s)
                 done[clip.name] = summary_of(run_clip(clip, config))
@@ -264,7 +225,6 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out-dir", type=Path, required=True, help="the result files go here (a rerun resumes)")
     ap.add_argument("--loo", type=Path, default=None, help="the held-out box regressors (refine_loo --out-dir)")
-    ap.add_argument("--side-loo", type=Path, default=None, help="the held-out side components (side_without_FOLD.npz)")
     ap.add_argument("--settings", default=",".join(DEFAULT_SETTINGS), help="comma-separated settings")
     ap.add_argument("--clips", default=None, help="comma-separated clips (default: every annotated clip)")
     ap.add_argument("--no-in-sample", action="store_true", help="only the held-out runs")
@@ -287,7 +247,7 @@ def main(argv: list[str] | None = None) -> int:
     if a.tables_only:
         results = load(a.out_dir)
     else:
-        results = run(settings, clips, a.out_dir, a.loo, a.side_loo, not a.no_in_sample)
+        results = run(settings, clips, a.out_dir, a.loo, not a.no_in_sample)
     print(tables(results, settings, [c.name for c in clips]))
     return 0
 

@@ -6,8 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from fastdet.config import DEFAULT_MODEL_PATH, NeighbourSplit, OwnVehicleConfig, PerspectiveConfig, PipelineConfig
-from fastdet.config.search import LARGE_SEARCH
+from fastdet.config import NeighbourSplit, OwnVehicleConfig, PerspectiveConfig, PipelineConfig
 from tools.studies import options_table as ot
 
 CLIPS = ["boston_street", "test_small1", "test_video"]
@@ -15,61 +14,39 @@ CLIPS = ["boston_street", "test_small1", "test_video"]
 
 def test_settings_to_pipelines() -> None:
     assert ot.parse_setting("base") == () and ot.config_for("base") == PipelineConfig()
-    c = ot.config_for("small+side+split+own+persp+pfilter+both")
-    assert c.small is True and c.side is True and c.split == NeighbourSplit()
+    c = ot.config_for("split+own+persp+pfilter+both")
+    assert c.split == NeighbourSplit()
     assert c.own_vehicle == OwnVehicleConfig() and c.perspective == PerspectiveConfig()
     default_plausible = PipelineConfig().plausible
     assert c.plausible is not None and default_plausible is not None
     assert c.plausible.perspective and c.plausible.max_iou == default_plausible.max_iou
     assert c.traffic == "both"
-    large = ot.config_for("large")
-    assert large.side == str(DEFAULT_MODEL_PATH) and large.side_search == LARGE_SEARCH
     # every option but split and own (the defaults) changes the pipeline, and no two the same way
     assert ot.config_for("split") == PipelineConfig() and ot.config_for("nosplit").split is None
     assert ot.config_for("own") == PipelineConfig() and ot.config_for("noown").own_vehicle is None
     configs = [ot.config_for(o) for o in ot.OPTIONS if o not in ("split", "own")]
     assert all(c != PipelineConfig() for c in configs) and len(set(map(repr, configs))) == len(configs)
-    for bad in ("small+nope", "side+large", "small+small", "split+nosplit", "own+noown", ""):
+    for bad in ("persp+nope", "small", "side", "persp+persp", "split+nosplit", "own+noown", ""):
         with pytest.raises(ValueError):
             ot.parse_setting(bad)
     for s in ot.DEFAULT_SETTINGS:
         ot.parse_setting(s)
 
 
-def test_held_out_models(tmp_path: Path) -> None:
-    # a held-out side model goes in only with side; the Udacity clips share one fold
-    c = ot.config_for("side+split", refine_model="/x/r.npz", side_model="/x/s.npz")
-    assert (c.refine_model, c.side) == ("/x/r.npz", "/x/s.npz")
-    assert ot.config_for("small", side_model="/x/s.npz").side is False
-    assert ot.fold_of("test_video") == ot.fold_of("test_small1") == "test_small1+test_video"
-    assert ot.fold_of("boston_street") == "boston_street"
+def test_held_out_model(tmp_path: Path) -> None:
+    assert ot.config_for("split", refine_model="/x/r.npz").refine_model == "/x/r.npz"
     (tmp_path / "refine_without_test_video.npz").write_bytes(b"")
-    assert ot.held_out_models("test_video", tmp_path, None, "small") == (
-        str(tmp_path / "refine_without_test_video.npz"), None)
-    with pytest.raises(SystemExit, match="side-loo"):
-        ot.held_out_models("test_video", tmp_path, None, "side")
-    with pytest.raises(SystemExit, match="side_without_test_small1\\+test_video.npz missing"):
-        ot.held_out_models("test_video", tmp_path, tmp_path, "side")
-    (tmp_path / "side_without_test_small1+test_video.npz").write_bytes(b"")
-    side = ot.held_out_models("test_video", tmp_path, tmp_path, "side")[1]
-    assert side is not None and side.endswith("side_without_test_small1+test_video.npz")
+    assert ot.held_out_model("test_video", tmp_path) == str(tmp_path / "refine_without_test_video.npz")
     with pytest.raises(SystemExit, match="refine_without_boston_street.npz missing"):
-        ot.held_out_models("boston_street", tmp_path, tmp_path, "small")
+        ot.held_out_model("boston_street", tmp_path)
 
 
 def test_cost_counts_what_each_option_adds() -> None:
     base = ot.search_cost(PipelineConfig())
     assert all(v > 0 for v in base.values())
     assert ot.search_cost(ot.config_for("nosplit+own+pfilter")) == base  # no band of their own
-    small = ot.search_cost(ot.config_for("small"))
-    side = ot.search_cost(ot.config_for("side"))
-    both = ot.search_cost(ot.config_for("small+side"))
-    for k in base:
-        assert small[k] > base[k] and side[k] > base[k]
-        # the components' bands add up
-        assert both[k] == pytest.approx(small[k] + side[k] - base[k])
-    # a 32x32 window costs less to score than a 64x64 one
-    assert (small["score_macs"] / base["score_macs"]) < (small["windows"] / base["windows"])
+    both = ot.search_cost(ot.config_for("both"))
+    assert all(both[k] > base[k] for k in base)  # the oncoming model searches both sides
 
 
 def test_holds() -> None:
@@ -96,16 +73,16 @@ def _score(f1: float) -> dict:
 
 def test_tables_and_resume(tmp_path: Path) -> None:
     cost = {"hog_cells": 100.0, "windows": 10.0, "score_macs": 1000.0}
-    small = {"hog_cells": 140.0, "windows": 15.0, "score_macs": 1100.0}
-    results = {"cost": {"base": cost, "split": cost, "small": small},
+    persp = {"hog_cells": 140.0, "windows": 15.0, "score_macs": 1100.0}
+    results = {"cost": {"base": cost, "split": cost, "persp": persp},
                "in": {"base": {c: _score(0.5) for c in CLIPS}},
                "loo": {"base": {c: _score(0.95) for c in CLIPS}, "split": {c: _score(0.96) for c in CLIPS},
-                       "small": {c: _score(0.99) for c in CLIPS}}}
-    text = ot.tables(results, ["base", "split", "small"], CLIPS)
+                       "persp": {c: _score(0.99) for c in CLIPS}}}
+    text = ot.tables(results, ["base", "split", "persp"], CLIPS)
     lines = text.splitlines()
     assert lines[2].startswith("| base | (today) | 1.00x | 1.00x | 1.00x | 0.95 | 0.95 | 0.95 | - |")
     assert lines[3] == "| split | --split-neighbours | 1.00x | 1.00x | 1.00x | 0.96 | 0.96 | 0.96 | holds |"
-    assert lines[4] == "| small | --small | 1.40x | 1.50x | 1.10x | 0.99 | 0.99 | 0.99 | hog_cells 1.40x |"
+    assert lines[4] == "| persp | --perspective | 1.40x | 1.50x | 1.10x | 0.99 | 0.99 | 0.99 | hog_cells 1.40x |"
     assert "| base | 0.50 (0.50/0.50, 0.25); 1/2, -, 3/4 |" in text
     results["loo"]["split"] = {c: _score(0.95) for c in CLIPS}
     assert ot.tables(results, ["split"], CLIPS).splitlines()[2].endswith("| holds (no change) |")
