@@ -13,9 +13,10 @@ The steps, each a function here (the command, :mod:`fastdet.cli.adapt`, runs the
    resumes with the next video and a finished video is never labelled again;
 3. :func:`camera_crops`: crops of the sampled frames outside the kept-aside stretch (positives
    around the teacher's targets with jittered copies, background negatives, hard negatives the
-   bundled model fires on), repeated ``weight`` times;
+   bundled model fires on);
 4. :func:`fit_camera_model`: the main model trained from the bundled crop folders plus those
-   crops, with the bundled model's recipe;
+   crops (each of sample weight ``weight``: as if repeated that many times, without the copies'
+   memory), with the bundled model's recipe, in float32 features (half the memory of float64);
 5. :func:`choose_offset`: the kept-aside stretches run through the video pipeline with the new
    model moved by each of a few decision offsets (:func:`~fastdet.train.blend.offset`), the one
    of best F1 against the labels of those frames kept. The pipeline and the scoring are given
@@ -276,9 +277,9 @@ def _ticking(pictures: Sequence[AnnotatedPicture], desc: str, progress: bool
 def camera_crops(pictures: Sequence[AnnotatedPicture], bundled: Model, config: AdaptConfig,
                  progress: bool = True) -> tuple[CropSet, dict[str, int], dict[str, float]]:
     """The camera's training crops of the window size, ``(N, 64, 64, 3) uint8`` in a
-    :class:`~fastdet.train.dataset.CropSet`, repeated ``config.weight`` times; with their
-    counts (once: ``positives``, ``negatives``, ``hard_negatives``) and the seconds of each
-    step (``crops``, ``hard_negatives``)."""
+    :class:`~fastdet.train.dataset.CropSet`, each once (:func:`fit_camera_model` weighs them
+    ``config.weight``); with their counts (``positives``, ``negatives``, ``hard_negatives``,
+    and ``weight``) and the seconds of each step (``crops``, ``hard_negatives``)."""
     t0 = time.perf_counter()
     base = picture_crops(pictures, bundled.config, jitter=config.jitter,
                          negatives_per_picture=config.negatives_per_picture, seed=config.seed,
@@ -288,10 +289,7 @@ def camera_crops(pictures: Sequence[AnnotatedPicture], bundled: Model, config: A
                                seed=config.seed, frames=_ticking(pictures, "hard negatives", progress),
                                cells_per_step=2, steps=2, threshold=0.0) if config.hard_per_picture else None
     t2 = time.perf_counter()
-    once = base if hard is None or not len(hard) else CropSet.concat(base, hard)
-    crops = once
-    for _ in range(config.weight - 1):
-        crops = CropSet.concat(crops, once)
+    crops = base if hard is None or not len(hard) else CropSet.concat(base, hard)
     counts = {"positives": int((base.labels == 1).sum()), "negatives": int((base.labels == 0).sum()),
               "hard_negatives": 0 if hard is None else len(hard), "weight": config.weight}
     return crops, counts, {"crops": t1 - t0, "hard_negatives": t2 - t1}
@@ -299,11 +297,14 @@ def camera_crops(pictures: Sequence[AnnotatedPicture], bundled: Model, config: A
 
 def fit_camera_model(data: Path, bundled: Model, crops: CropSet, config: AdaptConfig, progress: bool = True,
                      log: Callable[[str], None] = print) -> Model:
-    """The main model trained on the bundled crop folders of ``data`` plus ``crops`` (logistic
-    regression, the bundled model's features, ``config``'s recipe; no held-out split)."""
+    """The main model trained on the bundled crop folders of ``data`` plus ``crops`` of sample
+    weight ``config.weight`` (logistic regression, the bundled model's features, ``config``'s
+    recipe; no held-out split). The features are float32: the training matrix of the bundled
+    crops and their copies (about 45,000 rows of 12,576 features) takes 2.2 GB instead of 4.5."""
     model, _ = train(data, bundled.config, "logreg", config.C, split="none", seed=config.seed,
                      max_per_folder=config.max_per_folder, progress=progress, truncate=config.truncate,
-                     truncate_keep=config.truncate_keep, reencode=config.reencode, extra_crops=crops, log=log)
+                     truncate_keep=config.truncate_keep, reencode=config.reencode, extra_crops=crops,
+                     extra_weight=float(config.weight), dtype=np.float32, log=log)
     assert model is not None
     return model
 
