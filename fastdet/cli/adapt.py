@@ -14,8 +14,8 @@
   ``--frames SPEC`` instead: the user's own labels (:mod:`fastdet.labels.sets`); those of
   FOOTAGE frames in the kept-aside stretch set the operating point (none: the model's own).
 - The main model is trained from the bundled crop folders (``--data``, default
-  ``$FASTDET_DATA``) plus the camera's crops (repeated ``--weight`` times; hard negatives
-  mined with the bundled model), then moved by the decision offset of best F1 against the
+  ``$FASTDET_DATA``) plus the camera's crops (each of sample weight ``--weight``; hard
+  negatives mined with the bundled model), then moved by the decision offset of best F1 against the
   labels of the kept-aside frames, through the ``video`` pipeline (:mod:`fastdet.train.adapt`).
 - Writes ONE model file (``video / image / batch --model`` take it), its metadata holding the
   summary (``metadata["adapt"]``): frames, seconds per step, agreement with the labels of the
@@ -67,7 +67,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--holdout", type=fraction, default=d.holdout, metavar="F",
                    help=f"keep the last F of each video aside for the operating point (default {d.holdout:g})")
     p.add_argument("--weight", type=positive_int, default=d.weight, metavar="W",
-                   help=f"the camera's crops join the training set W times (default {d.weight})")
+                   help=f"each camera crop counts W times in the fit (a sample weight; default {d.weight})")
     p.add_argument("--offsets", type=float, nargs="+", default=list(d.offsets), metavar="O",
                    help="decision offsets tried for the operating point (default "
                         + " ".join(f"{o:g}" for o in d.offsets) + ")")
@@ -265,7 +265,7 @@ def run(args: argparse.Namespace) -> int:
     shutil.rmtree(work / "operating-point", ignore_errors=True)
     print(f"frames: {len(train_pics)} trained on ({n_targets} {labelled_by} targets; {counts['positives']} "
           f"positive, {counts['negatives']} background, {counts['hard_negatives']} hard negative crops x "
-          f"{config.weight}), {n_held} kept-aside frames scored")
+          f"weight {config.weight}), {n_held} kept-aside frames scored")
     print("seconds: " + ", ".join(f"{k} {v:.1f}" for k, v in secs.items()))
     if n_held:
         print("offsets tried (F1): " + ", ".join(f"{k} {'-' if v is None else f'{v:.2f}'}" for k, v in tried.items())

@@ -28,7 +28,8 @@ class AdaptConfig(Config):
         (contiguous: the pipeline's heat map needs consecutive frames); never trained on.
     holdout_max: at most this many frames kept aside over all the footage (split evenly
         between the videos), so that long footage keeps the operating point's runs short.
-    weight: the camera's crops join the training set this many times (a sample weight).
+    weight: the sample weight of every camera crop in the fit (each bundled crop weighs 1): a
+        crop counts as this many copies of it, without the copies' memory.
     jitter: shifted / rescaled copies of every positive crop (besides the crop itself).
     negatives_per_picture: random background windows cut from each sampled frame.
     hard_per_picture: at most this many hard negatives (windows the bundled model fires on
