@@ -71,6 +71,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--offsets", type=float, nargs="+", default=list(d.offsets), metavar="O",
                    help="decision offsets tried for the operating point (default "
                         + " ".join(f"{o:g}" for o in d.offsets) + ")")
+    p.add_argument("--min-width", type=float, default=d.min_width, metavar="PX",
+                   help="a teacher target narrower than PX is an ignore region (default: the data README's "
+                        "size rule alone)")
     p.add_argument("--teacher-size", type=teacher_size, default=None, metavar="PX",
                    help="the teacher's input width (default 640)")
     p.add_argument("--threads", type=positive_int, default=None, metavar="N", help="onnxruntime threads")
@@ -86,6 +89,7 @@ def _config(args: argparse.Namespace) -> AdaptConfig:
     try:
         return AdaptConfig(every=args.every, max_frames=max(2, args.max_frames), holdout=args.holdout,
                            weight=args.weight, offsets=tuple(args.offsets), max_per_folder=args.max_per_folder,
+                           min_width=args.min_width,
                            seed=args.seed)
     except ValueError as exc:
         raise FastdetError(str(exc)) from None
@@ -209,7 +213,7 @@ def run(args: argparse.Namespace) -> int:
     if detector is not None:
         folder = work / _adapt.label_key(args.teacher, args.teacher_size, detector.config.min_score)
         labels, n_now = _adapt.label_clips(footage, detector, folder, progress)
-        pictures = _adapt.teacher_pictures(footage, labels, config.min_score)
+        pictures = _adapt.teacher_pictures(footage, labels, config.min_score, config.min_width)
         labelled_by = "teacher"
     else:
         assert user_pictures is not None
