@@ -151,6 +151,7 @@ def test_a_sample_weight_counts_as_that_many_copies_of_the_row():
     assert np.abs(c_1.coef_ - c_r.coef_).max() > 1e-2
 
 
+@pytest.mark.slow
 def test_the_camera_crops_are_weighted_not_repeated(data, monkeypatch):
     """fit_camera_model: the camera's crops (and their vehicles' mirror images) join the fit
     once each with weight ``config.weight``, every bundled crop with weight 1, in float32."""
