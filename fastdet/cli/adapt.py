@@ -1,14 +1,15 @@
 """``python -m fastdet adapt``: a main model fitted to one camera from its own footage.
 
 ``python -m fastdet adapt FOOTAGE... (--teacher MODEL.onnx | --frames SPEC) -o MYCAM.npz
-[--every N] [--max-frames M] [--holdout F] [--weight W] [--offsets O...] [--teacher-size PX]
+[--every N] [--max-frames M] [--holdout F] [--weight W] [--offsets O...] [--min-width PX] [--teacher-size PX]
 [--threads N] [--data DIR] [--max-per-folder N] [--seed S] [--no-progress]``
 
 - FOOTAGE: video files, or folders whose video files are all taken, of one camera (one frame
   size). Frames are sampled every N-th frame (more apart when more than M would be sampled);
   the last ``--holdout`` fraction of each video is kept aside for the operating point.
 - ``--teacher``: a YOLOX-style ONNX detector labels the sampled frames (its boxes of score
-  >= 0.3 of car / bus / truck are targets, lower ones and motorcycles ignore regions). Its
+  >= 0.3 of car / bus / truck are targets, lower ones, motorcycles and, with ``--min-width``,
+  targets narrower than PX ignore regions). Its
   labels are kept per video in the work folder ``.MYCAM.adapt/`` beside the output, so a
   stopped run goes on where it was and never labels a finished video again.
   ``--frames SPEC`` instead: the user's own labels (:mod:`fastdet.labels.sets`); those of

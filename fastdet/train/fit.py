@@ -233,6 +233,7 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
                         "copies": len(aug)},
             "data": {"vehicles": n_pos, "non_vehicles": n_neg, "hard_negatives": n_hard, "extra_positives": n_extra},
             **({"extra_weight": extra_weight} if w_extra is not None else {})})
+
     def feats(images: np.ndarray, desc: str = "features") -> np.ndarray:
         return features_in_chunks(images, config, progress, desc, out=np.empty((len(images), config.n_features),
                                                                                   dtype))
