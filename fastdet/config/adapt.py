@@ -7,8 +7,10 @@ from dataclasses import dataclass
 
 from ._base import Config
 
-#: the decision offsets tried for the operating point (decision units; + is stricter)
-DEFAULT_OFFSETS: tuple[float, ...] = (-1.0, -0.5, 0.0, 0.5, 1.0, 1.5, 2.0)
+#: the decision offsets tried for the operating point (decision units; + is stricter): whole
+#: steps up to 4, then 6 and 8 (an adapted model's decision values spread over about +-15 units,
+#: so -1..2 moved it little: docs/training.md has the measurements)
+DEFAULT_OFFSETS: tuple[float, ...] = (-1.0, 0.0, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0)
 
 
 def _whole(name: str, v: object, low: int) -> None:
@@ -28,12 +30,15 @@ class AdaptConfig(Config):
         (contiguous: the pipeline's heat map needs consecutive frames); never trained on.
     holdout_max: at most this many frames kept aside over all the footage (split evenly
         between the videos), so that long footage keeps the operating point's runs short.
-    weight: the camera's crops join the training set this many times (a sample weight).
+    weight: the sample weight of every camera crop in the fit (each bundled crop weighs 1): a
+        crop counts as this many copies of it, without the copies' memory.
     jitter: shifted / rescaled copies of every positive crop (besides the crop itself).
     negatives_per_picture: random background windows cut from each sampled frame.
     hard_per_picture: at most this many hard negatives (windows the bundled model fires on
         that touch no labelled box) from each sampled frame.
     min_score: a teacher vehicle at least this sure is a target, below it an ignore region.
+    min_width: a teacher target narrower than this (px) is an ignore region (``None``: only
+        the data README's size rule, 1/32 of the frame's width and 24 px).
     offsets: the decision offsets (:func:`fastdet.train.blend.offset`, decision units; + is
         stricter) tried on the kept-aside footage; the one of best F1 against the teacher wins.
     C, truncate, truncate_keep, reencode: the training recipe (default: the bundled model's).
@@ -51,6 +56,7 @@ class AdaptConfig(Config):
     negatives_per_picture: int = 8
     hard_per_picture: int = 20
     min_score: float = 0.3
+    min_width: float | None = None
     offsets: tuple[float, ...] = DEFAULT_OFFSETS
     C: float = 0.0218
     truncate: float = 0.25
@@ -73,6 +79,9 @@ class AdaptConfig(Config):
             raise ValueError(f"holdout must be a fraction in (0, 1), got {self.holdout!r}")
         if not (isinstance(self.min_score, (int, float)) and 0 <= self.min_score <= 1):
             raise ValueError(f"min_score must be 0 to 1, got {self.min_score!r}")
+        if self.min_width is not None and not (isinstance(self.min_width, (int, float))
+                                               and math.isfinite(self.min_width) and self.min_width >= 0):
+            raise ValueError(f"min_width must be a number of pixels >= 0, got {self.min_width!r}")
         if not self.offsets or not all(isinstance(o, (int, float)) and math.isfinite(o) for o in self.offsets):
             raise ValueError(f"offsets must be finite numbers, at least one, got {self.offsets!r}")
         object.__setattr__(self, "offsets", tuple(sorted({float(o) for o in self.offsets})))

@@ -65,6 +65,7 @@ def test_bad_inputs_are_one_line_before_any_work(teacher, data, tmp_path, capsys
         ((small, "--teacher", teacher, "-o", tmp_path / "no" / "cam.npz"), "does not exist"),
         ((small, "--teacher", teacher, "-o", out, "--data", tmp_path), "crop folder .* not found"),
         ((small, "--frames", "nope:x", "-o", out), "nope"),
+        ((small, "--teacher", teacher, "-o", out, "--min-width", "-5"), "min_width must be a number of pixels"),
         ((write_video(tmp_path / "one.mp4", 1), "--teacher", teacher, "-o", out), "too short"),
     ]
     for args, msg in cases:
@@ -163,6 +164,9 @@ def test_adapt_writes_a_model_with_its_summary(teacher, data, tmp_path, capsys):
         assert 0 <= a["f1"] <= 1 and a["tp"] + a["fn"] >= 2 and a["ms_per_frame"] > 0
     assert s["agreement"]["after"]["f1"] == max(v for v in s["offsets_f1"].values())
     assert model.metadata["training"]["data"]["hard_negatives"] > 0
+    # the camera's crops joined the fit once each, of weight 4 (not repeated 4 times)
+    assert model.metadata["training"]["data"]["extra_positives"] == s["crops"]["positives"] > 0
+    assert model.metadata["training"]["extra_weight"] == s["crops"]["weight"] == 4
     # the model file is what `image --model` takes
     assert main(["image", str(data / "test_images" / "test1.jpg"), "--model", str(out),
                  "-o", str(tmp_path / "x.jpg")]) == 0

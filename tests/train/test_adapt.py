@@ -129,3 +129,75 @@ def test_clip_key_changes_with_the_video(tmp_path: Path):
     k = clip.key
     write_video(tmp_path / "a.mp4", 6)
     assert clip.key != k and k.startswith("a-")
+
+
+def test_a_sample_weight_counts_as_that_many_copies_of_the_row():
+    """fit_classifier with weight 3 on some rows fits the model of those rows repeated 3 times
+    (scaler and classifier alike); weights of 1 give another model (so the weights are used)."""
+    from fastdet.train.fit import fit_classifier
+
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(60, 5)) + np.arange(5)
+    y = (x[:, 0] + rng.normal(size=60) > 0.5).astype(np.int64)
+    heavy = np.arange(60) < 15
+    w = np.where(heavy, 3.0, 1.0)
+    s_w, c_w = fit_classifier(x, y, "logreg", 0.5, 0, sample_weight=w)
+    rep = np.r_[np.arange(60), np.flatnonzero(heavy), np.flatnonzero(heavy)]
+    s_r, c_r = fit_classifier(x[rep], y[rep], "logreg", 0.5, 0)
+    np.testing.assert_allclose(s_w.mean_, s_r.mean_, rtol=1e-9)
+    np.testing.assert_allclose(s_w.scale_, s_r.scale_, rtol=1e-9)
+    np.testing.assert_allclose(c_w.coef_, c_r.coef_, rtol=1e-3, atol=1e-4)
+    _, c_1 = fit_classifier(x, y, "logreg", 0.5, 0)
+    assert np.abs(c_1.coef_ - c_r.coef_).max() > 1e-2
+
+
+@pytest.mark.slow
+def test_the_camera_crops_are_weighted_not_repeated(data, monkeypatch):
+    """fit_camera_model: the camera's crops (and their vehicles' mirror images) join the fit
+    once each with weight ``config.weight``, every bundled crop with weight 1, in float32."""
+    from fastdet.config import FeatureConfig
+    from fastdet.model import Model
+    from fastdet.train import fit
+    from fastdet.train.dataset import CropSet
+
+    seen = {}
+    real = fit.fit_classifier
+
+    def spy(x, y, *a, sample_weight=None, **k):
+        seen.update(dtype=x.dtype, y=y.copy(), w=None if sample_weight is None else sample_weight.copy())
+        return real(x, y, *a, sample_weight=sample_weight, **k)
+
+    monkeypatch.setattr(fit, "fit_classifier", spy)
+    cfg = FeatureConfig(spatial_size=16, hist_bins=16)
+    n = cfg.n_features
+    bundled = Model(config=cfg, coef=np.zeros(n), intercept=0.0, mean=np.zeros(n), scale=np.ones(n))
+    rng = np.random.default_rng(1)
+    labels = np.array([1, 1, 0, 0, 0], np.int64)
+    camera = CropSet(rng.integers(0, 255, (5, 64, 64, 3), dtype=np.uint8), labels, np.array(["adapt"] * 5),
+                     np.arange(5))
+    config = AdaptConfig(weight=3, max_per_folder=4, truncate=0.0, reencode=0.0)
+    model = adapt.fit_camera_model(data, bundled, camera, config, progress=False, log=lambda s: None)
+    w, y = seen["w"], seen["y"]
+    assert seen["dtype"] == np.float32 and model.coef.dtype == np.float64
+    # bundled crops and their mirror images, then the 5 camera crops and the 2 camera vehicles' mirror images
+    n_bundled = len(fit.load_crops(data, max_per_folder=4))
+    assert len(y) == len(w) == 2 * n_bundled + 7  # each camera crop once, not 3 times
+    assert list(w[-7:]) == [3.0] * 7 and (w[:-7] == 1).all()
+    assert list(y[-7:]) == [1, 1, 0, 0, 0, 1, 1]
+    assert model.metadata["training"]["extra_weight"] == 3.0
+
+
+def test_narrow_teacher_targets_become_ignore_regions():
+    """min_width: a target narrower than it moves to the ignore regions; wider ones and the
+    ignore regions already there stay."""
+    pic = AnnotatedPicture("s", "c", "a:1", Path("a.mp4"), 640, 360,
+                           targets=np.array([[10, 10, 49, 40], [100, 10, 140, 40], [200, 10, 300, 80]], float),
+                           ignores=np.array([[0, 0, 5, 5]], float), frame=1)
+    out = adapt.narrow_to_ignores(pic, 40)
+    np.testing.assert_array_equal(out.targets, [[100, 10, 140, 40], [200, 10, 300, 80]])
+    np.testing.assert_array_equal(out.ignores, [[0, 0, 5, 5], [10, 10, 49, 40]])
+    assert out.frame == 1 and out.width == 640
+    assert adapt.narrow_to_ignores(pic, 20) is pic
+    for bad in (-1.0, math.nan, math.inf):
+        with pytest.raises(ValueError, match="min_width"):
+            AdaptConfig(min_width=bad)
