@@ -1,15 +1,14 @@
 """``python -m fastdet adapt``: a main model fitted to one camera from its own footage.
 
 ``python -m fastdet adapt FOOTAGE... (--teacher MODEL.onnx | --frames SPEC) -o MYCAM.npz
-[--every N] [--max-frames M] [--holdout F] [--weight W] [--offsets O...] [--min-width PX] [--teacher-size PX]
+[--every N] [--max-frames M] [--holdout F] [--weight W] [--offsets O...] [--teacher-size PX]
 [--threads N] [--data DIR] [--max-per-folder N] [--seed S] [--no-progress]``
 
 - FOOTAGE: video files, or folders whose video files are all taken, of one camera (one frame
   size). Frames are sampled every N-th frame (more apart when more than M would be sampled);
   the last ``--holdout`` fraction of each video is kept aside for the operating point.
 - ``--teacher``: a YOLOX-style ONNX detector labels the sampled frames (its boxes of score
-  >= 0.3 of car / bus / truck are targets, lower ones, motorcycles and, with ``--min-width``,
-  targets narrower than PX ignore regions). Its
+  >= 0.3 of car / bus / truck are targets, lower ones and motorcycles ignore regions). Its
   labels are kept per video in the work folder ``.MYCAM.adapt/`` beside the output, so a
   stopped run goes on where it was and never labels a finished video again.
   ``--frames SPEC`` instead: the user's own labels (:mod:`fastdet.labels.sets`); those of
@@ -72,9 +71,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--offsets", type=float, nargs="+", default=list(d.offsets), metavar="O",
                    help="decision offsets tried for the operating point (default "
                         + " ".join(f"{o:g}" for o in d.offsets) + ")")
-    p.add_argument("--min-width", type=float, default=d.min_width, metavar="PX",
-                   help="a teacher target narrower than PX is an ignore region (default: the data README's "
-                        "size rule alone)")
     p.add_argument("--teacher-size", type=teacher_size, default=None, metavar="PX",
                    help="the teacher's input width (default 640)")
     p.add_argument("--threads", type=positive_int, default=None, metavar="N", help="onnxruntime threads")
@@ -90,7 +86,6 @@ def _config(args: argparse.Namespace) -> AdaptConfig:
     try:
         return AdaptConfig(every=args.every, max_frames=max(2, args.max_frames), holdout=args.holdout,
                            weight=args.weight, offsets=tuple(args.offsets), max_per_folder=args.max_per_folder,
-                           min_width=args.min_width,
                            seed=args.seed)
     except ValueError as exc:
         raise FastdetError(str(exc)) from None
@@ -214,7 +209,7 @@ def run(args: argparse.Namespace) -> int:
     if detector is not None:
         folder = work / _adapt.label_key(args.teacher, args.teacher_size, detector.config.min_score)
         labels, n_now = _adapt.label_clips(footage, detector, folder, progress)
-        pictures = _adapt.teacher_pictures(footage, labels, config.min_score, config.min_width)
+        pictures = _adapt.teacher_pictures(footage, labels, config.min_score)
         labelled_by = "teacher"
     else:
         assert user_pictures is not None

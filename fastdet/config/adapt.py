@@ -37,8 +37,6 @@ class AdaptConfig(Config):
     hard_per_picture: at most this many hard negatives (windows the bundled model fires on
         that touch no labelled box) from each sampled frame.
     min_score: a teacher vehicle at least this sure is a target, below it an ignore region.
-    min_width: a teacher target narrower than this (px) is an ignore region (``None``: only
-        the data README's size rule, 1/32 of the frame's width and 24 px).
     offsets: the decision offsets (:func:`fastdet.train.blend.offset`, decision units; + is
         stricter) tried on the kept-aside footage; the one of best F1 against the teacher wins.
     C, truncate, truncate_keep, reencode: the training recipe (default: the bundled model's).
@@ -56,7 +54,6 @@ class AdaptConfig(Config):
     negatives_per_picture: int = 8
     hard_per_picture: int = 20
     min_score: float = 0.3
-    min_width: float | None = None
     offsets: tuple[float, ...] = DEFAULT_OFFSETS
     C: float = 0.0218
     truncate: float = 0.25
@@ -79,9 +76,6 @@ class AdaptConfig(Config):
             raise ValueError(f"holdout must be a fraction in (0, 1), got {self.holdout!r}")
         if not (isinstance(self.min_score, (int, float)) and 0 <= self.min_score <= 1):
             raise ValueError(f"min_score must be 0 to 1, got {self.min_score!r}")
-        if self.min_width is not None and not (isinstance(self.min_width, (int, float))
-                                               and math.isfinite(self.min_width) and self.min_width >= 0):
-            raise ValueError(f"min_width must be a number of pixels >= 0, got {self.min_width!r}")
         if not self.offsets or not all(isinstance(o, (int, float)) and math.isfinite(o) for o in self.offsets):
             raise ValueError(f"offsets must be finite numbers, at least one, got {self.offsets!r}")
         object.__setattr__(self, "offsets", tuple(sorted({float(o) for o in self.offsets})))

@@ -24,7 +24,6 @@ The steps, each a function here (the command, :mod:`fastdet.cli.adapt`, runs the
 """
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import math
 import os
@@ -237,27 +236,14 @@ def label_clips(footage: Footage, detector: TeacherDetector, folder: Path, progr
     return out, n_now
 
 
-def teacher_pictures(footage: Footage, labels: dict[str, Path], min_score: float,
-                     min_width: float | None = None) -> list[AnnotatedPicture]:
+def teacher_pictures(footage: Footage, labels: dict[str, Path], min_score: float) -> list[AnnotatedPicture]:
     """The labelled frames of every clip as pictures (camera :data:`CAMERA`), in clip and frame
-    order; with ``min_width`` (px), :func:`narrow_to_ignores`."""
+    order."""
     pics: list[AnnotatedPicture] = []
     for clip in footage.clips:
         pics.extend(read_teacher_clip(labels[clip.name], min_score=min_score, camera=CAMERA, video=clip.path,
                                       source=f"teacher:{clip.name}"))
-    return pics if min_width is None else [narrow_to_ignores(p, min_width) for p in pics]
-
-
-def narrow_to_ignores(picture: AnnotatedPicture, min_width: float) -> AnnotatedPicture:
-    """``picture`` with its targets narrower than ``min_width`` px made ignore regions (on top
-    of the data README's size rule, which every reader applies): neither positives nor
-    negatives in the crops, neither hits nor misses on the kept-aside frames."""
-    w = picture.targets[:, 2] - picture.targets[:, 0]
-    narrow = w < min_width
-    if not narrow.any():
-        return picture
-    return dataclasses.replace(picture, targets=picture.targets[~narrow],
-                               ignores=np.concatenate([picture.ignores, picture.targets[narrow]]))
+    return pics
 
 
 def split_pictures(footage: Footage, pictures: Sequence[AnnotatedPicture]

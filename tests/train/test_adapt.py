@@ -185,19 +185,3 @@ def test_the_camera_crops_are_weighted_not_repeated(data, monkeypatch):
     assert list(w[-7:]) == [3.0] * 7 and (w[:-7] == 1).all()
     assert list(y[-7:]) == [1, 1, 0, 0, 0, 1, 1]
     assert model.metadata["training"]["extra_weight"] == 3.0
-
-
-def test_narrow_teacher_targets_become_ignore_regions():
-    """min_width: a target narrower than it moves to the ignore regions; wider ones and the
-    ignore regions already there stay."""
-    pic = AnnotatedPicture("s", "c", "a:1", Path("a.mp4"), 640, 360,
-                           targets=np.array([[10, 10, 49, 40], [100, 10, 140, 40], [200, 10, 300, 80]], float),
-                           ignores=np.array([[0, 0, 5, 5]], float), frame=1)
-    out = adapt.narrow_to_ignores(pic, 40)
-    np.testing.assert_array_equal(out.targets, [[100, 10, 140, 40], [200, 10, 300, 80]])
-    np.testing.assert_array_equal(out.ignores, [[0, 0, 5, 5], [10, 10, 49, 40]])
-    assert out.frame == 1 and out.width == 640
-    assert adapt.narrow_to_ignores(pic, 20) is pic
-    for bad in (-1.0, math.nan, math.inf):
-        with pytest.raises(ValueError, match="min_width"):
-            AdaptConfig(min_width=bad)
