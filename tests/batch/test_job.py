@@ -38,6 +38,21 @@ def batch(*args: str | Path, timeout: float = TIMEOUT, env: dict | None = None) 
                           timeout=timeout, env=env)
 
 
+def batch_started(*args: str | Path) -> subprocess.Popen:
+    """``fastdet batch`` started, not waited for (:func:`finished`)."""
+    return subprocess.Popen(FASTDET + ["batch", *map(str, args)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+
+
+def finished(p: subprocess.Popen, timeout: float = TIMEOUT) -> subprocess.CompletedProcess:
+    try:
+        out, err = p.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        raise
+    return subprocess.CompletedProcess(p.args, p.returncode, out, err)
+
+
 def manifest_lines(out: Path) -> list[dict]:
     return [json.loads(line) for line in (out / "manifest.jsonl").read_text().splitlines() if line.strip()]
 
@@ -344,16 +359,29 @@ def test_a_failed_start_leaves_no_out_folder_it_made(tmp_path: Path) -> None:
     from tests.media import write_video
 
     clip = write_video(tmp_path / "c.mp4", 3)
-    with _NotDask() as addr:
-        r = batch(clip, "--out", tmp_path / "new" / "o", "--scheduler", addr, "--no-progress")
+    (tmp_path / "kept").mkdir()
+    procs: list[subprocess.Popen] = []
+    try:
+        with _NotDask() as addr:
+            # the three runs are independent (each its own --out): side by side, each its own process
+            procs += [batch_started(*args) for args in (
+                (clip, "--out", tmp_path / "new" / "o", "--scheduler", addr, "--no-progress"),
+                (clip, "--out", tmp_path / "kept", "--scheduler", addr, "--no-progress"),
+                (clip, "--out", tmp_path / "o2", "--table", tmp_path / "o2" / "missing" / "t.csv"))]
+            new, kept, table = procs
+            r = finished(new)
+            assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+            assert "cannot connect to the Dask scheduler" in r.stderr, r.stderr
+            assert not (tmp_path / "new").exists()
+            r = finished(kept)
+            assert r.returncode == 2, r.stderr
+            assert (tmp_path / "kept").is_dir() and list((tmp_path / "kept").iterdir()) == []
+        r = finished(table)
         assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
-        assert "cannot connect to the Dask scheduler" in r.stderr, r.stderr
-        assert not (tmp_path / "new").exists()
-        (tmp_path / "kept").mkdir()
-        r = batch(clip, "--out", tmp_path / "kept", "--scheduler", addr, "--no-progress")
-        assert r.returncode == 2, r.stderr
-        assert (tmp_path / "kept").is_dir() and list((tmp_path / "kept").iterdir()) == []
-    r = batch(clip, "--out", tmp_path / "o2", "--table", tmp_path / "o2" / "missing" / "t.csv")
-    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
-    assert not (tmp_path / "o2").exists()
+        assert not (tmp_path / "o2").exists()
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+                p.wait()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["c.mp4", "kept"]
