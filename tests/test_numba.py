@@ -10,7 +10,9 @@ run speaks (:mod:`fastdet._numba`).
   cache that stays valid when the package is installed where it cannot write (Numba then
   falls back to a user cache folder). The read-only install is a real read-only bind mount of
   a copy of the package, made in a user + mount namespace (``unshare -rm``): as root, file
-  permissions alone would not stop writes. Cold compiles: marked slow.
+  permissions alone would not stop writes. Cold compiles: marked slow; the warm-up test and the
+  read-only test share one (a module fixture: ``fastdet warmup`` on an empty cache, in the
+  read-only install, then each test's later runs).
 """
 from __future__ import annotations
 
@@ -197,34 +199,9 @@ def test_a_band_split_over_threads_equals_one_thread(test_images, exact):
 
 
 # --------------------------------------------------------------------------------------
-# a cold cache: `fastdet warmup` in worker processes, then a run compiles nothing
+# a cold cache: `fastdet warmup` in worker processes, then a run compiles nothing; in a
+# read-only install the kernels go to the user cache folder
 # --------------------------------------------------------------------------------------
-@pytest.mark.slow
-def test_warmup_compiles_what_a_run_needs(tmp_path):
-    from tests.media import write_video
-
-    clip = write_video(tmp_path / "c.mp4", 5)
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"), _numba.WORKERS_ENV: "2"}
-    env.pop("PYTHONPATH", None)
-    r = subprocess.run([sys.executable, "-m", "fastdet", "warmup"], capture_output=True, text=True, env=env,
-                       timeout=900, check=False, cwd=ROOT.parent)
-    assert r.returncode == 0, r.stderr
-    m = re.search(r"compiling every kernel \(first run only: (\d+) kernels on 2 cores, about (\d+) s", r.stderr)
-    assert m, r.stderr
-    assert re.search(r"compiled every kernel in [\d.]+ s \(estimated \d+ s\)", r.stderr), r.stderr
-    assert list((tmp_path / "cache").rglob(_numba._TIMES_FILE))  # this machine's figures, for the next estimate
-    # everything is there now: a second warm-up compiles nothing, a run neither (in this process or later)
-    r = subprocess.run([sys.executable, "-m", "fastdet", "warmup"], capture_output=True, text=True, env=env,
-                       timeout=300, check=False, cwd=ROOT.parent)
-    assert r.returncode == 0 and "already compiled" in r.stderr, r.stderr
-    r = subprocess.run([sys.executable, "tools/studies/compile_profile.py", "--cache", str(tmp_path / "cache"), "--",
-                        "video", str(clip), "--boxes", str(tmp_path / "b.txt"), "--no-progress"],
-                       capture_output=True, text=True, env=env, timeout=300, check=False, cwd=ROOT.parent)
-    assert r.returncode == 0, r.stdout + r.stderr
-    assert "warm-up: 0 signatures compiled" in r.stdout and "later: 0 signatures compiled" in r.stdout, r.stdout
-    assert "compiling" not in r.stderr, r.stderr
-
-
 def _unshare_works() -> bool:
     if shutil.which("unshare") is None:
         return False
@@ -232,17 +209,43 @@ def _unshare_works() -> bool:
     return r.returncode == 0
 
 
-@pytest.mark.slow
-@pytest.mark.skipif(not _unshare_works(), reason="needs user + mount namespaces (unshare -rm) for a read-only mount")
-def test_read_only_install_caches_in_the_user_folder(tmp_path):
-    site = tmp_path / "site"
-    shutil.copytree(Path(fastdet.__file__).parent, site / "fastdet", copy_function=shutil.copy2,
-                    ignore=shutil.ignore_patterns("__pycache__"))
-    img = tmp_path / "in.jpg"
+_READ_ONLY = _unshare_works()
+
+
+@pytest.fixture(scope="module")
+def cold_cache(tmp_path_factory) -> dict:
+    """ONE cold compile for the two tests below (it is most of each one's time): ``fastdet
+    warmup`` on an empty cache in 2 worker processes, then the runs each test checks, every
+    step's stdout, stderr and status kept apart (``steps[name]``).
+
+    Where a user + mount namespace can be made (``unshare -rm``), all of it runs on a copy of
+    the package under a real read-only bind mount (as root, file permissions alone would not
+    stop writes), with ``NUMBA_CACHE_DIR`` unset: Numba must fall back to the user cache folder
+    (``XDG_CACHE_HOME``). Elsewhere on this checkout with ``NUMBA_CACHE_DIR`` set to that same
+    folder (and the read-only test is skipped)."""
+    from tests.media import write_video
+
+    tmp = tmp_path_factory.mktemp("cold")
+    clip = write_video(tmp / "c.mp4", 5)
+    img = tmp / "in.jpg"
     cv2.imwrite(str(img), next(frames(1, 640, 360)))
-    cache = tmp_path / "cache"
+    cache, steps_dir = tmp / "cache", tmp / "steps"
+    steps_dir.mkdir()
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "PYTHONPATH")}
+    env.update({_numba.WORKERS_ENV: "2", "XDG_CACHE_HOME": str(cache)})
+    if _READ_ONLY:
+        site = tmp / "site"
+        shutil.copytree(ROOT, site / "fastdet", copy_function=shutil.copy2,
+                        ignore=shutil.ignore_patterns("__pycache__"))
+        mount = (f"mount --bind {site} {site} && mount -o remount,bind,ro {site} {site} && "
+                 f"touch {site}/fastdet/probe 2>/dev/null && echo WRITABLE > {steps_dir}/mount.out; ")
+        env["PYTHONDONTWRITEBYTECODE"] = "1"
+    else:
+        site = ROOT.parent
+        mount = ""
+        env["NUMBA_CACHE_DIR"] = str(cache / "numba")  # where the user cache folder would hold them
     # run the copy, not the checkout an editable install points at (its finder comes first)
-    launcher = tmp_path / "launch.py"
+    launcher = tmp / "launch.py"
     launcher.write_text(
         "import runpy, sys\n"
         "sys.meta_path[:] = [f for f in sys.meta_path if 'editable' not in getattr(f, '__module__', '')]\n"
@@ -250,23 +253,67 @@ def test_read_only_install_caches_in_the_user_folder(tmp_path):
         f"assert fastdet.__file__.startswith({str(site)!r}), fastdet.__file__\n"
         "sys.argv[0] = 'fastdet'\n"
         "runpy.run_module('fastdet', run_name='__main__')\n")
-    script = (f"mount --bind {site} {site} && mount -o remount,bind,ro {site} {site} && "
-              f"touch {site}/fastdet/probe 2>/dev/null && echo WRITABLE; "
-              f"for i in 1 2; do PYTHONPATH={site} PYTHONDONTWRITEBYTECODE=1 XDG_CACHE_HOME={cache} "
-              f"{sys.executable} {launcher} image {img} -o {tmp_path}/out$i.jpg; echo rc=$?; done")
-    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
-    r = subprocess.run(["unshare", "-rm", "sh", "-c", script], capture_output=True, text=True, timeout=600,
-                       env=env, check=False)
-    out, err = r.stdout, r.stderr
-    assert "WRITABLE" not in out, "the mount is not read-only"
-    assert out.count("rc=0") == 2, out + err
+    fastdet_cmd = f"PYTHONPATH={site} {sys.executable} {launcher}"
+    commands = {
+        "warmup1": f"{fastdet_cmd} warmup",  # the cold compile
+        "warmup2": f"{fastdet_cmd} warmup",
+        "image1": f"{fastdet_cmd} image {img} -o {tmp}/out1.jpg",
+        "image2": f"{fastdet_cmd} image {img} -o {tmp}/out2.jpg",
+        # the profile imports fastdet from its working folder: the copy
+        "profile": (f"cd {site} && PYTHONPATH={site} {sys.executable} {ROOT.parent}/tools/studies/compile_profile.py "
+                    f"--cache {cache}/numba -- video {clip} --boxes {tmp}/b.txt --no-progress"),
+    }
+    script = mount + "; ".join(f"({c}) > {steps_dir}/{n}.out 2> {steps_dir}/{n}.err; echo $? > {steps_dir}/{n}.rc"
+                               for n, c in commands.items())
+    cmd = ["unshare", "-rm", "sh", "-c", script] if _READ_ONLY else ["sh", "-c", script]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=1200, env=env, check=False, cwd=tmp)
+    assert r.returncode == 0, r.stdout + r.stderr
+
+    def step(name: str) -> subprocess.CompletedProcess:
+        rc = steps_dir / f"{name}.rc"
+        return subprocess.CompletedProcess(commands[name], int(rc.read_text()) if rc.exists() else -1,
+                                           (steps_dir / f"{name}.out").read_text(),
+                                           (steps_dir / f"{name}.err").read_text())
+
+    return dict(steps={n: step(n) for n in commands}, tmp=tmp, cache=cache, site=site,
+                writable=(steps_dir / "mount.out").exists())
+
+
+@pytest.mark.slow
+def test_warmup_compiles_what_a_run_needs(cold_cache):
+    steps, cache = cold_cache["steps"], cold_cache["cache"]
+    r = steps["warmup1"]
+    assert r.returncode == 0, r.stderr
+    m = re.search(r"compiling every kernel \(first run only: (\d+) kernels on 2 cores, about (\d+) s", r.stderr)
+    assert m, r.stderr
+    assert re.search(r"compiled every kernel in [\d.]+ s \(estimated \d+ s\)", r.stderr), r.stderr
+    assert list(cache.rglob(_numba._TIMES_FILE))  # this machine's figures, for the next estimate
+    # everything is there now: a second warm-up compiles nothing, a run neither (in this process or later)
+    r = steps["warmup2"]
+    assert r.returncode == 0 and "already compiled" in r.stderr, r.stderr
+    r = steps["profile"]
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "warm-up: 0 signatures compiled" in r.stdout and "later: 0 signatures compiled" in r.stdout, r.stdout
+    assert "compiling" not in r.stderr, r.stderr
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not _READ_ONLY, reason="needs user + mount namespaces (unshare -rm) for a read-only mount")
+def test_read_only_install_caches_in_the_user_folder(cold_cache):
+    steps, cache, site, tmp = (cold_cache[k] for k in ("steps", "cache", "site", "tmp"))
+    assert not cold_cache["writable"], "the mount is not read-only"
+    assert [steps[n].returncode for n in ("warmup1", "image1", "image2")] == [0, 0, 0], \
+        "".join(steps[n].stderr for n in ("warmup1", "image1", "image2"))
     # first run: one notice, then the kernels land in the user cache folder ...
-    assert err.count("compiling the detection kernels") == 1, err
-    assert err.splitlines()[0].startswith("fastdet image: compiling"), err
+    err = steps["warmup1"].stderr
+    assert err.count("compiling every kernel") == 1, err
+    assert err.splitlines()[0].startswith("fastdet warmup: compiling"), err
     assert list(cache.rglob("*.nbi")) and list(cache.rglob("*.nbc"))
     assert not list((site / "fastdet").rglob("*.nbi"))
-    # ... and the second run loads them: no notice (it is printed only for kernels not cached)
-    assert (tmp_path / "out1.jpg").exists() and (tmp_path / "out2.jpg").exists()
+    # ... and the later runs load them: no notice (it is printed only for kernels not cached)
+    for n in ("image1", "image2"):
+        assert "compiling" not in steps[n].stderr, steps[n].stderr
+    assert (tmp / "out1.jpg").exists() and (tmp / "out2.jpg").exists()
 
 
 def test_summary_reports_the_whole_wall_time(tmp_path):

@@ -12,6 +12,7 @@ import socket
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import cv2
@@ -36,6 +37,21 @@ TIMEOUT = 240
 def batch(*args: str | Path, timeout: float = TIMEOUT, env: dict | None = None) -> subprocess.CompletedProcess:
     return subprocess.run(FASTDET + ["batch", *map(str, args)], capture_output=True, text=True,
                           timeout=timeout, env=env)
+
+
+def batch_started(*args: str | Path) -> subprocess.Popen:
+    """``fastdet batch`` started, not waited for (:func:`finished`)."""
+    return subprocess.Popen(FASTDET + ["batch", *map(str, args)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+
+
+def finished(p: subprocess.Popen, timeout: float = TIMEOUT) -> subprocess.CompletedProcess:
+    try:
+        out, err = p.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        raise
+    return subprocess.CompletedProcess(p.args, p.returncode, out, err)
 
 
 def manifest_lines(out: Path) -> list[dict]:
@@ -74,20 +90,31 @@ def clips(tmp_path_factory: pytest.TempPathFactory, data: Path) -> Path:
 
 
 @pytest.fixture(scope="module")
-def first_run(clips: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, subprocess.CompletedProcess]:
+def first_run_started(clips: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, subprocess.Popen]]:
+    """The first batch, started (:func:`first_run` waits for it)."""
     out = tmp_path_factory.mktemp("out")
-    r = batch(clips, "--out", out, "--workers", "2", "--json", "--video", "--table", out / "boxes.parquet",
-              "--no-progress")
-    return out, r
+    p = batch_started(clips, "--out", out, "--workers", "2", "--json", "--video", "--table", out / "boxes.parquet",
+                      "--no-progress")
+    yield out, p
+    if p.poll() is None:
+        p.kill()
+        p.wait()
 
 
-def test_batch_boxes_identical_to_video(clips: Path, first_run, tmp_path: Path) -> None:
+@pytest.fixture(scope="module")
+def first_run(first_run_started) -> tuple[Path, subprocess.CompletedProcess]:
+    out, p = first_run_started
+    return out, finished(p)
+
+
+def test_batch_boxes_identical_to_video(clips: Path, first_run_started, tmp_path: Path, request) -> None:
     """The batch's outputs equal ``fastdet video``'s (run in this process: the command is the
-    same, a fresh interpreter for each clip only cost its start-up)."""
-    out, _ = first_run
+    same, a fresh interpreter for each clip only cost its start-up; meanwhile the batch runs)."""
     for name, clip in (("road", clips / "road.mp4"), ("oncoming", clips / "day2" / "oncoming.mp4")):
         assert main(["video", str(clip), "--boxes", str(tmp_path / f"{name}.txt"),
                      "--json", str(tmp_path / f"{name}.jsonl"), "--no-progress"]) == 0
+    out, _ = request.getfixturevalue("first_run")
+    for name in ("road", "oncoming"):
         assert (out / f"{name}.boxes.txt").read_bytes() == (tmp_path / f"{name}.txt").read_bytes()
         assert (out / f"{name}.boxes.jsonl").read_bytes() == (tmp_path / f"{name}.jsonl").read_bytes()
         assert (tmp_path / f"{name}.txt").stat().st_size > 0  # the clips have cars in them
@@ -155,14 +182,17 @@ def test_batch_rerun_skips_then_overwrite_redoes(first_run, clips: Path) -> None
     os.utime(broken, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
     # (one worker from here on: what is run again does not depend on how many there are, and
     # a second worker process only costs its start-up)
-    r = batch(clips, "--out", out, "--workers", "1", "--json", "--no-track", "--no-progress")
+    b = batch_started(clips, "--out", out, "--workers", "1", "--json", "--no-track", "--no-progress")
+    try:  # (what it is compared with, computed here meanwhile)
+        ref = out.parent / "road_no_track.txt"
+        assert main(["video", str(clips / "road.mp4"), "--no-track", "--boxes", str(ref), "--no-progress"]) == 0
+    finally:
+        r = finished(b)
     assert r.returncode == 1, r.stderr
     lines = manifest_lines(out)
     assert sorted(e["name"] for e in lines[n_lines:]) == ["broken", "oncoming", "road"]
     last = {e["name"]: e for e in lines[n_lines:]}["road"]
     assert last["settings"]["outputs"] == ["boxes", "json"] and last["settings"]["tracker"] is None
-    ref = out.parent / "road_no_track.txt"
-    assert main(["video", str(clips / "road.mp4"), "--no-track", "--boxes", str(ref), "--no-progress"]) == 0
     assert (out / "road.boxes.txt").read_bytes() == ref.read_bytes()
     assert set(read_predictions(ref).ids.tolist()) == {-1}
 
@@ -344,16 +374,29 @@ def test_a_failed_start_leaves_no_out_folder_it_made(tmp_path: Path) -> None:
     from tests.media import write_video
 
     clip = write_video(tmp_path / "c.mp4", 3)
-    with _NotDask() as addr:
-        r = batch(clip, "--out", tmp_path / "new" / "o", "--scheduler", addr, "--no-progress")
+    (tmp_path / "kept").mkdir()
+    procs: list[subprocess.Popen] = []
+    try:
+        with _NotDask() as addr:
+            # the three runs are independent (each its own --out): side by side, each its own process
+            procs += [batch_started(*args) for args in (
+                (clip, "--out", tmp_path / "new" / "o", "--scheduler", addr, "--no-progress"),
+                (clip, "--out", tmp_path / "kept", "--scheduler", addr, "--no-progress"),
+                (clip, "--out", tmp_path / "o2", "--table", tmp_path / "o2" / "missing" / "t.csv"))]
+            new, kept, table = procs
+            r = finished(new)
+            assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+            assert "cannot connect to the Dask scheduler" in r.stderr, r.stderr
+            assert not (tmp_path / "new").exists()
+            r = finished(kept)
+            assert r.returncode == 2, r.stderr
+            assert (tmp_path / "kept").is_dir() and list((tmp_path / "kept").iterdir()) == []
+        r = finished(table)
         assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
-        assert "cannot connect to the Dask scheduler" in r.stderr, r.stderr
-        assert not (tmp_path / "new").exists()
-        (tmp_path / "kept").mkdir()
-        r = batch(clip, "--out", tmp_path / "kept", "--scheduler", addr, "--no-progress")
-        assert r.returncode == 2, r.stderr
-        assert (tmp_path / "kept").is_dir() and list((tmp_path / "kept").iterdir()) == []
-    r = batch(clip, "--out", tmp_path / "o2", "--table", tmp_path / "o2" / "missing" / "t.csv")
-    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
-    assert not (tmp_path / "o2").exists()
+        assert not (tmp_path / "o2").exists()
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+                p.wait()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["c.mp4", "kept"]

@@ -162,12 +162,16 @@ def test_real_process_user_error_bug_and_interrupt():
 
 #: a fresh interpreter imports the dispatcher, then runs each command's ``--help`` in a forked
 #: child of its own (each child starts from that interpreter: nothing a command imports is seen
-#: by another) and prints the modules loaded then, one JSON line a command
+#: by another; the children run side by side, on every core) and prints the modules loaded
+#: then, one JSON line a command
 _IMPORTED = """
-    import json, os, sys
+    import json, os, sys, tempfile
     from fastdet.cli.main import main
+    out = tempfile.mkdtemp()
+    pids = {{}}
     for name in {names!r}:
         sys.stdout.flush()
+        sys.stderr.flush()
         pid = os.fork()
         if pid == 0:
             code = 0
@@ -177,15 +181,19 @@ _IMPORTED = """
                     main([name, "--help"])
                 except SystemExit:
                     pass
-                sys.stdout = sys.__stdout__
-                print(json.dumps([name, sorted(sys.modules)]), flush=True)
+                with open(os.path.join(out, name + ".json"), "w") as f:
+                    json.dump([name, sorted(sys.modules)], f)
             except BaseException:
                 import traceback
                 traceback.print_exc()
                 code = 1
             os._exit(code)
+        pids[name] = pid
+    for name, pid in pids.items():
         _, status = os.waitpid(pid, 0)
         assert os.waitstatus_to_exitcode(status) == 0, name
+        with open(os.path.join(out, name + ".json")) as f:
+            print(f.read(), flush=True)
 """
 
 _TEST_IMPORTS = "test_only_the_chosen_command_module_is_imported"

@@ -22,12 +22,23 @@ ROOT = Path(__file__).resolve().parents[2]
 CLIPS = ["test_video", "boston_street"]
 
 
-def _cli_boxes(clip: Path, out: Path) -> bytes:
-    """``python -m fastdet video CLIP --boxes OUT`` in a process of its own, this checkout's code."""
+def _cli_boxes(clip: Path, out: Path) -> subprocess.Popen:
+    """``python -m fastdet video CLIP --boxes OUT`` started in a process of its own, this
+    checkout's code (:func:`_cli_done` waits for it and reads OUT): it runs while the test
+    computes the same clip here."""
     env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    r = subprocess.run([sys.executable, "-m", "fastdet", "video", str(clip), "--boxes", str(out), "--no-progress"],
-                       cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
-    assert r.returncode == 0, r.stderr
+    return subprocess.Popen([sys.executable, "-m", "fastdet", "video", str(clip), "--boxes", str(out), "--no-progress"],
+                            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _cli_done(p: subprocess.Popen, out: Path) -> bytes:
+    try:
+        _, err = p.communicate(timeout=600)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    assert p.returncode == 0, err
     return out.read_bytes()
 
 
@@ -40,7 +51,14 @@ def _written(frames: list[Detections], path: Path) -> bytes:
 @pytest.mark.parametrize("name", CLIPS)
 def test_detect_video_gives_the_cli_boxes_and_ids_byte_for_byte(data, tmp_path, name):
     clip = data / "videos" / f"{name}.mp4"
-    frames = list(detect_video(clip))
+    cli = _cli_boxes(clip, tmp_path / "cli.txt")
+    try:
+        frames = list(detect_video(clip))
+    except BaseException:
+        cli.kill()
+        cli.wait()
+        raise
+    want = _cli_done(cli, tmp_path / "cli.txt")
     n = int(cv2.VideoCapture(str(clip)).get(cv2.CAP_PROP_FRAME_COUNT))
     assert len(frames) == n  # one table a frame, empty ones included
     for i, d in enumerate(frames, 1):
@@ -48,7 +66,6 @@ def test_detect_video_gives_the_cli_boxes_and_ids_byte_for_byte(data, tmp_path, 
         assert (d.frames == i).all() and (d.ids >= 1).all()
     clip_table = Detections.concat(frames)
     assert len(clip_table) > 20 and clip_table.has_ids
-    want = _cli_boxes(clip, tmp_path / "cli.txt")
     assert _written(frames, tmp_path / "api.txt") == want
     # frame by frame through the writer, as the CLI writes them: the same bytes too
     with MotWriter(tmp_path / "api2.txt") as w:
