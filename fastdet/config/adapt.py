@@ -29,7 +29,8 @@ class AdaptConfig(Config):
     holdout: the fraction of each video, at its end, kept aside for the operating point
         (contiguous: the pipeline's heat map needs consecutive frames); never trained on.
     holdout_max: at most this many frames kept aside over all the footage (split evenly
-        between the videos), so that long footage keeps the operating point's runs short.
+        between the videos): the pipeline reads them once per offset tried, which is most of a
+        run's time on long footage (docs/benchmarks.md, "Adapting to a camera").
     weight: the sample weight of every camera crop in the fit (each bundled crop weighs 1): a
         crop counts as this many copies of it, without the copies' memory.
     jitter: shifted / rescaled copies of every positive crop (besides the crop itself).
@@ -48,7 +49,7 @@ class AdaptConfig(Config):
     every: int = 5
     max_frames: int = 400
     holdout: float = 0.2
-    holdout_max: int = 1800
+    holdout_max: int = 600
     weight: int = 4
     jitter: int = 2
     negatives_per_picture: int = 8
