@@ -7,7 +7,6 @@ from ..config import (
     HeatConfig,
     NeighbourSplit,
     OwnVehicleConfig,
-    PerspectiveConfig,
     PipelineConfig,
     PlausibleConfig,
 )
@@ -70,11 +69,9 @@ Options = argparse._ActionsContainer
 
 
 def add_horizon_argument(parser: Options) -> None:
-    """``--horizon auto|off|F`` and ``--perspective``, shared by ``video``, ``eval`` and ``batch``."""
+    """``--horizon auto|off|F``, shared by ``video``, ``eval`` and ``batch``."""
     parser.add_argument("--horizon", type=horizon_value, default="auto", metavar="auto|off|F",
                         help="the horizon: estimated, none, or at F x height")
-    parser.add_argument("--perspective", action="store_true",
-                        help="bands from the camera's perspective")
 
 
 def add_search_argument(parser: Options) -> None:
@@ -119,7 +116,7 @@ def add_camera_arguments(parser: Options) -> None:
 def pipeline_groups(parser: argparse.ArgumentParser) -> tuple[Options, Options, Options]:
     """The ``search``, ``tracking`` and ``advanced`` option groups of a command that runs the
     pipeline, with the shared options added (``video``, ``eval``, ``bench``, ``batch``);
-    ``horizon``: with ``--horizon`` / ``--perspective`` (not ``bench``)."""
+    ``horizon``: with ``--horizon`` (not ``bench``)."""
     search = parser.add_argument_group("models and search")
     tracking = parser.add_argument_group("tracking")
     advanced = parser.add_argument_group("advanced")
@@ -150,7 +147,7 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
                             oncoming=False if getattr(args, "no_oncoming", False)
                             else (getattr(args, "oncoming_model", None) or True),
                             traffic=getattr(args, "traffic", "right"), horizon=getattr(args, "horizon", "auto"),
-                            heat=heat, perspective=PerspectiveConfig() if getattr(args, "perspective", False) else None,
+                            heat=heat,
                             own_vehicle=None if getattr(args, "no_own_vehicle", False) else OwnVehicleConfig(),
                             split=None if getattr(args, "no_split_neighbours", False) else NeighbourSplit(),
                             plausible=PlausibleConfig(perspective=bool(getattr(args, "perspective_filter", False))))

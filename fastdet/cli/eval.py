@@ -226,10 +226,9 @@ def _run_all(args: argparse.Namespace) -> int:
                            "it takes no --gt, --pred, --video, --keyframes or --plot")
     if args.pred_dir is not None and (args.model is not None or args.oncoming_model is not None or args.no_oncoming
                                       or args.no_track or args.offline or getattr(args, "no_refine", False)
-                                      or getattr(args, "traffic", "right") != "right"
-                                      or getattr(args, "perspective", False)):
+                                      or getattr(args, "traffic", "right") != "right"):
         raise FastdetError("--model, --oncoming-model, --no-oncoming, "
-                           "--traffic, --no-refine, --no-track, --offline and --perspective only apply when --all "
+                           "--traffic, --no-refine, --no-track and --offline only apply when --all "
                            "runs the pipeline (not with --pred-dir)")
     clips = annotated_clips(args.data)
     if args.clips is not None:
@@ -275,7 +274,7 @@ def _run_all(args: argparse.Namespace) -> int:
         settings.update(model=args.model or "bundled", oncoming=args.oncoming_model or not args.no_oncoming,
                         traffic=config.traffic, refine=config.refine is not None, track=config.tracker is not None,
                         offline=args.offline, horizon=config.horizon, full_search=config.guided is None,
-                        perspective=config.perspective is not None, split=config.split is not None,
+                        split=config.split is not None,
                         perspective_filter=config.plausible is not None and config.plausible.perspective)
     pictures = _score_picture_sets(picture_sets, args) if picture_sets else []
     report = report_json(scores, settings, pictures)
@@ -307,9 +306,9 @@ def run(args: argparse.Namespace) -> int:
     no_track, offline = getattr(args, "no_track", False), getattr(args, "offline", False)
     if args.video is None and (args.model is not None or args.oncoming_model is not None or args.no_oncoming
                                or no_track or offline or getattr(args, "no_refine", False)
-                               or getattr(args, "traffic", "right") != "right" or getattr(args, "perspective", False)):
+                               or getattr(args, "traffic", "right") != "right"):
         raise FastdetError("--model, --oncoming-model, --no-oncoming, "
-                           "--traffic, --no-refine, --no-track, --offline and --perspective only apply with --video")
+                           "--traffic, --no-refine, --no-track and --offline only apply with --video")
     check_paths([("--gt", args.gt), ("--pred", args.pred), ("--video", args.video), ("--model", args.model),
                  ("--oncoming-model", getattr(args, "oncoming_model", None)),
                  ("--keyframes", getattr(args, "keyframes", None) or keyframes_path(args.gt)),

@@ -15,7 +15,8 @@ comparable, JSON round-trip through one :meth:`~fastdet.config.Config.to_dict` /
 - :mod:`.refine`: the box refinement (:class:`RefineConfig`) and its training boxes
   (:class:`JitterConfig`);
 - :mod:`.perspective`: bands from the camera's geometry (:class:`GeometryConfig`) and the
-  perspective learnt from the tracked vehicles (:class:`PerspectiveConfig`);
+  perspective learnt from the tracked vehicles (:class:`PerspectiveConfig`: no pipeline stage
+  since it was deleted, ``tools/studies/geometry_study.py --joint``);
 - :mod:`.picture`: how a single picture is searched, the whole of it at every scale
   (:class:`PictureSearch`);
 - :mod:`.models`: the bundled model files;

@@ -89,8 +89,9 @@ class Config:
     such a field existed is still the same dict). ``_RETIRED`` maps the fields of a deleted stage
     to the dict value they had while it was off: :meth:`from_dict` drops such a key holding that
     value and refuses one holding another (the stage is gone), and :meth:`digest_dict` (what
-    :meth:`digest` hashes) still holds those that were written (not ``None``), so the digest of
-    a config is what it was before the stage was deleted."""
+    :meth:`digest` hashes) still holds those that were written (all but a ``None`` of a field
+    named in ``_OMIT_NONE``), so the digest of a config is what it was before the stage was
+    deleted."""
 
     _OMIT_NONE: typing.ClassVar[tuple[str, ...]] = ()
     _OMIT_DEFAULT: typing.ClassVar[typing.Mapping[str, Any]] = types.MappingProxyType({})
@@ -135,7 +136,8 @@ class Config:
     def digest_dict(self) -> dict[str, Any]:
         """:meth:`to_dict` with the deleted stages' fields at their off values (``_RETIRED``):
         what :meth:`digest` hashes."""
-        return {**{k: v for k, v in self._RETIRED.items() if v is not None}, **self.to_dict()}
+        return {**{k: v for k, v in self._RETIRED.items() if not (v is None and k in self._OMIT_NONE)},
+                **self.to_dict()}
 
     def digest(self) -> str:
         """16 hex digits of the SHA-256 of :meth:`digest_dict` as canonical JSON: equal configs

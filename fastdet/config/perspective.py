@@ -34,7 +34,8 @@ class GeometryConfig(Config):
 @dataclass(frozen=True)
 class PerspectiveConfig(Config):
     """Settings of :class:`fastdet.video.perspective.PerspectiveUpdater`: the main search follows
-    the horizon and ratio the tracked vehicles show (off by default: docs/geometry.md).
+    the horizon and ratio the tracked vehicles show (``tools/studies/geometry_study.py --joint``;
+    no longer a stage of the pipeline: docs/geometry.md).
 
     geometry: the bands' geometry (reference ratio, prior ratio); its ``slack`` is the slack
         until there is an estimate.

@@ -11,7 +11,6 @@ from .guided import GuidedSearch
 from .heat import ONCOMING_HEAT, HeatConfig
 from .motion import MotionGate
 from .ownvehicle import OwnVehicleConfig
-from .perspective import PerspectiveConfig
 from .plausible import PlausibleConfig
 from .refine import RefineConfig
 from .search import SearchBand, SearchConfig, Traffic, check_traffic
@@ -36,7 +35,8 @@ def _retired() -> dict[str, object]:
                                          cells_per_step=1, threshold=0.0, shrink="area").to_dict(),
             "small_heat": HeatConfig(threshold=3.5, split_gap=0.5).to_dict(),
             "small_check": -4.6,
-            "selfcal": None}
+            "selfcal": None,
+            "perspective": None}
 
 
 #: where the search bands go: ``'auto'`` (estimated from the video), a fraction of the frame
@@ -75,10 +75,6 @@ class PipelineConfig(Config):
         on every frame. Needs the tracker: without it the search is full (:attr:`planned`).
     refine: the learned box refinement; ``None``: the boxes as the heat map (or the tracker)
         gives them.
-    perspective: the main search follows the horizon and the ratio (vehicle width / how far
-        below the horizon it stands) the tracked vehicles show (:mod:`fastdet.video.perspective`);
-        ``None`` (the default): the bands stay at the horizon above. Needs the tracker and a
-        horizon (not ``None``).
     own_vehicle: drop the positive windows lying on the own vehicle (hood, dashboard,
         mirrors, letterbox bars) found in the first seconds (:mod:`fastdet.video.ownvehicle`);
         on by default (:class:`OwnVehicleConfig`: a camera with nothing of its vehicle in
@@ -95,6 +91,8 @@ class PipelineConfig(Config):
     #: the deleted stages' fields at their off values (docs/accuracy.md, "Deleted stages"): an
     #: older config's dict still loads, and today's default config keeps its digest
     _RETIRED = MappingProxyType(_retired())
+    #: of those, the ones left out of the dict while off (``None``); ``perspective: null`` was written
+    _OMIT_NONE = ("selfcal",)
 
     model: str | None = None
     oncoming: str | bool = True
@@ -108,7 +106,6 @@ class PipelineConfig(Config):
     tracker: TrackerConfig | None = TrackerConfig()
     guided: GuidedSearch | None = GuidedSearch()
     refine: RefineConfig | None = RefineConfig()
-    perspective: PerspectiveConfig | None = None
     own_vehicle: OwnVehicleConfig | None = OwnVehicleConfig()
     split: NeighbourSplit | None = NeighbourSplit()
     plausible: PlausibleConfig | None = PlausibleConfig()
@@ -127,7 +124,7 @@ class PipelineConfig(Config):
         for name, cls, optional in (("search", SearchConfig, False), ("heat", HeatConfig, False),
                                     ("oncoming_heat", HeatConfig, False), ("motion", MotionGate, False),
                                     ("tracker", TrackerConfig, True), ("guided", GuidedSearch, True),
-                                    ("refine", RefineConfig, True), ("perspective", PerspectiveConfig, True),
+                                    ("refine", RefineConfig, True),
                                     ("own_vehicle", OwnVehicleConfig, True), ("split", NeighbourSplit, True),
                                     ("plausible", PlausibleConfig, True)):
             v = getattr(self, name)

@@ -1,5 +1,7 @@
 """The camera's perspective learnt from the video's own vehicles: the main search's bands
-follow the horizon and the ratio the tracked vehicles show.
+follow the horizon and the ratio the tracked vehicles show. No stage of the pipeline runs it
+(the ``perspective`` stage was deleted: docs/accuracy.md, "Deleted stages"); what drives it is
+``tools/studies/geometry_study.py --joint``, frame by frame over the pipeline's tracked boxes.
 
 Until the video has shown a vehicle, the main search is :class:`~fastdet.detect.geometry.GeometricSearch`
 at the prior: the horizon as the rest of the pipeline has it (the flow estimate,
@@ -19,16 +21,15 @@ import numpy as np
 from ..config import PerspectiveConfig, SearchConfig
 from ..detect.geometry import GeometricSearch, PerspectiveEstimator
 from ..detections import Detections
-from .state import FrameState, Stage
 
 
 class PerspectiveUpdater:
     """Moves a :class:`fastdet.Detector`'s main search with the perspective the video's
     tracked vehicles show (module docstring).
 
-    :meth:`start` once before the first frame (after the horizon was primed); :meth:`update`
-    after each frame's tracking with its tracked boxes; :meth:`reset` at a cut (the camera
-    stays: the estimate is kept).
+    :meth:`start` once before the first frame (after the horizon was primed; :meth:`update`
+    calls it if not); :meth:`update` after each frame's tracking with its tracked boxes. A cut
+    changes nothing (the camera stays: the estimate is kept).
     """
 
     def __init__(self, detector, config: PerspectiveConfig | None = None) -> None:
@@ -96,19 +97,3 @@ class PerspectiveUpdater:
         self._set_search(replace(self._search(), horizon=h, ratio=self.estimate[1], geometry=geometry))
         self._applied = h
 
-
-class PerspectiveStage(Stage):
-    """After tracking (and the box refinement): the tracked boxes move the main search
-    (:class:`PerspectiveUpdater`)."""
-
-    name = "perspective"
-
-    def __init__(self, updater: PerspectiveUpdater) -> None:
-        self.updater = updater
-
-    def __call__(self, s: FrameState) -> FrameState:
-        self.updater.update(s.out, s.shape[0])
-        return s
-
-    def reset(self) -> None:
-        """A cut: the camera stays, so does what its vehicles showed."""

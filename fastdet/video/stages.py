@@ -18,7 +18,6 @@ In the order they run (:func:`build_stages`; a stage whose setting is off is lef
 ``clip``         the tracker's filtered boxes clipped to the frame (:class:`ClipStage`)
 ``refine``       the learned box refinement (:class:`RefineStage`)
 ``plausible``    drop the returned boxes that cannot be vehicles (:class:`PlausibleStage`)
-``perspective``  the tracked boxes move the main search (:class:`PerspectiveStage`; off by default)
 ``observe``      tell the guided search what this frame found (:class:`ObserveStage`)
 ===============  ===========================================================================
 
@@ -33,7 +32,6 @@ ones is a field of :class:`FrameState`.
 from __future__ import annotations
 
 from ..config import GuidedSearch, PipelineConfig
-from ..detect import Detector
 from .blobsplit import SplitStage
 from .box_stages import (
     ClipStage,
@@ -47,7 +45,6 @@ from .box_stages import (
 from .detector import ColumnSearch, MovableHorizon, WindowDetector
 from .guided import SearchPlanner
 from .ownvehicle import OwnVehicleStage
-from .perspective import PerspectiveStage, PerspectiveUpdater
 from .plausible import PlausibleStage
 from .refine import BoxRegressor
 from .search_stages import DetectStage, GateStage, HorizonStage, MotionStage, PlanStage
@@ -55,8 +52,8 @@ from .state import FrameDebug, FrameState, Stage, TrackView
 from .track import Tracker
 
 __all__ = ["ClipStage", "DetectStage", "FrameDebug", "FrameState", "FusionStage", "GateStage",
-           "HeatStage", "HorizonStage", "MotionStage", "ObserveStage", "OwnVehicleStage", "PerspectiveStage",
-           "PlausibleStage", "PlanStage", "RefineStage", "SplitStage", "Stage", "TrackStage",
+           "HeatStage", "HorizonStage", "MotionStage", "ObserveStage", "OwnVehicleStage", "PlausibleStage",
+            "PlanStage", "RefineStage", "SplitStage", "Stage", "TrackStage",
            "TrackView", "WeakStage", "build_stages", "planner_for"]
 
 
@@ -110,9 +107,6 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
     if config.plausible is not None:
         stages.append(PlausibleStage(config.plausible,
                                      (lambda: detector.horizon) if isinstance(detector, MovableHorizon) else None))
-    if config.perspective is not None and tracker is not None and config.horizon is not None \
-            and isinstance(detector, Detector):
-        stages.append(PerspectiveStage(PerspectiveUpdater(detector, config.perspective)))
     if planner is not None:
         stages.append(ObserveStage(planner, tracker))
     return stages

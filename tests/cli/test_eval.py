@@ -102,8 +102,7 @@ def test_all_runs_the_pipeline_on_every_clip(clip, monkeypatch, capsys):
     (["--gt", "g.txt"], "give --gt GT.txt and one of --pred"),
     (["--all", "--clips", "nope"], "--clips: no annotated clip named nope (have: cam)"),
     (["--all", "--pred-dir", "PREDS", "--no-oncoming"], "not with --pred-dir"),
-    (["--all", "--pred-dir", "PREDS", "--perspective"], "not with --pred-dir"),
-    (["--gt", "g.txt", "--pred", "p.txt", "--perspective"], "only apply with --video"),
+    (["--gt", "g.txt", "--pred", "p.txt", "--no-track"], "only apply with --video"),
     (["--all", "--pred-dir", "EMPTY"], "no predictions for clip cam"),
     (["--all", "--out", "/no/such/folder/r.json"], "output folder /no/such/folder does not exist"),
 ])

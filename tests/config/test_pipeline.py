@@ -117,3 +117,12 @@ def test_self_calibration_is_retired_and_off_is_read():
     assert "selfcal" not in PipelineConfig().digest_dict()  # it was left out of the dict while off
     with pytest.raises(ValueError, match="PipelineConfig.selfcal: this stage was deleted"):
         PipelineConfig.from_dict({"selfcal": {"scans": 5}})
+
+
+def test_the_perspective_stage_is_retired_and_its_null_kept_in_the_digest():
+    # written as null while off (not left out, as selfcal was): the digest still holds it
+    assert PipelineConfig.from_dict({**PipelineConfig().to_dict(), "perspective": None}) == PipelineConfig()
+    assert "perspective" not in PipelineConfig().to_dict()
+    assert PipelineConfig().digest_dict()["perspective"] is None
+    with pytest.raises(ValueError, match="PipelineConfig.perspective: this stage was deleted"):
+        PipelineConfig.from_dict({"perspective": {"min_tracks": 2}})

@@ -1,4 +1,5 @@
-"""fastdet.video.perspective: the main search follows the horizon and ratio the tracked vehicles show."""
+"""fastdet.video.perspective: the main search follows the horizon and ratio the tracked vehicles show
+(the updater tools/studies/geometry_study.py --joint drives; the pipeline's stage was deleted)."""
 from __future__ import annotations
 
 from dataclasses import replace
@@ -102,47 +103,15 @@ def test_the_slack_ends_when_no_estimate_comes():
     assert det.scorers[0].search.horizon == pytest.approx(0.52, abs=0.01)
 
 
-def test_the_stage_runs_after_tracking_when_asked_for():
-    from fastdet.config import PipelineConfig
-    from fastdet.video import VideoDetector, make_detector
-
-    names = [s.name for s in VideoDetector(make_detector(), PipelineConfig(perspective=PerspectiveConfig())).stages]
-    assert names == ["horizon", "plan", "motion", "detect", "motion", "ownvehicle", "heatmap", "split", "fusion",
-                     "weak", "track", "refine", "plausible", "perspective", "observe"]
-    assert "perspective" not in [s.name for s in VideoDetector(make_detector()).stages]  # off by default
-    # it needs the tracker's ids and a horizon to start from
-    for off in (PipelineConfig(perspective=PerspectiveConfig(), tracker=None),
-                PipelineConfig(perspective=PerspectiveConfig(), horizon=None)):
-        assert "perspective" not in [s.name for s in VideoDetector(make_detector(), off).stages]
-
-
-def test_the_stage_moves_a_real_detectors_search():
+def test_the_updater_moves_a_real_detectors_search():
+    # as tools/studies/geometry_study.py --joint drives it (the pipeline's stage was deleted)
     from fastdet.video import make_detector
-    from fastdet.video.perspective import PerspectiveStage
-    from fastdet.video.state import FrameState
 
     det = make_detector()
     det.set_horizon(0.55)
-    stage = PerspectiveStage(PerspectiveUpdater(det))
-    frame = np.zeros((720, 1280, 3), np.uint8)
+    up = PerspectiveUpdater(det)
     for dets in frames_of_vehicles(0.5, 2.2):
-        stage(FrameState(frame=frame, out=dets))
+        up.update(dets, 720)
     s = det.scorers[0].search
     assert isinstance(s, GeometricSearch) and s.horizon == pytest.approx(0.5, abs=0.01)
     assert det.horizon == s.horizon  # what the horizon stage and the debug view read
-    stage.reset()
-    assert det.scorers[0].search is s
-
-
-def test_config_round_trip_and_cli_option():
-    import argparse
-
-    from fastdet.cli._args import add_horizon_argument, pipeline_config
-    from fastdet.config import PipelineConfig
-
-    c = PipelineConfig(perspective=PerspectiveConfig(settled_slack=0.01, geometry=GeometryConfig(slack=0.03)))
-    assert PipelineConfig.from_dict(c.to_dict()) == c and c.digest() != PipelineConfig().digest()
-    p = argparse.ArgumentParser()
-    add_horizon_argument(p)
-    assert pipeline_config(p.parse_args(["--perspective"])).perspective == PerspectiveConfig()
-    assert pipeline_config(p.parse_args([])).perspective is None

@@ -1,14 +1,13 @@
 """Every off-by-default pipeline option, alone and combined, on every annotated clip (run by hand;
 docs/accuracy.md "Every option on every clip, today").
 
-A *setting* is ``base`` (today's defaults) or option names joined by ``+`` (``persp+pfilter``;
-the small-vehicle and side-view components and the large-vehicle search it also measured were
-deleted: docs/accuracy.md, "Deleted stages"):
+A *setting* is ``base`` (today's defaults) or option names joined by ``+`` (``noown+pfilter``;
+the small-vehicle and side-view components, the large-vehicle search and the perspective stage
+(``persp``: ``--perspective``) it also measured were deleted: docs/accuracy.md, "Deleted stages"):
 
 - ``split``: ``--split-neighbours`` (the default since this table was measured: a no-op today);
   ``nosplit``: ``--no-split-neighbours``; ``own``: ``--own-vehicle`` (the default now, a no-op);
-  ``noown``: ``--no-own-vehicle``; ``persp``: ``--perspective``;
-  ``pfilter``: ``--perspective-filter``; ``both``: ``--traffic both``.
+  ``noown``: ``--no-own-vehicle``; ``pfilter``: ``--perspective-filter``; ``both``: ``--traffic both``.
 
 Each setting runs on every clip as ``fastdet eval --all`` runs it (:func:`tools.studies.loo.run_clip`)
 twice:
@@ -27,7 +26,7 @@ Results are kept in ``--out-dir`` (``cost.json``, ``in.json``, ``loo.json``) as 
 skips what is there; ``--tables-only`` prints them).
 
     python -m tools.studies.options_table --out-dir /tmp/s3-combos --loo /tmp/s3-combos-loo \\
-        [--settings base,persp,pfilter] [--clips A,B] [--no-in-sample]
+        [--settings base,noown,pfilter] [--clips A,B] [--no-in-sample]
 """
 from __future__ import annotations
 
@@ -39,7 +38,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from fastdet.config import NeighbourSplit, OwnVehicleConfig, PerspectiveConfig, PipelineConfig, PlausibleConfig
+from fastdet.config import NeighbourSplit, OwnVehicleConfig, PipelineConfig, PlausibleConfig
 from fastdet.eval.clips import AnnotatedClip, ClipScore, annotated_clips
 from fastdet.io.atomic import write_bytes
 from fastdet.video import make_detector
@@ -57,13 +56,12 @@ OPTIONS: dict[str, tuple[str, Callable[[PipelineConfig], PipelineConfig]]] = {
     "nosplit": ("--no-split-neighbours", lambda c: replace(c, split=None)),
     "own": ("--own-vehicle", lambda c: replace(c, own_vehicle=OwnVehicleConfig())),
     "noown": ("--no-own-vehicle", lambda c: replace(c, own_vehicle=None)),
-    "persp": ("--perspective", lambda c: replace(c, perspective=PerspectiveConfig())),
     "pfilter": ("--perspective-filter", _plausible_perspective),
     "both": ("--traffic both", lambda c: replace(c, traffic="both")),
 }
 
-#: every option alone, then the perspective stage with its filter
-DEFAULT_SETTINGS = ("base", *OPTIONS, "persp+pfilter")
+#: every option alone
+DEFAULT_SETTINGS = ("base", *OPTIONS)
 
 #: the result files of an --out-dir (:func:`load`)
 KEYS = ("cost", "in", "loo")

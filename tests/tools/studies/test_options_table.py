@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from fastdet.config import NeighbourSplit, OwnVehicleConfig, PerspectiveConfig, PipelineConfig
+from fastdet.config import NeighbourSplit, OwnVehicleConfig, PipelineConfig
 from tools.studies import options_table as ot
 
 CLIPS = ["boston_street", "test_small1", "test_video"]
@@ -14,9 +14,9 @@ CLIPS = ["boston_street", "test_small1", "test_video"]
 
 def test_settings_to_pipelines() -> None:
     assert ot.parse_setting("base") == () and ot.config_for("base") == PipelineConfig()
-    c = ot.config_for("split+own+persp+pfilter+both")
+    c = ot.config_for("split+own+pfilter+both")
     assert c.split == NeighbourSplit()
-    assert c.own_vehicle == OwnVehicleConfig() and c.perspective == PerspectiveConfig()
+    assert c.own_vehicle == OwnVehicleConfig()
     default_plausible = PipelineConfig().plausible
     assert c.plausible is not None and default_plausible is not None
     assert c.plausible.perspective and c.plausible.max_iou == default_plausible.max_iou
@@ -26,7 +26,7 @@ def test_settings_to_pipelines() -> None:
     assert ot.config_for("own") == PipelineConfig() and ot.config_for("noown").own_vehicle is None
     configs = [ot.config_for(o) for o in ot.OPTIONS if o not in ("split", "own")]
     assert all(c != PipelineConfig() for c in configs) and len(set(map(repr, configs))) == len(configs)
-    for bad in ("persp+nope", "small", "side", "persp+persp", "split+nosplit", "own+noown", ""):
+    for bad in ("pfilter+nope", "small", "side", "persp", "pfilter+pfilter", "split+nosplit", "own+noown", ""):
         with pytest.raises(ValueError):
             ot.parse_setting(bad)
     for s in ot.DEFAULT_SETTINGS:
@@ -73,16 +73,16 @@ def _score(f1: float) -> dict:
 
 def test_tables_and_resume(tmp_path: Path) -> None:
     cost = {"hog_cells": 100.0, "windows": 10.0, "score_macs": 1000.0}
-    persp = {"hog_cells": 140.0, "windows": 15.0, "score_macs": 1100.0}
-    results = {"cost": {"base": cost, "split": cost, "persp": persp},
+    dear = {"hog_cells": 140.0, "windows": 15.0, "score_macs": 1100.0}
+    results = {"cost": {"base": cost, "split": cost, "noown": dear},
                "in": {"base": {c: _score(0.5) for c in CLIPS}},
                "loo": {"base": {c: _score(0.95) for c in CLIPS}, "split": {c: _score(0.96) for c in CLIPS},
-                       "persp": {c: _score(0.99) for c in CLIPS}}}
-    text = ot.tables(results, ["base", "split", "persp"], CLIPS)
+                       "noown": {c: _score(0.99) for c in CLIPS}}}
+    text = ot.tables(results, ["base", "split", "noown"], CLIPS)
     lines = text.splitlines()
     assert lines[2].startswith("| base | (today) | 1.00x | 1.00x | 1.00x | 0.95 | 0.95 | 0.95 | - |")
     assert lines[3] == "| split | --split-neighbours | 1.00x | 1.00x | 1.00x | 0.96 | 0.96 | 0.96 | holds |"
-    assert lines[4] == "| persp | --perspective | 1.40x | 1.50x | 1.10x | 0.99 | 0.99 | 0.99 | hog_cells 1.40x |"
+    assert lines[4] == "| noown | --no-own-vehicle | 1.40x | 1.50x | 1.10x | 0.99 | 0.99 | 0.99 | hog_cells 1.40x |"
     assert "| base | 0.50 (0.50/0.50, 0.25); 1/2, -, 3/4 |" in text
     results["loo"]["split"] = {c: _score(0.95) for c in CLIPS}
     assert ot.tables(results, ["split"], CLIPS).splitlines()[2].endswith("| holds (no change) |")
