@@ -49,7 +49,7 @@ class AdaptConfig(Config):
     every: int = 5
     max_frames: int = 400
     holdout: float = 0.2
-    holdout_max: int = 600
+    holdout_max: int = 400
     weight: int = 4
     jitter: int = 2
     negatives_per_picture: int = 8
