@@ -223,16 +223,20 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
 
     aug = augmented_copies(crops.images, crops.labels, seed, truncate, truncate_negatives, reencode, jpeg_quality,
                            truncate_keep, photometric)
+    report: dict[str, Any] = {"C": C, "classifier": classifier, "seed": seed, "flip": flip, "window_top": top,
+                              "crop_size": crop_size,
+                              "augment": {"truncate": truncate, "truncate_negatives": truncate_negatives,
+                                          "truncate_keep": list(truncate_keep),
+                                          "reencode": reencode, "jpeg_quality": list(jpeg_quality),
+                                          **({"photometric": photometric} if photometric else {}),
+                                          "copies": len(aug)},
+                              "data": {"vehicles": n_pos, "non_vehicles": n_neg,
+                                       "hard_negatives": n_hard, "extra_positives": n_extra}}
+    if w_extra is not None:
+        report["extra_weight"] = extra_weight
     if split == "none" and refit:
         return _fit_once(crops, extra, w_extra, aug, config, flip, classifier, C, seed, progress, t0, log, dtype,
-                         report_base={
-            "C": C, "classifier": classifier, "seed": seed, "flip": flip, "window_top": top, "crop_size": crop_size,
-            "augment": {"truncate": truncate, "truncate_negatives": truncate_negatives,
-                        "truncate_keep": list(truncate_keep), "reencode": reencode,
-                        "jpeg_quality": list(jpeg_quality), **({"photometric": photometric} if photometric else {}),
-                        "copies": len(aug)},
-            "data": {"vehicles": n_pos, "non_vehicles": n_neg, "hard_negatives": n_hard, "extra_positives": n_extra},
-            **({"extra_weight": extra_weight} if w_extra is not None else {})})
+                         report_base=report)
 
     def feats(images: np.ndarray, desc: str = "features") -> np.ndarray:
         return features_in_chunks(images, config, progress, desc, out=np.empty((len(images), config.n_features),
@@ -252,17 +256,6 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
             f"{f', photometric {photometric:g}' if photometric else ''}) "
             f"({time.perf_counter() - t0:.1f} s)")
     log(f"features: {config.n_features} per crop ({time.perf_counter() - t0:.1f} s)")
-    report: dict[str, Any] = {"C": C, "classifier": classifier, "seed": seed, "flip": flip, "window_top": top,
-                              "crop_size": crop_size,
-                              "augment": {"truncate": truncate, "truncate_negatives": truncate_negatives,
-                                          "truncate_keep": list(truncate_keep),
-                                          "reencode": reencode, "jpeg_quality": list(jpeg_quality),
-                                          **({"photometric": photometric} if photometric else {}),
-                                          "copies": len(aug)},
-                              "data": {"vehicles": n_pos, "non_vehicles": n_neg,
-                                       "hard_negatives": n_hard, "extra_positives": n_extra}}
-    if w_extra is not None:
-        report["extra_weight"] = extra_weight
     splits = {"random": lambda: random_split(crops.labels, seed),
               "sequence": lambda: sequence_split(crops.groups, crops.order, seed)}
     for name in {"both": ("random", "sequence"), "none": ()}.get(split, (split,)):
