@@ -28,6 +28,7 @@ from fastdet.batch.task import PARTIAL_DIR, VideoTask, commit_outputs, run_video
 from fastdet.cli.main import main
 from fastdet.io.atomic import process_token
 from fastdet.io.motfiles import read_predictions
+from tests import processes
 from tests.media import cut
 
 FASTDET = [sys.executable, "-m", "fastdet"]
@@ -46,12 +47,7 @@ def batch_started(*args: str | Path) -> subprocess.Popen:
 
 
 def finished(p: subprocess.Popen, timeout: float = TIMEOUT) -> subprocess.CompletedProcess:
-    try:
-        out, err = p.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        p.kill()
-        raise
-    return subprocess.CompletedProcess(p.args, p.returncode, out, err)
+    return processes.finished(p, timeout)
 
 
 def manifest_lines(out: Path) -> list[dict]:

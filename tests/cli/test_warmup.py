@@ -7,6 +7,10 @@ import subprocess
 import sys
 
 from fastdet import _numba
+from tests.processes import finished
+
+#: seconds a warmup run may take
+TIMEOUT = 900
 
 
 def _start(*args: str) -> subprocess.Popen:
@@ -14,18 +18,8 @@ def _start(*args: str) -> subprocess.Popen:
                             stderr=subprocess.PIPE, text=True)
 
 
-def _done(p: subprocess.Popen) -> subprocess.CompletedProcess:
-    try:
-        out, err = p.communicate(timeout=900)
-    finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-    return subprocess.CompletedProcess(p.args, p.returncode, out, err)
-
-
 def _run(*args: str) -> subprocess.CompletedProcess:
-    return _done(_start(*args))
+    return finished(_start(*args), TIMEOUT)
 
 
 def test_warmup_then_profile():
@@ -34,10 +28,10 @@ def test_warmup_then_profile():
     n = len(_numba.tasks_of(_numba.all_kernels()))
     # the cache is complete now: the two runs that only load it run side by side
     again, profile = _start(), _start("--profile")
-    r = _done(again)
+    r = finished(again, TIMEOUT)
     assert r.returncode == 0, r.stderr
     assert f"all {n} kernel signatures already compiled" in r.stderr, r.stderr
-    r = _done(profile)
+    r = finished(profile, TIMEOUT)
     assert r.returncode == 0, r.stderr
     lines = [x for x in r.stdout.splitlines()[1:] if x.strip()]
     assert len(lines) == n and all("[loaded from the cache]" in x for x in lines), r.stdout

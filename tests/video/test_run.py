@@ -15,6 +15,7 @@ import fastdet
 from fastdet import Detections, VideoDetector, detect_video
 from fastdet.io.motfiles import MotWriter
 from fastdet.video.horizon import HORIZON_FRAMES
+from tests.processes import finished
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -32,13 +33,8 @@ def _cli_boxes(clip: Path, out: Path) -> subprocess.Popen:
 
 
 def _cli_done(p: subprocess.Popen, out: Path) -> bytes:
-    try:
-        _, err = p.communicate(timeout=600)
-    finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-    assert p.returncode == 0, err
+    r = finished(p, 600)
+    assert r.returncode == 0, r.stderr
     return out.read_bytes()
 
 
