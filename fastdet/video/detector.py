@@ -57,9 +57,7 @@ class MovableHorizon(Protocol):
 @runtime_checkable
 class ColumnSearch(Protocol):
     """A detector that scores only some windows of its main bands: ``column_search`` is
-    ``True``, ``detect`` takes ``columns`` (one entry per band of ``geometries(shape, 0)``, or
-    of ``main_geometries(shape)`` when it has that method -- the main model's and its
-    components' bands:
+    ``True``, ``detect`` takes ``columns`` (one entry per band of ``geometries(shape, 0)``:
     ``None`` for all, else window-column ranges ``(j0, j1)``) and ``config`` is the main
     model's :class:`~fastdet.config.FeatureConfig` (window and cell size)."""
 
@@ -68,18 +66,6 @@ class ColumnSearch(Protocol):
     def detect(self, frame: np.ndarray, rgb: bool = False, oncoming_bands: Sequence[SearchBand] | None = None,
                stats: DetectStats | None = None,
                columns: Sequence[Sequence[tuple[int, int]] | None] | None = None) -> Detections: ...
-
-
-@runtime_checkable
-class ComponentBands(Protocol):
-    """A detector with components (:class:`fastdet.Detector` ``components=``) whose bands the
-    guided search plans with the main model's: ``main_geometries(shape)`` gives ``(part,
-    geometry)`` of every such band in the order ``detect``'s ``columns`` refer to them, and
-    ``window_width(part)`` each model's window width."""
-
-    def main_geometries(self, frame_shape: tuple[int, int]) -> list[tuple[int, BandGeometry]]: ...
-
-    def window_width(self, part: int = 0) -> int: ...
 
 
 @runtime_checkable

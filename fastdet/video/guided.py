@@ -67,14 +67,11 @@ class SearchPlanner:
         self._shape: tuple[int, int] | None = None
         self.full_scans = 0
 
-    def plan(self, geos: Sequence[BandGeometry], win_w: int | Sequence[int], cell: int,
+    def plan(self, geos: Sequence[BandGeometry], win_w: int, cell: int,
              shape: tuple[int, int]) -> list[list[tuple[int, int]]] | None:
         """Window-column ranges of each band for the next frame (``None``: all); ``win_w``
-        and ``cell``: the window width (one for all bands, or one per band: the main model's
-        and the components') and cell size (scaled-band pixels); ``shape``: the frame's ``(H, W)``."""
-        widths = [int(win_w)] * len(geos) if isinstance(win_w, int) else [int(w) for w in win_w]
-        if len(widths) != len(geos):
-            raise ValueError(f"win_w: {len(widths)} widths for {len(geos)} bands")
+        and ``cell``: the window width and cell size (scaled-band pixels); ``shape``: the
+        frame's ``(H, W)``."""
         c = self.config
         n = self._n
         self._n += 1
@@ -90,7 +87,7 @@ class SearchPlanner:
         self._since_full += 1
         strip = (n % c.every) * width / c.every, (n % c.every + 1) * width / c.every
         plan = []
-        for geo, win_w in zip(geos, widths):
+        for geo in geos:
             s = geo.band.scale
             ps, ws = geo.step * cell * s, win_w * s
 

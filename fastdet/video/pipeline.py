@@ -92,6 +92,9 @@ class VideoDetector:
                             f"oncoming_model (a WindowDetector), got {type(detector).__name__}")
         if config is not None and not isinstance(config, PipelineConfig):
             raise TypeError(f"config must be a PipelineConfig, got {type(config).__name__}")
+        if detector is not None and getattr(detector, "components", None):
+            raise ValueError("the video pipeline runs the main model and the oncoming model only: its heat map "
+                             "would drop the windows of a Detector's components=; pass a Detector without them")
         self.config = config if config is not None else PipelineConfig()
         self._detector = detector
         self.fps = fps

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..config import MotionGate
 from ..detect import DetectStats
-from .detector import ColumnSearch, ComponentBands, MovableHorizon, WindowDetector
+from .detector import ColumnSearch, MovableHorizon, WindowDetector
 from .guided import SearchPlanner
 from .horizon import HORIZON_FRAMES, TOLERANCE, HorizonEstimator, search_horizon
 from .motion import FrameMotion, moving_bands, window_motion
@@ -82,13 +82,8 @@ class PlanStage(Stage):
 
     def __call__(self, s: FrameState) -> FrameState:
         det, cfg = self.detector, self.detector.config  # type: ignore[attr-defined]
-        if isinstance(det, ComponentBands):  # the main model's and its components' bands
-            geos = det.main_geometries(s.shape)
-            widths = [det.window_width(p) for p, _ in geos]
-            s.columns = self.planner.plan([g for _, g in geos], widths, cfg.pixels_per_cell, s.shape)
-        else:
-            s.columns = self.planner.plan(det.geometries(s.shape, 0), cfg.win_w, cfg.pixels_per_cell,  # type: ignore[attr-defined]
-                                          s.shape)
+        s.columns = self.planner.plan(det.geometries(s.shape, 0), cfg.win_w, cfg.pixels_per_cell,  # type: ignore[attr-defined]
+                                      s.shape)
         return s
 
     def reset(self) -> None:

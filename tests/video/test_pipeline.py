@@ -292,6 +292,18 @@ def test_make_detector_oncoming_choices():
         make_detector(PipelineConfig(oncoming=DEFAULT_MODEL_PATH))
 
 
+def test_a_detector_with_components_is_refused():
+    """The heat map takes the main model's windows only, so a Detector's components would be
+    searched and then dropped: VideoDetector says so instead."""
+    from fastdet.config import SearchBand, SearchConfig
+    from fastdet.detect import Detector
+
+    comp = Detector(components=[(None, SearchConfig(bands=(SearchBand(1.0, 380, 480),)))])
+    with pytest.raises(ValueError, match="components"):
+        VideoDetector(comp)
+    VideoDetector(Detector())  # without components: fine
+
+
 # ------------------------------------------------------------------------- the real detector
 
 
