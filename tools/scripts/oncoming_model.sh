@@ -11,7 +11,9 @@
 #   left half of the test images outside every annotated box.
 # Usage (from the repository root): bash tools/scripts/oncoming_model.sh [WORK_DIR] [OUT.npz]
 # ONCOMING_TRAIN_ARGS (environment): extra options of every `fastdet train` here, e.g.
-# "--reencode 0.5" (they replace nothing: a later --C wins over the one below).
+# "--reencode 0.5" (they replace nothing: a later --C wins over the one below). Not
+# --classifier: mine-negatives searches the wide model beside the bundled main model, and
+# refuses one whose kind of score differs ("train both with the same --classifier").
 # ONCOMING_ZOOM_ARGS (environment): extra options of zoom_negatives, e.g. "--limit 50" (the
 # smoke test runs the whole script on a few crops that way).
 set -euo pipefail
