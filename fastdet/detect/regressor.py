@@ -202,14 +202,16 @@ def regions_crops(frame: np.ndarray, boxes: np.ndarray, contexts: tuple[float, .
         rows.flags.writeable = False  # one signature, whatever the caller's array
         cost = (geo[fast, 1] - geo[fast, 0]) * (geo[fast, 3] - geo[fast, 2])
         parts = 1 if 3 * int(cost.sum()) < _PARALLEL_MIN_SAMPLES else max(1, min(numba.get_num_threads(), len(fast)))
-        # largest first, each to the least loaded thread
-        shares: list[list[int]] = [[] for _ in range(parts)]
-        loads = [0] * parts
-        for t in np.argsort(-cost, kind="stable"):
-            p = loads.index(min(loads))
-            shares[p].append(fast[t])
-            loads[p] += int(cost[t])
-        orders = [np.array(sorted(s), np.int64) for s in shares]
+        if parts == 1:
+            orders = [np.array(fast, np.int64)]
+        else:  # largest first, each to the least loaded thread
+            shares: list[list[int]] = [[] for _ in range(parts)]
+            loads = [0] * parts
+            for t in np.argsort(-cost, kind="stable"):
+                p = loads.index(min(loads))
+                shares[p].append(fast[t])
+                loads[p] += int(cost[t])
+            orders = [np.array(sorted(s), np.int64) for s in shares]
 
         def run(lo: int, hi: int) -> None:
             for p in range(lo, hi):
