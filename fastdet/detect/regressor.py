@@ -110,9 +110,9 @@ def decode_offsets(boxes: np.ndarray, offsets: np.ndarray) -> np.ndarray:
 # ---------------------------------------------------------------------------------------- features
 
 
-#: below this many region pixel-channels the crops are made on one thread (waking a thread
-#: costs more than it saves; as the HOG kernels' threshold)
-_PARALLEL_MIN_SAMPLES = 32_768
+#: below this many region pixel-channels the crops are made on one thread: waking a second one
+#: costs more than it saves on a loaded machine (about 0.7 ms of work; a video frame's few boxes)
+_PARALLEL_MIN_SAMPLES = 1_000_000
 
 
 def _region(H: int, W: int, box: np.ndarray, context: float) -> tuple[int, ...]:
