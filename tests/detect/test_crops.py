@@ -65,7 +65,7 @@ def _geometry(rng: np.random.Generator, h: int, w: int, sh: int, sw: int) -> tup
 
 def _general_path(sh: int, sw: int, dh: int, dw: int) -> bool:
     """OpenCV's general INTER_AREA path: shrinking, the scales not both whole numbers."""
-    return regressor._area_scales((sh, sw), (dh, dw)) is not None
+    return bool(regressor._area_scales(np.array([[sh, sw]]), (dh, dw))[1][0])
 
 
 @settings(max_examples=60, deadline=None)
@@ -107,18 +107,19 @@ def test_scales_that_are_whole_numbers_go_to_opencv():
     flat[0, :, 1] = 116
     flat[1, :, 1] = 117  # the mean is 116.5
     assert cv2.resize(flat, (1, 1), interpolation=cv2.INTER_AREA)[0, 0, 1] != ref_area_resize(flat, (1, 1))[0, 0, 1]
-    assert regressor._area_scales((128, 192), (64, 64)) is None  # OpenCV's integer path
-    assert regressor._area_scales((64, 64), (64, 64)) is None  # a copy
-    assert regressor._area_scales((63, 200), (64, 64)) is None  # enlarging: INTER_LINEAR
-    assert regressor._area_scales((64, 100), (64, 64)) == (100 / 64, 1.0)
+    scales, general = regressor._area_scales(np.array([[128, 192], [64, 64], [63, 200], [64, 100]]), (64, 64))
+    # OpenCV's integer path; a copy; enlarging (INTER_LINEAR); the general path
+    assert general.tolist() == [False, False, False, True]
+    assert scales[3].tolist() == [100 / 64, 1.0]
 
 
-_coord = st.floats(-400, 1000, allow_nan=False)
+_size = st.one_of(st.floats(0, 900), st.floats(0, 1e12))
+_coord = st.one_of(st.floats(-400, 1000, allow_nan=False), st.floats(-1e12, 1e12, allow_nan=False))
 
 
 @settings(max_examples=80, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), h=st.integers(1, 200), w=st.integers(1, 300),
-       boxes=st.lists(st.tuples(_coord, _coord, st.floats(0, 900), st.floats(0, 900)), min_size=0, max_size=12),
+       boxes=st.lists(st.tuples(_coord, _coord, _size, _size), min_size=0, max_size=12),
        context=st.sampled_from([0.5, 1.0, 1.5, 2.0, 3.7]), size=st.sampled_from([(64, 64), (16, 24)]))
 def test_region_crops_are_the_references(seed, h, w, boxes, context, size):
     rng = np.random.default_rng(seed)
@@ -150,6 +151,8 @@ def test_region_crops_of_many_boxes_at_one_and_two_threads(threads):
 
 
 def test_bad_arguments():
+    with pytest.raises(ValueError, match="finite"):
+        region_crops(np.zeros((10, 10, 3), np.uint8), np.array([[0, 0, np.nan, 5]]), 1.0, (8, 8))
     with pytest.raises(ValueError, match="uint8"):
         region_crops(np.zeros((10, 10), np.uint8), np.array([[0, 0, 5, 5]]), 1.0, (8, 8))
     with pytest.raises(ValueError, match="positive"):
