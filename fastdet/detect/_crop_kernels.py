@@ -1,7 +1,7 @@
 """Numba kernel: the box regressor's and the verifier's context crops, shrunk to the feature
 window with exactly OpenCV's ``INTER_AREA`` arithmetic, straight from the frame.
 
-Call it through :func:`fastdet.detect.regressor.region_crops`, which picks the crops this
+Call it through :func:`fastdet.detect.regressor.regions_crops`, which picks the crops this
 kernel makes (a region at least the window's size in both directions whose two scales are
 not both whole numbers: OpenCV's general area path) and checks the arguments; the others
 (enlarged, or shrunk by whole numbers) it leaves to ``cv2.resize``.

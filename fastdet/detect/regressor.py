@@ -166,7 +166,7 @@ def _area_scales(src: np.ndarray, dst: tuple[int, int]) -> tuple[np.ndarray, np.
 
 
 def _cv2_crop(frame: np.ndarray, g: tuple[int, ...], size: tuple[int, int]) -> np.ndarray:
-    """One region of :func:`_region` geometry ``g`` resized to ``size = (h, w)`` by
+    """One region of :func:`_regions` geometry ``g`` resized to ``size = (h, w)`` by
     ``cv2.resize`` (``INTER_AREA`` shrinking, ``INTER_LINEAR`` else; the border replicated)."""
     y0, y1, x0, x1, ylo, yhi, xlo, xhi = g
     oh, ow = size
