@@ -115,58 +115,46 @@ def decode_offsets(boxes: np.ndarray, offsets: np.ndarray) -> np.ndarray:
 _PARALLEL_MIN_SAMPLES = 1_000_000
 
 
-def _regions(H: int, W: int, boxes: np.ndarray, context: float) -> np.ndarray:
-    """The pixels of the regions of ``context x`` the ``boxes (N, 4)`` (x1, y1, x2, y2 float64)
-    width and height about their centres, in a frame of ``H x W``: ``(N, 8) int64``, each
-    region's rows ``y0 <= y < y1`` and columns ``x0 <= x < x1`` (may run past the frame), then
-    the part inside the frame that the region repeats at its border, ``ylo, yhi, xlo, xhi``
-    (inclusive). A region stays within one frame of padding either side (a box far outside is
-    junk anyway); one wholly outside the frame spans the border pixel nearest to it.
-    ``ValueError`` for a box that is not finite."""
-    b = np.asarray(boxes, np.float64).reshape(-1, 4)
-    if not np.isfinite(b).all():
-        raise ValueError("boxes must be finite numbers")
-    x1, y1, x2, y2 = b.T
+def _region(H: int, W: int, box: np.ndarray, context: float) -> tuple[int, ...]:
+    """The pixels of the region of ``context x`` the ``box``'s (x1, y1, x2, y2) width and
+    height about its centre, in a frame of ``H x W``: its rows ``y0 <= y < y1`` and columns
+    ``x0 <= x < x1`` (may run past the frame), then the part inside the frame that the region
+    repeats at its border, ``ylo, yhi, xlo, xhi`` (inclusive):
+    ``(y0, y1, x0, x1, ylo, yhi, xlo, xhi)``."""
+    x1, y1, x2, y2 = (float(v) for v in box)
     cx, cy = 0.5 * (x1 + x2), 0.5 * (y1 + y2)
-    hw, hh = 0.5 * context * np.maximum(x2 - x1, 1.0), 0.5 * context * np.maximum(y2 - y1, 1.0)
-
-    def whole(v: np.ndarray, n: int) -> np.ndarray:
-        # far past the frame every value gives the same region (the clamps below): no overflow
-        return np.clip(v, -2 * n - 2, 4 * n + 2).astype(np.int64)
-
-    a, c = whole(np.floor(cx - hw), W), whole(np.ceil(cx + hw), W)
-    r, d = whole(np.floor(cy - hh), H), whole(np.ceil(cy + hh), H)
-    a = np.maximum(a, -W)
-    c = np.minimum(np.maximum(c, a + 1), 2 * W)
-    r = np.maximum(r, -H)
-    d = np.minimum(np.maximum(d, r + 1), 2 * H)
-    ia, ic, ir, id_ = np.maximum(a, 0), np.minimum(c, W), np.maximum(r, 0), np.minimum(d, H)
-    out = (ic <= ia) | (id_ <= ir)  # wholly outside: the nearest border pixel
-    ia = np.where(out, np.clip(ia, 0, W - 1), ia)
-    ic = np.where(out, ia + 1, ic)
-    ir = np.where(out, np.clip(ir, 0, H - 1), ir)
-    id_ = np.where(out, ir + 1, id_)
-    # the part inside the frame padded by what lies outside it
-    return np.stack([np.minimum(r, ir), np.maximum(d, id_), np.minimum(a, ia), np.maximum(c, ic),
-                     ir, id_ - 1, ia, ic - 1], axis=1).astype(np.int64)
+    hw, hh = 0.5 * context * max(x2 - x1, 1.0), 0.5 * context * max(y2 - y1, 1.0)
+    a, c = int(math.floor(cx - hw)), int(math.ceil(cx + hw))
+    r, d = int(math.floor(cy - hh)), int(math.ceil(cy + hh))
+    # stay within one frame of padding either side (a box far outside is junk anyway)
+    a, c = max(a, -W), min(max(c, a + 1), 2 * W)
+    r, d = max(r, -H), min(max(d, r + 1), 2 * H)
+    ia, ic, ir, id_ = max(a, 0), min(c, W), max(r, 0), min(d, H)
+    if ic <= ia or id_ <= ir:  # wholly outside: the nearest border pixel
+        ia, ic = min(max(ia, 0), W - 1), min(max(ia, 0), W - 1) + 1
+        ir, id_ = min(max(ir, 0), H - 1), min(max(ir, 0), H - 1) + 1
+    # the part inside the frame padded by what lies outside it (a region wholly outside also
+    # spans the border pixel it repeats)
+    return min(r, ir), max(d, id_), min(a, ia), max(c, ic), ir, id_ - 1, ia, ic - 1
 
 
-def _area_scales(src: np.ndarray, dst: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-    """OpenCV's source pixels per output pixel ``(N, 2) float64`` (x, y) of ``INTER_AREA``
-    resizes of regions of ``src (N, 2)`` (height, width) to ``dst = (h, w)``, and whether each
-    takes OpenCV's general path (:mod:`._crop_kernels`) ``(N,) bool``: the region at least
-    ``dst`` in both directions and the scales not both whole numbers (OpenCV's test, on its
-    doubles: ``cv::resize`` takes ``inv_scale = dst / src``, ``hal::resize`` ``1 / inv_scale``)."""
-    sh, sw = np.asarray(src, np.float64).reshape(-1, 2).T
-    dh, dw = (float(v) for v in dst)
-    sx, sy = 1.0 / (dw / sw), 1.0 / (dh / sh)
+def _area_scales(src: tuple[int, int], dst: tuple[int, int]) -> tuple[float, float] | None:
+    """OpenCV's source pixels per output pixel ``(x, y)`` of an ``INTER_AREA`` resize of
+    ``src = (h, w)`` to ``dst = (h, w)`` when it takes its general path (:mod:`._crop_kernels`):
+    the region at least ``dst`` in both directions, the scales not both whole numbers (OpenCV's
+    test, on its doubles); else ``None``."""
+    (sh, sw), (dh, dw) = src, dst
+    if sh < dh or sw < dw:
+        return None
+    sx, sy = 1.0 / (dw / sw), 1.0 / (dh / sh)  # cv::resize: inv_scale = dst / src; hal::resize: 1 / inv_scale
     eps = float(np.finfo(np.float64).eps)
-    whole = (np.abs(sx - np.round(sx)) < eps) & (np.abs(sy - np.round(sy)) < eps)  # resizeAreaFast: cv2's
-    return np.stack([sx, sy], axis=1), (sh >= dh) & (sw >= dw) & ~whole
+    if abs(sx - round(sx)) < eps and abs(sy - round(sy)) < eps:
+        return None  # OpenCV's integer-scale path (resizeAreaFast): left to cv2.resize
+    return sx, sy
 
 
 def _cv2_crop(frame: np.ndarray, g: tuple[int, ...], size: tuple[int, int]) -> np.ndarray:
-    """One region of :func:`_regions` geometry ``g`` resized to ``size = (h, w)`` by
+    """One region of :func:`_region` geometry ``g`` resized to ``size = (h, w)`` by
     ``cv2.resize`` (``INTER_AREA`` shrinking, ``INTER_LINEAR`` else; the border replicated)."""
     y0, y1, x0, x1, ylo, yhi, xlo, xhi = g
     oh, ow = size
@@ -186,6 +174,8 @@ def regions_crops(frame: np.ndarray, boxes: np.ndarray, contexts: tuple[float, .
     frame), spread over Numba's thread count of threads, largest first; the others (enlarged,
     or shrunk by whole numbers) from ``cv2.resize``."""
     b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    if not np.isfinite(b).all():
+        raise ValueError("boxes must be finite numbers")
     frame = np.ascontiguousarray(frame)
     if frame.ndim != 3 or frame.shape[2] != 3 or frame.dtype != np.uint8:
         raise ValueError(f"frame must be an (H, W, 3) uint8 array, got {frame.dtype} {frame.shape}")
@@ -195,12 +185,22 @@ def regions_crops(frame: np.ndarray, boxes: np.ndarray, contexts: tuple[float, .
         raise ValueError(f"size must be positive, got {size!r}")
     n = len(b)
     out = np.empty((len(contexts) * n, oh, ow, 3), np.uint8)
-    geo = np.concatenate([_regions(H, W, b, float(c)) for c in contexts]) if n else np.zeros((0, 8), np.int64)
-    scales, general = _area_scales(np.stack([geo[:, 1] - geo[:, 0], geo[:, 3] - geo[:, 2]], axis=1), (oh, ow))
-    scales = np.ascontiguousarray(scales)
-    for j in np.flatnonzero(~general):
-        out[j] = _cv2_crop(frame, tuple(int(v) for v in geo[j]), (oh, ow))
-    fast = [int(j) for j in np.flatnonzero(general)]
+    geo = np.empty((len(out), 8), np.int64)
+    scales = np.zeros((len(out), 2), np.float64)
+    fast = []
+    # box by box in Python: for a video frame's one or two boxes this costs less than the same
+    # integer arithmetic in NumPy on tiny arrays (~0.3 ms a call)
+    for k, context in enumerate(contexts):
+        for i in range(n):
+            j = k * n + i
+            g = _region(H, W, b[i], float(context))
+            geo[j] = g
+            sc = _area_scales((g[1] - g[0], g[3] - g[2]), (oh, ow))
+            if sc is None:
+                out[j] = _cv2_crop(frame, g, (oh, ow))
+            else:
+                scales[j] = sc
+                fast.append(j)
     if fast:
         rows = frame.reshape(H, W * 3)
         rows.flags.writeable = False  # one signature, whatever the caller's array

@@ -65,7 +65,7 @@ def _geometry(rng: np.random.Generator, h: int, w: int, sh: int, sw: int) -> tup
 
 def _general_path(sh: int, sw: int, dh: int, dw: int) -> bool:
     """OpenCV's general INTER_AREA path: shrinking, the scales not both whole numbers."""
-    return bool(regressor._area_scales(np.array([[sh, sw]]), (dh, dw))[1][0])
+    return regressor._area_scales((sh, sw), (dh, dw)) is not None
 
 
 @settings(max_examples=60, deadline=None)
@@ -107,10 +107,10 @@ def test_scales_that_are_whole_numbers_go_to_opencv():
     flat[0, :, 1] = 116
     flat[1, :, 1] = 117  # the mean is 116.5
     assert cv2.resize(flat, (1, 1), interpolation=cv2.INTER_AREA)[0, 0, 1] != ref_area_resize(flat, (1, 1))[0, 0, 1]
-    scales, general = regressor._area_scales(np.array([[128, 192], [64, 64], [63, 200], [64, 100]]), (64, 64))
-    # OpenCV's integer path; a copy; enlarging (INTER_LINEAR); the general path
-    assert general.tolist() == [False, False, False, True]
-    assert scales[3].tolist() == [100 / 64, 1.0]
+    assert regressor._area_scales((128, 192), (64, 64)) is None  # OpenCV's integer path
+    assert regressor._area_scales((64, 64), (64, 64)) is None  # a copy
+    assert regressor._area_scales((63, 200), (64, 64)) is None  # enlarging: INTER_LINEAR
+    assert regressor._area_scales((64, 100), (64, 64)) == (100 / 64, 1.0)
 
 
 _size = st.one_of(st.floats(0, 900), st.floats(0, 1e12))
