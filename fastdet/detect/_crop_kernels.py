@@ -19,7 +19,9 @@ into memory one row at a time (a chain of dependent loads, adds and stores); eac
 reduced once, where OpenCV reduces a row shared by two output rows twice. About 2x faster on the
 picture search's crops (docs/benchmarks.md). It reads the frame directly: pixels of the region
 outside its clamp rectangle repeat its border (``cv2.BORDER_REPLICATE`` of the region's part
-inside the frame), so no padded copy is made.
+inside the frame), so no padded copy is made. (Written against OpenCV 4.x's code; another
+OpenCV that changed its arithmetic would show in ``tests/detect/test_crops.py``, which compares
+with the installed ``cv2.resize``.)
 """
 from __future__ import annotations
 
