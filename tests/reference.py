@@ -15,7 +15,10 @@ definition itself; nothing here imports fastdet's kernels. Sections:
   histograms with ``np.histogram``, ``StandardScaler.transform``, ``decision_function``);
 - heat map: one full-resolution float map per frame, summed with age weights; blobs by a
   breadth-first flood fill;
-- motion: the mean absolute grey-level difference of each window's pixels.
+- motion: the mean absolute grey-level difference of each window's pixels;
+- box regions: the box regressor's context crops and features one box at a time with
+  ``cv2.copyMakeBorder`` and ``cv2.resize``, and OpenCV's general INTER_AREA shrink one float32
+  operation at a time.
 """
 from __future__ import annotations
 
@@ -464,3 +467,99 @@ def ref_vanishing_score(segments: np.ndarray, shape: tuple[int, int], tolerance_
                     score += length
             best = max(best, score)
     return best
+
+
+# ========================================================================== box regions
+def ref_region_crops(frame: np.ndarray, boxes: np.ndarray, context: float, size: tuple[int, int]) -> np.ndarray:
+    """The box regressor's context crops as they were first written (one box at a time): the
+    region of ``context x`` each box's width and height about its centre, its part outside the
+    frame by ``cv2.copyMakeBorder`` (BORDER_REPLICATE), then ``cv2.resize`` to ``size = (h, w)``
+    (INTER_AREA shrinking, INTER_LINEAR else): ``(N, h, w, 3) uint8``."""
+    b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    H, W = frame.shape[:2]
+    oh, ow = size
+    out = np.empty((len(b), oh, ow, 3), np.uint8)
+    for i, (x1, y1, x2, y2) in enumerate(b):
+        cx, cy = 0.5 * (x1 + x2), 0.5 * (y1 + y2)
+        hw, hh = 0.5 * context * max(x2 - x1, 1.0), 0.5 * context * max(y2 - y1, 1.0)
+        a, c = int(math.floor(cx - hw)), int(math.ceil(cx + hw))
+        r, d = int(math.floor(cy - hh)), int(math.ceil(cy + hh))
+        a, c = max(a, -W), min(max(c, a + 1), 2 * W)
+        r, d = max(r, -H), min(max(d, r + 1), 2 * H)
+        ia, ic, ir, id_ = max(a, 0), min(c, W), max(r, 0), min(d, H)
+        if ic <= ia or id_ <= ir:
+            ia, ic = min(max(ia, 0), W - 1), min(max(ia, 0), W - 1) + 1
+            ir, id_ = min(max(ir, 0), H - 1), min(max(ir, 0), H - 1) + 1
+        reg = frame[ir:id_, ia:ic]
+        pads = (ir - r, d - id_, ia - a, c - ic)
+        if any(p > 0 for p in pads):
+            reg = cv2.copyMakeBorder(reg, *(max(p, 0) for p in pads), cv2.BORDER_REPLICATE)
+        interp = cv2.INTER_AREA if reg.shape[0] >= oh and reg.shape[1] >= ow else cv2.INTER_LINEAR
+        out[i] = cv2.resize(reg, (ow, oh), interpolation=interp)
+    return out
+
+
+def ref_box_features(frame: np.ndarray, boxes: np.ndarray, config: FeatureConfig, contexts: tuple[float, ...],
+                     size_inputs: tuple[str, ...] = (), size_boxes: np.ndarray | None = None) -> np.ndarray:
+    """``fastdet.detect.regressor.box_features`` as first written: each context's
+    :func:`ref_region_crops` described by ``extract_features`` on its own, then the size inputs."""
+    from fastdet.detect.regressor import size_features
+    from fastdet.features import extract_features
+
+    n = len(np.asarray(boxes).reshape(-1, 4))
+    if n == 0:
+        return np.zeros((0, len(contexts) * config.n_features + len(size_inputs)), np.float64)
+    parts = [extract_features(ref_region_crops(frame, boxes, c, (config.win_h, config.win_w)), config)
+             for c in contexts]
+    if size_inputs:
+        sb = boxes if size_boxes is None else np.asarray(size_boxes, np.float64).reshape(-1, 4)
+        parts.append(size_features(frame.shape, sb, size_inputs))
+    return np.concatenate(parts, axis=1)
+
+
+def _area_tab(ssize: int, dsize: int, scale: float) -> list[tuple[int, int, np.float32]]:
+    """OpenCV's ``computeResizeAreaTab`` (imgproc/resize.cpp) for one axis: ``(d, s, alpha)``
+    entries, output ``d`` takes source ``s`` with weight ``alpha`` (float32)."""
+    tab = []
+    for d in range(dsize):
+        fs1 = d * scale
+        fs2 = fs1 + scale
+        cell = min(scale, ssize - fs1)
+        s1, s2 = math.ceil(fs1), math.floor(fs2)
+        s2 = min(s2, ssize - 1)
+        s1 = min(s1, s2)
+        if s1 - fs1 > 1e-3:
+            tab.append((d, s1 - 1, np.float32((s1 - fs1) / cell)))
+        for s in range(s1, s2):
+            tab.append((d, s, np.float32(1.0 / cell)))
+        if fs2 - s2 > 1e-3:
+            tab.append((d, s2, np.float32(min(min(fs2 - s2, 1.0), cell) / cell)))
+    return tab
+
+
+def ref_area_resize(src: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """OpenCV's general ``INTER_AREA`` shrink (``ResizeArea_Invoker``) of ``src (h, w, C) uint8``
+    to ``size = (h, w)``, one float32 operation at a time in OpenCV's order: each source row
+    reduced along x into ``buf``, the rows' ``beta * buf`` summed per output row, rounded half
+    to even and saturated. (What ``cv2.resize(src, (w, h), interpolation=cv2.INTER_AREA)``
+    computes when the scales are at least 1 and not both whole numbers.)"""
+    sh, sw, cn = src.shape
+    dh, dw = size
+    xtab = _area_tab(sw, dw, 1.0 / (dw / sw))
+    ytab = _area_tab(sh, dh, 1.0 / (dh / sh))
+    out = np.zeros((dh, dw, cn), np.uint8)
+    acc = np.zeros((dw, cn), np.float32)
+    prev = ytab[0][0]
+    for dy, sy, beta in ytab:
+        buf = np.zeros((dw, cn), np.float32)
+        for dx, sx, alpha in xtab:
+            for c in range(cn):
+                buf[dx, c] = np.float32(buf[dx, c] + np.float32(np.float32(src[sy, sx, c]) * alpha))
+        if dy != prev:
+            out[prev] = np.clip(np.rint(acc), 0, 255).astype(np.uint8)
+            acc = (beta * buf).astype(np.float32)
+            prev = dy
+        else:
+            acc = (acc + beta * buf).astype(np.float32)
+    out[prev] = np.clip(np.rint(acc), 0, 255).astype(np.uint8)
+    return out

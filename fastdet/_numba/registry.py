@@ -14,6 +14,7 @@ import numba
 KERNEL_MODULES = (
     "fastdet.features._hog_kernels",
     "fastdet.features._window_kernels",
+    "fastdet.detect._crop_kernels",
     "fastdet.detect._score_kernels",
     "fastdet.video._heat_kernels",
     "fastdet.video._label_kernels",

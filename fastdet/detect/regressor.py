@@ -55,8 +55,10 @@ from pathlib import Path
 from typing import Any
 
 import cv2
+import numba
 import numpy as np
 
+from .._numba import split_range
 from .._version import __version__
 from ..config import REFERENCE_SHAPE, FeatureConfig
 from ..config.models import REFINE_MODEL_PATH
@@ -64,8 +66,10 @@ from ..errors import ModelError
 from ..features import extract_features
 from ..features.window import KERNELS as FEATURE_KERNELS
 from ..model import read_npz, write_npz
+from ._crop_kernels import area_crops
 
-KERNELS = FEATURE_KERNELS
+#: the numba kernels of :func:`box_features` (compiled ahead of time: fastdet._numba.ensure_compiled)
+KERNELS = (*FEATURE_KERNELS, area_crops)
 
 FORMAT_VERSION = 1
 _ARRAYS = ("coef", "intercept", "mean", "scale", "metadata")
@@ -106,34 +110,128 @@ def decode_offsets(boxes: np.ndarray, offsets: np.ndarray) -> np.ndarray:
 # ---------------------------------------------------------------------------------------- features
 
 
+#: below this many region pixel-channels the crops are made on one thread: waking a second one
+#: costs more than it saves on a loaded machine (about 0.7 ms of work; a video frame's few boxes)
+_PARALLEL_MIN_SAMPLES = 1_000_000
+
+
+def _region(H: int, W: int, box: np.ndarray, context: float) -> tuple[int, ...]:
+    """The pixels of the region of ``context x`` the ``box``'s (x1, y1, x2, y2) width and
+    height about its centre, in a frame of ``H x W``: its rows ``y0 <= y < y1`` and columns
+    ``x0 <= x < x1`` (may run past the frame), then the part inside the frame that the region
+    repeats at its border, ``ylo, yhi, xlo, xhi`` (inclusive):
+    ``(y0, y1, x0, x1, ylo, yhi, xlo, xhi)``."""
+    x1, y1, x2, y2 = (float(v) for v in box)
+    cx, cy = 0.5 * (x1 + x2), 0.5 * (y1 + y2)
+    hw, hh = 0.5 * context * max(x2 - x1, 1.0), 0.5 * context * max(y2 - y1, 1.0)
+    a, c = int(math.floor(cx - hw)), int(math.ceil(cx + hw))
+    r, d = int(math.floor(cy - hh)), int(math.ceil(cy + hh))
+    # stay within one frame of padding either side (a box far outside is junk anyway)
+    a, c = max(a, -W), min(max(c, a + 1), 2 * W)
+    r, d = max(r, -H), min(max(d, r + 1), 2 * H)
+    ia, ic, ir, id_ = max(a, 0), min(c, W), max(r, 0), min(d, H)
+    if ic <= ia or id_ <= ir:  # wholly outside: the nearest border pixel
+        ia, ic = min(max(ia, 0), W - 1), min(max(ia, 0), W - 1) + 1
+        ir, id_ = min(max(ir, 0), H - 1), min(max(ir, 0), H - 1) + 1
+    # the part inside the frame padded by what lies outside it (a region wholly outside also
+    # spans the border pixel it repeats)
+    return min(r, ir), max(d, id_), min(a, ia), max(c, ic), ir, id_ - 1, ia, ic - 1
+
+
+def _area_scales(src: tuple[int, int], dst: tuple[int, int]) -> tuple[float, float] | None:
+    """OpenCV's source pixels per output pixel ``(x, y)`` of an ``INTER_AREA`` resize of
+    ``src = (h, w)`` to ``dst = (h, w)`` when it takes its general path (:mod:`._crop_kernels`):
+    the region at least ``dst`` in both directions, the scales not both whole numbers (OpenCV's
+    test, on its doubles); else ``None``."""
+    (sh, sw), (dh, dw) = src, dst
+    if sh < dh or sw < dw:
+        return None
+    sx, sy = 1.0 / (dw / sw), 1.0 / (dh / sh)  # cv::resize: inv_scale = dst / src; hal::resize: 1 / inv_scale
+    eps = float(np.finfo(np.float64).eps)
+    if abs(sx - round(sx)) < eps and abs(sy - round(sy)) < eps:
+        return None  # OpenCV's integer-scale path (resizeAreaFast): left to cv2.resize
+    return sx, sy
+
+
+def _cv2_crop(frame: np.ndarray, g: tuple[int, ...], size: tuple[int, int]) -> np.ndarray:
+    """One region of :func:`_region` geometry ``g`` resized to ``size = (h, w)`` by
+    ``cv2.resize`` (``INTER_AREA`` shrinking, ``INTER_LINEAR`` else; the border replicated)."""
+    y0, y1, x0, x1, ylo, yhi, xlo, xhi = g
+    oh, ow = size
+    reg = frame[ylo:yhi + 1, xlo:xhi + 1]
+    pads = (ylo - y0, y1 - yhi - 1, xlo - x0, x1 - xhi - 1)
+    if any(pads):
+        reg = cv2.copyMakeBorder(reg, *pads, cv2.BORDER_REPLICATE)
+    interp = cv2.INTER_AREA if reg.shape[0] >= oh and reg.shape[1] >= ow else cv2.INTER_LINEAR
+    return cv2.resize(reg, (ow, oh), interpolation=interp)
+
+
+def regions_crops(frame: np.ndarray, boxes: np.ndarray, contexts: tuple[float, ...],
+                  size: tuple[int, int]) -> np.ndarray:
+    """:func:`region_crops` of every context factor of ``contexts`` at once:
+    ``(len(contexts), N, height, width, 3) uint8``. The shrunk regions come from one kernel
+    (:func:`._crop_kernels.area_crops`: OpenCV's ``INTER_AREA`` to the bit, straight from the
+    frame), spread over Numba's thread count of threads, largest first; the others (enlarged,
+    or shrunk by whole numbers) from ``cv2.resize``."""
+    b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    if not np.isfinite(b).all():
+        raise ValueError("boxes must be finite numbers")
+    frame = np.ascontiguousarray(frame)
+    if frame.ndim != 3 or frame.shape[2] != 3 or frame.dtype != np.uint8:
+        raise ValueError(f"frame must be an (H, W, 3) uint8 array, got {frame.dtype} {frame.shape}")
+    H, W = frame.shape[:2]
+    oh, ow = (int(v) for v in size)
+    if oh < 1 or ow < 1:
+        raise ValueError(f"size must be positive, got {size!r}")
+    n = len(b)
+    out = np.empty((len(contexts) * n, oh, ow, 3), np.uint8)
+    geo = np.empty((len(out), 8), np.int64)
+    scales = np.zeros((len(out), 2), np.float64)
+    fast = []
+    # box by box in Python: for a video frame's one or two boxes this costs less than the same
+    # integer arithmetic in NumPy on tiny arrays (~0.3 ms a call)
+    for k, context in enumerate(contexts):
+        for i in range(n):
+            j = k * n + i
+            g = _region(H, W, b[i], float(context))
+            geo[j] = g
+            sc = _area_scales((g[1] - g[0], g[3] - g[2]), (oh, ow))
+            if sc is None:
+                out[j] = _cv2_crop(frame, g, (oh, ow))
+            else:
+                scales[j] = sc
+                fast.append(j)
+    if fast:
+        rows = frame.reshape(H, W * 3)
+        rows.flags.writeable = False  # one signature, whatever the caller's array
+        cost = (geo[fast, 1] - geo[fast, 0]) * (geo[fast, 3] - geo[fast, 2])
+        parts = 1 if 3 * int(cost.sum()) < _PARALLEL_MIN_SAMPLES else max(1, min(numba.get_num_threads(), len(fast)))
+        if parts == 1:
+            orders = [np.array(fast, np.int64)]
+        else:  # largest first, each to the least loaded thread
+            shares: list[list[int]] = [[] for _ in range(parts)]
+            loads = [0] * parts
+            for t in np.argsort(-cost, kind="stable"):
+                p = loads.index(min(loads))
+                shares[p].append(fast[t])
+                loads[p] += int(cost[t])
+            orders = [np.array(sorted(s), np.int64) for s in shares]
+
+        def run(lo: int, hi: int) -> None:
+            for p in range(lo, hi):
+                area_crops(rows, geo, scales, orders[p], out)
+
+        split_range(run, parts, parts)
+    return out.reshape(len(contexts), n, oh, ow, 3)
+
+
 def region_crops(frame: np.ndarray, boxes: np.ndarray, context: float, size: tuple[int, int]) -> np.ndarray:
     """The regions of ``context x`` each box's width and height about its centre, resized to
     ``size = (height, width)``: ``(N, height, width, 3) uint8`` (same channel order as
     ``frame (H, W, 3) uint8``). Pixels outside the frame replicate its border; shrinking uses
-    ``cv2.INTER_AREA``, enlarging ``cv2.INTER_LINEAR``."""
-    b = np.asarray(boxes, np.float64).reshape(-1, 4)
-    H, W = frame.shape[:2]
-    oh, ow = size
-    out = np.empty((len(b), oh, ow, 3), np.uint8)
-    for i, (x1, y1, x2, y2) in enumerate(b):
-        cx, cy = 0.5 * (x1 + x2), 0.5 * (y1 + y2)
-        hw, hh = 0.5 * context * max(x2 - x1, 1.0), 0.5 * context * max(y2 - y1, 1.0)
-        a, c = int(math.floor(cx - hw)), int(math.ceil(cx + hw))
-        r, d = int(math.floor(cy - hh)), int(math.ceil(cy + hh))
-        # stay within one frame of padding either side (a box far outside is junk anyway)
-        a, c = max(a, -W), min(max(c, a + 1), 2 * W)
-        r, d = max(r, -H), min(max(d, r + 1), 2 * H)
-        ia, ic, ir, id_ = max(a, 0), min(c, W), max(r, 0), min(d, H)
-        if ic <= ia or id_ <= ir:  # wholly outside: the nearest border pixel
-            ia, ic = min(max(ia, 0), W - 1), min(max(ia, 0), W - 1) + 1
-            ir, id_ = min(max(ir, 0), H - 1), min(max(ir, 0), H - 1) + 1
-        reg = frame[ir:id_, ia:ic]
-        pads = (ir - r, d - id_, ia - a, c - ic)
-        if any(p > 0 for p in pads):
-            reg = cv2.copyMakeBorder(reg, *(max(p, 0) for p in pads), cv2.BORDER_REPLICATE)
-        interp = cv2.INTER_AREA if reg.shape[0] >= oh and reg.shape[1] >= ow else cv2.INTER_LINEAR
-        out[i] = cv2.resize(reg, (ow, oh), interpolation=interp)
-    return out
+    ``cv2.INTER_AREA``, enlarging ``cv2.INTER_LINEAR`` (the same pixels as ``cv2.resize`` of
+    the padded region: ``tests/reference.py``, :func:`regions_crops`)."""
+    return regions_crops(frame, boxes, (float(context),), size)[0]
 
 
 #: the size inputs a regressor may take (:func:`size_features`), each one column: the box's
@@ -203,8 +301,10 @@ def box_features(frame: np.ndarray, boxes: np.ndarray, config: FeatureConfig,
     n = len(np.asarray(boxes).reshape(-1, 4))
     if n == 0:
         return np.zeros((0, len(contexts) * config.n_features + len(size_inputs)), np.float64)
-    parts = [extract_features(region_crops(frame, boxes, c, (config.win_h, config.win_w)), config)
-             for c in contexts]
+    crops = regions_crops(frame, boxes, contexts, (config.win_h, config.win_w))
+    # every context's crops described at once (each crop's features are its own)
+    x = extract_features(crops.reshape((-1,) + crops.shape[2:]), config)
+    parts = [x[k * n: (k + 1) * n] for k in range(len(contexts))]
     if size_inputs:
         sb = boxes if size_boxes is None else np.asarray(size_boxes, np.float64).reshape(-1, 4)
         if len(sb) != n:

@@ -87,6 +87,7 @@ def hist_bin_shift(config: FeatureConfig) -> int:
 
 
 _CHUNK = 64  # crops per HOG call in extract_features (a few MB of block maps)
+_MIN_CHUNK = 8  # ... and at least this many (fewer crops than this a thread: one thread)
 
 
 def extract_features(crops: np.ndarray, config: FeatureConfig | None = None) -> np.ndarray:
@@ -118,10 +119,15 @@ def extract_features(crops: np.ndarray, config: FeatureConfig | None = None) -> 
     sp_pos = config.n_hog
     hist_pos = sp_pos + (config.n_spatial if config.spatial_size else 0)
 
+    threads = numba.get_num_threads()
+    # chunks of at most _CHUNK crops, small enough that every thread gets one (a few dozen
+    # crops, as the box regressor's, on two threads: two chunks); each crop's row is its own
+    chunk = max(_MIN_CHUNK, min(_CHUNK, -(-n // threads)))
+
     def chunks(c0: int, c1: int) -> None:
-        """Feature rows of chunks ``c0 <= c < c1`` of :data:`_CHUNK` crops, on this thread."""
-        for s in range(c0 * _CHUNK, min(c1 * _CHUNK, n), _CHUNK):
-            e = min(s + _CHUNK, n)
+        """Feature rows of chunks ``c0 <= c < c1`` of ``chunk`` crops, on this thread."""
+        for s in range(c0 * chunk, min(c1 * chunk, n), chunk):
+            e = min(s + chunk, n)
             part, rows = conv[s:e], out[s:e]
             # 1. HOG: (n, br, bc, nch, cpb, cpb, o) -> channel-major feature order, a chunk small
             #    enough that the kernel's output is still in cache when it is reordered
@@ -137,5 +143,5 @@ def extract_features(crops: np.ndarray, config: FeatureConfig | None = None) -> 
                 color_hist_batch(part, hist_shift, config.hist_bins, hist)
                 rows[:, hist_pos: hist_pos + config.n_hist] = hist
 
-    split_range(chunks, -(-n // _CHUNK), numba.get_num_threads())
+    split_range(chunks, -(-n // chunk), threads)
     return out[0] if single else out
