@@ -378,7 +378,7 @@ def choose_offset(model: Model, footage: Footage, run: OffsetsRun, folder: Path,
     offsets at once). ``model`` is written to ``folder`` for ``run`` to load (and removed after)."""
     folder.mkdir(parents=True, exist_ok=True)
     offs = list(offsets)
-    counts = {o: [0, 0, 0] for o in offs}
+    counts = {o: (0, 0, 0) for o in offs}
     secs, frames = 0.0, 0
     path = folder / "model.npz"
     offset(model, 0.0).save(path)
@@ -388,10 +388,12 @@ def choose_offset(model: Model, footage: Footage, run: OffsetsRun, folder: Path,
             per_offset, s, n = run(clip, str(path), offs)
             secs, frames = secs + s, frames + n
             for o in offs:
-                counts[o] = [a + b for a, b in zip(counts[o], per_offset[o])]
+                tp, fp, fn = counts[o]
+                a, b, c = per_offset[o]
+                counts[o] = (tp + a, fp + b, fn + c)
     finally:
         path.unlink(missing_ok=True)
-    results = {o: Agreement(*counts[o], secs, frames) for o in offs}
+    results = {o: Agreement(*counts[o], seconds=secs, frames=frames) for o in offs}
 
     def rank(o: float) -> tuple[float, float]:
         f1 = results[o].f1
