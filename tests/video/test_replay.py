@@ -50,6 +50,7 @@ def test_a_frames_windows_are_those_of_the_moved_model(frame, delta):
         assert len(replay.detect(frame)) != len(src.windows(stats.bands))
 
 
+@pytest.mark.slow
 def test_each_offsets_boxes_and_ids_are_those_of_its_own_run(data, tmp_path):
     """40 frames of test_small1 (from frame 21, as adapt's kept-aside stretch starts mid-video):
     the replay's boxes, scores and ids of every frame equal a pipeline run of each moved model
