@@ -30,10 +30,11 @@ from __future__ import annotations
 
 import os
 from collections.abc import Iterator, Sequence
+from dataclasses import replace
 
 import numpy as np
 
-from ..config import FeatureConfig, PipelineConfig, SearchBand
+from ..config import FeatureConfig, PipelineConfig, RefineConfig, SearchBand
 from ..detect import BandGeometry, Detector, DetectStats
 from ..detections import ONCOMING_PART, Detections
 from ..io.reader import FrameReader
@@ -43,7 +44,7 @@ from .ownvehicle import OwnVehicleFollower, OwnVehicleStage
 from .refine import BoxRegressor
 from .run import progress_bar, video_detector_for
 from .search_stages import GateStage, HorizonStage, MotionStage
-from .stages import HeatStage, build_stages
+from .stages import HeatStage, RefineStage, build_stages
 from .state import FrameState, Stage
 from .track import Tracker
 
@@ -138,18 +139,45 @@ class ReplayDetector:
         return self.source.window_width(part)
 
 
+class SharedRefineStage(RefineStage):
+    """:class:`~fastdet.video.box_stages.RefineStage` whose results the lanes of one frame share:
+    a lane whose boxes (and parts) are those another lane refined on this frame takes that
+    lane's refined boxes (the same arithmetic on the same input). ``memo``: one dict for all
+    lanes, emptied before every frame."""
+
+    def __init__(self, regressor: BoxRegressor, config: RefineConfig, memo: dict[bytes, np.ndarray]) -> None:
+        super().__init__(regressor, config)
+        self.memo = memo
+
+    def __call__(self, s: FrameState) -> FrameState:
+        out = s.out
+        if not len(out):
+            return s
+        key = out.boxes.tobytes() + (b"" if out.part is None else b"|" + out.part.tobytes())
+        boxes = self.memo.get(key)
+        if boxes is None:
+            s = super().__call__(s)
+            self.memo[key] = s.out.boxes
+        else:
+            s.out = replace(out, boxes=boxes)
+        return s
+
+
 def lane_stages(config: PipelineConfig, replay: ReplayDetector, fps: float | None, regressor: BoxRegressor | None,
-                own: OwnVehicleStage | None) -> list[Stage]:
+                own: OwnVehicleStage | None, memo: dict[bytes, np.ndarray]) -> list[Stage]:
     """One offset's stages: :func:`~fastdet.video.stages.build_stages` for ``config`` with
     ``replay`` as the detector, a tracker of its own and ``regressor`` (read-only: one serves
     every lane), less what :func:`iter_offset_detections` does in front (horizon, motion, gate),
-    the own-vehicle stage following ``own``."""
+    the own-vehicle stage following ``own``, the refinement sharing ``memo``
+    (:class:`SharedRefineStage`)."""
     tracker = Tracker(config.tracker) if config.tracker is not None else None
     out: list[Stage] = []
     for st in build_stages(config, replay, fps, tracker, regressor):
         if isinstance(st, (HorizonStage, MotionStage, GateStage)):
             continue
-        if isinstance(st, OwnVehicleStage):
+        if isinstance(st, RefineStage):
+            out.append(SharedRefineStage(st.regressor, st.config, memo))
+        elif isinstance(st, OwnVehicleStage):
             if own is None:
                 raise ValueError("the config drops windows on the own vehicle: give its shared stage")
             out.append(OwnVehicleFollower(own))
@@ -190,7 +218,8 @@ def iter_offset_detections(path: str | os.PathLike, offsets: Sequence[float], co
         own = vd.stage(OwnVehicleStage)
         assert own is None or isinstance(own, OwnVehicleStage)
         replays = [ReplayDetector(detector, o) for o in offs]
-        lanes = [lane_stages(config, r, reader.fps, vd.refiner, own) for r in replays]
+        memo: dict[bytes, np.ndarray] = {}
+        lanes = [lane_stages(config, r, reader.fps, vd.refiner, own, memo) for r in replays]
         with progress_bar(reader.expected, progress, os.path.basename(reader.path)) as bar:
             for fno, frame, _ in reader:
                 s = FrameState(frame)
@@ -201,6 +230,7 @@ def iter_offset_detections(path: str | os.PathLike, offsets: Sequence[float], co
                 bands = s.bands or []
                 oncoming = s.windows[s.windows.is_oncoming]
                 result: dict[float, Detections] = {}
+                memo.clear()
                 for o, r, stages in zip(offs, replays, lanes):
                     r.feed(bands, oncoming)
                     ls = FrameState(frame)
