@@ -29,8 +29,9 @@ class AdaptConfig(Config):
     holdout: the fraction of each video, at its end, kept aside for the operating point
         (contiguous: the pipeline's heat map needs consecutive frames); never trained on.
     holdout_max: at most this many frames kept aside over all the footage (split evenly
-        between the videos): the pipeline reads them once per offset tried, which is most of a
-        run's time on long footage (docs/benchmarks.md, "Adapting to a camera").
+        between the videos): the pipeline reads them three times (the bundled model, every
+        offset at once, the offset chosen), a large part of a run's time on long footage
+        (docs/benchmarks.md, "Adapting to a camera").
     weight: the sample weight of every camera crop in the fit (each bundled crop weighs 1): a
         crop counts as this many copies of it, without the copies' memory.
     jitter: shifted / rescaled copies of every positive crop (besides the crop itself).

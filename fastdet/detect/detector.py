@@ -330,11 +330,22 @@ class Detector:
             else:
                 geos += [(ONCOMING_PART, band_geometry(b, frame.shape[:2], sc.config, sc.search.cells_per_step))
                          for b in oncoming_bands]
+        bands = [(part, geo, dec) for (part, geo), dec in zip(geos, self._all_band_scores(frame, geos, timings,
+                                                                                          columns))]
+        if stats is not None:
+            stats.bands.extend(bands)
+        return self.windows(bands)
+
+    def windows(self, bands: Sequence[tuple[int, BandGeometry, np.ndarray]]) -> Detections:
+        """The positive windows of band decision values, as :meth:`detect` returns them: ``bands``
+        holds ``(part, geometry, decision values (geo.ny, geo.nx) float64)`` (as
+        :attr:`DetectStats.bands`; -inf: not scored), a window is positive when its value exceeds
+        its model's ``search.threshold`` (a stricter one on a band's slack rows:
+        :func:`~fastdet.detect.geometry.row_thresholds`), its score is its decision value or, for
+        logistic-regression models, its probability."""
         boxes, decs, scales, parts = [], [], [], []
-        for (part, geo), dec in zip(geos, self._all_band_scores(frame, geos, timings, columns)):
+        for part, geo, dec in bands:
             sc = self._scorer_of[part]
-            if stats is not None:
-                stats.bands.append((part, geo, dec))
             thr = sc.row_thresholds(geo)  # a band's slack rows: a higher threshold
             r, c = np.nonzero(dec > (thr[:, None] if isinstance(thr, np.ndarray) else thr))
             if len(r):

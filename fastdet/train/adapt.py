@@ -18,9 +18,10 @@ The steps, each a function here (the command, :mod:`fastdet.cli.adapt`, runs the
    crops (each of sample weight ``weight``: as if repeated that many times, without the copies'
    memory), with the bundled model's recipe, in float32 features (half the memory of float64);
 5. :func:`choose_offset`: the kept-aside stretches run through the video pipeline with the new
-   model moved by each of a few decision offsets (:func:`~fastdet.train.blend.offset`), the one
-   of best F1 against the labels of those frames kept. The pipeline and the scoring are given
-   by the caller (the ``video`` and ``eval`` layers sit beside this one).
+   model moved by each of a few decision offsets (:func:`~fastdet.train.blend.offset`; each frame
+   read and scored once for all of them, :mod:`fastdet.video.replay`), the one of best F1
+   against the labels of those frames kept. The pipeline and the scoring are given by the
+   caller (the ``video`` and ``eval`` layers sit beside this one).
 """
 from __future__ import annotations
 
@@ -350,6 +351,13 @@ class Agreement:
 #: the video pipeline over the clip's kept-aside stretch, scored against its kept-aside labels
 HoldoutRun = Callable[[Clip, "str | None"], tuple[int, int, int, float, int]]
 
+#: ``run(clip, model file, offsets) -> ({offset: (tp, fp, fn)}, seconds, frames read)``: the video
+#: pipeline over the clip's kept-aside stretch with the model moved by each offset
+#: (:func:`~fastdet.train.blend.offset`; the frames read and scored once for all of them:
+#: :func:`fastdet.video.replay.iter_offset_detections`), each offset's boxes scored against the
+#: kept-aside labels
+OffsetsRun = Callable[[Clip, str, Sequence[float]], tuple[dict[float, tuple[int, int, int]], float, int]]
+
 
 def agreement(footage: Footage, run: HoldoutRun, model_path: str | None) -> Agreement:
     """``run`` over every clip with kept-aside labels, summed."""
@@ -363,21 +371,29 @@ def agreement(footage: Footage, run: HoldoutRun, model_path: str | None) -> Agre
     return Agreement(tp, fp, fn, secs, frames)
 
 
-def choose_offset(model: Model, footage: Footage, run: HoldoutRun, folder: Path, offsets: Sequence[float],
+def choose_offset(model: Model, footage: Footage, run: OffsetsRun, folder: Path, offsets: Sequence[float],
                   progress: bool = True) -> tuple[float, dict[float, Agreement]]:
     """The decision offset of best F1 on the kept-aside footage (ties: the one nearest 0) and
-    every offset's :class:`Agreement`. Each offset's model is written to ``folder`` for the
-    pipeline to load (and removed after its run)."""
+    every offset's :class:`Agreement` (its ``seconds``: the whole run's over every clip, all the
+    offsets at once). ``model`` is written to ``folder`` for ``run`` to load (and removed after)."""
     folder.mkdir(parents=True, exist_ok=True)
-    results: dict[float, Agreement] = {}
-    for o in tqdm(list(offsets), desc="operating point", unit="offset", file=sys.stderr, dynamic_ncols=True,
-                  disable=not progress):
-        path = folder / f"offset{o:+.3f}.npz"
-        offset(model, o).save(path)
-        try:
-            results[o] = agreement(footage, run, str(path))
-        finally:
-            path.unlink(missing_ok=True)
+    offs = list(offsets)
+    counts = {o: (0, 0, 0) for o in offs}
+    secs, frames = 0.0, 0
+    path = folder / "model.npz"
+    offset(model, 0.0).save(path)
+    try:
+        for clip in tqdm([c for c in footage.clips if c.holdout_frames(footage.every)], desc="operating point",
+                         unit="video", file=sys.stderr, dynamic_ncols=True, disable=not progress):
+            per_offset, s, n = run(clip, str(path), offs)
+            secs, frames = secs + s, frames + n
+            for o in offs:
+                tp, fp, fn = counts[o]
+                a, b, c = per_offset[o]
+                counts[o] = (tp + a, fp + b, fn + c)
+    finally:
+        path.unlink(missing_ok=True)
+    results = {o: Agreement(*counts[o], seconds=secs, frames=frames) for o in offs}
 
     def rank(o: float) -> tuple[float, float]:
         f1 = results[o].f1

@@ -315,18 +315,44 @@ class OwnVehicleStage(Stage):
         est = self.estimator
         if not est.done:
             est.update(s.bgr)
-            if not est.done:
-                return s  # no region while it is being estimated
-        region = est.region()
+        n = len(s.windows)
+        s = self.filter(s)
+        self.dropped += n - len(s.windows)
+        return s
+
+    def filter(self, s: FrameState) -> FrameState:
+        """``s`` less its windows on the region as it is now (none while it is being
+        estimated), the estimate not fed."""
+        if not self.estimator.done:
+            return s  # no region while it is being estimated
+        region = self.estimator.region()
         if region is None or not len(s.windows):
             return s
         if region is not self._region:
             self._region, self._integral = region, cv2.integral(region.astype(np.uint8))
         keep = window_fraction(region, s.windows.boxes, self._integral) < self.config.max_fraction
         if not keep.all():
-            self.dropped += int((~keep).sum())
             s.windows = s.windows[keep]
         return s
 
     def reset(self) -> None:
         self.estimator.cut()  # the camera stays: keep the region, pair no frames across a cut
+
+
+class OwnVehicleFollower(Stage):
+    """Drop the positive windows on the own vehicle's region as ``leader`` (an
+    :class:`OwnVehicleStage` fed the same frame just before) has it now, without feeding its
+    estimate: pipelines run side by side over one video (:mod:`fastdet.video.replay`) share one
+    estimate, and each drops its own windows as its own stage would."""
+
+    name = "ownvehicle"
+
+    def __init__(self, leader: OwnVehicleStage) -> None:
+        self.leader = leader
+        self.dropped = 0  # windows dropped so far
+
+    def __call__(self, s: FrameState) -> FrameState:
+        n = len(s.windows)
+        s = self.leader.filter(s)
+        self.dropped += n - len(s.windows)
+        return s

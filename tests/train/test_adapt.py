@@ -103,19 +103,19 @@ def test_a_still_picture_always_trains(tmp_path):
 def test_the_offset_of_best_f1_is_chosen(tmp_path):
     a = write_video(tmp_path / "a.mp4", 20)
     fp = adapt.plan_footage([str(a)], AdaptConfig(every=5))
-    seen: list[float] = []
+    calls: list[tuple[float, ...]] = []
 
-    def run(clip, model_path):  # F1 peaks at an intercept lowered by 1 (offset 1), ties broken towards 0
-        m = load_model(model_path)
-        o = load_model().intercept - m.intercept
-        seen.append(round(o, 6))
-        tp = {-1.0: 2, 0.0: 3, 1.0: 5, 2.0: 5}[round(o, 6)]
-        return tp, 5 - tp, 5 - tp, 0.5, 10
+    def run(clip, model_path, offsets):  # F1 peaks at offset 1, ties broken towards 0
+        assert load_model(model_path).intercept == load_model().intercept  # the model itself, not moved
+        calls.append(tuple(offsets))
+        tp = {-1.0: 2, 0.0: 3, 1.0: 5, 2.0: 5}
+        return {o: (tp[o], 5 - tp[o], 5 - tp[o]) for o in offsets}, 0.5, 10
 
-    best, results = adapt.choose_offset(load_model(), fp, run, tmp_path / "op", (2, 1, 0, -1), progress=False)
-    assert best == 1.0 and sorted(seen) == [-1.0, 0.0, 1.0, 2.0]
+    best, results = adapt.choose_offset(load_model(), fp, run, tmp_path / "op", (2.0, 1.0, 0.0, -1.0),
+                                        progress=False)
+    assert best == 1.0 and calls == [(2.0, 1.0, 0.0, -1.0)]  # one run for every offset
     assert results[1.0].f1 == 1.0 and results[0.0].to_dict()["f1"] == 0.6 and results[1.0].ms_per_frame == 50
-    assert not list((tmp_path / "op").iterdir())  # the offset models are removed
+    assert not list((tmp_path / "op").iterdir())  # the model file is removed
 
 
 def test_agreement_without_boxes_is_not_a_number():

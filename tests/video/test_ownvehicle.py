@@ -186,6 +186,29 @@ def test_the_pipeline_drops_the_windows_on_the_own_vehicle_once_it_is_known():
     assert len(vd.debug.windows) == 1
 
 
+def test_a_follower_drops_what_its_leader_drops_without_feeding_the_estimate():
+    """OwnVehicleFollower (the lanes of fastdet.video.replay): after the leader saw a frame, a
+    follower drops from its own windows what the leader's stage would, while the estimate runs
+    and once it is done, and never feeds the estimate."""
+    from fastdet.detections import Detections
+    from fastdet.video.ownvehicle import OwnVehicleFollower, OwnVehicleStage
+    from fastdet.video.state import FrameState
+
+    dets = Detections(np.array([[200, 280, 264, 344], [40, 60, 104, 124], [170, 300, 234, 364]], np.int32),
+                      np.array([2.0, 2.0, 3.0], np.float32))
+    leader, alone = OwnVehicleStage(SHORT, 25), OwnVehicleStage(SHORT, 25)
+    follower = OwnVehicleFollower(leader)
+    kept = []
+    for f in _video():
+        leader(FrameState(f))  # the shared estimate, fed once a frame
+        got = follower(FrameState(f, windows=dets))
+        want = alone(FrameState(f, windows=dets))
+        assert got.windows.boxes.tolist() == want.windows.boxes.tolist()
+        kept.append(len(got.windows))
+        assert leader.estimator.frames == alone.estimator.frames  # the follower fed nothing
+    assert kept[0] == 3 and kept[-1] == 1 and follower.dropped == alone.dropped > 0
+
+
 def test_the_cli_turns_the_stages_on_and_off(tmp_path):
     import argparse
 

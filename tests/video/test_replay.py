@@ -1,0 +1,76 @@
+"""fastdet.video.replay: one pass of the frames gives, for each decision offset, the boxes the
+pipeline gives with the model moved by it (the frame's windows, and a clip's boxes and ids)."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from fastdet.config import PipelineConfig
+from fastdet.detect import Detector, DetectStats
+from fastdet.detections import Detections
+from fastdet.io.reader import FrameReader
+from fastdet.model import load_model
+from fastdet.train.blend import offset
+from fastdet.video.replay import ReplayDetector, iter_offset_detections
+from fastdet.video.run import iter_video_detections
+
+OFFSETS = (-1.0, 0.0, 3.0)
+
+
+def _same(a, b) -> bool:
+    return (len(a) == len(b) and np.array_equal(a.boxes, b.boxes) and np.array_equal(a.scores, b.scores)
+            and np.array_equal(a.part, b.part) and np.array_equal(a.scale, b.scale))
+
+
+@pytest.fixture(scope="module")
+def frame(data):
+    with FrameReader(str(data / "videos" / "test_small1.mp4"), 30, 1) as r:
+        return next(iter(r))[1]
+
+
+@pytest.mark.parametrize("delta", OFFSETS)
+def test_a_frames_windows_are_those_of_the_moved_model(frame, delta):
+    """Every window, the slack rows' stricter threshold and the guided search's columns included,
+    is the moved model's own detector's (boxes, probabilities, scales)."""
+    model = load_model()
+    src = Detector(model)
+    stats = DetectStats()
+    src.detect(frame, stats=stats)
+    moved = Detector(offset(model, delta))
+    replay = ReplayDetector(src, delta)
+    replay.feed(stats.bands, Detections.empty())  # no oncoming model here
+    n = len(src.main_geometries(frame.shape[:2]))
+    for columns in (None, [[(0, 6), (20, 31)]] * n, [None, [(3, 9)]] + [[]] * (n - 2)):
+        want = moved.detect(frame, columns=columns)
+        got = replay.detect(frame, columns=columns)
+        assert _same(got, want), (delta, columns)
+    if delta:  # the offset moves the windows: the comparison can tell offsets apart
+        assert len(replay.detect(frame)) != len(src.windows(stats.bands))
+
+
+@pytest.mark.slow
+def test_each_offsets_boxes_and_ids_are_those_of_its_own_run(data, tmp_path):
+    """40 frames of test_small1 (from frame 21, as adapt's kept-aside stretch starts mid-video):
+    the replay's boxes, scores and ids of every frame equal a pipeline run of each moved model
+    (guided search, tracker, refinement, own vehicle: the defaults), and the offsets' boxes differ."""
+    video = str(data / "videos" / "test_small1.mp4")
+    model = load_model()
+    base = tmp_path / "base.npz"
+    offset(model, 0.0).save(base)
+    replayed = list(iter_offset_detections(video, OFFSETS, replace(PipelineConfig(), model=str(base)),
+                                           start=20, frames=40))
+    assert len(replayed) == 40 and [f for f, _ in replayed] == list(range(21, 61))
+    totals = {}
+    for o in OFFSETS:
+        path = tmp_path / f"o{o:+g}.npz"
+        offset(model, o).save(path)
+        real = list(iter_video_detections(video, replace(PipelineConfig(), model=str(path)), start=20, frames=40,
+                                          progress=False))
+        assert [f for f, _ in real] == [f for f, _ in replayed]
+        for (fno, want), (_, got) in zip(real, replayed):
+            assert len(got[o]) == len(want) and np.array_equal(got[o].boxes, want.boxes), (o, fno)
+            assert np.array_equal(got[o].scores, want.scores) and np.array_equal(got[o].ids, want.ids), (o, fno)
+        totals[o] = sum(len(d) for _, d in real)
+    assert len(set(totals.values())) > 1, totals  # the offsets give other boxes: the test can tell them apart
