@@ -9,7 +9,7 @@ In the order they run (:func:`build_stages`; a stage whose setting is off is lef
 ``motion``       where the picture moves: the oncoming bands to search (:class:`MotionStage`)
 ``detect``       the positive windows of both models (:class:`DetectStage`)
 ``motion``       drop the oncoming windows that did not move enough (:class:`GateStage`)
-``ownvehicle``   drop the windows on the own vehicle (:class:`OwnVehicleStage`; off by default)
+``ownvehicle``   drop the windows on the own vehicle (:class:`OwnVehicleStage`; on by default)
 ``heatmap``      the main heat map's boxes (:class:`HeatStage`)
 ``split``        wide boxes split between vehicles side by side (:class:`SplitStage`; on by default)
 ``fusion``       the oncoming heat map's boxes where the main one found none (:class:`FusionStage`)
