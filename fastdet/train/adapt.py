@@ -336,7 +336,8 @@ class Agreement:
 
     @property
     def ms_per_frame(self) -> float:
-        """The pipeline's wall time per frame read (ms), horizon estimate included."""
+        """The pipeline's wall time per frame (ms) after each stretch's first frame: the steady
+        frame loop, without the start-up (reaching the stretch, the horizon from its first frames)."""
         return 1000.0 * self.seconds / self.frames if self.frames else math.nan
 
     def to_dict(self) -> dict[str, Any]:
@@ -347,8 +348,9 @@ class Agreement:
                 "tp": self.tp, "fp": self.fp, "fn": self.fn, "ms_per_frame": num(self.ms_per_frame)}
 
 
-#: ``run(clip, model file or None for the bundled one) -> (tp, fp, fn, seconds, frames read)``:
+#: ``run(clip, model file or None for the bundled one) -> (tp, fp, fn, seconds, frames)``:
 #: the video pipeline over the clip's kept-aside stretch, scored against its kept-aside labels
+#: (``seconds`` and ``frames`` from the stretch's first frame out: :attr:`Agreement.ms_per_frame`)
 HoldoutRun = Callable[[Clip, "str | None"], tuple[int, int, int, float, int]]
 
 #: ``run(clip, model file, offsets) -> ({offset: (tp, fp, fn)}, seconds, frames read)``: the video
