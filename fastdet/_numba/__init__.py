@@ -59,7 +59,7 @@ from .compiling import (  # noqa: F401  (re-exported; ``_worker`` is what a comp
     ensure_compiled,
 )
 from .registry import KERNEL_MODULES, Task, all_kernels, is_cached, tasks_of  # noqa: F401  (re-exported)
-from .threads import split_range  # noqa: F401  (re-exported)
+from .threads import longest_first, split_range  # noqa: F401  (re-exported)
 
 tolerate_cache_writes()  # before any kernel compiles: a full or read-only cache is a note (see .cache)
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .registry import Task
+from .threads import longest_first
 
 #: CPU seconds of one unit of the speed probe (:func:`machine_probe`) on the reference machine
 PROBE_UNIT_SECONDS = 0.0013
@@ -81,14 +82,10 @@ def _save_times(path: Path | None, times: dict[str, float]) -> None:
 
 def _schedule(costs: dict[str, float], workers: int, start: float = 0.0) -> list[list[str]]:
     """Longest first, each to the least loaded worker (all but the first start ``start``
-    seconds late): the tasks of each worker."""
-    loads = [0.0] + [start] * (workers - 1)
-    plan: list[list[str]] = [[] for _ in range(workers)]
-    for key in sorted(costs, key=lambda k: -costs[k]):
-        w = loads.index(min(loads))
-        plan[w].append(key)
-        loads[w] += costs[key]
-    return [p for p in plan if p]
+    seconds late: :func:`~.threads.longest_first`): the tasks of each worker."""
+    keys = list(costs)
+    plan = longest_first([costs[k] for k in keys], workers, start)
+    return [[keys[i] for i in p] for p in plan if p]
 
 
 @dataclass

@@ -3,7 +3,7 @@ kernels use several cores without being ``parallel=True`` kernels)."""
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 
 import numba
@@ -43,3 +43,16 @@ def split_range(fn: Callable[[int, int], None], n: int, parts: int) -> None:
                 errors.append(exc)
     if errors:
         raise errors[0]
+
+
+def longest_first(costs: Sequence[float], workers: int, start: float = 0.0) -> list[list[int]]:
+    """The indices of ``costs`` shared among ``workers``: the costliest first, each to the least
+    loaded worker (every worker but the first starting ``start`` late; ties in cost keep their
+    order, ties in load go to the lowest worker). One list per worker, some possibly empty."""
+    loads = [0.0] + [float(start)] * (workers - 1)
+    plan: list[list[int]] = [[] for _ in range(workers)]
+    for i in sorted(range(len(costs)), key=lambda i: -costs[i]):
+        w = loads.index(min(loads))
+        plan[w].append(i)
+        loads[w] += costs[i]
+    return plan

@@ -58,7 +58,7 @@ import cv2
 import numba
 import numpy as np
 
-from .._numba import split_range
+from .._numba import longest_first, split_range
 from .._version import __version__
 from ..config import REFERENCE_SHAPE, FeatureConfig
 from ..config.models import REFINE_MODEL_PATH
@@ -209,13 +209,8 @@ def regions_crops(frame: np.ndarray, boxes: np.ndarray, contexts: tuple[float, .
         if parts == 1:
             orders = [np.array(fast, np.int64)]
         else:  # largest first, each to the least loaded thread
-            shares: list[list[int]] = [[] for _ in range(parts)]
-            loads = [0] * parts
-            for t in np.argsort(-cost, kind="stable"):
-                p = loads.index(min(loads))
-                shares[p].append(fast[t])
-                loads[p] += int(cost[t])
-            orders = [np.array(sorted(s), np.int64) for s in shares]
+            orders = [np.array(sorted(fast[t] for t in share), np.int64)
+                      for share in longest_first(cost.tolist(), parts)]
 
         def run(lo: int, hi: int) -> None:
             for p in range(lo, hi):
