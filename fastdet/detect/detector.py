@@ -278,10 +278,6 @@ class Detector:
         """Geometry of every search band of model ``part`` on a frame of ``(H, W)``."""
         return self._scorer_of[part].geometries(frame_shape)
 
-    def window_width(self, part: int = 0) -> int:
-        """Window width in pixels (of a scaled band) of model ``part``."""
-        return self._scorer_of[part].config.win_w
-
     def main_geometries(self, frame_shape: tuple[int, int]) -> list[tuple[int, BandGeometry]]:
         """``(part, geometry)`` of every band of the main model and then of each component
         (:attr:`main_parts`), in the order :meth:`detect`'s ``columns`` refer to them."""

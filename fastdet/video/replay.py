@@ -132,12 +132,6 @@ class ReplayDetector:
     def geometries(self, frame_shape: tuple[int, int], part: int = 0) -> list[BandGeometry]:
         return self.source.geometries(frame_shape, part)
 
-    def main_geometries(self, frame_shape: tuple[int, int]) -> list[tuple[int, BandGeometry]]:
-        return self.source.main_geometries(frame_shape)
-
-    def window_width(self, part: int = 0) -> int:
-        return self.source.window_width(part)
-
 
 class SharedRefineStage(RefineStage):
     """:class:`~fastdet.video.box_stages.RefineStage` whose results the lanes of one frame share:
