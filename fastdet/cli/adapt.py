@@ -125,6 +125,15 @@ def _gt(pictures: list[AnnotatedPicture]) -> Detections:
                       source="kept-aside labels")
 
 
+def _predictions(tables: list[Detections]) -> Detections:
+    """A run's per-frame tables (each with its ``frames`` column) as one table to score; one
+    with an empty ``frames`` column when there is no box."""
+    preds = Detections.concat(tables) if tables else Detections.empty()
+    if preds.frames is None:
+        preds = Detections(np.zeros((0, 4), np.int32), np.zeros(0, np.float32), frames=np.zeros(0, np.int64))
+    return preds
+
+
 def holdout_run(held: dict[str, list[AnnotatedPicture]]) -> _adapt.HoldoutRun:
     """The video pipeline (:func:`fastdet.detect_video`, as ``video`` runs it) over a clip's
     kept-aside stretch with a model file, scored (:func:`fastdet.eval.evaluate`, IoU 0.5) on
@@ -146,10 +155,7 @@ def holdout_run(held: dict[str, list[AnnotatedPicture]]) -> _adapt.HoldoutRun:
                 t0 = time.perf_counter()
             tables.append(d)
         secs = time.perf_counter() - t0 if tables else 0.0
-        preds = Detections.concat(tables) if tables else Detections.empty()
-        if preds.frames is None:
-            preds = Detections(np.zeros((0, 4), np.int32), np.zeros(0, np.float32), frames=np.zeros(0, np.int64))
-        res = evaluate(_gt(pics), preds, keyframes=np.array([p.frame for p in pics]), tracking=False)
+        res = evaluate(_gt(pics), _predictions(tables), keyframes=np.array([p.frame for p in pics]), tracking=False)
         return res.tp, res.fp, res.fn, secs, max(len(tables) - 1, 0)
 
     return run
@@ -181,10 +187,7 @@ def holdout_offsets(held: dict[str, list[AnnotatedPicture]]) -> _adapt.OffsetsRu
         gt, keyframes = _gt(pics), np.array([p.frame for p in pics])
         out = {}
         for o in offsets:
-            preds = Detections.concat(tables[o]) if tables[o] else Detections.empty()
-            if preds.frames is None:
-                preds = Detections(np.zeros((0, 4), np.int32), np.zeros(0, np.float32), frames=np.zeros(0, np.int64))
-            res = evaluate(gt, preds, keyframes=keyframes, tracking=False)
+            res = evaluate(gt, _predictions(tables[o]), keyframes=keyframes, tracking=False)
             out[o] = (res.tp, res.fp, res.fn)
         return out, secs, n
 
