@@ -52,6 +52,7 @@ from ..io.motfiles import JsonLinesWriter, MotWriter
 from ..io.reader import FrameReader
 from ..io.sink import VideoSink
 from ..video.detector import make_detector
+from ..video.pipeline import run_frames
 from ..video.run import video_detector_for
 from .settings import Settings, output_paths
 
@@ -207,8 +208,7 @@ def run_video(task: VideoTask) -> dict[str, Any]:
         if jsl is not None:
             writers.append(jsl)
         report(0, reader.expected, True)
-        for fno, frame, _ in reader:
-            dets = vd.update(frame)
+        for fno, frame, _, dets in run_frames(vd, reader):
             mot.write_detections(fno, dets)
             if jsl is not None:
                 jsl.write_detections(fno, dets)

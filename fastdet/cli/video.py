@@ -61,11 +61,12 @@ import contextlib
 import json
 import os
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 import numba
+import numpy as np
 
 from .. import signals as _signals
 from ..config import HeatConfig
@@ -79,6 +80,7 @@ from ..io.reader import FrameReader, check_source
 from ..io.sink import VideoSink, check_video_path
 from ..video.count import CountLine, VehicleCounter
 from ..video.detector import make_detector
+from ..video.pipeline import run_frames
 from ..video.run import defer_plausible, offline_boxes, progress_bar, video_detector_for
 from ._args import add_horizon_argument, nonneg_int, pipeline_config, pipeline_groups, positive_int
 
@@ -285,13 +287,27 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
         failed, stop = True, None
         redraw_stopped: VideoSink | None = None
         try:
-            with _signals.deferred():  # a stop signal ends the loop after the current frame
-                for fno, frame, t_dec in reader:
-                    if _signals.stop_requested():
+            reading = [0.0]  # seconds spent waiting for the reader's frames
+
+            def frames() -> Iterator[tuple[int, np.ndarray, float]]:
+                it = iter(reader)
+                while not _signals.stop_requested():  # a stop signal ends the loop after the current frame
+                    t = time.perf_counter()
+                    item = next(it, None)
+                    reading[0] += time.perf_counter() - t
+                    if item is None:
+                        return
+                    yield item
+
+            with _signals.deferred(), contextlib.closing(run_frames(vd, frames())) as boxes:
+                while True:
+                    t0, r0 = time.perf_counter(), reading[0]
+                    got = next(boxes, None)
+                    if got is None:
                         break
-                    t0 = time.perf_counter()
-                    dets = vd.update(frame)
+                    fno, frame, t_dec, dets = got
                     t1 = time.perf_counter()
+                    t0 += reading[0] - r0  # the reader's wait is not the main thread's work
                     if offline:
                         done.append((fno, dets))
                     else:

@@ -18,9 +18,13 @@ loop like the one above gives other boxes and ids unless it does both
 """
 from __future__ import annotations
 
+import threading
 import time
-from collections.abc import Iterable
+import weakref
+from collections.abc import Iterable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor, wait
 
+import numba
 import numpy as np
 
 from .._numba import ensure_compiled
@@ -36,6 +40,7 @@ from .motion import warmup_motion
 from .refine import KERNELS as REFINE_KERNELS
 from .refine import BoxRegressor, load_regressor
 from .stages import (
+    TAIL_STAGES,
     FrameDebug,
     FrameState,
     FusionStage,
@@ -47,6 +52,70 @@ from .stages import (
     build_stages,
 )
 from .track import Tracker
+
+
+def _serial_thread() -> None:
+    numba.set_num_threads(1)  # thread-local: the tail thread runs the kernels single-threaded
+
+
+class PendingFrame:
+    """A frame :meth:`VideoDetector.start` has begun: :meth:`result` gives its boxes (what
+    :meth:`VideoDetector.update` would have returned), waiting for its last stages if they
+    still run. ``debug``: the frame's :class:`~fastdet.video.stages.FrameDebug`; ``timings``:
+    seconds per stage, complete once :meth:`result` has returned."""
+
+    def __init__(self, vd: VideoDetector, debug: FrameDebug, timings: dict[str, float],
+                 tail: Future[tuple[FrameState, dict[str, float]]]) -> None:
+        self._vd, self.debug, self.timings, self._tail = vd, debug, timings, tail
+        self._out: Detections | None = None
+
+    def result(self) -> Detections:
+        """The frame's boxes; also makes them the detector's last frame (its ``debug`` and
+        ``timings``)."""
+        if self._out is None:
+            s, tail_timings = self._tail.result()
+            self.timings = {**s.timings, **self.timings, **tail_timings}
+            self._out = s.out
+        self._vd.debug, self._vd.timings = self.debug, self.timings
+        return self._out
+
+    def wait(self) -> None:
+        """Wait until the frame's last stages are done, without taking the result (an error
+        they raised stays for :meth:`result`)."""
+        wait([self._tail])
+
+
+def run_frames(vd: VideoDetector, frames: Iterable[tuple[int, np.ndarray, float]], *, beside: bool | None = None
+               ) -> Iterator[tuple[int, np.ndarray, float, Detections]]:
+    """``vd.update`` of every frame of ``frames`` (``(frame number, frame, seconds to decode
+    it)``, as a :class:`~fastdet.io.reader.FrameReader` yields them), in order: yields ``(frame
+    number, frame, seconds, boxes)``, the boxes those ``update`` returns. Each frame is begun
+    with :meth:`VideoDetector.start` (``beside`` is its option), so its last stages run beside
+    the next frame's first and the boxes come one frame behind the reading. An error in
+    reading a frame or in beginning it is raised after the frame before it was yielded, as a
+    loop of ``update`` would; closed early (a ``break``), it waits for the frame in flight
+    before it returns."""
+    it = iter(frames)
+    ahead: tuple[int, np.ndarray, float, PendingFrame] | None = None
+    begun: tuple[int, np.ndarray, float, PendingFrame] | None
+    try:
+        while True:
+            try:
+                item = next(it, None)
+                begun = None if item is None else (*item, vd.start(item[1], beside=beside))
+            except BaseException:
+                if ahead is not None:
+                    last, ahead = ahead, None
+                    yield last[0], last[1], last[2], last[3].result()
+                raise
+            done, ahead = ahead, begun
+            if done is not None:
+                yield done[0], done[1], done[2], done[3].result()
+            if ahead is None:
+                return
+    finally:
+        if ahead is not None:
+            ahead[3].wait()
 
 
 class VideoDetector:
@@ -107,6 +176,9 @@ class VideoDetector:
         self._stages: list[Stage] | None = None
         self.timings: dict[str, float] = {}
         self.debug = FrameDebug()
+        self._tail_pool: ThreadPoolExecutor | None = None  # made by the first start() that runs a tail beside
+        self._last_tail: Future | None = None
+        self._tail_lock = threading.Lock()
 
     @property
     def detector(self) -> WindowDetector:
@@ -139,6 +211,7 @@ class VideoDetector:
 
     def reset(self) -> None:
         """Forget the previous frames (a new video, or a cut); track ids start again at 1."""
+        self._settle()
         if self.tracker is not None:
             self.tracker.reset()
         for st in self._stages or ():
@@ -185,20 +258,72 @@ class VideoDetector:
         Each box's score is the peak heat of its blob (:mod:`fastdet.video.heatmap`); with
         the tracker, the boxes are those of the tracked vehicles, with ``ids`` (class
         docstring). Causal: uses this and earlier frames only."""
+        return self.start(frame, rgb, beside=False).result()
+
+    def start(self, frame: np.ndarray, rgb: bool = False, *, beside: bool | None = None) -> PendingFrame:
+        """Begin ``frame`` (as :meth:`update`): every stage a later frame reads runs now; the
+        last ones, which change only this frame's boxes (the refinement and the plausibility
+        rules: :data:`~fastdet.video.stages.TAIL_STAGES`), run on a background thread when
+        ``beside`` (default: when Numba has two threads or more), beside the next frame's
+        first stages. :meth:`PendingFrame.result` gives the boxes: the same as :meth:`update`'s.
+        Frames are started in order, one after the other (not from several threads at once);
+        their last stages run in the order started. :func:`fastdet.video.run.iter_video_detections`
+        runs a file this way, one frame ahead."""
         frame = np.asarray(frame)
         if frame.ndim != 3 or frame.shape[2] != 3 or frame.dtype != np.uint8:
             raise ValueError(f"frame must be an (H, W, 3) uint8 array, got {frame.dtype} {frame.shape}")
+        stages = self.stages
+        cut = len(stages)
+        while cut > 0 and isinstance(stages[cut - 1], TAIL_STAGES):
+            cut -= 1
         s = FrameState(frame, rgb)
+        timings = self._run(stages[:cut], s)
+        debug = FrameDebug.of(s)
+        if beside is None:
+            beside = numba.get_num_threads() > 1
+        tail: Future[tuple[FrameState, dict[str, float]]]
+        if beside and cut < len(stages):
+            with self._tail_lock:
+                if self._tail_pool is None:
+                    self._tail_pool = ThreadPoolExecutor(1, thread_name_prefix="fastdet-tail",
+                                                         initializer=_serial_thread)
+                    weakref.finalize(self, self._tail_pool.shutdown, wait=False)
+                tail = self._last_tail = self._tail_pool.submit(self._finish, stages[cut:], s)
+        else:
+            self._settle()  # an earlier frame's last stages first: they run in order
+            tail = Future()
+            tail.set_result(self._finish(stages[cut:], s))
+        return PendingFrame(self, debug, timings, tail)
+
+    @staticmethod
+    def _run(stages: list[Stage], s: FrameState) -> dict[str, float]:
         timings: dict[str, float] = {}
-        for stage in self.stages:  # each stage's time, less the parts it reports itself
+        for stage in stages:  # each stage's time, less the parts it reports itself
             parts = sum(s.timings.values())
             t0 = time.perf_counter()
             s = stage(s)
             own = time.perf_counter() - t0 - (sum(s.timings.values()) - parts)
             timings[stage.name] = timings.get(stage.name, 0.0) + max(own, 0.0)
-        self.timings = {**s.timings, **timings}
-        self.debug = FrameDebug.of(s)
-        return s.out
+        return timings
+
+    def _finish(self, stages: list[Stage], s: FrameState) -> tuple[FrameState, dict[str, float]]:
+        return s, self._run(stages, s)
+
+    def _settle(self) -> None:
+        """Wait for the last frame's stages running beside (their errors are its result's)."""
+        last = self._last_tail
+        if last is not None:
+            wait([last])
+            self._last_tail = None
+
+    def close(self) -> None:
+        """Stop the background thread of :meth:`start` (also done when the VideoDetector is
+        garbage-collected), after the frames it works on."""
+        self._settle()
+        with self._tail_lock:
+            if self._tail_pool is not None:
+                self._tail_pool.shutdown(wait=True)
+                self._tail_pool = None
 
     @property
     def planning(self) -> bool:

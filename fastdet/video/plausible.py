@@ -85,6 +85,13 @@ def perspective_ok(boxes: np.ndarray, frame_shape: tuple[int, int], horizon: flo
     return ~(too_wide | too_narrow)
 
 
+class _Now:
+    """The default of :meth:`PlausibleStage.filter`'s ``horizon``: ask the pipeline."""
+
+
+NOW = _Now()
+
+
 class PlausibleStage(Stage):
     """Drop the returned boxes that are duplicates or, with ``config.perspective``, do not fit
     the perspective (module docstring). ``horizon``: the horizon the pipeline searches at now,
@@ -103,15 +110,17 @@ class PlausibleStage(Stage):
         self.deferred = False
         self.dropped = 0  # boxes dropped since the start (or the last reset)
 
-    def filter(self, dets: Detections, frame_shape: tuple[int, int]) -> Detections:
+    def filter(self, dets: Detections, frame_shape: tuple[int, int], horizon: float | None | _Now = NOW
+               ) -> Detections:
         """``dets`` (one frame's boxes, of a frame of ``frame_shape = (rows, cols)``) less the
-        boxes the rules drop."""
+        boxes the rules drop. ``horizon``: the frame's horizon (a fraction of the height,
+        ``None`` the reference); by default the one the pipeline searches at now."""
         if not len(dets):
             return dets
         c = self.config
         keep = np.ones(len(dets), bool)
         if c.perspective:
-            h = self.horizon()
+            h = self.horizon() if isinstance(horizon, _Now) else horizon
             keep &= perspective_ok(dets.boxes, frame_shape, REFERENCE_HORIZON if h is None else h,
                                    c.min_ratio, c.max_ratio, c.slack)
         if c.max_iou is not None:
@@ -125,7 +134,7 @@ class PlausibleStage(Stage):
 
     def __call__(self, s: FrameState) -> FrameState:
         if not self.deferred:
-            s.out = self.filter(s.out, s.shape)
+            s.out = self.filter(s.out, s.shape, s.horizon if s.placed else NOW)
         return s
 
     def reset(self) -> None:

@@ -22,7 +22,7 @@ from ..io.reader import FrameReader
 from .detector import WindowDetector, make_detector
 from .horizon import HORIZON_FRAMES
 from .offline import offline_pass
-from .pipeline import VideoDetector
+from .pipeline import VideoDetector, run_frames
 from .plausible import PlausibleStage
 
 #: most bytes of frames :func:`video_detector_for` keeps to estimate the horizon from the
@@ -144,8 +144,7 @@ def iter_video_detections(path: str | os.PathLike | int, config: PipelineConfig 
         vd.warmup()
         done: list[tuple[int, Detections]] = []
         with progress_bar(reader.expected, progress, os.path.basename(reader.path)) as bar:
-            for fno, frame, _ in reader:
-                dets = vd.update(frame)
+            for fno, _, _, dets in run_frames(vd, reader):
                 if offline:
                     done.append((fno, dets))
                 else:

@@ -16,10 +16,14 @@ In the order they run (:func:`build_stages`; a stage whose setting is off is lef
 ``weak``         the weak blobs the tracker may keep a track alive with (:class:`WeakStage`)
 ``track``        track ids (:class:`TrackStage`)
 ``clip``         the tracker's filtered boxes clipped to the frame (:class:`ClipStage`)
+``observe``      tell the guided search what this frame found (:class:`ObserveStage`)
 ``refine``       the learned box refinement (:class:`RefineStage`)
 ``plausible``    drop the returned boxes that cannot be vehicles (:class:`PlausibleStage`)
-``observe``      tell the guided search what this frame found (:class:`ObserveStage`)
 ===============  ===========================================================================
+
+The last two (:data:`TAIL_STAGES`) change only the boxes returned for the frame: nothing a
+later frame reads. :meth:`VideoDetector.start <fastdet.VideoDetector.start>` runs them beside
+the next frame's first stages.
 
 Each stage's seconds go to ``VideoDetector.timings`` under its name; a stage may report
 finer parts of its work (``detect``: ``resize_colour``, ``hog``, ``score``; ``heatmap``:
@@ -54,7 +58,13 @@ from .track import Tracker
 __all__ = ["ClipStage", "DetectStage", "FrameDebug", "FrameState", "FusionStage", "GateStage",
            "HeatStage", "HorizonStage", "MotionStage", "ObserveStage", "OwnVehicleStage", "PlausibleStage",
             "PlanStage", "RefineStage", "SplitStage", "Stage", "TrackStage",
-           "TrackView", "WeakStage", "build_stages", "planner_for"]
+           "TAIL_STAGES", "TrackView", "WeakStage", "build_stages", "planner_for"]
+
+
+#: the stages at the end of the list that change only the boxes returned for the frame (no
+#: later frame reads what they do): :meth:`fastdet.VideoDetector.start` may run them beside the
+#: next frame
+TAIL_STAGES: tuple[type[Stage], ...] = (RefineStage, PlausibleStage)
 
 
 def planner_for(config: PipelineConfig, detector: WindowDetector) -> SearchPlanner | None:
@@ -102,11 +112,12 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
         stages += [WeakStage(tracker.config.low_heat, heat), TrackStage(tracker)]
         if tracker.config.output == "filtered":
             stages.append(ClipStage())
+    if planner is not None:
+        stages.append(ObserveStage(planner, tracker))
+    # the tail (TAIL_STAGES): only the boxes returned for this frame, which no later frame reads
     if regressor is not None and config.refine is not None:
         stages.append(RefineStage(regressor, config.refine))
     if config.plausible is not None:
         stages.append(PlausibleStage(config.plausible,
                                      (lambda: detector.horizon) if isinstance(detector, MovableHorizon) else None))
-    if planner is not None:
-        stages.append(ObserveStage(planner, tracker))
     return stages

@@ -25,7 +25,7 @@ def names(vd: VideoDetector) -> list[str]:
 def test_the_default_pipeline_runs_every_stage_in_order():
     vd = VideoDetector(make_detector())
     assert names(vd) == ["horizon", "plan", "motion", "detect", "motion", "ownvehicle", "heatmap", "split", "fusion",
-                         "weak", "track", "refine", "plausible", "observe"]
+                         "weak", "track", "observe", "refine", "plausible"]
     off = VideoDetector(make_detector(), PipelineConfig(tracker=None, refine=None, horizon=None, plausible=None,
                                                         split=None))
     # no tracker: the full search
