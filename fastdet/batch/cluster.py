@@ -20,7 +20,6 @@ from distributed import Client, LocalCluster, WorkerPlugin
 
 from .. import signals
 from .._numba import WORKERS_ENV, all_kernels, ensure_compiled
-from ..config.batch import BatchOptions
 from ..errors import FastdetError
 
 CONNECT_TIMEOUT_S = 20
@@ -101,23 +100,23 @@ def _quiet_dask() -> Iterator[None]:
 
 
 @contextlib.contextmanager
-def _client(opts: BatchOptions) -> Iterator[tuple[Client, int]]:
-    """A client on the local cluster or on ``opts.scheduler``, closed (with the local
-    cluster) on exit; yields ``(client, number of workers)``. Dask's log records are quiet
-    meanwhile (:func:`_quiet_dask`)."""
+def client_for(workers: int | None = None, scheduler: str | None = None) -> Iterator[tuple[Client, int]]:
+    """A client on a local cluster of ``workers`` processes (default: one per core) or on the
+    scheduler at ``scheduler``, closed (with the local cluster) on exit; yields ``(client,
+    number of workers)``. Dask's log records are quiet meanwhile (:func:`_quiet_dask`)."""
     with _quiet_dask():
-        with _client_of(opts) as made:
+        with _client_of(workers, scheduler) as made:
             yield made
 
 
 @contextlib.contextmanager
-def _client_of(opts: BatchOptions) -> Iterator[tuple[Client, int]]:
+def _client_of(workers: int | None, scheduler: str | None) -> Iterator[tuple[Client, int]]:
     cluster = None
     try:
-        if opts.scheduler:
-            client = _connect(opts.scheduler)
+        if scheduler:
+            client = _connect(scheduler)
         else:
-            n = opts.workers or default_workers()
+            n = workers or default_workers()
             # the kernels compiled once here on every core (if the cache lacks them), not once
             # per worker process; the workers load them
             ensure_compiled(all_kernels(), what="the kernels")
@@ -137,11 +136,11 @@ def _client_of(opts: BatchOptions) -> Iterator[tuple[Client, int]]:
         except ImportError as exc:  # raised on a worker, which cannot unpickle fastdet's plugin
             raise FastdetError(f"the Dask workers cannot import {exc.name or 'fastdet'}: install "
                                f"fastdet[cluster] on every worker machine") from None
-        workers = len(client.scheduler_info().get("workers", {}))
-        if not workers:
-            print(f"fastdet batch: the scheduler at {opts.scheduler} has no workers yet; the videos "
+        n_workers = len(client.scheduler_info().get("workers", {}))
+        if not n_workers:
+            print(f"fastdet: the scheduler at {scheduler} has no workers yet; the videos "
                   f"wait for some to join", file=sys.stderr, flush=True)
-        yield client, workers
+        yield client, n_workers
     finally:
         try:
             client.close(timeout=CLOSE_TIMEOUT_S)

@@ -68,11 +68,11 @@ from .cluster import (  # noqa: F401  (re-exported)
     CONNECT_TIMEOUT_S,
     WORKER_ENV,
     BatchInterrupted,
-    _client,
     _connect,
     _glibc_malloc_defaults,
     _WorkerSetup,
     check_address,
+    client_for,
     default_workers,
 )
 from .inputs import output_names
@@ -253,7 +253,7 @@ def _run_batch(videos: Sequence[Path], opts: BatchOptions) -> BatchReport:
             remove_stale_runs(out_dir)
             try:
                 if not signals.stop_requested():
-                    with _client(opts) as (client, workers):
+                    with client_for(opts.workers, opts.scheduler) as (client, workers):
                         report.workers = workers
                         if not signals.stop_requested():
                             _run_tasks(client, tasks, stats, opts, manifest, report)

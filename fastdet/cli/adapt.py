@@ -2,7 +2,8 @@
 
 ``python -m fastdet adapt FOOTAGE... (--teacher MODEL.onnx | --frames SPEC) -o MYCAM.npz
 [--every N] [--max-frames M] [--holdout F] [--weight W] [--offsets O...] [--teacher-size PX]
-[--threads N] [--data DIR] [--max-per-folder N] [--seed S] [--no-progress]``
+[--threads N] [--workers N | --scheduler ADDRESS] [--data DIR] [--max-per-folder N] [--seed S]
+[--no-progress]``
 
 - FOOTAGE: video files, or folders whose video files are all taken, of one camera (one frame
   size). Frames are sampled every N-th frame (more apart when more than M would be sampled);
@@ -10,7 +11,10 @@
 - ``--teacher``: a YOLOX-style ONNX detector labels the sampled frames (its boxes of score
   >= 0.3 of car / bus / truck are targets, lower ones and motorcycles ignore regions). Its
   labels are kept per video in the work folder ``.MYCAM.adapt/`` beside the output, so a
-  stopped run goes on where it was and never labels a finished video again.
+  stopped run goes on where it was and never labels a finished video again. With
+  ``--workers N`` (a local Dask cluster of N processes) or ``--scheduler tcp://host:8786`` (a
+  running one, as ``batch`` uses; needs ``fastdet[cluster]``) each video is labelled by a task
+  of its own (:mod:`fastdet.batch.labelling`).
   ``--frames SPEC`` instead: the user's own labels (:mod:`fastdet.labels.sets`); those of
   FOOTAGE frames in the kept-aside stretch set the operating point (none: the model's own).
 - The main model is trained from the bundled crop folders (``--data``, default
@@ -31,7 +35,7 @@ import os
 import shutil
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -77,6 +81,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--teacher-size", type=teacher_size, default=None, metavar="PX",
                    help="the teacher's input width (default 640)")
     p.add_argument("--threads", type=positive_int, default=None, metavar="N", help="onnxruntime threads")
+    p.add_argument("--workers", type=positive_int, default=None, metavar="N",
+                   help="label the videos on a local Dask cluster of N worker processes, one video a task")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="label the videos on the Dask cluster of this scheduler, e.g. tcp://host:8786 (its "
+                        "workers must see the same paths)")
     p.add_argument("--data", type=Path, default=None,
                    help="folder with the vehicles/ and non-vehicles/ crops (default: $FASTDET_DATA)")
     p.add_argument("--max-per-folder", type=positive_int, default=None, metavar="N",
@@ -226,6 +235,45 @@ def _fmt(a: dict[str, Any] | None) -> str:
             f"{a['fn']} missed), {n(a['ms_per_frame'])} ms a frame")
 
 
+def _cluster_labelling(args: argparse.Namespace) -> Callable[[float], _adapt.Labeller] | None:
+    """With ``--workers`` or ``--scheduler``: what makes the labeller that runs the teacher on the
+    Dask cluster (given the teacher's score floor); checked here, before any long work: Dask
+    installed, a scheduler address of the right form, not both options, a teacher to run."""
+    scheduler = args.scheduler
+    if args.workers is None and not scheduler:
+        return None
+    if scheduler and args.workers:
+        raise FastdetError("--workers is for a local cluster; with --scheduler the cluster's workers label the videos")
+    if args.teacher is None:
+        raise FastdetError("--workers / --scheduler run the teacher on a cluster: they need --teacher")
+    try:
+        from ..batch import labelling
+        from ..batch.cluster import check_address
+    except ImportError as exc:
+        if (exc.name or "").split(".")[0] in ("dask", "distributed"):
+            raise FastdetError(f"labelling on a cluster runs on Dask, which is not installed ({exc.name}): "
+                               f"pip install fastdet[cluster]") from None
+        raise
+    if scheduler:
+        check_address(scheduler)
+    teacher, size, workers = os.path.abspath(args.teacher), args.teacher_size, args.workers
+
+    def make(min_score: float) -> _adapt.Labeller:
+        def label(clips: Sequence[_adapt.Clip], footage: _adapt.Footage
+                  ) -> Iterator[tuple[_adapt.Clip, list[Any]]]:
+            tasks = {labelling.LabelTask(os.path.abspath(c.path), tuple(c.planned(footage.step, footage.every)),
+                                         teacher, size, min_score): c for c in clips}
+            if tasks:
+                print(f"labelling {len(tasks)} video{'s' if len(tasks) != 1 else ''} on the "
+                      f"{'cluster at ' + scheduler if scheduler else 'local Dask cluster'}", flush=True)
+            for task, labelled in labelling.label_on_cluster(list(tasks), workers, scheduler):
+                yield tasks[task], labelled
+
+        return label
+
+    return make
+
+
 def run(args: argparse.Namespace) -> int:
     """The ``adapt`` subcommand."""
     t_start = time.perf_counter()
@@ -235,6 +283,7 @@ def run(args: argparse.Namespace) -> int:
     if (args.teacher is None) == (args.frames is None):
         raise FastdetError("give --teacher MODEL.onnx (a CNN labels the footage) or --frames SPEC (your own "
                            "labels), one of them")
+    cluster = _cluster_labelling(args)
     videos: list[str] = []
     for f in args.footage:
         videos += video_files(f)
@@ -268,7 +317,8 @@ def run(args: argparse.Namespace) -> int:
     t = time.perf_counter()
     if detector is not None:
         folder = work / _adapt.label_key(args.teacher, args.teacher_size, detector.config.min_score)
-        labels, n_now = _adapt.label_clips(footage, detector, folder, progress)
+        labeller = None if cluster is None else cluster(detector.config.min_score)
+        labels, n_now = _adapt.label_clips(footage, detector, folder, progress, labeller=labeller)
         pictures = _adapt.teacher_pictures(footage, labels, config.min_score)
         labelled_by = "teacher"
     else:

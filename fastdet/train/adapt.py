@@ -190,24 +190,16 @@ def cached_labels(folder: Path, clip: Clip, footage: Footage) -> Path | None:
     return boxes if listed == clip.planned(footage.step, footage.every) else None
 
 
-def label_clips(footage: Footage, detector: TeacherDetector, folder: Path, progress: bool = True,
-                log: Callable[[str], None] = print) -> tuple[dict[str, Path], int]:
-    """The teacher's labels of every clip's planned frames: ``({clip name: CLIP-KEY.teacher.txt},
-    frames labelled now)``. A clip labelled before (:func:`cached_labels`) is not labelled
-    again; each other clip's files are written when it is done. Runs inside
-    :func:`fastdet.signals.deferred`: a stop signal ends the run after the current frame (the
-    clip being labelled gets no files) and raises :class:`~fastdet.signals.Stopped`."""
-    folder.mkdir(parents=True, exist_ok=True)
-    out: dict[str, Path] = {}
-    n_now = 0
-    with _signals.deferred(raise_on_exit=False):
-        for clip in footage.clips:
-            found = cached_labels(folder, clip, footage)
-            if found is not None:
-                out[clip.name] = found
-                log(f"{clip.name}: teacher labels of {len(clip.planned(footage.step, footage.every))} frames "
-                    f"read from {found.parent}")
-                continue
+#: labels the clips given, yielding each clip's labels (its planned frames) as it is done, in
+#: any order; a stop signal ends it early (it then returns without the unfinished clips)
+Labeller = Callable[[Sequence["Clip"], "Footage"], Iterator[tuple["Clip", list[Labelled]]]]
+
+
+def local_labeller(detector: TeacherDetector, progress: bool = True) -> Labeller:
+    """A :data:`Labeller` running ``detector`` here, one clip after the other (a bar each)."""
+
+    def label(clips: Sequence[Clip], footage: Footage) -> Iterator[tuple[Clip, list[Labelled]]]:
+        for clip in clips:
             want = set(clip.planned(footage.step, footage.every))
             last = max(want)
             labelled: list[Labelled] = []
@@ -226,10 +218,41 @@ def label_clips(footage: Footage, detector: TeacherDetector, folder: Path, progr
             finally:
                 bar.close()
             if _signals.stop_requested():
-                break
+                return
+            yield clip, labelled
+
+    return label
+
+
+def label_clips(footage: Footage, detector: TeacherDetector, folder: Path, progress: bool = True,
+                log: Callable[[str], None] = print, labeller: Labeller | None = None) -> tuple[dict[str, Path], int]:
+    """The teacher's labels of every clip's planned frames: ``({clip name: CLIP-KEY.teacher.txt},
+    frames labelled now)``: ``detector`` run here (:func:`local_labeller`), or ``labeller``
+    (``fastdet.batch.labelling`` labels on a Dask cluster). A clip labelled
+    before (:func:`cached_labels`) is not labelled again; each other clip's files are written
+    when it is done. Runs inside :func:`fastdet.signals.deferred`: a stop signal ends the run
+    after the current frame (the clips not done get no files) and raises
+    :class:`~fastdet.signals.Stopped`."""
+    folder.mkdir(parents=True, exist_ok=True)
+    label = labeller if labeller is not None else local_labeller(detector, progress)
+    out: dict[str, Path] = {}
+    n_now = 0
+    with _signals.deferred(raise_on_exit=False):
+        todo: list[Clip] = []
+        for clip in footage.clips:
+            found = cached_labels(folder, clip, footage)
+            if found is None:
+                todo.append(clip)
+                continue
+            out[clip.name] = found
+            log(f"{clip.name}: teacher labels of {len(clip.planned(footage.step, footage.every))} frames "
+                f"read from {found.parent}")
+        for clip, labelled in label(todo, footage):
             boxes, _ = write_teacher_files(folder, clip.key, labelled)
             out[clip.name] = boxes
             n_now += len(labelled)
+            if _signals.stop_requested():
+                break
     signum = _signals.received()
     if signum is not None:
         raise _signals.Stopped(signum, f"{len(out)} of {len(footage.clips)} videos labelled (kept in {folder}: "

@@ -66,6 +66,9 @@ def test_bad_inputs_are_one_line_before_any_work(teacher, data, tmp_path, capsys
         ((small, "--teacher", teacher, "-o", out, "--data", tmp_path), "crop folder .* not found"),
         ((small, "--frames", "nope:x", "-o", out), "nope"),
         ((write_video(tmp_path / "one.mp4", 1), "--teacher", teacher, "-o", out), "too short"),
+        ((small, "--teacher", teacher, "-o", out, "--workers", 2, "--scheduler", "tcp://h:1"), "--workers is for"),
+        ((small, "--frames", "mot:x", "-o", out, "--workers", 2), "need --teacher"),
+        ((small, "--teacher", teacher, "-o", out, "--scheduler", "nonsense"), "not a scheduler address"),
     ]
     for args, msg in cases:
         assert _adapt(*args) == 2, (args, msg)
