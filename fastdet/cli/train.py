@@ -8,7 +8,7 @@ and on a leak-free *sequence* split (every folder cut into contiguous time block
 (``--negatives``) and flip augmentation only ever join the *training* part of a split, so
 the test figures stay comparable; so do the augmented copies (``--truncate``: crops cut by
 the image border, padded as the detector pads a window over the frame edge; ``--reencode``:
-compression artefacts; ``--photometric``: another camera's colour; :mod:`fastdet.train.augment`).
+compression artefacts; :mod:`fastdet.train.augment`).
 Deterministic for a given ``--seed``.
 """
 from __future__ import annotations
@@ -77,8 +77,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                      help="re-encoded copies of this fraction (default 0)")
     aug.add_argument("--jpeg-quality", type=int, nargs=2, metavar=("Q1", "Q2"), default=list(JPEG_QUALITY),
                      help=f"their JPEG quality (default {JPEG_QUALITY[0]} {JPEG_QUALITY[1]})")
-    aug.add_argument("--photometric", type=fraction, default=0.0, metavar="F",
-                     help="other-camera colour copies (default 0)")
     feat = p.add_argument_group("features")
     feat.add_argument("--color-space", choices=COLOR_SPACES, default=None, help="colour space")
     feat.add_argument("--orientations", type=positive_int, default=None, metavar="N", help="HOG orientation bins")
@@ -194,7 +192,7 @@ def run(args: argparse.Namespace) -> int:
                           window_top=args.window_rows[0] if args.window_rows else None,
                           positives=args.positives, truncate=args.truncate,
                           truncate_negatives=not args.truncate_vehicles_only, reencode=args.reencode,
-                          jpeg_quality=(q0, q1), truncate_keep=(k0, k1), photometric=args.photometric,
+                          jpeg_quality=(q0, q1), truncate_keep=(k0, k1),
                           extra_crops=extra)
     if model is not None:
         _signals.check()  # a stop that a library swallowed: no model

@@ -1,4 +1,4 @@
-"""Training augmentation for known failures of the detector: cut cars, compression, other cameras' colour.
+"""Training augmentation for known failures of the detector: cut cars, compression.
 
 Truncated crops (:func:`truncate`): a car cut by the left or right image border. The
 detector runs windows up to half a window past the frame edge, the missing columns filled by
@@ -12,12 +12,6 @@ MJPG writers, x264). Each copy is blown up by a random factor (a car in a frame 
 than the 64-px window it is scored in), JPEG-encoded at a random quality (8x8 DCT blocks,
 4:2:0 chroma), decoded and scaled back with ``INTER_AREA`` as the detector's band scaling
 would; then mildly blurred and shifted by a few grey levels in brightness and chroma.
-
-Photometric crops (:func:`photometric`): another camera's white balance, exposure and tone
-curve. Each copy's colour channels are multiplied by a random white-balance gain each (blue
-and red about green), the whole by a random exposure gain, and the result put through a random
-gamma: the raw-colour features (spatial bins, colour histograms) of a crop change as they do
-between cameras, while its shapes stay.
 
 :func:`augmented_copies` draws the copies for a data set: which crops, and every random
 choice, come from one ``numpy`` generator seeded by the training seed, so a run is
@@ -43,13 +37,6 @@ MAX_UPSCALE = 2.0
 MAX_BLUR = 0.7
 #: largest brightness / chroma shift in grey levels (uniform integer in ``[-this, this]``)
 MAX_SHIFT = 2
-#: exposure gain of a photometric copy: log-uniform in ``[1 / this, this]``
-MAX_GAIN = 1.5
-#: gamma of a photometric copy: log-uniform in ``[1 / this, this]``
-MAX_GAMMA = 1.4
-#: white-balance gain of the blue and of the red channel (green fixed): log-uniform in ``[1 / this, this]``
-MAX_WHITE_BALANCE = 1.2
-
 
 def truncate(crop: np.ndarray, keep: int, side: str) -> np.ndarray:
     """``crop`` (``(H, W, C) uint8``) with the columns beyond ``keep`` cut off on ``side``
@@ -137,56 +124,6 @@ def reencode_batch(images: np.ndarray, rng: np.random.Generator, quality: tuple[
 
 
 @dataclass(frozen=True)
-class PhotometricParams:
-    """One photometric copy's random choices: exposure ``gain``, ``gamma``, and the white-balance
-    gains of the ``blue`` and ``red`` channels (green's is 1)."""
-
-    gain: float
-    gamma: float
-    blue: float
-    red: float
-
-
-def photometric(crop: np.ndarray, p: PhotometricParams) -> np.ndarray:
-    """``crop`` (``(H, W, 3) uint8`` BGR) as another camera would record it: with values ``v`` in
-    [0, 1], every channel ``c`` becomes ``clip(gain * wb_c * v, 0, 1) ** gamma`` (``wb`` =
-    (blue, 1, red)), rounded back to uint8. Same shape and dtype; identity parameters (all 1)
-    return the crop unchanged."""
-    if crop.ndim != 3 or crop.shape[2] != 3 or crop.dtype != np.uint8:
-        raise ValueError(f"photometric: expected an (H, W, 3) uint8 image, got {crop.shape} {crop.dtype}")
-    for name in ("gain", "gamma", "blue", "red"):
-        v = getattr(p, name)
-        if not (np.isfinite(v) and v > 0):
-            raise ValueError(f"photometric: {name} must be finite and > 0, got {v!r}")
-    # one lookup table per channel: 256 values each, exact and fast
-    v = np.arange(256, dtype=np.float64) / 255.0
-    out = np.empty_like(crop)
-    for c, wb in enumerate((p.blue, 1.0, p.red)):
-        lut = np.clip(p.gain * wb * v, 0.0, 1.0) ** p.gamma
-        out[..., c] = np.rint(lut * 255.0).astype(np.uint8)[crop[..., c]]
-    return out
-
-
-def photometric_params(rng: np.random.Generator, n: int, max_gain: float = MAX_GAIN, max_gamma: float = MAX_GAMMA,
-                       max_white_balance: float = MAX_WHITE_BALANCE) -> list[PhotometricParams]:
-    """``n`` copies' parameters, each log-uniform in ``[1 / max, max]``."""
-    for name, top in (("max_gain", max_gain), ("max_gamma", max_gamma), ("max_white_balance", max_white_balance)):
-        if not (np.isfinite(top) and top >= 1):
-            raise ValueError(f"{name} must be finite and >= 1, got {top!r}")
-    logs = rng.uniform(-1.0, 1.0, (n, 4)) * np.log([max_gain, max_gamma, max_white_balance, max_white_balance])
-    vals = np.exp(logs)
-    return [PhotometricParams(*(float(x) for x in row)) for row in vals]
-
-
-def photometric_batch(images: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """A photometric copy of every image (``(N, H, W, 3) uint8``)."""
-    out = np.empty_like(images)
-    for i, p in enumerate(photometric_params(rng, len(images))):
-        out[i] = photometric(images[i], p)
-    return out
-
-
-@dataclass(frozen=True)
 class Augmented:
     """Augmented copies: ``images (M, H, W, 3) uint8``, ``labels (M,)``, ``source (M,)``: the
     index of the crop each copy was made from."""
@@ -219,12 +156,10 @@ def _pick(labels: np.ndarray, fraction: float, rng: np.random.Generator, which: 
 def augmented_copies(images: np.ndarray, labels: np.ndarray, seed: int, truncate_fraction: float = 0.0,
                      truncate_negatives: bool = True, reencode_fraction: float = 0.0,
                      jpeg_quality: tuple[int, int] = JPEG_QUALITY,
-                     keep: tuple[float, float] = (MIN_KEEP, MAX_KEEP),
-                     photometric_fraction: float = 0.0) -> Augmented:
+                     keep: tuple[float, float] = (MIN_KEEP, MAX_KEEP)) -> Augmented:
     """Truncated copies of ``truncate_fraction`` of the vehicle crops (and as many of the
     non-vehicle crops, with ``truncate_negatives``, so the padding itself is no sign of a
-    vehicle), re-encoded copies of ``reencode_fraction`` of the crops of both labels and
-    photometric copies of ``photometric_fraction`` of the crops of both labels.
+    vehicle) and re-encoded copies of ``reencode_fraction`` of the crops of both labels.
     Deterministic for ``seed`` (each kind draws from its own generator, so adding one kind leaves
     the others' copies as they were)."""
     parts_img, parts_src = [], []
@@ -237,11 +172,6 @@ def augmented_copies(images: np.ndarray, labels: np.ndarray, seed: int, truncate
         rng = np.random.default_rng([seed, 14])
         src = _pick(labels, reencode_fraction, rng, (1, 0))
         parts_img.append(reencode_batch(images[src], rng, jpeg_quality))
-        parts_src.append(src)
-    if photometric_fraction > 0:
-        rng = np.random.default_rng([seed, 16])
-        src = _pick(labels, photometric_fraction, rng, (1, 0))
-        parts_img.append(photometric_batch(images[src], rng))
         parts_src.append(src)
     if not parts_src:
         return Augmented(np.zeros((0, *images.shape[1:]), images.dtype), np.zeros(0, labels.dtype),

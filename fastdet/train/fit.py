@@ -146,7 +146,7 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
           window_top: int | None = None, positives: list[Path] | None = None, truncate: float = 0.0,
           truncate_negatives: bool = True, reencode: float = 0.0, jpeg_quality: tuple[int, int] = JPEG_QUALITY,
           truncate_keep: tuple[float, float] = (MIN_KEEP, MAX_KEEP), extra_crops: CropSet | None = None,
-          crop_size: int = 64, photometric: float = 0.0, extra_weight: float = 1.0,
+          crop_size: int = 64, extra_weight: float = 1.0,
           dtype: type[np.floating[Any]] = np.float64, log=print):
     """Train and evaluate; returns ``(model or None, report dict)``.
 
@@ -163,9 +163,7 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
     ``truncate`` / ``reencode``: fractions of the crops that also join the training parts as
     truncated / re-encoded copies (:func:`fastdet.train.augment.augmented_copies`; truncated
     copies of as many non-vehicles unless ``truncate_negatives`` is false; ``truncate_keep``: the
-    range of the fraction of columns a truncated copy keeps); ``photometric``: the fraction of
-    the crops (both labels) that also join as photometric copies (another camera's white balance,
-    exposure and gamma, :func:`fastdet.train.augment.photometric`).
+    range of the fraction of columns a truncated copy keeps).
 
     For a wide-window ``config`` (``window_height`` set), ``window_top`` is the first row of
     the 64x64 crops that the window covers (default: centred).
@@ -222,13 +220,12 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
         return np.concatenate(xs), np.concatenate(ys), sw
 
     aug = augmented_copies(crops.images, crops.labels, seed, truncate, truncate_negatives, reencode, jpeg_quality,
-                           truncate_keep, photometric)
+                           truncate_keep)
     report: dict[str, Any] = {"C": C, "classifier": classifier, "seed": seed, "flip": flip, "window_top": top,
                               "crop_size": crop_size,
                               "augment": {"truncate": truncate, "truncate_negatives": truncate_negatives,
                                           "truncate_keep": list(truncate_keep),
                                           "reencode": reencode, "jpeg_quality": list(jpeg_quality),
-                                          **({"photometric": photometric} if photometric else {}),
                                           "copies": len(aug)},
                               "data": {"vehicles": n_pos, "non_vehicles": n_neg,
                                        "hard_negatives": n_hard, "extra_positives": n_extra}}
@@ -252,8 +249,7 @@ def train(data: Path, config: FeatureConfig, classifier: str = "logreg", C: floa
     x_aug = feats(aug.images, "augmented") if len(aug) else None
     if len(aug):
         log(f"augmented copies: {len(aug)} ({int(aug.labels.sum())} vehicles; truncate {truncate:g}"
-            f"{'' if truncate_negatives else ' of vehicles only'}, reencode {reencode:g}"
-            f"{f', photometric {photometric:g}' if photometric else ''}) "
+            f"{'' if truncate_negatives else ' of vehicles only'}, reencode {reencode:g}) "
             f"({time.perf_counter() - t0:.1f} s)")
     log(f"features: {config.n_features} per crop ({time.perf_counter() - t0:.1f} s)")
     splits = {"random": lambda: random_split(crops.labels, seed),

@@ -34,19 +34,6 @@ def test_train_cli_small_subset(data, tmp_path, capsys):
     np.testing.assert_array_equal(load_model(out2).intercept, model.intercept)
 
 
-def test_train_cli_photometric_copies_are_recorded(data, tmp_path, capsys):
-    """--photometric adds copies of that fraction of the crops of both labels, recorded in the model."""
-    out = tmp_path / "photo.npz"
-    assert main(["train", "--data", str(data), "--out", str(out), "--max-per-folder", "8", "--split", "sequence",
-                 "--no-progress", "--spatial-size", "8", "--hist-bins", "8", "--orientations", "4",
-                 "--photometric", "0.5"]) == 0
-    assert "photometric 0.5" in capsys.readouterr().out
-    rep = load_model(out).metadata["training"]
-    n_pos, n_neg = rep["data"]["vehicles"], rep["data"]["non_vehicles"]
-    assert rep["augment"]["photometric"] == 0.5
-    assert rep["augment"]["copies"] == round(0.5 * n_pos) + round(0.5 * n_neg)
-
-
 def test_train_cli_bad_data_folder(tmp_path, capsys):
     assert main(["train", "--data", str(tmp_path), "--out", str(tmp_path / "m.npz"), "--no-progress"]) == 2
     err = capsys.readouterr().err
@@ -94,7 +81,6 @@ def test_train_wide_window_model(data, tmp_path, capsys):
 @pytest.mark.parametrize("opts, msg", [
     (["--truncate", "1.5"], "fraction in [0, 1]"),
     (["--reencode", "-0.1"], "fraction in [0, 1]"),
-    (["--photometric", "2"], "fraction in [0, 1]"),
     (["--jpeg-quality", "90", "30"], "--jpeg-quality must satisfy"),
     (["--truncate", "0.5", "--truncate-keep", "0.9", "0.6"], "--truncate-keep must satisfy"),
 ])

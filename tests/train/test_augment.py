@@ -1,6 +1,5 @@
 """Training augmentation: truncated crops padded exactly as the detector pads a window over the
-frame edge, re-encoded crops, photometric crops (another camera's colour), deterministic copies
-that join only the training part of a split."""
+frame edge, re-encoded crops, deterministic copies that join only the training part of a split."""
 from __future__ import annotations
 
 import numpy as np
@@ -12,11 +11,7 @@ from fastdet.train import augment
 from fastdet.train.augment import (
     MAX_KEEP,
     MIN_KEEP,
-    PhotometricParams,
     augmented_copies,
-    photometric,
-    photometric_batch,
-    photometric_params,
     reencode,
     reencode_batch,
     reencode_params,
@@ -127,67 +122,6 @@ def test_reencode_brightness_shift_only():
     p = augment.ReencodeParams(upscale=1.0, quality=100, blur=0.0, brightness=2, cr=0, cb=0)
     out = reencode(crop, p)
     assert abs(float(out.mean()) - 130) < 1.0
-
-
-def _photometric_reference(crop: np.ndarray, p: PhotometricParams) -> np.ndarray:
-    """Pixel by pixel, the formula of the docstring."""
-    out = np.empty_like(crop)
-    wb = (p.blue, 1.0, p.red)
-    for (y, x, c), v in np.ndenumerate(crop):
-        out[y, x, c] = round(min(max(p.gain * wb[c] * v / 255.0, 0.0), 1.0) ** p.gamma * 255.0)
-    return out
-
-
-def test_photometric_identity_and_reference():
-    crop = np.random.default_rng(0).integers(0, 256, (16, 16, 3), dtype=np.uint8)
-    np.testing.assert_array_equal(photometric(crop, PhotometricParams(1.0, 1.0, 1.0, 1.0)), crop)
-    for p in (PhotometricParams(1.3, 0.8, 0.9, 1.15), PhotometricParams(0.7, 1.4, 1.2, 0.85)):
-        out = photometric(crop, p)
-        assert out.shape == crop.shape and out.dtype == np.uint8
-        # rounding of exact halves may differ by one grey level between numpy and Python
-        assert np.abs(out.astype(int) - _photometric_reference(crop, p).astype(int)).max() <= 1
-
-
-def test_photometric_moves_colour_as_a_camera_does():
-    grey = np.full((8, 8, 3), 100, np.uint8)
-    warm = photometric(grey, PhotometricParams(1.0, 1.0, 0.8, 1.2))  # BGR: less blue, more red
-    assert warm[0, 0, 2] > warm[0, 0, 1] > warm[0, 0, 0]
-    assert photometric(grey, PhotometricParams(1.4, 1.0, 1.0, 1.0)).mean() > 130  # brighter
-    assert photometric(grey, PhotometricParams(1.0, 1.4, 1.0, 1.0)).mean() < 100  # gamma > 1 darkens
-    # the order of grey levels within a channel is kept: shapes (HOG) change little
-    ramp = np.repeat(np.arange(0, 256, 4, dtype=np.uint8)[None, :, None], 3, axis=2)
-    out = photometric(ramp, PhotometricParams(0.8, 1.3, 1.1, 0.9))
-    assert np.all(np.diff(out.astype(int), axis=1) >= 0)
-    with pytest.raises(ValueError):
-        photometric(grey, PhotometricParams(0.0, 1.0, 1.0, 1.0))
-    with pytest.raises(ValueError):
-        photometric(grey[..., 0], PhotometricParams(1.0, 1.0, 1.0, 1.0))
-
-
-def test_photometric_parameters_stay_in_range_and_batch_is_deterministic():
-    ps = photometric_params(np.random.default_rng(0), 2000)
-    for name, top in (("gain", augment.MAX_GAIN), ("gamma", augment.MAX_GAMMA),
-                      ("blue", augment.MAX_WHITE_BALANCE), ("red", augment.MAX_WHITE_BALANCE)):
-        v = np.array([getattr(p, name) for p in ps])
-        assert v.min() >= 1 / top - 1e-12 and v.max() <= top + 1e-12
-        assert v.min() < 1 / top ** 0.8 and v.max() > top ** 0.8  # the whole range is drawn
-    with pytest.raises(ValueError):
-        photometric_params(np.random.default_rng(0), 1, max_gain=0.5)
-    imgs = _crops(6)
-    a = photometric_batch(imgs, np.random.default_rng(5))
-    np.testing.assert_array_equal(a, photometric_batch(imgs, np.random.default_rng(5)))
-    assert not np.array_equal(a, photometric_batch(imgs, np.random.default_rng(6)))
-
-
-def test_photometric_copies_leave_the_other_copies_as_they_were():
-    imgs = _crops(40)
-    labels = np.array([1] * 16 + [0] * 24)
-    base = augmented_copies(imgs, labels, seed=0, truncate_fraction=0.5, reencode_fraction=0.25)
-    more = augmented_copies(imgs, labels, seed=0, truncate_fraction=0.5, reencode_fraction=0.25,
-                            photometric_fraction=0.5)
-    assert len(more) == len(base) + 20 and int(more.labels.sum()) == int(base.labels.sum()) + 8
-    np.testing.assert_array_equal(more.images[: len(base)], base.images)
-    np.testing.assert_array_equal(more.labels, labels[more.source])
 
 
 def test_augmented_copies_counts_labels_sources_and_seed():

@@ -81,8 +81,7 @@ def split_recipe(model: Model) -> dict[str, Any]:
     return {"C": float(t["C"]), "classifier": t["classifier"], "seed": int(t["seed"]), "flip": bool(t["flip"]),
             "truncate": float(a.get("truncate", 0.0)), "truncate_negatives": bool(a.get("truncate_negatives", True)),
             "reencode": float(a.get("reencode", 0.0)), "jpeg_quality": tuple(a.get("jpeg_quality", (30, 90))),
-            "truncate_keep": tuple(a.get("truncate_keep", (0.5, 0.875))),
-            "photometric": float(a.get("photometric", 0.0))}
+            "truncate_keep": tuple(a.get("truncate_keep", (0.5, 0.875)))}
 
 
 def split_scores(model: Model, data: Path, log=print, max_per_folder: int | None = None) -> dict[str, np.ndarray]:
@@ -99,7 +98,7 @@ def split_scores(model: Model, data: Path, log=print, max_per_folder: int | None
     if r["flip"]:
         parts.append((features_in_chunks(_flip(crops.images[tr]), config, False), crops.labels[tr]))
     aug = augmented_copies(crops.images, crops.labels, r["seed"], r["truncate"], r["truncate_negatives"],
-                           r["reencode"], r["jpeg_quality"], r["truncate_keep"], r["photometric"])
+                           r["reencode"], r["jpeg_quality"], r["truncate_keep"])
     if len(aug):
         a = aug.in_training(tr)
         parts.append((features_in_chunks(aug.images[a], config, False), aug.labels[a]))

@@ -16,9 +16,9 @@ from tools.studies.feature_loo import cached_split_scores, cost, split_recipe
 def test_split_refit_reproduces_the_recorded_sequence_split(data, tmp_path):
     cfg = FeatureConfig(spatial_size=8, hist_bins=8, orientations=4)
     model, _ = fit.train(data, cfg, split="sequence", seed=1, max_per_folder=6, progress=False,
-                         truncate=0.5, reencode=0.25, photometric=0.25, C=0.05, log=lambda *_: None)
+                         truncate=0.5, reencode=0.25, C=0.05, log=lambda *_: None)
     r = split_recipe(model)
-    assert (r["C"], r["seed"], r["truncate"], r["reencode"], r["photometric"]) == (0.05, 1, 0.5, 0.25, 0.25)
+    assert (r["C"], r["seed"], r["truncate"], r["reencode"]) == (0.05, 1, 0.5, 0.25)
     out = cached_split_scores("m", model, tmp_path, data, log=lambda *_: None, max_per_folder=6)
     assert out["scores"].shape == out["labels"].shape and (tmp_path / "m.split.npz").is_file()
     # read back from the cache, still checked against the recorded confusion
