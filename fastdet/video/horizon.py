@@ -28,7 +28,6 @@ their camera-shift variants, and what it costs: docs/accuracy.md (*The horizon e
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable
 
 import cv2
@@ -45,9 +44,6 @@ MIN_FLOW = 1.0
 MIN_VECTORS = 20
 #: frames between the two frames of a pair (flow of a single frame is short)
 GAP = 2
-#: with a ``target_flow``, the gap grows up to this many frames until the pairs' median flow
-#: reaches it
-MAX_GAP = 12
 #: fewest frame pairs with a FOE before there is an estimate
 MIN_PAIRS = 5
 #: frames a video's horizon is estimated from (3 s at 25 fps); the estimate is then fixed
@@ -138,9 +134,6 @@ class HorizonEstimator:
     ``gap`` frames apart gave a FOE (and whenever they disagree by more than ``max_spread``).
     ``every``: use one pair in this many frames (the flow of neighbouring pairs is alike);
     ``max_pairs``: stop computing flow once this many pairs gave a FOE (:attr:`done`).
-    ``target_flow``: the median flow (px at :data:`WORK_ROWS`) a pair should have; the gap
-    grows (up to ``max_gap``) until the pairs reach it, and pairs with less than half of it
-    are not counted (``None``: every pair ``gap`` frames apart counts).
     ``segments``: when the flow gives no estimate -- ``min_pairs`` pairs that disagree, or
     fewer pairs while ``max_pairs`` frames gave a vanishing point -- fall back on the
     vanishing point of the line segments of the same frames (:attr:`segment_rows`; spread at
@@ -153,21 +146,15 @@ class HorizonEstimator:
     """
 
     def __init__(self, gap: int = GAP, every: int = 3, min_pairs: int = MIN_PAIRS,
-                 max_spread: float = MAX_SPREAD, max_pairs: int = MAX_PAIRS, segments: bool = True,
-                 target_flow: float | None = None, max_gap: int = MAX_GAP) -> None:
-        if gap < 1 or every < 1 or min_pairs < 1 or max_pairs < min_pairs or max_gap < gap:
-            raise ValueError("gap, every and min_pairs must be >= 1, max_pairs >= min_pairs, max_gap >= gap")
-        if target_flow is not None and not target_flow > 0:
-            raise ValueError(f"target_flow must be > 0 or None, got {target_flow!r}")
+                 max_spread: float = MAX_SPREAD, max_pairs: int = MAX_PAIRS, segments: bool = True) -> None:
+        if gap < 1 or every < 1 or min_pairs < 1 or max_pairs < min_pairs:
+            raise ValueError("gap, every and min_pairs must be >= 1, max_pairs >= min_pairs")
         self.gap, self.every, self.min_pairs, self.max_spread = gap, every, min_pairs, max_spread
         self.max_pairs = max_pairs
         self.segments = segments
-        self.target_flow, self.max_gap = target_flow, max_gap
         self.rows: list[float] = []  # FOE row of each pair, fraction of the height
         self._segment_rows: list[float] = []  # vanishing-point row of each frame measured, fraction of the height
         self._pending: list[tuple[np.ndarray, int]] = []  # frames not measured yet: grey at WORK_ROWS, height
-        self.pair_gap = gap  # frames between the two frames of the next pair
-        self._flow_per_frame: list[float] = []  # median flow of each pair over its gap (work px a frame)
         self._recent: list[np.ndarray] = []  # the last frames, grey at WORK_ROWS
         self._n = 0
 
@@ -181,9 +168,9 @@ class HorizonEstimator:
         if flow_wanted:
             grey, _ = _grey(frame, min(WORK_ROWS, frame.shape[0]))
             self._recent.append(grey)
-            del self._recent[:-(self.max_gap + 1)]
-        if measure and flow_wanted and len(self._recent) > self.pair_gap:
-            self._measure_flow(self._recent[-1 - self.pair_gap], self._recent[-1])
+            del self._recent[:-(self.gap + 1)]
+        if measure and flow_wanted and len(self._recent) > self.gap:
+            self._measure_flow(self._recent[-1 - self.gap], self._recent[-1])
         if measure and self.segments and self._flow() is None and self._fewer_segments(self.max_pairs):
             if grey is None:
                 grey, _ = _grey(frame, min(WORK_ROWS, frame.shape[0]))
@@ -213,17 +200,7 @@ class HorizonEstimator:
         return len(self._segment_rows) < n
 
     def _measure_flow(self, g0: np.ndarray, g1: np.ndarray) -> None:
-        foe, median = _flow_foe(g0, g1)
-        gap = self.pair_gap
-        if self.target_flow is not None:
-            # a pair whose flow is short says little about where it points (a little pitch or
-            # yaw of the camera moves its FOE far): longer gaps until the flow is long enough
-            self._flow_per_frame.append(median / gap)
-            per_frame = float(np.median(self._flow_per_frame))
-            want = self.max_gap if per_frame <= 0 else math.ceil(self.target_flow / per_frame)
-            self.pair_gap = int(min(max(want, self.gap), self.max_gap))
-            if median < 0.5 * self.target_flow and gap < self.max_gap:
-                return
+        foe, _ = _flow_foe(g0, g1)
         if foe is not None and 0 <= foe[0] < g0.shape[1] and 0 <= foe[1] < g0.shape[0]:
             self.rows.append(foe[1] / g0.shape[0])
 
