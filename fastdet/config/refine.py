@@ -20,31 +20,19 @@ class RefineConfig(Config):
     min_size: boxes narrower or lower than this (pixels) are left as they are.
     parts: refine only boxes whose ``part`` is one of these (``None``: every box; boxes of a
         Detections without ``part`` count as part 0).
-    min_step: a box takes no more steps once a step's largest offset (shift as a fraction of
-        the size, ``|log|`` size change) is below this (``None``: every box takes every step).
-    max_total_log_scale: largest ``|log|`` change of a box's width or height over all steps,
-        from the box given (``None``: no limit beyond each step's).
     """
-
-    _OMIT_NONE = ("min_step", "max_total_log_scale")  # configs written before they existed keep their digest
 
     iterations: int = 3
     max_shift: float = 0.5
     max_log_scale: float = math.log(1.5)
     min_size: int = 8
     parts: tuple[int, ...] | None = None
-    min_step: float | None = None
-    max_total_log_scale: float | None = None
 
     def __post_init__(self) -> None:
         if self.iterations < 1:
             raise ValueError(f"iterations must be >= 1, got {self.iterations}")
         if not (self.max_shift >= 0 and self.max_log_scale >= 0):
             raise ValueError("max_shift and max_log_scale must be >= 0")
-        for name in ("min_step", "max_total_log_scale"):
-            v = getattr(self, name)
-            if v is not None and not (math.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be a number >= 0 or None, got {v!r}")
         if self.parts is not None:
             object.__setattr__(self, "parts", tuple(int(p) for p in self.parts))
 

@@ -33,31 +33,16 @@ def refine_boxes(frame: np.ndarray, boxes: np.ndarray, regressor: BoxRegressor,
                  config: RefineConfig = RefineConfig()) -> np.ndarray:
     """Refined ``(N, 4) float64`` boxes (not rounded or clipped) of ``boxes (N, 4)`` x1, y1,
     x2, y2 in ``frame (H, W, 3) uint8 BGR``; boxes below ``config.min_size`` stay as they are.
-    ``regressor``: one regressor or a cascade (module docstring). A box stops once a step's
-    largest offset is below ``config.min_step``; its width and height stay within
-    ``exp(+-config.max_total_log_scale)`` of the box given."""
+    ``regressor``: one regressor or a cascade (module docstring)."""
     b = np.asarray(boxes, np.float64).reshape(-1, 4).copy()
     ok = ((b[:, 2] - b[:, 0]) >= config.min_size) & ((b[:, 3] - b[:, 1]) >= config.min_size)
     if not ok.any():
         return b
     cur = b[ok]
-    start = cur.copy()
-    live = np.ones(len(cur), bool)
     lim = np.array([config.max_shift, config.max_shift, config.max_log_scale, config.max_log_scale])
-    total = config.max_total_log_scale
     for i in range(config.iterations):
-        if not live.any():
-            break
-        t = np.clip(regressor.predict(frame, cur[live], stage=i), -lim, lim)
-        if total is not None:
-            sw, sh = start[live, 2] - start[live, 0], start[live, 3] - start[live, 1]
-            w, h = cur[live, 2] - cur[live, 0], cur[live, 3] - cur[live, 1]
-            t[:, 2] = np.clip(t[:, 2], -total - np.log(w / sw), total - np.log(w / sw))
-            t[:, 3] = np.clip(t[:, 3], -total - np.log(h / sh), total - np.log(h / sh))
-        cur[live] = decode_offsets(cur[live], t)
-        if config.min_step is not None:
-            idx = np.flatnonzero(live)
-            live[idx[np.abs(t).max(axis=1) < config.min_step]] = False
+        t = np.clip(regressor.predict(frame, cur, stage=i), -lim, lim)
+        cur = decode_offsets(cur, t)
     b[ok] = cur
     return b
 
