@@ -134,10 +134,15 @@ class Config:
         return cls(**{k: _decode(hints.get(k), v) for k, v in d.items()})
 
     def digest_dict(self) -> dict[str, Any]:
-        """:meth:`to_dict` with the deleted stages' fields at their off values (``_RETIRED``):
-        what :meth:`digest` hashes."""
-        return {**{k: v for k, v in self._RETIRED.items() if not (v is None and k in self._OMIT_NONE)},
-                **self.to_dict()}
+        """:meth:`to_dict` with the deleted stages' fields at their off values (``_RETIRED``),
+        nested configs' by their own :meth:`digest_dict`: what :meth:`digest` hashes."""
+        out = {**{k: v for k, v in self._RETIRED.items() if not (v is None and k in self._OMIT_NONE)},
+               **self.to_dict()}
+        for f in dataclasses.fields(self):  # type: ignore[arg-type]
+            v = getattr(self, f.name)
+            if isinstance(v, Config) and f.name in out:
+                out[f.name] = v.digest_dict()
+        return out
 
     def digest(self) -> str:
         """16 hex digits of the SHA-256 of :meth:`digest_dict` as canonical JSON: equal configs

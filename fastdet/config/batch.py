@@ -89,7 +89,7 @@ class Settings:
     def digest(self) -> str:
         """A short hash of everything that decides the outputs' contents. The model paths
         are left out (their contents count), so moving a model file does not redo work."""
-        rec = {**self.pipeline.digest_dict(), **self.record()}  # the deleted stages' fields as they were
+        rec = {**self.record(), **self.pipeline.digest_dict()}  # the deleted stages' fields as they were
         for k in ("model", "oncoming", "refine_model"):
             rec[k] = rec[k] is not False and rec[k] is not None  # on or off; the hashes say which file
         text = json.dumps(rec, sort_keys=True, separators=(",", ":"))

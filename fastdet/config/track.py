@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import MappingProxyType
 from typing import Literal
 
 from ._base import Config
@@ -71,16 +72,6 @@ class TrackerConfig(Config):
         step from a box cut at the border, and the box found next is as often what is left of
         the same vehicle (which ``--offline`` then joins across the missed frame) as another
         vehicle.
-    max_behind: a box whose centre lies more than this many widths of a track's predicted box
-        behind the predicted centre, against the track's horizontal motion, is not matched to
-        that track (when the track moves at least ``behind_speed`` of its width a frame, so
-        that its direction is known). In a queue the vehicle behind comes to where the one
-        ahead was: when the leader leaves or is missed, the follower's box falls behind the
-        leader's prediction by about a vehicle's length and would take its id; a vehicle itself
-        does not fall back by half its width in a frame against its own motion. ``None``: no
-        such gate.
-    behind_speed: the speed, in widths of its predicted box per frame, from which a track's
-        direction is trusted by ``max_behind``.
     max_gap: ``--offline`` only: a track's gaps of at most this many frames are filled by
         linear interpolation (StrongSORT's gap interpolation, Du et al., 2023).
     extend_back: ``--offline`` only: each track is extended this many frames back from its
@@ -89,6 +80,9 @@ class TrackerConfig(Config):
     """
 
     _OMIT_NONE = ("cut_shape", "exit_outside", "max_behind")  # configs written before it existed keep their digest
+    #: the queue gate's fields, deleted (docs/accuracy.md, "Deleted stages"), at their off values:
+    #: the dicts written with them still load, and the digests are those of before
+    _RETIRED = MappingProxyType({"max_behind": None, "behind_speed": 0.1})
 
     low_heat: float = 0.5
     match_iou: float = 0.2
@@ -106,8 +100,6 @@ class TrackerConfig(Config):
     hold_row: bool = True
     exit_outside: float | None = 0.25
     exit_after: int = 2
-    max_behind: float | None = None
-    behind_speed: float = 0.1
     max_gap: int = 10
     extend_back: int = 0
 
@@ -130,10 +122,6 @@ class TrackerConfig(Config):
             raise ValueError(f"buffer must be in [0, 2], got {self.buffer!r}")
         if self.exit_outside is not None and not 0 <= self.exit_outside < 1:
             raise ValueError(f"exit_outside must be in [0, 1) or None, got {self.exit_outside!r}")
-        if self.max_behind is not None and not 0 <= self.max_behind < float("inf"):
-            raise ValueError(f"max_behind must be a finite number >= 0 or None, got {self.max_behind!r}")
-        if not 0 <= self.behind_speed < float("inf"):
-            raise ValueError(f"behind_speed must be a finite number >= 0, got {self.behind_speed!r}")
         if not isinstance(self.hold_row, bool):
             raise ValueError(f"hold_row must be True or False, got {self.hold_row!r}")
         if self.output not in ("detection", "filtered"):

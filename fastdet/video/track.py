@@ -7,9 +7,7 @@ predictions by the Hungarian method on IoU (``scipy.optimize.linear_sum_assignme
 stages:
 
 1. **High-confidence boxes** (the heat map's boxes) against every confirmed track, tracked
-   or lost (IoU >= ``match_iou``). With ``max_behind``, a box far behind a moving track's
-   prediction (:func:`behind`: the vehicle following it in a queue) is not matched to it,
-   here and in stage 2.
+   or lost (IoU >= ``match_iou``).
 2. **Low-confidence boxes** (weak heat blobs, :meth:`HeatMap.weak_boxes`) against the
    tracked tracks that stage 1 left without a box (IoU >= ``low_match_iou``): a vehicle whose
    evidence dips below the threshold for a few frames keeps its track. Tracked tracks still
@@ -173,20 +171,6 @@ def outside_fraction(boxes: np.ndarray, frame_shape: tuple[int, int]) -> np.ndar
     return 1.0 - overlap_fraction(boxes, np.array([[0.0, 0.0, w, h]]))[:, 0]
 
 
-def behind(mean: np.ndarray, boxes: np.ndarray, min_speed: float) -> np.ndarray:
-    """``(N, M) float64``: how far each box's centre lies behind each track's predicted centre
-    against the track's horizontal motion, in widths of the predicted box (negative: ahead);
-    ``-inf`` for a track slower than ``min_speed`` of its width a frame (direction unknown).
-    mean: ``(N, >=5)`` Kalman states (cx, cy, w, h, vcx, ...) predicted for this frame; boxes:
-    ``(M, 4)`` x1, y1, x2, y2 (a uniform growth, as :func:`buffered`'s, keeps the centres)."""
-    m = np.asarray(mean, np.float64).reshape(len(mean), -1)
-    b = np.asarray(boxes, np.float64).reshape(-1, 4)
-    w = np.maximum(m[:, 2], 1.0)
-    vx = m[:, 4]
-    d = (m[:, 0, None] - (b[None, :, 0] + b[None, :, 2]) / 2) * np.sign(vx)[:, None] / w[:, None]
-    return np.where((np.abs(vx) >= min_speed * w)[:, None], d, -np.inf)
-
-
 def split_merged(boxes: np.ndarray, predicted: np.ndarray, min_overlap: float,
                  shape_ok: Callable[[np.ndarray], np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Cut boxes that hold several predicted vehicle boxes side by side.
@@ -283,16 +267,12 @@ class Tracker:
         self.confirmed = 0
 
     def _match(self, rows: np.ndarray, pred: np.ndarray, boxes: np.ndarray,
-               min_iou: float, gate: bool = False) -> tuple[np.ndarray, np.ndarray]:
+               min_iou: float) -> tuple[np.ndarray, np.ndarray]:
         """Assign ``boxes`` (buffered) to the tracks in ``rows`` (their buffered predicted
-        boxes ``pred[rows]``): ``(track rows, box indices)``. ``gate``: pairs that
-        :func:`behind` finds too far behind the track (``config.max_behind``) are not matched."""
+        boxes ``pred[rows]``): ``(track rows, box indices)``."""
         if not len(rows) or not len(boxes):
             return np.zeros(0, np.int64), np.zeros(0, np.int64)
         ious = iou(pred[rows], boxes)
-        c = self.config
-        if gate and c.max_behind is not None:
-            ious[behind(self._mean[rows], boxes, c.behind_speed) > c.max_behind] = 0.0
         r, k = assign(ious, min_iou)
         return rows[r], k
 
@@ -343,7 +323,7 @@ class Tracker:
         fix_scores: list[np.ndarray] = []
 
         # stage 1: high boxes vs confirmed tracks (tracked and lost)
-        r1, k1 = self._match(confirmed, bpred, bhigh, c.match_iou, gate=True)
+        r1, k1 = self._match(confirmed, bpred, bhigh, c.match_iou)
         used[k1] = True
         fix_rows.append(r1), fix_boxes.append(hb[k1]), fix_scores.append(hs[k1])
         done = np.zeros(len(tracks), bool)
@@ -353,7 +333,7 @@ class Tracker:
         # stage 2: low boxes vs the tracked tracks left over
         if low is not None and len(low) and len(left):
             lb = low.boxes.astype(np.float64)
-            r2, k2 = self._match(left, bpred, buffered(lb, c.buffer), c.low_match_iou, gate=True)
+            r2, k2 = self._match(left, bpred, buffered(lb, c.buffer), c.low_match_iou)
             fix_rows.append(r2), fix_boxes.append(lb[k2]), fix_scores.append(low.scores[k2].astype(np.float64))
             done[r2] = True
             left = left[~done[left]]

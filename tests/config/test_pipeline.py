@@ -99,6 +99,9 @@ def test_a_deleted_stage_s_fields_load_when_off_and_keep_the_digest():
     assert PipelineConfig.from_dict(old) == PipelineConfig()
     assert "side" not in PipelineConfig().to_dict() and "side" in PipelineConfig().digest_dict()
     assert PipelineConfig().digest() == "73f1a5b6c40c08e5"
+    # a nested config's deleted fields count too (the tracker's queue gate)
+    assert PipelineConfig().digest_dict()["tracker"]["behind_speed"] == 0.1
+    assert "behind_speed" not in PipelineConfig().to_dict()["tracker"]
     with pytest.raises(ValueError, match="PipelineConfig.side: this stage was deleted"):
         PipelineConfig.from_dict({**old, "side": True})
     with pytest.raises(ValueError, match="side_heat"):

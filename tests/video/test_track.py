@@ -18,7 +18,6 @@ from fastdet.video.track import (
     TRACKED,
     Tracker,
     assign,
-    behind,
     buffered,
     merge_failed_parts,
     outside_fraction,
@@ -442,73 +441,6 @@ def test_a_track_missed_once_at_the_border_is_kept():
     (t,) = tr.tracks
     assert outside_fraction(t.predicted, FRAME)[0] > 0.25  # where it was predicted in the last frame
     assert run_in_frame(frames, TrackerConfig(exit_after=1)) == [[1]] * 7 + [[]] + [[2]]
-
-
-# ------------------------------------------------------------------ the vehicle behind
-
-
-def behind_reference(mean: np.ndarray, boxes: np.ndarray, min_speed: float) -> np.ndarray:
-    out = np.zeros((len(mean), len(boxes)))
-    for i, (cx, _, w, _, vx) in enumerate(mean[:, :5].tolist()):
-        w = max(w, 1.0)
-        for j, (x1, _, x2, _) in enumerate(boxes.tolist()):
-            if abs(vx) < min_speed * w:
-                out[i, j] = -np.inf
-            elif vx > 0:
-                out[i, j] = (cx - (x1 + x2) / 2) / w
-            elif vx < 0:
-                out[i, j] = ((x1 + x2) / 2 - cx) / w
-    return out
-
-
-@pytest.mark.parametrize("seed", range(10))
-def test_behind_against_a_plain_loop(seed):
-    rng = np.random.default_rng(seed)
-    n, m = rng.integers(0, 5), rng.integers(0, 5)
-    mean = np.concatenate([rng.uniform(0, 600, (n, 2)), rng.uniform(0.5, 90, (n, 2)),
-                           rng.normal(0, 10, (n, 4)) * (rng.random((n, 1)) < 0.8)], 1)
-    xy = rng.uniform(0, 600, (m, 2))
-    boxes = np.concatenate([xy, xy + rng.uniform(1, 90, (m, 2))], 1)
-    for speed in (0.0, 0.1):
-        np.testing.assert_allclose(behind(mean, boxes, speed), behind_reference(mean, boxes, speed))
-
-
-def queue(f: int, follower_from: int = 9) -> list[list[float]]:
-    """Two cars 48 x 24 px one behind the other, 16 px a frame to the left, the second 42 px
-    (0.875 widths) behind the first, as oncoming cars in one lane: the leader found in frames
-    0-7, then missed (it left or is hidden); the follower found from ``follower_from`` on."""
-    lead = 600 - 16 * f
-    boxes = []
-    if f < 8:
-        boxes.append([lead, 300, lead + 48, 324])
-    if f >= follower_from:
-        boxes.append([lead + 42, 300, lead + 90, 324])
-    return boxes
-
-
-def test_the_car_behind_does_not_take_the_id_of_the_car_ahead():
-    """The follower's box lies 0.875 widths behind the leader's prediction, close enough for
-    the buffered IoU: it took id 1. With ``max_behind`` 0.5 it gets an id of its own."""
-    frames = [dets(*queue(f)) for f in range(14)]
-    assert [ids_of(o) for o in run(frames)][9:] == [[1]] * 5  # the cause
-    out = [ids_of(o) for o in run(frames, TrackerConfig(max_behind=0.5))]
-    assert out == [[1]] * 8 + [[]] + [[2]] * 5
-
-
-def test_a_car_whose_box_slips_back_keeps_its_id():
-    """The gate reads only boxes far behind a track that moves: a car at 16 px a frame whose
-    box falls back by 0.4 of its width for a frame, and a car crawling at 2 px a frame (a
-    twentieth of its width: its direction is not known) whose box falls back by 0.8 of its
-    width, keep id 1."""
-    slip = [dets([600 - 16 * f + (19 if f == 8 else 0), 300, 648 - 16 * f + (19 if f == 8 else 0), 324])
-            for f in range(14)]
-    assert [ids_of(o) for o in run(slip, TrackerConfig(max_behind=0.5))] == [[1]] * 14
-    crawl = [dets([300 - 2 * f + (38 if f == 8 else 0), 300, 348 - 2 * f + (38 if f == 8 else 0), 324])
-             for f in range(14)]
-    assert [ids_of(o) for o in run(crawl, TrackerConfig(max_behind=0.5))] == [[1]] * 14
-    # ... while a gate that trusts every direction would cut the crawling car's track
-    out = [ids_of(o) for o in run(crawl, TrackerConfig(max_behind=0.5, behind_speed=0.0))]
-    assert out[8] != [1]
 
 
 def test_tracker_refuses_a_config_of_another_kind():
