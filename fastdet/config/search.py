@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from types import MappingProxyType
 from typing import Literal
 
 from ._base import Config
@@ -138,11 +139,6 @@ class SearchConfig(Config):
     slack_threshold: the decision value a window must exceed in a band's slack rows
         (:attr:`SearchBand.slack_above`, :attr:`SearchBand.slack_below`, placed by
         :meth:`for_frame`; ``None``: ``threshold`` there too).
-    slack_steps: how :meth:`for_frame` turns a band's slack into whole window steps:
-        ``None`` the nearest number of steps (a band whose step is more than twice its slack
-        gets none), ``'cover'`` the fewest steps that reach at least the slack, so a horizon
-        off by up to the slack loses none of the band's window rows (more rows: the default
-        bands cost 4% more HOG cells at 1280x720; docs/geometry.md, "Tolerance").
     border: windows may hang this fraction of their width over the left / right frame edge
         (bands whose ``x_start`` / ``x_stop`` is ``None``), so a car cut by the border can fill
         one; the columns past the edge are filled as ``border_mode`` says (``'reflect'``:
@@ -165,9 +161,10 @@ class SearchConfig(Config):
     border_mode: Literal["reflect", "replicate"] = "replicate"
     slack_threshold: float | None = SLACK_THRESHOLD
     shrink: Literal["linear", "area"] = "linear"
-    slack_steps: Literal["cover"] | None = None
 
-    #: left out of :meth:`to_dict` while ``None`` (a config written before it existed is the same dict)
+    #: the deleted rounding rule of the slack (docs/accuracy.md, "Deleted stages"): never written
+    #: while off (``None``), so the dicts and digests are those of before
+    _RETIRED = MappingProxyType({"slack_steps": None})
     _OMIT_NONE = ("slack_steps",)
 
     def for_frame(self, frame_shape: tuple[int, int], window: int = WINDOW, cell: int = CELL) -> SearchConfig:
@@ -194,7 +191,8 @@ class SearchConfig(Config):
             a, z = int(round(b.y_start * fy + d)), int(round(b.y_stop * fy + d))
             core_a, core_z = a, z
             if b.has_slack:  # whole steps more: the windows stay on the grid
-                up, down = (self._slack_steps((v or 0.0) * h / step) * step for v in (b.slack_above, b.slack_below))
+                # the nearest number of steps (a band whose step is more than twice its slack gets none)
+                up, down = (round((v or 0.0) * h / step) * step for v in (b.slack_above, b.slack_below))
                 a, z = int(round(b.y_start * fy + d - up)), int(round(b.y_stop * fy + d + down))
             y0, y1 = max(a, 0), min(z, h)
             if y1 > y0 and ((y0, y1) == (a, z) or y1 - y0 >= window * b.scale * fy):
@@ -206,18 +204,10 @@ class SearchConfig(Config):
             raise ValueError(f"{where} leaves no search band in a {w}x{h} frame")
         return replace(self, bands=tuple(bands), reference_shape=None, horizon=None)
 
-    def _slack_steps(self, steps: float) -> int:
-        """Whole window steps for a slack of ``steps`` steps (:attr:`slack_steps`)."""
-        if self.slack_steps == "cover":
-            return math.ceil(steps - 1e-6)  # to the rounding of a fraction of the height
-        return round(steps)
-
     def __post_init__(self) -> None:
         object.__setattr__(self, "bands", tuple(self.bands))
         if not self.bands:
             raise ValueError("a SearchConfig needs at least one band")
-        if self.slack_steps not in (None, "cover"):
-            raise ValueError(f"slack_steps must be None or 'cover', got {self.slack_steps!r}")
         if self.cells_per_step < 1:
             raise ValueError("cells_per_step must be >= 1")
         if self.reference_shape is not None:

@@ -215,13 +215,12 @@ def test_row_thresholds_gate_only_the_windows_reaching_into_the_slack():
     np.testing.assert_array_equal(row_thresholds(geo, search, CFG), np.where(bottoms <= 497, 0.5, 2.0))
 
 
-@pytest.mark.parametrize("variant", ["default", "cover", "oncoming below"])
+@pytest.mark.parametrize("variant", ["default", "oncoming below"])
 def test_detector_needs_the_slack_threshold_in_the_slack_rows(test_images, variant):
     """Detector.detect's positive windows, against the obvious rule applied to every window's
     decision value: above ``threshold`` inside a band's core rows, above ``slack_threshold``
-    where the window reaches into its slack (the default slack above the main bands, the same
-    in whole steps that cover it, ``slack_steps='cover'``, and slack below the oncoming
-    model's bands)."""
+    where the window reaches into its slack (the default slack above the main bands and slack
+    below the oncoming model's bands)."""
     import cv2
 
     from fastdet import Detector
@@ -231,8 +230,6 @@ def test_detector_needs_the_slack_threshold_in_the_slack_rows(test_images, varia
 
     frame = cv2.imread(str(test_images[0]))
     search = replace(SearchConfig(), horizon=0.6, slack_threshold=5.0)  # cars in the slack rows of some bands
-    if variant == "cover":
-        search = replace(search, slack_steps="cover")
     if variant == "oncoming below":  # the main bands moved up: the oncoming slack rows reach the cars
         search = replace(search, horizon=0.5)
         det = Detector(search=search, oncoming=ONCOMING_MODEL_PATH,

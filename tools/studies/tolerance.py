@@ -20,8 +20,6 @@ model):
 - ``--band-slack ABOVE,BELOW``: the main bands' :attr:`~fastdet.config.SearchBand.slack_above`
   / ``slack_below`` (every band with slack today; 0: none on that side);
 - ``--slack-threshold D``: the main search's ``slack_threshold`` (``nan``: none);
-- ``--slack-steps cover``: :attr:`SearchConfig.slack_steps <fastdet.config.SearchConfig>` of
-  the main search (every band's slack rounded up to whole window steps);
 - ``--oncoming-slack-below F`` and ``--oncoming-slack-threshold D``: slack below the oncoming
   model's bands (:func:`fastdet.config.oncoming_search`) and the decision value a window needs
   there.
@@ -35,8 +33,8 @@ threshold, band scale, window bottom row / H) in the searches at ``E`` and at ``
 a dense search (every scale on every row of the lower part of the frame).
 
     python -m tools.studies.tolerance --loo /tmp/s3r/final --out-dir DIR [--clips A,B]
-        [--offsets 0,-0.04,0.04] [--tag NAME] [--slack-steps cover] [--oncoming-slack-below F] ...
-    python -m tools.studies.tolerance --cost [--slack-steps cover] ...
+        [--offsets 0,-0.04,0.04] [--tag NAME] [--oncoming-slack-below F] ...
+    python -m tools.studies.tolerance --cost [--oncoming-slack-below F] ...
     python -m tools.studies.tolerance --loo ... --out-dir DIR --tag NAME --why 0.04 --clips highway_640
 """
 from __future__ import annotations
@@ -98,8 +96,6 @@ def searches(a: argparse.Namespace) -> tuple[SearchConfig, SearchConfig]:
     if slack is not None:
         main = replace(main, bands=tuple(replace(b, slack_above=slack[0], slack_below=slack[1]) if b.has_slack else b
                                          for b in main.bands))
-    if a.slack_steps == "cover":
-        main = replace(main, slack_steps="cover")
     if a.slack_threshold is not None:
         main = replace(main, slack_threshold=None if math.isnan(a.slack_threshold) else a.slack_threshold)
     oncoming = oncoming_search(PipelineConfig().traffic, slack_below=a.oncoming_slack_below or None)
@@ -230,7 +226,6 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--offsets", default="0,-0.04,0.04", help="horizon offsets from the estimate (0: 'auto')")
     ap.add_argument("--band-slack", default=None, metavar="ABOVE,BELOW")
     ap.add_argument("--slack-threshold", type=float, default=None)
-    ap.add_argument("--slack-steps", choices=("nearest", "cover"), default="nearest")
     ap.add_argument("--oncoming-slack-below", type=float, default=None)
     ap.add_argument("--oncoming-slack-threshold", type=float, default=None)
     ap.add_argument("--cost", action="store_true", help="print the setting's full-scan cost against today's")
