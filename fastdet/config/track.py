@@ -33,10 +33,6 @@ class TrackerConfig(Config):
     split_overlap: a high-confidence box that holds at least this fraction of the predicted
         boxes of two or more tracks (merged blobs of vehicles side by side) is split between
         them (:func:`fastdet.video.track.split_merged`); ``0`` = never split.
-    cut_shape: ``True``: a part of such a cut must pass the heat map's shape filter
-        (``HeatConfig``'s ``min_width``, ``min_height``, ``max_aspect``), else it stays joined to
-        its neighbour (:func:`fastdet.video.track.merge_failed_parts`); ``None`` (default) or
-        ``False``: every cut is made.
     output: which box a tracked vehicle is reported with: ``'detection'`` (the heat map's box
         of this frame) or ``'filtered'`` (the Kalman filter's estimate).
     buffer: boxes are grown by this fraction of their width / height on every side before
@@ -80,9 +76,9 @@ class TrackerConfig(Config):
     """
 
     _OMIT_NONE = ("cut_shape", "exit_outside", "max_behind")  # configs written before it existed keep their digest
-    #: the queue gate's fields, deleted (docs/accuracy.md, "Deleted stages"), at their off values:
-    #: the dicts written with them still load, and the digests are those of before
-    _RETIRED = MappingProxyType({"max_behind": None, "behind_speed": 0.1})
+    #: the queue gate's fields and the cut's shape test, deleted (docs/accuracy.md, "Deleted
+    #: stages"), at their off values: the dicts written with them still load, the digests as before
+    _RETIRED = MappingProxyType({"max_behind": None, "behind_speed": 0.1, "cut_shape": None})
 
     low_heat: float = 0.5
     match_iou: float = 0.2
@@ -91,7 +87,6 @@ class TrackerConfig(Config):
     min_hits: int = 1
     max_lost: int = 30
     split_overlap: float = 0.5
-    cut_shape: bool | None = None
     output: Literal["detection", "filtered"] = "detection"
     buffer: float = 0.3
     std_position: float = 1 / 20
@@ -114,8 +109,6 @@ class TrackerConfig(Config):
             v = getattr(self, name)
             if int(v) != v or v < lo:
                 raise ValueError(f"{name} must be an integer >= {lo}, got {v!r}")
-        if self.cut_shape not in (None, True, False):
-            raise ValueError(f"cut_shape must be True, False or None, got {self.cut_shape!r}")
         if not 0 <= self.split_overlap <= 1:
             raise ValueError(f"split_overlap must be in [0, 1], got {self.split_overlap!r}")
         if not 0 <= self.buffer <= 2:

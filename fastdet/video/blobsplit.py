@@ -158,15 +158,13 @@ def split_boxes(boxes: Detections, heat: np.ndarray, labels: np.ndarray, cell: i
                 frame_shape: tuple[int, int], windows: np.ndarray, weights: np.ndarray, extent: float,
                 min_aspect: float = 1.8, min_weight: float = 0.5, bandwidth: float = 0.25,
                 scale_bandwidth: float = 0.3, inside: float = 0.5, max_overlap: float = 0.3,
-                min_heat: float | None = None, max_frame_windows: int | None = None,
+                max_frame_windows: int | None = None,
                 tally: SplitTally | None = None) -> Detections:
     """``boxes`` (one per blob of ``labels``, scored by peak heat, as
     :meth:`fastdet.video.heatmap.HeatMap.boxes` gives them) with each wide box whose blob holds
     separate modes of this frame's ``windows`` (``(N, 4)`` frame px, their heat ``weights``
     ``(N,)``) replaced by one box per part (module docstring). ``heat``, ``labels``: the heat
     map's ``(Hg, Wg)`` grids (cells of ``cell`` px); ``frame_shape``: ``(H, W)`` px.
-    ``min_heat``: a mode lighter than ``min_weight`` x the heaviest still counts when its
-    summed window heat is above this (``None``: never; module docstring).
     ``max_frame_windows``: at most this many windows are shifted in the frame (``None``: no
     bound): the wide blobs take their windows (at most :data:`MAX_WINDOWS` each) heaviest
     first (summed window heat; ties: input order); a blob whose windows no longer fit keeps
@@ -207,7 +205,7 @@ def split_boxes(boxes: Detections, heat: np.ndarray, labels: np.ndarray, cell: i
     changed = False
     for b, s, blob in zip(np.asarray(boxes.boxes), np.asarray(boxes.scores), blobs):
         parts = None if blob is None else _split_blob(blob, (h, w), wins, wts, cell, extent, min_weight, bandwidth,
-                                                      scale_bandwidth, inside, max_overlap, min_heat)
+                                                      scale_bandwidth, inside, max_overlap)
         if parts is None:
             out_b.append(np.asarray(b, np.int32))
             out_s.append(float(s))
@@ -251,16 +249,13 @@ def _blob_windows(b, heat, labels, cell, grid_hw, wts, ccx, ccy, min_aspect) -> 
 
 
 def _split_blob(blob: _Blob, frame_hw, wins, wts, cell, extent, min_weight, bandwidth, scale_bandwidth, inside,
-                max_overlap, min_heat=None) -> list[tuple[np.ndarray, float]] | None:
+                max_overlap) -> list[tuple[np.ndarray, float]] | None:
     """The parts of one blob (``[(box (4,) int32, peak)]``), or ``None`` to keep it whole."""
     lab, x0, y0, sub_l, sub_h, idx = blob
     h, w = frame_hw
     mb, mw = window_modes(wins[idx], wts[idx], bandwidth, scale_bandwidth)
     keep = dominant_modes(mb, mw, inside)
-    heavy = mw[keep] >= min_weight * mw[keep].max()
-    if min_heat is not None:
-        heavy |= mw[keep] > min_heat
-    keep = keep[heavy]
+    keep = keep[mw[keep] >= min_weight * mw[keep].max()]
     hv = np.where(sub_l == lab, sub_h, 0.0)
     cuts = mode_cuts(hv.max(axis=0), x0, cell, mb[keep], max_overlap)
     if not cuts:
@@ -298,9 +293,7 @@ class SplitStage(Stage):
         wins, heat = hm.current_windows
         out = split_boxes(s.boxes, hm.heat, hm.labels, int(hm.config.cell), hm.frame_shape, wins, heat,
                           float(hm.config.extent), c.min_aspect, c.min_weight, c.bandwidth, c.scale_bandwidth,
-                          c.inside, c.max_overlap,
-                          None if c.min_heat is None else c.min_heat * float(hm.config.threshold),
-                          c.max_frame_windows, self.tally)
+                          c.inside, c.max_overlap, c.max_frame_windows, self.tally)
         if out is not s.boxes:
             s.boxes = s.out = out[hm.shape_ok(out.boxes)]
         return s

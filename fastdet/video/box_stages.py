@@ -115,8 +115,7 @@ class TrackStage(Stage):
         self.tracker = tracker
 
     def __call__(self, s: FrameState) -> FrameState:
-        s.out = self.tracker.update(s.boxes, s.low, s.heatmap.shape_ok if s.heatmap is not None else None,
-                                     frame_shape=s.shape)
+        s.out = self.tracker.update(s.boxes, s.low, frame_shape=s.shape)
         s.tracks = [(t.id, t.state, t.predicted) for t in self.tracker.tracks]
         return s
 

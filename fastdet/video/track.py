@@ -38,7 +38,6 @@ at the time of writing, OpenCV 5), plus ``supervision`` and matplotlib.
 """
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from itertools import pairwise
 
@@ -171,8 +170,7 @@ def outside_fraction(boxes: np.ndarray, frame_shape: tuple[int, int]) -> np.ndar
     return 1.0 - overlap_fraction(boxes, np.array([[0.0, 0.0, w, h]]))[:, 0]
 
 
-def split_merged(boxes: np.ndarray, predicted: np.ndarray, min_overlap: float,
-                 shape_ok: Callable[[np.ndarray], np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+def split_merged(boxes: np.ndarray, predicted: np.ndarray, min_overlap: float) -> tuple[np.ndarray, np.ndarray]:
     """Cut boxes that hold several predicted vehicle boxes side by side.
 
     boxes: ``(N, 4)`` this frame's boxes; predicted: ``(T, 4)`` the tracks' predicted boxes.
@@ -180,10 +178,6 @@ def split_merged(boxes: np.ndarray, predicted: np.ndarray, min_overlap: float,
     least ``min_overlap``. A box that two or more predicted boxes belong to is cut into as
     many parts, left to right, at the midpoints between neighbours (half way between one
     predicted box's right edge and the next one's left edge); each part keeps the box's rows.
-    ``shape_ok``: ``shape_ok(parts (K, 4)) -> (K,) bool``, the shapes a vehicle's box may have
-    (e.g. the heat map's shape filter, :meth:`fastdet.video.heatmap.HeatMap.shape_ok`); a part
-    that fails it is not cut off (:func:`merge_failed_parts`: a sliver beside a vehicle is no
-    vehicle; the cut lies where stale or doubled tracks put it). ``None``: every cut is made.
     Returns ``(parts (K, 4) float64, source (K,) int64)``: the boxes after the cuts and, for
     each, the row of ``boxes`` it came from (unsplit boxes are passed through in order).
     """
@@ -205,38 +199,11 @@ def split_merged(boxes: np.ndarray, predicted: np.ndarray, min_overlap: float,
         mine = mine[np.argsort((mine[:, 0] + mine[:, 2]) / 2, kind="stable")]
         cuts = np.clip((mine[:-1, 2] + mine[1:, 0]) / 2, box[0], box[2])
         edges = np.concatenate([[box[0]], cuts, [box[2]]])
-        if shape_ok is not None:
-            edges = merge_failed_parts(edges, box[1], box[3], shape_ok)
         for a, z in pairwise(edges):
             if z > a:
                 parts.append(np.array([a, box[1], z, box[3]]))
                 src.append(i)
     return np.array(parts, np.float64).reshape(-1, 4), np.array(src, np.int64)
-
-
-def merge_failed_parts(edges: np.ndarray, y1: float, y2: float,
-                       shape_ok: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
-    """The column edges ``(K + 1,)`` of a box's parts (x, left to right; rows ``y1`` to ``y2``)
-    with every part that fails ``shape_ok`` joined to a neighbour: the leftmost failing part
-    loses the cut beside it (the first part its right one, the last part its left one, a part
-    between the cut towards its narrower neighbour), again until every part passes or one is
-    left (the whole box). Returns the edges kept ``(K' + 1,) float64``."""
-    e = np.asarray(edges, np.float64).reshape(-1).copy()
-    while len(e) > 2:
-        parts = np.stack([e[:-1], np.full(len(e) - 1, y1), e[1:], np.full(len(e) - 1, y2)], 1)
-        bad = np.flatnonzero(~np.asarray(shape_ok(parts), bool))
-        if not len(bad):
-            break
-        i = int(bad[0])
-        last = len(e) - 2
-        if i == 0:
-            cut = 1
-        elif i == last:
-            cut = last
-        else:
-            cut = i if e[i] - e[i - 1] <= e[i + 2] - e[i + 1] else i + 1  # towards the narrower neighbour
-        e = np.delete(e, cut)
-    return e
 
 
 class Tracker:
@@ -277,12 +244,10 @@ class Tracker:
         return rows[r], k
 
     def update(self, high: Detections, low: Detections | None = None,
-               shape_ok: Callable[[np.ndarray], np.ndarray] | None = None,
                frame_shape: tuple[int, int] | None = None) -> Detections:
         """Track one frame. ``high``: the high-confidence boxes (they may start tracks);
         ``low``: low-confidence boxes (they only continue tracked tracks), or ``None``;
-        ``shape_ok``: the shapes a box cut between tracks may have (:func:`split_merged`; used
-        when ``config.cut_shape``); ``frame_shape``: the picture's (height, width) in pixels,
+        ``frame_shape``: the picture's (height, width) in pixels,
         for ``config.exit_outside`` (``None``: no track is dropped for leaving it).
         Returns the confirmed tracks that found a box this frame: boxes, scores (of the
         matched box), ids, in ascending id order."""
@@ -314,7 +279,7 @@ class Tracker:
         hb = high.boxes.astype(np.float64)
         hs = high.scores.astype(np.float64)
         if len(tracked) >= 2 and len(hb) and c.split_overlap > 0:
-            hb, src = split_merged(hb, pred[tracked], c.split_overlap, shape_ok if c.cut_shape else None)
+            hb, src = split_merged(hb, pred[tracked], c.split_overlap)
             hs = hs[src]
         used = np.zeros(len(hb), bool)
         bpred, bhigh = buffered(pred, c.buffer), buffered(hb, c.buffer)

@@ -23,7 +23,7 @@ def test_tracker_config_is_checked():
         with pytest.raises(ValueError):
             TrackerConfig(exit_after=bad)
     # the deleted queue gate: a dict holding its off values still loads, others are refused
-    assert TrackerConfig.from_dict({"max_behind": None, "behind_speed": 0.1}) == TrackerConfig()
+    assert TrackerConfig.from_dict({"max_behind": None, "behind_speed": 0.1, "cut_shape": None}) == TrackerConfig()
     with pytest.raises(ValueError, match="deleted"):
         TrackerConfig.from_dict({"max_behind": 0.5})
     assert TrackerConfig.from_dict(TrackerConfig().to_dict()) == TrackerConfig()

@@ -55,8 +55,8 @@ def test_flags_are_checked_against_their_command_section_or_any_command(tmp_path
 
 def test_config_fields_and_attributes_are_checked(tmp_path):
     doc = _doc(tmp_path, """\
-        `PipelineConfig(split=NeighbourSplit(min_heat=2, min_aspect=2.0))`, `NeighbourSplit(bogus=1)`,
-        `NeighbourSplit.min_heat`, `PipelineConfig.digest`, `PipelineConfig.nothing`.
+        `PipelineConfig(split=NeighbourSplit(min_weight=0.2, min_aspect=2.0))`, `NeighbourSplit(bogus=1)`,
+        `NeighbourSplit.min_weight`, `PipelineConfig.digest`, `PipelineConfig.nothing`.
         """)
     classes = {"PipelineConfig": PipelineConfig, "NeighbourSplit": NeighbourSplit}
     assert field_problems(doc, classes) == [f"{doc}:1: NeighbourSplit has no field 'bogus'",

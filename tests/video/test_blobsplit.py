@@ -4,6 +4,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -236,34 +237,10 @@ def test_the_pipeline_splits_two_cars_in_a_row():
     assert len(out) == 2 and len(vd.debug.boxes) == 2
 
 
-def test_a_smaller_car_beside_a_near_one_counts_when_its_windows_would_make_a_blob():
-    # a near car (60 px windows, 9 of them) and a smaller one beside it (36 px, 4): each window
-    # adds heat 4, so the small car's mode weighs 16 against 36, under min_weight 0.5 x the
-    # heaviest; its heat (16 where its windows overlap) is above the extent rule's 0.4 x 36, so
-    # the blob's box holds both cars
-    near, small = _cluster(200, 180, 60, 9, 6.0), _cluster(160, 204, 36, 4, 3.0)
-    wins = np.vstack([near, small])
-    hm, boxes = _heatmap_with(wins)
-    assert len(boxes) == 1 and boxes.boxes[0, 0] <= 166 and boxes.boxes[0, 2] >= 256
-    args = (boxes, hm.heat, hm.labels, 4, hm.frame_shape, hm._cur[0], hm._cur[1], hm.config.extent)
-    mb, mw = window_modes(hm._cur[0], hm._cur[1])
-    assert sorted(mw.tolist()) == [16.0, 36.0]
-    assert split_boxes(*args, min_aspect=1.2) is boxes  # the light mode is dropped: no cut
-    # its windows' heat, 16, is above 15: it counts and the blob is cut between the cars
-    out = split_boxes(*args, min_aspect=1.2, min_heat=15.0)
-    assert len(out) == 2
-    b = out.boxes[np.argsort(out.boxes[:, 0])]
-    assert b[0, 0] <= 166 and 190 <= b[0, 2] <= 204 and 190 <= b[1, 0] <= 204 and b[1, 2] >= 256
-    assert split_boxes(*args, min_aspect=1.2, min_heat=16.0) is boxes  # not above: still dropped
-    # the stage takes min_heat in units of the heat map's threshold (1.5 here)
+def test_the_deleted_min_heat_loads_only_off():
     from fastdet.config import NeighbourSplit
-    from fastdet.video.blobsplit import SplitStage
-    from fastdet.video.state import FrameState
 
-    for split, n in ((NeighbourSplit(min_aspect=1.2), 1), (NeighbourSplit(min_aspect=1.2, min_heat=10.0), 2),
-                     (NeighbourSplit(min_aspect=1.2, min_heat=11.0), 1)):
-        s = FrameState.__new__(FrameState)
-        s.heatmap, s.boxes, s.out = hm, boxes, boxes
-        assert len(SplitStage(split)(s).boxes) == n, split
-    assert NeighbourSplit.from_dict(NeighbourSplit(min_heat=1.0).to_dict()).min_heat == 1.0
-    assert "min_heat" not in NeighbourSplit().to_dict()  # configs written before it keep their digest
+    assert NeighbourSplit.from_dict({"min_heat": None}) == NeighbourSplit()
+    assert "min_heat" not in NeighbourSplit().to_dict()
+    with pytest.raises(ValueError, match="deleted"):
+        NeighbourSplit.from_dict({"min_heat": 1.0})

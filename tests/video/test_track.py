@@ -19,7 +19,6 @@ from fastdet.video.track import (
     Tracker,
     assign,
     buffered,
-    merge_failed_parts,
     outside_fraction,
     split_merged,
 )
@@ -126,55 +125,6 @@ def test_split_merged_cuts_between_predicted_boxes():
     assert src.tolist() == [0, 1]
     parts, _ = split_merged([[0, 0, 100, 10]], [[0, 0, 40, 10], [60, 0, 100, 10]], 0.0)
     assert len(parts) == 1  # 0 turns the split off
-
-
-def _not_taller_than_wide(parts: np.ndarray) -> np.ndarray:
-    p = np.asarray(parts, np.float64).reshape(-1, 4)
-    return (p[:, 3] - p[:, 1]) <= (p[:, 2] - p[:, 0])
-
-
-def test_merge_failed_parts_joins_each_sliver_to_a_neighbour():
-    ok = _not_taller_than_wide
-    # rows 0..40: a part must be at least 40 wide. Every part passes: every cut stays
-    np.testing.assert_allclose(merge_failed_parts([0, 50, 100], 0, 40, ok), [0, 50, 100])
-    # a sliver at the left end joins the part to its right, one at the right end the part to its left
-    np.testing.assert_allclose(merge_failed_parts([0, 10, 100], 0, 40, ok), [0, 100])
-    np.testing.assert_allclose(merge_failed_parts([0, 60, 120, 130], 0, 40, ok), [0, 60, 130])
-    # a sliver between two parts joins the narrower one (here the left, 45 wide, against 60)
-    np.testing.assert_allclose(merge_failed_parts([0, 45, 75, 135], 0, 40, ok), [0, 75, 135])
-    np.testing.assert_allclose(merge_failed_parts([0, 60, 90, 135], 0, 40, ok), [0, 60, 135])
-    # slivers everywhere: one part is left, the whole box
-    np.testing.assert_allclose(merge_failed_parts([0, 10, 20, 30], 0, 40, ok), [0, 30])
-    # joining two slivers can make a part that passes: it stays apart from the rest
-    np.testing.assert_allclose(merge_failed_parts([0, 25, 50, 100], 0, 40, ok), [0, 50, 100])
-
-
-def test_split_merged_leaves_no_part_that_fails_the_shape():
-    # a stale track's box (the left one, 20 wide) inside the blob of the car beside it: the
-    # cut would leave a 25 px sliver 60 px high; with the shape rule the box stays whole
-    box, pred = [[100, 50, 230, 110]], [[100, 60, 120, 100], [130, 50, 230, 110]]
-    parts, _ = split_merged(box, pred, 0.5)
-    np.testing.assert_allclose(parts, [[100, 50, 125, 110], [125, 50, 230, 110]])
-    parts, src = split_merged(box, pred, 0.5, _not_taller_than_wide)
-    np.testing.assert_allclose(parts, box)
-    assert src.tolist() == [0]
-    # two cars' worth of box: both parts pass, the cut stays
-    parts, _ = split_merged([[100, 50, 300, 110]], [[100, 50, 190, 110], [210, 50, 300, 110]], 0.5,
-                            _not_taller_than_wide)
-    np.testing.assert_allclose(parts, [[100, 50, 200, 110], [200, 50, 300, 110]])
-
-
-def test_tracker_cuts_by_the_shape_only_when_asked():
-    # two tracks, the left one a narrow sliver; then one box around both
-    frames = [dets([100, 60, 120, 100], [130, 50, 230, 110])] * 3 + [dets([100, 50, 230, 110])]
-    last = {}
-    for cut in (False, True):
-        tr = Tracker(TrackerConfig(cut_shape=cut))
-        for d in frames:
-            last[cut] = tr.update(d, None, _not_taller_than_wide)
-    assert len(last[False]) == 2  # cut in two, a sliver for the narrow track
-    assert len(last[True]) == 1 and last[True].boxes[0].tolist() == [100, 50, 230, 110]
-    assert TrackerConfig.from_dict(TrackerConfig(cut_shape=True).to_dict()).cut_shape
 
 
 # ------------------------------------------------------------------ tracker on hand-made tracks
