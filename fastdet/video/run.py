@@ -133,6 +133,7 @@ def iter_video_detections(path: str | os.PathLike | int, config: PipelineConfig 
     if offline and config.tracker is None:
         raise ValueError("offline needs the tracker")
     reader = FrameReader(path, start, frames)
+    vd: VideoDetector | None = None
     try:
         if offline and reader.live:
             raise FastdetError(f"{reader.path}: the offline pass needs a video file, not a live source")
@@ -153,7 +154,10 @@ def iter_video_detections(path: str | os.PathLike | int, config: PipelineConfig 
         shape = reader.shape
     finally:
         reader.close()
+        if vd is not None:
+            vd.close()  # its background thread (VideoDetector.start)
     if offline:
+        assert vd is not None
         yield from offline_boxes(vd, done, shape)
 
 
