@@ -8,7 +8,6 @@ from ..config import (
     NeighbourSplit,
     OwnVehicleConfig,
     PipelineConfig,
-    PlausibleConfig,
 )
 from ..errors import DataError, FastdetError
 
@@ -98,9 +97,9 @@ def add_refine_argument(parser: Options) -> None:
 
 
 def add_camera_arguments(parser: Options) -> None:
-    """``--no-own-vehicle``, ``--no-split-neighbours``, and ``--perspective-filter``:
-    the optional stages for other cameras. ``--own-vehicle`` and ``--split-neighbours`` (the
-    defaults, spelt out) are still accepted but not shown in ``--help``."""
+    """``--no-own-vehicle`` and ``--no-split-neighbours``: the stages for other cameras, off.
+    ``--own-vehicle`` and ``--split-neighbours`` (the defaults, spelt out) are still accepted but
+    not shown in ``--help``."""
     o = parser.add_mutually_exclusive_group()
     o.add_argument("--no-own-vehicle", action="store_true",
                    help="also search the own vehicle (hood, mirrors)")
@@ -109,8 +108,6 @@ def add_camera_arguments(parser: Options) -> None:
     g.add_argument("--no-split-neighbours", action="store_true",
                    help="one box over vehicles side by side")
     g.add_argument("--split-neighbours", action="store_true", help=argparse.SUPPRESS)  # the default, spelt out
-    parser.add_argument("--perspective-filter", action="store_true",
-                        help="drop boxes too narrow or wide for their row")
 
 
 def pipeline_groups(parser: argparse.ArgumentParser) -> tuple[Options, Options, Options]:
@@ -135,8 +132,7 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
     search); ``--full-search``: no guided search; ``--no-refine``: no refinement;
     ``--heat-frames`` / ``--heat-decay`` / ``--heat-threshold``: the main heat map (a bad
     value: :class:`~fastdet.errors.FastdetError`); ``--no-own-vehicle``: the own-vehicle stage off;
-    ``--no-split-neighbours``: the neighbour split off; ``--perspective-filter``: the perspective test of the
-    plausibility stage on."""
+    ``--no-split-neighbours``: the neighbour split off."""
     d = HeatConfig()
     try:
         heat = HeatConfig(n_frames=getattr(args, "heat_frames", d.n_frames), decay=getattr(args, "heat_decay", d.decay),
@@ -149,8 +145,7 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
                             traffic=getattr(args, "traffic", "right"), horizon=getattr(args, "horizon", "auto"),
                             heat=heat,
                             own_vehicle=None if getattr(args, "no_own_vehicle", False) else OwnVehicleConfig(),
-                            split=None if getattr(args, "no_split_neighbours", False) else NeighbourSplit(),
-                            plausible=PlausibleConfig(perspective=bool(getattr(args, "perspective_filter", False))))
+                            split=None if getattr(args, "no_split_neighbours", False) else NeighbourSplit())
     off = [name for name, flag in (("tracker", "no_track"), ("guided", "full_search"), ("refine", "no_refine"))
            if getattr(args, flag, False)]
     return config.without(*off)  # type: ignore[arg-type]

@@ -274,8 +274,7 @@ def _run_all(args: argparse.Namespace) -> int:
         settings.update(model=args.model or "bundled", oncoming=args.oncoming_model or not args.no_oncoming,
                         traffic=config.traffic, refine=config.refine is not None, track=config.tracker is not None,
                         offline=args.offline, horizon=config.horizon, full_search=config.guided is None,
-                        split=config.split is not None,
-                        perspective_filter=config.plausible is not None and config.plausible.perspective)
+                        split=config.split is not None)
     pictures = _score_picture_sets(picture_sets, args) if picture_sets else []
     report = report_json(scores, settings, pictures)
     text = json.dumps(report, indent=1, allow_nan=False) + "\n"

@@ -83,9 +83,8 @@ class PipelineConfig(Config):
         per vehicle side by side (:mod:`fastdet.video.blobsplit`); on by default
         (:class:`NeighbourSplit`), ``None``: off.
     plausible: drop the returned boxes that cannot be vehicles (:mod:`fastdet.video.plausible`):
-        by default a second box on one vehicle (IoU above 0.5 with a higher-scored box); with
-        ``PlausibleConfig(perspective=True)`` also the boxes whose width does not fit how far
-        below the horizon they stand. ``None``: every box the tracker (and the refinement) gives.
+        a second box on one vehicle (IoU above 0.5 with a higher-scored box). ``None``: every box
+        the tracker (and the refinement) gives.
     """
 
     #: the deleted stages' fields at their off values (docs/accuracy.md, "Deleted stages"): an

@@ -1,19 +1,10 @@
-"""Dropping returned boxes that cannot be vehicles: a second box on one vehicle, and (off by
-default) a box whose size does not fit where it stands (:class:`~fastdet.config.PlausibleConfig`).
+"""Dropping returned boxes that cannot be vehicles: a second box on one vehicle
+(:class:`~fastdet.config.PlausibleConfig`).
 
 **Duplicates** (:func:`duplicates`): two vehicles that are each at least half in view overlap
 by at most IoU 0.5, so of two returned boxes above ``max_iou`` the lower-scored one is a second
 box on the same vehicle (two tracks on one car, or two boxes the refinement moved onto it) and
 is dropped -- greedy non-maximum suppression by score over the boxes of the frame.
-
-**Perspective** (:func:`perspective_ok`): on a flat road a vehicle's width in pixels is
-``W / h_c`` times how many rows its bottom edge is below the horizon (``W`` its width, ``h_c``
-the camera's height above the road; Hoiem, Efros & Hebert, CVPR 2006). The pipeline knows the
-horizon (:mod:`fastdet.video.horizon`) but not the camera's height, so the test asks only what
-no vehicle and no camera can give: a ratio below ``min_ratio`` (too narrow for how low it
-stands: a bollard, a sign, the dashboard) or above ``max_ratio`` (too wide for how close to
-the horizon it stands, or its bottom above the horizon), with the horizon allowed ``slack``
-of the frame height either way.
 
 The stage (:class:`PlausibleStage`) runs on the boxes :meth:`VideoDetector.update
 <fastdet.VideoDetector.update>` returns, after the refinement: the tracker, the heat maps and
@@ -22,12 +13,10 @@ the guided search keep every box. With the offline pass the rules run after it i
 """
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
 from ..boxes import iou
-from ..config import REFERENCE_HORIZON, PlausibleConfig
+from ..config import PlausibleConfig
 from ..detections import Detections
 from .state import FrameState, Stage
 
@@ -66,37 +55,8 @@ def duplicates(boxes: np.ndarray, scores: np.ndarray, max_iou: float) -> np.ndar
     return keep
 
 
-def perspective_ok(boxes: np.ndarray, frame_shape: tuple[int, int], horizon: float, min_ratio: float,
-                   max_ratio: float, slack: float) -> np.ndarray:
-    """``(N,) bool``, True for each box of ``boxes (N, 4)`` (x1, y1, x2, y2 pixels of a frame of
-    ``frame_shape = (rows, cols)``) whose width fits where it stands (module docstring).
-
-    With ``w`` the box's width and ``d`` the rows from the horizon (``horizon`` x rows) down to
-    its bottom edge, both over the frame's rows, a box fails when ``d + slack <= w / max_ratio``
-    (too wide, or its bottom above the horizon by ``slack`` or more) or, unless it touches the
-    frame's left or right edge, when ``d - slack > w / min_ratio`` (too narrow)."""
-    b = np.asarray(boxes, np.float64).reshape(-1, 4)
-    rows, cols = int(frame_shape[0]), int(frame_shape[1])
-    w = (b[:, 2] - b[:, 0]) / rows
-    d = b[:, 3] / rows - float(horizon)
-    too_wide = d + slack <= w / max_ratio
-    at_side = (b[:, 0] <= 1) | (b[:, 2] >= cols - 1)
-    too_narrow = (d - slack > w / min_ratio) & ~at_side
-    return ~(too_wide | too_narrow)
-
-
-class _Now:
-    """The default of :meth:`PlausibleStage.filter`'s ``horizon``: ask the pipeline."""
-
-
-NOW = _Now()
-
-
 class PlausibleStage(Stage):
-    """Drop the returned boxes that are duplicates or, with ``config.perspective``, do not fit
-    the perspective (module docstring). ``horizon``: the horizon the pipeline searches at now,
-    a fraction of the height (``None``: :data:`~fastdet.config.REFERENCE_HORIZON`, where the
-    default bands put it); asked only when the perspective test is on.
+    """Drop the returned boxes that are duplicates (module docstring).
 
     ``deferred``: let every box through and leave the rules to :meth:`filter`, called on the
     frames later -- for the offline pass (:func:`fastdet.video.run.offline_boxes`), which would
@@ -104,29 +64,17 @@ class PlausibleStage(Stage):
 
     name = "plausible"
 
-    def __init__(self, config: PlausibleConfig, horizon: Callable[[], float | None] | None = None) -> None:
+    def __init__(self, config: PlausibleConfig) -> None:
         self.config = config
-        self.horizon = horizon if horizon is not None else (lambda: None)
         self.deferred = False
         self.dropped = 0  # boxes dropped since the start (or the last reset)
 
-    def filter(self, dets: Detections, frame_shape: tuple[int, int], horizon: float | None | _Now = NOW
-               ) -> Detections:
-        """``dets`` (one frame's boxes, of a frame of ``frame_shape = (rows, cols)``) less the
-        boxes the rules drop. ``horizon``: the frame's horizon (a fraction of the height,
-        ``None`` the reference); by default the one the pipeline searches at now."""
-        if not len(dets):
+    def filter(self, dets: Detections) -> Detections:
+        """``dets`` (one frame's boxes) less the boxes the rules drop."""
+        if not len(dets) or self.config.max_iou is None:
             return dets
-        c = self.config
-        keep = np.ones(len(dets), bool)
-        if c.perspective:
-            h = self.horizon() if isinstance(horizon, _Now) else horizon
-            keep &= perspective_ok(dets.boxes, frame_shape, REFERENCE_HORIZON if h is None else h,
-                                   c.min_ratio, c.max_ratio, c.slack)
-        if c.max_iou is not None:
-            idx = np.flatnonzero(keep)
-            scores = dets.scores if dets.scores is not None else np.zeros(len(dets))
-            keep[idx[~duplicates(dets.boxes[idx], scores[idx], c.max_iou)]] = False
+        scores = dets.scores if dets.scores is not None else np.zeros(len(dets))
+        keep = duplicates(dets.boxes, scores, self.config.max_iou)
         if keep.all():
             return dets
         self.dropped += int((~keep).sum())
@@ -134,7 +82,7 @@ class PlausibleStage(Stage):
 
     def __call__(self, s: FrameState) -> FrameState:
         if not self.deferred:
-            s.out = self.filter(s.out, s.shape, s.horizon if s.placed else NOW)
+            s.out = self.filter(s.out)
         return s
 
     def reset(self) -> None:

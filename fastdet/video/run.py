@@ -104,8 +104,7 @@ def offline_boxes(vd: VideoDetector, done: list[tuple[int, Detections]],
     final = offline_pass(done, frame_shape, vd.tracker.config)
     st = vd.stage(PlausibleStage)
     if isinstance(st, PlausibleStage) and st.deferred:
-        hw = (int(frame_shape[0]), int(frame_shape[1]))
-        final = [(fno, st.filter(d, hw)) for fno, d in final]
+        final = [(fno, st.filter(d)) for fno, d in final]
     return final
 
 

@@ -138,8 +138,6 @@ class DetectStage(Stage):
         s.windows = self.detector.detect(s.frame, rgb=s.rgb, stats=stats, **kw)
         s.timings.update(stats.timings)
         s.bands = stats.bands
-        s.horizon = self.detector.horizon if isinstance(self.detector, MovableHorizon) else None
-        s.placed = True
         return s
 
 

@@ -118,6 +118,5 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
     if regressor is not None and config.refine is not None:
         stages.append(RefineStage(regressor, config.refine))
     if config.plausible is not None:
-        stages.append(PlausibleStage(config.plausible,
-                                     (lambda: detector.horizon) if isinstance(detector, MovableHorizon) else None))
+        stages.append(PlausibleStage(config.plausible))
     return stages

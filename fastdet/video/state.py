@@ -30,11 +30,6 @@ class FrameState:
     boxes: the heat maps' boxes; low: the weak boxes given to the tracker.
     out: what :meth:`~fastdet.VideoDetector.update` returns.
     tracks: every live track after the tracker.
-    horizon, placed: the horizon row the detector's bands were placed at on this frame, a
-        fraction of the height (``None``: the reference), and whether it is known (``placed``:
-        set by the ``detect`` stage), so that the stages after it need not ask the detector,
-        whose horizon may already have moved on to a later frame
-        (:meth:`~fastdet.VideoDetector.start` runs the last stages beside the next frame).
     timings: seconds of the finer parts of a stage's work (:mod:`fastdet.video.stages`).
     """
 
@@ -51,8 +46,6 @@ class FrameState:
     out: Detections = field(default_factory=Detections.empty)
     heatmap: HeatMap | None = None
     tracks: list[TrackView] = field(default_factory=list)
-    horizon: float | None = None
-    placed: bool = False
     timings: dict[str, float] = field(default_factory=dict)
 
     @property

@@ -10,7 +10,7 @@ import pytest
 from fastdet.io.reader import FrameReader
 from fastdet.video import VideoDetector
 from fastdet.video.pipeline import run_frames
-from fastdet.video.stages import TAIL_STAGES, PlausibleStage, RefineStage
+from fastdet.video.stages import TAIL_STAGES, RefineStage
 
 
 def _table(dets) -> tuple:
@@ -95,26 +95,6 @@ def test_an_error_in_the_last_stages_comes_out_of_the_frame_s_result():
     with pytest.raises(RuntimeError, match="refine broke"):
         pending.result()
     vd.close()
-
-
-def test_plausibility_uses_the_horizon_of_its_own_frame():
-    """The plausibility rules of a frame run after the next frame may have moved the bands:
-    they take the horizon the frame was searched at (FrameState.horizon), not the detector's."""
-    from fastdet.config import PipelineConfig, PlausibleConfig
-    from fastdet.detections import Detections
-    from fastdet.video.state import FrameState
-
-    vd = VideoDetector(config=PipelineConfig(plausible=PlausibleConfig(perspective=True)))
-    st = vd.stage(PlausibleStage)
-    assert isinstance(st, PlausibleStage)
-    s = FrameState(np.zeros((720, 1280, 3), np.uint8))
-    s.out = Detections(np.array([[600, 320, 660, 350]], np.int32), np.ones(1, np.float32), ids=np.ones(1, np.int64))
-    vd.detector.set_horizon(0.4)  # a later frame's: the box would stand below it, kept
-    s.horizon, s.placed = None, True  # this frame's: the reference (row 421), the box 71 rows above it
-    assert len(st(s).out) == 0
-    s.out = Detections(np.array([[600, 320, 660, 350]], np.int32), np.ones(1, np.float32), ids=np.ones(1, np.int64))
-    s.placed = False  # no detect stage ran: the detector's horizon
-    assert len(st(s).out) == 1
 
 
 def test_a_reading_error_comes_after_the_frame_before_it():

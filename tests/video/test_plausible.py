@@ -1,6 +1,5 @@
-"""fastdet.video.plausible: duplicates dropped by greedy non-maximum suppression, the
-perspective test of a box's width against how far below the horizon it stands, and the
-stage that applies them to the boxes VideoDetector returns."""
+"""fastdet.video.plausible: duplicates dropped by greedy non-maximum suppression, and the
+stage that applies it to the boxes VideoDetector returns."""
 from __future__ import annotations
 
 import numpy as np
@@ -9,11 +8,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fastdet.boxes import iou
-from fastdet.config import REFERENCE_HORIZON, PipelineConfig, PlausibleConfig
+from fastdet.config import PipelineConfig, PlausibleConfig
 from fastdet.detections import Detections
 from fastdet.eval.clips import annotated_clips
 from fastdet.video import VideoDetector, make_detector
-from fastdet.video.plausible import PlausibleStage, duplicates, perspective_ok
+from fastdet.video.plausible import PlausibleStage, duplicates
 from fastdet.video.stages import FrameState
 from tests.fakes import SquareDetector
 
@@ -93,47 +92,6 @@ def test_no_two_annotated_vehicles_overlap_by_more_than_half(data):
     assert frames > 50
 
 
-def test_perspective_keeps_what_a_vehicle_can_be_and_drops_the_rest():
-    shape = (720, 1280)  # horizon 0.5: row 360
-    ok = lambda *box: bool(perspective_ok(np.array([box]), shape, 0.5, 0.45, 12.0, 0.05)[0])  # noqa: E731
-    assert ok(500, 380, 700, 460)          # 200 px wide, bottom 100 rows below: ratio 2
-    # too narrow: 30 px at 340 rows below (0.088); the slack of 36 rows does not save it
-    assert not ok(600, 650, 630, 700)
-    assert ok(0, 650, 30, 700) and ok(1250, 650, 1280, 700)  # ... unless cut by the frame's side
-    # the narrowest allowed: 0.45 x (rows below - slack): 0.45 x (340 - 36) = 136.8 px
-    assert ok(500, 600, 637, 700) and not ok(500, 600, 636, 700)
-    # too wide: 300 px with its bottom 10 rows below the horizon: 300 / (10 + 36) = 6.5 -- kept;
-    # 600 px: 13 > 12 -- dropped
-    assert ok(300, 300, 600, 370) and not ok(300, 300, 900, 370)
-    # the bottom above the horizon: within the slack (20 rows of 36) a narrow box is kept,
-    # beyond it (60 rows) any box goes
-    assert ok(600, 300, 650, 340) and not ok(600, 250, 610, 300)
-    assert perspective_ok(np.zeros((0, 4)), shape, 0.5, 0.45, 12.0, 0.05).tolist() == []
-
-
-@pytest.mark.slow
-def test_perspective_keeps_every_annotated_vehicle_at_the_estimated_horizon(data):
-    """Every target of the five clips passes at the horizon the pipeline estimates for its
-    video -- but for motorcycle_highway's frames after its cut to another road at frame 65
-    (data README), whose horizon is another one."""
-    from fastdet.io.reader import FrameReader
-    from fastdet.video.horizon import HORIZON_FRAMES, estimate_horizon, search_horizon
-
-    c = PlausibleConfig()
-    for clip in annotated_clips(data):
-        reader = FrameReader(str(clip.video), 0, HORIZON_FRAMES, notify=lambda _n: None)
-        try:
-            h = search_horizon(estimate_horizon(f for _, f, _ in reader))
-            shape = reader.shape
-        finally:
-            reader.close()
-        gt = clip.gt()
-        t = gt[gt.targets & ((gt.frames < 65) if clip.name == "motorcycle_highway" else True)]
-        ok = perspective_ok(t.boxes, shape, REFERENCE_HORIZON if h is None else h, c.min_ratio, c.max_ratio,
-                            c.slack)
-        assert ok.all(), (clip.name, t.frames[~ok].tolist())
-
-
 def out_state(boxes: list[list[int]], scores: list[float]) -> FrameState:
     s = FrameState(np.zeros((720, 1280, 3), np.uint8))
     s.out = Detections(np.array(boxes, np.int32).reshape(-1, 4), np.array(scores, np.float32),
@@ -141,47 +99,27 @@ def out_state(boxes: list[list[int]], scores: list[float]) -> FrameState:
     return s
 
 
-def test_the_stage_drops_duplicates_and_with_perspective_on_the_implausible():
+def test_the_stage_drops_duplicates():
     boxes = [[500, 380, 700, 460], [510, 380, 710, 460], [600, 650, 630, 700]]
-    st_ = PlausibleStage(PlausibleConfig(), lambda: 0.5)
+    st_ = PlausibleStage(PlausibleConfig())
     out = st_(out_state(boxes, [1.0, 2.0, 3.0])).out
     assert out.ids.tolist() == [2, 3] and st_.dropped == 1
-    st_ = PlausibleStage(PlausibleConfig(perspective=True), lambda: 0.5)
-    out = st_(out_state(boxes, [1.0, 2.0, 3.0])).out
-    assert out.ids.tolist() == [2] and st_.dropped == 2
     st_.reset()
     assert st_.dropped == 0
-    # a box the perspective test drops suppresses nothing: the lower-scored duplicate stays
-    st_ = PlausibleStage(PlausibleConfig(perspective=True), lambda: 0.5)
-    wide = [[300, 300, 900, 370], [330, 300, 870, 370]]  # ratios 600 / 46 = 13 and 540 / 46 = 11.7, IoU 0.9
-    assert st_(out_state(wide, [9.0, 1.0])).out.ids.tolist() == [2]
+    wide = [[300, 300, 900, 370], [330, 300, 870, 370]]  # IoU 0.9
     assert PlausibleStage(PlausibleConfig())(out_state(wide, [9.0, 1.0])).out.ids.tolist() == [1]
     no_dup = PlausibleStage(PlausibleConfig(max_iou=None))
     assert no_dup(out_state(boxes, [1.0, 2.0, 3.0])).out.ids.tolist() == [1, 2, 3]
     assert len(PlausibleStage(PlausibleConfig())(out_state([], [])).out) == 0
 
 
-def test_without_a_horizon_the_stage_uses_the_reference_one():
-    # at the reference horizon (0.585: row 421) a box whose bottom is at row 350 is 71 rows
-    # (0.099) above it: dropped; at horizon 0.4 (row 288) it stands 62 rows below: kept
-    box = [[600, 320, 660, 350]]
-    assert len(PlausibleStage(PlausibleConfig(perspective=True))(out_state(box, [1.0])).out) == 0
-    assert len(PlausibleStage(PlausibleConfig(perspective=True), lambda: None)(out_state(box, [1.0])).out) == 0
-    assert len(PlausibleStage(PlausibleConfig(perspective=True), lambda: 0.4)(out_state(box, [1.0])).out) == 1
-
-
-def test_the_pipeline_runs_the_stage_last_after_the_search_learns_and_at_the_search_horizon():
+def test_the_pipeline_runs_the_stage_last_after_the_search_learns():
     vd = VideoDetector(make_detector())
     names = [s.name for s in vd.stages]
     assert names[-2:] == ["refine", "plausible"]  # after the search learns: no later frame reads them
-    st_ = vd.stage(PlausibleStage)
-    assert isinstance(st_, PlausibleStage) and st_.horizon() is None
-    vd.detector.set_horizon(0.45)
-    assert st_.horizon() == 0.45
+    assert isinstance(vd.stage(PlausibleStage), PlausibleStage)
     off = VideoDetector(make_detector(), PipelineConfig(plausible=None))
     assert off.stage(PlausibleStage) is None
-    plain = VideoDetector(SquareDetector(), PipelineConfig(refine=None))
-    assert plain.stage(PlausibleStage).horizon() is None  # a detector whose bands do not move
 
 
 def test_with_the_offline_pass_the_rules_run_after_it():

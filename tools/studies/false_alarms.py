@@ -2,8 +2,7 @@
 docs/accuracy.md "False alarms on the new cameras").
 
 Runs the pipeline (the defaults of ``fastdet eval --all``; ``--no-plausible``: without the
-stage of :mod:`fastdet.video.plausible`; ``--perspective-filter``: with its perspective test on;
-``--loo-dir DIR``: each clip with the box regressor that never saw it, as
+stage of :mod:`fastdet.video.plausible`; ``--loo-dir DIR``: each clip with the box regressor that never saw it, as
 :mod:`tools.studies.refine_loo` fits them) over every annotated clip and, for
 every box it returns on a scored frame (the keyframes of a keyframe clip, else every
 annotated frame), records what ``fastdet eval`` makes of it (matched at IoU 0.5: a *hit*; more
@@ -20,7 +19,7 @@ track had been returned for up to this frame (``age``) and in the whole clip (``
 it touches the frame's left / right edge. Also every target's ratio, the range the filter
 must keep.
 
-    python -m tools.studies.false_alarms [--clips A,B] [--no-plausible | --perspective-filter] [--loo-dir DIR]
+    python -m tools.studies.false_alarms [--clips A,B] [--no-plausible] [--loo-dir DIR]
         [--rules] [--json OUT] [--crops DIR]
 
 ``--rules`` then applies each rule of :data:`RULES` (tried as a last stage: duplicates, the
@@ -47,7 +46,7 @@ import cv2
 import numpy as np
 
 from fastdet.boxes import intersection, overlap_fraction
-from fastdet.config import REFERENCE_HORIZON, PipelineConfig, PlausibleConfig
+from fastdet.config import REFERENCE_HORIZON, PipelineConfig
 from fastdet.detections import Detections
 from fastdet.eval.clips import AnnotatedClip, annotated_clips, markdown_table, score_clip
 from fastdet.eval.matching import match_frame
@@ -55,7 +54,7 @@ from fastdet.io.atomic import write_bytes
 from fastdet.io.reader import FrameReader, read_frames_at
 from fastdet.video.detector import make_detector
 from fastdet.video.pipeline import VideoDetector
-from fastdet.video.plausible import duplicates, perspective_ok
+from fastdet.video.plausible import duplicates
 from fastdet.video.run import video_detector_for
 from tools.studies.markdown import table
 
@@ -255,12 +254,33 @@ def _scores(d: Detections) -> np.ndarray:
     return d.scores.astype(float) if d.scores is not None else np.zeros(len(d))
 
 
+def perspective_ok(boxes: np.ndarray, frame_shape: tuple[int, int], horizon: float, min_ratio: float,
+                   max_ratio: float, slack: float) -> np.ndarray:
+    """``(N,) bool``, True for each box of ``boxes (N, 4)`` (x1, y1, x2, y2 pixels of a frame of
+    ``frame_shape = (rows, cols)``) whose width fits where it stands (a rule tried here; the
+    pipeline's ``--perspective-filter`` that ran it was deleted, docs/accuracy.md). On a flat road
+    a vehicle's width in pixels is ``W / h_c`` times the rows its bottom edge stands below the
+    horizon (Hoiem, Efros & Hebert, CVPR 2006). With ``w`` the box's width and ``d`` the rows from
+    the horizon (``horizon`` x rows) down to its bottom edge, both over the frame's rows, a box
+    fails when ``d + slack <= w / max_ratio`` (too wide, or its bottom above the horizon by
+    ``slack`` or more) or, unless it touches the frame's left or right edge, when ``d - slack >
+    w / min_ratio`` (too narrow)."""
+    b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    rows, cols = int(frame_shape[0]), int(frame_shape[1])
+    w = (b[:, 2] - b[:, 0]) / rows
+    d = b[:, 3] / rows - float(horizon)
+    too_wide = d + slack <= w / max_ratio
+    at_side = (b[:, 0] <= 1) | (b[:, 2] >= cols - 1)
+    too_narrow = (d - slack > w / min_ratio) & ~at_side
+    return ~(too_wide | too_narrow)
+
+
 #: the rules ``--rules`` tries on the boxes a run returned (each keeps a box when True)
 RULES: dict[str, Rule] = {
     "duplicates IoU > 0.5 (the stage's default)": lambda d, h, shape, src, age: duplicates(d.boxes, _scores(d), 0.5),
     "duplicates IoU > 0.4": lambda d, h, shape, src, age: duplicates(d.boxes, _scores(d), 0.4),
     "a box half inside a higher-scored one": _inside(0.5),
-    "perspective [0.45, 12], slack 0.05 (--perspective-filter)":
+    "perspective [0.45, 12], slack 0.05 (the deleted --perspective-filter)":
         lambda d, h, shape, src, age: perspective_ok(d.boxes, shape, h, 0.45, 12.0, 0.05),
     "perspective [1.0, 12], slack 0": lambda d, h, shape, src, age: perspective_ok(d.boxes, shape, h, 1.0, 12.0, 0.0),
     "perspective [0.01, 3], slack 0": lambda d, h, shape, src, age: perspective_ok(d.boxes, shape, h, 0.01, 3.0, 0.0),
@@ -318,10 +338,8 @@ def rule_lines(runs: dict[str, tuple[AnnotatedClip, list, float, tuple[int, int]
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--clips", default=None, help="comma-separated clip names (default: every annotated clip)")
-    g = ap.add_mutually_exclusive_group()
-    g.add_argument("--no-plausible", action="store_true",
-                   help="no plausibility stage (every box the tracker and the refinement give)")
-    g.add_argument("--perspective-filter", action="store_true", help="the perspective test of the stage on")
+    ap.add_argument("--no-plausible", action="store_true",
+                    help="no plausibility stage (every box the tracker and the refinement give)")
     ap.add_argument("--loo-dir", default=None,
                     help="score each clip CLIP with the box regressor DIR/refine_without_CLIP.npz (made by "
                          "tools.studies.refine_loo --out-dir DIR): the honest leave-one-clip-out figures")
@@ -334,8 +352,6 @@ def main() -> None:
     config = PipelineConfig()
     if a.no_plausible:
         config = replace(config, plausible=None)
-    elif a.perspective_filter:
-        config = replace(config, plausible=PlausibleConfig(perspective=True))
     clips = [c for c in annotated_clips() if a.clips is None or c.name in a.clips.split(",")]
     scores, lines, ratio_lines, dump = [], [], [], {}
     runs: dict[str, tuple[AnnotatedClip, list, float, tuple[int, int], dict]] = {}

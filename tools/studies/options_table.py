@@ -3,11 +3,12 @@ docs/accuracy.md "Every option on every clip, today").
 
 A *setting* is ``base`` (today's defaults) or option names joined by ``+`` (``noown+pfilter``;
 the small-vehicle and side-view components, the large-vehicle search and the perspective stage
-(``persp``: ``--perspective``) it also measured were deleted: docs/accuracy.md, "Deleted stages"):
+(``persp``: ``--perspective``) and the perspective filter (``pfilter``: ``--perspective-filter``) it
+also measured were deleted: docs/accuracy.md, "Deleted stages"):
 
 - ``split``: ``--split-neighbours`` (the default since this table was measured: a no-op today);
   ``nosplit``: ``--no-split-neighbours``; ``own``: ``--own-vehicle`` (the default now, a no-op);
-  ``noown``: ``--no-own-vehicle``; ``pfilter``: ``--perspective-filter``; ``both``: ``--traffic both``.
+  ``noown``: ``--no-own-vehicle``; ``both``: ``--traffic both``.
 
 Each setting runs on every clip as ``fastdet eval --all`` runs it (:func:`tools.studies.loo.run_clip`)
 twice:
@@ -38,17 +39,12 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from fastdet.config import NeighbourSplit, OwnVehicleConfig, PipelineConfig, PlausibleConfig
+from fastdet.config import NeighbourSplit, OwnVehicleConfig, PipelineConfig
 from fastdet.eval.clips import AnnotatedClip, ClipScore, annotated_clips
 from fastdet.io.atomic import write_bytes
 from fastdet.video import make_detector
 from tools.studies.band_cost import scan_cost
 from tools.studies.loo import SAME_CAMERA, run_clip
-
-
-def _plausible_perspective(c: PipelineConfig) -> PipelineConfig:
-    return replace(c, plausible=replace(c.plausible or PlausibleConfig(), perspective=True))
-
 
 #: option name -> (the CLI flag it stands for, what it does to a PipelineConfig)
 OPTIONS: dict[str, tuple[str, Callable[[PipelineConfig], PipelineConfig]]] = {
@@ -56,7 +52,6 @@ OPTIONS: dict[str, tuple[str, Callable[[PipelineConfig], PipelineConfig]]] = {
     "nosplit": ("--no-split-neighbours", lambda c: replace(c, split=None)),
     "own": ("--own-vehicle", lambda c: replace(c, own_vehicle=OwnVehicleConfig())),
     "noown": ("--no-own-vehicle", lambda c: replace(c, own_vehicle=None)),
-    "pfilter": ("--perspective-filter", _plausible_perspective),
     "both": ("--traffic both", lambda c: replace(c, traffic="both")),
 }
 

@@ -58,7 +58,6 @@ import json
 import sys
 import tempfile
 import zipfile
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -276,10 +275,6 @@ def fit_without(runs: dict[str, ClipRun], held_out: str, a: argparse.Namespace, 
     return reg
 
 
-def _constant(value: float | None) -> Callable[[], float | None]:
-    return lambda: value
-
-
 def refined(run: ClipRun, reg: BoxRegressor, config: PipelineConfig) -> tuple[list, dict]:
     """``run``'s frames and records with the scored frames' boxes refined by ``reg`` (when
     ``config.refine`` is on) and then filtered by ``config.plausible`` (when on), as the
@@ -290,7 +285,7 @@ def refined(run: ClipRun, reg: BoxRegressor, config: PipelineConfig) -> tuple[li
         if config.refine is not None:
             out = refine(run.images[f], out, reg, config.refine)
         if config.plausible is not None:
-            out = PlausibleStage(config.plausible, _constant(r.get("horizon"))).filter(out, run.images[f].shape[:2])
+            out = PlausibleStage(config.plausible).filter(out)
         r["out"] = out
     frames = [(f, rec[f]["out"] if f in rec else out) for f, out in run.frames]
     return frames, rec
