@@ -8,12 +8,12 @@ from .detector import ColumnSearch, HasKernels, MovableHorizon, WindowDetector, 
 from .heatmap import HeatMap, detect_image
 from .offline import offline_pass
 from .picture import PictureDetector, detect_picture
-from .pipeline import VideoDetector
+from .pipeline import PendingFrame, VideoDetector, run_frames
 from .run import detect_video, iter_video_detections, prime_horizon_from_file, progress_bar, video_detector_for
 from .stages import FrameDebug
 from .track import Tracker
 
-__all__ = ["ColumnSearch", "CountLine", "FrameDebug", "HasKernels", "HeatMap", "MovableHorizon", "PictureDetector",
-           "Tracker", "VehicleCounter", "VideoDetector", "WindowDetector", "detect_image", "detect_picture",
-           "detect_video", "iter_video_detections", "make_detector", "offline_pass", "prime_horizon_from_file",
-           "progress_bar", "video_detector_for"]
+__all__ = ["ColumnSearch", "CountLine", "FrameDebug", "HasKernels", "HeatMap", "MovableHorizon", "PendingFrame",
+           "PictureDetector", "Tracker", "VehicleCounter", "VideoDetector", "WindowDetector", "detect_image",
+           "detect_picture", "detect_video", "iter_video_detections", "make_detector", "offline_pass",
+           "prime_horizon_from_file", "progress_bar", "run_frames", "video_detector_for"]
