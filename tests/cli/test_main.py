@@ -89,11 +89,20 @@ def test_ctrl_c_exits_130_with_one_line(fake_command, capsys):
         raise AssertionError("the signal did not stop the command")
 
     fake_command["run"] = run
-    before = signal.getsignal(signal.SIGINT)
-    assert main(["fake"]) == 130
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("fastdet fake: interrupted"), err
-    assert signal.getsignal(signal.SIGINT) is before  # the test runner's handler is back
+    # pytest started with SIGINT ignored (`pytest &` in a script, nohup): the command keeps an
+    # inherited SIG_IGN (tests/test_signals.py), so this Ctrl-C would be ignored and pause() wait
+    # for ever; the test gives the process Python's own handler, as an interactive start has
+    inherited = signal.getsignal(signal.SIGINT)
+    if inherited is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        before = signal.getsignal(signal.SIGINT)
+        assert main(["fake"]) == 130
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("fastdet fake: interrupted"), err
+        assert signal.getsignal(signal.SIGINT) is before  # the test runner's handler is back
+    finally:
+        signal.signal(signal.SIGINT, inherited)
 
 
 def test_no_command_prints_help(capsys):

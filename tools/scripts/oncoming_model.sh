@@ -16,6 +16,8 @@
 # refuses one whose kind of score differs ("train both with the same --classifier").
 # ONCOMING_ZOOM_ARGS (environment): extra options of zoom_negatives, e.g. "--limit 50" (the
 # smoke test runs the whole script on a few crops that way).
+# ONCOMING_MINE_ARGS (environment): extra options of both mine-negatives rounds, e.g.
+# "--frames 2" (the smoke test mines the first two test images only: fewer hard negatives to fit).
 set -euo pipefail
 D=${FASTDET_DATA:-../shared/data}
 W=${1:-/tmp/fastdet-oncoming}
@@ -27,7 +29,7 @@ IMG="$D/test_images/test%d.jpg"
 G=tools/test_images.gt.txt
 mine() {  # model out-dir
   python -m fastdet mine-negatives "$IMG" --gt "$G" --out "$2" --part wide --wide-model "$1" \
-    --threshold -0.5 --x-range 0 660 --y-range 380 520 --no-progress
+    --threshold -0.5 --x-range 0 660 --y-range 380 520 --no-progress ${ONCOMING_MINE_ARGS:-}
 }
 negatives() {  # NEG: --negatives DIR for each DIR given that holds crops (a mining round may find none)
   NEG=()
