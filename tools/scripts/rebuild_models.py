@@ -81,6 +81,36 @@ REFINE_CAMERAS_ARGS = ("--inputs", "both", "--own-repeat", "8", "--refine", "ite
 REFINE_ARGS = ("--clips", "test_small1", "--variants", "original")
 
 
+#: options that name where a step reads or writes a file or keeps a cache, or how it reports
+#: (not what the model is): left out when a recorded command is compared with a step's
+INCIDENTAL = frozenset({"--out", "--ship", "--cache", "--out-dir", "--json", "--model", "--oncoming-model",
+                        "--wide-model", "--refine-model", "--no-progress", "--into-package", "--reuse"})
+#: modules that moved since a bundled file was made: their old name, the name today
+MOVED = {"tools.refine_eval": "tools.studies.refine_eval"}
+
+
+def canonical(command: str | list[str]) -> tuple[str, tuple[tuple[str, ...], ...]]:
+    """A command as ``(program, options)`` to compare what it makes: the module run (and the
+    ``fastdet`` subcommand), its options sorted, each with its values, :data:`INCIDENTAL` ones
+    left out, a value that is a path reduced to its last part (``/tmp/w/neg0`` -> ``neg0``)."""
+    words = shlex.split(command) if isinstance(command, str) else list(command)
+    if words and (Path(words[0]).name.startswith("python") or words[0] == sys.executable):
+        words = words[1:]
+    if words[:1] == ["-m"]:
+        words = words[1:]
+    program = MOVED.get(words[0], words[0]) if words else ""
+    rest = words[1:]
+    if program == "fastdet" and rest and not rest[0].startswith("-"):
+        program, rest = f"fastdet {rest[0]}", rest[1:]
+    options: list[tuple[str, ...]] = []
+    for w in rest:
+        if w.startswith("--") or not options:
+            options.append((w,))
+        else:
+            options[-1] += (Path(w).name if "/" in w else w,)
+    return program, tuple(sorted(o for o in options if o[0] not in INCIDENTAL))
+
+
 def partial(path: Path) -> Path:
     """The name a step writes ``path`` under until it has succeeded (``NAME.partial.npz``)."""
     return path.with_name(path.stem + ".partial" + path.suffix)
@@ -243,14 +273,26 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     for d in (out, work, logs):
         d.mkdir(parents=True, exist_ok=True)
-    signal.signal(signal.SIGTERM, _interrupt)  # a kill stops the step and leaves no partial file
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT)] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []))
     if a.data is not None:
         env["FASTDET_DATA"] = str(a.data.absolute())
+    previous = signal.signal(signal.SIGTERM, _interrupt)  # a kill stops the step, leaves no partial file
+    try:
+        return _run(a, out, work, logs, commands, first, env)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _run(a: argparse.Namespace, out: Path, work: Path, logs: Path, commands: dict[str, list[str]], first: int,
+         env: dict[str, str]) -> int:
+    """The steps from ``STEPS[first]`` on (:func:`main`)."""
+    todo = STEPS[first:]
     threads = env.get("NUMBA_NUM_THREADS") or str(os.cpu_count())
     load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
     print(f"rebuild_models: {len(todo)} steps into {out} (threads {threads}, load {load})", flush=True)
+    for s in todo:  # no file of an earlier run beside this run's, should this one stop half-way
+        (out / s.file).unlink(missing_ok=True)
     times: dict[str, float] = {}
     t_all = time.perf_counter()
     for i, s in enumerate(todo, first + 1):
