@@ -10,7 +10,7 @@ at the files the steps before it built in the same folder, never at the package'
 3. ``refine_cameras.npz``, the default box regressor: ``tools.studies.refine_loo --ship`` (fitted
    on the pipeline's own boxes too: the pipeline of steps 1 and 2, unrefined);
 4. ``refine.npz``, the Udacity box regressor: ``tools.studies.refine_eval --ship`` (its fit needs
-   no model; its held-out figures are the pipeline of steps 1-3's);
+   no model; its held-out figures are those of the unrefined pipeline of steps 1 and 2);
 5. ``verifier.npz``, the picture search's box verifier: ``tools.scripts.verifier_model`` (its
    first stage is the picture search with the models of steps 1 and 3).
 
@@ -68,7 +68,7 @@ STEPS = (
     Step("default", "default.npz", ()),
     Step("oncoming", "oncoming.npz", ("default.npz",)),
     Step("refine_cameras", "refine_cameras.npz", ("default.npz", "oncoming.npz")),
-    Step("refine", "refine.npz", ("default.npz", "oncoming.npz", "refine_cameras.npz")),
+    Step("refine", "refine.npz", ("default.npz", "oncoming.npz")),
     Step("verifier", "verifier.npz", ("default.npz", "refine_cameras.npz")),
 )
 
@@ -129,8 +129,8 @@ def step_commands(out: Path, work: Path) -> dict[str, list[str]]:
                                 *REFINE_CAMERAS_ARGS, "--model", str(m["default"]),
                                 "--oncoming-model", str(m["oncoming"]), "--ship", str(partial(m["refine_cameras"]))],
         "refine": py + ["tools.studies.refine_eval", *REFINE_ARGS, "--model", str(m["default"]),
-                        "--oncoming-model", str(m["oncoming"]), "--refine-model", str(m["refine_cameras"]),
-                        "--cache", str(work / "refine_eval"), "--ship", str(partial(m["refine"]))],
+                        "--oncoming-model", str(m["oncoming"]), "--cache", str(work / "refine_eval"),
+                        "--ship", str(partial(m["refine"]))],
         "verifier": py + ["tools.scripts.verifier_model", "--model", str(m["default"]),
                           "--refine-model", str(m["refine_cameras"]), "--cache",
                           str(work / "verifier_first_stage.npz"), "--out", str(partial(m["verifier"])),

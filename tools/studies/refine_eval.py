@@ -15,7 +15,7 @@ with the same vehicle before and after refinement (median, fraction >= 0.5 and >
     python -m tools.studies.refine_eval [--clips test_small1,test_video] [--variants original,960x540,wide0.8]
         [--contexts 1.5] [--iterations 1] [--parts 0,1] [--per-box 16] [--hog-channels 0]
         [--cache DIR] [--json OUT.json] [--ship fastdet/models/refine.npz]
-        [--model M.npz] [--oncoming-model W.npz] [--refine-model R.npz]
+        [--model M.npz] [--oncoming-model W.npz]
 
 ``--ship PATH`` also fits one regressor on the clips ``--ship-clips`` names (default
 ``test_video``) and the six test images (:mod:`tools.scripts.refine_model`), and writes it to
@@ -24,10 +24,12 @@ PATH with this run's measurement in its metadata. The bundled
 regressor that ``--clips test_small1`` measures held out, and ``eval`` on ``test_small1``
 stays a held-out figure (on ``test_video`` it is in-sample). Pipeline boxes are cached under ``--cache`` (default
 ``$TMPDIR/fastdet_refine_eval``), keyed by clip and variant, so settings of the refinement
-can be compared without running the detector again. ``--model``, ``--oncoming-model`` and
-``--refine-model`` run that pipeline with other model files than the bundled ones (the bundled
-regressor refines the pipeline's boxes before this study's regressor is applied to them);
-give a ``--cache`` of its own then: the cache is keyed by clip and variant only.
+can be compared without running the detector again. The pipeline runs with its own refinement
+off (``PipelineConfig(refine=None)``): "before" is the unrefined boxes, as when the bundled
+regressor was made (the refinement has been on by default since; before this was said, the
+study's "before" was the boxes the bundled regressor had refined already). ``--model`` and
+``--oncoming-model`` run it with other model files than the bundled ones; give a ``--cache``
+of its own then (and after a change of the pipeline): the cache is keyed by clip and variant only.
 """
 from __future__ import annotations
 
@@ -38,6 +40,7 @@ import os
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -90,12 +93,12 @@ def _part_of(boxes: np.ndarray, windows: Detections) -> np.ndarray:
 
 def pipeline_boxes(det: Any, frames: list[np.ndarray], cache: Path,
                    config: PipelineConfig | None = None) -> list[Detections]:
-    """The default pipeline's boxes of every frame (cached in ``cache``), ``part`` filled by
-    :func:`_part_of` (the tracker's output has no part column); ``config`` (default
-    ``PipelineConfig()``) names its model files."""
+    """The pipeline's boxes of every frame before any refinement (cached in ``cache``), ``part``
+    filled by :func:`_part_of` (the tracker's output has no part column); ``config`` (default
+    ``PipelineConfig()``) names its model files; its refinement is turned off."""
     if cache.exists():
         return load_frame_detections(cache)
-    vd = VideoDetector(det, config if config is not None else PipelineConfig(horizon="auto"))
+    vd = VideoDetector(det, replace(config if config is not None else PipelineConfig(horizon="auto"), refine=None))
     vd.prime_horizon(frames)
     vd.warmup()
     out = []
@@ -182,10 +185,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--model", default=None, help="the pipeline's main model file (default: the bundled one)")
     ap.add_argument("--oncoming-model", default=None,
                     help="the pipeline's oncoming-traffic model file (default: the bundled one)")
-    ap.add_argument("--refine-model", default=None,
-                    help="the pipeline's own box regressor file (default: the bundled one)")
     a = ap.parse_args(argv)
-    pipeline = PipelineConfig(horizon="auto", model=a.model, refine_model=a.refine_model,
+    pipeline = PipelineConfig(horizon="auto", model=a.model, refine=None,
                               oncoming=a.oncoming_model if a.oncoming_model is not None else True)
 
     spec = spec_of(a)
