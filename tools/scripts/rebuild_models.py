@@ -275,6 +275,7 @@ def main(argv: list[str] | None = None) -> int:
         d.mkdir(parents=True, exist_ok=True)
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT)] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []))
+    env["PYTHONUNBUFFERED"] = "1"  # each step's log as it goes
     if a.data is not None:
         env["FASTDET_DATA"] = str(a.data.absolute())
     previous = signal.signal(signal.SIGTERM, _interrupt)  # a kill stops the step, leaves no partial file
