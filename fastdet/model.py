@@ -162,7 +162,8 @@ def write_npz(path: str | os.PathLike, arrays: dict[str, np.ndarray | np.generic
 
 
 def read_npz(path: Path, names: tuple[str, ...], what: str = "model",
-             version: int = FORMAT_VERSION) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+             version: int = FORMAT_VERSION,
+             max_array_bytes: int | None = None) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     """The arrays ``names`` (``metadata`` among them) and the parsed metadata of a file written
     by :func:`write_npz`, read with ``allow_pickle=False``. ``what`` names the kind of file in
     the messages (``'model'``, ``'box regressor'``).
@@ -170,7 +171,9 @@ def read_npz(path: Path, names: tuple[str, ...], what: str = "model",
     Raises :class:`~fastdet.errors.ModelError` naming the problem when the file is missing, a
     folder, unreadable, not an ``.npz``, truncated, holds pickled objects, lacks an array, has
     metadata that is not a JSON object or of another ``format_version`` than ``version``, or an
-    array other than the metadata holds non-numbers."""
+    array other than the metadata holds non-numbers. ``max_array_bytes``: the budget of an array
+    other than the metadata (default :data:`MAX_ARRAY_BYTES`; a work file such as the
+    verifier's first-stage cache holds more than a model's)."""
     if path.is_dir():
         raise ModelError(f"{what} path {path} is a folder, not a file (an .npz is expected)")
     if not path.exists() and not path.is_symlink():
@@ -180,11 +183,11 @@ def read_npz(path: Path, names: tuple[str, ...], what: str = "model",
     except DataError as exc:
         raise ModelError(f"{what} file {exc}") from None
     with fh:
-        return _read_npz(fh, path, names, what, version)
+        return _read_npz(fh, path, names, what, version, max_array_bytes)
 
 
 def _read_npz(fh: Any, path: Path, names: tuple[str, ...], what: str,
-              version: int) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+              version: int, max_array_bytes: int | None = None) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     """:func:`read_npz` of the opened file ``fh``."""
     try:
         magic = fh.read(4)
@@ -194,7 +197,7 @@ def _read_npz(fh: Any, path: Path, names: tuple[str, ...], what: str,
     if magic != b"PK\x03\x04":
         raise ModelError(f"{path} is not a fastdet {what}: not an .npz (zip) archive"
                          + (" (empty file)" if not magic else ""))
-    _check_members(fh, path, names, what)
+    _check_members(fh, path, names, what, max_array_bytes)
     fh.seek(0)
     try:
         with np.load(fh, allow_pickle=False) as npz:
@@ -235,7 +238,8 @@ def _read_npz(fh: Any, path: Path, names: tuple[str, ...], what: str,
     return arrays, meta
 
 
-def _check_members(fh: Any, path: Path, names: tuple[str, ...], what: str) -> None:
+def _check_members(fh: Any, path: Path, names: tuple[str, ...], what: str,
+                   max_array_bytes: int | None = None) -> None:
     """Each array ``names`` of the archive (the open file ``fh``) has a valid ``.npy`` header of
     a plain dtype whose shape fits the bytes stored (a header may claim any shape: reading it
     would allocate that much before noticing) and the memory budget
@@ -271,7 +275,8 @@ def _check_members(fh: Any, path: Path, names: tuple[str, ...], what: str) -> No
             if need > info.file_size - header:
                 raise ModelError(f"{path} is not a readable .npz {what} file: '{name}' claims shape {shape} "
                                  f"({need} bytes) but holds {info.file_size - header} bytes")
-            budget = MAX_METADATA_BYTES if name == "metadata" else MAX_ARRAY_BYTES
+            budget = MAX_METADATA_BYTES if name == "metadata" else (
+                MAX_ARRAY_BYTES if max_array_bytes is None else max_array_bytes)
             if need > budget:
                 raise ModelError(f"{path} is not a usable fastdet {what}: '{name}' declares shape {shape} "
                                  f"({need} bytes), more than the {budget // 2**20} MB such an array may hold")

@@ -102,6 +102,12 @@ def save_candidates(path: str | os.PathLike, c: Candidates, key: dict[str, Any])
               {"format_version": CANDIDATES_VERSION, "key": key, "cameras": names.tolist()})
 
 
+#: the largest array a first-stage cache may hold: the bundled verifier's (2,170 frames) is
+#: 105,527 x 3,913 float32, 1.65 GB, far past a model file's budget (``MAX_ARRAY_BYTES``), which
+#: made every full-size cache unreadable (written, then recomputed on each run)
+MAX_CANDIDATES_BYTES = 16 * 2**30
+
+
 def load_candidates(path: str | os.PathLike, key: dict[str, Any]) -> Candidates | None:
     """The candidates :func:`save_candidates` kept in ``path`` when they were made with ``key``;
     ``None`` when there is no such file or it was made otherwise."""
@@ -110,7 +116,7 @@ def load_candidates(path: str | os.PathLike, key: dict[str, Any]) -> Candidates 
         return None
     try:
         arrays, meta = read_npz(p, ("x", "y", "camera", "picture", "metadata"), "candidates file",
-                                CANDIDATES_VERSION)
+                                CANDIDATES_VERSION, max_array_bytes=MAX_CANDIDATES_BYTES)
     except ModelError:
         return None
     if meta.get("key") != key:

@@ -139,3 +139,18 @@ def test_collect_labels_each_pictures_boxes(tmp_path):
     assert len(c) == 4 and c.y.tolist() == [1, 0, 1, 0] and c.camera.tolist() == ["cam0", "cam0", "cam1", "cam1"]
     assert c.picture.tolist() == [0, 0, 1, 1] and len(ticks) == 2
     assert c.x.shape == (4, N_IN) and c.x[:, -1].tolist() == [3.0, 1.0, 3.0, 1.0]
+
+
+def test_a_cache_bigger_than_a_model_file_reads_back(tmp_path, monkeypatch):
+    """A full-size first-stage cache (1.65 GB of features) is past a model file's array budget:
+    with that budget small, a cache past it still loads (it was written, then never read)."""
+    import fastdet.model
+
+    c = _candidates()
+    key = {"pictures": ["a:1"]}
+    save_candidates(tmp_path / "c.npz", c, key)
+    monkeypatch.setattr(fastdet.model, "MAX_ARRAY_BYTES", c.x.nbytes // 2)
+    with pytest.raises(fastdet.model.ModelError, match="may hold"):
+        fastdet.model.read_npz(tmp_path / "c.npz", ("x", "metadata"), "candidates file", 1)
+    d = load_candidates(tmp_path / "c.npz", key)
+    assert d is not None and np.array_equal(d.x, c.x)

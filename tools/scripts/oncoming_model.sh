@@ -9,7 +9,9 @@
 # - negatives: the non-vehicle crops' row bands, sub-windows of them at the wide search's
 #   small scales (tools/scripts/zoom_negatives.py), and two rounds of hard negatives mined on the
 #   left half of the test images outside every annotated box.
-# Usage (from the repository root): bash tools/scripts/oncoming_model.sh [WORK_DIR] [OUT.npz]
+# Usage (from the repository root): bash tools/scripts/oncoming_model.sh [WORK_DIR] [OUT.npz] [MAIN.npz]
+# MAIN.npz: the main model the mining rounds search beside the wide one (default: the bundled
+# fastdet/models/default.npz; tools/scripts/rebuild_models.py passes the one it just built).
 # ONCOMING_TRAIN_ARGS (environment): extra options of every `fastdet train` here, e.g.
 # "--reencode 0.5" (they replace nothing: a later --C wins over the one below). Not
 # --classifier: mine-negatives searches the wide model beside the bundled main model, and
@@ -22,13 +24,15 @@ set -euo pipefail
 D=${FASTDET_DATA:-../shared/data}
 W=${1:-/tmp/fastdet-oncoming}
 OUT=${2:-fastdet/models/oncoming.npz}
+MAIN=()
+if [ -n "${3:-}" ]; then MAIN=(--model "$3"); fi
 rm -rf "$W"
 mkdir -p "$W"
 T="--window-rows 12 36 --orientations 9 --C 0.01 --split sequence --no-progress ${ONCOMING_TRAIN_ARGS:-}"
 IMG="$D/test_images/test%d.jpg"
 G=tools/test_images.gt.txt
 mine() {  # model out-dir
-  python -m fastdet mine-negatives "$IMG" --gt "$G" --out "$2" --part wide --wide-model "$1" \
+  python -m fastdet mine-negatives "$IMG" --gt "$G" --out "$2" --part wide --wide-model "$1" "${MAIN[@]}" \
     --threshold -0.5 --x-range 0 660 --y-range 380 520 --no-progress ${ONCOMING_MINE_ARGS:-}
 }
 negatives() {  # NEG: --negatives DIR for each DIR given that holds crops (a mining round may find none)

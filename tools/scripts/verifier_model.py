@@ -11,6 +11,10 @@ Usage (from the repository root)::
 
     python -m tools.scripts.verifier_model [--out fastdet/models/verifier.npz] [--data DIR]
         [--every K] [--clips A,B,...] [--first-stage S] [--C C] [--keep F] [--no-score-input]
+        [--model M.npz] [--refine-model R.npz]
+
+``--model`` and ``--refine-model`` give the first stage other files than the bundled main model
+and box regressor (``tools/scripts/rebuild_models.py`` passes the ones it has just built).
 
 The bundled verifier is built with the defaults (every teacher frame; about 30 minutes on a
 loaded 2-core machine, most of it the picture search); the command that made it is in its
@@ -19,6 +23,7 @@ metadata (``metadata["command"]``) with the held-out figures (``metadata["traini
 from __future__ import annotations
 
 import argparse
+import hashlib
 import shlex
 import sys
 import time
@@ -31,6 +36,14 @@ from fastdet.labels.sets import shared_sets, teacher_sets
 from fastdet.train.verifier import VerifierRecipe, collect, fit_verifier, load_candidates, save_candidates
 from fastdet.video.picture import PictureDetector
 from fastdet.video.run import progress_bar
+
+
+def _digest(path: Path) -> str:
+    """SHA-256 of a file's bytes (``FastdetError`` when it cannot be read)."""
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError as exc:
+        raise FastdetError(f"{path}: cannot read it ({exc.strerror or exc})") from None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -51,6 +64,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--cache", type=Path, default=None, metavar="C.npz",
                    help="keep the first stage's boxes here and reuse them when the settings are the same "
                         "(to refit with another --C or --keep in seconds)")
+    p.add_argument("--model", type=Path, default=None,
+                   help="the first stage's main model file (default: the bundled one)")
+    p.add_argument("--refine-model", type=Path, default=None,
+                   help="the first stage's box regressor file (default: the bundled one)")
     p.add_argument("--no-progress", action="store_true")
     args = p.parse_args(argv)
     command = "python -m tools.scripts.verifier_model " + shlex.join(argv if argv is not None else sys.argv[1:])
@@ -70,11 +87,15 @@ def main(argv: list[str] | None = None) -> int:
         pictures = [pic for pics in sets.values() for pic in pics[::args.every]]
         if not pictures:
             raise FastdetError("no teacher-labelled frames in the data folder (teacher/CLIP.teacher.txt)")
-        key = {"first_stage": search.to_dict(), "pictures": [f"{p.source}:{p.name}" for p in pictures]}
+        key: dict = {"first_stage": search.to_dict(), "pictures": [f"{p.source}:{p.name}" for p in pictures]}
+        # another model or regressor than the bundled one: a cache of other boxes (the bundled
+        # files' caches keep the key they had)
+        key.update({k: _digest(f) for k, f in (("model", args.model), ("refine_model", args.refine_model))
+                    if f is not None})
         t0 = time.perf_counter()
         cands = load_candidates(args.cache, key) if args.cache is not None else None
         if cands is None:
-            first = PictureDetector(None, search)
+            first = PictureDetector(args.model, search, refine_model=args.refine_model)
             with progress_bar(len(pictures), not args.no_progress, "first stage") as bar:
                 cands = collect(pictures, first.detect, tick=lambda: bar.update(1))
             if args.cache is not None:

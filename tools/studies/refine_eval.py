@@ -15,6 +15,7 @@ with the same vehicle before and after refinement (median, fraction >= 0.5 and >
     python -m tools.studies.refine_eval [--clips test_small1,test_video] [--variants original,960x540,wide0.8]
         [--contexts 1.5] [--iterations 1] [--parts 0,1] [--per-box 16] [--hog-channels 0]
         [--cache DIR] [--json OUT.json] [--ship fastdet/models/refine.npz]
+        [--model M.npz] [--oncoming-model W.npz]
 
 ``--ship PATH`` also fits one regressor on the clips ``--ship-clips`` names (default
 ``test_video``) and the six test images (:mod:`tools.scripts.refine_model`), and writes it to
@@ -23,7 +24,12 @@ PATH with this run's measurement in its metadata. The bundled
 regressor that ``--clips test_small1`` measures held out, and ``eval`` on ``test_small1``
 stays a held-out figure (on ``test_video`` it is in-sample). Pipeline boxes are cached under ``--cache`` (default
 ``$TMPDIR/fastdet_refine_eval``), keyed by clip and variant, so settings of the refinement
-can be compared without running the detector again.
+can be compared without running the detector again. The pipeline runs with its own refinement
+off (``PipelineConfig(refine=None)``): "before" is the unrefined boxes, as when the bundled
+regressor was made (the refinement has been on by default since; before this was said, the
+study's "before" was the boxes the bundled regressor had refined already). ``--model`` and
+``--oncoming-model`` run it with other model files than the bundled ones; give a ``--cache``
+of its own then (and after a change of the pipeline): the cache is keyed by clip and variant only.
 """
 from __future__ import annotations
 
@@ -34,6 +40,7 @@ import os
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -84,12 +91,14 @@ def _part_of(boxes: np.ndarray, windows: Detections) -> np.ndarray:
     return out
 
 
-def pipeline_boxes(det: Any, frames: list[np.ndarray], cache: Path) -> list[Detections]:
-    """The default pipeline's boxes of every frame (cached in ``cache``), ``part`` filled by
-    :func:`_part_of` (the tracker's output has no part column)."""
+def pipeline_boxes(det: Any, frames: list[np.ndarray], cache: Path,
+                   config: PipelineConfig | None = None) -> list[Detections]:
+    """The pipeline's boxes of every frame before any refinement (cached in ``cache``), ``part``
+    filled by :func:`_part_of` (the tracker's output has no part column); ``config`` (default
+    ``PipelineConfig()``) names its model files; its refinement is turned off."""
     if cache.exists():
         return load_frame_detections(cache)
-    vd = VideoDetector(det, PipelineConfig(horizon="auto"))
+    vd = VideoDetector(det, replace(config if config is not None else PipelineConfig(horizon="auto"), refine=None))
     vd.prime_horizon(frames)
     vd.warmup()
     out = []
@@ -173,7 +182,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--ship-clips", default="test_video",
                     help="clips the --ship regressor is fitted on, comma-separated (default: test_video, "
                          "so that test_small1 stays held out)")
+    ap.add_argument("--model", default=None, help="the pipeline's main model file (default: the bundled one)")
+    ap.add_argument("--oncoming-model", default=None,
+                    help="the pipeline's oncoming-traffic model file (default: the bundled one)")
     a = ap.parse_args(argv)
+    pipeline = PipelineConfig(horizon="auto", model=a.model, refine=None,
+                              oncoming=a.oncoming_model if a.oncoming_model is not None else True)
 
     spec = spec_of(a)
     fcfg, contexts = spec.config, spec.contexts
@@ -190,7 +204,7 @@ def main(argv: list[str] | None = None) -> int:
     def samples_for(names: list[str]):
         return samples([fr for n in names for fr in train_frames[n]], spec, a.seed, a.per_box, a.size_of == "vehicle")
 
-    det = make_detector()
+    det = make_detector(pipeline)
     rows: list[dict[str, Any]] = []
     settings = {"contexts": contexts, "features": fcfg.to_dict(), "iterations": a.iterations, "parts": a.parts,
                 "per_box": a.per_box, "seed": a.seed}
@@ -210,7 +224,7 @@ def main(argv: list[str] | None = None) -> int:
             for v in variants:
                 frames = variant_frames(src, v, clip, Path(tmpd))
                 gt = transform_gt(gt0, v, src[0].shape[:2])
-                dets = pipeline_boxes(det, frames, cache / f"{clip}.{v.name}.npz")
+                dets = pipeline_boxes(det, frames, cache / f"{clip}.{v.name}.npz", pipeline)
                 pairs = paired(gt, dets)
                 before = score(gt, dets, pairs, len(frames))
                 refined, ms = refine_all(frames, dets, reg, rcfg)

@@ -69,7 +69,8 @@ def overrides(items: list[str] | None, cls: type, flag: str) -> dict[str, Any]:
 
 def config_from(args: argparse.Namespace) -> PipelineConfig:
     heat = replace(HeatConfig(), **overrides(args.heat, HeatConfig, "--heat"))
-    cfg = PipelineConfig(heat=heat, refine_model=args.refine_model)
+    cfg = PipelineConfig(heat=heat, refine_model=args.refine_model, model=args.model,
+                         oncoming=args.oncoming_model if args.oncoming_model is not None else True)
     rkw = overrides(args.refine, RefineConfig, "--refine")
     if rkw:
         cfg = replace(cfg, refine=replace(RefineConfig(), **rkw))
@@ -252,6 +253,9 @@ def add_setting_arguments(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--no-refine", action="store_true")
     ap.add_argument("--refine", action="append", metavar="KEY=VALUE", help="a RefineConfig field")
     ap.add_argument("--refine-model", default=None, help="the box regressor file (default: the bundled one)")
+    ap.add_argument("--model", default=None, help="the main model file (default: the bundled one)")
+    ap.add_argument("--oncoming-model", default=None,
+                    help="the oncoming-traffic (wide-window) model file (default: the bundled one)")
     split = ap.add_mutually_exclusive_group()
     split.add_argument("--split", action="store_true", help="the neighbour split on (the default)")
     split.add_argument("--no-split", action="store_true", help="the neighbour split off")
