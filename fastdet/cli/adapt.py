@@ -167,11 +167,9 @@ def held_stretches(footage: _adapt.Footage, held: Mapping[str, list[AnnotatedPic
                 continue
             n = max(clip.frames - clip.holdout_start + 1, HORIZON_FRAMES)
             try:
-                folder.mkdir(parents=True, exist_ok=True)
                 frames = hold_frames(clip.path, clip.holdout_start - 1, n, max_bytes=budget, spill_dir=folder)
-            except (OSError, WriteError) as exc:
-                why = f"{folder}: {exc.strerror or exc}" if isinstance(exc, OSError) else str(exc)
-                print(f"note: {why}; each run decodes {clip.name} up to its kept-aside stretch instead "
+            except WriteError as exc:
+                print(f"note: {exc}; each run decodes {clip.name} up to its kept-aside stretch instead "
                       f"(the same boxes, slower)", flush=True)
                 continue
             out[clip.name] = frames

@@ -102,8 +102,9 @@ def hold_frames(path: str | os.PathLike, start: int = 0, frames: int | None = No
     once, as :class:`~fastdet.io.reader.FrameReader` (``notify``: its notes, delivered here
     once) yields them, and hold them.
 
-    max_bytes: when the frames could take more than this (``frames`` times a frame's bytes;
-        ``None``: no limit), they go to a raw file in ``spill_dir`` instead of memory
+    max_bytes: when the frames would take more than this (a frame's bytes times ``frames``,
+        or the frames left by the file header's count when fewer; ``None``: no limit), they go
+        to a raw file in ``spill_dir`` (made when missing) instead of memory
         (``.frames-NAME.partial.PID-TOKEN.raw``, a temporary name of
         :mod:`fastdet.io.atomic`: removed by :meth:`HeldFrames.close` and, failing that, when
         the process ends; every write checked), read back as a read-only ``np.memmap``.
@@ -121,7 +122,7 @@ def hold_frames(path: str | os.PathLike, start: int = 0, frames: int | None = No
         if reader.live:
             raise DataError(f"{name}: only a video file's frames can be held, not a live source's")
         per_frame = reader.first_frame.nbytes
-        most = reader.expected if frames is None or reader.expected is None else frames
+        most = reader.expected if reader.expected is not None else frames  # the header's count, at most frames
         spill = max_bytes is not None and (most is None or most * per_frame > max_bytes)
         if spill and spill_dir is None:
             raise ValueError("the frames exceed max_bytes: give spill_dir")
@@ -131,6 +132,8 @@ def hold_frames(path: str | os.PathLike, start: int = 0, frames: int | None = No
         error: str | None = None
         tmp = _spill_name(Path(os.fspath(spill_dir)), name) if spill else None
         try:
+            if tmp is not None:
+                tmp.parent.mkdir(parents=True, exist_ok=True)
             fh = open(tmp, "wb") if tmp is not None else None  # noqa: SIM115 - closed below, checked
             try:
                 try:
