@@ -21,9 +21,13 @@
   ``$FASTDET_DATA``) plus the camera's crops (each of sample weight ``--weight``; hard
   negatives mined with the bundled model), then moved by the decision offset of best F1 against the
   labels of the kept-aside frames, through the ``video`` pipeline (:mod:`fastdet.train.adapt`).
+  Each kept-aside stretch is decoded once for the three runs over it (:func:`held_stretches`:
+  in memory up to ``AdaptConfig.hold_bytes``, the rest in raw files in the work folder, removed
+  when the step ends).
 - Writes ONE model file (``video / image / batch --model`` take it), its metadata holding the
   summary (``metadata["adapt"]``): frames, seconds per step, agreement with the labels of the
-  kept-aside frames before (bundled model) and after, the pipeline's ms per frame.
+  kept-aside frames before (bundled model) and after, the pipeline's ms per frame (its steady
+  frame loop over the held frames), how the kept-aside frames were held (``kept_aside``).
 - Bad input is one line and exit 2 before any long work: no video or frames, a teacher that is
   not a YOLOX-style ONNX detector, mixed frame sizes, an output inside the installed package,
   a missing crop folder. A stop signal ends the run cleanly (no model; finished videos' labels kept).
