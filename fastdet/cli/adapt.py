@@ -21,9 +21,13 @@
   ``$FASTDET_DATA``) plus the camera's crops (each of sample weight ``--weight``; hard
   negatives mined with the bundled model), then moved by the decision offset of best F1 against the
   labels of the kept-aside frames, through the ``video`` pipeline (:mod:`fastdet.train.adapt`).
+  Each kept-aside stretch is decoded once for the three runs over it (:func:`held_stretches`:
+  in memory up to ``AdaptConfig.hold_bytes``, the rest in raw files in the work folder, removed
+  when the step ends).
 - Writes ONE model file (``video / image / batch --model`` take it), its metadata holding the
   summary (``metadata["adapt"]``): frames, seconds per step, agreement with the labels of the
-  kept-aside frames before (bundled model) and after, the pipeline's ms per frame.
+  kept-aside frames before (bundled model) and after, the pipeline's ms per frame (its steady
+  frame loop over the held frames), how the kept-aside frames were held (``kept_aside``).
 - Bad input is one line and exit 2 before any long work: no video or frames, a teacher that is
   not a YOLOX-style ONNX detector, mixed frame sizes, an output inside the installed package,
   a missing crop folder. A stop signal ends the run cleanly (no model; finished videos' labels kept).
@@ -35,7 +39,8 @@ import os
 import shutil
 import sys
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -48,8 +53,9 @@ from ..config import PipelineConfig
 from ..config.adapt import AdaptConfig
 from ..data import data_dir
 from ..detections import Detections
-from ..errors import DataError, FastdetError
+from ..errors import DataError, FastdetError, WriteError
 from ..io.files import not_found
+from ..io.held import HeldFrames, hold_frames
 from ..io.paths import check_paths, is_inside
 from ..labels.picture import AnnotatedPicture
 from ..model import Model, load_model
@@ -143,10 +149,53 @@ def _predictions(tables: list[Detections]) -> Detections:
     return preds
 
 
-def holdout_run(held: dict[str, list[AnnotatedPicture]]) -> _adapt.HoldoutRun:
+@contextmanager
+def held_stretches(footage: _adapt.Footage, held: Mapping[str, list[AnnotatedPicture]], config: AdaptConfig,
+                   folder: Path) -> Iterator[dict[str, HeldFrames]]:
+    """Each clip's kept-aside stretch (of a clip with labelled frames there) decoded once and
+    held for the operating point's runs (:func:`fastdet.io.held.hold_frames`), ``{clip name:
+    HeldFrames}``: the stretch's frames, at least :data:`~fastdet.video.horizon.HORIZON_FRAMES`
+    (what a run reads ahead for the horizon), in memory while they fit in
+    ``config.hold_bytes`` over all clips, else in a raw file in ``folder``. A clip whose file
+    cannot be written (a full disk) is left out, with a note: its runs decode the video up to
+    the stretch themselves. Every held frame is dropped and every file removed when the block
+    ends (a stop signal included; the files are also temporary names of
+    :mod:`fastdet.io.atomic`, removed at exit)."""
+    from ..video.horizon import HORIZON_FRAMES
+
+    out: dict[str, HeldFrames] = {}
+    budget = config.hold_bytes
+    try:
+        for clip in footage.clips:
+            if not held.get(clip.name):
+                continue
+            n = max(clip.frames - clip.holdout_start + 1, HORIZON_FRAMES)
+            try:
+                frames = hold_frames(clip.path, clip.holdout_start - 1, n, max_bytes=budget, spill_dir=folder)
+            except WriteError as exc:
+                print(f"note: {exc}; each run decodes {clip.name} up to its kept-aside stretch instead "
+                      f"(the same boxes, slower)", flush=True)
+                continue
+            out[clip.name] = frames
+            if frames.spill is None:
+                budget -= frames.nbytes
+        yield out
+    finally:
+        for frames in out.values():
+            frames.close()
+
+
+def _source(clip: _adapt.Clip, frames: Mapping[str, HeldFrames] | None) -> str | HeldFrames:
+    """What a run over ``clip``'s kept-aside stretch reads: its held frames, else the video."""
+    return frames.get(clip.name, clip.path) if frames is not None else clip.path
+
+
+def holdout_run(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, HeldFrames] | None = None
+                ) -> _adapt.HoldoutRun:
     """The video pipeline (:func:`fastdet.detect_video`, as ``video`` runs it) over a clip's
     kept-aside stretch with a model file, scored (:func:`fastdet.eval.evaluate`, IoU 0.5) on
-    the clip's kept-aside labelled frames."""
+    the clip's kept-aside labelled frames. ``frames``: the stretches held
+    (:func:`held_stretches`; the same boxes as the video gives, without decoding it up to them)."""
     from ..eval.metrics import evaluate
     from ..video.run import detect_video
 
@@ -154,11 +203,12 @@ def holdout_run(held: dict[str, list[AnnotatedPicture]]) -> _adapt.HoldoutRun:
         pics = held.get(clip.name, [])
         if not pics:
             return 0, 0, 0, 0.0, 0
-        # timed from the first frame out: the steady frame loop, not the start-up (decoding up to
-        # the kept-aside stretch -- 40 s into 10 minutes of footage --, the horizon's first frames)
+        # timed from the first frame out: the steady frame loop, not the start-up (reaching the
+        # kept-aside stretch -- 40 s into 10 minutes of footage, when it is not held --, the
+        # horizon's first frames)
         tables: list[Detections] = []
         t0 = 0.0
-        for d in detect_video(clip.path, model=model, start=clip.holdout_start - 1,
+        for d in detect_video(_source(clip, frames), model=model, start=clip.holdout_start - 1,
                               frames=clip.frames - clip.holdout_start + 1):
             if not tables:
                 t0 = time.perf_counter()
@@ -170,11 +220,13 @@ def holdout_run(held: dict[str, list[AnnotatedPicture]]) -> _adapt.HoldoutRun:
     return run
 
 
-def holdout_offsets(held: dict[str, list[AnnotatedPicture]]) -> _adapt.OffsetsRun:
+def holdout_offsets(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, HeldFrames] | None = None
+                    ) -> _adapt.OffsetsRun:
     """The video pipeline over a clip's kept-aside stretch with a model file moved by each of
     some offsets, the frames read and scored once for all of them
     (:func:`fastdet.video.replay.iter_offset_detections`: each offset's boxes are those of
-    :func:`holdout_run` with the moved model), each offset's boxes scored as there."""
+    :func:`holdout_run` with the moved model), each offset's boxes scored as there.
+    ``frames``: as :func:`holdout_run`'s."""
     from ..eval.metrics import evaluate
     from ..video.replay import iter_offset_detections
 
@@ -187,7 +239,8 @@ def holdout_offsets(held: dict[str, list[AnnotatedPicture]]) -> _adapt.OffsetsRu
         config = replace(PipelineConfig(), model=model)
         tables: dict[float, list[Detections]] = {o: [] for o in offsets}
         n = 0
-        for fno, by_offset in iter_offset_detections(clip.path, offsets, config, start=clip.holdout_start - 1,
+        for fno, by_offset in iter_offset_detections(_source(clip, frames), offsets, config,
+                                                     start=clip.holdout_start - 1,
                                                      frames=clip.frames - clip.holdout_start + 1):
             n += 1
             for o, dets in by_offset.items():
@@ -222,6 +275,19 @@ def _after(model: Model, chosen: float, footage: _adapt.Footage, run: _adapt.Hol
         return _adapt.agreement(footage, run, str(path)).to_dict()
     finally:
         path.unlink(missing_ok=True)
+
+
+def _kept(frames: Mapping[str, HeldFrames], seconds: float) -> dict[str, Any]:
+    """The summary's ``kept_aside``: the frames held in memory and in files, the seconds of
+    that one reading (decoding up to each stretch included) and its decoding ms a frame (the
+    runs' ms a frame no longer holds it)."""
+    held = list(frames.values())
+    n = sum(len(f) for f in held)
+    return {"frames_in_memory": sum(len(f) for f in held if f.spill is None),
+            "frames_in_files": sum(len(f) for f in held if f.spill is not None),
+            "read_seconds": round(seconds, 2),
+            "decode_ms_per_frame": round(1000.0 * sum(float(f.decode_seconds.sum()) for f in held) / n, 2)
+            if n else None}
 
 
 def _fmt(a: dict[str, Any] | None) -> str:
@@ -339,18 +405,22 @@ def run(args: argparse.Namespace) -> int:
     _signals.check()
 
     t = time.perf_counter()
-    run_holdout = holdout_run(held)
     n_held = sum(len(v) for v in held.values())
     before = after = None
     chosen = 0.0
     tried: dict[str, Any] = {}
+    kept: dict[str, Any] = {}
     if n_held:
         _warm_up(footage.clips[0].path)
-        before = _adapt.agreement(footage, run_holdout, None).to_dict()
-        chosen, results = _adapt.choose_offset(model, footage, holdout_offsets(held), work / "operating-point",
-                                               config.offsets, progress)
-        tried = {f"{o:g}": r.to_dict()["f1"] for o, r in results.items()}
-        after = _after(model, chosen, footage, run_holdout, work / "operating-point")
+        t_read = time.perf_counter()
+        with held_stretches(footage, held, config, work / "operating-point") as frames:
+            kept = _kept(frames, time.perf_counter() - t_read)
+            run_holdout = holdout_run(held, frames)
+            before = _adapt.agreement(footage, run_holdout, None).to_dict()
+            chosen, results = _adapt.choose_offset(model, footage, holdout_offsets(held, frames),
+                                                   work / "operating-point", config.offsets, progress)
+            tried = {f"{o:g}": r.to_dict()["f1"] for o, r in results.items()}
+            after = _after(model, chosen, footage, run_holdout, work / "operating-point")
         r = results[chosen]
         if (after["tp"], after["fp"], after["fn"]) != (r.tp, r.fp, r.fn):
             print(f"note: at offset {chosen:g} the pipeline run found {after['tp']} / {after['fp']} / {after['fn']} "
@@ -370,7 +440,7 @@ def run(args: argparse.Namespace) -> int:
                    "kept_aside_read": footage.holdout_length, "labelled_now": n_now},
         "targets_trained": n_targets, "crops": counts,
         "seconds": {k: round(v, 2) for k, v in secs.items()},
-        "offset": chosen, "offsets_f1": tried,
+        "offset": chosen, "offsets_f1": tried, "kept_aside": kept,
         "agreement": {"before": before, "after": after},
         "config": config.to_dict(),
     }

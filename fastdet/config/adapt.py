@@ -29,9 +29,16 @@ class AdaptConfig(Config):
     holdout: the fraction of each video, at its end, kept aside for the operating point
         (contiguous: the pipeline's heat map needs consecutive frames); never trained on.
     holdout_max: at most this many frames kept aside over all the footage (split evenly
-        between the videos): the pipeline reads them three times (the bundled model, every
+        between the videos): the pipeline runs over them three times (the bundled model, every
         offset at once, the offset chosen), a large part of a run's time on long footage
         (docs/benchmarks.md, "Adapting to a camera").
+    hold_bytes: the kept-aside frames are decoded once (reaching them decodes every frame
+        before them: 41 s into 10 minutes of 1280x720 footage) and held for those three runs
+        (:func:`fastdet.io.held.hold_frames`): in memory while they take at most this many
+        bytes over all the videos (400 frames of 1280x720, the default cap, are 1.1 GB), the
+        rest in raw files in the work folder (400 of 1920x1080: 2.5 GB), removed when the step
+        ends; 0: all in files. Where a file cannot be written (a full disk), each run decodes
+        its way to the stretch again, as before (the same boxes, slower).
     weight: the sample weight of every camera crop in the fit (each bundled crop weighs 1): a
         crop counts as this many copies of it, without the copies' memory.
     jitter: shifted / rescaled copies of every positive crop (besides the crop itself).
@@ -51,6 +58,7 @@ class AdaptConfig(Config):
     max_frames: int = 400
     holdout: float = 0.2
     holdout_max: int = 400
+    hold_bytes: int = 1536 * 2**20
     weight: int = 4
     jitter: int = 2
     negatives_per_picture: int = 8
@@ -68,6 +76,7 @@ class AdaptConfig(Config):
         _whole("every", self.every, 1)
         _whole("max_frames", self.max_frames, 2)
         _whole("holdout_max", self.holdout_max, 1)
+        _whole("hold_bytes", self.hold_bytes, 0)
         _whole("weight", self.weight, 1)
         _whole("jitter", self.jitter, 0)
         _whole("negatives_per_picture", self.negatives_per_picture, 0)

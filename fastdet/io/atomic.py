@@ -69,6 +69,12 @@ def _unlink_quietly(p: Path) -> None:
     _owned().discard(p)
 
 
+def discard_partial(tmp: str | os.PathLike) -> None:
+    """Remove a temporary file of :func:`partial_name` that is not to become an output (a
+    scratch file: frames held for a few passes); quiet when it is gone already."""
+    _unlink_quietly(Path(tmp))
+
+
 def remove_partials() -> None:
     """Remove every temporary file of this process still under its temporary name (see the
     module docstring); run at exit."""

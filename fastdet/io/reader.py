@@ -5,7 +5,9 @@ One reader for every command that reads video (``video``, ``eval --video``, ``be
 
 Sources (:func:`source_kind`): a video file; an image sequence (``frames/img%04d.jpg``);
 a URL (``rtsp://``, ``http://``, ...) or a camera index (``0``) -- *live* sources, which
-have no frame count and end when the stream ends (or on Ctrl-C).
+have no frame count and end when the stream ends (or on Ctrl-C). Also a file's frames decoded
+once and held (:class:`~fastdet.io.held.HeldFrames`): read again without decoding, the same
+frames, numbers and end as the file's reader gives.
 
 The end of a stream is where decoding ends. The frame count in a file's header is an
 estimate (edit lists of ``ffmpeg -ss ... -c copy`` cuts, pre-roll and durations make it
@@ -38,6 +40,7 @@ from .. import exiting, signals
 from ..console import note, quiet_opencv
 from ..errors import DataError, FastdetError
 from .files import not_found
+from .held import HeldFrames
 
 QUEUE_SIZE = 8
 #: seconds a live source (pipe, stream, camera) may take to open
@@ -163,7 +166,12 @@ def _open_capture(name: str, kind: str, timeout: float | None = None) -> Any:
 class FrameReader:
     """Frames of a video, decoded in a background thread.
 
-    source: a file, an image sequence, a URL or a camera index (see the module docstring).
+    source: a file, an image sequence, a URL or a camera index (see the module docstring);
+        or a file's frames held by :func:`~fastdet.io.held.hold_frames`: its frames from
+        ``start + 1`` on, yielded again without decoding (copies; ``kind`` ``'file'``,
+        ``path``, ``fps`` and ``frame_count`` the file's; the notes were the reading's, none
+        are repeated; a decoding error it met is raised at the same place). Frames it does
+        not hold (before its ``start``, past the frames it read) raise ``ValueError``.
     start: frames to skip (their numbers are kept: the first frame yielded is ``start + 1``).
     frames: at most this many frames.
     notify: called with each note for the user (a frame count that differs from the
@@ -178,12 +186,17 @@ class FrameReader:
     ``skipped`` the list of ``(first, last)`` frame numbers that were damaged.
     """
 
-    def __init__(self, source: str | os.PathLike | int, start: int = 0, frames: int | None = None,
+    def __init__(self, source: str | os.PathLike | int | HeldFrames, start: int = 0, frames: int | None = None,
                  queue_size: int = QUEUE_SIZE, notify: Callable[[str], None] | None = None) -> None:
         if start < 0:
             raise FastdetError(f"start must be >= 0, got {start}")
         if frames is not None and frames < 1:
             raise FastdetError(f"frames must be >= 1, got {frames}")
+        self._store: HeldFrames | None = None
+        self._i0 = 0
+        if isinstance(source, HeldFrames):
+            self._open_held(source, start, frames, notify)
+            return
         self.kind = check_source(source)
         self.path = name = str(source) if self.kind == "camera" else os.fspath(source)
         # a named pipe or a device is a stream too: read once, never reopened
@@ -233,6 +246,62 @@ class FrameReader:
         self._held_error: DataError | None = None  # raised after the held frames
         self._items: Iterator[tuple[int, np.ndarray, float]] | None = None
 
+    def _open_held(self, held: HeldFrames, start: int, frames: int | None,
+                   notify: Callable[[str], None] | None) -> None:
+        """The reader of held frames (``source`` in the class docstring)."""
+        if start < held.start:
+            raise ValueError(f"{held.path}: frames from {held.start + 1} are held, not frame {start + 1}")
+        i0 = held.index(start + 1)
+        if i0 is None:
+            if held.ended and start + 1 > int(held.numbers[-1]):
+                raise DataError(f"{held.path}: start {start} is past the end of the video")
+            raise ValueError(f"{held.path}: frame {start + 1} is not held")
+        self.kind, self.path, self.live = "file", held.path, False
+        self.notify = notify if notify is not None else note
+        self.frame_count, self.fps, self.shape = held.frame_count, held.fps, held.shape
+        self.start, self.limit = start, frames
+        remaining = None if self.frame_count is None else max(self.frame_count - start, 1)
+        self.expected = remaining if frames is None else (frames if remaining is None else min(frames, remaining))
+        self.decoded = 0
+        self.skipped = []
+        self._store, self._i0, self._cap = held, i0, None
+        t0 = time.perf_counter()
+        frame = held.frame(i0)
+        self._first = (start + 1, frame, time.perf_counter() - t0)
+        self._stop = threading.Event()
+        self._started = False
+        self._held = deque()
+        self._held_error = None
+        self._items = None
+
+    def _replay(self) -> Iterator[tuple[int, np.ndarray, float]]:
+        """The held frames from ``start + 1``, as :meth:`_pull` gives a file's (at most
+        ``limit``; damaged frames the reading skipped recorded in ``skipped``; its decoding
+        error raised after the frames before it)."""
+        held = self._store
+        assert held is not None
+        yield self._first
+        last, i, k = self._first[0], self._i0 + 1, 1
+        while self.limit is None or k < self.limit:
+            if i >= len(held):
+                if held.error is not None:
+                    raise DataError(held.error)
+                if not held.ended:
+                    raise ValueError(f"{self.path}: the frames after {last} are not held")
+                return
+            fno = int(held.numbers[i])
+            if fno > last + 1:
+                self.skipped.append((last + 1, fno - 1))
+            t0 = time.perf_counter()
+            frame = held.frame(i)
+            yield fno, frame, time.perf_counter() - t0
+            last, i, k = fno, i + 1, k + 1
+
+    @property
+    def held(self) -> HeldFrames | None:
+        """The held frames this reader reads (``None``: it decodes its source)."""
+        return self._store
+
     @property
     def first_frame(self) -> np.ndarray:
         """The first frame (decoded when the reader was opened), for checks before any output."""
@@ -260,6 +329,12 @@ class FrameReader:
         first = self.start + ahead + 1
         end = self.frame_count if self.limit is None else min(self.frame_count, self.start + self.limit)
         if end <= first:
+            return
+        if self._store is not None:  # the held frames at those positions (no seek needed)
+            for k in range(COLOUR_SPREAD):
+                i = self._store.index(first + (end - first) * k // COLOUR_SPREAD + 1)
+                if i is not None:
+                    yield self._store.frame(i)
             return
         cap = cv2.VideoCapture(self.path)
         try:
@@ -361,7 +436,7 @@ class FrameReader:
 
     def _source(self) -> Iterator[tuple[int, np.ndarray, float]]:
         if self._items is None:
-            self._items = self._pull()
+            self._items = self._pull() if self._store is None else self._replay()
         return self._items
 
     def peek(self, n: int) -> list[np.ndarray]:
@@ -411,7 +486,7 @@ class FrameReader:
                     pass
             # a decoder blocked in a read of a stalled stream is left behind (a daemon thread)
             self._thread.join(timeout=0.1)
-        else:
+        elif self._cap is not None:
             self._cap.release()
 
     def __enter__(self) -> FrameReader:  # noqa: PYI034

@@ -37,6 +37,7 @@ import numpy as np
 from ..config import FeatureConfig, PipelineConfig, RefineConfig, SearchBand
 from ..detect import BandGeometry, Detector, DetectStats
 from ..detections import ONCOMING_PART, Detections
+from ..io.held import HeldFrames
 from ..io.reader import FrameReader
 from ..model import Model
 from .detector import make_detector
@@ -180,17 +181,18 @@ def lane_stages(config: PipelineConfig, replay: ReplayDetector, fps: float | Non
     return out
 
 
-def iter_offset_detections(path: str | os.PathLike, offsets: Sequence[float], config: PipelineConfig | None = None,
-                           *, start: int = 0, frames: int | None = None, progress: bool = False
-                           ) -> Iterator[tuple[int, dict[float, Detections]]]:
+def iter_offset_detections(path: str | os.PathLike | HeldFrames, offsets: Sequence[float],
+                           config: PipelineConfig | None = None, *, start: int = 0, frames: int | None = None,
+                           progress: bool = False) -> Iterator[tuple[int, dict[float, Detections]]]:
     """The boxes of every frame of a video file for ``config``'s main model moved by each of
     ``offsets`` (decision units, + is stricter; :func:`fastdet.train.blend.offset`), in one pass
     (module docstring): yields ``(frame, {offset: Detections})``, each table as
     :func:`~fastdet.video.run.iter_video_detections` yields it with the moved model (to the
     rounding of the decision values, ~1e-15).
 
-    path, start, frames, progress: as :func:`~fastdet.video.run.iter_video_detections` (a file:
-    the horizon is read ahead as there). config: the pipeline (default ``PipelineConfig()``);
+    path, start, frames, progress: as :func:`~fastdet.video.run.iter_video_detections` (a file,
+    or its frames held by :func:`~fastdet.io.held.hold_frames`: the horizon is read ahead as
+    there). config: the pipeline (default ``PipelineConfig()``);
     the offline pass is not offered.
     """
     config = config if config is not None else PipelineConfig()

@@ -18,6 +18,7 @@ from ..config import PipelineConfig
 from ..detect.checks import check_frame
 from ..detections import Detections
 from ..errors import FastdetError
+from ..io.held import HeldFrames
 from ..io.reader import FrameReader
 from .detector import WindowDetector, make_detector
 from .horizon import HORIZON_FRAMES
@@ -37,7 +38,7 @@ def progress_bar(total: int | None, enabled: bool, desc: str) -> tqdm:
                 disable=not (enabled and sys.stderr.isatty()))
 
 
-def _first_frames(path: str, start: int) -> Iterator[np.ndarray]:
+def _first_frames(path: str | HeldFrames, start: int) -> Iterator[np.ndarray]:
     """The first HORIZON_FRAMES frames of a file from ``start`` (a reader of their own, quiet:
     the reader of the run itself says what there is to say about the file)."""
     reader = FrameReader(path, start, HORIZON_FRAMES, notify=lambda _note: None)
@@ -53,13 +54,14 @@ def _primes(config: PipelineConfig) -> bool:
     return config.horizon == "auto"
 
 
-def prime_horizon_from_file(vd: VideoDetector, path: str | os.PathLike, start: int = 0) -> None:
-    """For a file (not a live source): give ``vd`` the first seconds of the video ahead of time
+def prime_horizon_from_file(vd: VideoDetector, path: str | os.PathLike | HeldFrames, start: int = 0) -> None:
+    """For a file (not a live source) or its held frames (:class:`~fastdet.io.held.HeldFrames`):
+    give ``vd`` the first seconds of the video ahead of time
     (:meth:`VideoDetector.prime_horizon`), so every frame, the first ones too, is searched at the
     estimated horizon. Every command that reads a file does this, so ``video``, ``batch`` and
     ``eval --video`` give the same boxes."""
-    if _primes(vd.config) and os.path.isfile(os.fspath(path)):
-        vd.prime_horizon(_first_frames(os.fspath(path), start))
+    if _primes(vd.config) and (isinstance(path, HeldFrames) or os.path.isfile(os.fspath(path))):
+        vd.prime_horizon(_first_frames(path if isinstance(path, HeldFrames) else os.fspath(path), start))
 
 
 def video_detector_for(reader: FrameReader, detector: WindowDetector,
@@ -81,7 +83,7 @@ def video_detector_for(reader: FrameReader, detector: WindowDetector,
         # same frames as a second reader of the file would give, decoded once
         vd.prime_horizon(reader.peek(HORIZON_FRAMES))
     else:
-        prime_horizon_from_file(vd, reader.path, reader.start)
+        prime_horizon_from_file(vd, reader.held or reader.path, reader.start)
     return vd
 
 
@@ -108,8 +110,9 @@ def offline_boxes(vd: VideoDetector, done: list[tuple[int, Detections]],
     return final
 
 
-def iter_video_detections(path: str | os.PathLike | int, config: PipelineConfig | None = None, *, start: int = 0,
-                          frames: int | None = None, progress: bool = True, detector: WindowDetector | None = None,
+def iter_video_detections(path: str | os.PathLike | int | HeldFrames, config: PipelineConfig | None = None, *,
+                          start: int = 0, frames: int | None = None, progress: bool = True,
+                          detector: WindowDetector | None = None,
                           offline: bool = False) -> Iterator[tuple[int, Detections]]:
     """Vehicle boxes of every frame of a video file: yields ``(frame, Detections)``, the
     tables as ``VideoDetector.update`` returns them (no ``frames`` column; ``ids`` only with
@@ -117,7 +120,9 @@ def iter_video_detections(path: str | os.PathLike | int, config: PipelineConfig 
     (``fastdet.detect_video``: one table a frame with ``frames`` and ``ids`` columns).
 
     frame: 1-based frame number in the file (``start`` frames are skipped, so the first one
-        yielded is ``start + 1``). frames: at most this many frames.
+        yielded is ``start + 1``). frames: at most this many frames. path: a video source as
+        :class:`~fastdet.io.reader.FrameReader` takes it, held frames of a file
+        (:class:`~fastdet.io.held.HeldFrames`) included: the same boxes as the file gives.
     config: the pipeline's settings (:class:`~fastdet.config.PipelineConfig`; default
         ``PipelineConfig()``: the bundled models, tracking on, ``ids`` filled).
     detector: use this detector instead of the one ``config`` names (see :class:`VideoDetector`).
@@ -160,7 +165,7 @@ def iter_video_detections(path: str | os.PathLike | int, config: PipelineConfig 
         yield from offline_boxes(vd, done, shape)
 
 
-def detect_video(source: str | os.PathLike | int, config: PipelineConfig | None = None, *, start: int = 0,
+def detect_video(source: str | os.PathLike | int | HeldFrames, config: PipelineConfig | None = None, *, start: int = 0,
                  frames: int | None = None, offline: bool = False, progress: bool = False,
                  **settings: Any) -> Iterator[Detections]:
     """The vehicles of every frame of a video, exactly as ``python -m fastdet video SOURCE``
@@ -175,7 +180,8 @@ def detect_video(source: str | os.PathLike | int, config: PipelineConfig | None 
     bytes as ``video --boxes``).
 
     source: a video file, an image sequence (``frames/img%04d.jpg``), a URL or a camera
-        index, as ``video`` reads them (:class:`~fastdet.io.reader.FrameReader`).
+        index, as ``video`` reads them (:class:`~fastdet.io.reader.FrameReader`); or a file's
+        frames held by :func:`fastdet.io.held.hold_frames` (the same boxes, without decoding).
     config: the settings (:class:`~fastdet.config.PipelineConfig`; default ``PipelineConfig()``,
         which is what ``video`` runs without options); ``**settings`` replace fields of it,
         e.g. ``detect_video(path, oncoming=False, horizon=0.55)`` (``video --no-oncoming
