@@ -38,7 +38,7 @@ def _rows(dets: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
 def measure(video: str, frames: int, reopen: bool) -> tuple[dict[str, float], dict[str, Any]]:
     """The step's seconds (and each run's steady ms a frame) and every run's boxes."""
     from fastdet.config import PipelineConfig
-    from fastdet.io.held import hold_frames
+    from fastdet.io.hold import hold_frames
     from fastdet.io.reader import FrameReader
     from fastdet.model import load_model
     from fastdet.train.blend import offset

@@ -55,7 +55,8 @@ from ..data import data_dir
 from ..detections import Detections
 from ..errors import DataError, FastdetError, WriteError
 from ..io.files import not_found
-from ..io.held import HeldFrames, hold_frames
+from ..io.held import HeldFrames
+from ..io.hold import hold_frames
 from ..io.paths import check_paths, is_inside
 from ..labels.picture import AnnotatedPicture
 from ..model import Model, load_model
@@ -153,7 +154,7 @@ def _predictions(tables: list[Detections]) -> Detections:
 def held_stretches(footage: _adapt.Footage, held: Mapping[str, list[AnnotatedPicture]], config: AdaptConfig,
                    folder: Path) -> Iterator[dict[str, HeldFrames]]:
     """Each clip's kept-aside stretch (of a clip with labelled frames there) decoded once and
-    held for the operating point's runs (:func:`fastdet.io.held.hold_frames`), ``{clip name:
+    held for the operating point's runs (:func:`fastdet.io.hold.hold_frames`), ``{clip name:
     HeldFrames}``: the stretch's frames, at least :data:`~fastdet.video.horizon.HORIZON_FRAMES`
     (what a run reads ahead for the horizon), in memory while they fit in
     ``config.hold_bytes`` over all clips, else in a raw file in ``folder``. A clip whose file

@@ -34,7 +34,7 @@ class AdaptConfig(Config):
         (docs/benchmarks.md, "Adapting to a camera").
     hold_bytes: the kept-aside frames are decoded once (reaching them decodes every frame
         before them: 41 s into 10 minutes of 1280x720 footage) and held for those three runs
-        (:func:`fastdet.io.held.hold_frames`): in memory while they take at most this many
+        (:func:`fastdet.io.hold.hold_frames`): in memory while they take at most this many
         bytes over all the videos (400 frames of 1280x720, the default cap, are 1.1 GB), the
         rest in raw files in the work folder (400 of 1920x1080: 2.5 GB), removed when the step
         ends; 0: all in files. Where a file cannot be written (a full disk), each run decodes

@@ -167,7 +167,7 @@ class FrameReader:
     """Frames of a video, decoded in a background thread.
 
     source: a file, an image sequence, a URL or a camera index (see the module docstring);
-        or a file's frames held by :func:`~fastdet.io.held.hold_frames`: its frames from
+        or a file's frames held by :func:`~fastdet.io.hold.hold_frames`: its frames from
         ``start + 1`` on, yielded again without decoding (copies; ``kind`` ``'file'``,
         ``path``, ``fps`` and ``frame_count`` the file's; the notes were the reading's, none
         are repeated; a decoding error it met is raised at the same place). Frames it does

@@ -191,7 +191,7 @@ def iter_offset_detections(path: str | os.PathLike | HeldFrames, offsets: Sequen
     rounding of the decision values, ~1e-15).
 
     path, start, frames, progress: as :func:`~fastdet.video.run.iter_video_detections` (a file,
-    or its frames held by :func:`~fastdet.io.held.hold_frames`: the horizon is read ahead as
+    or its frames held by :func:`~fastdet.io.hold.hold_frames`: the horizon is read ahead as
     there). config: the pipeline (default ``PipelineConfig()``);
     the offline pass is not offered.
     """

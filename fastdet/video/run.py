@@ -181,7 +181,7 @@ def detect_video(source: str | os.PathLike | int | HeldFrames, config: PipelineC
 
     source: a video file, an image sequence (``frames/img%04d.jpg``), a URL or a camera
         index, as ``video`` reads them (:class:`~fastdet.io.reader.FrameReader`); or a file's
-        frames held by :func:`fastdet.io.held.hold_frames` (the same boxes, without decoding).
+        frames held by :func:`fastdet.io.hold.hold_frames` (the same boxes, without decoding).
     config: the settings (:class:`~fastdet.config.PipelineConfig`; default ``PipelineConfig()``,
         which is what ``video`` runs without options); ``**settings`` replace fields of it,
         e.g. ``detect_video(path, oncoming=False, horizon=0.55)`` (``video --no-oncoming

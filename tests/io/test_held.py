@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from fastdet.errors import DataError, WriteError
-from fastdet.io.held import HeldFrames, hold_frames
+from fastdet.io.held import HeldFrames
+from fastdet.io.hold import hold_frames
 from fastdet.io.reader import FrameReader
 from tests.media import damage, leftovers, write_video
 
@@ -107,7 +108,7 @@ def test_a_spill_that_cannot_be_written_is_one_line_and_leaves_nothing(damaged, 
         def close(self):
             self.fh.close()
 
-    import fastdet.io.held as held_mod
+    import fastdet.io.hold as held_mod
 
     held_mod.open = Full  # type: ignore[attr-defined]
     try:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fastdet.io.held import hold_frames
+from fastdet.io.hold import hold_frames
 from fastdet.video.horizon import HORIZON_FRAMES
 from fastdet.video.replay import iter_offset_detections
 from fastdet.video.run import iter_video_detections
