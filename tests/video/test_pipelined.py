@@ -18,13 +18,13 @@ def _table(dets) -> tuple:
 
 
 def test_beside_gives_update_s_boxes_ids_debug_and_timings_on_a_real_clip(data):
-    """16 frames of test_small1 (1280x720, the bundled models, every stage on): each frame's
+    """10 frames of test_small1 (1280x720, the bundled models, every stage on): each frame's
     boxes, scores, ids and debug record equal a plain update() loop's, and the timings name the
     same stages."""
     path = data / "videos" / "test_small1.mp4"
     plain, ahead = VideoDetector(), VideoDetector()
     assert [type(s) for s in plain.stages[-2:]] == list(TAIL_STAGES)
-    with FrameReader(path, 0, 16) as reader:
+    with FrameReader(path, 0, 10) as reader:
         frames = list(reader)
     want, debugs, keys = [], [], []
     for _, frame, _ in frames:
@@ -39,7 +39,7 @@ def test_beside_gives_update_s_boxes_ids_debug_and_timings_on_a_real_clip(data):
         assert np.array_equal(ahead.debug.heat, debugs[i].heat)
         assert set(ahead.timings) == keys[i] and {"refine", "plausible"} <= keys[i]
     assert got == want
-    assert sum(len(b) for b, _, _ in want) > 10  # vehicles were found and refined
+    assert sum(len(b) for b, _, _ in want) > 5  # vehicles were found and refined
     ahead.close()
 
 
