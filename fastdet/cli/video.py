@@ -308,17 +308,20 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
                     fno, frame, t_dec, dets = got
                     t1 = time.perf_counter()
                     t0 += reading[0] - r0  # the reader's wait is not the main thread's work
-                    if offline:
-                        done.append((fno, dets))
-                    else:
-                        _emit(fno, dets, mot, jsl, counter)
-                    t2 = time.perf_counter()
-                    if sink is not None and not offline:
-                        dbg = None
-                        if args.debug:
-                            d = vd.debug
-                            dbg = (d.windows, d.heat, d.labels, d.mask, d.tracks)
-                        sink.put((frame, dets, dbg))
+                    # the frame goes to every output or to none: a second (impatient) stop signal
+                    # waits until it is in all of them (the video's put may wait for the encoder)
+                    with _signals.deferred(repeats=False, raise_on_exit=False):
+                        if offline:
+                            done.append((fno, dets))
+                        else:
+                            _emit(fno, dets, mot, jsl, counter)
+                        t2 = time.perf_counter()
+                        if sink is not None and not offline:
+                            dbg = None
+                            if args.debug:
+                                d = vd.debug
+                                dbg = (d.windows, d.heat, d.labels, d.mask, d.tracks)
+                            sink.put((frame, dets, dbg))
                     for k, v in vd.timings.items():
                         totals[k] = totals.get(k, 0.0) + v
                     totals["decode"] = totals.get("decode", 0.0) + t_dec
