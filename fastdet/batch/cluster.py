@@ -12,17 +12,19 @@ import os
 import signal
 import sys
 import threading
-from collections.abc import Iterator
-from typing import Any
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any, TypeVar
 
 import cv2
-from distributed import Client, LocalCluster, WorkerPlugin
+from distributed import Client, Future, LocalCluster, WorkerPlugin, as_completed
 
 from .. import signals
 from .._numba import WORKERS_ENV, all_kernels, ensure_compiled
 from ..errors import FastdetError
 
 CONNECT_TIMEOUT_S = 20
+#: how often the waiting thread looks at finished tasks and at stop signals (s)
+POLL_S = 0.2
 CLOSE_TIMEOUT_S = 20
 #: environment of the local cluster's worker processes (a user's own NUMBA_NUM_THREADS wins)
 WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_WAIT_POLICY": "PASSIVE", WORKERS_ENV: "1"}
@@ -97,6 +99,37 @@ def _quiet_dask() -> Iterator[None]:
     finally:
         for lg, level in zip(loggers, levels):
             lg.setLevel(level)
+
+
+T = TypeVar("T")
+
+
+def as_they_end(client: Client, tasks: Sequence[T], submit: Callable[[T], Future],
+                idle: Callable[[], None] | None = None) -> Iterator[tuple[T, Future]]:
+    """Submit each task (``submit(task)`` returns its future) and yield ``(task, future)`` as
+    each ends, in any order, until all have ended or a stop signal came
+    (:func:`fastdet.signals.stop_requested`); the caller reads ``future.result()`` and
+    releases it. The wait wakes every :data:`POLL_S` seconds and on a signal, calling ``idle``
+    (say, to redraw a progress bar). Tasks not yet ended when the generator ends (a stop, an
+    error in the caller, closed early) are cancelled: use it as ``with
+    contextlib.closing(as_they_end(...)) as ended:`` so that happens at once."""
+    futures: dict[Future, T] = {}
+    try:
+        for t in tasks:
+            futures[submit(t)] = t
+        ac = as_completed(list(futures), loop=client.loop)
+        while not ac.is_empty() and not signals.stop_requested():
+            for fut in ac.next_batch(block=False):
+                yield futures.pop(fut), fut
+            if not ac.has_ready():
+                signals.wait(ac.has_ready, POLL_S)
+                if idle is not None:
+                    idle()
+    finally:
+        if futures:  # stopped, failed or closed early: the rest is not wanted (the client may
+            # already be broken, and its error must not hide why we stopped)
+            with contextlib.suppress(Exception):
+                client.cancel(list(futures), force=True)
 
 
 @contextlib.contextmanager

@@ -56,7 +56,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-from distributed import Client, as_completed
+from distributed import Client
 from distributed.scheduler import KilledWorker
 
 from .. import signals
@@ -71,6 +71,7 @@ from .cluster import (  # noqa: F401  (re-exported)
     _connect,
     _glibc_malloc_defaults,
     _WorkerSetup,
+    as_they_end,
     check_address,
     client_for,
     default_workers,
@@ -83,8 +84,6 @@ from .settings import MANIFEST_NAME, Settings, max_name_length, output_paths
 from .summary import format_summary as _format_summary
 from .table import write_table
 from .task import VideoTask, commit_outputs, discard_outputs, run_video
-
-POLL_S = 0.2  # how often the main thread looks at finished tasks and redraws the bar
 
 
 @dataclass
@@ -153,15 +152,14 @@ def _run_tasks(client: Client, tasks: list[VideoTask], stats: dict[str, dict[str
     (then the results still to come, and any that arrive, get no final names)."""
     progress = BatchProgress([t.name for t in tasks], opts.progress)
     job = tasks[0].topic or "fastdet-batch"
-    futures: dict[Any, VideoTask] = {}
+
+    def submit(t: VideoTask) -> Any:
+        return client.submit(run_video, t, key=f"{job}-{t.name}", retries=opts.retries, pure=False)
+
     try:
         client.subscribe_topic(job, progress.on_event)
-        for t in tasks:
-            futures[client.submit(run_video, t, key=f"{job}-{t.name}", retries=opts.retries, pure=False)] = t
-        ac = as_completed(list(futures), loop=client.loop)
-        while not ac.is_empty() and not signals.stop_requested():
-            for fut in ac.next_batch(block=False):
-                task = futures.pop(fut)
+        with contextlib.closing(as_they_end(client, tasks, submit, idle=progress.refresh)) as ended:
+            for task, fut in ended:
                 try:
                     summary = fut.result()
                 except Exception as exc:  # noqa: BLE001 - the task raised on every attempt, or its workers died
@@ -171,15 +169,9 @@ def _run_tasks(client: Client, tasks: list[VideoTask], stats: dict[str, dict[str
                     discard_outputs(summary)
                     continue
                 _record(summary, task, opts, stats, manifest, report, progress)
-            if not ac.has_ready():
-                signals.wait(ac.has_ready, POLL_S)
-                progress.refresh()
     finally:
         # clean-up after a stop: the client may already be broken, and its error must not
-        # hide the reason we stopped
-        if futures:
-            with contextlib.suppress(Exception):
-                client.cancel(list(futures), force=True)
+        # hide the reason we stopped (the tasks still running were cancelled above)
         with contextlib.suppress(Exception):
             client.unsubscribe_topic(job)
         progress.close()

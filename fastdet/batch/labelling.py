@@ -11,20 +11,15 @@ caller writes the label files, so the work folder need not be shared.
 from __future__ import annotations
 
 import contextlib
+import itertools
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from distributed import as_completed
-
-from .. import signals
 from ..errors import FastdetError, one_line
 from ..io.reader import FrameReader
 from ..teacher.label import Labelled
-from .cluster import client_for
-
-#: how often the waiting thread looks at finished tasks and at stop signals (s)
-POLL_S = 0.2
+from .cluster import as_they_end, client_for
 
 
 @dataclass(frozen=True)
@@ -69,23 +64,16 @@ def label_on_cluster(tasks: Sequence[LabelTask], workers: int | None = None, sch
     if not tasks:
         return
     with client_for(workers, scheduler) as (client, _):
-        futures: dict[Any, LabelTask] = {}
-        try:
-            for i, t in enumerate(tasks):
-                futures[client.submit(label_video, t, key=f"fastdet-label-{i}-{t.video}", pure=False)] = t
-            ac = as_completed(list(futures), loop=client.loop)
-            while not ac.is_empty() and not signals.stop_requested():
-                for fut in ac.next_batch(block=False):
-                    task = futures.pop(fut)
-                    try:
-                        labelled = fut.result()
-                    except Exception as exc:  # noqa: BLE001 - said with the video's name
-                        raise FastdetError(f"{task.video}: labelling on the cluster failed: {one_line(exc)}") from None
-                    fut.release()
-                    yield task, labelled
-                if not ac.has_ready():
-                    signals.wait(ac.has_ready, POLL_S)
-        finally:
-            if futures:  # stopped, failed or closed early: the rest is not wanted
-                with contextlib.suppress(Exception):
-                    client.cancel(list(futures), force=True)
+        number = itertools.count()
+
+        def submit(t: LabelTask) -> Any:
+            return client.submit(label_video, t, key=f"fastdet-label-{next(number)}-{t.video}", pure=False)
+
+        with contextlib.closing(as_they_end(client, tasks, submit)) as ended:
+            for task, fut in ended:
+                try:
+                    labelled = fut.result()
+                except Exception as exc:  # noqa: BLE001 - said with the video's name
+                    raise FastdetError(f"{task.video}: labelling on the cluster failed: {one_line(exc)}") from None
+                fut.release()
+                yield task, labelled
