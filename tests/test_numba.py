@@ -155,6 +155,22 @@ def test_split_range_reraises():
         _numba.split_range(fn, 10, 2)
 
 
+def test_serial_kernels_is_one_thread_in_the_block_only_and_in_this_thread_only():
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("needs two Numba threads")
+    before = numba.get_num_threads()
+    seen = []
+    with pytest.raises(RuntimeError):
+        with _numba.serial_kernels():
+            seen.append(numba.get_num_threads())
+            other = threading.Thread(target=lambda: seen.append(numba.get_num_threads()))
+            other.start()
+            other.join()
+            raise RuntimeError("the setting comes back on an error too")
+    assert seen == [1, numba.config.NUMBA_NUM_THREADS]
+    assert numba.get_num_threads() == before
+
+
 # --------------------------------------------------------------------------------------
 # the merged kernels: ranges of rows give the whole, bit for bit
 # --------------------------------------------------------------------------------------

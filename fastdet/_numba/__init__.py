@@ -2,7 +2,7 @@
 
 This package module holds the compile options and re-exports the rest: the kernel registry
 (:mod:`.registry`), the compile-time estimate (:mod:`.compile_time`), the compiling
-(:mod:`.compiling`) and :func:`split_range` (:mod:`.threads`).
+(:mod:`.compiling`), :func:`split_range` and the one-core threads (:mod:`.threads`).
 
 ``EXACT``: IEEE arithmetic in source order (what the kernels compared bit-for-bit or to
 1e-12 against scikit-image and NumPy use). ``REASSOC``: lets LLVM reassociate sums and fuse
@@ -59,7 +59,7 @@ from .compiling import (  # noqa: F401  (re-exported; ``_worker`` is what a comp
     ensure_compiled,
 )
 from .registry import KERNEL_MODULES, Task, all_kernels, is_cached, tasks_of  # noqa: F401  (re-exported)
-from .threads import longest_first, split_range  # noqa: F401  (re-exported)
+from .threads import longest_first, serial_kernels, serial_thread, split_range  # noqa: F401  (re-exported)
 
 tolerate_cache_writes()  # before any kernel compiles: a full or read-only cache is a note (see .cache)
 

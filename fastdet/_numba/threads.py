@@ -1,15 +1,36 @@
 """Spread a serial kernel's rows over threads: :func:`split_range` (how the package's
-kernels use several cores without being ``parallel=True`` kernels)."""
+kernels use several cores without being ``parallel=True`` kernels); and threads that run the
+kernels on one core each (:func:`serial_kernels`, :func:`serial_thread`)."""
 from __future__ import annotations
 
+import contextlib
 import threading
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 
 import numba
 
 _pool: ThreadPoolExecutor | None = None
 _pool_lock = threading.Lock()
+
+
+def serial_thread() -> None:
+    """Make this thread run the kernels on one core (``numba.set_num_threads`` is per
+    thread): for a thread that runs beside others which use the cores already (the video's
+    band threads and tail thread, a batch task), or as a pool's initializer."""
+    numba.set_num_threads(1)
+
+
+@contextlib.contextmanager
+def serial_kernels() -> Iterator[None]:
+    """``with serial_kernels():`` -- :func:`serial_thread` for the block, the thread's own
+    setting back after it."""
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(before)
 
 
 def split_range(fn: Callable[[int, int], None], n: int, parts: int) -> None:

@@ -43,9 +43,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numba
 from distributed import get_worker
 
+from .._numba import serial_thread
 from ..errors import FastdetError, ModelError, WriteError, one_line
 from ..io.atomic import OutputSet, process_token
 from ..io.motfiles import JsonLinesWriter, MotWriter
@@ -173,7 +173,7 @@ def run_video(task: VideoTask) -> dict[str, Any]:
     cannot be read, ``{"input", "name", "status": "failed", "error", "seconds", "frames", ...}``.
     """
     t0 = time.perf_counter()
-    numba.set_num_threads(1)  # thread-local: this task's kernels run serially
+    serial_thread()  # this task's kernels run on one core (one task per worker thread)
     token = secrets.token_hex(8)
     s = task.settings
     finals = output_paths(task.out_dir, task.name, s)

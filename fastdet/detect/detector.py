@@ -30,7 +30,7 @@ from typing import Any, ClassVar
 import numba
 import numpy as np
 
-from .._numba import ensure_compiled
+from .._numba import ensure_compiled, serial_kernels
 from ..config import ONCOMING_SEARCH, SearchBand, SearchConfig
 from ..detections import FIRST_COMPONENT_PART, MAIN_PART, ONCOMING_PART, Detections
 from ..errors import ModelError
@@ -231,9 +231,7 @@ class Detector:
         nxt = [0]
 
         def run() -> None:
-            before = numba.get_num_threads()
-            numba.set_num_threads(1)  # thread-local: this thread runs the serial kernels
-            try:
+            with serial_kernels():  # this thread runs the serial kernels
                 while True:
                     with lock:
                         if nxt[0] >= len(order):
@@ -244,8 +242,6 @@ class Detector:
                     p, g = geos[i]
                     results[i] = (self._scorer_of[p].band_scores(frame, g, t, serial=True, spans=spans[i],
                                                               padded=padded), t)
-            finally:
-                numba.set_num_threads(before)
 
         futures = [pool.submit(run) for _ in range(helpers)]
         run()

@@ -27,7 +27,7 @@ from concurrent.futures import Future, ThreadPoolExecutor, wait
 import numba
 import numpy as np
 
-from .._numba import ensure_compiled
+from .._numba import ensure_compiled, serial_thread
 from ..config import PipelineConfig
 from ..detections import Detections
 from .blobsplit import KERNELS as SPLIT_KERNELS
@@ -40,7 +40,6 @@ from .motion import warmup_motion
 from .refine import KERNELS as REFINE_KERNELS
 from .refine import BoxRegressor, load_regressor
 from .stages import (
-    TAIL_STAGES,
     FrameDebug,
     FrameState,
     FusionStage,
@@ -50,12 +49,9 @@ from .stages import (
     PlanStage,
     Stage,
     build_stages,
+    split_tail,
 )
 from .track import Tracker
-
-
-def _serial_thread() -> None:
-    numba.set_num_threads(1)  # thread-local: the tail thread runs the kernels single-threaded
 
 
 class PendingFrame:
@@ -272,27 +268,24 @@ class VideoDetector:
         frame = np.asarray(frame)
         if frame.ndim != 3 or frame.shape[2] != 3 or frame.dtype != np.uint8:
             raise ValueError(f"frame must be an (H, W, 3) uint8 array, got {frame.dtype} {frame.shape}")
-        stages = self.stages
-        cut = len(stages)
-        while cut > 0 and isinstance(stages[cut - 1], TAIL_STAGES):
-            cut -= 1
+        head, rest = split_tail(self.stages)  # each frame: the list is open to stages added to it
         s = FrameState(frame, rgb)
-        timings = self._run(stages[:cut], s)
+        timings = self._run(head, s)
         debug = FrameDebug.of(s)
         if beside is None:
             beside = numba.get_num_threads() > 1
         tail: Future[tuple[FrameState, dict[str, float]]]
-        if beside and cut < len(stages):
+        if beside and rest:
             with self._tail_lock:
                 if self._tail_pool is None:
                     self._tail_pool = ThreadPoolExecutor(1, thread_name_prefix="fastdet-tail",
-                                                         initializer=_serial_thread)
+                                                         initializer=serial_thread)
                     weakref.finalize(self, self._tail_pool.shutdown, wait=False)
-                tail = self._last_tail = self._tail_pool.submit(self._finish, stages[cut:], s)
+                tail = self._last_tail = self._tail_pool.submit(self._finish, rest, s)
         else:
             self._settle()  # an earlier frame's last stages first: they run in order
             tail = Future()
-            tail.set_result(self._finish(stages[cut:], s))
+            tail.set_result(self._finish(rest, s))
         return PendingFrame(self, debug, timings, tail)
 
     @staticmethod

@@ -58,13 +58,21 @@ from .track import Tracker
 __all__ = ["ClipStage", "DetectStage", "FrameDebug", "FrameState", "FusionStage", "GateStage",
            "HeatStage", "HorizonStage", "MotionStage", "ObserveStage", "OwnVehicleStage", "PlausibleStage",
             "PlanStage", "RefineStage", "SplitStage", "Stage", "TrackStage",
-           "TAIL_STAGES", "TrackView", "WeakStage", "build_stages", "planner_for"]
+           "TAIL_STAGES", "TrackView", "WeakStage", "build_stages", "planner_for", "split_tail"]
 
 
 #: the stages at the end of the list that change only the boxes returned for the frame (no
 #: later frame reads what they do): :meth:`fastdet.VideoDetector.start` may run them beside the
 #: next frame
 TAIL_STAGES: tuple[type[Stage], ...] = (RefineStage, PlausibleStage)
+
+
+def split_tail(stages: list[Stage]) -> tuple[list[Stage], list[Stage]]:
+    """``(head, tail)`` of ``stages``: the tail is the run of :data:`TAIL_STAGES` at the end."""
+    cut = len(stages)
+    while cut > 0 and isinstance(stages[cut - 1], TAIL_STAGES):
+        cut -= 1
+    return stages[:cut], stages[cut:]
 
 
 def planner_for(config: PipelineConfig, detector: WindowDetector) -> SearchPlanner | None:
