@@ -239,7 +239,7 @@ ONCOMING_WIDTH = 0.55
 ONCOMING_SCALES = (0.625, 0.75, 0.875, 1.0, 1.25)
 
 
-def _oncoming_bands(traffic: str = "right", slack_below: float | None = None) -> tuple[SearchBand, ...]:
+def _oncoming_bands(traffic: str = "right") -> tuple[SearchBand, ...]:
     # Columns 0..704 of 1280 where traffic drives on the right (oncoming traffic is on the left
     # of the view), 576..1280 where it drives on the left, or all. Each band is a whole number
     # of its CELL * scale px cells wide, so that the narrowed bands of fastdet.video.motion
@@ -253,25 +253,19 @@ def _oncoming_bands(traffic: str = "right", slack_below: float | None = None) ->
         n = int(round(ONCOMING_WIDTH * width) // cell * cell)
         return (0, n) if traffic == "right" else (width - n, width)
 
-    return tuple(SearchBand(s, 400, 400 + int(WINDOW * s) + 24, *cols(s), slack_below=slack_below)
-                 for s in ONCOMING_SCALES)
+    return tuple(SearchBand(s, 400, 400 + int(WINDOW * s) + 24, *cols(s)) for s in ONCOMING_SCALES)
 
 
-def oncoming_search(traffic: Traffic = "right", slack_below: float | None = None) -> SearchConfig:
+def oncoming_search(traffic: Traffic = "right") -> SearchConfig:
     """The default search of the oncoming-traffic (wide-window) model for roads where traffic
     drives on the ``'right'`` (oncoming cars on the left of the view: the default,
     :data:`ONCOMING_SEARCH`), on the ``'left'`` (the columns mirrored) or ``'both'`` (the whole
     width, about 15% more CPU per frame on footage whose roadside moves fast; docs/accuracy.md).
-    Give it as ``Detector(oncoming_search=...)``.
-
-    slack_below: rows (a fraction of the frame height) every band also searches below its
-    own, for a horizon estimate that is too high in the picture (its bands are only 24 rows
-    more than a window tall); a window there must beat :data:`SLACK_THRESHOLD`. ``None``
-    (default): none. Off by default: 0.04 keeps test_small1's oncoming cars with the
-    horizon 0.04 too high but costs boston_street false alarms at the estimate and 14% more HOG
-    cells a full scan of all models (docs/geometry.md, "Tolerance")."""
+    Give it as ``Detector(oncoming_search=...)``. (Slack below its bands, for a horizon
+    estimate too high in the picture, was an option: it lost boston_street at the estimate and
+    was deleted; docs/accuracy.md, "Deleted stages".)"""
     check_traffic(traffic)
-    return SearchConfig(bands=_oncoming_bands(traffic, slack_below), cells_per_step=1, threshold=1.0)
+    return SearchConfig(bands=_oncoming_bands(traffic), cells_per_step=1, threshold=1.0)
 
 
 #: default search of the oncoming-traffic model: small scales near the horizon on the left of

@@ -147,11 +147,12 @@ def test_the_deleted_slack_rounding_rule_loads_only_off():
 
 
 @pytest.mark.parametrize("traffic", ["right", "left", "both"])
-def test_oncoming_slack_below_adds_gated_rows_below_every_band(traffic):
-    """``oncoming_search(slack_below=F)``: every oncoming band also searches the nearest whole
-    window steps to F of the height below its rows, which stay its core; a window reaching
-    below them needs the slack threshold, above the oncoming model's own."""
-    plain, slack = oncoming_search(traffic), oncoming_search(traffic, slack_below=0.04)
+def test_slack_below_adds_gated_rows_below_every_band(traffic):
+    """``SearchBand.slack_below = F`` (here on the oncoming search's bands): every band also
+    searches the nearest whole window steps to F of the height below its rows, which stay its
+    core; a window reaching below them needs the slack threshold, above the search's own."""
+    plain = oncoming_search(traffic)
+    slack = replace(plain, bands=tuple(replace(b, slack_below=0.04) for b in plain.bands))
     assert all(b.slack_below == 0.04 and b.slack_above is None for b in slack.bands)
     assert slack.slack_threshold is not None and slack.slack_threshold > slack.threshold == plain.threshold
     for shape in ((720, 1280), (360, 640)):
@@ -160,4 +161,3 @@ def test_oncoming_slack_below_adds_gated_rows_below_every_band(traffic):
             assert (s.y_start, s.core) == (p.y_start, (p.y_start, p.y_stop))
             assert s.y_stop - p.y_stop == pytest.approx(round(0.04 * shape[0] / step) * step, abs=1)
             assert (s.x_start, s.x_stop) == (p.x_start, p.x_stop)
-    assert oncoming_search(traffic, slack_below=None) == plain

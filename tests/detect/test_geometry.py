@@ -219,8 +219,8 @@ def test_row_thresholds_gate_only_the_windows_reaching_into_the_slack():
 def test_detector_needs_the_slack_threshold_in_the_slack_rows(test_images, variant):
     """Detector.detect's positive windows, against the obvious rule applied to every window's
     decision value: above ``threshold`` inside a band's core rows, above ``slack_threshold``
-    where the window reaches into its slack (the default slack above the main bands and slack
-    below the oncoming model's bands)."""
+    where the window reaches into its slack (the default slack above the main bands, and slack
+    below the bands of the second model's search, set here by hand)."""
     import cv2
 
     from fastdet import Detector
@@ -232,8 +232,9 @@ def test_detector_needs_the_slack_threshold_in_the_slack_rows(test_images, varia
     search = replace(SearchConfig(), horizon=0.6, slack_threshold=5.0)  # cars in the slack rows of some bands
     if variant == "oncoming below":  # the main bands moved up: the oncoming slack rows reach the cars
         search = replace(search, horizon=0.5)
-        det = Detector(search=search, oncoming=ONCOMING_MODEL_PATH,
-                       oncoming_search=replace(oncoming_search(slack_below=0.08), slack_threshold=3.0))
+        on = oncoming_search()
+        on = replace(on, bands=tuple(replace(b, slack_below=0.08) for b in on.bands), slack_threshold=3.0)
+        det = Detector(search=search, oncoming=ONCOMING_MODEL_PATH, oncoming_search=on)
         det.set_horizon(0.5)
     else:
         det = Detector(search=search, oncoming=None)

@@ -74,8 +74,6 @@ def main() -> None:
     ap.add_argument("--clips", default=None)
     ap.add_argument("--bands", default=None,
                     help="reference bands scale:y0:y1[:x0:x1],... (1280x720 px) instead of today's")
-    ap.add_argument("--oncoming-slack", type=float, default=0.0,
-                    help="rows (fraction of H) added above and below every band of the oncoming model")
     ap.add_argument("--band-slack", default=None, metavar="ABOVE,BELOW",
                     help="slack (fractions of H) above and below every main band but the smallest "
                          "(SearchBand.slack_above / slack_below) instead of the default's")
@@ -84,11 +82,6 @@ def main() -> None:
     ap.add_argument("--slack-threshold", type=float, default=None,
                     help="decision value a window in a band's slack rows must exceed (SearchConfig.slack_threshold; "
                          "'nan': none)")
-    ap.add_argument("--oncoming-band-slack", default=None, metavar="ABOVE,BELOW",
-                    help="slack (fractions of H) above and below every oncoming band (windows there above "
-                         "the oncoming search's slack_threshold)")
-    ap.add_argument("--oncoming-slack-threshold", type=float, default=2.2,
-                    help="with --oncoming-band-slack: the decision value a window in the slack rows must exceed")
     ap.add_argument("--residuals", choices=("rows", "log"), default="log",
                     help="--joint: how a box's misfit is measured (PerspectiveConfig.residuals)")
     ap.add_argument("--out", default=None)
@@ -130,18 +123,6 @@ def main() -> None:
         if args.slack_threshold is not None:
             gate = None if args.slack_threshold != args.slack_threshold else args.slack_threshold
             det.scorers[0].search = replace(det.scorers[0].search, slack_threshold=gate)
-        if args.oncoming_band_slack is not None and len(det.scorers) > 1:
-            above, below = (float(v) or None for v in args.oncoming_band_slack.split(","))
-            on = det.scorers[1].search
-            det.scorers[1].search = replace(on, bands=tuple(
-                replace(b, slack_above=above, slack_below=below) for b in on.bands),
-                slack_threshold=args.oncoming_slack_threshold)
-        if args.oncoming_slack and len(det.scorers) > 1:
-            on = det.scorers[1].search
-            rows = on.reference_shape[0] if on.reference_shape is not None else 720
-            d = int(round(args.oncoming_slack * rows))
-            det.scorers[1].search = replace(on, bands=tuple(
-                replace(b, y_start=max(b.y_start - d, 0), y_stop=min(b.y_stop + d, rows)) for b in on.bands))
         base_search = det.scorers[0].search
         if not args.baseline:
             det.scorers[0].search = GeometricSearch.from_search(base_search, geo)
