@@ -1,10 +1,10 @@
-"""Search bands from the camera's geometry (fastdet.detect.geometry) on every annotated clip,
+"""Search bands from the camera's geometry (tools/studies/perspective.py) on every annotated clip,
 beside today's bands (run by hand).
 
 Runs the video pipeline (``iter_video_detections``, the code behind ``fastdet video``) on each
-clip with the main model's search replaced by a :class:`~fastdet.detect.geometry.GeometricSearch`
+clip with the main model's search replaced by a :class:`~tools.studies.perspective.GeometricSearch`
 and, unless ``--fixed-ratio``, the ratio estimated from the tracked boxes as the video goes
-(:class:`~fastdet.detect.geometry.RatioEstimator`, boxes whose score is at least
+(:class:`~tools.studies.perspective.RatioEstimator`, boxes whose score is at least
 ``--min-score``). Prints the per-clip table of ``fastdet eval --all`` plus the estimated
 ratio, the main search's cost (HOG cells of the scaled bands of a full scan, relative to
 today's bands at the same horizon) and the windows the pipeline scored per frame (the main
@@ -23,18 +23,19 @@ from dataclasses import replace
 
 from fastdet.config import PipelineConfig, SearchBand, SearchConfig
 from fastdet.detect.bands import band_geometry
-from fastdet.detect.geometry import (
-    GeometricSearch,
-    GeometryConfig,
-    RatioEstimator,
-)
 from fastdet.detections import Detections
 from fastdet.eval.clips import annotated_clips, markdown_table, report_json, score_clip
 from fastdet.io.reader import FrameReader
 from fastdet.video import iter_video_detections, make_detector
 from fastdet.video.horizon import HORIZON_FRAMES, estimate_horizon
-from fastdet.video.perspective import PerspectiveConfig, PerspectiveUpdater
 from tools.studies.band_cost import count_scored
+from tools.studies.perspective import (
+    GeometricSearch,
+    GeometryConfig,
+    PerspectiveConfig,
+    PerspectiveUpdater,
+    RatioEstimator,
+)
 
 
 def cells(search: SearchConfig, shape: tuple[int, int], config) -> int:
