@@ -1,6 +1,6 @@
 """The slack rows' thresholds of a search band: a window that reaches into the rows a band
-searches beyond its own (:attr:`~fastdet.config.SearchBand.slack_above` /
-``slack_below``, placed by :meth:`~fastdet.config.SearchConfig.for_frame`) must beat the
+searches beyond its own (:attr:`~fastdet.config.SearchBand.slack_above`, placed by
+:meth:`~fastdet.config.SearchConfig.for_frame`) must beat the
 search's ``slack_threshold`` (docs/geometry.md). (Bands placed from the camera's geometry and
 the perspective estimated from the tracked vehicles, once here, are study code now:
 ``tools/studies/perspective.py``.)

@@ -12,7 +12,7 @@ model's and all models'; the guided search scores fewer between full scans).
 
     python -m tools.studies.geometry_study [--ratio 1.9] [--slack 0.05] [--fixed-ratio]
         [--horizon auto|off|F|+D] [--clips A,B] [--out R.json] [--baseline]
-        [--band-slack ABOVE,BELOW] [--slack-threshold D]
+        [--band-slack ABOVE,0] [--slack-threshold D]
 """
 from __future__ import annotations
 
@@ -36,6 +36,7 @@ from tools.studies.perspective import (
     PerspectiveUpdater,
     RatioEstimator,
 )
+from tools.studies.tolerance import parse_slack
 
 
 def cells(search: SearchConfig, shape: tuple[int, int], config) -> int:
@@ -75,11 +76,9 @@ def main() -> None:
     ap.add_argument("--clips", default=None)
     ap.add_argument("--bands", default=None,
                     help="reference bands scale:y0:y1[:x0:x1],... (1280x720 px) instead of today's")
-    ap.add_argument("--band-slack", default=None, metavar="ABOVE,BELOW",
-                    help="slack (fractions of H) above and below every main band but the smallest "
-                         "(SearchBand.slack_above / slack_below) instead of the default's")
-    ap.add_argument("--below-scales", default=None, metavar="S,S",
-                    help="--band-slack: the slack below only on the bands of these scales (reference scales)")
+    ap.add_argument("--band-slack", default=None, metavar="ABOVE,0",
+                    help="slack (fraction of H) above every main band but the smallest (SearchBand.slack_above) "
+                         "instead of the default's (slack below the bands was deleted: BELOW must be 0)")
     ap.add_argument("--slack-threshold", type=float, default=None,
                     help="decision value a window in a band's slack rows must exceed (SearchConfig.slack_threshold; "
                          "'nan': none)")
@@ -112,15 +111,11 @@ def main() -> None:
                                         int(p[4]) if len(p) > 4 else None))
             det.scorers[0].search = replace(det.scorers[0].search, bands=tuple(bands))
         if args.band_slack is not None:
-            above, below = (float(v) or None for v in args.band_slack.split(","))
+            above = parse_slack(args.band_slack)
             main = det.scorers[0].search
             smallest = min(b.scale for b in main.bands)
-            below_scales = None if args.below_scales is None else {float(v) for v in args.below_scales.split(",")}
             det.scorers[0].search = replace(main, bands=tuple(
-                b if b.scale == smallest else replace(
-                    b, slack_above=above,
-                    slack_below=below if below_scales is None or b.scale in below_scales else None)
-                for b in main.bands))
+                b if b.scale == smallest else replace(b, slack_above=above) for b in main.bands))
         if args.slack_threshold is not None:
             gate = None if args.slack_threshold != args.slack_threshold else args.slack_threshold
             det.scorers[0].search = replace(det.scorers[0].search, slack_threshold=gate)

@@ -176,7 +176,7 @@ def geometric_bands(frame_shape: tuple[int, int], horizon: float, ratio: float, 
     the window bottoms it searches at its ``reference_horizon``, at distances below the
     horizon stretched by ``config.reference_ratio / ratio``, plus a slack above and below (on
     each side the larger of ``config.slack`` and the band's own
-    :attr:`~fastdet.config.SearchBand.slack_above` / ``slack_below``; a band with slack gets the
+    :attr:`~fastdet.config.SearchBand.slack_above` above; a band with slack gets the
     rows it has without it as its ``core``); on the reference band's window grid
     (``window`` / ``cell``: the model's window width and HOG cell, px at scale 1). Bands in
     frame pixels."""
@@ -192,7 +192,7 @@ def geometric_bands(frame_shape: tuple[int, int], horizon: float, ratio: float, 
         anchor = b.y_start * fy
         n_ref = max(math.floor(((b.y_stop - b.y_start) * fy - side) / step + 1e-6), 0)
         last_ref = anchor + side + n_ref * step
-        up, down = (max(config.slack, v or 0.0) * h for v in (b.slack_above, b.slack_below))
+        up, down = max(config.slack, b.slack_above or 0.0) * h, config.slack * h
         x0 = None if b.x_start is None else min(int(round(b.x_start * fx)), w)
         x1 = None if b.x_stop is None else min(int(round(b.x_stop * fx)), w)
         bands = []

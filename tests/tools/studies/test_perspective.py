@@ -76,7 +76,7 @@ def test_window_bottoms():
 
 def no_slack(search: SearchConfig) -> SearchConfig:
     """``search`` with no band slack of its own (the reference bands as they were written)."""
-    return replace(search, bands=tuple(replace(b, slack_above=None, slack_below=None) for b in search.bands))
+    return replace(search, bands=tuple(replace(b, slack_above=None) for b in search.bands))
 
 
 @pytest.mark.parametrize("shape", [(720, 1280), (360, 640), (450, 800), (540, 960), (1080, 1920)])

@@ -23,12 +23,14 @@ def test_options_to_searches() -> None:
     assert main == PipelineConfig().search and oncoming == oncoming_search(PipelineConfig().traffic)
     main, oncoming = tol.searches(_args(band_slack="0.05,0", slack_threshold=float("nan")))
     assert main.slack_threshold is None
-    assert all(b.slack_above == 0.05 and b.slack_below is None for b in main.bands if b.has_slack)
+    assert all(b.slack_above == 0.05 for b in main.bands if b.has_slack)
     assert sum(b.has_slack for b in main.bands) == sum(b.has_slack for b in PipelineConfig().search.bands)
     assert oncoming == oncoming_search(PipelineConfig().traffic)
-    assert tol.parse_slack("0.03,0") == (0.03, None) and tol.parse_slack(None) is None
-    with pytest.raises(SystemExit, match="ABOVE,BELOW"):
-        tol.parse_slack("0.03")
+    assert tol.parse_slack("0.03,0") == 0.03 == tol.parse_slack("0.03") and tol.parse_slack("0,0") is None
+    with pytest.raises(SystemExit, match="ABOVE or ABOVE,0"):
+        tol.parse_slack("0.03,0,1")
+    with pytest.raises(SystemExit, match="slack below the bands was deleted"):  # one line, exit 2
+        tol.parse_slack("0.03,0.03")
     # the detector of a run carries both searches
     det = tol.detector(_args(band_slack="0.05,0"), PipelineConfig())
     assert det.scorers[0].search.bands == main.bands and det.scorers[1].search.bands == oncoming.bands
