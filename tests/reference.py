@@ -499,21 +499,17 @@ def ref_region_crops(frame: np.ndarray, boxes: np.ndarray, context: float, size:
     return out
 
 
-def ref_box_features(frame: np.ndarray, boxes: np.ndarray, config: FeatureConfig, contexts: tuple[float, ...],
-                     size_inputs: tuple[str, ...] = (), size_boxes: np.ndarray | None = None) -> np.ndarray:
+def ref_box_features(frame: np.ndarray, boxes: np.ndarray, config: FeatureConfig,
+                     contexts: tuple[float, ...]) -> np.ndarray:
     """``fastdet.detect.regressor.box_features`` as first written: each context's
-    :func:`ref_region_crops` described by ``extract_features`` on its own, then the size inputs."""
-    from fastdet.detect.regressor import size_features
+    :func:`ref_region_crops` described by ``extract_features`` on its own."""
     from fastdet.features import extract_features
 
     n = len(np.asarray(boxes).reshape(-1, 4))
     if n == 0:
-        return np.zeros((0, len(contexts) * config.n_features + len(size_inputs)), np.float64)
+        return np.zeros((0, len(contexts) * config.n_features), np.float64)
     parts = [extract_features(ref_region_crops(frame, boxes, c, (config.win_h, config.win_w)), config)
              for c in contexts]
-    if size_inputs:
-        sb = boxes if size_boxes is None else np.asarray(size_boxes, np.float64).reshape(-1, 4)
-        parts.append(size_features(frame.shape, sb, size_inputs))
     return np.concatenate(parts, axis=1)
 
 

@@ -17,7 +17,7 @@
 - Every vehicle box carries a track id (:mod:`fastdet.video.track`, ByteTrack); ids start
   at 1 and are the same run after run. ``--no-track`` turns the tracker off (ids ``-1``).
   ``--offline`` (files only) runs the offline pass after the last frame
-  (:mod:`fastdet.video.offline`: short gaps of a track filled, tracks extended back); the
+  (:mod:`fastdet.video.offline`: short gaps of a track filled); the
   outputs are then written after the whole file was read (the video by reading the file a
   second time), without the ``--debug`` panels (the heat maps of every frame are not kept).
   A stop signal during that second reading keeps the box files and the summary (complete)

@@ -14,9 +14,6 @@ comparable, JSON round-trip through one :meth:`~fastdet.config.Config.to_dict` /
 - :mod:`.guided`: the search between full scans (:class:`GuidedSearch`);
 - :mod:`.refine`: the box refinement (:class:`RefineConfig`) and its training boxes
   (:class:`JitterConfig`);
-- :mod:`.perspective`: bands from the camera's geometry (:class:`GeometryConfig`) and the
-  perspective learnt from the tracked vehicles (:class:`PerspectiveConfig`: no pipeline stage
-  since it was deleted, ``tools/studies/geometry_study.py --joint``);
 - :mod:`.picture`: how a single picture is searched, the whole of it at every scale
   (:class:`PictureSearch`);
 - :mod:`.models`: the bundled model files;
@@ -42,7 +39,6 @@ from .models import (
 )
 from .motion import MotionGate
 from .ownvehicle import OwnVehicleConfig
-from .perspective import GeometryConfig, PerspectiveConfig
 from .picture import PICTURE_SEARCH, PictureBoxes, PictureSearch
 from .pipeline import Horizon, PipelineConfig
 from .plausible import PlausibleConfig
@@ -63,9 +59,9 @@ from .teacher import COCO_VEHICLES, TeacherConfig
 from .track import TrackerConfig
 
 __all__ = ["BoxMode", "CELL", "COCO_VEHICLES", "COLOR_SPACES", "ColorSpace", "Config", "DEFAULT_MODEL_PATH",
-           "FeatureConfig", "GeometryConfig", "GuidedSearch", "HeatConfig", "Horizon", "JitterConfig", "MotionGate",
+           "FeatureConfig", "GuidedSearch", "HeatConfig", "Horizon", "JitterConfig", "MotionGate",
            "NeighbourSplit", "ONCOMING_HEAT", "ONCOMING_MODEL_PATH", "ONCOMING_SEARCH", "OwnVehicleConfig",
-           "PICTURE_SEARCH", "PerspectiveConfig", "PictureBoxes", "PictureSearch",
+           "PICTURE_SEARCH", "PictureBoxes", "PictureSearch",
            "PipelineConfig", "PlausibleConfig", "REFERENCE_HORIZON", "REFERENCE_SHAPE", "REFINE_MODEL_PATH",
            "RefineConfig", "ScoreKind", "SearchBand", "SearchConfig",
            "TRAFFIC_SIDES", "TeacherConfig", "TrackerConfig", "Traffic", "WINDOW", "check_traffic", "oncoming_search"]

@@ -30,14 +30,14 @@ class SearchBand(Config):
     frame rows [y_start, y_stop)
     and columns [x_start, x_stop) (``None`` = frame edge).
 
-    slack_above, slack_below: rows, fractions of the frame height, the band also searches
-        above / below ``[y_start, y_stop)`` once placed at the frame's horizon
-        (:meth:`SearchConfig.for_frame`: the nearest whole number of the band's window steps),
-        for a horizon estimate that is off by up to that much (too low in the picture /
-        too high); a window reaching into those rows is positive only above
-        :attr:`SearchConfig.slack_threshold` (on those rows no vehicle of the window's size
-        stands when the horizon is right, so what fires there is mostly clutter).
-        ``None``: no slack on that side.
+    slack_above: rows, a fraction of the frame height, the band also searches above
+        ``[y_start, y_stop)`` once placed at the frame's horizon (:meth:`SearchConfig.for_frame`:
+        the nearest whole number of the band's window steps), for a horizon estimate that is
+        too low in the picture by up to that much; a window reaching into those rows is
+        positive only above :attr:`SearchConfig.slack_threshold` (on those rows no vehicle of
+        the window's size stands when the horizon is right, so what fires there is mostly
+        clutter). ``None``: no slack. (Slack below the band was a field too, deleted:
+        docs/accuracy.md, "Deleted stages".)
     core: set by :meth:`SearchConfig.for_frame` on a band with slack: the frame rows
         ``[start, stop)`` of the band without its slack (a window inside them needs only the
         search's ``threshold``). ``None``: the whole band is its core.
@@ -45,6 +45,8 @@ class SearchBand(Config):
 
     #: left out of :meth:`to_dict` while ``None`` (a band written before they existed is the same dict)
     _OMIT_NONE = ("slack_above", "slack_below", "core")
+    #: the deleted slack below the band, never written while off (``None``): dicts and digests as before
+    _RETIRED = MappingProxyType({"slack_below": None})
 
     scale: float
     y_start: int
@@ -52,7 +54,6 @@ class SearchBand(Config):
     x_start: int | None = None
     x_stop: int | None = None
     slack_above: float | None = None
-    slack_below: float | None = None
     core: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
@@ -62,10 +63,9 @@ class SearchBand(Config):
             raise ValueError(f"y_stop must exceed y_start, got {self.y_start}..{self.y_stop}")
         if self.x_start is not None and self.x_stop is not None and self.x_stop <= self.x_start:
             raise ValueError(f"x_stop must exceed x_start, got {self.x_start}..{self.x_stop}")
-        for name in ("slack_above", "slack_below"):
-            v = getattr(self, name)
-            if v is not None and not 0 <= v < 1:
-                raise ValueError(f"{name} must be a fraction of the frame height in [0, 1) or None, got {v!r}")
+        v = self.slack_above
+        if v is not None and not 0 <= v < 1:
+            raise ValueError(f"slack_above must be a fraction of the frame height in [0, 1) or None, got {v!r}")
         if self.core is not None:
             core = tuple(int(v) for v in self.core)
             if len(core) != 2 or core[0] > core[1]:
@@ -74,8 +74,8 @@ class SearchBand(Config):
 
     @property
     def has_slack(self) -> bool:
-        """Whether the band searches rows beyond its own (:attr:`slack_above`, :attr:`slack_below`)."""
-        return bool(self.slack_above) or bool(self.slack_below)
+        """Whether the band searches rows beyond its own (:attr:`slack_above`)."""
+        return bool(self.slack_above)
 
 
 #: rows (fraction of the frame height) the default bands also search above their rows, for a
@@ -137,7 +137,7 @@ class SearchConfig(Config):
         leaves lower than its window (``window x scale`` rows) is dropped. A band with slack
         gets its slack rows added on its grid and its rows without them as its ``core``.
     slack_threshold: the decision value a window must exceed in a band's slack rows
-        (:attr:`SearchBand.slack_above`, :attr:`SearchBand.slack_below`, placed by
+        (:attr:`SearchBand.slack_above`, placed by
         :meth:`for_frame`; ``None``: ``threshold`` there too).
     border: windows may hang this fraction of their width over the left / right frame edge
         (bands whose ``x_start`` / ``x_stop`` is ``None``), so a car cut by the border can fill
@@ -192,8 +192,8 @@ class SearchConfig(Config):
             core_a, core_z = a, z
             if b.has_slack:  # whole steps more: the windows stay on the grid
                 # the nearest number of steps (a band whose step is more than twice its slack gets none)
-                up, down = (round((v or 0.0) * h / step) * step for v in (b.slack_above, b.slack_below))
-                a, z = int(round(b.y_start * fy + d - up)), int(round(b.y_stop * fy + d + down))
+                up = round((b.slack_above or 0.0) * h / step) * step
+                a = int(round(b.y_start * fy + d - up))
             y0, y1 = max(a, 0), min(z, h)
             if y1 > y0 and ((y0, y1) == (a, z) or y1 - y0 >= window * b.scale * fy):
                 c0 = min(max(core_a, y0), y1)
@@ -239,7 +239,7 @@ ONCOMING_WIDTH = 0.55
 ONCOMING_SCALES = (0.625, 0.75, 0.875, 1.0, 1.25)
 
 
-def _oncoming_bands(traffic: str = "right", slack_below: float | None = None) -> tuple[SearchBand, ...]:
+def _oncoming_bands(traffic: str = "right") -> tuple[SearchBand, ...]:
     # Columns 0..704 of 1280 where traffic drives on the right (oncoming traffic is on the left
     # of the view), 576..1280 where it drives on the left, or all. Each band is a whole number
     # of its CELL * scale px cells wide, so that the narrowed bands of fastdet.video.motion
@@ -253,25 +253,19 @@ def _oncoming_bands(traffic: str = "right", slack_below: float | None = None) ->
         n = int(round(ONCOMING_WIDTH * width) // cell * cell)
         return (0, n) if traffic == "right" else (width - n, width)
 
-    return tuple(SearchBand(s, 400, 400 + int(WINDOW * s) + 24, *cols(s), slack_below=slack_below)
-                 for s in ONCOMING_SCALES)
+    return tuple(SearchBand(s, 400, 400 + int(WINDOW * s) + 24, *cols(s)) for s in ONCOMING_SCALES)
 
 
-def oncoming_search(traffic: Traffic = "right", slack_below: float | None = None) -> SearchConfig:
+def oncoming_search(traffic: Traffic = "right") -> SearchConfig:
     """The default search of the oncoming-traffic (wide-window) model for roads where traffic
     drives on the ``'right'`` (oncoming cars on the left of the view: the default,
     :data:`ONCOMING_SEARCH`), on the ``'left'`` (the columns mirrored) or ``'both'`` (the whole
     width, about 15% more CPU per frame on footage whose roadside moves fast; docs/accuracy.md).
-    Give it as ``Detector(oncoming_search=...)``.
-
-    slack_below: rows (a fraction of the frame height) every band also searches below its
-    own, for a horizon estimate that is too high in the picture (its bands are only 24 rows
-    more than a window tall); a window there must beat :data:`SLACK_THRESHOLD`. ``None``
-    (default): none. Off by default: 0.04 keeps test_small1's oncoming cars with the
-    horizon 0.04 too high but costs boston_street false alarms at the estimate and 14% more HOG
-    cells a full scan of all models (docs/geometry.md, "Tolerance")."""
+    Give it as ``Detector(oncoming_search=...)``. (Slack below its bands, for a horizon
+    estimate too high in the picture, was an option: it lost boston_street at the estimate and
+    was deleted; docs/accuracy.md, "Deleted stages".)"""
     check_traffic(traffic)
-    return SearchConfig(bands=_oncoming_bands(traffic, slack_below), cells_per_step=1, threshold=1.0)
+    return SearchConfig(bands=_oncoming_bands(traffic), cells_per_step=1, threshold=1.0)
 
 
 #: default search of the oncoming-traffic model: small scales near the horizon on the left of

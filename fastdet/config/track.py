@@ -70,15 +70,13 @@ class TrackerConfig(Config):
         vehicle.
     max_gap: ``--offline`` only: a track's gaps of at most this many frames are filled by
         linear interpolation (StrongSORT's gap interpolation, Du et al., 2023).
-    extend_back: ``--offline`` only: each track is extended this many frames back from its
-        first box with its starting velocity, while the box stays in the picture. Default 0
-        (docs/accuracy.md).
     """
 
     _OMIT_NONE = ("cut_shape", "exit_outside", "max_behind")  # configs written before it existed keep their digest
-    #: the queue gate's fields and the cut's shape test, deleted (docs/accuracy.md, "Deleted
-    #: stages"), at their off values: the dicts written with them still load, the digests as before
-    _RETIRED = MappingProxyType({"max_behind": None, "behind_speed": 0.1, "cut_shape": None})
+    #: the queue gate's fields, the cut's shape test and the offline extension back, deleted
+    #: (docs/accuracy.md, "Deleted stages"), at their off values: the dicts written with them
+    #: still load, the digests as before
+    _RETIRED = MappingProxyType({"max_behind": None, "behind_speed": 0.1, "cut_shape": None, "extend_back": 0})
 
     low_heat: float = 0.5
     match_iou: float = 0.2
@@ -96,7 +94,6 @@ class TrackerConfig(Config):
     exit_outside: float | None = 0.25
     exit_after: int = 2
     max_gap: int = 10
-    extend_back: int = 0
 
     def __post_init__(self) -> None:
         if not 0 <= self.low_heat < 1:
@@ -105,7 +102,7 @@ class TrackerConfig(Config):
             v = getattr(self, name)
             if not 0 < v <= 1:
                 raise ValueError(f"{name} must be in (0, 1], got {v!r}")
-        for name, lo in (("min_hits", 1), ("max_lost", 0), ("max_gap", 0), ("extend_back", 0), ("exit_after", 1)):
+        for name, lo in (("min_hits", 1), ("max_lost", 0), ("max_gap", 0), ("exit_after", 1)):
             v = getattr(self, name)
             if int(v) != v or v < lo:
                 raise ValueError(f"{name} must be an integer >= {lo}, got {v!r}")

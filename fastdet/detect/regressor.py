@@ -35,16 +35,11 @@ array            shape, dtype                  meaning
                                                contexts, training data and figures
 ===============  ============================  =========================================
 
-``F = len(contexts) * feature_config.n_features + len(size_inputs)``. :mod:`fastdet.train.refine`
-fits the arrays (given a :class:`BoxFeatures`), :meth:`BoxRegressor.from_fit` makes the regressor
-of them.
+``F = len(contexts) * feature_config.n_features``. :mod:`fastdet.train.refine` fits the arrays
+(given a :class:`BoxFeatures`), :meth:`BoxRegressor.from_fit` makes the regressor of them.
 
-*Size inputs.* The context crops are resized to one window, so their features cannot tell a
-45-px box from a 300-px one. A regressor may also take the box's size and place
-(:data:`SIZE_INPUTS`, :func:`size_features`: e.g. ``log_width``, the log of its width in
-reference pixels, those of a frame scaled to :data:`~fastdet.config.REFERENCE_SHAPE`'s 1280
-columns), appended after the appearance features in the order its metadata lists them
-(``size_inputs``). A file without that entry has none: it predicts exactly as before.
+A file whose metadata lists ``size_inputs`` (the box's size among the inputs: an option that
+no clip supported, deleted; docs/accuracy.md, "Deleted stages") is refused with one line.
 """
 from __future__ import annotations
 
@@ -60,7 +55,7 @@ import numpy as np
 
 from .._numba import longest_first, split_range
 from .._version import __version__
-from ..config import REFERENCE_SHAPE, FeatureConfig
+from ..config import FeatureConfig
 from ..config.models import REFINE_MODEL_PATH
 from ..errors import ModelError
 from ..features import extract_features
@@ -229,107 +224,37 @@ def region_crops(frame: np.ndarray, boxes: np.ndarray, context: float, size: tup
     return regions_crops(frame, boxes, (float(context),), size)[0]
 
 
-#: the size inputs a regressor may take (:func:`size_features`), each one column: the box's
-#: width and height in reference pixels (a frame scaled to 1280 columns) as logs, its aspect
-#: ``log(w / h)``, its bottom row over the frame's height; ``width<N``: 1 for a box narrower
-#: than ``N`` reference pixels, else 0 (with two or more of them, an offset per size class)
-SIZE_INPUTS = ("log_width", "log_height", "log_aspect", "bottom")
-
-
-def _width_bound(name: str) -> float | None:
-    """``N`` of a size input ``width<N`` (a finite number > 0), else ``None``."""
-    if not name.startswith("width<"):
-        return None
-    try:
-        v = float(name[len("width<"):])
-    except ValueError:
-        return None
-    return v if math.isfinite(v) and v > 0 else None
-
-
-def check_size_inputs(names: tuple[str, ...] | list[str]) -> tuple[str, ...]:
-    """``names`` as a tuple when each is one of :data:`SIZE_INPUTS` or ``width<N`` (``N`` a
-    positive number of reference pixels), without repeats; else :class:`ValueError`."""
-    out = tuple(str(n) for n in names)
-    for n in out:
-        if n in SIZE_INPUTS or _width_bound(n) is not None:
-            continue
-        raise ValueError(f"unknown size input {n!r}: choose from {', '.join(SIZE_INPUTS)} or width<N (N > 0 px)")
-    if len(set(out)) != len(out):
-        raise ValueError(f"size inputs repeat: {list(out)}")
-    return out
-
-
-def size_features(shape: tuple[int, ...], boxes: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
-    """The size inputs ``names`` (:data:`SIZE_INPUTS`, ``width<N``) of ``boxes (N, 4)`` x1, y1,
-    x2, y2 in a frame of ``shape`` (H, W, ...): ``(N, len(names)) float64``. Widths and heights
-    below 1 px count as 1 px."""
-    b = np.asarray(boxes, np.float64).reshape(-1, 4)
-    H, W = int(shape[0]), int(shape[1])
-    ref = REFERENCE_SHAPE[1] / W
-    w, h = np.maximum(b[:, 2] - b[:, 0], 1.0), np.maximum(b[:, 3] - b[:, 1], 1.0)
-    cols = []
-    for n in names:
-        if n == "log_width":
-            cols.append(np.log(w * ref))
-        elif n == "log_height":
-            cols.append(np.log(h * ref))
-        elif n == "log_aspect":
-            cols.append(np.log(w / h))
-        elif n == "bottom":
-            cols.append(b[:, 3] / H)
-        elif (bound := _width_bound(n)) is not None:
-            cols.append((w * ref < bound).astype(np.float64))
-        else:
-            raise ValueError(f"unknown size input {n!r}")
-    return np.stack(cols, axis=1) if cols else np.zeros((len(b), 0), np.float64)
-
-
 def box_features(frame: np.ndarray, boxes: np.ndarray, config: FeatureConfig,
-                 contexts: tuple[float, ...], size_inputs: tuple[str, ...] = (),
-                 size_boxes: np.ndarray | None = None) -> np.ndarray:
+                 contexts: tuple[float, ...]) -> np.ndarray:
     """Features of ``boxes (N, 4)`` in ``frame (H, W, 3) uint8 BGR``: for each context factor,
-    :func:`extract_features` of :func:`region_crops`, concatenated, then the size inputs
-    ``size_inputs`` (:func:`size_features`) of ``size_boxes (N, 4)`` (default: ``boxes``;
-    training may describe each box by its vehicle's size instead, :mod:`fastdet.train.refine`):
-    ``(N, len(contexts) * config.n_features + len(size_inputs)) float64``."""
+    :func:`extract_features` of :func:`region_crops`, concatenated:
+    ``(N, len(contexts) * config.n_features) float64``."""
     n = len(np.asarray(boxes).reshape(-1, 4))
     if n == 0:
-        return np.zeros((0, len(contexts) * config.n_features + len(size_inputs)), np.float64)
+        return np.zeros((0, len(contexts) * config.n_features), np.float64)
     crops = regions_crops(frame, boxes, contexts, (config.win_h, config.win_w))
     # every context's crops described at once (each crop's features are its own)
     x = extract_features(crops.reshape((-1,) + crops.shape[2:]), config)
-    parts = [x[k * n: (k + 1) * n] for k in range(len(contexts))]
-    if size_inputs:
-        sb = boxes if size_boxes is None else np.asarray(size_boxes, np.float64).reshape(-1, 4)
-        if len(sb) != n:
-            raise ValueError(f"box_features: {len(sb)} size boxes for {n} boxes")
-        parts.append(size_features(frame.shape, sb, size_inputs))
-    return np.concatenate(parts, axis=1)
+    return np.concatenate([x[k * n: (k + 1) * n] for k in range(len(contexts))], axis=1)
 
 
 @dataclass(frozen=True)
 class BoxFeatures:
-    """The regressor's inputs: :func:`box_features` with ``config``, ``contexts`` and
-    ``size_inputs`` (:data:`SIZE_INPUTS`; none by default). Fitting
+    """The regressor's inputs: :func:`box_features` with ``config`` and ``contexts``. Fitting
     (:mod:`fastdet.train.refine`) and refining (:mod:`fastdet.video.refine`) both take it from
     here, so they compute the same features (and the same offsets, :func:`encode_offsets`)."""
 
     config: FeatureConfig = REFINE_FEATURES
     contexts: tuple[float, ...] = (1.5,)
-    size_inputs: tuple[str, ...] = ()
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "size_inputs", check_size_inputs(self.size_inputs))
 
     @property
     def n_features(self) -> int:
-        return len(self.contexts) * self.config.n_features + len(self.size_inputs)
+        return len(self.contexts) * self.config.n_features
 
-    def features(self, frame: np.ndarray, boxes: np.ndarray, size_boxes: np.ndarray | None = None) -> np.ndarray:
+    def features(self, frame: np.ndarray, boxes: np.ndarray) -> np.ndarray:
         """``(N, n_features) float64`` of ``boxes (N, 4)`` in ``frame (H, W, 3) uint8 BGR``
-        (the size inputs of ``size_boxes (N, 4)`` when given, :func:`box_features`)."""
-        return box_features(frame, boxes, self.config, self.contexts, self.size_inputs, size_boxes)
+        (:func:`box_features`)."""
+        return box_features(frame, boxes, self.config, self.contexts)
 
 
 # ---------------------------------------------------------------------------------------- the model
@@ -341,10 +266,8 @@ class BoxRegressor:
 
     config: the features of each context crop; contexts: the context factors (> 0);
     coef ``(4, F)``, intercept ``(4,)``, mean ``(F,)``, scale ``(F,)`` float64 with
-    ``F = len(contexts) * config.n_features + len(size_inputs)`` (a cascade of ``S`` stages: a
-    leading axis of ``S`` on each; stored so, one-stage arrays as ``S = 1``); metadata: what
-    training recorded; size_inputs: the box's size and place among the inputs
-    (:data:`SIZE_INPUTS`, after the appearance features; none by default).
+    ``F = len(contexts) * config.n_features`` (a cascade of ``S`` stages: a leading axis of
+    ``S`` on each; stored so, one-stage arrays as ``S = 1``); metadata: what training recorded.
     """
 
     config: FeatureConfig
@@ -354,18 +277,13 @@ class BoxRegressor:
     mean: np.ndarray
     scale: np.ndarray
     metadata: dict[str, Any] = field(default_factory=dict)
-    size_inputs: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         ctx = tuple(float(c) for c in self.contexts)
         if not ctx or any(not (math.isfinite(c) and c > 0) for c in ctx):
             raise ModelError(f"contexts must be positive numbers, got {self.contexts!r}")
         object.__setattr__(self, "contexts", ctx)
-        try:
-            object.__setattr__(self, "size_inputs", check_size_inputs(self.size_inputs))
-        except ValueError as exc:
-            raise ModelError(f"box regressor: {exc}") from None
-        n = len(ctx) * self.config.n_features + len(self.size_inputs)
+        n = len(ctx) * self.config.n_features
         coef = np.asarray(self.coef)
         stages = coef.shape[0] if coef.ndim == 3 else 1
         if stages < 1:
@@ -378,8 +296,7 @@ class BoxRegressor:
             if arr.shape != (stages,) + shape:
                 want = shape if coef.ndim != 3 else (stages,) + shape
                 raise ModelError(f"box regressor: '{name}' has shape {arr.shape}, the features "
-                                 f"({len(ctx)} contexts x {self.config.n_features} + "
-                                 f"{len(self.size_inputs)} size inputs) imply {want}")
+                                 f"({len(ctx)} contexts x {self.config.n_features}) imply {want}")
             if not np.all(np.isfinite(arr)):
                 raise ModelError(f"box regressor: '{name}' holds non-finite values")
             object.__setattr__(self, name, arr)
@@ -388,12 +305,12 @@ class BoxRegressor:
 
     @property
     def n_features(self) -> int:
-        return len(self.contexts) * self.config.n_features + len(self.size_inputs)
+        return len(self.contexts) * self.config.n_features
 
     @property
     def spec(self) -> BoxFeatures:
         """The features this regressor takes."""
-        return BoxFeatures(self.config, self.contexts, self.size_inputs)
+        return BoxFeatures(self.config, self.contexts)
 
     @property
     def n_stages(self) -> int:
@@ -404,8 +321,7 @@ class BoxRegressor:
     def from_fit(cls, spec: BoxFeatures, coef: np.ndarray, intercept: np.ndarray, mean: np.ndarray,
                  scale: np.ndarray, metadata: dict[str, Any] | None = None) -> BoxRegressor:
         """The regressor of ``spec``'s features with fitted arrays (:func:`fastdet.train.refine.fit_ridge`)."""
-        return cls(spec.config, spec.contexts, coef, intercept, mean, scale, metadata=dict(metadata or {}),
-                   size_inputs=spec.size_inputs)
+        return cls(spec.config, spec.contexts, coef, intercept, mean, scale, metadata=dict(metadata or {}))
 
     @classmethod
     def stack(cls, stages: list[BoxRegressor], metadata: dict[str, Any] | None = None) -> BoxRegressor:
@@ -418,8 +334,7 @@ class BoxRegressor:
             raise ValueError("stack: the stages' features differ")
         coef, intercept, mean, scale = (np.concatenate([getattr(r, k) for r in stages])
                                         for k in ("coef", "intercept", "mean", "scale"))
-        return cls(first.config, first.contexts, coef, intercept, mean, scale, metadata=dict(metadata or {}),
-                   size_inputs=first.size_inputs)
+        return cls(first.config, first.contexts, coef, intercept, mean, scale, metadata=dict(metadata or {}))
 
     @classmethod
     def zero(cls, config: FeatureConfig = REFINE_FEATURES, contexts: tuple[float, ...] = (1.5,)) -> BoxRegressor:
@@ -445,9 +360,7 @@ class BoxRegressor:
         meta = dict(self.metadata)
         meta.update(format_version=FORMAT_VERSION, kind="box_regressor", feature_config=self.config.to_dict(),
                     contexts=list(self.contexts), fastdet_version=__version__)
-        meta.pop("size_inputs", None)
-        if self.size_inputs:  # a file without size inputs is as it always was
-            meta["size_inputs"] = list(self.size_inputs)
+        meta.pop("size_inputs", None)  # a deleted option: a file never says it is on
         arrays = {k: getattr(self, k) for k in ("coef", "intercept", "mean", "scale")}
         if self.n_stages == 1:  # a single regressor's file as it always was
             arrays = {k: v[0] for k, v in arrays.items()}
@@ -461,7 +374,8 @@ def load_regressor(path: str | os.PathLike | None = None) -> BoxRegressor:
     Raises :class:`~fastdet.errors.ModelError` (a :class:`~fastdet.errors.FastdetError`)
     naming the problem when the file is missing, not an ``.npz``, holds pickled objects, lacks
     an array, has bad metadata or another format version, or its arrays do not fit its
-    features. A file without ``size_inputs`` in its metadata takes none (:data:`SIZE_INPUTS`)."""
+    features, or lists ``size_inputs`` (written with the box's size among the inputs, a deleted
+    option)."""
     path = Path(path) if path is not None else REFINE_MODEL_PATH
     arrays, meta = read_npz(path, _ARRAYS, "box regressor", FORMAT_VERSION)
     if meta.get("kind") != "box_regressor":
@@ -469,15 +383,14 @@ def load_regressor(path: str | os.PathLike | None = None) -> BoxRegressor:
     try:
         config = FeatureConfig.from_dict(meta["feature_config"])
         contexts = tuple(float(c) for c in meta["contexts"])
-        size = meta.get("size_inputs", [])
-        if not isinstance(size, list):
-            raise TypeError(f"size_inputs must be a list, got {size!r}")
-        size_inputs = check_size_inputs(size)
     except (KeyError, TypeError, ValueError) as exc:
         raise ModelError(f"{path}: bad feature configuration in metadata: {exc}") from None
+    if meta.get("size_inputs"):
+        raise ModelError(f"{path}: written with size inputs {meta['size_inputs']!r} (the box's size among the "
+                         "regressor's inputs), an option since deleted: refit it without them")
     try:
         return BoxRegressor(config, contexts, arrays["coef"], arrays["intercept"], arrays["mean"], arrays["scale"],
-                            metadata=meta, size_inputs=size_inputs)
+                            metadata=meta)
     except ModelError as exc:
         raise ModelError(f"{path}: {exc}") from None
 

@@ -74,11 +74,11 @@ class Samples:
 
 
 def collect_samples(frames: Iterable[tuple[np.ndarray, np.ndarray, np.ndarray]], coder: BoxFeatures, seed: int = 0,
-                    jitter: JitterConfig = JitterConfig(), flip: bool = True, vehicle_size: bool = False) -> Samples:
+                    jitter: JitterConfig = JitterConfig(), flip: bool = True) -> Samples:
     """The samples of :func:`jittered_views` of every ``(frame (H, W, 3) uint8 BGR, targets
     (M, 4), groups (M,))``: random boxes about each vehicle (and, with ``flip``, about it in the
-    mirrored frame), one random stream seeded by ``seed``; ``vehicle_size`` as there."""
-    views = jittered_views(frames, seed, jitter, flip, vehicle_size)
+    mirrored frame), one random stream seeded by ``seed``."""
+    views = jittered_views(frames, seed, jitter, flip)
     if not views:
         raise ValueError("no training samples: no annotated vehicle boxes in the frames given")
     return view_samples(views, coder)
@@ -104,28 +104,12 @@ def _ridge_path(x: np.ndarray, y: np.ndarray, alphas: Sequence[float]) -> list[t
     return out
 
 
-def _standardise(x: np.ndarray, weight: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``x`` standardised, and its ``mean`` and ``scale``; ``weight (F,)``: each standardised
-    column multiplied by it (folded into ``scale``: a column of weight ``k`` is penalised
-    ``k**2`` times less by the ridge)."""
+def _standardise(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``x`` standardised, and its ``mean`` and ``scale``."""
     mean = x.mean(axis=0)
     scale = x.std(axis=0)
     scale = np.where(scale > 1e-8, scale, 1.0)
-    if weight is not None:
-        scale = scale / weight
     return (x - mean) / scale, mean, scale
-
-
-def column_weights(coder: BoxFeatures, size_weight: float) -> np.ndarray | None:
-    """The per-column weights of :func:`_standardise` for ``coder``'s features: 1 on the
-    appearance features, ``size_weight`` on the size inputs (``None`` when all are 1)."""
-    if not (math.isfinite(size_weight) and size_weight > 0):
-        raise ValueError(f"size_weight must be a positive number, got {size_weight}")
-    if not coder.size_inputs or size_weight == 1.0:
-        return None
-    w = np.ones(coder.n_features)
-    w[coder.n_features - len(coder.size_inputs):] = size_weight
-    return w
 
 
 def mean_iou(boxes: np.ndarray, offsets: np.ndarray, targets: np.ndarray, coder: BoxFeatures) -> float:
@@ -145,26 +129,22 @@ def paired_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def fit_ridge(samples: Samples, coder: BoxFeatures, alphas: Sequence[float] = ALPHAS, folds: int = 4,
-              max_offset: float = 1.0,
-              size_weight: float = 1.0) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], dict[str, Any]]:
+              max_offset: float = 1.0) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], dict[str, Any]]:
     """Fit offsets on features with ridge regression; ``alpha`` by ``folds``-fold
     cross-validation over groups (each vehicle wholly in one fold; fewer folds when there
     are fewer vehicles; at least 2), scored by the mean IoU of the decoded boxes. Offsets
     are clipped to ``+-max_offset`` for fitting (an outlier's log-size is not learnt as is).
-    ``size_weight``: the standardised size inputs of ``coder`` (if any) are multiplied by it,
-    so the ridge penalises their weights ``size_weight**2`` times less than the appearance
-    features' (a few columns among about two thousand); it is folded into ``scale``.
 
     Returns ``((coef (4, F), intercept (4,), mean (F,), scale (F,)), report)``, refitted on
     all samples (:meth:`fastdet.detect.regressor.BoxRegressor.from_fit` makes the regressor of
     them), the report holding: the alphas, the cross-validated mean
     IoU of each, the chosen alpha, the mean IoU of the jittered boxes as they were."""
-    arrays, report, _ = fit_ridge_cv(samples, coder, alphas, folds, max_offset, size_weight)
+    arrays, report, _ = fit_ridge_cv(samples, coder, alphas, folds, max_offset)
     return arrays, report
 
 
 def fit_ridge_cv(samples: Samples, coder: BoxFeatures, alphas: Sequence[float] = ALPHAS, folds: int = 4,
-                 max_offset: float = 1.0, size_weight: float = 1.0
+                 max_offset: float = 1.0
                  ) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], dict[str, Any], np.ndarray]:
     """:func:`fit_ridge`, and the cross-validated offsets ``(N, 4)`` of every sample at the
     chosen alpha (each predicted by the fit without its fold: what the regressor does on
@@ -172,7 +152,6 @@ def fit_ridge_cv(samples: Samples, coder: BoxFeatures, alphas: Sequence[float] =
     x, y = samples.x, np.clip(samples.t, -max_offset, max_offset)
     if x.shape[1] != coder.n_features:
         raise ValueError(f"samples have {x.shape[1]} features, the coder {coder.n_features}")
-    weight = column_weights(coder, size_weight)
     groups = np.unique(samples.group)
     k = max(2, min(folds, len(groups)))
     if len(groups) < 2:
@@ -183,20 +162,18 @@ def fit_ridge_cv(samples: Samples, coder: BoxFeatures, alphas: Sequence[float] =
     oof = np.zeros((len(alphas),) + y.shape)
     for f in range(k):
         tr, te = fold != f, fold == f
-        xs, mean, scale = _standardise(x[tr], weight)
+        xs, mean, scale = _standardise(x[tr])
         xte = (x[te] - mean) / scale
         for j, (coef, icpt) in enumerate(_ridge_path(xs, y[tr], alphas)):
             oof[j][te] = np.clip(xte @ coef.T + icpt, -max_offset, max_offset)
             scores[f, j] = mean_iou(samples.boxes[te], oof[j][te], samples.targets[te], coder)
     cv = scores.mean(axis=0)
     best = int(np.argmax(cv))
-    xs, mean, scale = _standardise(x, weight)
+    xs, mean, scale = _standardise(x)
     coef, icpt = _ridge_path(xs, y, [alphas[best]])[0]
     report = {"alphas": [float(a) for a in alphas], "cv_mean_iou": [float(v) for v in cv], "alpha": float(alphas[best]),
               "folds": k, "groups": int(len(groups)), "samples": int(len(samples)),
               "jittered_mean_iou": mean_iou(samples.boxes, np.zeros_like(samples.t), samples.targets, coder)}
-    if coder.size_inputs:
-        report.update(size_inputs=list(coder.size_inputs), size_weight=float(size_weight))
     return (coef, icpt, mean, scale), report, oof[best]
 
 
@@ -207,15 +184,12 @@ def fit_ridge_cv(samples: Samples, coder: BoxFeatures, alphas: Sequence[float] =
 class View:
     """One picture's training inputs: ``image (H, W, 3) uint8 BGR``, the boxes the regressor
     starts from ``inputs (N, 4)``, each one's vehicle ``targets (N, 4)`` (x1, y1, x2, y2
-    pixels) and ``group (N,) int64`` (its vehicle, for leak-free folds); ``sizes (N, 4)``:
-    the boxes whose size and place the regressor's size inputs describe (``None``: the inputs
-    themselves, as when refining; :func:`jittered_views` may give the vehicles')."""
+    pixels) and ``group (N,) int64`` (its vehicle, for leak-free folds)."""
 
     image: np.ndarray
     inputs: np.ndarray
     targets: np.ndarray
     group: np.ndarray
-    sizes: np.ndarray | None = None
 
 
 def mirror(view: View) -> View:
@@ -225,23 +199,14 @@ def mirror(view: View) -> View:
     def flip(b: np.ndarray) -> np.ndarray:
         return np.stack([W - b[:, 2], b[:, 1], W - b[:, 0], b[:, 3]], axis=1) if len(b) else b.reshape(0, 4)
 
-    return View(np.ascontiguousarray(view.image[:, ::-1]), flip(view.inputs), flip(view.targets), view.group,
-                None if view.sizes is None else flip(view.sizes))
+    return View(np.ascontiguousarray(view.image[:, ::-1]), flip(view.inputs), flip(view.targets), view.group)
 
 
 def jittered_views(frames: Iterable[tuple[np.ndarray, np.ndarray, np.ndarray]], seed: int = 0,
-                   jitter: JitterConfig = JitterConfig(), flip: bool = True,
-                   vehicle_size: bool = False) -> list[View]:
+                   jitter: JitterConfig = JitterConfig(), flip: bool = True) -> list[View]:
     """Views of ``jitter.per_box`` random boxes (:func:`jitter_boxes`) about each vehicle of
     every ``(frame, targets (M, 4), groups (M,))`` (vehicles under 4 px left out), and with
-    ``flip`` about it in the mirrored frame too, one random stream seeded by ``seed``.
-
-    ``vehicle_size``: the size inputs of a jittered box describe its vehicle's box, not its
-    own (``View.sizes``). The random size factor of a jittered box is drawn apart from its
-    vehicle, so a box's own size tells the ridge how far its draw went from the training
-    vehicles' usual sizes: it learns to grow every small box towards them, a prior that
-    holds on the training cameras, not on one whose cars are mostly small. Described by its
-    vehicle's size, a box tells only the scale it is seen at."""
+    ``flip`` about it in the mirrored frame too, one random stream seeded by ``seed``."""
     rng = np.random.default_rng(seed)
     out = []
     for frame, targets, groups in frames:
@@ -258,8 +223,7 @@ def jittered_views(frames: Iterable[tuple[np.ndarray, np.ndarray, np.ndarray]], 
                 tgs.append(np.repeat(t[None], len(b), 0))
                 grp.append(np.full(len(b), g, np.int64))
             if boxes:
-                tg = np.concatenate(tgs)
-                out.append(View(v.image, np.concatenate(boxes), tg, np.concatenate(grp), tg if vehicle_size else None))
+                out.append(View(v.image, np.concatenate(boxes), np.concatenate(tgs), np.concatenate(grp)))
     return out
 
 
@@ -282,9 +246,8 @@ def matched_inputs(boxes: np.ndarray, targets: np.ndarray, groups: np.ndarray,
 
 
 def view_samples(views: Sequence[View], coder: BoxFeatures) -> Samples:
-    """Features of every view's inputs (their size inputs of ``View.sizes`` when given) and
-    the offsets to their targets."""
-    parts = [Samples(coder.features(v.image, v.inputs, v.sizes), encode_offsets(v.inputs, v.targets), v.inputs,
+    """Features of every view's inputs and the offsets to their targets."""
+    parts = [Samples(coder.features(v.image, v.inputs), encode_offsets(v.inputs, v.targets), v.inputs,
                      v.targets, v.group) for v in views if len(v.inputs)]
     if not parts:
         raise ValueError("no training samples: no input boxes in the views given")
@@ -299,8 +262,7 @@ def step(boxes: np.ndarray, offsets: np.ndarray, max_shift: float, max_log_scale
 
 
 def fit_cascade(views: Sequence[View], coder: BoxFeatures, stages: int, max_shift: float = 0.5,
-                max_log_scale: float = math.log(1.5), alphas: Sequence[float] = ALPHAS, folds: int = 4,
-                size_weight: float = 1.0
+                max_log_scale: float = math.log(1.5), alphas: Sequence[float] = ALPHAS, folds: int = 4
                 ) -> list[tuple[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], dict[str, Any]]]:
     """``stages`` regressors, each fitted (:func:`fit_ridge`) on the boxes the ones before it
     made of the views' inputs (the first on the inputs as they are): a cascade, so that each
@@ -310,15 +272,15 @@ def fit_cascade(views: Sequence[View], coder: BoxFeatures, stages: int, max_shif
     boxes would pass on boxes better than it will ever give. Returns each stage's
     ``(arrays, report)`` as :func:`fit_ridge` does; a report also holds ``input_mean_iou``
     (its inputs' mean IoU with their targets) and ``output_mean_iou`` (after its
-    cross-validated step). ``size_weight``: as :func:`fit_ridge`'s."""
+    cross-validated step)."""
     if stages < 1:
         raise ValueError(f"stages must be >= 1, got {stages}")
-    cur = [View(v.image, np.asarray(v.inputs, np.float64), v.targets, v.group, v.sizes) for v in views
+    cur = [View(v.image, np.asarray(v.inputs, np.float64), v.targets, v.group) for v in views
            if len(v.inputs)]
     out = []
     for _ in range(stages):
         smp = view_samples(cur, coder)
-        arrays, report, oof = fit_ridge_cv(smp, coder, alphas, folds, size_weight=size_weight)
+        arrays, report, oof = fit_ridge_cv(smp, coder, alphas, folds)
         nxt, ious_in, ious_out = [], [], []
         at = 0
         for v in cur:
@@ -327,7 +289,7 @@ def fit_cascade(views: Sequence[View], coder: BoxFeatures, stages: int, max_shif
             at += n
             ious_in.append(paired_iou(v.inputs, v.targets))
             ious_out.append(paired_iou(b, v.targets))
-            nxt.append(View(v.image, b, v.targets, v.group, v.sizes))
+            nxt.append(View(v.image, b, v.targets, v.group))
         report["input_mean_iou"] = float(np.mean(np.concatenate(ious_in)))
         report["output_mean_iou"] = float(np.mean(np.concatenate(ious_out)))
         out.append((arrays, report))

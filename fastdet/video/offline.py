@@ -1,18 +1,11 @@
 """The offline pass over a whole file's tracks (``fastdet video --offline``): not causal.
 
-After the causal tracker (:mod:`fastdet.video.track`) has run over every frame, two
-corrections that need the future:
-
-1. **Gap interpolation** (as StrongSORT's "GSI"/linear interpolation, Du et al., "StrongSORT:
-   Make DeepSORT Great Again", IEEE TMM 2023): where a track has no box for at most
-   ``max_gap`` frames between two of its boxes, each missing frame gets the box linearly
-   interpolated between them (coordinates rounded to whole pixels).
-2. **Extension back**: the first frames of a vehicle entering the view are where the heat
-   map is weakest (it needs a few frames of evidence). Each track with at least two boxes is
-   extended up to ``extend_back`` frames before its first box: the first box's size, moved
-   back at the velocity of the centres of its first two boxes, while the box stays at least
-   half in the picture; the size is not extrapolated (two boxes' sizes are too noisy:
-   docs/tracking.md).
+After the causal tracker (:mod:`fastdet.video.track`) has run over every frame, a correction
+that needs the future: **gap interpolation** (as StrongSORT's "GSI"/linear interpolation, Du
+et al., "StrongSORT: Make DeepSORT Great Again", IEEE TMM 2023): where a track has no box for
+at most ``max_gap`` frames between two of its boxes, each missing frame gets the box linearly
+interpolated between them (coordinates rounded to whole pixels). (Extending each track back
+before its first box was a second one, deleted: docs/accuracy.md, "Deleted stages".)
 
 An added box that overlaps a box of its frame (IoU > 0.3) is left out. Added boxes carry the
 track's id and score 0 (no heat was seen for them in that frame).
@@ -24,7 +17,7 @@ from itertools import pairwise
 
 import numpy as np
 
-from ..boxes import area, clip, iou
+from ..boxes import clip, iou
 from ..config import TrackerConfig
 from ..detections import Detections
 
@@ -55,29 +48,6 @@ def interpolate_gaps(track: list[tuple[int, np.ndarray]], max_gap: int) -> list[
     return out
 
 
-def extend_back(track: list[tuple[int, np.ndarray]], n: int, first_frame: int,
-                frame_shape: tuple[int, int]) -> list[tuple[int, np.ndarray]]:
-    """The boxes to add before the first box of one track (ascending frames): up to ``n``
-    frames back (not before ``first_frame``): the first box moved at the velocity of the
-    centres of the first two boxes, while at least half of it is in a frame of
-    ``frame_shape = (H, W)``."""
-    if n <= 0 or len(track) < 2:
-        return []
-    (f0, b0), (f1, b1) = track[0], track[1]
-    v = ((b1[0] + b1[2]) - (b0[0] + b0[2])) / 2 / (f1 - f0), ((b1[1] + b1[3]) - (b0[1] + b0[3])) / 2 / (f1 - f0)
-    v = np.array([v[0], v[1], v[0], v[1]])
-    out = []
-    for k in range(1, n + 1):
-        f = f0 - k
-        if f < first_frame:
-            break
-        b = np.round(b0 - k * v)
-        if b[2] <= b[0] or b[3] <= b[1] or area(clip(b, frame_shape))[0] < 0.5 * area(b)[0]:
-            break
-        out.append((f, b))
-    return out[::-1]
-
-
 def offline_pass(frames: Sequence[tuple[int, Detections]], frame_shape: tuple[int, ...],
                  config: TrackerConfig | None = None) -> list[tuple[int, Detections]]:
     """``frames``: every frame's ``(frame number, Detections with ids)`` of one file, in order
@@ -89,11 +59,10 @@ def offline_pass(frames: Sequence[tuple[int, Detections]], frame_shape: tuple[in
     if not frames:
         return []
     hw = (int(frame_shape[0]), int(frame_shape[1]))
-    first = frames[0][0]
     known = {fno for fno, _ in frames}
     added: dict[int, list[tuple[int, np.ndarray]]] = {}
     for tid, tr in _by_id(frames).items():
-        for f, b in interpolate_gaps(tr, c.max_gap) + extend_back(tr, c.extend_back, first, hw):
+        for f, b in interpolate_gaps(tr, c.max_gap):
             if f in known:
                 added.setdefault(f, []).append((tid, b))
     out = []

@@ -127,7 +127,7 @@ def iter_video_detections(path: str | os.PathLike | int | HeldFrames, config: Pi
         ``PipelineConfig()``: the bundled models, tracking on, ``ids`` filled).
     detector: use this detector instead of the one ``config`` names (see :class:`VideoDetector`).
     offline: run the offline pass over the whole file's tracks first
-        (:func:`fastdet.video.offline.offline_pass`: gap interpolation, extension back); the
+        (:func:`fastdet.video.offline.offline_pass`: gap interpolation); the
         first frame is then yielded only after the last one was read. Needs the tracker.
     progress: a tqdm bar on stderr when it is a terminal.
     Raises :class:`~fastdet.errors.DataError` / :class:`~fastdet.errors.ModelError` for bad
@@ -187,8 +187,8 @@ def detect_video(source: str | os.PathLike | int | HeldFrames, config: PipelineC
         e.g. ``detect_video(path, oncoming=False, horizon=0.55)`` (``video --no-oncoming
         --horizon 0.55``), ``tracker=None`` (``--no-track``), ``refine=None`` (``--no-refine``).
     start, frames: skip the first ``start`` frames, read at most ``frames`` (``--start``, ``--frames``).
-    offline: the offline pass over the whole file's tracks (``--offline``: short gaps filled,
-        tracks extended back); the first frame is then yielded after the last one was read.
+    offline: the offline pass over the whole file's tracks (``--offline``: short gaps filled);
+        the first frame is then yielded after the last one was read.
     progress: a progress bar on stderr when it is a terminal.
 
     What a hand-written loop over :meth:`VideoDetector.update <fastdet.VideoDetector.update>`

@@ -65,7 +65,7 @@ def test_large_search_keeps_every_band_on_the_annotated_frame_sizes(shape):
 
 
 def _without_slack(search: SearchConfig) -> SearchConfig:
-    return replace(search, bands=tuple(replace(b, slack_above=None, slack_below=None) for b in search.bands))
+    return replace(search, bands=tuple(replace(b, slack_above=None) for b in search.bands))
 
 
 def _tops(band: SearchBand) -> set[float]:
@@ -87,7 +87,7 @@ def test_default_bands_search_a_slack_above_on_their_grid(shape):
     cfg = SearchConfig()
     smallest = min(b.scale for b in cfg.bands)
     for b in cfg.bands:
-        assert (b.slack_above, b.slack_below) == ((None, None) if b.scale == smallest else (BAND_SLACK, None))
+        assert b.slack_above == (None if b.scale == smallest else BAND_SLACK)
     assert cfg.slack_threshold == SLACK_THRESHOLD > cfg.threshold
     bare = _without_slack(cfg).for_frame(shape).bands
     for b, n in zip(cfg.for_frame(shape).bands, bare):
@@ -125,8 +125,6 @@ def test_slack_above_keeps_the_windows_of_a_horizon_set_too_low(shape, error):
 def test_band_slack_checks_and_dicts():
     with pytest.raises(ValueError, match="slack_above"):
         SearchBand(1.0, 400, 496, slack_above=1.5)
-    with pytest.raises(ValueError, match="slack_below"):
-        SearchBand(1.0, 400, 496, slack_below=-0.1)
     with pytest.raises(ValueError, match="core"):
         SearchBand(1.0, 400, 496, core=(450, 420))
     with pytest.raises(ValueError, match="slack_threshold"):
@@ -146,18 +144,15 @@ def test_the_deleted_slack_rounding_rule_loads_only_off():
         SearchConfig.from_dict({"slack_steps": "cover"})
 
 
-@pytest.mark.parametrize("traffic", ["right", "left", "both"])
-def test_oncoming_slack_below_adds_gated_rows_below_every_band(traffic):
-    """``oncoming_search(slack_below=F)``: every oncoming band also searches the nearest whole
-    window steps to F of the height below its rows, which stay its core; a window reaching
-    below them needs the slack threshold, above the oncoming model's own."""
-    plain, slack = oncoming_search(traffic), oncoming_search(traffic, slack_below=0.04)
-    assert all(b.slack_below == 0.04 and b.slack_above is None for b in slack.bands)
-    assert slack.slack_threshold is not None and slack.slack_threshold > slack.threshold == plain.threshold
-    for shape in ((720, 1280), (360, 640)):
-        for p, s in zip(plain.for_frame(shape, 64, 8).bands, slack.for_frame(shape, 64, 8).bands):
-            step = 8 * s.scale  # the oncoming search steps one cell
-            assert (s.y_start, s.core) == (p.y_start, (p.y_start, p.y_stop))
-            assert s.y_stop - p.y_stop == pytest.approx(round(0.04 * shape[0] / step) * step, abs=1)
-            assert (s.x_start, s.x_stop) == (p.x_start, p.x_stop)
-    assert oncoming_search(traffic, slack_below=None) == plain
+def test_the_deleted_slack_below_a_band_loads_only_off():
+    """Slack below a band was deleted (docs/accuracy.md, "Deleted stages"): a band's dict
+    holding it off (null) loads, one holding a value is refused in one line, and a search's
+    digest is what it was."""
+    assert SearchBand.from_dict({"scale": 1.0, "y_start": 400, "y_stop": 496, "slack_below": None}) == \
+        SearchBand(1.0, 400, 496)
+    with pytest.raises(ValueError, match="SearchBand.slack_below: this stage was deleted"):
+        SearchBand.from_dict({"scale": 1.0, "y_start": 400, "y_stop": 496, "slack_below": 0.04})
+    d = SearchConfig().to_dict()
+    d["bands"] = [{**b, "slack_below": None} for b in d["bands"]]
+    assert SearchConfig.from_dict(d) == SearchConfig()
+    assert all("slack_below" not in b for b in SearchConfig().to_dict()["bands"])

@@ -11,15 +11,12 @@ from hypothesis import given, settings
 
 from fastdet.config.models import REFINE_MODEL_PATH, REFINE_UDACITY_MODEL_PATH
 from fastdet.detect.regressor import (
-    BoxFeatures,
     BoxRegressor,
     box_features,
-    check_size_inputs,
     decode_offsets,
     encode_offsets,
     load_regressor,
     region_crops,
-    size_features,
 )
 from fastdet.errors import FastdetError, ModelError
 from fastdet.video.refine import refine_boxes
@@ -143,47 +140,12 @@ def test_bad_files_raise_clear_errors(tmp_path: Path) -> None:
         load_regressor(tmp_path)
 
 
-def test_size_features_known_values_in_reference_pixels() -> None:
-    """Width and height in pixels of a 1280-wide frame: the same box on a 640-wide frame
-    counts twice as wide; the aspect and the bottom row over the height do not depend on it."""
-    names = ("log_width", "log_height", "log_aspect", "bottom", "width<100", "width<200")
-    b = np.array([[10.0, 20.0, 74.0, 52.0]])  # 64 x 32, bottom row 52
-    got = size_features((360, 640, 3), b, names)
-    np.testing.assert_allclose(got, [[math.log(128), math.log(64), math.log(2), 52 / 360, 0.0, 1.0]])
-    np.testing.assert_allclose(size_features((720, 1280, 3), 2 * b, names), got)
-    assert size_features((360, 640), b, ()).shape == (1, 0)
-    assert size_features((360, 640), np.zeros((0, 4)), names).shape == (0, 6)
-    # a box of no width counts as 1 px (finite inputs, never log 0)
-    assert np.all(np.isfinite(size_features((360, 640), np.array([[5.0, 5, 5, 5]]), names)))
-
-
-def test_check_size_inputs_rejects_unknown_names() -> None:
-    assert check_size_inputs(["log_width", "width<60"]) == ("log_width", "width<60")
-    for bad in (["log_w"], ["width<0"], ["width<x"], ["width<nan"], ["bottom", "bottom"]):
-        with pytest.raises(ValueError):
-            check_size_inputs(bad)
-    with pytest.raises(ValueError):
-        BoxFeatures(SMALL, (1.0,), ("size",))
-
-
-def test_size_inputs_follow_the_appearance_features() -> None:
-    frame = _frame(2)
-    b = np.array([[20.0, 30.0, 120.0, 90.0], [200.0, 40.0, 240.0, 70.0]])
-    spec = BoxFeatures(SMALL, (1.0, 1.5), ("log_width", "bottom"))
-    x = spec.features(frame, b)
-    assert spec.n_features == 2 * SMALL.n_features + 2 == x.shape[1]
-    np.testing.assert_array_equal(x[:, :-2], box_features(frame, b, SMALL, (1.0, 1.5)))
-    np.testing.assert_array_equal(x[:, -2:], size_features(frame.shape, b, ("log_width", "bottom")))
-    assert spec.features(frame, np.zeros((0, 4))).shape == (0, spec.n_features)
-
-
 @pytest.mark.parametrize("path", [REFINE_MODEL_PATH, REFINE_UDACITY_MODEL_PATH])
-def test_a_file_without_size_inputs_predicts_as_before(path: Path, tmp_path: Path) -> None:
-    """The bundled regressors (written before size inputs existed) take none: their offsets
-    are the ridge of the context crops' features alone, computed here by hand; written again,
-    the file still names none."""
+def test_the_bundled_regressors_predict_the_ridge_of_their_crops(path: Path, tmp_path: Path) -> None:
+    """The bundled regressors' offsets are the ridge of the context crops' features, computed
+    here by hand; written again, they predict the same."""
     reg = load_regressor(path)
-    assert reg.size_inputs == () and "size_inputs" not in reg.metadata
+    assert "size_inputs" not in reg.metadata
     assert reg.n_features == len(reg.contexts) * reg.config.n_features
     frame = _frame(4, (360, 640))
     b = np.array([[100.0, 150.0, 160.0, 190.0], [300.0, 120.0, 420.0, 220.0]])
@@ -191,43 +153,28 @@ def test_a_file_without_size_inputs_predicts_as_before(path: Path, tmp_path: Pat
     want = ((x - reg.mean[0]) / reg.scale[0]) @ reg.coef[0].T + reg.intercept[0]
     np.testing.assert_array_equal(reg.predict(frame, b), want)
     again = load_regressor(reg.save(tmp_path / "again.npz"))
-    assert again.size_inputs == () and "size_inputs" not in again.metadata
+    assert "size_inputs" not in again.metadata
     np.testing.assert_array_equal(again.predict(frame, b), want)
 
 
-def test_size_inputs_round_trip_and_shape_checks(tmp_path: Path) -> None:
+def test_a_file_written_with_size_inputs_is_refused_in_one_line(tmp_path: Path) -> None:
+    """Size inputs (the box's size among the regressor's inputs) were deleted: a file that
+    lists them (with their extra columns) is refused, naming them; an empty list is none."""
     rng = np.random.default_rng(5)
-    spec = BoxFeatures(SMALL, (1.5,), ("log_width", "log_height", "width<60"))
-    n = spec.n_features
-    reg = BoxRegressor.from_fit(spec, rng.normal(size=(4, n)), rng.normal(size=4), rng.normal(size=n),
-                                rng.uniform(0.5, 2, n))
-    assert reg.spec == spec and reg.n_features == n
-    back = load_regressor(reg.save(tmp_path / "s.npz"))
-    assert back.size_inputs == spec.size_inputs and back.metadata["size_inputs"] == list(spec.size_inputs)
-    frame = _frame(6)
-    b = np.array([[20.0, 30.0, 60.0, 60.0], [100.0, 40.0, 250.0, 150.0]])
-    np.testing.assert_array_equal(back.predict(frame, b), reg.predict(frame, b))
-    np.testing.assert_array_equal(reg.predict(frame, b), reg.predict_features(spec.features(frame, b)))
-    # the size inputs move the prediction: the same pixels, a box twice the size
-    assert not np.allclose(reg.predict(frame, b[:1]), reg.predict_features(
-        np.concatenate([box_features(frame, b[:1], SMALL, (1.5,)),
-                        size_features(frame.shape, 2 * b[:1], spec.size_inputs)], axis=1)))
-    with pytest.raises(ModelError, match="size inputs"):  # arrays without the size columns
-        BoxRegressor(SMALL, (1.5,), reg.coef[:, :, :-3], reg.intercept, reg.mean[:, :-3], reg.scale[:, :-3],
-                     size_inputs=spec.size_inputs)
-    with pytest.raises(ModelError):
-        BoxRegressor(SMALL, (1.5,), reg.coef, reg.intercept, reg.mean, reg.scale, size_inputs=("nope",))
-    with pytest.raises(ValueError, match="differ"):
-        BoxRegressor.stack([reg, BoxRegressor.zero(SMALL, (1.5,))])
-    cas = BoxRegressor.stack([reg, reg])
-    assert cas.size_inputs == spec.size_inputs and cas.n_stages == 2
-    # a file naming an unknown size input, or not a list of them: one clear line
-    with np.load(tmp_path / "s.npz", allow_pickle=False) as z:
+    n = SMALL.n_features + 2
+    good = BoxRegressor.zero(SMALL, (1.5,)).save(tmp_path / "good.npz")
+    with np.load(good, allow_pickle=False) as z:
         arrays = {k: z[k] for k in z.files}
     meta = json.loads(arrays["metadata"].tobytes().decode())
-    for i, bad in enumerate(["log_width", ["log_width", "log_height", "width<-1"]]):
-        arrays["metadata"] = np.frombuffer(json.dumps({**meta, "size_inputs": bad}).encode(), np.uint8)
-        p = _write_npz(tmp_path / f"bad{i}.npz", **arrays)
-        with pytest.raises(ModelError) as ei:
-            load_regressor(p)
-        assert str(p) in str(ei.value) and "\n" not in str(ei.value)
+    sized = {"coef": rng.normal(size=(4, n)), "intercept": rng.normal(size=4), "mean": rng.normal(size=n),
+             "scale": rng.uniform(0.5, 2, n),
+             "metadata": np.frombuffer(json.dumps({**meta, "size_inputs": ["log_width", "width<60"]}).encode(),
+                                       np.uint8)}
+    p = _write_npz(tmp_path / "sized.npz", **sized)
+    with pytest.raises(ModelError, match="size inputs") as ei:
+        load_regressor(p)
+    assert str(p) in str(ei.value) and "\n" not in str(ei.value)
+    arrays["metadata"] = np.frombuffer(json.dumps({**meta, "size_inputs": []}).encode(), np.uint8)
+    assert load_regressor(_write_npz(tmp_path / "none.npz", **arrays)).n_features == SMALL.n_features
+    with pytest.raises(ValueError, match="differ"):
+        BoxRegressor.stack([BoxRegressor.zero(SMALL, (1.0,)), BoxRegressor.zero(SMALL, (1.5,))])

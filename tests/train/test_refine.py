@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from fastdet.config import FeatureConfig, JitterConfig
-from fastdet.detect.regressor import BoxFeatures, BoxRegressor, decode_offsets, encode_offsets, size_features
+from fastdet.detect.regressor import BoxFeatures, BoxRegressor, decode_offsets
 from fastdet.train.refine import (
     Samples,
     View,
@@ -147,91 +147,5 @@ def test_cross_validated_offsets_come_from_fits_without_the_vehicle() -> None:
     full = ((smp.x - arrays[2]) / arrays[3]) @ arrays[0].T + arrays[1]
     assert not np.allclose(oof, np.clip(full, -1, 1))
 
-
-def _size_samples(coder: BoxFeatures, seed: int = 0) -> Samples:
-    """Rows whose appearance features are noise and whose offsets depend on the box's width
-    alone: boxes under 60 px are 1.4x too wide (as the heat map's on small cars), the others
-    right; ``coder``'s size inputs (if any) appended as the pipeline computes them."""
-    rng = np.random.default_rng(seed)
-    n_app = len(coder.contexts) * coder.config.n_features
-    boxes, targets, group = [], [], []
-    for g in range(40):
-        w = rng.uniform(30, 200)
-        for _ in range(8):
-            x1, y1 = rng.uniform(0, 1000), rng.uniform(300, 600)
-            bw = w * rng.uniform(0.9, 1.1)
-            b = np.array([x1, y1, x1 + bw, y1 + 0.6 * bw])
-            tw = bw / 1.4 if bw < 60 else bw
-            boxes.append(b)
-            targets.append([x1 + 0.5 * (bw - tw), y1, x1 + 0.5 * (bw + tw), b[3]])
-            group.append(g)
-    b, t = np.array(boxes), np.array(targets)
-    x = np.concatenate([rng.normal(size=(len(b), n_app)), size_features((720, 1280), b, coder.size_inputs)], axis=1)
-    return Samples(x, encode_offsets(b, t), b, t, np.array(group))
-
-
-def test_size_inputs_let_the_ridge_learn_a_size_dependent_offset() -> None:
-    """Offsets that depend on the box's size alone: without size inputs the ridge cannot
-    learn them (CV IoU as the boxes were); with a class indicator it can; a size weight
-    folds into the stored scale (the penalty on those columns falls by its square), so the
-    same regressor arrays predict as fitted."""
-    plain = BoxFeatures(SMALL, (1.5,))
-    sized = BoxFeatures(SMALL, (1.5,), ("log_width", "width<60"))
-    alphas = (1e4,)
-    _, rep0 = fit_ridge(_size_samples(plain), plain, alphas)
-    smp = _size_samples(sized)
-    (coef1, icpt1, mean1, scale1), rep1 = fit_ridge(smp, sized, alphas)
-    (coef10, icpt10, mean10, scale10), rep10 = fit_ridge(smp, sized, alphas, size_weight=10.0)
-    start = rep0["jittered_mean_iou"]
-    assert max(rep0["cv_mean_iou"]) < start + 0.01
-    assert max(rep10["cv_mean_iou"]) > max(rep1["cv_mean_iou"]) + 0.02
-    assert max(rep10["cv_mean_iou"]) > start + 0.01  # the small boxes (a fifth of the rows) IoU 0.71 -> about 1
-    assert rep10["size_inputs"] == ["log_width", "width<60"] and rep10["size_weight"] == 10.0
-    assert "size_inputs" not in rep0
-    np.testing.assert_allclose(scale10[-2:], scale1[-2:] / 10.0)
-    np.testing.assert_array_equal(scale10[:-2], scale1[:-2])
-    reg = BoxRegressor.from_fit(sized, coef10, icpt10, mean10, scale10)
-    small = smp.boxes[:, 2] - smp.boxes[:, 0] < 60
-    pred = reg.predict_features(smp.x)
-    assert np.median(pred[small, 2]) < -0.15 and abs(np.median(pred[~small, 2])) < 0.05
-    with pytest.raises(ValueError):
-        fit_ridge(smp, sized, alphas, size_weight=0.0)
-    with pytest.raises(ValueError, match="features"):
-        fit_ridge(smp, plain, alphas)
-
-
-def test_jittered_boxes_may_be_described_by_their_vehicles_size(monkeypatch) -> None:
-    """vehicle_size: each jittered box's size inputs are its vehicle's (mirrored with it), its
-    appearance features its own; the pipeline's boxes (sizes None) describe themselves, and a
-    cascade's later stages keep the sizes the views came with."""
-    frames = [_scene(1), _scene(2)]
-    jit = JitterConfig(per_box=3, min_iou=0.4)
-    coder = BoxFeatures(SMALL, (1.5,), ("log_width", "bottom"))
-    views = jittered_views(frames, seed=3, jitter=jit, vehicle_size=True)
-    plain = jittered_views(frames, seed=3, jitter=jit)
-    for v, p in zip(views, plain):
-        np.testing.assert_array_equal(v.inputs, p.inputs)  # the same random boxes
-        np.testing.assert_array_equal(v.sizes, v.targets)
-        assert p.sizes is None
-    np.testing.assert_array_equal(mirror(views[0]).sizes, views[1].targets)
-    smp = view_samples(views, coder)
-    ref = view_samples(plain, coder)
-    np.testing.assert_array_equal(smp.x[:, :-2], ref.x[:, :-2])
-    np.testing.assert_allclose(smp.x[:, -2:], size_features((240, 400), smp.targets, coder.size_inputs))
-    np.testing.assert_allclose(ref.x[:, -2:], size_features((240, 400), ref.boxes, coder.size_inputs))
-    assert not np.allclose(smp.x[:, -2:], ref.x[:, -2:])
-    np.testing.assert_array_equal(collect_samples(frames, coder, seed=3, jitter=jit, vehicle_size=True).x, smp.x)
-    import fastdet.train.refine as fit_module
-    seen = []
-
-    def recording(vs, c):
-        seen.append([v.sizes for v in vs])
-        return view_samples(vs, c)
-
-    monkeypatch.setattr(fit_module, "view_samples", recording)
-    fits = fit_cascade(views, coder, 2)
-    assert len(fits) == 2 and fits[0][1]["size_inputs"] == ["log_width", "bottom"]
-    assert len(seen) == 2
-    for stage in seen:
-        for got, v in zip(stage, views):
-            np.testing.assert_array_equal(got, v.targets)
+    with pytest.raises(ValueError, match="features"):  # rows of other features than the coder's
+        fit_ridge(smp, BoxFeatures(SMALL, (1.0, 1.5)), alphas)

@@ -5,7 +5,6 @@ write it to OUT.
 
     python -m tools.scripts.refine_model OUT.npz [--clips test_video] [--contexts 1.5]
         [--per-box 16] [--hog-channels 0] [--orientations 9] [--cell 8] [--spatial 8] [--seed 0]
-        [--size-inputs log_width,log_height] [--size-weight 1] [--size-of box|vehicle]
 
 The bundled regressor is fitted on ``test_video`` and the test images only, never on
 ``test_small1``, so that ``test_small1`` stays a held-out clip: ``python -m
@@ -26,7 +25,7 @@ import numpy as np
 
 from fastdet.config import FeatureConfig
 from fastdet.data import data_dir
-from fastdet.detect.regressor import SIZE_INPUTS, BoxFeatures, BoxRegressor, check_size_inputs
+from fastdet.detect.regressor import BoxFeatures, BoxRegressor
 from fastdet.detections import Detections
 from fastdet.io.motfiles import read_gt
 from fastdet.io.reader import FrameReader
@@ -84,44 +83,25 @@ def add_feature_arguments(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--cell", type=int, default=8, help="HOG pixels per cell")
     ap.add_argument("--spatial", type=int, default=8, help="spatial-bin side (0: none)")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--size-inputs", default="",
-                    help=f"the box's size among the inputs, comma-separated: {', '.join(SIZE_INPUTS)}, width<N "
-                         "(reference px); default none")
-    ap.add_argument("--size-weight", type=float, default=1.0,
-                    help="the size inputs' standardised columns are multiplied by this (the ridge penalises them "
-                         "its square times less)")
-    ap.add_argument("--size-of", choices=("box", "vehicle"), default="box",
-                    help="what the size inputs of a jittered training box describe: the box (as when refining) "
-                         "or its vehicle (fastdet.train.refine.jittered_views)")
 
 
 def spec_of(a: argparse.Namespace) -> BoxFeatures:
-    """The :class:`BoxFeatures` the options of :func:`add_feature_arguments` describe (a bad
-    ``--size-inputs`` or ``--size-weight``: one line, exit 2)."""
+    """The :class:`BoxFeatures` the options of :func:`add_feature_arguments` describe."""
     fcfg = FeatureConfig(color_space="YCrCb", hog_channels=tuple(int(c) for c in a.hog_channels.split(",")),
                          orientations=a.orientations, pixels_per_cell=a.cell, cells_per_block=2,
                          spatial_size=a.spatial, hist_bins=0)
-    try:
-        size = check_size_inputs([n for n in a.size_inputs.split(",") if n])
-    except ValueError as exc:
-        raise SystemExit(f"error: --size-inputs: {exc}") from None
-    if not (a.size_weight > 0 and a.size_weight < float("inf")):
-        raise SystemExit(f"error: --size-weight must be a positive number, got {a.size_weight}")
-    return BoxFeatures(fcfg, tuple(float(c) for c in a.contexts.split(",")), size)
+    return BoxFeatures(fcfg, tuple(float(c) for c in a.contexts.split(",")))
 
 
-def samples(vehicles: Annotated, spec: BoxFeatures, seed: int, per_box: int, vehicle_size: bool = False) -> Samples:
-    """Training samples from ``vehicles`` plus the test images' vehicles (``vehicle_size``:
-    :func:`fastdet.train.refine.jittered_views`'s)."""
-    return collect_samples(vehicles + test_images(), spec, seed=seed, jitter=JitterConfig(per_box=per_box),
-                           vehicle_size=vehicle_size)
+def samples(vehicles: Annotated, spec: BoxFeatures, seed: int, per_box: int) -> Samples:
+    """Training samples from ``vehicles`` plus the test images' vehicles."""
+    return collect_samples(vehicles + test_images(), spec, seed=seed, jitter=JitterConfig(per_box=per_box))
 
 
-def fit_box_regressor(smp: Samples, spec: BoxFeatures, metadata: dict[str, Any] | None = None,
-                      size_weight: float = 1.0) -> BoxRegressor:
-    """:func:`fastdet.train.refine.fit_ridge` on ``smp`` (made with ``spec``; ``size_weight``
-    as there), as a regressor whose metadata holds the fit's report (``"fit"``) and ``metadata``."""
-    arrays, report = fit_ridge(smp, spec, size_weight=size_weight)
+def fit_box_regressor(smp: Samples, spec: BoxFeatures, metadata: dict[str, Any] | None = None) -> BoxRegressor:
+    """:func:`fastdet.train.refine.fit_ridge` on ``smp`` (made with ``spec``), as a regressor
+    whose metadata holds the fit's report (``"fit"``) and ``metadata``."""
+    arrays, report = fit_ridge(smp, spec)
     return BoxRegressor.from_fit(spec, *arrays, metadata={**(metadata or {}), "fit": report})
 
 
@@ -143,10 +123,9 @@ def main(argv: list[str] | None = None) -> int:
     check_clips(clips)
     spec = spec_of(a)
     vehicles = [v for c in clips for v in clip_vehicles(c)]
-    reg = fit_box_regressor(samples(vehicles, spec, a.seed, a.per_box, a.size_of == "vehicle"), spec, metadata={
+    reg = fit_box_regressor(samples(vehicles, spec, a.seed, a.per_box), spec, metadata={
         "trained_on": clips + ["test_images"],
-        "command": "python -m tools.scripts.refine_model " + " ".join(argv if argv is not None else sys.argv[1:])},
-        size_weight=a.size_weight)
+        "command": "python -m tools.scripts.refine_model " + " ".join(argv if argv is not None else sys.argv[1:])})
     reg.save(a.out)
     fit = reg.metadata["fit"]
     print(f"wrote {a.out}: fitted on {'+'.join(clips + ['test_images'])}, {fit['samples']} samples of "

@@ -1,10 +1,10 @@
-"""Search bands from the camera's geometry (fastdet.detect.geometry) on every annotated clip,
+"""Search bands from the camera's geometry (tools/studies/perspective.py) on every annotated clip,
 beside today's bands (run by hand).
 
 Runs the video pipeline (``iter_video_detections``, the code behind ``fastdet video``) on each
-clip with the main model's search replaced by a :class:`~fastdet.detect.geometry.GeometricSearch`
+clip with the main model's search replaced by a :class:`~tools.studies.perspective.GeometricSearch`
 and, unless ``--fixed-ratio``, the ratio estimated from the tracked boxes as the video goes
-(:class:`~fastdet.detect.geometry.RatioEstimator`, boxes whose score is at least
+(:class:`~tools.studies.perspective.RatioEstimator`, boxes whose score is at least
 ``--min-score``). Prints the per-clip table of ``fastdet eval --all`` plus the estimated
 ratio, the main search's cost (HOG cells of the scaled bands of a full scan, relative to
 today's bands at the same horizon) and the windows the pipeline scored per frame (the main
@@ -12,7 +12,7 @@ model's and all models'; the guided search scores fewer between full scans).
 
     python -m tools.studies.geometry_study [--ratio 1.9] [--slack 0.05] [--fixed-ratio]
         [--horizon auto|off|F|+D] [--clips A,B] [--out R.json] [--baseline]
-        [--band-slack ABOVE,BELOW] [--slack-threshold D]
+        [--band-slack ABOVE,0] [--slack-threshold D]
 """
 from __future__ import annotations
 
@@ -23,18 +23,20 @@ from dataclasses import replace
 
 from fastdet.config import PipelineConfig, SearchBand, SearchConfig
 from fastdet.detect.bands import band_geometry
-from fastdet.detect.geometry import (
-    GeometricSearch,
-    GeometryConfig,
-    RatioEstimator,
-)
 from fastdet.detections import Detections
 from fastdet.eval.clips import annotated_clips, markdown_table, report_json, score_clip
 from fastdet.io.reader import FrameReader
 from fastdet.video import iter_video_detections, make_detector
 from fastdet.video.horizon import HORIZON_FRAMES, estimate_horizon
-from fastdet.video.perspective import PerspectiveConfig, PerspectiveUpdater
 from tools.studies.band_cost import count_scored
+from tools.studies.perspective import (
+    GeometricSearch,
+    GeometryConfig,
+    PerspectiveConfig,
+    PerspectiveUpdater,
+    RatioEstimator,
+)
+from tools.studies.tolerance import parse_slack
 
 
 def cells(search: SearchConfig, shape: tuple[int, int], config) -> int:
@@ -74,21 +76,12 @@ def main() -> None:
     ap.add_argument("--clips", default=None)
     ap.add_argument("--bands", default=None,
                     help="reference bands scale:y0:y1[:x0:x1],... (1280x720 px) instead of today's")
-    ap.add_argument("--oncoming-slack", type=float, default=0.0,
-                    help="rows (fraction of H) added above and below every band of the oncoming model")
-    ap.add_argument("--band-slack", default=None, metavar="ABOVE,BELOW",
-                    help="slack (fractions of H) above and below every main band but the smallest "
-                         "(SearchBand.slack_above / slack_below) instead of the default's")
-    ap.add_argument("--below-scales", default=None, metavar="S,S",
-                    help="--band-slack: the slack below only on the bands of these scales (reference scales)")
+    ap.add_argument("--band-slack", default=None, metavar="ABOVE,0",
+                    help="slack (fraction of H) above every main band but the smallest (SearchBand.slack_above) "
+                         "instead of the default's (slack below the bands was deleted: BELOW must be 0)")
     ap.add_argument("--slack-threshold", type=float, default=None,
                     help="decision value a window in a band's slack rows must exceed (SearchConfig.slack_threshold; "
                          "'nan': none)")
-    ap.add_argument("--oncoming-band-slack", default=None, metavar="ABOVE,BELOW",
-                    help="slack (fractions of H) above and below every oncoming band (windows there above "
-                         "the oncoming search's slack_threshold)")
-    ap.add_argument("--oncoming-slack-threshold", type=float, default=2.2,
-                    help="with --oncoming-band-slack: the decision value a window in the slack rows must exceed")
     ap.add_argument("--residuals", choices=("rows", "log"), default="log",
                     help="--joint: how a box's misfit is measured (PerspectiveConfig.residuals)")
     ap.add_argument("--out", default=None)
@@ -118,30 +111,14 @@ def main() -> None:
                                         int(p[4]) if len(p) > 4 else None))
             det.scorers[0].search = replace(det.scorers[0].search, bands=tuple(bands))
         if args.band_slack is not None:
-            above, below = (float(v) or None for v in args.band_slack.split(","))
+            above = parse_slack(args.band_slack)
             main = det.scorers[0].search
             smallest = min(b.scale for b in main.bands)
-            below_scales = None if args.below_scales is None else {float(v) for v in args.below_scales.split(",")}
             det.scorers[0].search = replace(main, bands=tuple(
-                b if b.scale == smallest else replace(
-                    b, slack_above=above,
-                    slack_below=below if below_scales is None or b.scale in below_scales else None)
-                for b in main.bands))
+                b if b.scale == smallest else replace(b, slack_above=above) for b in main.bands))
         if args.slack_threshold is not None:
             gate = None if args.slack_threshold != args.slack_threshold else args.slack_threshold
             det.scorers[0].search = replace(det.scorers[0].search, slack_threshold=gate)
-        if args.oncoming_band_slack is not None and len(det.scorers) > 1:
-            above, below = (float(v) or None for v in args.oncoming_band_slack.split(","))
-            on = det.scorers[1].search
-            det.scorers[1].search = replace(on, bands=tuple(
-                replace(b, slack_above=above, slack_below=below) for b in on.bands),
-                slack_threshold=args.oncoming_slack_threshold)
-        if args.oncoming_slack and len(det.scorers) > 1:
-            on = det.scorers[1].search
-            rows = on.reference_shape[0] if on.reference_shape is not None else 720
-            d = int(round(args.oncoming_slack * rows))
-            det.scorers[1].search = replace(on, bands=tuple(
-                replace(b, y_start=max(b.y_start - d, 0), y_stop=min(b.y_stop + d, rows)) for b in on.bands))
         base_search = det.scorers[0].search
         if not args.baseline:
             det.scorers[0].search = GeometricSearch.from_search(base_search, geo)

@@ -8,7 +8,7 @@ shot):
   targets' (``consider`` = 1) widths and bottom rows, fitted by Theil-Sen (robust to a few
   vehicles of another width, e.g. seen from the side); ``ratio`` per px of rows.
 - **boxes, per track**: the horizon and ratio of
-  :class:`fastdet.detect.geometry.PerspectiveEstimator` over the same boxes grouped by
+  :class:`tools.studies.perspective.PerspectiveEstimator` over the same boxes grouped by
   vehicle (each vehicle's boxes must agree; no prior), with the default spreads (tight) and
   twice them (loose). Both fits need vehicles at several depths: where all stand at about
   one depth (``y_bottom`` range printed) neither says much.
@@ -38,12 +38,12 @@ import time
 import numpy as np
 from scipy.stats import theilslopes
 
-from fastdet.detect.geometry import PerspectiveEstimator
 from fastdet.eval.clips import annotated_clips
 from fastdet.io.reader import read_frames
 from fastdet.video import horizon
 from fastdet.video.horizon import HORIZON_FRAMES, WORK_ROWS, HorizonEstimator, median_flow
 from fastdet.video.vanishing import vanishing_point
+from tools.studies.perspective import PerspectiveEstimator
 
 
 def box_fits(t: np.ndarray, rows: int) -> dict:

@@ -22,11 +22,11 @@ import numpy as np
 from fastdet.boxes import iou
 from fastdet.config import SearchBand
 from fastdet.detect.bands import window_boxes
-from fastdet.detect.geometry import GeometricSearch, GeometryConfig
 from fastdet.eval.clips import annotated_clips
 from fastdet.io.reader import read_frames
 from fastdet.video import make_detector
 from fastdet.video.horizon import HORIZON_FRAMES, HorizonEstimator, search_horizon
+from tools.studies.perspective import GeometricSearch, GeometryConfig
 
 
 def main() -> None:

@@ -202,7 +202,7 @@ def main(argv: list[str] | None = None) -> int:
     train_frames = {c: clip_vehicles(c, data[c]) for c in CLIPS}
 
     def samples_for(names: list[str]):
-        return samples([fr for n in names for fr in train_frames[n]], spec, a.seed, a.per_box, a.size_of == "vehicle")
+        return samples([fr for n in names for fr in train_frames[n]], spec, a.seed, a.per_box)
 
     det = make_detector(pipeline)
     rows: list[dict[str, Any]] = []
@@ -214,8 +214,7 @@ def main(argv: list[str] | None = None) -> int:
             others = [c for c in CLIPS if c != clip]
             t0 = time.perf_counter()
             smp = samples_for(others)
-            reg = fit_box_regressor(smp, spec, metadata={"trained_on": others + ["test_images"]},
-                                    size_weight=a.size_weight)
+            reg = fit_box_regressor(smp, spec, metadata={"trained_on": others + ["test_images"]})
             fit = reg.metadata["fit"]
             print(f"[{clip}] regressor fitted on {'+'.join(others)}+test_images: {fit['samples']} samples of "
                   f"{fit['groups']} vehicles, alpha {fit['alpha']:g}, CV mean IoU {max(fit['cv_mean_iou']):.3f} "
@@ -242,7 +241,7 @@ def main(argv: list[str] | None = None) -> int:
         reg = fit_box_regressor(smp, spec, metadata={
             "trained_on": ship_clips + ["test_images"], "settings": settings,
             "command": "python -m tools.studies.refine_eval " + " ".join(argv if argv is not None else sys.argv[1:]),
-            "held_out": rows}, size_weight=a.size_weight)
+            "held_out": rows})
         reg.save(a.ship)
         print(f"wrote {a.ship}: fitted on {'+'.join(ship_clips)}+test_images, alpha {reg.metadata['fit']['alpha']:g}")
     if a.json:

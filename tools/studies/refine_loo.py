@@ -35,13 +35,7 @@ the ``i``-th (``--refine iterations=N``; the last one for further steps).
     python -m tools.studies.refine_loo [--out-dir DIR [--reuse]] [--clips A,B] [--inputs jitter|own|both]
         [--own-iou 0.3] [--own-repeat K] [--own-source out|heat|both] [--cascade S]
         [--jitter-scale LO HI] [--jitter-aspect A]
-        [--size-inputs log_width,log_height [--size-weight K] [--size-of box|vehicle]]
         [small_boxes options, e.g. --refine iterations=3]
-
-``--size-inputs`` gives the regressor the box's size and place as inputs besides its
-appearance (:data:`fastdet.detect.regressor.SIZE_INPUTS`); ``--size-weight`` penalises them less;
-``--size-of vehicle`` describes each jittered training box by its vehicle's size
-(:func:`fastdet.train.refine.jittered_views`).
 
 ``--ship PATH --ship-without CLIP`` then fits one regressor on every clip but CLIP (default
 ``test_small1``, so that ``fastdet eval`` on it is not in-sample) and writes it to PATH with
@@ -238,8 +232,7 @@ def training_views(runs: dict[str, ClipRun], names: list[str], images: bool, a: 
         frames = [v for n in names for v in clip_vehicles(runs[n], order.index(n))]
         jitter = JitterConfig(per_box=a.per_box, scale=(a.jitter_scale[0], a.jitter_scale[1]),
                               aspect=a.jitter_aspect)
-        views += jittered_views(frames + (test_images() if images else []), seed=a.seed, jitter=jitter,
-                                vehicle_size=a.size_of == "vehicle")
+        views += jittered_views(frames + (test_images() if images else []), seed=a.seed, jitter=jitter)
     if a.inputs in ("own", "both"):
         own = [v for n in names for v in own_views(runs[n], order.index(n), a.own_iou, a.own_source)]
         views += [w for v in own for w in (v, mirror(v))] * a.own_repeat
@@ -256,12 +249,12 @@ def fit_without(runs: dict[str, ClipRun], held_out: str, a: argparse.Namespace, 
     else:
         names, images = [n for n in runs if n != held_out], True
     views = training_views(runs, names, images, a)
-    fits = fit_cascade(views, spec, a.cascade, size_weight=a.size_weight)
+    fits = fit_cascade(views, spec, a.cascade)
     stages = [BoxRegressor.from_fit(spec, *arrays) for arrays, _ in fits]
     reports = [report for _, report in fits]
     reg = BoxRegressor.stack(stages, metadata={
         "trained_on": names + (["test_images"] if images else []), "held_out_clip": held_out,
-        "inputs": a.inputs, "size_weight": a.size_weight, "size_of": a.size_of, "own_iou": a.own_iou,
+        "inputs": a.inputs, "own_iou": a.own_iou,
         "own_repeat": a.own_repeat,
         "own_source": a.own_source,
         "command": "python -m tools.studies.refine_loo " + " ".join(sys.argv[1:]), **(metadata or {}),
@@ -337,8 +330,8 @@ def main() -> None:
             if reg.n_stages != a.cascade:
                 raise SystemExit(f"refine_loo: {path} has {reg.n_stages} stages, not --cascade {a.cascade}")
             if reg.spec != spec_of(a):
-                raise SystemExit(f"refine_loo: {path} takes other features than the options give "
-                                 f"(size inputs {list(reg.size_inputs)}); fit again without --reuse")
+                raise SystemExit(f"refine_loo: {path} takes other features than the options give; "
+                                 "fit again without --reuse")
         else:
             reg = fit_without(runs, clip.name, a, path)
         fitted[cam] = reg

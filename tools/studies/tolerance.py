@@ -14,15 +14,13 @@ run's boxes (``TAG/CLIP_D.npz``: a :class:`~fastdet.detections.Detections` writt
 :func:`~tools.studies.frame_cache.save_frame_detections`) and the results
 (``TAG/results.json``; a rerun skips what is there with the same settings).
 
-The settings varied (each a change of the default search of the main model or of the oncoming
-model):
+The settings varied (each a change of the main model's default search; slack below the
+oncoming model's bands, once a third, was deleted: docs/accuracy.md, "Deleted stages"):
 
-- ``--band-slack ABOVE,BELOW``: the main bands' :attr:`~fastdet.config.SearchBand.slack_above`
-  / ``slack_below`` (every band with slack today; 0: none on that side);
-- ``--slack-threshold D``: the main search's ``slack_threshold`` (``nan``: none);
-- ``--oncoming-slack-below F`` and ``--oncoming-slack-threshold D``: slack below the oncoming
-  model's bands (:func:`fastdet.config.oncoming_search`) and the decision value a window needs
-  there.
+- ``--band-slack ABOVE,0``: the main bands' :attr:`~fastdet.config.SearchBand.slack_above`
+  (every band with slack today; 0: none); slack below the bands was deleted, so the second
+  number (kept for the commands written before) must be 0;
+- ``--slack-threshold D``: the main search's ``slack_threshold`` (``nan``: none).
 
 ``--cost`` prints, instead of running, the HOG cells, windows and scoring multiply-adds of a
 full scan of a 1280x720 frame at the reference horizon with the setting's searches, against
@@ -33,8 +31,8 @@ threshold, band scale, window bottom row / H) in the searches at ``E`` and at ``
 a dense search (every scale on every row of the lower part of the frame).
 
     python -m tools.studies.tolerance --loo /tmp/s3r/final --out-dir DIR [--clips A,B]
-        [--offsets 0,-0.04,0.04] [--tag NAME] [--oncoming-slack-below F] ...
-    python -m tools.studies.tolerance --cost [--oncoming-slack-below F] ...
+        [--offsets 0,-0.04,0.04] [--tag NAME] [--band-slack A,0] ...
+    python -m tools.studies.tolerance --cost [--band-slack A,0] ...
     python -m tools.studies.tolerance --loo ... --out-dir DIR --tag NAME --why 0.04 --clips highway_640
 """
 from __future__ import annotations
@@ -78,30 +76,30 @@ def clip_estimate(video: Path, n: int = HORIZON_FRAMES) -> float | None:
         r.close()
 
 
-def parse_slack(text: str | None) -> tuple[float | None, float | None] | None:
-    """``'ABOVE,BELOW'`` as ``(above, below)`` (0: ``None``, no slack on that side); ``None`` for ``None``."""
-    if text is None:
-        return None
+def parse_slack(text: str) -> float | None:
+    """``'ABOVE,0'`` (or ``'ABOVE'``) as the slack above (0: ``None``, none). A slack below the
+    bands (the second number not 0) was deleted: one line, exit 2."""
     try:
-        above, below = (float(v) for v in text.split(","))
+        vals = [float(v) for v in text.split(",")]
     except ValueError:
-        raise SystemExit(f"tolerance: --band-slack must be ABOVE,BELOW (fractions of the height), got {text!r}")
-    return (above or None, below or None)
+        vals = []
+    if len(vals) not in (1, 2):
+        raise SystemExit(f"--band-slack must be ABOVE or ABOVE,0 (fractions of the height), got {text!r}")
+    if len(vals) == 2 and vals[1] != 0:
+        raise SystemExit(f"--band-slack {text}: slack below the bands was deleted (docs/accuracy.md, "
+                         "'Deleted stages'); only 0 is read there")
+    return vals[0] or None
 
 
 def searches(a: argparse.Namespace) -> tuple[SearchConfig, SearchConfig]:
-    """The main search and the oncoming search the options ask for (today's when they ask nothing)."""
+    """The main search the options ask for (today's when they ask nothing) and the oncoming search."""
     main = PipelineConfig().search
-    slack = parse_slack(a.band_slack)
-    if slack is not None:
-        main = replace(main, bands=tuple(replace(b, slack_above=slack[0], slack_below=slack[1]) if b.has_slack else b
-                                         for b in main.bands))
+    if a.band_slack is not None:
+        above = parse_slack(a.band_slack)
+        main = replace(main, bands=tuple(replace(b, slack_above=above) if b.has_slack else b for b in main.bands))
     if a.slack_threshold is not None:
         main = replace(main, slack_threshold=None if math.isnan(a.slack_threshold) else a.slack_threshold)
-    oncoming = oncoming_search(PipelineConfig().traffic, slack_below=a.oncoming_slack_below or None)
-    if a.oncoming_slack_threshold is not None:
-        oncoming = replace(oncoming, slack_threshold=a.oncoming_slack_threshold)
-    return main, oncoming
+    return main, oncoming_search(PipelineConfig().traffic)
 
 
 def detector(a: argparse.Namespace, config: PipelineConfig) -> Detector:
@@ -160,8 +158,7 @@ def dense(a: argparse.Namespace) -> Detector:
         SearchBand(b.scale, 300, 720) for b in main.bands))
     if len(det.scorers) > 1:
         on = det.scorers[1].search
-        det.scorers[1].search = replace(on, bands=tuple(replace(b, y_start=330, y_stop=560, slack_below=None)
-                                                        for b in on.bands))
+        det.scorers[1].search = replace(on, bands=tuple(replace(b, y_start=330, y_stop=560) for b in on.bands))
     return det
 
 
@@ -224,16 +221,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--tag", default="base", help="the setting's name in --out-dir")
     ap.add_argument("--clips", default=None)
     ap.add_argument("--offsets", default="0,-0.04,0.04", help="horizon offsets from the estimate (0: 'auto')")
-    ap.add_argument("--band-slack", default=None, metavar="ABOVE,BELOW")
+    ap.add_argument("--band-slack", default=None, metavar="ABOVE,0")
     ap.add_argument("--slack-threshold", type=float, default=None)
-    ap.add_argument("--oncoming-slack-below", type=float, default=None)
-    ap.add_argument("--oncoming-slack-threshold", type=float, default=None)
     ap.add_argument("--cost", action="store_true", help="print the setting's full-scan cost against today's")
     ap.add_argument("--why", type=float, default=None, metavar="D", help="what became of each target at offset D")
     ap.add_argument("--every", type=int, default=1, help="--why: every this many annotated frames")
     a = ap.parse_args(argv)
-    if a.oncoming_slack_below is not None and not 0 <= a.oncoming_slack_below < 1:
-        ap.error("--oncoming-slack-below must be a fraction of the height in [0, 1)")
     if a.every < 1:
         ap.error("--every must be >= 1")
     if a.cost:

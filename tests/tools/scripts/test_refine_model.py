@@ -26,14 +26,10 @@ def test_unknown_clip_is_refused(data, tmp_path):
     assert not (tmp_path / "r.npz").exists()
 
 
-def test_size_inputs_are_recorded_and_bad_ones_refused(data, tmp_path, capsys):
-    out = tmp_path / "sized.npz"
-    assert refine_model.main([str(out), "--clips", "", "--per-box", "2", "--size-inputs", "log_width,width<60",
-                              "--size-weight", "3"]) == 0
-    reg = load_regressor(out)
-    assert reg.size_inputs == ("log_width", "width<60") and reg.metadata["size_inputs"] == ["log_width", "width<60"]
-    assert reg.metadata["fit"]["size_weight"] == 3.0 and "--size-inputs" in reg.metadata["command"]
-    for bad in (["--size-inputs", "log_width,area"], ["--size-inputs", "log_width", "--size-weight", "0"]):
-        with pytest.raises(SystemExit, match="size"):
-            refine_model.main([str(tmp_path / "r.npz"), "--clips", "", *bad])
+
+def test_size_inputs_are_no_option(data, tmp_path, capsys):
+    """--size-inputs (the box's size among the inputs) was deleted: argparse refuses it."""
+    with pytest.raises(SystemExit):
+        refine_model.main([str(tmp_path / "r.npz"), "--clips", "", "--size-inputs", "log_width"])
+    assert "unrecognized arguments: --size-inputs" in capsys.readouterr().err
     assert not (tmp_path / "r.npz").exists()
