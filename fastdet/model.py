@@ -16,6 +16,12 @@ array            shape, dtype                  meaning
 
 ``score(x) = coef · (x - mean) / scale + intercept``; > 0 means vehicle. The detector folds
 the scaler into the weights once (:meth:`Model.folded`).
+
+A model made for one camera (``fastdet adapt``) also carries the box regressor fitted for that
+camera: its arrays as ``regressor_coef``, ``regressor_intercept``, ``regressor_mean``,
+``regressor_scale`` and its metadata under ``metadata["regressor"]``, as a regressor file of its
+own holds them (:mod:`fastdet.detect.regressor`); the video pipeline then refines boxes with it
+(:func:`fastdet.video.refine.regressor_for`).
 """
 from __future__ import annotations
 
@@ -39,6 +45,9 @@ from .io.files import open_input, parse_json
 FORMAT_VERSION = 1
 CLASSIFIERS = ("linearsvc", "logreg")
 _ARRAYS = ("coef", "intercept", "mean", "scale", "metadata")
+#: the arrays of a carried box regressor (:attr:`Model.regressor`) in a model file, by their
+#: names in a regressor file
+CARRIED = {k: f"regressor_{k}" for k in ("coef", "intercept", "mean", "scale")}
 #: the largest ``metadata`` array (JSON bytes) a model or regressor file may declare (the
 #: bundled ones hold 1-3 KB)
 MAX_METADATA_BYTES = 16 * 2**20
@@ -60,6 +69,9 @@ class Model:
     coef, mean, scale: ``(F,) float64``; intercept: float.
     classifier: ``'linearsvc'`` (score = decision value) or ``'logreg'`` (also probabilities).
     metadata: everything else recorded at training time (metrics, data counts, ...).
+    regressor: the box regressor this model's camera uses, as its file holds it: ``(arrays,
+        metadata)`` (:meth:`fastdet.detect.regressor.BoxRegressor.contents`; ``None``: none, the
+        pipeline's own). Kept as plain arrays here: the regressor's code lives a layer above.
     """
 
     config: FeatureConfig
@@ -69,8 +81,12 @@ class Model:
     scale: np.ndarray
     classifier: Literal["linearsvc", "logreg"] = "linearsvc"
     metadata: dict[str, Any] = field(default_factory=dict)
+    regressor: tuple[dict[str, np.ndarray], dict[str, Any]] | None = None
 
     def __post_init__(self) -> None:
+        if self.regressor is not None and (set(self.regressor[0]) != set(CARRIED)
+                                           or not isinstance(self.regressor[1], dict)):
+            raise ModelError(f"a carried box regressor needs the arrays {sorted(CARRIED)} and a metadata dict")
         n = self.config.n_features
         for name in ("coef", "mean", "scale"):
             arr = np.ascontiguousarray(getattr(self, name), dtype=np.float64)
@@ -143,8 +159,13 @@ class Model:
         meta = dict(self.metadata)
         meta.update(format_version=FORMAT_VERSION, feature_config=self.config.to_dict(),
                     classifier=self.classifier, fastdet_version=__version__)
-        return write_npz(path, {"coef": self.coef, "intercept": np.float64(self.intercept), "mean": self.mean,
-                                "scale": self.scale}, meta)
+        arrays: dict[str, np.ndarray | np.generic] = {"coef": self.coef, "intercept": np.float64(self.intercept),
+                                                      "mean": self.mean, "scale": self.scale}
+        meta.pop("regressor", None)
+        if self.regressor is not None:
+            arrays.update({CARRIED[k]: v for k, v in self.regressor[0].items()})
+            meta["regressor"] = self.regressor[1]
+        return write_npz(path, arrays, meta)
 
 
 def write_npz(path: str | os.PathLike, arrays: dict[str, np.ndarray | np.generic], meta: dict[str, Any]) -> Path:
@@ -299,9 +320,15 @@ def load_model(path: str | os.PathLike | None = None, expected_config: FeatureCo
         raise ModelError(f"{path}: feature config mismatch: the model uses {config}, expected {expected_config}")
     if arrays["intercept"].shape != ():
         raise ModelError(f"{path}: 'intercept' must be a scalar, got shape {arrays['intercept'].shape}")
+    regressor = None
+    if "regressor" in meta:
+        if not isinstance(meta["regressor"], dict):
+            raise ModelError(f"{path}: metadata 'regressor' must be a JSON object, got {meta['regressor']!r:.60}")
+        carried, _ = read_npz(path, (*CARRIED.values(), "metadata"), "model")
+        regressor = ({k: carried[v] for k, v in CARRIED.items()}, meta["regressor"])
     try:
         return Model(config=config, coef=arrays["coef"], intercept=float(arrays["intercept"]),
                      mean=arrays["mean"], scale=arrays["scale"],
-                     classifier=meta.get("classifier", "linearsvc"), metadata=meta)
+                     classifier=meta.get("classifier", "linearsvc"), metadata=meta, regressor=regressor)
     except ModelError as exc:
         raise ModelError(f"{path}: {exc}") from None

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..config.batch import Settings, file_sha256
 from ..video.detector import make_detector
-from ..video.refine import load_regressor
+from ..video.refine import regressor_for
 
 __all__ = ["MANIFEST_NAME", "SUFFIXES", "Settings", "check", "max_name_length", "file_sha256", "output_paths"]
 
@@ -30,7 +30,7 @@ def check(settings: Settings) -> None:
     before any work, for a file that is not a model or a wide model that is not one."""
     make_detector(settings.pipeline)
     if settings.pipeline.refine is not None:
-        load_regressor(settings.pipeline.refine_model)
+        regressor_for(settings.pipeline.model, settings.pipeline.refine_model)
 
 
 def output_paths(out_dir: str | os.PathLike, name: str, settings: Settings) -> dict[str, Path]:

@@ -19,8 +19,10 @@
   FOOTAGE frames in the kept-aside stretch set the operating point (none: the model's own).
 - The main model is trained from the bundled crop folders (``--data``, default
   ``$FASTDET_DATA``) plus the camera's crops (each of sample weight ``--weight``; hard
-  negatives mined with the bundled model), then moved by the decision offset of best F1 against the
-  labels of the kept-aside frames, through the ``video`` pipeline (:mod:`fastdet.train.adapt`).
+  negatives mined with the bundled model); the box regressor is fitted on the camera's labelled
+  vehicles and carried in the model file; the model is then moved by the decision offset of best
+  F1 against the labels of the kept-aside frames, through the ``video`` pipeline with that
+  regressor (:mod:`fastdet.train.adapt`).
   Each kept-aside stretch is decoded once for the three runs over it (:func:`held_stretches`:
   in memory up to ``AdaptConfig.hold_bytes``, the rest in raw files in the work folder, removed
   when the step ends).
@@ -52,6 +54,7 @@ from .. import signals as _signals
 from ..config import PipelineConfig
 from ..config.adapt import AdaptConfig
 from ..data import data_dir
+from ..detect.regressor import carrying, load_regressor
 from ..detections import Detections
 from ..errors import DataError, FastdetError, WriteError
 from ..io.files import not_found
@@ -404,6 +407,11 @@ def run(args: argparse.Namespace) -> int:
                                     log=lambda s: print(s, flush=True))
     secs["train"] = time.perf_counter() - t
     _signals.check()
+    t = time.perf_counter()
+    regressor, regressor_fit = _adapt.fit_camera_regressor(train_pics, load_regressor(), config, progress)
+    model = carrying(model, regressor)  # every model file written from here on carries it
+    secs["regressor"] = time.perf_counter() - t
+    _signals.check()
 
     t = time.perf_counter()
     n_held = sum(len(v) for v in held.values())
@@ -439,7 +447,7 @@ def run(args: argparse.Namespace) -> int:
                                                       "size": args.teacher_size},
         "frames": {"step": footage.step, "trained": len(train_pics), "kept_aside_labelled": n_held,
                    "kept_aside_read": footage.holdout_length, "labelled_now": n_now},
-        "targets_trained": n_targets, "crops": counts,
+        "targets_trained": n_targets, "crops": counts, "regressor_fit": regressor_fit,
         "seconds": {k: round(v, 2) for k, v in secs.items()},
         "offset": chosen, "offsets_f1": tried, "kept_aside": kept,
         "agreement": {"before": before, "after": after},
@@ -451,6 +459,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"frames: {len(train_pics)} trained on ({n_targets} {labelled_by} targets; {counts['positives']} "
           f"positive, {counts['negatives']} background, {counts['hard_negatives']} hard negative crops x "
           f"weight {config.weight}), {n_held} kept-aside frames scored")
+    print(f"box regressor: fitted on {regressor_fit['samples']} jittered boxes about {regressor_fit['groups']} "
+          f"labelled vehicles; a box's IoU with its vehicle {regressor_fit['input_mean_iou']:.2f} -> "
+          f"{regressor_fit['output_mean_iou']:.2f} after one step (mean, cross-validated)")
     print("seconds: " + ", ".join(f"{k} {v:.1f}" for k, v in secs.items()))
     if n_held:
         print("offsets tried (F1): " + ", ".join(f"{k} {'-' if v is None else f'{v:.2f}'}" for k, v in tried.items())

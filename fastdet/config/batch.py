@@ -40,12 +40,21 @@ def file_sha256(path: str | os.PathLike) -> str:
     return h.hexdigest()
 
 
+def _carries_regressor(path: str) -> bool:
+    """Whether the main model file ``path`` carries its camera's box regressor (``fastdet adapt``
+    writes one: :func:`fastdet.video.refine.regressor_for` takes it when no regressor file is
+    given)."""
+    from ..model import load_model  # a layer above: read only here, when a batch is set up
+
+    return load_model(path).regressor is not None
+
+
 @dataclass(frozen=True)
 class Settings:
     """The per-video settings of a batch (build with :meth:`create`).
 
     pipeline: the :class:`PipelineConfig`, its model files as absolute paths (``refine_model``
-        ``None`` when the refinement is off).
+        ``None`` when the refinement is off or uses the regressor the main model carries).
     video, json: also write the annotated video / JSON lines (the boxes file is always written).
     model_sha256, oncoming_sha256, refine_sha256: the model files' hashes (``""`` for a model
         that is off).
@@ -67,6 +76,8 @@ class Settings:
         wide = None if p.oncoming is False else resolve_model(None if p.oncoming is True else p.oncoming,
                                                                ONCOMING_MODEL_PATH)
         refine = None if p.refine is None else resolve_model(p.refine_model, REFINE_MODEL_PATH)
+        if refine is not None and p.refine_model is None and os.path.isfile(main) and _carries_regressor(main):
+            refine = None  # the main model's own (its file, hashed above, holds it)
         for f in (main, wide, refine):
             if f is not None and not os.path.isfile(f):
                 raise ModelError(str(not_found(f, f"{f}: model file not found")))

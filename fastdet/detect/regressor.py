@@ -43,6 +43,7 @@ no clip supported, deleted; docs/accuracy.md, "Deleted stages") is refused with 
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from dataclasses import dataclass, field
@@ -60,7 +61,7 @@ from ..config.models import REFINE_MODEL_PATH
 from ..errors import ModelError
 from ..features import extract_features
 from ..features.window import KERNELS as FEATURE_KERNELS
-from ..model import read_npz, write_npz
+from ..model import Model, read_npz, write_npz
 from ._crop_kernels import area_crops
 
 #: the numba kernels of :func:`box_features` (compiled ahead of time: fastdet._numba.ensure_compiled)
@@ -355,8 +356,9 @@ class BoxRegressor:
         return self.predict_features(self.spec.features(frame, boxes), stage)
 
     # ---- files ------------------------------------------------------------------------
-    def save(self, path: str | os.PathLike) -> Path:
-        """Write to ``path`` (``.npz``), via a temporary file and a rename."""
+    def contents(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        """``(arrays, metadata)`` as the regressor's file holds them (a model that carries the
+        regressor holds the same: :attr:`fastdet.model.Model.regressor`)."""
         meta = dict(self.metadata)
         meta.update(format_version=FORMAT_VERSION, kind="box_regressor", feature_config=self.config.to_dict(),
                     contexts=list(self.contexts), fastdet_version=__version__)
@@ -365,7 +367,11 @@ class BoxRegressor:
         if self.n_stages == 1:  # a single regressor's file as it always was
             arrays = {k: v[0] for k, v in arrays.items()}
         meta["stages"] = self.n_stages
-        return write_npz(path, arrays, meta)
+        return arrays, meta
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write to ``path`` (``.npz``), via a temporary file and a rename."""
+        return write_npz(path, *self.contents())
 
 
 def load_regressor(path: str | os.PathLike | None = None) -> BoxRegressor:
@@ -378,6 +384,12 @@ def load_regressor(path: str | os.PathLike | None = None) -> BoxRegressor:
     option)."""
     path = Path(path) if path is not None else REFINE_MODEL_PATH
     arrays, meta = read_npz(path, _ARRAYS, "box regressor", FORMAT_VERSION)
+    return _regressor_of(arrays, meta, str(path))
+
+
+def _regressor_of(arrays: dict[str, np.ndarray], meta: dict[str, Any], path: str) -> BoxRegressor:
+    """The regressor of a file's ``arrays`` and ``meta`` (:meth:`BoxRegressor.contents`);
+    ``path`` names it in the messages."""
     if meta.get("kind") != "box_regressor":
         raise ModelError(f"{path} is not a box regressor (metadata kind {meta.get('kind')!r})")
     try:
@@ -393,5 +405,24 @@ def load_regressor(path: str | os.PathLike | None = None) -> BoxRegressor:
                             metadata=meta)
     except ModelError as exc:
         raise ModelError(f"{path}: {exc}") from None
+
+
+def carried_regressor(model: Model, path: str = "the model") -> BoxRegressor | None:
+    """The box regressor ``model`` carries (:attr:`fastdet.model.Model.regressor`: one
+    ``fastdet adapt`` fitted for the model's camera), ``None`` when it carries none;
+    :class:`~fastdet.errors.ModelError` naming ``path`` when it is not a valid regressor."""
+    if model.regressor is None:
+        return None
+    arrays, meta = model.regressor
+    version = meta.get("format_version")
+    if version != FORMAT_VERSION:
+        raise ModelError(f"{path}: its box regressor's format version is {version!r}, this fastdet reads "
+                         f"version {FORMAT_VERSION}")
+    return _regressor_of(arrays, meta, f"{path} (its box regressor)")
+
+
+def carrying(model: Model, regressor: BoxRegressor) -> Model:
+    """``model`` carrying ``regressor`` (written into its file by :meth:`Model.save`)."""
+    return dataclasses.replace(model, regressor=regressor.contents())
 
 

@@ -17,7 +17,13 @@ The steps, each a function here (the command, :mod:`fastdet.cli.adapt`, runs the
 4. :func:`fit_camera_model`: the main model trained from the bundled crop folders plus those
    crops (each of sample weight ``weight``: as if repeated that many times, without the copies'
    memory), with the bundled model's recipe, in float32 features (half the memory of float64);
-5. :func:`choose_offset`: the kept-aside stretches run through the video pipeline with the new
+5. :func:`fit_camera_regressor`: the box regressor refitted on the camera alone (jittered copies
+   of the labelled targets of the same frames, and their mirror images), carried in the model
+   file (:attr:`~fastdet.model.Model.regressor`), so ``video --model`` refines the camera's boxes
+   with it: the video pipeline's boxes come from heat blobs, which for an adapted model reach the
+   targets far less often than its windows do, and the regressor puts them on the vehicle
+   (docs/training.md, "The camera's own box regressor");
+6. :func:`choose_offset`: the kept-aside stretches run through the video pipeline with the new
    model moved by each of a few decision offsets (:func:`~fastdet.train.blend.offset`; each frame
    read and scored once for all of them, :mod:`fastdet.video.replay`), the one of best F1
    against the labels of those frames kept. The pipeline and the scoring are given by the
@@ -40,6 +46,7 @@ from tqdm import tqdm
 
 from .. import signals as _signals
 from ..config.adapt import AdaptConfig
+from ..detect.regressor import BoxRegressor
 from ..errors import DataError
 from ..io.reader import FrameReader
 from ..labels.load import load_pictures
@@ -52,6 +59,7 @@ from .blend import offset
 from .dataset import CropSet
 from .fit import train
 from .pictures import hard_negative_crops, picture_crops
+from .refine import fit_cascade, jittered_views
 
 #: the camera id of every adapted picture
 CAMERA = "adapt"
@@ -332,6 +340,33 @@ def fit_camera_model(data: Path, bundled: Model, crops: CropSet, config: AdaptCo
                      extra_weight=float(config.weight), dtype=np.float32, log=log)
     assert model is not None
     return model
+
+
+def fit_camera_regressor(pictures: Sequence[AnnotatedPicture], bundled: BoxRegressor, config: AdaptConfig,
+                         progress: bool = True) -> tuple[BoxRegressor, dict[str, Any]]:
+    """The box regressor of the camera: one ridge stage on ``bundled``'s features (its
+    :attr:`~BoxRegressor.spec`), fitted on the jittered boxes about each labelled target of
+    ``pictures`` and as many in the mirrored frame (:class:`~fastdet.config.JitterConfig`'s, as the
+    bundled regressor's; ``config.seed`` draws them)
+    (:func:`~fastdet.train.refine.jittered_views`), its penalty chosen by cross-validation over
+    folds that keep a vehicle on one side (:func:`~fastdet.train.refine.fit_cascade`). Returns it
+    with its fit's report (samples, vehicles, the penalty, the cross-validated mean IoU before and
+    after one step). ``DataError`` when no picture has a target."""
+    frames, group = [], 0
+    for pic, image in _ticking(pictures, "box regressor", progress):
+        n = len(pic.targets)
+        if n:
+            frames.append((image, pic.targets, np.arange(group, group + n)))
+            group += n
+    if not frames:
+        raise DataError("no labelled vehicle to fit the camera's box regressor on")
+    views = jittered_views(frames, seed=config.seed)
+    (arrays, report), = fit_cascade(views, bundled.spec, 1)
+    report = {k: report[k] for k in ("samples", "groups", "alpha", "input_mean_iou", "output_mean_iou")}
+    reg = BoxRegressor.stack([BoxRegressor.from_fit(bundled.spec, *arrays)], metadata={
+        "trained_on": "the camera's labelled frames (fastdet adapt)", "fit": report,
+        "refine_config_of": "the pipeline's (RefineConfig)"})
+    return reg, report
 
 
 @dataclass(frozen=True)

@@ -63,7 +63,7 @@ def offset(model: Model, delta: float, metadata: dict[str, Any] | None = None) -
     meta.update(metadata or {})
     meta["offset"] = float(meta.get("offset", 0.0)) + float(delta)
     return Model(config=model.config, coef=model.coef, intercept=model.intercept - float(delta), mean=model.mean,
-                 scale=model.scale, classifier=model.classifier, metadata=meta)
+                 scale=model.scale, classifier=model.classifier, metadata=meta, regressor=model.regressor)
 
 
 def rate_offset(scores: np.ndarray, reference: np.ndarray, threshold: float = 0.0) -> float:

@@ -38,7 +38,7 @@ from .heatmap import HeatMap
 from .motion import KERNELS as MOTION_KERNELS
 from .motion import warmup_motion
 from .refine import KERNELS as REFINE_KERNELS
-from .refine import BoxRegressor, load_regressor
+from .refine import BoxRegressor, regressor_for
 from .stages import (
     FrameDebug,
     FrameState,
@@ -126,8 +126,9 @@ class VideoDetector:
         refinement (its model files are used only when ``detector`` / ``refiner`` are not given).
     fps: frames per second of the video (``None``: 25): the motion gate compares frames
         :meth:`MotionGate.lag <fastdet.config.MotionGate.lag>` apart.
-    refiner: the box regressor (default: the one ``config.refine_model`` names, loaded now
-        when the refinement is on).
+    refiner: the box regressor (default: the one ``config.refine_model`` names, else the one the
+        main model file carries, else the bundled one -- :func:`~fastdet.video.refine.regressor_for`
+        --, loaded now when the refinement is on).
 
     With ``horizon='auto'`` the bands follow the horizon estimated from the optical flow of
     the first frames (:mod:`fastdet.video.horizon`); :meth:`prime_horizon` gives it those
@@ -168,7 +169,8 @@ class VideoDetector:
         if self.config.refine is not None:
             if refiner is not None and not isinstance(refiner, BoxRegressor):
                 raise TypeError(f"refiner must be a BoxRegressor, got {type(refiner).__name__}")
-            self.refiner = refiner if refiner is not None else load_regressor(self.config.refine_model)
+            self.refiner = (refiner if refiner is not None
+                            else regressor_for(self.config.model, self.config.refine_model))
         self._stages: list[Stage] | None = None
         self.timings: dict[str, float] = {}
         self.debug = FrameDebug()

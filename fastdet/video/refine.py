@@ -6,6 +6,7 @@ regressor (:mod:`fastdet.detect.regressor`: its features, offsets and file) to a
 (:attr:`RefineConfig.iterations`), rounded and clipped to the frame; every other column
 (scores, ids, part, scale) is kept. A cascade (:attr:`BoxRegressor.n_stages` > 1) takes
 step ``i`` with its ``i``-th stage (the last one for the steps after them).
+:func:`regressor_for` picks the regressor of a pipeline's model files.
 """
 from __future__ import annotations
 
@@ -20,11 +21,25 @@ from ..detect.regressor import (  # noqa: F401 - the regressor's names, as this 
     REFINE_MODEL_PATH,
     BoxFeatures,
     BoxRegressor,
+    carried_regressor,
     decode_offsets,
     encode_offsets,
     load_regressor,
 )
 from ..detections import Detections
+from ..model import load_model
+
+
+def regressor_for(model: str | None, refine_model: str | None) -> BoxRegressor:
+    """The box regressor a pipeline with main model file ``model`` and regressor file
+    ``refine_model`` (:class:`~fastdet.config.PipelineConfig`'s, ``None``: not given) refines
+    with: ``refine_model`` when given; else the one ``model`` carries (a model ``fastdet adapt``
+    made for its camera); else the bundled one."""
+    if refine_model is None and model is not None:
+        carried = carried_regressor(load_model(model), model)
+        if carried is not None:
+            return carried
+    return load_regressor(refine_model)
 
 # ---------------------------------------------------------------------------------------- refinement
 

@@ -13,8 +13,11 @@ import pytest
 
 from fastdet.cli import adapt as adapt_cli
 from fastdet.cli.main import main
+from fastdet.config import PipelineConfig
+from fastdet.detect.regressor import carried_regressor, load_regressor
 from fastdet.model import load_model
 from fastdet.teacher.yolox import TeacherBoxes
+from fastdet.video import VideoDetector
 from tests.media import leftovers, write_video
 from tests.teacher.onnx_bytes import FLOAT, write_identity_model
 
@@ -160,7 +163,13 @@ def test_adapt_writes_a_model_with_its_summary(teacher, data, tmp_path, capsys):
     assert s["frames"]["trained"] == 6 and s["frames"]["kept_aside_labelled"] == 2
     assert s["frames"]["kept_aside_read"] == 8 and s["labelled_by"] == "teacher"
     assert s["offset"] in (0.0, 1.0) and model.metadata["offset"] == s["offset"]
-    assert set(s["seconds"]) >= {"label", "crops", "hard_negatives", "train", "operating_point", "total"}
+    assert set(s["seconds"]) >= {"label", "crops", "hard_negatives", "train", "regressor", "operating_point", "total"}
+    # the camera's box regressor, fitted on its labelled vehicles, rides in the file and the
+    # pipeline refines with it
+    reg = carried_regressor(model)
+    assert reg is not None and s["regressor_fit"]["samples"] > 0 and "box regressor: fitted on" in text
+    assert not np.array_equal(reg.coef, load_regressor().coef)
+    np.testing.assert_array_equal(VideoDetector(config=PipelineConfig(model=str(out))).refiner.coef, reg.coef)
     for when in ("before", "after"):
         a = s["agreement"][when]
         assert 0 <= a["f1"] <= 1 and a["tp"] + a["fn"] >= 2 and a["ms_per_frame"] > 0

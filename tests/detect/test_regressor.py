@@ -13,6 +13,8 @@ from fastdet.config.models import REFINE_MODEL_PATH, REFINE_UDACITY_MODEL_PATH
 from fastdet.detect.regressor import (
     BoxRegressor,
     box_features,
+    carried_regressor,
+    carrying,
     decode_offsets,
     encode_offsets,
     load_regressor,
@@ -72,6 +74,64 @@ def test_save_load_round_trip(tmp_path: Path) -> None:
     bx = np.array([[20.0, 30.0, 120.0, 90.0]])
     np.testing.assert_array_equal(refine_boxes(frame, bx, back), refine_boxes(frame, bx, reg))
     assert not list(tmp_path.glob(".*partial*"))
+
+
+def test_a_model_file_carries_its_cameras_regressor(tmp_path: Path) -> None:
+    """adapt's model file holds the camera's regressor beside the main model's arrays: loaded
+    back it refines exactly as the regressor did, the pipeline takes it when no regressor file
+    is named (a named one wins), and the main model's own arrays are untouched."""
+    from fastdet.config import PipelineConfig
+    from fastdet.config.batch import Settings
+    from fastdet.model import load_model
+    from fastdet.video.picture import PictureDetector
+    from fastdet.video.refine import regressor_for
+
+    rng = np.random.default_rng(2)
+    n = BoxRegressor.zero(SMALL, (1.0, 1.5)).n_features
+    reg = BoxRegressor(SMALL, (1.0, 1.5), rng.normal(size=(4, n)), rng.normal(size=4), rng.normal(size=n),
+                       rng.uniform(0.5, 2, n), metadata={"note": "camera"})
+    plain = load_model()
+    assert carried_regressor(plain) is None
+    path = carrying(plain, reg).save(tmp_path / "cam.npz")
+    back = load_model(path)
+    for k in ("coef", "mean", "scale"):
+        np.testing.assert_array_equal(getattr(back, k), getattr(plain, k))
+    assert back.intercept == plain.intercept
+    got = carried_regressor(back, str(path))
+    assert got is not None and got.metadata["note"] == "camera"
+    frame = _frame(4)
+    bx = np.array([[20.0, 30.0, 120.0, 90.0], [5.0, 5.0, 60.0, 50.0]])
+    np.testing.assert_array_equal(refine_boxes(frame, bx, got), refine_boxes(frame, bx, reg))
+    # saved again (as adapt moves it by an offset), it still carries it
+    again = load_model(back.save(tmp_path / "again.npz"))
+    np.testing.assert_array_equal(carried_regressor(again).coef, reg.coef)
+    # the pipeline's choice: the named file, else the carried one, else the bundled one
+    np.testing.assert_array_equal(regressor_for(str(path), None).coef, reg.coef)
+    assert regressor_for(str(path), str(REFINE_MODEL_PATH)).metadata.get("note") != "camera"
+    assert regressor_for(None, None).metadata.get("note") != "camera"
+    np.testing.assert_array_equal(PictureDetector(str(path)).regressor.coef, reg.coef)
+    # a batch keeps it (no regressor file of its own: the model file's hash covers it)
+    assert Settings.create(PipelineConfig(model=str(path))).pipeline.refine_model is None
+    assert Settings.create(PipelineConfig()).pipeline.refine_model == str(REFINE_MODEL_PATH.resolve())
+
+
+def test_a_carried_regressor_that_is_not_one_is_one_line(tmp_path: Path) -> None:
+    from fastdet.model import CARRIED, load_model, write_npz
+
+    plain = load_model()
+    arrays = {"coef": plain.coef, "intercept": np.float64(plain.intercept), "mean": plain.mean, "scale": plain.scale}
+    meta = {**plain.metadata, "format_version": 1}
+    p = write_npz(tmp_path / "m1.npz", arrays, {**meta, "regressor": "yes"})
+    with pytest.raises(ModelError, match="'regressor' must be a JSON object"):
+        load_model(p)
+    p = write_npz(tmp_path / "m2.npz", arrays, {**meta, "regressor": {"kind": "box_regressor"}})
+    with pytest.raises(ModelError, match="missing array"):
+        load_model(p)
+    zeros = {v: np.zeros((4, 3)) for v in CARRIED.values()}
+    p = write_npz(tmp_path / "m3.npz", {**arrays, **zeros}, {**meta, "regressor": {"kind": "no", "format_version": 1}})
+    with pytest.raises(ModelError, match="not a box regressor") as e:
+        carried_regressor(load_model(p), str(p))
+    assert str(p) in str(e.value) and "\n" not in str(e.value)
 
 
 def test_cascade_save_load_and_stage_choice(tmp_path: Path) -> None:
