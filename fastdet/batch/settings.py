@@ -1,16 +1,20 @@
 """What a batch video's outputs depend on (:class:`~fastdet.config.batch.Settings`, defined
 with the other settings in :mod:`fastdet.config.batch`), checking them before any work
-(:func:`check`) and what the outputs are called (:func:`output_paths`)."""
+(:func:`check`), whether the main model carries its own box regressor
+(:func:`carries_regressor`) and what the outputs are called (:func:`output_paths`)."""
 from __future__ import annotations
 
 import os
 from pathlib import Path
 
+from ..config import PipelineConfig
 from ..config.batch import Settings, file_sha256
+from ..model import load_model
 from ..video.detector import make_detector
 from ..video.refine import regressor_for
 
-__all__ = ["MANIFEST_NAME", "SUFFIXES", "Settings", "check", "max_name_length", "file_sha256", "output_paths"]
+__all__ = ["MANIFEST_NAME", "SUFFIXES", "Settings", "carries_regressor", "check", "max_name_length", "file_sha256",
+           "output_paths"]
 
 #: output kind -> file name suffix after the video's output name
 SUFFIXES = {"boxes": ".boxes.txt", "json": ".boxes.jsonl", "video": ".annotated.mp4"}
@@ -23,6 +27,16 @@ def max_name_length(out_dir: str | os.PathLike) -> int:
     from ..io.paths import name_max
 
     return max(16, name_max(out_dir) - max(len(s) for s in SUFFIXES.values()))
+
+
+def carries_regressor(pipeline: PipelineConfig) -> bool:
+    """Whether ``pipeline`` refines with the box regressor its main model file carries (a model
+    ``fastdet adapt`` made; no regressor file named): :meth:`Settings.create`'s ``refine_carried``."""
+    if pipeline.refine is None or pipeline.refine_model is not None or pipeline.model is None:
+        return False
+    if not os.path.isfile(pipeline.model):
+        return False  # Settings.create says it is missing, in its words
+    return load_model(pipeline.model).regressor is not None
 
 
 def check(settings: Settings) -> None:

@@ -88,7 +88,9 @@ def run(args: argparse.Namespace) -> int:
     writes = inputs.batch_writes(out_dir, settings_mod.SUFFIXES.values(),
                                  [out_dir / settings_mod.MANIFEST_NAME, *([table] if table is not None else [])])
     videos = inputs.expand_inputs(args.inputs, writes)
-    settings = settings_mod.Settings.create(pipeline_config(args), video=args.video, json=args.json)
+    pipeline = pipeline_config(args)
+    settings = settings_mod.Settings.create(pipeline, video=args.video, json=args.json,
+                                            refine_carried=settings_mod.carries_regressor(pipeline))
     settings_mod.check(settings)
     if scheduler:
         job.check_address(scheduler)

@@ -40,15 +40,6 @@ def file_sha256(path: str | os.PathLike) -> str:
     return h.hexdigest()
 
 
-def _carries_regressor(path: str) -> bool:
-    """Whether the main model file ``path`` carries its camera's box regressor (``fastdet adapt``
-    writes one: :func:`fastdet.video.refine.regressor_for` takes it when no regressor file is
-    given)."""
-    from ..model import load_model  # a layer above: read only here, when a batch is set up
-
-    return load_model(path).regressor is not None
-
-
 @dataclass(frozen=True)
 class Settings:
     """The per-video settings of a batch (build with :meth:`create`).
@@ -68,16 +59,20 @@ class Settings:
     refine_sha256: str = ""
 
     @classmethod
-    def create(cls, pipeline: PipelineConfig | None = None, video: bool = False, json: bool = False) -> Settings:
+    def create(cls, pipeline: PipelineConfig | None = None, video: bool = False, json: bool = False,
+               refine_carried: bool = False) -> Settings:
         """Settings for ``pipeline`` (default ``PipelineConfig()``): its model files made absolute
-        (``None``: the bundled ones) and hashed; :class:`ModelError` for a missing file."""
+        (``None``: the bundled ones) and hashed; :class:`ModelError` for a missing file.
+        ``refine_carried``: the main model file carries its camera's box regressor
+        (:func:`fastdet.batch.settings.carries_regressor`), which the pipeline then refines with
+        when no regressor file is named: no regressor file of its own (the model's hash covers it)."""
         p = pipeline if pipeline is not None else PipelineConfig()
         main = resolve_model(p.model, DEFAULT_MODEL_PATH)
         wide = None if p.oncoming is False else resolve_model(None if p.oncoming is True else p.oncoming,
                                                                ONCOMING_MODEL_PATH)
         refine = None if p.refine is None else resolve_model(p.refine_model, REFINE_MODEL_PATH)
-        if refine is not None and p.refine_model is None and os.path.isfile(main) and _carries_regressor(main):
-            refine = None  # the main model's own (its file, hashed above, holds it)
+        if refine_carried and p.refine_model is None:
+            refine = None  # the main model's own (its file, hashed below, holds it)
         for f in (main, wide, refine):
             if f is not None and not os.path.isfile(f):
                 raise ModelError(str(not_found(f, f"{f}: model file not found")))

@@ -80,6 +80,7 @@ def test_a_model_file_carries_its_cameras_regressor(tmp_path: Path) -> None:
     """adapt's model file holds the camera's regressor beside the main model's arrays: loaded
     back it refines exactly as the regressor did, the pipeline takes it when no regressor file
     is named (a named one wins), and the main model's own arrays are untouched."""
+    from fastdet.batch.settings import carries_regressor
     from fastdet.config import PipelineConfig
     from fastdet.config.batch import Settings
     from fastdet.model import load_model
@@ -111,7 +112,9 @@ def test_a_model_file_carries_its_cameras_regressor(tmp_path: Path) -> None:
     assert regressor_for(None, None).metadata.get("note") != "camera"
     np.testing.assert_array_equal(PictureDetector(str(path)).regressor.coef, reg.coef)
     # a batch keeps it (no regressor file of its own: the model file's hash covers it)
-    assert Settings.create(PipelineConfig(model=str(path))).pipeline.refine_model is None
+    cam = PipelineConfig(model=str(path))
+    assert carries_regressor(cam) and not carries_regressor(PipelineConfig())
+    assert Settings.create(cam, refine_carried=carries_regressor(cam)).pipeline.refine_model is None
     assert Settings.create(PipelineConfig()).pipeline.refine_model == str(REFINE_MODEL_PATH.resolve())
 
 
