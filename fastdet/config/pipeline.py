@@ -60,7 +60,8 @@ class PipelineConfig(Config):
     model: the main model file; ``None``: the bundled one (:data:`~fastdet.config.models.DEFAULT_MODEL_PATH`).
     oncoming: the oncoming-traffic (wide-window) model: ``True`` the bundled one, a path for
         another, ``False`` none.
-    refine_model: the box regressor file; ``None``: the bundled one.
+    refine_model: the box regressor file; ``None``: the one the main model file carries (a model
+        ``fastdet adapt`` made), else the bundled one.
     traffic: the side of the road traffic drives on (:data:`~fastdet.config.TRAFFIC_SIDES`),
         which decides where the oncoming model searches (:func:`~fastdet.config.oncoming_search`).
     search: the main model's search bands (:class:`SearchConfig`).
