@@ -409,7 +409,8 @@ def run(args: argparse.Namespace) -> int:
     _signals.check()
     t = time.perf_counter()
     regressor, regressor_fit = _adapt.fit_camera_regressor(train_pics, load_regressor(), config, progress)
-    model = carrying(model, regressor)  # every model file written from here on carries it
+    if regressor is not None:
+        model = carrying(model, regressor)  # every model file written from here on carries it
     secs["regressor"] = time.perf_counter() - t
     _signals.check()
 
@@ -459,9 +460,13 @@ def run(args: argparse.Namespace) -> int:
     print(f"frames: {len(train_pics)} trained on ({n_targets} {labelled_by} targets; {counts['positives']} "
           f"positive, {counts['negatives']} background, {counts['hard_negatives']} hard negative crops x "
           f"weight {config.weight}), {n_held} kept-aside frames scored")
-    print(f"box regressor: fitted on {regressor_fit['samples']} jittered boxes about {regressor_fit['groups']} "
-          f"labelled vehicles; a box's IoU with its vehicle {regressor_fit['input_mean_iou']:.2f} -> "
-          f"{regressor_fit['output_mean_iou']:.2f} after one step (mean, cross-validated)")
+    if regressor is not None:
+        print(f"box regressor: fitted on {regressor_fit['samples']} jittered boxes about {regressor_fit['groups']} "
+              f"labelled vehicles; a box's IoU with its vehicle {regressor_fit['input_mean_iou']:.2f} -> "
+              f"{regressor_fit['output_mean_iou']:.2f} after one step (mean, cross-validated)")
+    else:
+        print(f"box regressor: the bundled one (only {regressor_fit['groups']} labelled vehicles to fit the "
+              f"camera's own on, fewer than {_adapt.MIN_REGRESSOR_VEHICLES})")
     print("seconds: " + ", ".join(f"{k} {v:.1f}" for k, v in secs.items()))
     if n_held:
         print("offsets tried (F1): " + ", ".join(f"{k} {'-' if v is None else f'{v:.2f}'}" for k, v in tried.items())

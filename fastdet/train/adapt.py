@@ -63,6 +63,10 @@ from .refine import fit_cascade, jittered_views
 
 #: the camera id of every adapted picture
 CAMERA = "adapt"
+#: the fewest labelled vehicles (of 4 px and more) the camera's own box regressor is fitted on;
+#: with fewer the model keeps the bundled regressor. The cameras measured had 61-383
+#: (docs/training.md, "The camera's own box regressor"); a fit on a handful would be unmeasured
+MIN_REGRESSOR_VEHICLES = 50
 
 
 @dataclass(frozen=True)
@@ -343,7 +347,7 @@ def fit_camera_model(data: Path, bundled: Model, crops: CropSet, config: AdaptCo
 
 
 def fit_camera_regressor(pictures: Sequence[AnnotatedPicture], bundled: BoxRegressor, config: AdaptConfig,
-                         progress: bool = True) -> tuple[BoxRegressor, dict[str, Any]]:
+                         progress: bool = True) -> tuple[BoxRegressor | None, dict[str, Any]]:
     """The box regressor of the camera: one ridge stage on ``bundled``'s features (its
     :attr:`~BoxRegressor.spec`), fitted on the jittered boxes about each labelled target of
     ``pictures`` and as many in the mirrored frame (:class:`~fastdet.config.JitterConfig`'s, as the
@@ -351,15 +355,20 @@ def fit_camera_regressor(pictures: Sequence[AnnotatedPicture], bundled: BoxRegre
     (:func:`~fastdet.train.refine.jittered_views`), its penalty chosen by cross-validation over
     folds that keep a vehicle on one side (:func:`~fastdet.train.refine.fit_cascade`). Returns it
     with its fit's report (samples, vehicles, the penalty, the cross-validated mean IoU before and
-    after one step). ``DataError`` when no picture has a target."""
+    after one step); ``(None, {"groups": n})`` when the pictures hold fewer than
+    :data:`MIN_REGRESSOR_VEHICLES` vehicles of 4 px and more (the model keeps the bundled one)."""
+    def usable(t: np.ndarray) -> np.ndarray:  # what jittered_views cuts boxes about
+        return t[((t[:, 2] - t[:, 0]) >= 4) & ((t[:, 3] - t[:, 1]) >= 4)] if len(t) else t.reshape(0, 4)
+
+    vehicles = sum(len(usable(p.targets)) for p in pictures)
+    if vehicles < MIN_REGRESSOR_VEHICLES:
+        return None, {"groups": vehicles}
     frames, group = [], 0
     for pic, image in _ticking(pictures, "box regressor", progress):
-        n = len(pic.targets)
-        if n:
-            frames.append((image, pic.targets, np.arange(group, group + n)))
-            group += n
-    if not frames:
-        raise DataError("no labelled vehicle to fit the camera's box regressor on")
+        t = usable(pic.targets)
+        if len(t):
+            frames.append((image, t, np.arange(group, group + len(t))))
+            group += len(t)
     views = jittered_views(frames, seed=config.seed)
     (arrays, report), = fit_cascade(views, bundled.spec, 1)
     report = {k: report[k] for k in ("samples", "groups", "alpha", "input_mean_iou", "output_mean_iou")}

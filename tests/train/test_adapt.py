@@ -185,3 +185,21 @@ def test_the_camera_crops_are_weighted_not_repeated(data, monkeypatch):
     assert list(w[-7:]) == [3.0] * 7 and (w[:-7] == 1).all()
     assert list(y[-7:]) == [1, 1, 0, 0, 0, 1, 1]
     assert model.metadata["training"]["extra_weight"] == 3.0
+
+
+def test_the_cameras_regressor_needs_enough_vehicles(data, monkeypatch):
+    """Below MIN_REGRESSOR_VEHICLES vehicles (of 4 px and more) no regressor is fitted: the model
+    keeps the bundled one; at the floor one is, on the boxes about those vehicles (and mirrored)."""
+    from fastdet.video.refine import load_regressor
+
+    img = data / "test_images" / "test1.jpg"
+    cars = np.array([[810.0, 400, 950, 500], [1050, 400, 1270, 510], [600, 400, 602, 450]])  # the last: 2 px wide
+    pics = [AnnotatedPicture("t", "cam", f"p{i}", img, 1280, 720, targets=cars) for i in range(3)]
+    bundled = load_regressor()
+    monkeypatch.setattr(adapt, "MIN_REGRESSOR_VEHICLES", 7)
+    reg, report = adapt.fit_camera_regressor(pics, bundled, AdaptConfig(), progress=False)
+    assert reg is None and report == {"groups": 6}
+    monkeypatch.setattr(adapt, "MIN_REGRESSOR_VEHICLES", 6)
+    reg, report = adapt.fit_camera_regressor(pics, bundled, AdaptConfig(), progress=False)
+    assert reg is not None and report["groups"] == 6 and report["samples"] == 6 * 2 * 16
+    assert reg.spec.n_features == bundled.spec.n_features and not np.array_equal(reg.coef, bundled.coef)
