@@ -59,13 +59,14 @@ from .blend import offset
 from .dataset import CropSet
 from .fit import train
 from .pictures import hard_negative_crops, picture_crops
-from .refine import fit_cascade, jittered_views
+from .refine import MIN_VEHICLE_PX, fit_cascade, jittered_views
 
 #: the camera id of every adapted picture
 CAMERA = "adapt"
-#: the fewest labelled vehicles (of 4 px and more) the camera's own box regressor is fitted on;
-#: with fewer the model keeps the bundled regressor. The cameras measured had 61-383
-#: (docs/training.md, "The camera's own box regressor"); a fit on a handful would be unmeasured
+#: the fewest labelled vehicles (of :data:`~fastdet.train.refine.MIN_VEHICLE_PX` and more) the
+#: camera's own box regressor is fitted on; with fewer the model keeps the bundled regressor.
+#: The cameras measured had 61-383 (docs/training.md, "The camera's own box regressor"); a fit
+#: on a handful would be unmeasured
 MIN_REGRESSOR_VEHICLES = 50
 
 
@@ -358,7 +359,8 @@ def fit_camera_regressor(pictures: Sequence[AnnotatedPicture], bundled: BoxRegre
     after one step); ``(None, {"groups": n})`` when the pictures hold fewer than
     :data:`MIN_REGRESSOR_VEHICLES` vehicles of 4 px and more (the model keeps the bundled one)."""
     def usable(t: np.ndarray) -> np.ndarray:  # what jittered_views cuts boxes about
-        return t[((t[:, 2] - t[:, 0]) >= 4) & ((t[:, 3] - t[:, 1]) >= 4)] if len(t) else t.reshape(0, 4)
+        return t[((t[:, 2] - t[:, 0]) >= MIN_VEHICLE_PX) & ((t[:, 3] - t[:, 1]) >= MIN_VEHICLE_PX)] \
+            if len(t) else t.reshape(0, 4)
 
     vehicles = sum(len(usable(p.targets)) for p in pictures)
     if vehicles < MIN_REGRESSOR_VEHICLES:

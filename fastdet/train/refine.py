@@ -24,6 +24,8 @@ from ..boxes import iou as box_iou
 from ..config import JitterConfig
 from ..detect.regressor import BoxFeatures, decode_offsets, encode_offsets
 
+#: the narrowest and lowest box (px) a training box is cut about or taken as an input
+MIN_VEHICLE_PX = 4
 #: ridge penalties tried by :func:`fit_ridge` (on standardised features, summed squared error)
 ALPHAS = tuple(float(a) for a in np.logspace(1, 6, 11))
 
@@ -216,7 +218,7 @@ def jittered_views(frames: Iterable[tuple[np.ndarray, np.ndarray, np.ndarray]], 
         for v in ([base, mirror(base)] if flip else [base]):
             boxes, tgs, grp = [], [], []
             for g, t in zip(v.group, v.targets):
-                if t[2] - t[0] < 4 or t[3] - t[1] < 4:
+                if t[2] - t[0] < MIN_VEHICLE_PX or t[3] - t[1] < MIN_VEHICLE_PX:
                     continue
                 b = jitter_boxes(t, jitter.per_box, rng, jitter)
                 boxes.append(b)
@@ -236,7 +238,7 @@ def matched_inputs(boxes: np.ndarray, targets: np.ndarray, groups: np.ndarray,
     b = np.unique(np.asarray(boxes, np.float64).reshape(-1, 4), axis=0)
     t = np.asarray(targets, np.float64).reshape(-1, 4)
     g = np.asarray(groups, np.int64).reshape(-1)
-    b = b[((b[:, 2] - b[:, 0]) >= 4) & ((b[:, 3] - b[:, 1]) >= 4)]
+    b = b[((b[:, 2] - b[:, 0]) >= MIN_VEHICLE_PX) & ((b[:, 3] - b[:, 1]) >= MIN_VEHICLE_PX)]
     if not len(b) or not len(t):
         return np.zeros((0, 4)), np.zeros((0, 4)), np.zeros(0, np.int64)
     m = box_iou(b, t)

@@ -27,7 +27,7 @@ from .heatmap import KERNELS as HEAT_KERNELS
 from .heatmap import HeatMap
 from .plausible import duplicates
 from .refine import KERNELS as REFINE_KERNELS
-from .refine import BoxRegressor, carried_regressor, load_regressor, refine
+from .refine import BoxRegressor, refine, regressor_for
 
 #: pictures sizes whose :class:`fastdet.Detector` a :class:`PictureDetector` keeps
 _CACHED_SHAPES = 8
@@ -69,9 +69,8 @@ class PictureDetector:
             raise TypeError(f"config must be a PictureSearch, got {type(self.config).__name__}")
         self.regressor: BoxRegressor | None = None
         if self.config.refine is not None:
-            carried = carried_regressor(self.model) if refine_model is None else None
             self.regressor = (refine_model if isinstance(refine_model, BoxRegressor)
-                              else carried if carried is not None else load_regressor(refine_model))
+                              else regressor_for(self.model, refine_model))
         self.verifier: BoxVerifier | None = None
         if self.config.verify:
             self.verifier = verifier if isinstance(verifier, BoxVerifier) else load_verifier(verifier)

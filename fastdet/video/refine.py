@@ -10,6 +10,7 @@ step ``i`` with its ``i``-th stage (the last one for the steps after them).
 """
 from __future__ import annotations
 
+import os
 from dataclasses import replace
 
 import numpy as np
@@ -27,19 +28,22 @@ from ..detect.regressor import (  # noqa: F401 - the regressor's names, as this 
     load_regressor,
 )
 from ..detections import Detections
-from ..model import load_model
+from ..model import Model, load_model
 
 
-def regressor_for(model: str | None, refine_model: str | None) -> BoxRegressor:
-    """The box regressor a pipeline with main model file ``model`` and regressor file
-    ``refine_model`` (:class:`~fastdet.config.PipelineConfig`'s, ``None``: not given) refines
-    with: ``refine_model`` when given; else the one ``model`` carries (a model ``fastdet adapt``
-    made for its camera); else the bundled one."""
+def regressor_for(model: Model | str | os.PathLike[str] | None,
+                  refine_model: str | os.PathLike[str] | None) -> BoxRegressor:
+    """The box regressor a pipeline with main model ``model`` (a loaded :class:`~fastdet.model.Model`
+    or its file) and regressor file ``refine_model`` (:class:`~fastdet.config.PipelineConfig`'s,
+    ``None``: not given) refines with: ``refine_model`` when given; else the one ``model``
+    carries (a model ``fastdet adapt`` made for its camera); else the bundled one."""
     if refine_model is None and model is not None:
-        carried = carried_regressor(load_model(model), model)
+        loaded = model if isinstance(model, Model) else load_model(model)
+        carried = carried_regressor(loaded, "the model" if isinstance(model, Model) else str(model))
         if carried is not None:
             return carried
     return load_regressor(refine_model)
+
 
 # ---------------------------------------------------------------------------------------- refinement
 
