@@ -9,9 +9,8 @@ from pathlib import Path
 
 from ..config import PipelineConfig
 from ..config.batch import Settings, file_sha256
-from ..model import load_model
 from ..video.detector import make_detector
-from ..video.refine import regressor_for
+from ..video.refine import carried_regressor_for, regressor_for
 
 __all__ = ["MANIFEST_NAME", "SUFFIXES", "Settings", "carries_regressor", "check", "max_name_length", "file_sha256",
            "output_paths"]
@@ -32,19 +31,18 @@ def max_name_length(out_dir: str | os.PathLike) -> int:
 def carries_regressor(pipeline: PipelineConfig) -> bool:
     """Whether ``pipeline`` refines with the box regressor its main model file carries (a model
     ``fastdet adapt`` made; no regressor file named): :meth:`Settings.create`'s ``refine_carried``."""
-    if pipeline.refine is None or pipeline.refine_model is not None or pipeline.model is None:
-        return False
-    if not os.path.isfile(pipeline.model):
-        return False  # Settings.create says it is missing, in its words
-    return load_model(pipeline.model).regressor is not None
+    if pipeline.refine is None or pipeline.model is None or not os.path.isfile(pipeline.model):
+        return False  # a missing file: Settings.create says so, in its words
+    return carried_regressor_for(pipeline.model, pipeline.refine_model) is not None
 
 
 def check(settings: Settings) -> None:
     """Load the models as a worker will: :class:`~fastdet.errors.ModelError` (one line) now,
     before any work, for a file that is not a model or a wide model that is not one."""
-    make_detector(settings.pipeline)
-    if settings.pipeline.refine is not None:
-        regressor_for(settings.pipeline.model, settings.pipeline.refine_model)
+    pipeline = settings.pipeline
+    detector = make_detector(pipeline)
+    if pipeline.refine is not None:  # a carried regressor comes out of the model the detector loaded
+        regressor_for(detector.model, pipeline.refine_model, name=pipeline.model)
 
 
 def output_paths(out_dir: str | os.PathLike, name: str, settings: Settings) -> dict[str, Path]:

@@ -30,6 +30,7 @@ import numpy as np
 from .._numba import ensure_compiled, serial_thread
 from ..config import PipelineConfig
 from ..detections import Detections
+from ..model import Model
 from .blobsplit import KERNELS as SPLIT_KERNELS
 from .blobsplit import window_modes
 from .detector import MovableHorizon, WindowDetector, detector_kernels, make_detector
@@ -169,8 +170,13 @@ class VideoDetector:
         if self.config.refine is not None:
             if refiner is not None and not isinstance(refiner, BoxRegressor):
                 raise TypeError(f"refiner must be a BoxRegressor, got {type(refiner).__name__}")
-            self.refiner = (refiner if refiner is not None
-                            else regressor_for(self.config.model, self.config.refine_model))
+            if refiner is None:
+                model: Model | str | None = self.config.model
+                if detector is None and model is not None and self.config.refine_model is None:
+                    made = make_detector(self.config)  # the main model file read once, by the detector
+                    self._detector, model = made, made.model
+                refiner = regressor_for(model, self.config.refine_model, name=self.config.model)
+            self.refiner = refiner
         self._stages: list[Stage] | None = None
         self.timings: dict[str, float] = {}
         self.debug = FrameDebug()

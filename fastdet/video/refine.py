@@ -32,17 +32,29 @@ from ..model import Model, load_model
 
 
 def regressor_for(model: Model | str | os.PathLike[str] | None,
-                  refine_model: str | os.PathLike[str] | None) -> BoxRegressor:
+                  refine_model: str | os.PathLike[str] | None, *,
+                  name: str | os.PathLike[str] | None = None) -> BoxRegressor:
     """The box regressor a pipeline with main model ``model`` (a loaded :class:`~fastdet.model.Model`
     or its file) and regressor file ``refine_model`` (:class:`~fastdet.config.PipelineConfig`'s,
     ``None``: not given) refines with: ``refine_model`` when given; else the one ``model``
-    carries (a model ``fastdet adapt`` made for its camera); else the bundled one."""
-    if refine_model is None and model is not None:
-        loaded = model if isinstance(model, Model) else load_model(model)
-        carried = carried_regressor(loaded, "the model" if isinstance(model, Model) else str(model))
-        if carried is not None:
-            return carried
-    return load_regressor(refine_model)
+    carries (a model ``fastdet adapt`` made for its camera); else the bundled one. ``name``: what
+    an error about a carried regressor calls a loaded ``model`` (its file)."""
+    carried = carried_regressor_for(model, refine_model, name=name)
+    return carried if carried is not None else load_regressor(refine_model)
+
+
+def carried_regressor_for(model: Model | str | os.PathLike[str] | None,
+                          refine_model: str | os.PathLike[str] | None, *,
+                          name: str | os.PathLike[str] | None = None) -> BoxRegressor | None:
+    """The regressor ``model`` carries when :func:`regressor_for` picks it (no ``refine_model``
+    named, and the model carries one); else ``None`` (the named or the bundled file is used).
+    The one place that says a named file wins over a carried regressor."""
+    if refine_model is not None or model is None:
+        return None
+    loaded = model if isinstance(model, Model) else load_model(model)
+    if name is None:
+        name = "the model" if isinstance(model, Model) else model
+    return carried_regressor(loaded, str(name))
 
 
 # ---------------------------------------------------------------------------------------- refinement

@@ -111,6 +111,27 @@ def test_a_model_file_carries_its_cameras_regressor(tmp_path: Path) -> None:
     assert regressor_for(str(path), str(REFINE_MODEL_PATH)).metadata.get("note") != "camera"
     assert regressor_for(None, None).metadata.get("note") != "camera"
     np.testing.assert_array_equal(PictureDetector(str(path)).regressor.coef, reg.coef)
+    # a VideoDetector refines with it too, the main model file read once (by its detector)
+    import fastdet.detect.detector as detector_mod
+    import fastdet.video.refine as refine_mod
+    from fastdet.video import VideoDetector
+
+    reads: list[str] = []
+
+    def counted(p: object = None, *a: object, **k: object) -> object:
+        reads.append(str(p))
+        return load_model(p, *a, **k)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(detector_mod, "load_model", counted)
+        mp.setattr(refine_mod, "load_model", counted)
+        vd = VideoDetector(config=PipelineConfig(model=str(path)))
+        assert vd.detector.model.metadata == back.metadata
+    assert vd.refiner is not None
+    np.testing.assert_array_equal(vd.refiner.coef, reg.coef)
+    assert reads.count(str(path)) == 1, reads
+    assert VideoDetector(config=PipelineConfig(model=str(path), refine_model=str(REFINE_MODEL_PATH))
+                         ).refiner.metadata.get("note") != "camera"
     # a batch keeps it (no regressor file of its own: the model file's hash covers it)
     cam = PipelineConfig(model=str(path))
     assert carries_regressor(cam) and not carries_regressor(PipelineConfig())
