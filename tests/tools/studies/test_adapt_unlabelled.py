@@ -1,0 +1,23 @@
+"""tools/studies/adapt_unlabelled.py: the ensemble's boxes of a clip's kept-aside stretch."""
+from __future__ import annotations
+
+import numpy as np
+
+from fastdet.data import data_dir
+from fastdet.labels.teacher import read_teacher_clip
+from tools.studies.adapt_unlabelled import kept_aside_truth
+
+
+def test_kept_aside_truth_is_the_ensembles_boxes_from_the_stretch_on():
+    data = data_dir()
+    clip = "akin_highway"
+    every = read_teacher_clip(data / "teacher" / f"{clip}.teacher.txt", video=data / "videos" / f"{clip}.mp4",
+                              camera=clip, source="teacher")
+    start = every[len(every) // 2].frame
+    gt, frames = kept_aside_truth(clip, data, start)
+    later = [p for p in every if p.frame >= start]
+    assert frames.tolist() == [p.frame for p in later] and frames.min() >= start
+    assert int(gt.consider.sum()) == sum(len(p.targets) for p in later)
+    assert int((~gt.consider).sum()) == sum(len(p.ignores) for p in later)
+    first = later[0]
+    np.testing.assert_array_equal(gt.boxes[(gt.frames == first.frame) & gt.consider], first.targets)

@@ -1,0 +1,111 @@
+"""``fastdet adapt`` on the unlabelled clips of ``$FASTDET_DATA/videos``, scored against the shared
+teacher ensemble (``teacher/CLIP.teacher.txt``) on the stretch adapt kept aside (run by hand;
+docs/training.md, "The camera's own box regressor").
+
+For each clip: ``python -m fastdet adapt videos/CLIP.mp4 --teacher teachers/yolox_nano.onnx -o
+WORK/CLIP.npz`` at the defaults (skipped when WORK/CLIP.npz exists: a rerun only scores), then the
+video pipeline over the kept-aside stretch (from ``metadata["adapt"]["footage"][0]
+["kept_aside_from"]`` to the end, as ``detect_video``) with three main models:
+
+- the bundled one;
+- the adapted one with the bundled box regressor (its carried regressor left out: written as
+  ``WORK/CLIP.noreg.npz``);
+- the adapted one as written (its own regressor, when adapt fitted one).
+
+Each is scored with :func:`fastdet.eval.evaluate` (IoU 0.5, no tracking) on the stretch's frames
+the ensemble labelled: its targets (the data README's rule, ``read_teacher_clip``) count,
+the rest are ignore regions. This is the issue's second, cheaper signal: the ensemble's boxes are
+not ground truth, and adapt trained on other labels (its own teacher's, on frames before the
+stretch). Prints a markdown table, one row a clip (F1, hits / false alarms / misses).
+
+    python -m tools.studies.adapt_unlabelled --work W [--clips anmol_highway,tmo_seattle1,...]
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from fastdet.data import data_dir
+from fastdet.detections import Detections
+from fastdet.eval import evaluate
+from fastdet.labels.teacher import read_teacher_clip
+from fastdet.model import load_model
+from fastdet.video.run import detect_video
+from tools.studies.markdown import table
+
+#: the unlabelled clips measured in docs/training.md (every clip of ``teacher/``)
+CLIPS = ("akin_highway", "anmol_highway", "chanremin_v49", "tmo_seattle1", "driveai_road", "suchet_car",
+         "hadiya_input", "tmo_rainy", "teamlv_rainy", "samyx_nuit")
+
+
+def adapt(clip: str, out: Path, data: Path) -> bool:
+    """Run ``fastdet adapt`` on the clip into ``out`` unless it exists; False when adapt refused
+    (its one line is printed)."""
+    if out.exists():
+        return True
+    cmd = [sys.executable, "-m", "fastdet", "adapt", str(data / "videos" / f"{clip}.mp4"),
+           "--teacher", str(data / "teachers" / "yolox_nano.onnx"), "-o", str(out), "--no-progress"]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode:
+        print(f"{clip}: adapt: {(r.stderr.strip().splitlines() or ['(no message)'])[-1]}", file=sys.stderr)
+        return False
+    return True
+
+
+def kept_aside_truth(clip: str, data: Path, start: int) -> tuple[Detections, np.ndarray]:
+    """The ensemble's boxes of the clip's frames from ``start`` on (targets, and ignore regions with
+    ``consider`` False) and those frames."""
+    video = data / "videos" / f"{clip}.mp4"
+    pics = [p for p in read_teacher_clip(data / "teacher" / f"{clip}.teacher.txt", video=video,
+                                         camera=clip, source="teacher") if p.frame >= start]
+    boxes, frames, consider = [np.zeros((0, 4))], [np.zeros(0, np.int64)], [np.zeros(0, bool)]
+    for p in pics:
+        boxes += [p.targets, p.ignores]
+        frames.append(np.full(len(p.targets) + len(p.ignores), p.frame, np.int64))
+        consider.append(np.r_[np.ones(len(p.targets), bool), np.zeros(len(p.ignores), bool)])
+    gt = Detections(np.concatenate(boxes), frames=np.concatenate(frames), consider=np.concatenate(consider))
+    return gt, np.array([p.frame for p in pics], np.int64)
+
+
+def score(clip: str, model: Path, data: Path) -> str:
+    """One table row: the three models on the clip's kept-aside stretch."""
+    m = load_model(model)
+    footage = m.metadata["adapt"]["footage"][0]
+    start, total = int(footage["kept_aside_from"]), int(footage["frames"])
+    gt, keyframes = kept_aside_truth(clip, data, start)
+    plain = model.with_name(model.stem + ".noreg.npz")
+    dataclasses.replace(m, regressor=None).save(plain)
+    cells = []
+    for path in (None, plain, model):
+        tables = list(detect_video(data / "videos" / f"{clip}.mp4", model=None if path is None else str(path),
+                                   start=start - 1, frames=total - start + 1, progress=False))
+        r = evaluate(gt, Detections.concat(tables), keyframes=keyframes, tracking=False)
+        cells.append(f"{r.f1:.2f} ({r.tp} / {r.fp} / {r.fn})" if r.tp + r.fp + r.fn else "no box, no target")
+    return f"| {clip} | {len(keyframes)} | " + " | ".join(cells) + " |"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--work", required=True, type=Path, help="folder of the adapted models (made if missing)")
+    ap.add_argument("--clips", default=",".join(CLIPS), help="comma-separated clip names of videos/")
+    a = ap.parse_args(argv)
+    data = data_dir()
+    a.work.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for clip in a.clips.split(","):
+        out = a.work / f"{clip}.npz"
+        if adapt(clip, out, data):
+            rows.append(score(clip, out, data))
+            print(rows[-1], file=sys.stderr, flush=True)
+    print(table("| clip | kept-aside teacher frames | bundled model | adapted, bundled regressor | "
+                "adapted, own regressor |", rows))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
