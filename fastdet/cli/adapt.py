@@ -134,14 +134,10 @@ def work_folder(out: Path) -> Path:
 
 
 def _gt(pictures: list[AnnotatedPicture]) -> Detections:
-    """The pictures' labels as a ground-truth table (targets ``consider`` 1, ignore regions 0)."""
-    boxes, frames, consider = [np.zeros((0, 4))], [np.zeros(0, np.int64)], [np.zeros(0, bool)]
-    for p in pictures:
-        boxes += [p.targets, p.ignores]
-        frames.append(np.full(len(p.targets) + len(p.ignores), p.frame, np.int64))
-        consider.append(np.r_[np.ones(len(p.targets), bool), np.zeros(len(p.ignores), bool)])
-    return Detections(np.concatenate(boxes), frames=np.concatenate(frames), consider=np.concatenate(consider),
-                      source="kept-aside labels")
+    """The kept-aside pictures' labels as a ground-truth table (:func:`~fastdet.eval.pictures.frames_ground_truth`)."""
+    from ..eval.pictures import frames_ground_truth
+
+    return frames_ground_truth(pictures, source="kept-aside labels")
 
 
 def _predictions(tables: list[Detections]) -> Detections:

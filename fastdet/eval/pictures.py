@@ -106,6 +106,18 @@ class SourceScore:
                                      "recall": None if b.total == 0 else b.recall} for b in self.widths]}
 
 
+def frames_ground_truth(pictures: Iterable[AnnotatedPicture], source: str = "labels") -> Detections:
+    """Labelled frames of one video as a ground-truth table for :func:`fastdet.eval.evaluate`:
+    each picture's targets (``consider`` True) and ignore regions (False) at its ``frame``."""
+    boxes, frames, consider = [np.zeros((0, 4))], [np.zeros(0, np.int64)], [np.zeros(0, bool)]
+    for p in pictures:
+        boxes += [p.targets, p.ignores]
+        frames.append(np.full(len(p.targets) + len(p.ignores), p.frame, np.int64))
+        consider.append(np.r_[np.ones(len(p.targets), bool), np.zeros(len(p.ignores), bool)])
+    return Detections(np.concatenate(boxes), frames=np.concatenate(frames), consider=np.concatenate(consider),
+                      source=source)
+
+
 def score_source(name: str, pictures: Sequence[AnnotatedPicture], predictions: Sequence[Detections],
                  iou: float = 0.5, edges: tuple[float, ...] = REPORT_EDGES, seconds: float = 0.0) -> SourceScore:
     """Score one source: ``predictions[i]`` are the boxes found in ``pictures[i]`` (module

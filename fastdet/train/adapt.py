@@ -59,7 +59,7 @@ from .blend import offset
 from .dataset import CropSet
 from .fit import train
 from .pictures import hard_negative_crops, picture_crops
-from .refine import MIN_VEHICLE_PX, fit_cascade, jittered_views
+from .refine import fit_cascade, jittered_views, large_enough
 
 #: the camera id of every adapted picture
 CAMERA = "adapt"
@@ -359,8 +359,7 @@ def fit_camera_regressor(pictures: Sequence[AnnotatedPicture], bundled: BoxRegre
     after one step); ``(None, {"groups": n})`` when the pictures hold fewer than
     :data:`MIN_REGRESSOR_VEHICLES` vehicles of 4 px and more (the model keeps the bundled one)."""
     def usable(t: np.ndarray) -> np.ndarray:  # what jittered_views cuts boxes about
-        return t[((t[:, 2] - t[:, 0]) >= MIN_VEHICLE_PX) & ((t[:, 3] - t[:, 1]) >= MIN_VEHICLE_PX)] \
-            if len(t) else t.reshape(0, 4)
+        return np.asarray(t, np.float64).reshape(-1, 4)[large_enough(t)]
 
     vehicles = sum(len(usable(p.targets)) for p in pictures)
     if vehicles < MIN_REGRESSOR_VEHICLES:

@@ -26,6 +26,15 @@ from ..detect.regressor import BoxFeatures, decode_offsets, encode_offsets
 
 #: the narrowest and lowest box (px) a training box is cut about or taken as an input
 MIN_VEHICLE_PX = 4
+
+
+def large_enough(boxes: np.ndarray) -> np.ndarray:
+    """``(N,) bool``: which of ``boxes (N, 4)`` x1, y1, x2, y2 are at least
+    :data:`MIN_VEHICLE_PX` wide and high (a box a regressor may learn from)."""
+    b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    return ((b[:, 2] - b[:, 0]) >= MIN_VEHICLE_PX) & ((b[:, 3] - b[:, 1]) >= MIN_VEHICLE_PX)
+
+
 #: ridge penalties tried by :func:`fit_ridge` (on standardised features, summed squared error)
 ALPHAS = tuple(float(a) for a in np.logspace(1, 6, 11))
 
@@ -238,7 +247,7 @@ def matched_inputs(boxes: np.ndarray, targets: np.ndarray, groups: np.ndarray,
     b = np.unique(np.asarray(boxes, np.float64).reshape(-1, 4), axis=0)
     t = np.asarray(targets, np.float64).reshape(-1, 4)
     g = np.asarray(groups, np.int64).reshape(-1)
-    b = b[((b[:, 2] - b[:, 0]) >= MIN_VEHICLE_PX) & ((b[:, 3] - b[:, 1]) >= MIN_VEHICLE_PX)]
+    b = b[large_enough(b)]
     if not len(b) or not len(t):
         return np.zeros((0, 4)), np.zeros((0, 4)), np.zeros(0, np.int64)
     m = box_iou(b, t)

@@ -33,6 +33,7 @@ import numpy as np
 from fastdet.data import data_dir
 from fastdet.detections import Detections
 from fastdet.eval import evaluate
+from fastdet.eval.pictures import frames_ground_truth
 from fastdet.labels.teacher import read_teacher_clip
 from fastdet.model import load_model
 from fastdet.video.run import detect_video
@@ -63,13 +64,7 @@ def kept_aside_truth(clip: str, data: Path, start: int) -> tuple[Detections, np.
     video = data / "videos" / f"{clip}.mp4"
     pics = [p for p in read_teacher_clip(data / "teacher" / f"{clip}.teacher.txt", video=video,
                                          camera=clip, source="teacher") if p.frame >= start]
-    boxes, frames, consider = [np.zeros((0, 4))], [np.zeros(0, np.int64)], [np.zeros(0, bool)]
-    for p in pics:
-        boxes += [p.targets, p.ignores]
-        frames.append(np.full(len(p.targets) + len(p.ignores), p.frame, np.int64))
-        consider.append(np.r_[np.ones(len(p.targets), bool), np.zeros(len(p.ignores), bool)])
-    gt = Detections(np.concatenate(boxes), frames=np.concatenate(frames), consider=np.concatenate(consider))
-    return gt, np.array([p.frame for p in pics], np.int64)
+    return frames_ground_truth(pics, source="teacher ensemble"), np.array([p.frame for p in pics], np.int64)
 
 
 def score(clip: str, model: Path, data: Path) -> str:
