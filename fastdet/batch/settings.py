@@ -1,7 +1,8 @@
 """What a batch video's outputs depend on (:class:`~fastdet.config.batch.Settings`, defined
-with the other settings in :mod:`fastdet.config.batch`), checking them before any work
-(:func:`check`), whether the main model carries its own box regressor
-(:func:`carries_regressor`) and what the outputs are called (:func:`output_paths`)."""
+with the other settings in :mod:`fastdet.config.batch`), made with their models loaded once
+before any work (:func:`checked_settings`: whether the main model carries its own box
+regressor is read from the model the check loads) and what the outputs are called
+(:func:`output_paths`)."""
 from __future__ import annotations
 
 import os
@@ -12,7 +13,7 @@ from ..config.batch import Settings, file_sha256
 from ..video.detector import make_detector
 from ..video.refine import carried_regressor_for, regressor_for
 
-__all__ = ["MANIFEST_NAME", "SUFFIXES", "Settings", "carries_regressor", "check", "max_name_length", "file_sha256",
+__all__ = ["MANIFEST_NAME", "SUFFIXES", "Settings", "checked_settings", "max_name_length", "file_sha256",
            "output_paths"]
 
 #: output kind -> file name suffix after the video's output name
@@ -28,21 +29,23 @@ def max_name_length(out_dir: str | os.PathLike) -> int:
     return max(16, name_max(out_dir) - max(len(s) for s in SUFFIXES.values()))
 
 
-def carries_regressor(pipeline: PipelineConfig) -> bool:
-    """Whether ``pipeline`` refines with the box regressor its main model file carries (a model
-    ``fastdet adapt`` made; no regressor file named): :meth:`Settings.create`'s ``refine_carried``."""
-    if pipeline.refine is None or pipeline.model is None or not os.path.isfile(pipeline.model):
-        return False  # a missing file: Settings.create says so, in its words
-    return carried_regressor_for(pipeline.model, pipeline.refine_model) is not None
-
-
-def check(settings: Settings) -> None:
-    """Load the models as a worker will: :class:`~fastdet.errors.ModelError` (one line) now,
-    before any work, for a file that is not a model or a wide model that is not one."""
-    pipeline = settings.pipeline
-    detector = make_detector(pipeline)
-    if pipeline.refine is not None:  # a carried regressor comes out of the model the detector loaded
-        regressor_for(detector.model, pipeline.refine_model, name=pipeline.model)
+def checked_settings(pipeline: PipelineConfig | None = None, video: bool = False,
+                     json: bool = False) -> Settings:
+    """The batch's :class:`Settings` for ``pipeline`` (:meth:`Settings.create`'s arguments), its
+    models loaded as a worker will, once, before any work: :class:`~fastdet.errors.ModelError`
+    (one line) for a missing file, a file that is not a model or a wide model that is not one.
+    A main model that carries its camera's box regressor (``fastdet adapt``'s; no regressor
+    file named) is refined with it: the settings name no regressor file of their own."""
+    p = pipeline if pipeline is not None else PipelineConfig()
+    settings = Settings.create(p, video=video, json=json)  # a missing file: one line, in its words
+    detector = make_detector(settings.pipeline)
+    if p.refine is None:
+        return settings
+    carried = carried_regressor_for(detector.model, p.refine_model, name=settings.pipeline.model)
+    if carried is not None:
+        return Settings.create(p, video=video, json=json, refine_carried=True)
+    regressor_for(None, settings.pipeline.refine_model)  # the named or bundled file loads
+    return settings
 
 
 def output_paths(out_dir: str | os.PathLike, name: str, settings: Settings) -> dict[str, Path]:

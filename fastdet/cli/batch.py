@@ -89,9 +89,7 @@ def run(args: argparse.Namespace) -> int:
                                  [out_dir / settings_mod.MANIFEST_NAME, *([table] if table is not None else [])])
     videos = inputs.expand_inputs(args.inputs, writes)
     pipeline = pipeline_config(args)
-    settings = settings_mod.Settings.create(pipeline, video=args.video, json=args.json,
-                                            refine_carried=settings_mod.carries_regressor(pipeline))
-    settings_mod.check(settings)
+    settings = settings_mod.checked_settings(pipeline, video=args.video, json=args.json)
     if scheduler:
         job.check_address(scheduler)
     with job.out_dir_for_run(out_dir):  # a failed start leaves no folder it made

@@ -64,7 +64,7 @@ class Settings:
         """Settings for ``pipeline`` (default ``PipelineConfig()``): its model files made absolute
         (``None``: the bundled ones) and hashed; :class:`ModelError` for a missing file.
         ``refine_carried``: the main model file carries its camera's box regressor
-        (:func:`fastdet.batch.settings.carries_regressor`), which the pipeline then refines with
+        (:func:`fastdet.batch.settings.checked_settings` finds out), which the pipeline then refines with
         when no regressor file is named: no regressor file of its own (the model's hash covers it)."""
         p = pipeline if pipeline is not None else PipelineConfig()
         main = resolve_model(p.model, DEFAULT_MODEL_PATH)

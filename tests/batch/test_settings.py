@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from fastdet.batch.settings import SUFFIXES, Settings, check, output_paths
+from fastdet.batch.settings import SUFFIXES, Settings, checked_settings, output_paths
 from fastdet.config import PipelineConfig
 from fastdet.errors import ModelError
 
@@ -19,9 +19,14 @@ def test_output_paths_are_the_kinds_asked_for(tmp_path: Path) -> None:
     assert [p.name for p in got.values()] == ["c.boxes.txt", "c.boxes.jsonl", "c.annotated.mp4"]
 
 
-def test_check_loads_the_models_and_refuses_a_file_that_is_not_one(tmp_path: Path) -> None:
-    check(Settings.create())  # the bundled models
+def test_checked_settings_load_the_models_and_refuse_a_file_that_is_not_one(tmp_path: Path) -> None:
+    assert checked_settings() == Settings.create()  # the bundled models
+    assert checked_settings(video=True, json=True) == Settings.create(video=True, json=True)
     bad = tmp_path / "m.npz"
     bad.write_bytes(b"not a model")
     with pytest.raises(ModelError):
-        check(Settings.create(PipelineConfig(model=str(bad))))
+        checked_settings(PipelineConfig(model=str(bad)))
+    with pytest.raises(ModelError, match="not found"):
+        checked_settings(PipelineConfig(model=str(tmp_path / "none.npz")))
+    with pytest.raises(ModelError):
+        checked_settings(PipelineConfig(refine_model=str(bad)))

@@ -80,9 +80,8 @@ def test_a_model_file_carries_its_cameras_regressor(tmp_path: Path) -> None:
     """adapt's model file holds the camera's regressor beside the main model's arrays: loaded
     back it refines exactly as the regressor did, the pipeline takes it when no regressor file
     is named (a named one wins), and the main model's own arrays are untouched."""
-    from fastdet.batch.settings import carries_regressor
+    from fastdet.batch.settings import checked_settings
     from fastdet.config import PipelineConfig
-    from fastdet.config.batch import Settings
     from fastdet.model import load_model
     from fastdet.video.picture import PictureDetector
     from fastdet.video.refine import regressor_for
@@ -132,11 +131,19 @@ def test_a_model_file_carries_its_cameras_regressor(tmp_path: Path) -> None:
     assert reads.count(str(path)) == 1, reads
     assert VideoDetector(config=PipelineConfig(model=str(path), refine_model=str(REFINE_MODEL_PATH))
                          ).refiner.metadata.get("note") != "camera"
-    # a batch keeps it (no regressor file of its own: the model file's hash covers it)
+    # a batch keeps it (no regressor file of its own: the model file's hash covers it), its
+    # settings made with the main model file read once
     cam = PipelineConfig(model=str(path))
-    assert carries_regressor(cam) and not carries_regressor(PipelineConfig())
-    assert Settings.create(cam, refine_carried=carries_regressor(cam)).pipeline.refine_model is None
-    assert Settings.create(PipelineConfig()).pipeline.refine_model == str(REFINE_MODEL_PATH.resolve())
+    reads.clear()
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(detector_mod, "load_model", counted)
+        mp.setattr(refine_mod, "load_model", counted)
+        settings = checked_settings(cam)
+    assert settings.pipeline.refine_model is None
+    assert reads.count(str(path)) == 1, reads
+    assert checked_settings(PipelineConfig()).pipeline.refine_model == str(REFINE_MODEL_PATH.resolve())
+    assert checked_settings(PipelineConfig(model=str(path), refine_model=str(REFINE_MODEL_PATH))
+                            ).pipeline.refine_model == str(REFINE_MODEL_PATH.resolve())
 
 
 def test_a_carried_regressor_that_is_not_one_is_one_line(tmp_path: Path) -> None:
