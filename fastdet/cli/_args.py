@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 
 from ..config import (
+    BOXES,
     HeatConfig,
     NeighbourSplit,
     OwnVehicleConfig,
@@ -90,6 +91,13 @@ def add_oncoming_arguments(parser: Options) -> None:
                         help="the side traffic drives on (default right)")
 
 
+def add_boxes_argument(parser: Options) -> None:
+    """``--boxes-from heat|nms``, shared by ``video``, ``eval``, ``bench`` and ``batch``."""
+    parser.add_argument("--boxes-from", choices=BOXES, default=None,
+                        help="one box per vehicle from the heat map over frames or from each frame's windows "
+                             "(default: what the model records, fastdet adapt's choice; else heat)")
+
+
 def add_refine_argument(parser: Options) -> None:
     """``--no-refine``, shared by ``video``, ``eval``, ``bench`` and ``batch``."""
     parser.add_argument("--no-refine", action="store_true",
@@ -120,6 +128,7 @@ def pipeline_groups(parser: argparse.ArgumentParser) -> tuple[Options, Options, 
     search.add_argument("--model", metavar="MODEL.npz", help="main model (default: the bundled one)")
     add_oncoming_arguments(search)
     add_search_argument(advanced)
+    add_boxes_argument(advanced)
     add_refine_argument(advanced)
     add_camera_arguments(advanced)
     return search, tracking, advanced
@@ -132,7 +141,7 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
     search); ``--full-search``: no guided search; ``--no-refine``: no refinement;
     ``--heat-frames`` / ``--heat-decay`` / ``--heat-threshold``: the main heat map (a bad
     value: :class:`~fastdet.errors.FastdetError`); ``--no-own-vehicle``: the own-vehicle stage off;
-    ``--no-split-neighbours``: the neighbour split off."""
+    ``--no-split-neighbours``: the neighbour split off; ``--boxes-from``: the box formation."""
     d = HeatConfig()
     try:
         heat = HeatConfig(n_frames=getattr(args, "heat_frames", d.n_frames), decay=getattr(args, "heat_decay", d.decay),
@@ -143,7 +152,7 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
                             oncoming=False if getattr(args, "no_oncoming", False)
                             else (getattr(args, "oncoming_model", None) or True),
                             traffic=getattr(args, "traffic", "right"), horizon=getattr(args, "horizon", "auto"),
-                            heat=heat,
+                            heat=heat, boxes=getattr(args, "boxes_from", None),
                             own_vehicle=None if getattr(args, "no_own_vehicle", False) else OwnVehicleConfig(),
                             split=None if getattr(args, "no_split_neighbours", False) else NeighbourSplit())
     off = [name for name, flag in (("tracker", "no_track"), ("guided", "full_search"), ("refine", "no_refine"))

@@ -51,7 +51,7 @@ import numpy as np
 
 from .. import _numba
 from .. import signals as _signals
-from ..config import PipelineConfig
+from ..config import BOXES, Boxes, PipelineConfig
 from ..config.adapt import AdaptConfig
 from ..data import data_dir
 from ..detect.regressor import carrying, load_regressor
@@ -64,6 +64,7 @@ from ..io.paths import check_paths, is_inside
 from ..labels.picture import AnnotatedPicture
 from ..model import Model, load_model
 from ..train import adapt as _adapt
+from ..video.detector import BOXES_KEY
 from ._args import fraction, positive_int, teacher_size, video_files
 
 PACKAGE_DIR = Path(__file__).resolve().parents[1]
@@ -220,13 +221,14 @@ def holdout_run(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, He
     return run
 
 
-def holdout_offsets(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, HeldFrames] | None = None
-                    ) -> _adapt.OffsetsRun:
+def holdout_offsets(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, HeldFrames] | None = None,
+                    boxes: Boxes = "heat") -> _adapt.OffsetsRun:
     """The video pipeline over a clip's kept-aside stretch with a model file moved by each of
     some offsets, the frames read and scored once for all of them
     (:func:`fastdet.video.replay.iter_offset_detections`: each offset's boxes are those of
     :func:`holdout_run` with the moved model), each offset's boxes scored as there.
-    ``frames``: as :func:`holdout_run`'s."""
+    ``frames``: as :func:`holdout_run`'s; ``boxes``: the pipeline's box formation
+    (:attr:`PipelineConfig.boxes <fastdet.config.PipelineConfig>`)."""
     from ..eval.metrics import evaluate
     from ..video.replay import iter_offset_detections
 
@@ -236,7 +238,7 @@ def holdout_offsets(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str
         if not pics:
             return {o: (0, 0, 0) for o in offsets}, 0.0, 0
         t0 = time.perf_counter()
-        config = replace(PipelineConfig(), model=model)
+        config = replace(PipelineConfig(), model=model, boxes=boxes)
         tables: dict[float, list[Detections]] = {o: [] for o in offsets}
         n = 0
         for fno, by_offset in iter_offset_detections(_source(clip, frames), offsets, config,
@@ -265,12 +267,13 @@ def _warm_up(video: str) -> None:
         pass
 
 
-def _after(model: Model, chosen: float, footage: _adapt.Footage, run: _adapt.HoldoutRun,
+def _after(model: Model, chosen: float, boxes: Boxes, footage: _adapt.Footage, run: _adapt.HoldoutRun,
            folder: Path) -> dict[str, Any]:
-    """The agreement of the model moved by the chosen offset, from a run of the video pipeline
-    with it (its time a frame is what ``video`` takes with the model written)."""
+    """The agreement of the model moved by the chosen offset, recording the chosen box formation,
+    from a run of the video pipeline with it (its time a frame is what ``video`` takes with the
+    model written)."""
     path = folder / f"offset{chosen:+.3f}.npz"
-    _adapt.offset(model, chosen).save(path)
+    _adapt.offset(model, chosen, metadata={BOXES_KEY: boxes}).save(path)
     try:
         return _adapt.agreement(footage, run, str(path)).to_dict()
     finally:
@@ -414,7 +417,9 @@ def run(args: argparse.Namespace) -> int:
     n_held = sum(len(v) for v in held.values())
     before = after = None
     chosen = 0.0
+    boxes: Boxes = "heat"
     tried: dict[str, Any] = {}
+    formations: dict[str, Any] = {}
     kept: dict[str, Any] = {}
     if n_held:
         _warm_up(footage.clips[0].path)
@@ -423,10 +428,14 @@ def run(args: argparse.Namespace) -> int:
             kept = _kept(frames, time.perf_counter() - t_read)
             run_holdout = holdout_run(held, frames)
             before = _adapt.agreement(footage, run_holdout, None).to_dict()
-            chosen, results = _adapt.choose_offset(model, footage, holdout_offsets(held, frames),
-                                                   work / "operating-point", config.offsets, progress)
+            by_boxes = {b: _adapt.choose_offset(model, footage, holdout_offsets(held, frames, b),
+                                                work / "operating-point", config.offsets, progress)
+                        for b in BOXES}
+            formations = {b: {"offset": o, "f1": r[o].to_dict()["f1"]} for b, (o, r) in by_boxes.items()}
+            boxes = _adapt.choose_boxes(by_boxes)
+            chosen, results = by_boxes[boxes]
             tried = {f"{o:g}": r.to_dict()["f1"] for o, r in results.items()}
-            after = _after(model, chosen, footage, run_holdout, work / "operating-point")
+            after = _after(model, chosen, boxes, footage, run_holdout, work / "operating-point")
         r = results[chosen]
         if (after["tp"], after["fp"], after["fn"]) != (r.tp, r.fp, r.fn):
             print(f"note: at offset {chosen:g} the pipeline run found {after['tp']} / {after['fp']} / {after['fn']} "
@@ -446,11 +455,11 @@ def run(args: argparse.Namespace) -> int:
                    "kept_aside_read": footage.holdout_length, "labelled_now": n_now},
         "targets_trained": n_targets, "crops": counts, "regressor_fit": regressor_fit,
         "seconds": {k: round(v, 2) for k, v in secs.items()},
-        "offset": chosen, "offsets_f1": tried, "kept_aside": kept,
+        "offset": chosen, "offsets_f1": tried, "boxes": boxes, "boxes_tried": formations, "kept_aside": kept,
         "agreement": {"before": before, "after": after},
         "config": config.to_dict(),
     }
-    final = _adapt.offset(model, chosen, metadata={"adapt": summary})
+    final = _adapt.offset(model, chosen, metadata={"adapt": summary, BOXES_KEY: boxes})
     final.save(out)
     shutil.rmtree(work / "operating-point", ignore_errors=True)
     print(f"frames: {len(train_pics)} trained on ({n_targets} {labelled_by} targets; {counts['positives']} "
@@ -465,8 +474,14 @@ def run(args: argparse.Namespace) -> int:
               f"camera's own on, fewer than {_adapt.MIN_REGRESSOR_VEHICLES})")
     print("seconds: " + ", ".join(f"{k} {v:.1f}" for k, v in secs.items()))
     if n_held:
-        print("offsets tried (F1): " + ", ".join(f"{k} {'-' if v is None else f'{v:.2f}'}" for k, v in tried.items())
-              + f"; chosen {chosen:g}")
+        def f1(v: float | None) -> str:
+            return "-" if v is None else f"{v:.2f}"
+
+        print("boxes tried (F1 at their best offset): "
+              + ", ".join(f"{b} {f1(v['f1'])} (offset {v['offset']:g})" for b, v in formations.items())
+              + f"; chosen {boxes}")
+        print(f"offsets tried with {boxes} boxes (F1): "
+              + ", ".join(f"{k} {f1(v)}" for k, v in tried.items()) + f"; chosen {chosen:g}")
     else:
         print("no labelled frame kept aside: the model keeps its own operating point (offset 0)")
     print(f"agreement with the {labelled_by} labels on the kept-aside frames:")

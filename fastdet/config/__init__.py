@@ -40,7 +40,7 @@ from .models import (
 from .motion import MotionGate
 from .ownvehicle import OwnVehicleConfig
 from .picture import PICTURE_SEARCH, PictureBoxes, PictureSearch
-from .pipeline import Horizon, PipelineConfig
+from .pipeline import BOXES, Boxes, Horizon, PipelineConfig
 from .plausible import PlausibleConfig
 from .refine import JitterConfig, RefineConfig
 from .search import (
@@ -59,7 +59,7 @@ from .teacher import COCO_VEHICLES, TeacherConfig
 from .track import TrackerConfig
 
 __all__ = ["BoxMode", "CELL", "COCO_VEHICLES", "COLOR_SPACES", "ColorSpace", "Config", "DEFAULT_MODEL_PATH",
-           "FeatureConfig", "GuidedSearch", "HeatConfig", "Horizon", "JitterConfig", "MotionGate",
+           "BOXES", "Boxes", "FeatureConfig", "GuidedSearch", "HeatConfig", "Horizon", "JitterConfig", "MotionGate",
            "NeighbourSplit", "ONCOMING_HEAT", "ONCOMING_MODEL_PATH", "ONCOMING_SEARCH", "OwnVehicleConfig",
            "PICTURE_SEARCH", "PictureBoxes", "PictureSearch",
            "PipelineConfig", "PlausibleConfig", "REFERENCE_HORIZON", "REFERENCE_SHAPE", "REFINE_MODEL_PATH",

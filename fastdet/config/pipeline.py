@@ -39,6 +39,11 @@ def _retired() -> dict[str, object]:
             "perspective": None}
 
 
+#: how the pipeline makes one box per vehicle of the positive windows: ``'heat'`` (the heat map
+#: over frames, a box per blob) or ``'nms'`` (each frame's windows after non-maximum suppression)
+Boxes = Literal["heat", "nms"]
+BOXES: tuple[str, ...] = ("heat", "nms")
+
 #: where the search bands go: ``'auto'`` (estimated from the video), a fraction of the frame
 #: height, or ``None`` (the bands as the search writes them)
 Horizon = float | Literal["auto"] | None
@@ -68,6 +73,11 @@ class PipelineConfig(Config):
     horizon: where the search bands go: ``'auto'`` estimates the horizon from the optical flow
         of the first seconds (:mod:`fastdet.video.horizon`), a number is the horizon row as a
         fraction of the frame height in [0, 1], ``None`` leaves the bands where they are written.
+    boxes: how one box per vehicle is made of the main model's positive windows: ``'heat'``, the
+        heat map over recent frames (:attr:`heat`, a box per blob, the split); ``'nms'``, each
+        frame's windows after non-maximum suppression (:mod:`fastdet.video.nmsboxes`; the tracker
+        then splits no box); ``None``: what the main model file records (a model ``fastdet adapt``
+        made keeps the one that agreed best with its teacher), else ``'heat'``.
     heat: the main model's heat map; oncoming_heat: the oncoming model's.
     motion: the motion gate of the oncoming model.
     tracker: the tracker that gives every vehicle an id; ``None``: no tracking (boxes
@@ -92,7 +102,7 @@ class PipelineConfig(Config):
     #: older config's dict still loads, and today's default config keeps its digest
     _RETIRED = MappingProxyType(_retired())
     #: of those, the ones left out of the dict while off (``None``); ``perspective: null`` was written
-    _OMIT_NONE = ("selfcal",)
+    _OMIT_NONE = ("selfcal", "boxes")
 
     model: str | None = None
     oncoming: str | bool = True
@@ -100,6 +110,7 @@ class PipelineConfig(Config):
     traffic: Traffic = "right"
     search: SearchConfig = SearchConfig()
     horizon: Horizon = "auto"
+    boxes: Boxes | None = None
     heat: HeatConfig = HeatConfig()
     oncoming_heat: HeatConfig = ONCOMING_HEAT
     motion: MotionGate = MotionGate()
@@ -121,6 +132,8 @@ class PipelineConfig(Config):
         h = self.horizon
         if not (h is None or h == "auto" or (isinstance(h, (int, float)) and not isinstance(h, bool) and 0 <= h <= 1)):
             raise ValueError(f"horizon must be 'auto', a fraction of the frame height in [0, 1] or None, got {h!r}")
+        if self.boxes is not None and self.boxes not in BOXES:
+            raise ValueError(f"boxes must be one of {', '.join(BOXES)} or None, got {self.boxes!r}")
         for name, cls, optional in (("search", SearchConfig, False), ("heat", HeatConfig, False),
                                     ("oncoming_heat", HeatConfig, False), ("motion", MotionGate, False),
                                     ("tracker", TrackerConfig, True), ("guided", GuidedSearch, True),

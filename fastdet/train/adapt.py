@@ -36,7 +36,7 @@ import math
 import os
 import sys
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -45,6 +45,7 @@ import numpy as np
 from tqdm import tqdm
 
 from .. import signals as _signals
+from ..config import BOXES, Boxes
 from ..config.adapt import AdaptConfig
 from ..detect.regressor import BoxRegressor
 from ..errors import DataError
@@ -441,6 +442,21 @@ def agreement(footage: Footage, run: HoldoutRun, model_path: str | None) -> Agre
         a, b, c, s, n = run(clip, model_path)
         tp, fp, fn, secs, frames = tp + a, fp + b, fn + c, secs + s, frames + n
     return Agreement(tp, fp, fn, secs, frames)
+
+
+def choose_boxes(by_boxes: Mapping[str, tuple[float, Mapping[float, Agreement]]]) -> Boxes:
+    """The box formation (:data:`fastdet.config.BOXES`) whose chosen offset agrees best with the
+    labels kept aside: ``by_boxes`` maps each formation to :func:`choose_offset`'s result for
+    it. Ties, or no F1 at all, keep ``'heat'`` (the pipeline's own)."""
+    def rank(b: str) -> tuple[float, bool]:
+        chosen, results = by_boxes[b]
+        f1 = results[chosen].f1
+        return (-1.0 if math.isnan(f1) else f1, b == "heat")
+
+    best = max(by_boxes, key=rank)
+    if best not in BOXES:
+        raise ValueError(f"unknown box formation {best!r}")
+    return best  # type: ignore[return-value]
 
 
 def choose_offset(model: Model, footage: Footage, run: OffsetsRun, folder: Path, offsets: Sequence[float],

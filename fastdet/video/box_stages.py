@@ -107,15 +107,17 @@ class WeakStage(Stage):
 
 
 class TrackStage(Stage):
-    """Track ids (:class:`~fastdet.video.track.Tracker`): the tracked vehicles of this frame."""
+    """Track ids (:class:`~fastdet.video.track.Tracker`): the tracked vehicles of this frame.
+    ``split``: a box over two tracks is split between them (heat-map blobs may hold two
+    vehicles; the windows of :class:`~fastdet.video.nmsboxes.NmsStage` do not)."""
 
     name = "track"
 
-    def __init__(self, tracker: Tracker) -> None:
-        self.tracker = tracker
+    def __init__(self, tracker: Tracker, split: bool = True) -> None:
+        self.tracker, self.split = tracker, split
 
     def __call__(self, s: FrameState) -> FrameState:
-        s.out = self.tracker.update(s.boxes, s.low, frame_shape=s.shape)
+        s.out = self.tracker.update(s.boxes, s.low, frame_shape=s.shape, split=self.split)
         s.tracks = [(t.id, t.state, t.predicted) for t in self.tracker.tracks]
         return s
 

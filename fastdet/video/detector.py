@@ -8,10 +8,11 @@ from typing import Any, Literal, Protocol, runtime_checkable
 
 import numpy as np
 
-from ..config import PipelineConfig, SearchBand, oncoming_search
+from ..config import BOXES, Boxes, PipelineConfig, SearchBand, oncoming_search
 from ..config.models import ONCOMING_MODEL_PATH
 from ..detect import BandGeometry, Detector, DetectStats
 from ..detections import Detections
+from ..errors import ModelError
 from ..model import Model
 
 
@@ -75,6 +76,27 @@ class HasKernels(Protocol):
     (:func:`fastdet._numba.ensure_compiled`)."""
 
     kernels: tuple[Any, ...]
+
+
+#: the main model file's metadata key that records the box formation its camera was adapted
+#: with (:func:`box_formation`)
+BOXES_KEY = "video_boxes"
+
+
+def box_formation(config: PipelineConfig, detector: object) -> Boxes:
+    """How the pipeline for ``config`` makes one box per vehicle (:attr:`PipelineConfig.boxes`):
+    ``config.boxes`` when set; else what ``detector``'s main model records (its ``model``'s
+    metadata :data:`BOXES_KEY`: ``fastdet adapt`` writes the formation it chose for the
+    camera); else ``'heat'``. :class:`~fastdet.errors.ModelError` for a record that is not one."""
+    if config.boxes is not None:
+        return config.boxes
+    model = getattr(detector, "model", None)
+    got = model.metadata.get(BOXES_KEY) if isinstance(model, Model) else None
+    if got is None:
+        return "heat"
+    if got not in BOXES:
+        raise ModelError(f"the main model's metadata['{BOXES_KEY}'] must be one of {', '.join(BOXES)}, got {got!r}")
+    return got  # type: ignore[return-value]
 
 
 def detector_kernels(detector: object) -> tuple[Any, ...]:

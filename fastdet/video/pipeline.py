@@ -259,7 +259,8 @@ class VideoDetector:
     def update(self, frame: np.ndarray, rgb: bool = False) -> Detections:
         """Boxes of the vehicles in ``frame`` (``(H, W, 3) uint8``, BGR or RGB with ``rgb=True``).
 
-        Each box's score is the peak heat of its blob (:mod:`fastdet.video.heatmap`); with
+        Each box's score is the peak heat of its blob (:mod:`fastdet.video.heatmap`; with
+        ``boxes='nms'``, its window's score, :mod:`fastdet.video.nmsboxes`); with
         the tracker, the boxes are those of the tracked vehicles, with ``ids`` (class
         docstring). Causal: uses this and earlier frames only."""
         return self.start(frame, rgb, beside=False).result()

@@ -45,7 +45,7 @@ from .ownvehicle import OwnVehicleFollower, OwnVehicleStage
 from .refine import BoxRegressor
 from .run import progress_bar, video_detector_for
 from .search_stages import GateStage, HorizonStage, MotionStage
-from .stages import HeatStage, RefineStage, build_stages
+from .stages import HeatStage, NmsStage, RefineStage, build_stages
 from .state import FrameState, Stage
 from .track import Tracker
 
@@ -81,6 +81,12 @@ class ReplayDetector:
     @property
     def oncoming_model(self) -> Model | None:
         return self.source.oncoming_model
+
+    @property
+    def model(self) -> Model:
+        """The source's main model (what it records, such as its box formation, holds for the
+        moved model too)."""
+        return self.source.model
 
     @property
     def config(self) -> FeatureConfig:
@@ -207,7 +213,7 @@ def iter_offset_detections(path: str | os.PathLike | HeldFrames, offsets: Sequen
         vd.warmup()
         front: list[Stage] = []
         for st in vd.stages:
-            if isinstance(st, HeatStage):
+            if isinstance(st, (HeatStage, NmsStage)):
                 break
             if not isinstance(st, OwnVehicleStage):
                 front.append(st)

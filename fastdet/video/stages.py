@@ -12,6 +12,8 @@ In the order they run (:func:`build_stages`; a stage whose setting is off is lef
 ``ownvehicle``   drop the windows on the own vehicle (:class:`OwnVehicleStage`; on by default)
 ``heatmap``      the main heat map's boxes (:class:`HeatStage`)
 ``split``        wide boxes split between vehicles side by side (:class:`SplitStage`; on by default)
+``nms``          with ``boxes='nms'``, in place of the two above: the frame's windows after
+                 non-maximum suppression (:class:`NmsStage`)
 ``fusion``       the oncoming heat map's boxes where the main one found none (:class:`FusionStage`)
 ``weak``         the weak blobs the tracker may keep a track alive with (:class:`WeakStage`)
 ``track``        track ids (:class:`TrackStage`)
@@ -46,8 +48,9 @@ from .box_stages import (
     TrackStage,
     WeakStage,
 )
-from .detector import ColumnSearch, MovableHorizon, WindowDetector
+from .detector import ColumnSearch, MovableHorizon, WindowDetector, box_formation
 from .guided import SearchPlanner
+from .nmsboxes import NmsStage
 from .ownvehicle import OwnVehicleStage
 from .plausible import PlausibleStage
 from .refine import BoxRegressor
@@ -56,7 +59,7 @@ from .state import FrameDebug, FrameState, Stage, TrackView
 from .track import Tracker
 
 __all__ = ["ClipStage", "DetectStage", "FrameDebug", "FrameState", "FusionStage", "GateStage",
-           "HeatStage", "HorizonStage", "MotionStage", "ObserveStage", "OwnVehicleStage", "PlausibleStage",
+           "HeatStage", "HorizonStage", "MotionStage", "NmsStage", "ObserveStage", "OwnVehicleStage", "PlausibleStage",
             "PlanStage", "RefineStage", "SplitStage", "Stage", "TrackStage",
            "TAIL_STAGES", "TrackView", "WeakStage", "build_stages", "planner_for", "split_tail"]
 
@@ -109,15 +112,21 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
         if planner is not None:  # on the first frame too: a full scan on the second frame
             planner.reset()
 
-    heat: list[HeatStage | FusionStage] = [HeatStage(detector, config.heat, oncoming, new_size)]
-    stages.append(heat[0])
-    if config.split is not None:  # on the main heat map's boxes, before the others are added
-        stages.append(SplitStage(config.split))
+    by_heat = box_formation(config, detector) == "heat"
+    heat: list[HeatStage | FusionStage] = []
+    if by_heat:
+        heat.append(HeatStage(detector, config.heat, oncoming, new_size))
+        stages.append(heat[0])
+        if config.split is not None:  # on the main heat map's boxes, before the others are added
+            stages.append(SplitStage(config.split))
+    else:
+        stages.append(NmsStage(new_size))
     if oncoming:
-        heat.append(FusionStage(detector, config.oncoming_heat))
-    stages += heat[1:]
+        fusion = FusionStage(detector, config.oncoming_heat)
+        heat.append(fusion)
+        stages.append(fusion)
     if tracker is not None:
-        stages += [WeakStage(tracker.config.low_heat, heat), TrackStage(tracker)]
+        stages += [WeakStage(tracker.config.low_heat, heat), TrackStage(tracker, split=by_heat)]
         if tracker.config.output == "filtered":
             stages.append(ClipStage())
     if planner is not None:

@@ -77,9 +77,11 @@ class FrameDebug:
 
     @classmethod
     def of(cls, s: FrameState) -> FrameDebug:
-        """The record of a frame that went through the stages."""
+        """The record of a frame that went through the stages (no main heat map: boxes made by
+        non-maximum suppression; its grids are then empty)."""
         hm = s.heatmap
-        assert hm is not None
+        if hm is None:
+            return cls(s.windows, boxes=s.boxes, low=s.low, tracks=s.tracks)
         return cls(s.windows, hm.heat, hm.mask, hm.labels, s.boxes, s.low, s.tracks)
 
 

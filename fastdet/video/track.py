@@ -244,11 +244,13 @@ class Tracker:
         return rows[r], k
 
     def update(self, high: Detections, low: Detections | None = None,
-               frame_shape: tuple[int, int] | None = None) -> Detections:
+               frame_shape: tuple[int, int] | None = None, split: bool = True) -> Detections:
         """Track one frame. ``high``: the high-confidence boxes (they may start tracks);
         ``low``: low-confidence boxes (they only continue tracked tracks), or ``None``;
         ``frame_shape``: the picture's (height, width) in pixels,
-        for ``config.exit_outside`` (``None``: no track is dropped for leaving it).
+        for ``config.exit_outside`` (``None``: no track is dropped for leaving it);
+        ``split``: a high box over two tracks' predictions is split between them
+        (``config.split_overlap``; ``False`` for boxes that are windows, one per vehicle already).
         Returns the confirmed tracks that found a box this frame: boxes, scores (of the
         matched box), ids, in ascending id order."""
         c = self.config
@@ -278,7 +280,7 @@ class Tracker:
 
         hb = high.boxes.astype(np.float64)
         hs = high.scores.astype(np.float64)
-        if len(tracked) >= 2 and len(hb) and c.split_overlap > 0:
+        if split and len(tracked) >= 2 and len(hb) and c.split_overlap > 0:
             hb, src = split_merged(hb, pred[tracked], c.split_overlap)
             hs = hs[src]
         used = np.zeros(len(hb), bool)

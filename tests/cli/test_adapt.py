@@ -18,6 +18,9 @@ from fastdet.detect.regressor import carried_regressor, load_regressor
 from fastdet.model import load_model
 from fastdet.teacher.yolox import TeacherBoxes
 from fastdet.video import VideoDetector
+from fastdet.video.box_stages import HeatStage
+from fastdet.video.detector import BOXES_KEY
+from fastdet.video.nmsboxes import NmsStage
 from tests.media import leftovers, write_video
 from tests.teacher.onnx_bytes import FLOAT, write_identity_model
 
@@ -178,6 +181,13 @@ def test_adapt_writes_a_model_with_its_summary(teacher, data, tmp_path, capsys, 
         a = s["agreement"][when]
         assert 0 <= a["f1"] <= 1 and a["tp"] + a["fn"] >= 2 and a["ms_per_frame"] > 0
     assert s["agreement"]["after"]["f1"] == max(v for v in s["offsets_f1"].values())
+    # both box formations tried; the chosen one (at least as good as the other) is recorded in
+    # the model file, and the pipeline makes its boxes that way
+    assert set(s["boxes_tried"]) == {"heat", "nms"} and model.metadata[BOXES_KEY] == s["boxes"]
+    f1s = {b: (-1 if v["f1"] is None else v["f1"]) for b, v in s["boxes_tried"].items()}
+    assert f1s[s["boxes"]] == max(f1s.values()) and "boxes tried (F1 at their best offset)" in text
+    stage = NmsStage if s["boxes"] == "nms" else HeatStage
+    assert VideoDetector(config=PipelineConfig(model=str(out))).stage(stage) is not None
     assert model.metadata["training"]["data"]["hard_negatives"] > 0
     # the camera's crops joined the fit once each, of weight 4 (not repeated 4 times)
     assert model.metadata["training"]["data"]["extra_positives"] == s["crops"]["positives"] > 0

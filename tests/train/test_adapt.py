@@ -118,6 +118,18 @@ def test_the_offset_of_best_f1_is_chosen(tmp_path):
     assert not list((tmp_path / "op").iterdir())  # the model file is removed
 
 
+def test_the_box_formation_of_best_f1_at_its_offset_is_chosen_ties_keep_the_heat_map():
+    def result(tp: int, fp: int) -> tuple[float, dict[float, adapt.Agreement]]:
+        return 1.0, {0.0: adapt.Agreement(5, 5, 5, 0.0, 0), 1.0: adapt.Agreement(tp, fp, 10 - tp, 0.0, 0)}
+
+    assert adapt.choose_boxes({"heat": result(5, 5), "nms": result(7, 3)}) == "nms"
+    assert adapt.choose_boxes({"heat": result(7, 3), "nms": result(5, 5)}) == "heat"
+    assert adapt.choose_boxes({"heat": result(6, 4), "nms": result(6, 4)}) == "heat"  # a tie
+    assert adapt.choose_boxes({"heat": result(0, 0), "nms": result(0, 0)}) == "heat"  # no F1 at all
+    assert adapt.choose_boxes({"nms": result(0, 0), "heat": result(0, 0)}) == "heat"  # whatever the order
+    assert adapt.choose_boxes({"heat": result(0, 0), "nms": result(1, 0)}) == "nms"
+
+
 def test_agreement_without_boxes_is_not_a_number():
     a = adapt.Agreement(0, 0, 0, 0.0, 0)
     assert math.isnan(a.f1) and a.to_dict()["f1"] is None and a.to_dict()["ms_per_frame"] is None

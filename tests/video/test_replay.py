@@ -51,22 +51,25 @@ def test_a_frames_windows_are_those_of_the_moved_model(frame, delta):
 
 
 @pytest.mark.slow
-def test_each_offsets_boxes_and_ids_are_those_of_its_own_run(data, tmp_path):
+@pytest.mark.parametrize("boxes", [None, "nms"])
+def test_each_offsets_boxes_and_ids_are_those_of_its_own_run(data, tmp_path, boxes):
     """24 frames of test_small1 (from frame 21, as adapt's kept-aside stretch starts mid-video):
     the replay's boxes, scores and ids of every frame equal a pipeline run of each moved model
-    (guided search, tracker, refinement, own vehicle: the defaults), and the offsets' boxes differ."""
+    (guided search, tracker, refinement, own vehicle: the defaults; the heat map, or the windows
+    after suppression), and the offsets' boxes differ."""
     video = str(data / "videos" / "test_small1.mp4")
     model = load_model()
     base = tmp_path / "base.npz"
     offset(model, 0.0).save(base)
-    replayed = list(iter_offset_detections(video, OFFSETS, replace(PipelineConfig(), model=str(base)),
+    replayed = list(iter_offset_detections(video, OFFSETS, replace(PipelineConfig(), model=str(base), boxes=boxes),
                                            start=20, frames=24))
     assert len(replayed) == 24 and [f for f, _ in replayed] == list(range(21, 45))
     totals = {}
     for o in OFFSETS:
         path = tmp_path / f"o{o:+g}.npz"
         offset(model, o).save(path)
-        real = list(iter_video_detections(video, replace(PipelineConfig(), model=str(path)), start=20, frames=24,
+        real = list(iter_video_detections(video, replace(PipelineConfig(), model=str(path), boxes=boxes),
+                                          start=20, frames=24,
                                           progress=False))
         assert [f for f, _ in real] == [f for f, _ in replayed]
         for (fno, want), (_, got) in zip(real, replayed):

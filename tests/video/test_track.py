@@ -291,6 +291,11 @@ def test_merged_blob_of_two_tracked_cars_is_split_with_two_ids():
     # without the split the merged box goes to one track only
     out = run(frames, TrackerConfig(split_overlap=0))
     assert all(len(o) == 1 for o in out[10:15])
+    # the same when update is told the boxes are not blobs (split=False: the NMS boxes' tracker)
+    tr = Tracker()
+    out = [tr.update(d, split=False) for d in frames]
+    assert all(len(o) == 1 for o in out[10:15])
+    assert [ids_of(o) for o in out[:10]] == [[1, 2]] * 10
 
 
 # ------------------------------------------------------------------ leaving through the border

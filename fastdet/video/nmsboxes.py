@@ -1,0 +1,60 @@
+"""One box per vehicle from each frame's positive windows by non-maximum suppression
+(:class:`NmsStage`; ``PipelineConfig(boxes='nms')``), in the heat map's place.
+
+The heat map sums the windows of recent frames and boxes each blob: it asks a vehicle for
+several frames of evidence and gives a weak window classifier's scattered windows one box.
+A model fitted to one camera (``fastdet adapt``) has windows that sit on the vehicles, and
+there the blobs lose them: neighbours side by side merge into one blob, and a blob's outline
+is not its vehicle's box. So the windows themselves are the boxes: the main model's positive
+windows of the frame, greedily by score, a window overlapping one already kept by IoU above
+:data:`NMS_IOU` dropped (the picture search's rule, :class:`~fastdet.config.PictureSearch`).
+The tracker, the box regressor and the second-box rule (:mod:`fastdet.video.plausible`) then
+run as on the heat map's boxes; the tracker splits no box (a window holds one vehicle).
+Which of the two a camera gets is chosen by ``fastdet adapt`` on frames it kept aside and
+recorded in its model file; what each scored: docs/training.md.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from ..detections import MAIN_PART, Detections
+from .plausible import duplicates
+from .state import FrameState, Stage
+
+#: two windows overlapping at more than this IoU see the same vehicle (the picture search's
+#: ``PictureSearch.nms_iou``)
+NMS_IOU = 0.3
+
+
+def nms_boxes(windows: Detections, max_iou: float = NMS_IOU) -> Detections:
+    """One box per vehicle of ``windows`` (a frame's positive windows; the main model's, when
+    they have a ``part`` column): the windows kept by non-maximum suppression at ``max_iou``
+    (:func:`~fastdet.video.plausible.duplicates`), boxes ``(N, 4) int32`` and the windows'
+    scores ``(N,) float32``, in the windows' order."""
+    w = windows[windows.part == MAIN_PART] if windows.part is not None else windows
+    if len(w) == 0:
+        return Detections(np.zeros((0, 4), np.int32), np.zeros(0, np.float32))
+    keep = duplicates(w.boxes, w.scores, max_iou)
+    return Detections(w.boxes[keep].astype(np.int32), w.scores[keep].astype(np.float32))
+
+
+class NmsStage(Stage):
+    """The main model's boxes of a frame: its positive windows after non-maximum suppression
+    (:func:`nms_boxes`), in the heat map's place (module docstring). No heat map: nothing of
+    one frame is carried to the next. A frame of another size calls ``on_new_size(first)``
+    as :class:`~fastdet.video.box_stages.HeatStage` does (``first``: the first frame)."""
+
+    name = "nms"
+
+    def __init__(self, on_new_size: Callable[[bool], None]) -> None:
+        self.on_new_size = on_new_size
+        self.shape: tuple[int, int] | None = None
+
+    def __call__(self, s: FrameState) -> FrameState:
+        if s.shape != self.shape:
+            self.on_new_size(self.shape is None)
+            self.shape = s.shape
+        s.boxes = s.out = nms_boxes(s.windows)
+        return s

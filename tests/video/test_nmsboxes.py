@@ -1,0 +1,124 @@
+"""fastdet.video.nmsboxes: one box per vehicle from a frame's windows by non-maximum suppression
+(``PipelineConfig(boxes='nms')``), checked against a plain greedy loop; the pipeline's box
+formation (config, the model's record, the heat map by default)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from fastdet.config import PipelineConfig
+from fastdet.detections import MAIN_PART, ONCOMING_PART, Detections
+from fastdet.errors import ModelError
+from fastdet.io.reader import FrameReader
+from fastdet.model import load_model
+from fastdet.train.blend import offset
+from fastdet.video import VideoDetector
+from fastdet.video.box_stages import HeatStage, TrackStage
+from fastdet.video.detector import BOXES_KEY, box_formation
+from fastdet.video.nmsboxes import NMS_IOU, NmsStage, nms_boxes
+from tests.reference import box_iou
+
+
+def greedy(boxes: np.ndarray, scores: np.ndarray, max_iou: float) -> list[int]:
+    """The rows kept by the textbook greedy suppression: best score first (ties: the earlier
+    row), a box kept when it overlaps no kept box by IoU above ``max_iou``."""
+    kept: list[int] = []
+    for i in sorted(range(len(boxes)), key=lambda k: (-float(scores[k]), k)):
+        if all(box_iou(boxes[i], boxes[j]) <= max_iou for j in kept):
+            kept.append(i)
+    return sorted(kept)
+
+
+@st.composite
+def windows(draw: st.DrawFn) -> Detections:
+    n = draw(st.integers(0, 40))
+    xy = draw(st.lists(st.tuples(st.integers(0, 200), st.integers(0, 120)), min_size=n, max_size=n))
+    size = draw(st.lists(st.sampled_from([48, 64, 96, 128]), min_size=n, max_size=n))
+    scores = draw(st.lists(st.sampled_from([0.55, 0.6, 0.7, 0.8, 0.9, 0.99]), min_size=n, max_size=n))
+    part = draw(st.lists(st.sampled_from([MAIN_PART, MAIN_PART, ONCOMING_PART]), min_size=n, max_size=n))
+    b = np.array([[x, y, x + s, y + s] for (x, y), s in zip(xy, size)], np.int32).reshape(-1, 4)
+    return Detections(b, np.array(scores, np.float32), part=np.array(part, np.int8))
+
+
+@settings(max_examples=200, deadline=None)
+@given(windows())
+def test_nms_boxes_are_the_greedy_loops_of_the_main_windows(w: Detections) -> None:
+    got = nms_boxes(w)
+    main = np.flatnonzero(w.part == MAIN_PART)
+    want = main[greedy(w.boxes[main], w.scores[main], NMS_IOU)]
+    np.testing.assert_array_equal(got.boxes, w.boxes[want])
+    np.testing.assert_array_equal(got.scores, w.scores[want])
+    assert got.boxes.dtype == np.int32 and got.scores.dtype == np.float32
+    # no part column: every window is the main model's
+    plain = nms_boxes(Detections(w.boxes, w.scores))
+    np.testing.assert_array_equal(plain.boxes, w.boxes[greedy(w.boxes, w.scores, NMS_IOU)])
+
+
+def test_nms_stage_tells_of_a_new_picture_size() -> None:
+    from fastdet.video.state import FrameState
+
+    calls: list[bool] = []
+    stage = NmsStage(calls.append)
+    for shape in [(40, 60), (40, 60), (50, 60)]:
+        s = FrameState(np.zeros((*shape, 3), np.uint8))
+        s.windows = Detections(np.array([[0, 0, 20, 20], [2, 0, 22, 20]], np.int32), np.array([0.9, 0.8], np.float32))
+        out = stage(s)
+        assert len(out.boxes) == 1 and out.heatmap is None
+    assert calls == [True, False]
+
+
+def _frames(data: Path, n: int) -> list[np.ndarray]:
+    with FrameReader(str(data / "videos" / "test_small1.mp4"), 40, n) as r:
+        return [f for _, f, _ in r]
+
+
+def test_the_pipelines_nms_boxes_are_its_windows_after_suppression(data: Path) -> None:
+    """On real frames: the boxes before the tracker are nms_boxes of the frame's positive
+    windows; with neither tracker nor refinement nor plausibility rules they are the output;
+    the heat map gives other boxes (the test can tell the two apart)."""
+    frames = _frames(data, 12)
+    cfg = PipelineConfig(boxes="nms", oncoming=False)
+    vd = VideoDetector(config=cfg)
+    assert vd.stage(NmsStage) is not None and vd.stage(HeatStage) is None
+    track = vd.stage(TrackStage)
+    assert isinstance(track, TrackStage) and not track.split
+    bare = VideoDetector(config=PipelineConfig(boxes="nms", oncoming=False, plausible=None).without(
+        "tracker", "refine"))
+    heat = VideoDetector(config=PipelineConfig(oncoming=False).without("tracker", "refine"))
+    n_found = differ = 0
+    for f in frames:
+        vd.update(f)
+        want = nms_boxes(vd.debug.windows)
+        np.testing.assert_array_equal(vd.debug.boxes.boxes, want.boxes)
+        assert vd.debug.heat.size == 0
+        out = bare.update(f)
+        want = nms_boxes(bare.debug.windows)
+        np.testing.assert_array_equal(out.boxes, want.boxes)
+        np.testing.assert_array_equal(out.scores, want.scores)
+        n_found += len(out)
+        h = heat.update(f)
+        differ += len(h) != len(out) or not np.array_equal(h.boxes, out.boxes)
+    assert n_found > 0 and differ > 0
+
+
+def test_the_box_formation_is_the_configs_else_the_models_record(tmp_path: Path) -> None:
+    model = load_model()
+    nms = offset(model, 0.0, metadata={BOXES_KEY: "nms"}).save(tmp_path / "nms.npz")
+    bad = offset(model, 0.0, metadata={BOXES_KEY: "blobs"}).save(tmp_path / "bad.npz")
+    assert VideoDetector(config=PipelineConfig(model=str(nms))).stage(NmsStage) is not None
+    assert VideoDetector(config=PipelineConfig(model=str(nms), boxes="heat")).stage(HeatStage) is not None
+    assert VideoDetector(config=PipelineConfig()).stage(HeatStage) is not None
+    assert VideoDetector(config=PipelineConfig(boxes="nms")).stage(NmsStage) is not None
+    assert box_formation(PipelineConfig(), object()) == "heat"  # a detector with no model
+    with pytest.raises(ModelError, match=BOXES_KEY):
+        VideoDetector(config=PipelineConfig(model=str(bad))).stage(HeatStage)
+    assert VideoDetector(config=PipelineConfig(model=str(bad), boxes="heat")).stage(HeatStage) is not None
+    with pytest.raises(ValueError, match="boxes must be"):
+        PipelineConfig(boxes="blobs")  # type: ignore[arg-type]
+    # None is left out of the dict: the default config keeps its digest
+    assert "boxes" not in PipelineConfig().to_dict()
+    assert PipelineConfig.from_dict(PipelineConfig(boxes="nms").to_dict()).boxes == "nms"
