@@ -401,10 +401,10 @@ def run(args: argparse.Namespace) -> int:
 
     crops, counts, crop_secs = _adapt.camera_crops(train_pics, bundled, config, progress)
     secs.update(crop_secs)
-    t = time.perf_counter()
-    model = _adapt.fit_camera_model(data, bundled, crops, config, progress,
-                                    log=lambda s: print(s, flush=True))
-    secs["train"] = time.perf_counter() - t
+    model, fit_secs = _adapt.fit_mined_camera_model(data, bundled, train_pics, crops, counts, config, progress,
+                                                   log=lambda s: print(s, flush=True))
+    secs["hard_negatives"] += fit_secs["hard_negatives"]
+    secs["train"] = fit_secs["train"]
     _signals.check()
     t = time.perf_counter()
     regressor, regressor_fit = _adapt.fit_camera_regressor(train_pics, load_regressor(), config, progress)

@@ -45,6 +45,10 @@ class AdaptConfig(Config):
     negatives_per_picture: random background windows cut from each sampled frame.
     hard_per_picture: at most this many hard negatives (windows the bundled model fires on
         that touch no labelled box) from each sampled frame.
+    mining_rounds: how many times hard negatives are mined: first with the bundled model, then
+        with each round's fitted model (the windows it still fires on that touch no labelled
+        box, ``hard_per_picture`` a frame), each round's crops added to the next fit; 1: the
+        bundled model's only.
     min_score: a teacher vehicle at least this sure is a target, below it an ignore region.
     offsets: the decision offsets (:func:`fastdet.train.blend.offset`, decision units; + is
         stricter) tried on the kept-aside footage; the one of best F1 against the teacher wins.
@@ -63,6 +67,7 @@ class AdaptConfig(Config):
     jitter: int = 2
     negatives_per_picture: int = 8
     hard_per_picture: int = 20
+    mining_rounds: int = 2
     min_score: float = 0.3
     offsets: tuple[float, ...] = DEFAULT_OFFSETS
     C: float = 0.0218
@@ -81,6 +86,7 @@ class AdaptConfig(Config):
         _whole("jitter", self.jitter, 0)
         _whole("negatives_per_picture", self.negatives_per_picture, 0)
         _whole("hard_per_picture", self.hard_per_picture, 0)
+        _whole("mining_rounds", self.mining_rounds, 1)
         if self.max_per_folder is not None:
             _whole("max_per_folder", self.max_per_folder, 1)
         if not (isinstance(self.holdout, (int, float)) and 0 < self.holdout < 1):

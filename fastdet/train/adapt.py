@@ -324,14 +324,54 @@ def camera_crops(pictures: Sequence[AnnotatedPicture], bundled: Model, config: A
                          negatives_per_picture=config.negatives_per_picture, seed=config.seed,
                          frames=_ticking(pictures, "crops", progress))
     t1 = time.perf_counter()
-    hard = hard_negative_crops(bundled, pictures, per_picture=config.hard_per_picture, min_score=0.0,
-                               seed=config.seed, frames=_ticking(pictures, "hard negatives", progress),
-                               cells_per_step=2, steps=2, threshold=0.0) if config.hard_per_picture else None
+    hard = mine_hard_negatives(pictures, bundled, config, 1, progress)
     t2 = time.perf_counter()
     crops = base if hard is None or not len(hard) else CropSet.concat(base, hard)
     counts = {"positives": int((base.labels == 1).sum()), "negatives": int((base.labels == 0).sum()),
               "hard_negatives": 0 if hard is None else len(hard), "weight": config.weight}
     return crops, counts, {"crops": t1 - t0, "hard_negatives": t2 - t1}
+
+
+def mine_hard_negatives(pictures: Sequence[AnnotatedPicture], model: Model, config: AdaptConfig, round_: int,
+                        progress: bool = True) -> CropSet | None:
+    """Mining round ``round_`` (1: with the bundled model): at most ``config.hard_per_picture``
+    windows a frame of ``pictures`` that ``model`` fires on and that touch no labelled box (the
+    whole frame searched, :func:`~fastdet.train.pictures.hard_negative_crops`); ``None`` when
+    ``hard_per_picture`` is 0. Each round draws with its own seed."""
+    if not config.hard_per_picture:
+        return None
+    desc = "hard negatives" if round_ == 1 else f"hard negatives (round {round_})"
+    return hard_negative_crops(model, pictures, per_picture=config.hard_per_picture, min_score=0.0,
+                               seed=config.seed + round_ - 1, frames=_ticking(pictures, desc, progress),
+                               cells_per_step=2, steps=2, threshold=0.0)
+
+
+def fit_mined_camera_model(data: Path, bundled: Model, pictures: Sequence[AnnotatedPicture], crops: CropSet,
+                           counts: dict[str, int], config: AdaptConfig, progress: bool = True,
+                           log: Callable[[str], None] = print) -> tuple[Model, dict[str, float]]:
+    """:func:`fit_camera_model` on ``crops`` (:func:`camera_crops`' of ``pictures``), then
+    ``config.mining_rounds - 1`` more rounds: hard negatives mined on ``pictures`` with the model
+    just fitted (:func:`mine_hard_negatives`), added to the crops, the model fitted again. A
+    round that finds none ends the rounds. ``counts["hard_negatives"]`` grows by each round's;
+    returns the last model and the seconds (``train``: every fit; ``hard_negatives``: the
+    rounds after the first)."""
+    t = time.perf_counter()
+    model = fit_camera_model(data, bundled, crops, config, progress, log)
+    secs = {"train": time.perf_counter() - t, "hard_negatives": 0.0}
+    for r in range(2, config.mining_rounds + 1):
+        _signals.check()
+        t = time.perf_counter()
+        hard = mine_hard_negatives(pictures, model, config, r, progress)
+        secs["hard_negatives"] += time.perf_counter() - t
+        if hard is None or not len(hard):
+            break
+        log(f"round {r}: {len(hard)} hard negatives the round-{r - 1} model fires on")
+        crops = CropSet.concat(crops, hard)
+        counts["hard_negatives"] += len(hard)
+        t = time.perf_counter()
+        model = fit_camera_model(data, bundled, crops, config, progress, log)
+        secs["train"] += time.perf_counter() - t
+    return model, secs
 
 
 def fit_camera_model(data: Path, bundled: Model, crops: CropSet, config: AdaptConfig, progress: bool = True,

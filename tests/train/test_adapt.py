@@ -199,6 +199,43 @@ def test_the_camera_crops_are_weighted_not_repeated(data, monkeypatch):
     assert model.metadata["training"]["extra_weight"] == 3.0
 
 
+def test_each_mining_round_mines_with_the_model_just_fitted_and_fits_again(monkeypatch):
+    """fit_mined_camera_model: round r mines with round r-1's model (seed + r - 1), its crops join
+    every later fit, the counts grow by them; a round that finds none ends the rounds."""
+    from fastdet.train.dataset import CropSet
+
+    def crops(n: int, tag: str) -> CropSet:
+        return CropSet(np.zeros((n, 64, 64, 3), np.uint8), np.zeros(n, np.int64), np.array([tag] * n), np.arange(n))
+
+    fits: list[int] = []
+    mined: list[tuple[object, int]] = []
+
+    def fit(data, bundled, c, config, progress=True, log=print):
+        fits.append(len(c))
+        return f"model{len(fits)}"
+
+    found = {2: 3, 3: 2, 4: 0, 5: 7}
+
+    def mine(pictures, model, config, round_, progress=True):
+        mined.append((model, round_))
+        return crops(found[round_], f"r{round_}")
+
+    monkeypatch.setattr(adapt, "fit_camera_model", fit)
+    monkeypatch.setattr(adapt, "mine_hard_negatives", mine)
+    counts = {"hard_negatives": 10}
+    model, secs = adapt.fit_mined_camera_model(Path("."), None, [], crops(10, "c"), counts,
+                                               AdaptConfig(mining_rounds=5), progress=False, log=lambda s: None)
+    assert mined == [("model1", 2), ("model2", 3), ("model3", 4)]  # round 4 finds none: no round 5
+    assert fits == [10, 13, 15] and model == "model3" and counts["hard_negatives"] == 15
+    assert set(secs) == {"train", "hard_negatives"}
+    fits.clear(), mined.clear()
+    model, _ = adapt.fit_mined_camera_model(Path("."), None, [], crops(10, "c"), {"hard_negatives": 0},
+                                            AdaptConfig(mining_rounds=1), progress=False, log=lambda s: None)
+    assert fits == [10] and mined == [] and model == "model1"
+    with pytest.raises(ValueError, match="mining_rounds"):
+        AdaptConfig(mining_rounds=0)
+
+
 def test_the_cameras_regressor_needs_enough_vehicles(data, monkeypatch):
     """Below MIN_REGRESSOR_VEHICLES vehicles (of 4 px and more) no regressor is fitted: the model
     keeps the bundled one; at the floor one is, on the boxes about those vehicles (and mirrored)."""
