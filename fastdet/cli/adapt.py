@@ -221,38 +221,37 @@ def holdout_run(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, He
     return run
 
 
-def holdout_offsets(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, HeldFrames] | None = None,
-                    boxes: Boxes = "heat") -> _adapt.OffsetsRun:
-    """The video pipeline over a clip's kept-aside stretch with a model file moved by each of
-    some offsets, the frames read and scored once for all of them
-    (:func:`fastdet.video.replay.iter_offset_detections`: each offset's boxes are those of
-    :func:`holdout_run` with the moved model), each offset's boxes scored as there.
-    ``frames``: as :func:`holdout_run`'s; ``boxes``: the pipeline's box formation
-    (:attr:`PipelineConfig.boxes <fastdet.config.PipelineConfig>`)."""
+def holdout_lanes(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, HeldFrames] | None = None
+                  ) -> _adapt.LanesRun:
+    """The video pipeline over a clip's kept-aside stretch for each lane -- a box formation and the
+    model file moved by an offset --, the frames read and scored once for all of them
+    (:func:`fastdet.video.replay.iter_lane_detections`: each lane's boxes are those of
+    :func:`holdout_run` with the moved model and that formation), each lane's boxes scored as
+    there. ``frames``: as :func:`holdout_run`'s."""
     from ..eval.metrics import evaluate
-    from ..video.replay import iter_offset_detections
+    from ..video.replay import iter_lane_detections
 
-    def run(clip: _adapt.Clip, model: str, offsets: Sequence[float]
-            ) -> tuple[dict[float, tuple[int, int, int]], float, int]:
+    def run(clip: _adapt.Clip, model: str, lanes: Sequence[tuple[str, float]]
+            ) -> tuple[dict[tuple[str, float], tuple[int, int, int]], float, int]:
         pics = held.get(clip.name, [])
         if not pics:
-            return {o: (0, 0, 0) for o in offsets}, 0.0, 0
+            return {k: (0, 0, 0) for k in lanes}, 0.0, 0
         t0 = time.perf_counter()
-        config = replace(PipelineConfig(), model=model, boxes=boxes)
-        tables: dict[float, list[Detections]] = {o: [] for o in offsets}
+        config = replace(PipelineConfig(), model=model)
+        tables: list[list[Detections]] = [[] for _ in lanes]
         n = 0
-        for fno, by_offset in iter_offset_detections(_source(clip, frames), offsets, config,
-                                                     start=clip.holdout_start - 1,
-                                                     frames=clip.frames - clip.holdout_start + 1):
+        for fno, by_lane in iter_lane_detections(_source(clip, frames), [(o, b) for b, o in lanes], config,
+                                                 start=clip.holdout_start - 1,
+                                                 frames=clip.frames - clip.holdout_start + 1):
             n += 1
-            for o, dets in by_offset.items():
-                tables[o].append(dets.with_frames(np.full(len(dets), fno, np.int64)))
+            for table, dets in zip(tables, by_lane):
+                table.append(dets.with_frames(np.full(len(dets), fno, np.int64)))
         secs = time.perf_counter() - t0
         gt, keyframes = _gt(pics), np.array([p.frame for p in pics])
         out = {}
-        for o in offsets:
-            res = evaluate(gt, _predictions(tables[o]), keyframes=keyframes, tracking=False)
-            out[o] = (res.tp, res.fp, res.fn)
+        for k, table in zip(lanes, tables):
+            res = evaluate(gt, _predictions(table), keyframes=keyframes, tracking=False)
+            out[k] = (res.tp, res.fp, res.fn)
         return out, secs, n
 
     return run
@@ -428,12 +427,10 @@ def run(args: argparse.Namespace) -> int:
             kept = _kept(frames, time.perf_counter() - t_read)
             run_holdout = holdout_run(held, frames)
             before = _adapt.agreement(footage, run_holdout, None).to_dict()
-            by_boxes = {b: _adapt.choose_offset(model, footage, holdout_offsets(held, frames, b),
-                                                work / "operating-point", config.offsets, progress)
-                        for b in BOXES}
+            boxes, chosen, by_boxes = _adapt.choose_operating_point(
+                model, footage, holdout_lanes(held, frames), work / "operating-point", config.offsets, BOXES, progress)
             formations = {b: {"offset": o, "f1": r[o].to_dict()["f1"]} for b, (o, r) in by_boxes.items()}
-            boxes = _adapt.choose_boxes(by_boxes)
-            chosen, results = by_boxes[boxes]
+            results = by_boxes[boxes][1]
             tried = {f"{o:g}": r.to_dict()["f1"] for o, r in results.items()}
             after = _after(model, chosen, boxes, footage, run_holdout, work / "operating-point")
         r = results[chosen]

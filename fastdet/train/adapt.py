@@ -23,10 +23,11 @@ The steps, each a function here (the command, :mod:`fastdet.cli.adapt`, runs the
    with it: the video pipeline's boxes come from heat blobs, which for an adapted model reach the
    targets far less often than its windows do, and the regressor puts them on the vehicle
    (docs/training.md, "The camera's own box regressor");
-6. :func:`choose_offset`: the kept-aside stretches run through the video pipeline with the new
-   model moved by each of a few decision offsets (:func:`~fastdet.train.blend.offset`; each frame
-   read and scored once for all of them, :mod:`fastdet.video.replay`), the one of best F1
-   against the labels of those frames kept. The pipeline and the scoring are given by the
+6. :func:`choose_operating_point`: the kept-aside stretches run through the video pipeline with
+   the new model moved by each of a few decision offsets (:func:`~fastdet.train.blend.offset`),
+   with either box formation (the heat map's, or each frame's windows after suppression); each
+   frame read and scored once for all of them (:mod:`fastdet.video.replay`); the formation and
+   offset of best F1 against the labels of those frames kept. The pipeline and the scoring are given by the
    caller (the ``video`` and ``eval`` layers sit beside this one).
 """
 from __future__ import annotations
@@ -464,12 +465,14 @@ class Agreement:
 #: (``seconds`` and ``frames`` from the stretch's first frame out: :attr:`Agreement.ms_per_frame`)
 HoldoutRun = Callable[[Clip, "str | None"], tuple[int, int, int, float, int]]
 
-#: ``run(clip, model file, offsets) -> ({offset: (tp, fp, fn)}, seconds, frames read)``: the video
-#: pipeline over the clip's kept-aside stretch with the model moved by each offset
-#: (:func:`~fastdet.train.blend.offset`; the frames read and scored once for all of them:
-#: :func:`fastdet.video.replay.iter_offset_detections`), each offset's boxes scored against the
+#: ``run(clip, model file, lanes) -> ({(boxes, offset): (tp, fp, fn)}, seconds, frames read)``: the
+#: video pipeline over the clip's kept-aside stretch for each lane -- a box formation
+#: (:attr:`PipelineConfig.boxes <fastdet.config.PipelineConfig>`) and the model moved by an offset
+#: (:func:`~fastdet.train.blend.offset`); the frames read and scored once for all of them:
+#: :func:`fastdet.video.replay.iter_lane_detections` --, each lane's boxes scored against the
 #: kept-aside labels
-OffsetsRun = Callable[[Clip, str, Sequence[float]], tuple[dict[float, tuple[int, int, int]], float, int]]
+LanesRun = Callable[[Clip, str, Sequence[tuple[str, float]]],
+                    tuple[dict[tuple[str, float], tuple[int, int, int]], float, int]]
 
 
 def agreement(footage: Footage, run: HoldoutRun, model_path: str | None) -> Agreement:
@@ -486,8 +489,8 @@ def agreement(footage: Footage, run: HoldoutRun, model_path: str | None) -> Agre
 
 def choose_boxes(by_boxes: Mapping[str, tuple[float, Mapping[float, Agreement]]]) -> Boxes:
     """The box formation (:data:`fastdet.config.BOXES`) whose chosen offset agrees best with the
-    labels kept aside: ``by_boxes`` maps each formation to :func:`choose_offset`'s result for
-    it. Ties, or no F1 at all, keep ``'heat'`` (the pipeline's own)."""
+    labels kept aside: ``by_boxes`` maps each formation to its chosen offset and every offset's
+    :class:`Agreement` (as :func:`choose_operating_point` makes it). Ties, or no F1 at all, keep ``'heat'`` (the pipeline's own)."""
     def rank(b: str) -> tuple[float, bool]:
         chosen, results = by_boxes[b]
         f1 = results[chosen].f1
@@ -499,32 +502,43 @@ def choose_boxes(by_boxes: Mapping[str, tuple[float, Mapping[float, Agreement]]]
     return best  # type: ignore[return-value]
 
 
-def choose_offset(model: Model, footage: Footage, run: OffsetsRun, folder: Path, offsets: Sequence[float],
-                  progress: bool = True) -> tuple[float, dict[float, Agreement]]:
-    """The decision offset of best F1 on the kept-aside footage (ties: the one nearest 0) and
-    every offset's :class:`Agreement` (its ``seconds``: the whole run's over every clip, all the
-    offsets at once). ``model`` is written to ``folder`` for ``run`` to load (and removed after)."""
+def choose_operating_point(model: Model, footage: Footage, run: LanesRun, folder: Path, offsets: Sequence[float],
+                           formations: Sequence[Boxes] = BOXES, progress: bool = True
+                           ) -> tuple[Boxes, float, dict[str, tuple[float, dict[float, Agreement]]]]:
+    """The box formation and decision offset that agree best with the kept-aside labels: for each
+    of ``formations``, the offset of best F1 (ties: the one nearest 0); of those, the formation
+    :func:`choose_boxes` picks. Returns ``(formation, offset, {formation: (its offset, {offset:
+    Agreement})})`` (each ``seconds``: the whole run's over every clip, every lane at once).
+    ``run`` gets every (formation, offset) lane at once; ``model`` is written to ``folder`` for it
+    to load (and removed after)."""
     folder.mkdir(parents=True, exist_ok=True)
-    offs = list(offsets)
-    counts = {o: (0, 0, 0) for o in offs}
+    lanes = [(b, float(o)) for b in formations for o in offsets]
+    counts = {k: (0, 0, 0) for k in lanes}
     secs, frames = 0.0, 0
     path = folder / "model.npz"
     offset(model, 0.0).save(path)
     try:
         for clip in tqdm([c for c in footage.clips if c.holdout_frames(footage.every)], desc="operating point",
                          unit="video", file=sys.stderr, dynamic_ncols=True, disable=not progress):
-            per_offset, s, n = run(clip, str(path), offs)
+            per_lane, s, n = run(clip, str(path), lanes)
             secs, frames = secs + s, frames + n
-            for o in offs:
-                tp, fp, fn = counts[o]
-                a, b, c = per_offset[o]
-                counts[o] = (tp + a, fp + b, fn + c)
+            for k in lanes:
+                tp, fp, fn = counts[k]
+                a, b, c = per_lane[k]
+                counts[k] = (tp + a, fp + b, fn + c)
     finally:
         path.unlink(missing_ok=True)
-    results = {o: Agreement(*counts[o], seconds=secs, frames=frames) for o in offs}
 
-    def rank(o: float) -> tuple[float, float]:
-        f1 = results[o].f1
-        return (-1.0 if math.isnan(f1) else f1, -abs(o))
+    def best(results: dict[float, Agreement]) -> float:
+        def rank(o: float) -> tuple[float, float]:
+            f1 = results[o].f1
+            return (-1.0 if math.isnan(f1) else f1, -abs(o))
 
-    return max(results, key=rank), results
+        return max(results, key=rank)
+
+    by_boxes: dict[str, tuple[float, dict[float, Agreement]]] = {}
+    for b in formations:
+        results = {o: Agreement(*counts[(b, o)], seconds=secs, frames=frames) for bb, o in lanes if bb == b}
+        by_boxes[b] = (best(results), results)
+    boxes = choose_boxes(by_boxes)
+    return boxes, by_boxes[boxes][0], by_boxes

@@ -1,5 +1,6 @@
 """The video pipeline for one main model moved by several decision offsets, over one pass of the
-frames: each frame decoded and scored once, the rest of the pipeline once per offset.
+frames: each frame decoded and scored once, the rest of the pipeline once per offset (and per
+box formation: :func:`iter_lane_detections`).
 
 ``fastdet adapt`` chooses a model's operating point by running the pipeline over a stretch of
 video with the model moved by each of a few decision offsets (:func:`fastdet.train.blend.offset`
@@ -34,7 +35,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..config import FeatureConfig, PipelineConfig, RefineConfig, SearchBand
+from ..config import Boxes, FeatureConfig, PipelineConfig, RefineConfig, SearchBand
 from ..detect import BandGeometry, Detector, DetectStats
 from ..detections import ONCOMING_PART, Detections
 from ..io.held import HeldFrames
@@ -205,6 +206,23 @@ def iter_offset_detections(path: str | os.PathLike | HeldFrames, offsets: Sequen
     offs = [float(o) for o in offsets]
     if not offs or len(set(offs)) != len(offs):
         raise ValueError(f"offsets must be distinct and at least one, got {list(offsets)!r}")
+    lanes = [(o, config.boxes) for o in offs]
+    for fno, tables in iter_lane_detections(path, lanes, config, start=start, frames=frames, progress=progress):
+        yield fno, dict(zip(offs, tables))
+
+
+def iter_lane_detections(path: str | os.PathLike | HeldFrames, lanes: Sequence[tuple[float, Boxes | None]],
+                         config: PipelineConfig | None = None, *, start: int = 0, frames: int | None = None,
+                         progress: bool = False) -> Iterator[tuple[int, list[Detections]]]:
+    """As :func:`iter_offset_detections`, for lanes that may also differ in their box formation:
+    each lane ``(offset, boxes)`` is ``config`` with :attr:`PipelineConfig.boxes
+    <fastdet.config.PipelineConfig>` set to ``boxes`` and its main model moved by ``offset``.
+    Yields ``(frame, [Detections of each lane, in order])``; the frames are read and scored once
+    for all of them."""
+    config = config if config is not None else PipelineConfig()
+    keys = [(float(o), b) for o, b in lanes]
+    if not keys or len(set(keys)) != len(keys):
+        raise ValueError(f"lanes must be distinct and at least one, got {list(lanes)!r}")
     reader = FrameReader(path, start, frames)
     try:
         detector = make_detector(config)
@@ -219,9 +237,10 @@ def iter_offset_detections(path: str | os.PathLike | HeldFrames, offsets: Sequen
                 front.append(st)
         own = vd.stage(OwnVehicleStage)
         assert own is None or isinstance(own, OwnVehicleStage)
-        replays = [ReplayDetector(detector, o) for o in offs]
+        replays = [ReplayDetector(detector, o) for o, _ in keys]
         memo: dict[bytes, np.ndarray] = {}
-        lanes = [lane_stages(config, r, reader.fps, vd.refiner, own, memo) for r in replays]
+        stages = [lane_stages(replace(config, boxes=b), r, reader.fps, vd.refiner, own, memo)
+                  for (_, b), r in zip(keys, replays)]
         with progress_bar(reader.expected, progress, os.path.basename(reader.path)) as bar:
             for fno, frame, _ in reader:
                 s = FrameState(frame)
@@ -231,14 +250,14 @@ def iter_offset_detections(path: str | os.PathLike | HeldFrames, offsets: Sequen
                     own(FrameState(frame))  # its estimate fed once; each lane drops its own windows
                 bands = s.bands or []
                 oncoming = s.windows[s.windows.is_oncoming]
-                result: dict[float, Detections] = {}
+                result: list[Detections] = []
                 memo.clear()
-                for o, r, stages in zip(offs, replays, lanes):
+                for r, lane in zip(replays, stages):
                     r.feed(bands, oncoming)
                     ls = FrameState(frame)
-                    for st in stages:
+                    for st in lane:
                         ls = st(ls)
-                    result[o] = ls.out
+                    result.append(ls.out)
                 yield fno, result
                 bar.update(1)
     finally:

@@ -100,22 +100,33 @@ def test_a_still_picture_always_trains(tmp_path):
     assert train == [still] and held == {"a": [late]}
 
 
-def test_the_offset_of_best_f1_is_chosen(tmp_path):
+def test_the_formation_and_offset_of_best_f1_are_chosen_in_one_run(tmp_path):
     a = write_video(tmp_path / "a.mp4", 20)
     fp = adapt.plan_footage([str(a)], AdaptConfig(every=5))
-    calls: list[tuple[float, ...]] = []
+    calls: list[tuple[tuple[str, float], ...]] = []
+    # heat: F1 peaks at offset 1 (ties broken towards 0); nms: at 2, and higher than heat's
+    tp = {("heat", -1.0): 2, ("heat", 0.0): 3, ("heat", 1.0): 4, ("heat", 2.0): 4,
+          ("nms", -1.0): 1, ("nms", 0.0): 2, ("nms", 1.0): 3, ("nms", 2.0): 5}
 
-    def run(clip, model_path, offsets):  # F1 peaks at offset 1, ties broken towards 0
+    def run(clip, model_path, lanes):
         assert load_model(model_path).intercept == load_model().intercept  # the model itself, not moved
-        calls.append(tuple(offsets))
-        tp = {-1.0: 2, 0.0: 3, 1.0: 5, 2.0: 5}
-        return {o: (tp[o], 5 - tp[o], 5 - tp[o]) for o in offsets}, 0.5, 10
+        calls.append(tuple(lanes))
+        return {k: (tp[k], 5 - tp[k], 5 - tp[k]) for k in lanes}, 0.5, 10
 
-    best, results = adapt.choose_offset(load_model(), fp, run, tmp_path / "op", (2.0, 1.0, 0.0, -1.0),
-                                        progress=False)
-    assert best == 1.0 and calls == [(2.0, 1.0, 0.0, -1.0)]  # one run for every offset
-    assert results[1.0].f1 == 1.0 and results[0.0].to_dict()["f1"] == 0.6 and results[1.0].ms_per_frame == 50
+    offsets = (2.0, 1.0, 0.0, -1.0)
+    boxes, best, by_boxes = adapt.choose_operating_point(load_model(), fp, run, tmp_path / "op", offsets,
+                                                         progress=False)
+    assert (boxes, best) == ("nms", 2.0)
+    assert calls == [tuple((b, o) for b in ("heat", "nms") for o in offsets)]  # one run for every lane
+    heat_best, heat = by_boxes["heat"]
+    assert heat_best == 1.0 and heat[1.0].f1 == 0.8 and heat[0.0].to_dict()["f1"] == 0.6
+    assert heat[1.0].ms_per_frame == 50
     assert not list((tmp_path / "op").iterdir())  # the model file is removed
+    # the heat map alone: its own best offset
+    calls.clear()
+    boxes, best, by_boxes = adapt.choose_operating_point(load_model(), fp, run, tmp_path / "op", offsets,
+                                                         formations=("heat",), progress=False)
+    assert (boxes, best) == ("heat", 1.0) and set(by_boxes) == {"heat"} and len(calls[0]) == 4
 
 
 def test_the_box_formation_of_best_f1_at_its_offset_is_chosen_ties_keep_the_heat_map():

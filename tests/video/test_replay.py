@@ -77,3 +77,27 @@ def test_each_offsets_boxes_and_ids_are_those_of_its_own_run(data, tmp_path, box
             assert np.array_equal(got[o].scores, want.scores) and np.array_equal(got[o].ids, want.ids), (o, fno)
         totals[o] = sum(len(d) for _, d in real)
     assert len(set(totals.values())) > 1, totals  # the offsets give other boxes: the test can tell them apart
+
+
+def test_lanes_of_either_box_formation_are_those_of_each_formations_own_replay(data):
+    """iter_lane_detections with lanes of both formations in one pass: each lane's boxes, scores
+    and ids are those of iter_offset_detections for its formation (itself checked against real
+    runs above); the two formations' boxes differ."""
+    from fastdet.video.replay import iter_lane_detections
+
+    video = str(data / "videos" / "test_small1.mp4")
+    lanes = [(0.0, "heat"), (3.0, "nms"), (0.0, "nms"), (3.0, "heat")]
+    mixed = list(iter_lane_detections(video, lanes, PipelineConfig(), start=20, frames=12))
+    own = {b: list(iter_offset_detections(video, (0.0, 3.0), PipelineConfig(boxes=b), start=20, frames=12))
+           for b in ("heat", "nms")}
+    assert [f for f, _ in mixed] == [f for f, _ in own["heat"]] == list(range(21, 33))
+    differ = 0
+    for k, (fno, tables) in enumerate(mixed):
+        for (o, b), got in zip(lanes, tables):
+            want = own[b][k][1][o]
+            assert np.array_equal(got.boxes, want.boxes) and np.array_equal(got.scores, want.scores), (fno, o, b)
+            assert np.array_equal(got.ids, want.ids), (fno, o, b)
+        differ += not np.array_equal(tables[0].boxes, tables[2].boxes)
+    assert differ > 0
+    with pytest.raises(ValueError, match="distinct"):
+        next(iter_lane_detections(video, [(0.0, "nms"), (0.0, "nms")]))
