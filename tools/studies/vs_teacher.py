@@ -14,7 +14,11 @@ from its first frames, the own-vehicle look) weighs on it; ``--minutes M`` times
 1280x720 footage instead (``benchmarks.bench_adapt.make_footage``: the Udacity clips forwards and
 backwards, written once into a temporary folder, or kept in ``--keep``), the steady frame loop.
 
+``--model M.npz`` runs fastdet with another main model (an adapted camera's: its boxes made the
+way the model file records, the heat map's or its windows').
+
     python -m tools.studies.vs_teacher [--video V | --minutes M [--keep F.mp4]] [--size 640] [--repeats 3]
+                                       [--model M.npz]
 """
 from __future__ import annotations
 
@@ -34,9 +38,10 @@ from fastdet._numba import ensure_compiled
 from fastdet.config import PipelineConfig
 from fastdet.video.detector import detector_kernels, make_detector
 from fastdet.video.run import iter_video_detections
-ensure_compiled(detector_kernels(make_detector(PipelineConfig())))
+config = PipelineConfig(model=sys.argv[2] or None)
+ensure_compiled(detector_kernels(make_detector(config)))
 t0 = time.perf_counter(); n = 0
-for _ in iter_video_detections(sys.argv[1], PipelineConfig(), progress=False):
+for _ in iter_video_detections(sys.argv[1], config, progress=False):
     n += 1
 print(n / (time.perf_counter() - t0))
 """
@@ -81,6 +86,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--teacher", default=str(data_dir() / "teachers" / "yolox_nano.onnx"))
     ap.add_argument("--size", type=int, default=640)
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--model", default="",
+                    help="fastdet's main model (default: the bundled one); a model `fastdet adapt` made makes its "
+                         "boxes the way it records (heat map or windows)")
     args = ap.parse_args(argv)
     if args.minutes is not None and args.video is not None:
         ap.error("give --video or --minutes, not both")
@@ -91,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
             if not footage.exists():
                 make_footage(footage, args.minutes)
             video = str(footage)
-        best = _race(video, args.teacher, args.size, args.repeats)
+        best = _race(video, args.teacher, args.size, args.repeats, args.model)
     print(f"`{video}`, best of {args.repeats}:\n")
     print(f"| threads | fastdet `video --boxes` fps (ms / frame) | teacher {args.size} px fps (ms / frame) | ratio "
           f"| decode only fps (ms / frame) |")
@@ -103,12 +111,13 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _race(video: str, teacher: str, size: int, repeats: int) -> dict[tuple[str, int], float]:
-    """Best fps of each system at 1 and 2 threads, systems and thread counts taking turns."""
+def _race(video: str, teacher: str, size: int, repeats: int, model: str = "") -> dict[tuple[str, int], float]:
+    """Best fps of each system at 1 and 2 threads, systems and thread counts taking turns
+    (``model``: fastdet's main model file, ``""`` the bundled one)."""
     best: dict[tuple[str, int], float] = {}
     for _ in range(repeats):
         for threads in (1, 2):
-            for name, code, extra in (("fastdet", _FASTDET, []),
+            for name, code, extra in (("fastdet", _FASTDET, [model]),
                                       ("teacher", _TEACHER, [teacher, str(size), str(threads)]),
                                       ("decode", _DECODE, [])):
                 fps = _fps(code, [video, *extra], threads)
