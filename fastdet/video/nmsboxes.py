@@ -6,8 +6,11 @@ several frames of evidence and gives a weak window classifier's scattered window
 A model fitted to one camera (``fastdet adapt``) has windows that sit on the vehicles, and
 there the blobs lose them: neighbours side by side merge into one blob, and a blob's outline
 is not its vehicle's box. So the windows themselves are the boxes: the main model's positive
-windows of the frame, greedily by score, a window overlapping one already kept by IoU above
-:data:`NMS_IOU` dropped (the picture search's rule, :class:`~fastdet.config.PictureSearch`).
+windows of the frame, greedily by score, a window dropped when it overlaps one already kept by
+IoU above :data:`NMS_IOU` (the picture search's rule, :class:`~fastdet.config.PictureSearch`) or
+when more than :data:`NMS_INSIDE` of its area lies inside one (the rule of DPM's ``nms.m``,
+Felzenszwalb et al.: windows of several sizes on one vehicle, a small one inside a large one,
+have a small IoU).
 The tracker, the box regressor and the second-box rule (:mod:`fastdet.video.plausible`) then
 run as on the heat map's boxes; the tracker splits no box (a window holds one vehicle).
 Which of the two a camera gets is chosen by ``fastdet adapt`` on frames it kept aside and
@@ -20,23 +23,57 @@ from collections.abc import Callable
 import numpy as np
 
 from ..detections import MAIN_PART, Detections
-from .plausible import duplicates
 from .state import FrameState, Stage
 
 #: two windows overlapping at more than this IoU see the same vehicle (the picture search's
 #: ``PictureSearch.nms_iou``)
 NMS_IOU = 0.3
+#: a window with more than this fraction of its area inside a higher-scored one sees its vehicle
+#: (DPM's ``nms.m`` overlap, the intersection over the lower-scored box's area)
+NMS_INSIDE = 0.5
 
 
-def nms_boxes(windows: Detections, max_iou: float = NMS_IOU) -> Detections:
+def suppressed(boxes: np.ndarray, scores: np.ndarray, max_iou: float = NMS_IOU,
+               max_inside: float = NMS_INSIDE) -> np.ndarray:
+    """``(N,) bool``, True for each box to keep of ``boxes (N, 4)`` (x1, y1, x2, y2) scored
+    ``scores (N,)``: greedily by score (ties: the earlier row first), a box is dropped when its
+    IoU with a box already kept exceeds ``max_iou`` or more than ``max_inside`` of its area lies
+    inside one. Each kept box is compared with the boxes after it: O(N) memory."""
+    b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    s = np.asarray(scores, np.float64).reshape(-1)
+    if len(s) != len(b):
+        raise ValueError(f"{len(b)} boxes but {len(s)} scores")
+    keep = np.ones(len(b), bool)
+    order = np.argsort(-s, kind="stable")
+    ranked = b[order]
+    area = np.maximum((ranked[:, 2] - ranked[:, 0]) * (ranked[:, 3] - ranked[:, 1]), 0.0)
+    alive = np.ones(len(b), bool)
+    for k in range(len(b)):
+        if not alive[k]:
+            continue
+        rest = np.flatnonzero(alive[k + 1:]) + k + 1
+        if not len(rest):
+            break
+        r = ranked[rest]
+        iw = np.minimum(r[:, 2], ranked[k, 2]) - np.maximum(r[:, 0], ranked[k, 0])
+        ih = np.minimum(r[:, 3], ranked[k, 3]) - np.maximum(r[:, 1], ranked[k, 1])
+        inter = np.maximum(iw, 0.0) * np.maximum(ih, 0.0)
+        union = area[rest] + area[k] - inter
+        iou = np.where(union > 0, inter / np.where(union > 0, union, 1.0), 0.0)
+        inside = np.where(area[rest] > 0, inter / np.where(area[rest] > 0, area[rest], 1.0), 0.0)
+        alive[rest[(iou > max_iou) | (inside > max_inside)]] = False
+    keep[order] = alive
+    return keep
+
+
+def nms_boxes(windows: Detections, max_iou: float = NMS_IOU, max_inside: float = NMS_INSIDE) -> Detections:
     """One box per vehicle of ``windows`` (a frame's positive windows; the main model's, when
-    they have a ``part`` column): the windows kept by non-maximum suppression at ``max_iou``
-    (:func:`~fastdet.video.plausible.duplicates`), boxes ``(N, 4) int32`` and the windows'
-    scores ``(N,) float32``, in the windows' order."""
+    they have a ``part`` column): the windows kept by :func:`suppressed`, boxes ``(N, 4) int32``
+    and the windows' scores ``(N,) float32``, in the windows' order."""
     w = windows[windows.part == MAIN_PART] if windows.part is not None else windows
     if len(w) == 0:
         return Detections(np.zeros((0, 4), np.int32), np.zeros(0, np.float32))
-    keep = duplicates(w.boxes, w.scores, max_iou)
+    keep = suppressed(w.boxes, w.scores, max_iou, max_inside)
     return Detections(w.boxes[keep].astype(np.int32), w.scores[keep].astype(np.float32))
 
 

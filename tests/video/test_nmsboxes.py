@@ -19,16 +19,18 @@ from fastdet.train.blend import offset
 from fastdet.video import VideoDetector
 from fastdet.video.box_stages import HeatStage, TrackStage
 from fastdet.video.detector import BOXES_KEY, box_formation
-from fastdet.video.nmsboxes import NMS_IOU, NmsStage, nms_boxes
-from tests.reference import box_iou
+from fastdet.video.nmsboxes import NMS_INSIDE, NMS_IOU, NmsStage, nms_boxes, suppressed
+from tests.reference import box_iou, box_overlap_fraction
 
 
-def greedy(boxes: np.ndarray, scores: np.ndarray, max_iou: float) -> list[int]:
+def greedy(boxes: np.ndarray, scores: np.ndarray, max_iou: float, max_inside: float = NMS_INSIDE) -> list[int]:
     """The rows kept by the textbook greedy suppression: best score first (ties: the earlier
-    row), a box kept when it overlaps no kept box by IoU above ``max_iou``."""
+    row), a box kept when it overlaps no kept box by IoU above ``max_iou`` and has no more than
+    ``max_inside`` of its area inside one."""
     kept: list[int] = []
     for i in sorted(range(len(boxes)), key=lambda k: (-float(scores[k]), k)):
-        if all(box_iou(boxes[i], boxes[j]) <= max_iou for j in kept):
+        if all(box_iou(boxes[i], boxes[j]) <= max_iou and box_overlap_fraction(boxes[i], boxes[j]) <= max_inside
+               for j in kept):
             kept.append(i)
     return sorted(kept)
 
@@ -56,6 +58,22 @@ def test_nms_boxes_are_the_greedy_loops_of_the_main_windows(w: Detections) -> No
     # no part column: every window is the main model's
     plain = nms_boxes(Detections(w.boxes, w.scores))
     np.testing.assert_array_equal(plain.boxes, w.boxes[greedy(w.boxes, w.scores, NMS_IOU)])
+    # each rule alone: IoU only (nothing is inside by more than all of itself), containment only
+    assert suppressed(w.boxes, w.scores, NMS_IOU, 1.0).tolist() == [
+        i in greedy(w.boxes, w.scores, NMS_IOU, 1.0) for i in range(len(w))]
+    assert suppressed(w.boxes, w.scores, 1.0, NMS_INSIDE).tolist() == [
+        i in greedy(w.boxes, w.scores, 1.0, NMS_INSIDE) for i in range(len(w))]
+
+
+def test_a_small_window_inside_a_large_one_is_suppressed() -> None:
+    # a 64-px window inside a 128-px one: IoU 0.25, under the IoU rule, all of it inside
+    b = np.array([[0, 0, 128, 128], [32, 32, 96, 96], [200, 0, 264, 64]], np.int32)
+    assert suppressed(b, np.array([0.9, 0.8, 0.7])).tolist() == [True, False, True]
+    assert suppressed(b, np.array([0.9, 0.8, 0.7]), max_inside=1.0).tolist() == [True, True, True]
+    # the larger window scored lower: less than half of it lies inside the small one, it stays
+    assert suppressed(b, np.array([0.8, 0.9, 0.7])).tolist() == [True, True, True]
+    with pytest.raises(ValueError, match="2 scores"):
+        suppressed(b, np.array([0.1, 0.2]))
 
 
 def test_nms_stage_tells_of_a_new_picture_size() -> None:
