@@ -333,6 +333,14 @@ def camera_crops(pictures: Sequence[AnnotatedPicture], bundled: Model, config: A
     return crops, counts, {"crops": t1 - t0, "hard_negatives": t2 - t1}
 
 
+def spread(items: Sequence[Any], n: int) -> list[Any]:
+    """At most ``n`` of ``items``, spread evenly over them (all of them when there are at most
+    ``n``), in their order."""
+    if len(items) <= n:
+        return list(items)
+    return [items[i] for i in np.linspace(0, len(items) - 1, n).round().astype(int)]
+
+
 def mine_hard_negatives(pictures: Sequence[AnnotatedPicture], model: Model, config: AdaptConfig, round_: int,
                         progress: bool = True) -> CropSet | None:
     """Mining round ``round_`` (1: with the bundled model): at most ``config.hard_per_picture``
@@ -351,18 +359,20 @@ def fit_mined_camera_model(data: Path, bundled: Model, pictures: Sequence[Annota
                            counts: dict[str, int], config: AdaptConfig, progress: bool = True,
                            log: Callable[[str], None] = print) -> tuple[Model, dict[str, float]]:
     """:func:`fit_camera_model` on ``crops`` (:func:`camera_crops`' of ``pictures``), then
-    ``config.mining_rounds - 1`` more rounds: hard negatives mined on ``pictures`` with the model
-    just fitted (:func:`mine_hard_negatives`), added to the crops, the model fitted again. A
-    round that finds none ends the rounds. ``counts["hard_negatives"]`` grows by each round's;
+    ``config.mining_rounds - 1`` more rounds: hard negatives mined with the model just fitted
+    (:func:`mine_hard_negatives`) on at most ``config.mining_frames`` of ``pictures``, spread
+    evenly (:func:`spread`), added to the crops, the model fitted again. A round that finds
+    none ends the rounds. ``counts["hard_negatives"]`` grows by each round's;
     returns the last model and the seconds (``train``: every fit; ``hard_negatives``: the
     rounds after the first)."""
     t = time.perf_counter()
     model = fit_camera_model(data, bundled, crops, config, progress, log)
     secs = {"train": time.perf_counter() - t, "hard_negatives": 0.0}
+    later = spread(pictures, config.mining_frames)
     for r in range(2, config.mining_rounds + 1):
         _signals.check()
         t = time.perf_counter()
-        hard = mine_hard_negatives(pictures, model, config, r, progress)
+        hard = mine_hard_negatives(later, model, config, r, progress)
         secs["hard_negatives"] += time.perf_counter() - t
         if hard is None or not len(hard):
             break

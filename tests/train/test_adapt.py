@@ -245,6 +245,14 @@ def test_each_mining_round_mines_with_the_model_just_fitted_and_fits_again(monke
     assert fits == [10] and mined == [] and model == "model1"
     with pytest.raises(ValueError, match="mining_rounds"):
         AdaptConfig(mining_rounds=0)
+    # later rounds search at most mining_frames of the pictures, spread evenly
+    seen: list[list[int]] = []
+    monkeypatch.setattr(adapt, "mine_hard_negatives",
+                        lambda pictures, model, config, round_, progress=True: seen.append(list(pictures)))
+    adapt.fit_mined_camera_model(Path("."), None, list(range(10)), crops(10, "c"), {"hard_negatives": 0},
+                                 AdaptConfig(mining_frames=4), progress=False, log=lambda s: None)
+    assert seen == [[0, 3, 6, 9]]
+    assert adapt.spread(list(range(5)), 8) == [0, 1, 2, 3, 4] and adapt.spread([7, 8, 9], 1) == [7]
 
 
 def test_the_cameras_regressor_needs_enough_vehicles(data, monkeypatch):
