@@ -500,7 +500,8 @@ def agreement(footage: Footage, run: HoldoutRun, model_path: str | None) -> Agre
 def choose_boxes(by_boxes: Mapping[str, tuple[float, Mapping[float, Agreement]]]) -> Boxes:
     """The box formation (:data:`fastdet.config.BOXES`) whose chosen offset agrees best with the
     labels kept aside: ``by_boxes`` maps each formation to its chosen offset and every offset's
-    :class:`Agreement` (as :func:`choose_operating_point` makes it). Ties, or no F1 at all, keep ``'heat'`` (the pipeline's own)."""
+    :class:`Agreement` (as :func:`choose_operating_point` makes it). Ties, or no F1 at all, keep
+    ``'heat'`` (the pipeline's own)."""
     def rank(b: str) -> tuple[float, bool]:
         chosen, results = by_boxes[b]
         f1 = results[chosen].f1

@@ -96,7 +96,7 @@ def box_formation(config: PipelineConfig, detector: object) -> Boxes:
         return "heat"
     if got not in BOXES:
         raise ModelError(f"the main model's metadata['{BOXES_KEY}'] must be one of {', '.join(BOXES)}, got {got!r}")
-    return got  # type: ignore[return-value]
+    return got
 
 
 def detector_kernels(detector: object) -> tuple[Any, ...]:
