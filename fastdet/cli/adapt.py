@@ -19,10 +19,11 @@
   FOOTAGE frames in the kept-aside stretch set the operating point (none: the model's own).
 - The main model is trained from the bundled crop folders (``--data``, default
   ``$FASTDET_DATA``) plus the camera's crops (each of sample weight ``--weight``; hard
-  negatives mined with the bundled model); the box regressor is fitted on the camera's labelled
-  vehicles and carried in the model file; the model is then moved by the decision offset of best
-  F1 against the labels of the kept-aside frames, through the ``video`` pipeline with that
-  regressor (:mod:`fastdet.train.adapt`).
+  negatives mined with the bundled model, then again with the model fitted, which is fitted
+  again); the box regressor is fitted on the camera's labelled vehicles and carried in the model
+  file; the model is then moved by the decision offset, and given the box formation (heat map or
+  windows), of best F1 against the labels of the kept-aside frames, through the ``video``
+  pipeline with that regressor (:mod:`fastdet.train.adapt`).
   Each kept-aside stretch is decoded once for the three runs over it (:func:`held_stretches`:
   in memory up to ``AdaptConfig.hold_bytes``, the rest in raw files in the work folder, removed
   when the step ends).
