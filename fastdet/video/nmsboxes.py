@@ -23,6 +23,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ..detections import MAIN_PART, Detections
+from .plausible import duplicates
 from .state import FrameState, Stage
 
 #: two windows overlapping at more than this IoU see the same vehicle (the picture search's
@@ -33,47 +34,15 @@ NMS_IOU = 0.3
 NMS_INSIDE = 0.5
 
 
-def suppressed(boxes: np.ndarray, scores: np.ndarray, max_iou: float = NMS_IOU,
-               max_inside: float = NMS_INSIDE) -> np.ndarray:
-    """``(N,) bool``, True for each box to keep of ``boxes (N, 4)`` (x1, y1, x2, y2) scored
-    ``scores (N,)``: greedily by score (ties: the earlier row first), a box is dropped when its
-    IoU with a box already kept exceeds ``max_iou`` or more than ``max_inside`` of its area lies
-    inside one. Each kept box is compared with the boxes after it: O(N) memory."""
-    b = np.asarray(boxes, np.float64).reshape(-1, 4)
-    s = np.asarray(scores, np.float64).reshape(-1)
-    if len(s) != len(b):
-        raise ValueError(f"{len(b)} boxes but {len(s)} scores")
-    keep = np.ones(len(b), bool)
-    order = np.argsort(-s, kind="stable")
-    ranked = b[order]
-    area = np.maximum((ranked[:, 2] - ranked[:, 0]) * (ranked[:, 3] - ranked[:, 1]), 0.0)
-    alive = np.ones(len(b), bool)
-    for k in range(len(b)):
-        if not alive[k]:
-            continue
-        rest = np.flatnonzero(alive[k + 1:]) + k + 1
-        if not len(rest):
-            break
-        r = ranked[rest]
-        iw = np.minimum(r[:, 2], ranked[k, 2]) - np.maximum(r[:, 0], ranked[k, 0])
-        ih = np.minimum(r[:, 3], ranked[k, 3]) - np.maximum(r[:, 1], ranked[k, 1])
-        inter = np.maximum(iw, 0.0) * np.maximum(ih, 0.0)
-        union = area[rest] + area[k] - inter
-        iou = np.where(union > 0, inter / np.where(union > 0, union, 1.0), 0.0)
-        inside = np.where(area[rest] > 0, inter / np.where(area[rest] > 0, area[rest], 1.0), 0.0)
-        alive[rest[(iou > max_iou) | (inside > max_inside)]] = False
-    keep[order] = alive
-    return keep
-
-
 def nms_boxes(windows: Detections, max_iou: float = NMS_IOU, max_inside: float = NMS_INSIDE) -> Detections:
     """One box per vehicle of ``windows`` (a frame's positive windows; the main model's, when
-    they have a ``part`` column): the windows kept by :func:`suppressed`, boxes ``(N, 4) int32``
-    and the windows' scores ``(N,) float32``, in the windows' order."""
+    they have a ``part`` column): the windows kept by greedy suppression at ``max_iou`` and
+    ``max_inside`` (:func:`~fastdet.video.plausible.duplicates`), boxes ``(N, 4) int32`` and the
+    windows' scores ``(N,) float32``, in the windows' order."""
     w = windows[windows.part == MAIN_PART] if windows.part is not None else windows
     if len(w) == 0:
         return Detections(np.zeros((0, 4), np.int32), np.zeros(0, np.float32))
-    keep = suppressed(w.boxes, w.scores, max_iou, max_inside)
+    keep = duplicates(w.boxes, w.scores, max_iou, max_inside)
     return Detections(w.boxes[keep].astype(np.int32), w.scores[keep].astype(np.float32))
 
 

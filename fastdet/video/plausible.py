@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..boxes import iou
+from ..boxes import iou, overlap_fraction
 from ..config import PlausibleConfig
 from ..detections import Detections
 from .state import FrameState, Stage
@@ -24,10 +24,11 @@ from .state import FrameState, Stage
 DENSE_DUPLICATES = 1024
 
 
-def duplicates(boxes: np.ndarray, scores: np.ndarray, max_iou: float) -> np.ndarray:
+def duplicates(boxes: np.ndarray, scores: np.ndarray, max_iou: float, max_inside: float | None = None) -> np.ndarray:
     """``(N,) bool``, True for each box to keep of ``boxes (N, 4)`` (x1, y1, x2, y2) scored
     ``scores (N,)``: greedily by score (ties: the earlier row first), a box whose IoU with a
-    box already kept exceeds ``max_iou`` is dropped."""
+    box already kept exceeds ``max_iou`` is dropped, and so is one with more than ``max_inside``
+    of its area inside a box already kept (``None``: IoU alone)."""
     b = np.asarray(boxes, np.float64).reshape(-1, 4)
     s = np.asarray(scores, np.float64).reshape(-1)
     if len(s) != len(b):
@@ -38,6 +39,8 @@ def duplicates(boxes: np.ndarray, scores: np.ndarray, max_iou: float) -> np.ndar
     order = np.argsort(-s, kind="stable")
     if len(b) <= DENSE_DUPLICATES:
         over = iou(b, b) > max_iou
+        if max_inside is not None:
+            over |= overlap_fraction(b, b).T > max_inside  # [i, j]: box j's area inside box i
         for k, i in enumerate(order):
             if keep[i]:
                 rest = order[k + 1:]
@@ -50,7 +53,10 @@ def duplicates(boxes: np.ndarray, scores: np.ndarray, max_iou: float) -> np.ndar
     alive = np.ones(len(b), bool)
     for k in range(len(b)):
         if alive[k]:
-            alive[k + 1:] &= ~(iou(ranked[k:k + 1], ranked[k + 1:])[0] > max_iou)
+            over = iou(ranked[k:k + 1], ranked[k + 1:])[0] > max_iou
+            if max_inside is not None:
+                over |= overlap_fraction(ranked[k + 1:], ranked[k:k + 1])[:, 0] > max_inside
+            alive[k + 1:] &= ~over
     keep[order] = alive
     return keep
 

@@ -19,7 +19,8 @@ from fastdet.train.blend import offset
 from fastdet.video import VideoDetector
 from fastdet.video.box_stages import HeatStage, TrackStage
 from fastdet.video.detector import BOXES_KEY, box_formation
-from fastdet.video.nmsboxes import NMS_INSIDE, NMS_IOU, NmsStage, nms_boxes, suppressed
+from fastdet.video.nmsboxes import NMS_INSIDE, NMS_IOU, NmsStage, nms_boxes
+from fastdet.video.plausible import DENSE_DUPLICATES, duplicates
 from tests.reference import box_iou, box_overlap_fraction
 
 
@@ -59,21 +60,38 @@ def test_nms_boxes_are_the_greedy_loops_of_the_main_windows(w: Detections) -> No
     plain = nms_boxes(Detections(w.boxes, w.scores))
     np.testing.assert_array_equal(plain.boxes, w.boxes[greedy(w.boxes, w.scores, NMS_IOU)])
     # each rule alone: IoU only (nothing is inside by more than all of itself), containment only
-    assert suppressed(w.boxes, w.scores, NMS_IOU, 1.0).tolist() == [
+    assert duplicates(w.boxes, w.scores, NMS_IOU, 1.0).tolist() == [
         i in greedy(w.boxes, w.scores, NMS_IOU, 1.0) for i in range(len(w))]
-    assert suppressed(w.boxes, w.scores, 1.0, NMS_INSIDE).tolist() == [
+    assert duplicates(w.boxes, w.scores, 1.0, NMS_INSIDE).tolist() == [
         i in greedy(w.boxes, w.scores, 1.0, NMS_INSIDE) for i in range(len(w))]
 
 
 def test_a_small_window_inside_a_large_one_is_suppressed() -> None:
     # a 64-px window inside a 128-px one: IoU 0.25, under the IoU rule, all of it inside
     b = np.array([[0, 0, 128, 128], [32, 32, 96, 96], [200, 0, 264, 64]], np.int32)
-    assert suppressed(b, np.array([0.9, 0.8, 0.7])).tolist() == [True, False, True]
-    assert suppressed(b, np.array([0.9, 0.8, 0.7]), max_inside=1.0).tolist() == [True, True, True]
+    assert duplicates(b, np.array([0.9, 0.8, 0.7]), NMS_IOU, NMS_INSIDE).tolist() == [True, False, True]
+    assert duplicates(b, np.array([0.9, 0.8, 0.7]), NMS_IOU).tolist() == [True, True, True]
     # the larger window scored lower: less than half of it lies inside the small one, it stays
-    assert suppressed(b, np.array([0.8, 0.9, 0.7])).tolist() == [True, True, True]
+    assert duplicates(b, np.array([0.8, 0.9, 0.7]), NMS_IOU, NMS_INSIDE).tolist() == [True, True, True]
     with pytest.raises(ValueError, match="2 scores"):
-        suppressed(b, np.array([0.1, 0.2]))
+        duplicates(b, np.array([0.1, 0.2]), NMS_IOU, NMS_INSIDE)
+
+
+def test_many_windows_are_suppressed_as_few_are() -> None:
+    """Above DENSE_DUPLICATES boxes the suppression goes one kept box at a time: the same rows
+    kept, containment included."""
+    rng = np.random.default_rng(3)
+    n = DENSE_DUPLICATES + 200
+    xy = rng.integers(0, 600, (n, 2))
+    size = rng.choice([48, 64, 96, 128, 192], n)
+    b = np.c_[xy, xy + size[:, None]].astype(np.int32)
+    s = rng.random(n)
+    many = duplicates(b, s, NMS_IOU, NMS_INSIDE)
+    # the first DENSE_DUPLICATES ranked boxes decide among themselves as the dense path does
+    top = np.argsort(-s, kind="stable")[:DENSE_DUPLICATES]
+    dense = duplicates(b[top], s[top], NMS_IOU, NMS_INSIDE)
+    assert many[top].tolist() == dense.tolist()
+    assert 0 < many.sum() < n
 
 
 def test_nms_stage_tells_of_a_new_picture_size() -> None:
