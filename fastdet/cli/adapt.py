@@ -232,8 +232,8 @@ def holdout_lanes(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, 
     from ..eval.metrics import evaluate
     from ..video.replay import iter_lane_detections
 
-    def run(clip: _adapt.Clip, model: str, lanes: Sequence[tuple[str, float]]
-            ) -> tuple[dict[tuple[str, float], tuple[int, int, int]], float, int]:
+    def run(clip: _adapt.Clip, model: str, lanes: Sequence[tuple[Boxes, float]]
+            ) -> tuple[dict[tuple[Boxes, float], tuple[int, int, int]], float, int]:
         pics = held.get(clip.name, [])
         if not pics:
             return {k: (0, 0, 0) for k in lanes}, 0.0, 0
@@ -241,7 +241,7 @@ def holdout_lanes(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, 
         config = replace(PipelineConfig(), model=model)
         tables: list[list[Detections]] = [[] for _ in lanes]
         n = 0
-        for fno, by_lane in iter_lane_detections(_source(clip, frames), [(o, b) for b, o in lanes], config,
+        for fno, by_lane in iter_lane_detections(_source(clip, frames), lanes, config,
                                                  start=clip.holdout_start - 1,
                                                  frames=clip.frames - clip.holdout_start + 1):
             n += 1

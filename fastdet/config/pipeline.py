@@ -4,7 +4,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, replace
 from types import MappingProxyType
-from typing import Literal
+from typing import Literal, get_args
 
 from ._base import Config
 from .guided import GuidedSearch
@@ -42,7 +42,7 @@ def _retired() -> dict[str, object]:
 #: how the pipeline makes one box per vehicle of the positive windows: ``'heat'`` (the heat map
 #: over frames, a box per blob) or ``'nms'`` (each frame's windows after non-maximum suppression)
 Boxes = Literal["heat", "nms"]
-BOXES: tuple[str, ...] = ("heat", "nms")
+BOXES: tuple[str, ...] = get_args(Boxes)
 
 #: where the search bands go: ``'auto'`` (estimated from the video), a fraction of the frame
 #: height, or ``None`` (the bands as the search writes them)

@@ -481,8 +481,8 @@ HoldoutRun = Callable[[Clip, "str | None"], tuple[int, int, int, float, int]]
 #: (:func:`~fastdet.train.blend.offset`); the frames read and scored once for all of them:
 #: :func:`fastdet.video.replay.iter_lane_detections` --, each lane's boxes scored against the
 #: kept-aside labels
-LanesRun = Callable[[Clip, str, Sequence[tuple[str, float]]],
-                    tuple[dict[tuple[str, float], tuple[int, int, int]], float, int]]
+LanesRun = Callable[[Clip, str, Sequence[tuple[Boxes, float]]],
+                    tuple[dict[tuple[Boxes, float], tuple[int, int, int]], float, int]]
 
 
 def agreement(footage: Footage, run: HoldoutRun, model_path: str | None) -> Agreement:

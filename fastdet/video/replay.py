@@ -206,21 +206,21 @@ def iter_offset_detections(path: str | os.PathLike | HeldFrames, offsets: Sequen
     offs = [float(o) for o in offsets]
     if not offs or len(set(offs)) != len(offs):
         raise ValueError(f"offsets must be distinct and at least one, got {list(offsets)!r}")
-    lanes = [(o, config.boxes) for o in offs]
+    lanes = [(config.boxes, o) for o in offs]
     for fno, tables in iter_lane_detections(path, lanes, config, start=start, frames=frames, progress=progress):
         yield fno, dict(zip(offs, tables))
 
 
-def iter_lane_detections(path: str | os.PathLike | HeldFrames, lanes: Sequence[tuple[float, Boxes | None]],
+def iter_lane_detections(path: str | os.PathLike | HeldFrames, lanes: Sequence[tuple[Boxes | None, float]],
                          config: PipelineConfig | None = None, *, start: int = 0, frames: int | None = None,
                          progress: bool = False) -> Iterator[tuple[int, list[Detections]]]:
     """As :func:`iter_offset_detections`, for lanes that may also differ in their box formation:
-    each lane ``(offset, boxes)`` is ``config`` with :attr:`PipelineConfig.boxes
+    each lane ``(boxes, offset)`` is ``config`` with :attr:`PipelineConfig.boxes
     <fastdet.config.PipelineConfig>` set to ``boxes`` and its main model moved by ``offset``.
     Yields ``(frame, [Detections of each lane, in order])``; the frames are read and scored once
     for all of them."""
     config = config if config is not None else PipelineConfig()
-    keys = [(float(o), b) for o, b in lanes]
+    keys = [(b, float(o)) for b, o in lanes]
     if not keys or len(set(keys)) != len(keys):
         raise ValueError(f"lanes must be distinct and at least one, got {list(lanes)!r}")
     reader = FrameReader(path, start, frames)
@@ -237,10 +237,10 @@ def iter_lane_detections(path: str | os.PathLike | HeldFrames, lanes: Sequence[t
                 front.append(st)
         own = vd.stage(OwnVehicleStage)
         assert own is None or isinstance(own, OwnVehicleStage)
-        replays = [ReplayDetector(detector, o) for o, _ in keys]
+        replays = [ReplayDetector(detector, o) for _, o in keys]
         memo: dict[bytes, np.ndarray] = {}
         stages = [lane_stages(replace(config, boxes=b), r, reader.fps, vd.refiner, own, memo)
-                  for (_, b), r in zip(keys, replays)]
+                  for (b, _), r in zip(keys, replays)]
         with progress_bar(reader.expected, progress, os.path.basename(reader.path)) as bar:
             for fno, frame, _ in reader:
                 s = FrameState(frame)

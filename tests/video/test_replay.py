@@ -86,18 +86,18 @@ def test_lanes_of_either_box_formation_are_those_of_each_formations_own_replay(d
     from fastdet.video.replay import iter_lane_detections
 
     video = str(data / "videos" / "test_small1.mp4")
-    lanes = [(0.0, "heat"), (3.0, "nms"), (0.0, "nms"), (3.0, "heat")]
+    lanes = [("heat", 0.0), ("nms", 3.0), ("nms", 0.0), ("heat", 3.0)]
     mixed = list(iter_lane_detections(video, lanes, PipelineConfig(), start=20, frames=12))
     own = {b: list(iter_offset_detections(video, (0.0, 3.0), PipelineConfig(boxes=b), start=20, frames=12))
            for b in ("heat", "nms")}
     assert [f for f, _ in mixed] == [f for f, _ in own["heat"]] == list(range(21, 33))
     differ = 0
     for k, (fno, tables) in enumerate(mixed):
-        for (o, b), got in zip(lanes, tables):
+        for (b, o), got in zip(lanes, tables):
             want = own[b][k][1][o]
             assert np.array_equal(got.boxes, want.boxes) and np.array_equal(got.scores, want.scores), (fno, o, b)
             assert np.array_equal(got.ids, want.ids), (fno, o, b)
         differ += not np.array_equal(tables[0].boxes, tables[2].boxes)
     assert differ > 0
     with pytest.raises(ValueError, match="distinct"):
-        next(iter_lane_detections(video, [(0.0, "nms"), (0.0, "nms")]))
+        next(iter_lane_detections(video, [("nms", 0.0), ("nms", 0.0)]))
