@@ -66,6 +66,7 @@ from ..labels.picture import AnnotatedPicture
 from ..model import Model, load_model
 from ..train import adapt as _adapt
 from ..video.detector import BOXES_KEY
+from ..video.run import file_horizon
 from ._args import fraction, positive_int, teacher_size, video_files
 
 PACKAGE_DIR = Path(__file__).resolve().parents[1]
@@ -192,12 +193,19 @@ def _source(clip: _adapt.Clip, frames: Mapping[str, HeldFrames] | None) -> str |
     return frames.get(clip.name, clip.path) if frames is not None else clip.path
 
 
-def holdout_run(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, HeldFrames] | None = None
-                ) -> _adapt.HoldoutRun:
+def _horizon(horizons: Mapping[str, float | None] | None, clip: _adapt.Clip) -> float | str | None:
+    return horizons[clip.name] if horizons is not None and clip.name in horizons else "auto"
+
+
+def holdout_run(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, HeldFrames] | None = None,
+                horizons: Mapping[str, float | None] | None = None) -> _adapt.HoldoutRun:
     """The video pipeline (:func:`fastdet.detect_video`, as ``video`` runs it) over a clip's
     kept-aside stretch with a model file, scored (:func:`fastdet.eval.evaluate`, IoU 0.5) on
     the clip's kept-aside labelled frames. ``frames``: the stretches held
-    (:func:`held_stretches`; the same boxes as the video gives, without decoding it up to them)."""
+    (:func:`held_stretches`; the same boxes as the video gives, without decoding it up to them).
+    ``horizons``: each clip's horizon as a run of the whole video has it
+    (:func:`~fastdet.video.run.file_horizon`; a clip not in it: estimated from the stretch's
+    first frames)."""
     from ..eval.metrics import evaluate
     from ..video.run import detect_video
 
@@ -211,7 +219,7 @@ def holdout_run(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, He
         tables: list[Detections] = []
         t0 = 0.0
         for d in detect_video(_source(clip, frames), model=model, start=clip.holdout_start - 1,
-                              frames=clip.frames - clip.holdout_start + 1):
+                              frames=clip.frames - clip.holdout_start + 1, horizon=_horizon(horizons, clip)):
             if not tables:
                 t0 = time.perf_counter()
             tables.append(d)
@@ -222,13 +230,13 @@ def holdout_run(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, He
     return run
 
 
-def holdout_lanes(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, HeldFrames] | None = None
-                  ) -> _adapt.LanesRun:
+def holdout_lanes(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, HeldFrames] | None = None,
+                  horizons: Mapping[str, float | None] | None = None) -> _adapt.LanesRun:
     """The video pipeline over a clip's kept-aside stretch for each lane -- a box formation and the
     model file moved by an offset --, the frames read and scored once for all of them
     (:func:`fastdet.video.replay.iter_lane_detections`: each lane's boxes are those of
     :func:`holdout_run` with the moved model and that formation), each lane's boxes scored as
-    there. ``frames``: as :func:`holdout_run`'s."""
+    there. ``frames``, ``horizons``: as :func:`holdout_run`'s."""
     from ..eval.metrics import evaluate
     from ..video.replay import iter_lane_detections
 
@@ -238,7 +246,7 @@ def holdout_lanes(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, 
         if not pics:
             return {k: (0, 0, 0) for k in lanes}, 0.0, 0
         t0 = time.perf_counter()
-        config = replace(PipelineConfig(), model=model)
+        config = replace(PipelineConfig(), model=model, horizon=_horizon(horizons, clip))
         tables: list[list[Detections]] = [[] for _ in lanes]
         n = 0
         for fno, by_lane in iter_lane_detections(_source(clip, frames), lanes, config,
@@ -265,6 +273,25 @@ def _warm_up(video: str) -> None:
 
     for _ in detect_video(video, frames=2):
         pass
+
+
+def own_window_boxes(model: Model, horizon: float | None) -> Callable[[np.ndarray], np.ndarray]:
+    """A frame ``(H, W, 3) uint8 BGR`` of the camera -> the boxes ``(N, 4) int32`` the video
+    pipeline's window boxes give with ``model`` (:func:`fastdet.video.nmsboxes.nms_boxes`): its
+    positive windows at the video search's bands placed at ``horizon`` (the camera's,
+    :func:`~fastdet.video.run.file_horizon`), after non-maximum suppression; no tracker, no
+    refinement. What the camera's box regressor learns from besides the jittered boxes
+    (:func:`fastdet.train.adapt.fit_camera_regressor`)."""
+    from ..detect import Detector
+    from ..video.nmsboxes import nms_boxes
+
+    detector = Detector(model, PipelineConfig().search)
+    detector.set_horizon(horizon)
+
+    def boxes(frame: np.ndarray) -> np.ndarray:
+        return nms_boxes(detector.detect(frame)).boxes
+
+    return boxes
 
 
 def _after(model: Model, chosen: float, boxes: Boxes, footage: _adapt.Footage, run: _adapt.HoldoutRun,
@@ -407,7 +434,12 @@ def run(args: argparse.Namespace) -> int:
     secs["train"] = fit_secs["train"]
     _signals.check()
     t = time.perf_counter()
-    regressor, regressor_fit = _adapt.fit_camera_regressor(train_pics, load_regressor(), config, progress)
+    # the camera's horizon, as a `video` run of each file has it: the regressor's own boxes and the
+    # kept-aside runs search there, not at one read from a stretch's own first frames
+    horizons = {c.name: file_horizon(c.path) for c in footage.clips if c is footage.clips[0] or held.get(c.name)}
+    regressor, regressor_fit = _adapt.fit_camera_regressor(
+        train_pics, load_regressor(), config, progress,
+        own_boxes=own_window_boxes(model, horizons[footage.clips[0].name]))
     if regressor is not None:
         model = carrying(model, regressor)  # every model file written from here on carries it
     secs["regressor"] = time.perf_counter() - t
@@ -426,10 +458,11 @@ def run(args: argparse.Namespace) -> int:
         t_read = time.perf_counter()
         with held_stretches(footage, held, config, work / "operating-point") as frames:
             kept = _kept(frames, time.perf_counter() - t_read)
-            run_holdout = holdout_run(held, frames)
+            run_holdout = holdout_run(held, frames, horizons)
             before = _adapt.agreement(footage, run_holdout, None).to_dict()
             boxes, chosen, by_boxes = _adapt.choose_operating_point(
-                model, footage, holdout_lanes(held, frames), work / "operating-point", config.offsets, BOXES, progress)
+                model, footage, holdout_lanes(held, frames, horizons), work / "operating-point", config.offsets, BOXES,
+                progress)
             formations = {b: {"offset": o, "f1": r[o].to_dict()["f1"]} for b, (o, r) in by_boxes.items()}
             results = by_boxes[boxes][1]
             tried = {f"{o:g}": r.to_dict()["f1"] for o, r in results.items()}
@@ -446,7 +479,7 @@ def run(args: argparse.Namespace) -> int:
         "command": "python -m fastdet adapt " + " ".join(sys.argv[2:]),
         "footage": [{"video": os.path.abspath(c.path), "frames": c.frames, "kept_aside_from": c.holdout_start}
                     for c in footage.clips],
-        "frame_size": [w, h], "labelled_by": labelled_by,
+        "frame_size": [w, h], "labelled_by": labelled_by, "horizons": horizons,
         "teacher": None if args.teacher is None else {"model": os.path.abspath(args.teacher),
                                                       "size": args.teacher_size},
         "frames": {"step": footage.step, "trained": len(train_pics), "kept_aside_labelled": n_held,
@@ -464,8 +497,9 @@ def run(args: argparse.Namespace) -> int:
           f"positive, {counts['negatives']} background, {counts['hard_negatives']} hard negative crops x "
           f"weight {config.weight}), {n_held} kept-aside frames scored")
     if regressor is not None:
-        print(f"box regressor: fitted on {regressor_fit['samples']} jittered boxes about {regressor_fit['groups']} "
-              f"labelled vehicles; a box's IoU with its vehicle {regressor_fit['input_mean_iou']:.2f} -> "
+        print(f"box regressor: fitted on {regressor_fit['samples']} boxes about {regressor_fit['groups']} "
+              f"labelled vehicles (jittered, and {regressor_fit['own_boxes']} of the model's own x "
+              f"{config.own_box_weight}); a box's IoU with its vehicle {regressor_fit['input_mean_iou']:.2f} -> "
               f"{regressor_fit['output_mean_iou']:.2f} after one step (mean, cross-validated)")
     else:
         print(f"box regressor: the bundled one (only {regressor_fit['groups']} labelled vehicles to fit the "

@@ -52,6 +52,12 @@ class AdaptConfig(Config):
     mining_frames: the rounds after the first search at most this many of the frames trained on,
         spread evenly (a round searches every window of a frame at every scale: 0.24 s a 1280x720
         frame, 92 s for the 385 frames of 10 minutes of footage).
+    own_box_weight: the camera's box regressor learns from the jittered boxes about each
+        labelled vehicle and from the boxes the camera's model itself finds on the frames trained
+        on (its positive windows at the video search's bands, after non-maximum suppression, each
+        paired with the labelled vehicle it overlaps at IoU >= 0.3), each of these counted this
+        many times; 0: the jittered boxes only (docs/training.md, "The regressor learns from the
+        model's own boxes").
     min_score: a teacher vehicle at least this sure is a target, below it an ignore region.
     offsets: the decision offsets (:func:`fastdet.train.blend.offset`, decision units; + is
         stricter) tried on the kept-aside footage; the one of best F1 against the teacher wins.
@@ -72,6 +78,7 @@ class AdaptConfig(Config):
     hard_per_picture: int = 20
     mining_rounds: int = 2
     mining_frames: int = 120
+    own_box_weight: int = 4
     min_score: float = 0.3
     offsets: tuple[float, ...] = DEFAULT_OFFSETS
     C: float = 0.0218
@@ -92,6 +99,7 @@ class AdaptConfig(Config):
         _whole("hard_per_picture", self.hard_per_picture, 0)
         _whole("mining_rounds", self.mining_rounds, 1)
         _whole("mining_frames", self.mining_frames, 1)
+        _whole("own_box_weight", self.own_box_weight, 0)
         if self.max_per_folder is not None:
             _whole("max_per_folder", self.max_per_folder, 1)
         if not (isinstance(self.holdout, (int, float)) and 0 < self.holdout < 1):

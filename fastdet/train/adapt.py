@@ -46,7 +46,7 @@ import numpy as np
 from tqdm import tqdm
 
 from .. import signals as _signals
-from ..config import BOXES, Boxes
+from ..config import BOXES, Boxes, JitterConfig
 from ..config.adapt import AdaptConfig
 from ..detect.regressor import BoxRegressor
 from ..errors import DataError
@@ -61,7 +61,7 @@ from .blend import offset
 from .dataset import CropSet
 from .fit import train
 from .pictures import hard_negative_crops, picture_crops
-from .refine import fit_cascade, jittered_views, large_enough
+from .refine import View, fit_cascade, jittered_views, large_enough, matched_inputs, mirror
 
 #: the camera id of every adapted picture
 CAMERA = "adapt"
@@ -400,31 +400,49 @@ def fit_camera_model(data: Path, bundled: Model, crops: CropSet, config: AdaptCo
 
 
 def fit_camera_regressor(pictures: Sequence[AnnotatedPicture], bundled: BoxRegressor, config: AdaptConfig,
-                         progress: bool = True) -> tuple[BoxRegressor | None, dict[str, Any]]:
+                         progress: bool = True, own_boxes: Callable[[np.ndarray], np.ndarray] | None = None
+                         ) -> tuple[BoxRegressor | None, dict[str, Any]]:
     """The box regressor of the camera: one ridge stage on ``bundled``'s features (its
-    :attr:`~BoxRegressor.spec`), fitted on the jittered boxes about each labelled target of
-    ``pictures`` and as many in the mirrored frame (:class:`~fastdet.config.JitterConfig`'s, as the
-    bundled regressor's; ``config.seed`` draws them)
-    (:func:`~fastdet.train.refine.jittered_views`), its penalty chosen by cross-validation over
-    folds that keep a vehicle on one side (:func:`~fastdet.train.refine.fit_cascade`). Returns it
-    with its fit's report (samples, vehicles, the penalty, the cross-validated mean IoU before and
-    after one step); ``(None, {"groups": n})`` when the pictures hold fewer than
-    :data:`MIN_REGRESSOR_VEHICLES` vehicles of 4 px and more (the model keeps the bundled one)."""
+    :attr:`~BoxRegressor.spec`), its penalty chosen by cross-validation over folds that keep a
+    vehicle on one side (:func:`~fastdet.train.refine.fit_cascade`), fitted on
+
+    - the jittered boxes about each labelled target of ``pictures`` and as many in the mirrored
+      frame (:class:`~fastdet.config.JitterConfig`'s, as the bundled regressor's; ``config.seed``
+      draws them; :func:`~fastdet.train.refine.jittered_views`);
+    - with ``own_boxes`` (a frame ``(H, W, 3) uint8 BGR`` -> the boxes ``(N, 4)`` the camera's
+      model finds on it) and ``config.own_box_weight``: those boxes of every picture, each paired
+      with the target it overlaps most when their IoU is at least ``JitterConfig.min_iou``
+      (:func:`~fastdet.train.refine.matched_inputs`), and mirrored, each counted
+      ``own_box_weight`` times. The windows the model fires on are not the jitter's: a square
+      window on the side of a parked car, a part of a truck.
+
+    Returns it with its fit's report (samples, vehicles, own boxes, the penalty, the
+    cross-validated mean IoU before and after one step); ``(None, {"groups": n})`` when the
+    pictures hold fewer than :data:`MIN_REGRESSOR_VEHICLES` vehicles of 4 px and more (the model
+    keeps the bundled one)."""
     def usable(t: np.ndarray) -> np.ndarray:  # what jittered_views cuts boxes about
         return np.asarray(t, np.float64).reshape(-1, 4)[large_enough(t)]
 
     vehicles = sum(len(usable(p.targets)) for p in pictures)
     if vehicles < MIN_REGRESSOR_VEHICLES:
         return None, {"groups": vehicles}
-    frames, group = [], 0
+    jitter = JitterConfig()
+    frames, own, group = [], [], 0
     for pic, image in _ticking(pictures, "box regressor", progress):
         t = usable(pic.targets)
         if len(t):
-            frames.append((image, t, np.arange(group, group + len(t))))
+            groups = np.arange(group, group + len(t))
+            frames.append((image, t, groups))
             group += len(t)
-    views = jittered_views(frames, seed=config.seed)
+            if own_boxes is not None and config.own_box_weight:
+                b, bt, bg = matched_inputs(own_boxes(image), t, groups, jitter.min_iou)
+                if len(b):
+                    v = View(image, b, bt, bg, config.own_box_weight)
+                    own += [v, mirror(v)]
+    views = jittered_views(frames, seed=config.seed, jitter=jitter) + own
     (arrays, report), = fit_cascade(views, bundled.spec, 1)
     report = {k: report[k] for k in ("samples", "groups", "alpha", "input_mean_iou", "output_mean_iou")}
+    report["own_boxes"] = sum(len(v.inputs) for v in own) // 2
     reg = BoxRegressor.stack([BoxRegressor.from_fit(bundled.spec, *arrays)], metadata={
         "trained_on": "the camera's labelled frames (fastdet adapt)", "fit": report,
         "refine_config_of": "the pipeline's (RefineConfig)"})

@@ -195,12 +195,18 @@ def fit_ridge_cv(samples: Samples, coder: BoxFeatures, alphas: Sequence[float] =
 class View:
     """One picture's training inputs: ``image (H, W, 3) uint8 BGR``, the boxes the regressor
     starts from ``inputs (N, 4)``, each one's vehicle ``targets (N, 4)`` (x1, y1, x2, y2
-    pixels) and ``group (N,) int64`` (its vehicle, for leak-free folds)."""
+    pixels) and ``group (N,) int64`` (its vehicle, for leak-free folds); ``weight``: each box
+    counts as this many samples (its features computed once)."""
 
     image: np.ndarray
     inputs: np.ndarray
     targets: np.ndarray
     group: np.ndarray
+    weight: int = 1
+
+    def __post_init__(self) -> None:
+        if isinstance(self.weight, bool) or not isinstance(self.weight, int) or self.weight < 1:
+            raise ValueError(f"a view's weight must be a whole number >= 1, got {self.weight!r}")
 
 
 def mirror(view: View) -> View:
@@ -210,7 +216,8 @@ def mirror(view: View) -> View:
     def flip(b: np.ndarray) -> np.ndarray:
         return np.stack([W - b[:, 2], b[:, 1], W - b[:, 0], b[:, 3]], axis=1) if len(b) else b.reshape(0, 4)
 
-    return View(np.ascontiguousarray(view.image[:, ::-1]), flip(view.inputs), flip(view.targets), view.group)
+    return View(np.ascontiguousarray(view.image[:, ::-1]), flip(view.inputs), flip(view.targets), view.group,
+                view.weight)
 
 
 def jittered_views(frames: Iterable[tuple[np.ndarray, np.ndarray, np.ndarray]], seed: int = 0,
@@ -257,9 +264,14 @@ def matched_inputs(boxes: np.ndarray, targets: np.ndarray, groups: np.ndarray,
 
 
 def view_samples(views: Sequence[View], coder: BoxFeatures) -> Samples:
-    """Features of every view's inputs and the offsets to their targets."""
-    parts = [Samples(coder.features(v.image, v.inputs), encode_offsets(v.inputs, v.targets), v.inputs,
-                     v.targets, v.group) for v in views if len(v.inputs)]
+    """Features of every view's inputs and the offsets to their targets: a view's rows in its
+    inputs' order, repeated ``view.weight`` times (``len(inputs) * weight`` rows)."""
+    def rows(v: View) -> Samples:
+        s = Samples(coder.features(v.image, v.inputs), encode_offsets(v.inputs, v.targets), v.inputs,
+                    v.targets, v.group)
+        return Samples.concat([s] * v.weight) if v.weight > 1 else s
+
+    parts = [rows(v) for v in views if len(v.inputs)]
     if not parts:
         raise ValueError("no training samples: no input boxes in the views given")
     return Samples.concat(parts)
@@ -286,7 +298,7 @@ def fit_cascade(views: Sequence[View], coder: BoxFeatures, stages: int, max_shif
     cross-validated step)."""
     if stages < 1:
         raise ValueError(f"stages must be >= 1, got {stages}")
-    cur = [View(v.image, np.asarray(v.inputs, np.float64), v.targets, v.group) for v in views
+    cur = [View(v.image, np.asarray(v.inputs, np.float64), v.targets, v.group, v.weight) for v in views
            if len(v.inputs)]
     out = []
     for _ in range(stages):
@@ -296,11 +308,11 @@ def fit_cascade(views: Sequence[View], coder: BoxFeatures, stages: int, max_shif
         at = 0
         for v in cur:
             n = len(v.inputs)
-            b = step(v.inputs, oof[at:at + n], max_shift, max_log_scale)
-            at += n
-            ious_in.append(paired_iou(v.inputs, v.targets))
-            ious_out.append(paired_iou(b, v.targets))
-            nxt.append(View(v.image, b, v.targets, v.group))
+            b = step(v.inputs, oof[at:at + n], max_shift, max_log_scale)  # its copies: the same fold, the same oof
+            at += n * v.weight
+            ious_in.append(np.repeat(paired_iou(v.inputs, v.targets), v.weight))
+            ious_out.append(np.repeat(paired_iou(b, v.targets), v.weight))
+            nxt.append(View(v.image, b, v.targets, v.group, v.weight))
         report["input_mean_iou"] = float(np.mean(np.concatenate(ious_in)))
         report["output_mean_iou"] = float(np.mean(np.concatenate(ious_out)))
         out.append((arrays, report))

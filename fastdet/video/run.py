@@ -21,7 +21,7 @@ from ..errors import FastdetError
 from ..io.held import HeldFrames
 from ..io.reader import FrameReader
 from .detector import WindowDetector, make_detector
-from .horizon import HORIZON_FRAMES
+from .horizon import HORIZON_FRAMES, estimate_horizon, search_horizon
 from .offline import offline_pass
 from .pipeline import VideoDetector, run_frames
 from .plausible import PlausibleStage
@@ -62,6 +62,18 @@ def prime_horizon_from_file(vd: VideoDetector, path: str | os.PathLike | HeldFra
     ``eval --video`` give the same boxes."""
     if _primes(vd.config) and (isinstance(path, HeldFrames) or os.path.isfile(os.fspath(path))):
         vd.prime_horizon(_first_frames(path if isinstance(path, HeldFrames) else os.fspath(path), start))
+
+
+def file_horizon(path: str | os.PathLike | HeldFrames, start: int = 0) -> float | None:
+    """The horizon a ``video`` run of the file from frame ``start`` searches at (``horizon='auto'``,
+    :func:`prime_horizon_from_file`): estimated from its first seconds, as a fraction of the frame
+    height; ``None`` when there is no estimate or it is the reference's (the bands as written).
+    ``PipelineConfig(horizon=file_horizon(path))`` searches every frame there, the frames it is
+    given being any stretch of the file: ``fastdet adapt`` runs the pipeline over a stretch of a
+    video as a run of the whole video would, not at a horizon read from the stretch's own first
+    frames (8 frames of a short clip can give none where 40 give one)."""
+    return search_horizon(estimate_horizon(_first_frames(path if isinstance(path, HeldFrames) else os.fspath(path),
+                                                         start)))
 
 
 def video_detector_for(reader: FrameReader, detector: WindowDetector,

@@ -197,3 +197,28 @@ def test_adapt_writes_a_model_with_its_summary(teacher, data, tmp_path, capsys, 
                  "-o", str(tmp_path / "x.jpg")]) == 0
     assert (tmp_path / "x.jpg").is_file()
     assert not (tmp_path / ".tv.adapt" / "operating-point").exists() and not leftovers(tmp_path)
+
+
+def test_the_models_own_boxes_are_the_video_pipelines_window_boxes(data):
+    """own_window_boxes at the file's horizon gives a frame the boxes the video pipeline makes from
+    the same model's windows (boxes='nms', the horizon primed from the file), with no tracker, refinement,
+    own-vehicle or plausibility stage and the full search; on a frame where it finds some."""
+    from fastdet.io.reader import FrameReader
+    from fastdet.video.run import iter_video_detections
+
+    video = str(data / "videos" / "test_video.mp4")
+    from fastdet.video.run import file_horizon
+
+    boxes = adapt_cli.own_window_boxes(load_model(), file_horizon(video))
+    cfg = PipelineConfig(oncoming=False, boxes="nms", tracker=None, refine=None, guided=None, own_vehicle=None,
+                         split=None, plausible=None)
+    runs = dict(iter_video_detections(video, cfg, frames=6, progress=False))
+    reader = FrameReader(video, 0, 6)
+    found = 0
+    for f, frame, _ in reader:
+        got = boxes(frame)
+        assert got.dtype == np.int32 and got.shape[1:] == (4,)
+        np.testing.assert_array_equal(np.unique(got, axis=0), np.unique(runs[f].boxes, axis=0))
+        found += len(got)
+    reader.close()
+    assert found > 0

@@ -271,3 +271,37 @@ def test_the_cameras_regressor_needs_enough_vehicles(data, monkeypatch):
     reg, report = adapt.fit_camera_regressor(pics, bundled, AdaptConfig(), progress=False)
     assert reg is not None and report["groups"] == 6 and report["samples"] == 6 * 2 * 16
     assert reg.spec.n_features == bundled.spec.n_features and not np.array_equal(reg.coef, bundled.coef)
+
+
+def test_the_cameras_regressor_learns_from_the_models_own_boxes(data, monkeypatch):
+    """With own_boxes, each frame's boxes the model found are paired with the vehicle they overlap
+    at IoU >= JitterConfig.min_iou (others dropped) and counted own_box_weight times, mirrored too;
+    own_box_weight=0 leaves them out (the frames are not even searched)."""
+    from fastdet.config import JitterConfig
+    from fastdet.video.refine import load_regressor
+
+    img = data / "test_images" / "test1.jpg"
+    cars = np.array([[810.0, 400, 950, 500], [1050, 400, 1270, 510]])
+    pics = [AnnotatedPicture("t", "cam", f"p{i}", img, 1280, 720, targets=cars) for i in range(3)]
+    bundled = load_regressor()
+    monkeypatch.setattr(adapt, "MIN_REGRESSOR_VEHICLES", 6)
+    seen = []
+
+    def own(frame):
+        seen.append(frame.shape)
+        return np.array([[820, 410, 900, 490],  # on the first car: IoU 0.46, kept
+                         [100, 100, 164, 164],  # on no car
+                         [1050, 400, 1100, 450]])  # on the second car, IoU 0.10: dropped
+
+    assert JitterConfig().min_iou == 0.3
+    reg, report = adapt.fit_camera_regressor(pics, bundled, AdaptConfig(own_box_weight=4), progress=False,
+                                             own_boxes=own)
+    assert seen == [(720, 1280, 3)] * 3
+    assert report["own_boxes"] == 3 and report["samples"] == 6 * 2 * 16 + 3 * 2 * 4
+    seen.clear()
+    reg0, report0 = adapt.fit_camera_regressor(pics, bundled, AdaptConfig(own_box_weight=0), progress=False,
+                                               own_boxes=own)
+    assert seen == [] and report0["own_boxes"] == 0 and report0["samples"] == 6 * 2 * 16
+    assert not np.array_equal(reg.coef, reg0.coef)
+    with pytest.raises(ValueError, match="own_box_weight"):
+        AdaptConfig(own_box_weight=-1)

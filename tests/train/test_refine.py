@@ -123,6 +123,33 @@ def test_cascade_stages_fit_the_boxes_before_them_and_tighten_them() -> None:
         fit_cascade(views, coder, 0)
 
 
+def test_a_views_weight_counts_as_that_many_copies_of_it() -> None:
+    """A view of weight 3 fits (two cascade stages: the boxes passed on too) exactly as the same
+    view given three times; its features are computed once; weight 0 is refused."""
+    coder = BoxFeatures(SMALL, (1.5,))
+    rng = np.random.default_rng(1)
+    views = []
+    for s in range(4):
+        img, boxes, groups = _scene(s)
+        inputs = boxes + rng.uniform(-3, 3, boxes.shape)
+        views.append(View(img, inputs, boxes, groups))
+    heavy = View(views[0].image, views[0].inputs, views[0].targets, views[0].group, 3)
+    weighted = fit_cascade([heavy] + views[1:], coder, 2)
+    copied = fit_cascade([views[0]] * 3 + views[1:], coder, 2)
+    for (wa, wr), (ca, cr) in zip(weighted, copied):
+        for x, y in zip(wa, ca):
+            np.testing.assert_allclose(x, y, rtol=1e-9, atol=1e-12)
+        assert wr["samples"] == cr["samples"]
+        assert wr["input_mean_iou"] == pytest.approx(cr["input_mean_iou"])
+        assert wr["output_mean_iou"] == pytest.approx(cr["output_mean_iou"])
+    smp = view_samples([heavy], coder)
+    assert len(smp) == 3 * len(heavy.inputs)
+    np.testing.assert_array_equal(smp.x[:len(heavy.inputs)], smp.x[len(heavy.inputs):2 * len(heavy.inputs)])
+    assert mirror(heavy).weight == 3
+    with pytest.raises(ValueError, match="weight"):
+        View(heavy.image, heavy.inputs, heavy.targets, heavy.group, 0)
+
+
 def test_step_clamps_like_refinement() -> None:
     b = np.array([[0., 0, 10, 10]])
     np.testing.assert_allclose(step(b, np.array([[2.0, 0, 3.0, -3.0]]), 0.5, np.log(2.0)),

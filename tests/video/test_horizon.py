@@ -302,3 +302,28 @@ def test_lazy_segments_give_the_eager_estimates_on_every_clip(data, monkeypatch)
         assert (est.estimate, est.source, est.segment_rows, used) == ref, clip.name
         if ref[1] == "flow":
             assert found == 0, clip.name
+
+
+@pytest.mark.parametrize("clip,start", [("test_small1", 0), ("test_small1", 70), ("boston_street", 0),
+                                        ("boston_street", 32)])
+def test_file_horizon_is_where_a_run_from_there_searches(data, clip, start):
+    """file_horizon(path, start) is the horizon a run of the file from ``start`` primes its bands
+    to (None where it has no estimate: the last 8 frames of boston_street give none, its first
+    40 one), and PipelineConfig(horizon=it) puts them there without reading ahead."""
+    from fastdet.video import VideoDetector, make_detector, prime_horizon_from_file
+    from fastdet.video.run import file_horizon
+
+    path = data / "videos" / f"{clip}.mp4"
+    det = make_detector()
+    prime_horizon_from_file(VideoDetector(det), path, start)
+    got = file_horizon(path, start)
+    assert got == det.horizon
+    if (clip, start) == ("boston_street", 0):
+        assert got is not None
+    if (clip, start) == ("boston_street", 32):
+        assert got is None
+    if got is not None:
+        fixed = make_detector()
+        vd = VideoDetector(fixed, PipelineConfig(horizon=got))
+        vd.update(np.zeros({"test_small1": (720, 1280, 3), "boston_street": (450, 800, 3)}[clip], np.uint8))
+        assert fixed.horizon == got
