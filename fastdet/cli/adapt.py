@@ -20,10 +20,12 @@
 - The main model is trained from the bundled crop folders (``--data``, default
   ``$FASTDET_DATA``) plus the camera's crops (each of sample weight ``--weight``; hard
   negatives mined with the bundled model, then again with the model fitted, which is fitted
-  again); the box regressor is fitted on the camera's labelled vehicles and carried in the model
-  file; the model is then moved by the decision offset, and given the box formation (heat map or
-  windows), of best F1 against the labels of the kept-aside frames, through the ``video``
-  pipeline with that regressor (:mod:`fastdet.train.adapt`).
+  again); the box regressor is fitted on the camera's labelled vehicles (jittered boxes about
+  them and the model's own window boxes on them, :func:`own_window_boxes`) and carried in the
+  model file; the model is then moved by the decision offset, and given the box formation (heat
+  map or windows), of best F1 against the labels of the kept-aside frames, through the ``video``
+  pipeline with that regressor (:mod:`fastdet.train.adapt`), at the horizon a run of each whole
+  video has (:func:`~fastdet.video.run.file_horizon`).
   Each kept-aside stretch is decoded once for the three runs over it (:func:`held_stretches`:
   in memory up to ``AdaptConfig.hold_bytes``, the rest in raw files in the work folder, removed
   when the step ends).
@@ -241,10 +243,10 @@ def holdout_lanes(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, 
     from ..video.replay import iter_lane_detections
 
     def run(clip: _adapt.Clip, model: str, lanes: Sequence[tuple[Boxes, float]]
-            ) -> tuple[dict[tuple[Boxes, float], tuple[int, int, int]], float, int]:
+            ) -> tuple[dict[tuple[Boxes, float], np.ndarray], float, int]:
         pics = held.get(clip.name, [])
         if not pics:
-            return {k: (0, 0, 0) for k in lanes}, 0.0, 0
+            return {k: np.zeros((0, 3), np.int64) for k in lanes}, 0.0, 0
         t0 = time.perf_counter()
         config = replace(PipelineConfig(), model=model, horizon=_horizon(horizons, clip))
         tables: list[list[Detections]] = [[] for _ in lanes]
@@ -259,8 +261,12 @@ def holdout_lanes(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, 
         gt, keyframes = _gt(pics), np.array([p.frame for p in pics])
         out = {}
         for k, table in zip(lanes, tables):
-            res = evaluate(gt, _predictions(table), keyframes=keyframes, tracking=False)
-            out[k] = (res.tp, res.fp, res.fn)
+            preds = _predictions(table)
+            per_frame = []
+            for f in keyframes:  # each frame's counts, for the standard error over the frames
+                res = evaluate(gt[gt.frames == f], preds[preds.frames == f], keyframes=np.array([f]), tracking=False)
+                per_frame.append((res.tp, res.fp, res.fn))
+            out[k] = np.array(per_frame, np.int64).reshape(-1, 3)
         return out, secs, n
 
     return run
@@ -462,9 +468,11 @@ def run(args: argparse.Namespace) -> int:
             before = _adapt.agreement(footage, run_holdout, None).to_dict()
             boxes, chosen, by_boxes = _adapt.choose_operating_point(
                 model, footage, holdout_lanes(held, frames, horizons), work / "operating-point", config.offsets, BOXES,
-                progress)
-            formations = {b: {"offset": o, "f1": r[o].to_dict()["f1"]} for b, (o, r) in by_boxes.items()}
-            results = by_boxes[boxes][1]
+                progress, seed=config.seed)
+            formations = {b: {"offset": c.offset, "f1": c.results[c.offset].to_dict()["f1"], "best_offset": c.best,
+                              "best_f1": c.results[c.best].to_dict()["f1"], "f1_se": round(c.se, 4)}
+                          for b, c in by_boxes.items()}
+            results = by_boxes[boxes].results
             tried = {f"{o:g}": r.to_dict()["f1"] for o, r in results.items()}
             after = _after(model, chosen, boxes, footage, run_holdout, work / "operating-point")
         r = results[chosen]
@@ -510,10 +518,13 @@ def run(args: argparse.Namespace) -> int:
             return "-" if v is None else f"{v:.2f}"
 
         print("boxes tried (F1 at their best offset): "
-              + ", ".join(f"{b} {f1(v['f1'])} (offset {v['offset']:g})" for b, v in formations.items())
+              + ", ".join(f"{b} {f1(v['best_f1'])} (offset {v['best_offset']:g})" for b, v in formations.items())
               + f"; chosen {boxes}")
+        fb = formations[boxes]
         print(f"offsets tried with {boxes} boxes (F1): "
-              + ", ".join(f"{k} {f1(v)}" for k, v in tried.items()) + f"; chosen {chosen:g}")
+              + ", ".join(f"{k} {f1(v)}" for k, v in tried.items())
+              + f"; best {fb['best_offset']:g} (F1 {f1(fb['best_f1'])} +- {fb['f1_se']:.2f} over the kept-aside "
+              f"frames); chosen {chosen:g}, the strictest within one standard error")
     else:
         print("no labelled frame kept aside: the model keeps its own operating point (offset 0)")
     print(f"agreement with the {labelled_by} labels on the kept-aside frames:")

@@ -40,7 +40,7 @@ import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from tqdm import tqdm
@@ -493,14 +493,19 @@ class Agreement:
 #: (``seconds`` and ``frames`` from the stretch's first frame out: :attr:`Agreement.ms_per_frame`)
 HoldoutRun = Callable[[Clip, "str | None"], tuple[int, int, int, float, int]]
 
-#: ``run(clip, model file, lanes) -> ({(boxes, offset): (tp, fp, fn)}, seconds, frames read)``: the
-#: video pipeline over the clip's kept-aside stretch for each lane -- a box formation
+#: ``run(clip, model file, lanes) -> ({(boxes, offset): counts (K, 3) int64}, seconds, frames read)``:
+#: the video pipeline over the clip's kept-aside stretch for each lane -- a box formation
 #: (:attr:`PipelineConfig.boxes <fastdet.config.PipelineConfig>`) and the model moved by an offset
 #: (:func:`~fastdet.train.blend.offset`); the frames read and scored once for all of them:
 #: :func:`fastdet.video.replay.iter_lane_detections` --, each lane's boxes scored against the
-#: kept-aside labels
+#: kept-aside labels: ``(tp, fp, fn)`` of each of the clip's K kept-aside labelled frames, in one
+#: frame order for every lane
 LanesRun = Callable[[Clip, str, Sequence[tuple[Boxes, float]]],
-                    tuple[dict[tuple[Boxes, float], tuple[int, int, int]], float, int]]
+                    tuple[dict[tuple[Boxes, float], np.ndarray], float, int]]
+
+#: bootstrap draws of the kept-aside frames for the standard error of the best offset's F1
+#: (:func:`strictest_within_one_se`)
+BOOTSTRAP_DRAWS = 200
 
 
 def agreement(footage: Footage, run: HoldoutRun, model_path: str | None) -> Agreement:
@@ -515,14 +520,63 @@ def agreement(footage: Footage, run: HoldoutRun, model_path: str | None) -> Agre
     return Agreement(tp, fp, fn, secs, frames)
 
 
-def choose_boxes(by_boxes: Mapping[str, tuple[float, Mapping[float, Agreement]]]) -> Boxes:
-    """The box formation (:data:`fastdet.config.BOXES`) whose chosen offset agrees best with the
-    labels kept aside: ``by_boxes`` maps each formation to its chosen offset and every offset's
-    :class:`Agreement` (as :func:`choose_operating_point` makes it). Ties, or no F1 at all, keep
-    ``'heat'`` (the pipeline's own)."""
+class FormationChoice(NamedTuple):
+    """One box formation's operating point (:func:`choose_operating_point`): ``offset`` chosen
+    (:func:`strictest_within_one_se`), ``results`` (every offset's :class:`Agreement`), ``best``
+    (the offset of best F1) and ``se`` (the bootstrap standard error of that F1)."""
+
+    offset: float
+    results: dict[float, Agreement]
+    best: float
+    se: float
+
+
+def _f1(counts: np.ndarray) -> np.ndarray:
+    """F1 of ``(..., K, 3)`` per-frame (tp, fp, fn) summed over the frames (0 where undefined)."""
+    tp, fp, fn = np.moveaxis(counts.sum(axis=-2), -1, 0)
+    d = 2 * tp + fp + fn
+    return np.where(d > 0, 2 * tp / np.maximum(d, 1), 0.0)
+
+
+def strictest_within_one_se(per_frame: Mapping[float, np.ndarray], seed: int = 0,
+                            draws: int = BOOTSTRAP_DRAWS) -> tuple[float, float, float]:
+    """``(chosen, best, se)`` of one formation's offsets by the one-standard-error rule (Breiman
+    et al., *Classification and Regression Trees*, 1984; Hastie, Tibshirani and Friedman, *The
+    Elements of Statistical Learning*, 7.10): ``best`` is the offset of best F1 against the
+    kept-aside labels (ties: the one nearest 0), ``se`` the standard error of its F1 over the
+    kept-aside frames (``draws`` bootstrap resamples of the frames, seeded by ``seed``), and
+    ``chosen`` the strictest offset (the largest: the fewest boxes) whose F1 is within ``se`` of
+    the best. On a handful of kept-aside frames the F1s of neighbouring offsets differ by less
+    than their noise; the teacher also boxes far-away traffic that human labels leave out, so
+    the best F1 against it leans to loose offsets (docs/training.md, "The operating point within
+    one standard error"). ``per_frame``: each offset's ``(K, 3)`` per-frame (tp, fp, fn), one
+    frame order."""
+    offsets = sorted(per_frame)
+    if not offsets:
+        raise ValueError("no offsets to choose from")
+    counts = np.stack([np.asarray(per_frame[o], np.int64).reshape(-1, 3) for o in offsets])
+    f1 = _f1(counts)
+    # rank by F1 (an undefined one, no boxes and no targets, lowest), ties nearest 0
+    defined = counts.sum(axis=(1, 2)) > 0
+    rank = [(f1[i] if defined[i] else -1.0, -abs(o)) for i, o in enumerate(offsets)]
+    ib = max(range(len(offsets)), key=lambda i: rank[i])
+    k = counts.shape[1]
+    if not defined[ib] or k < 2:
+        return offsets[ib], offsets[ib], 0.0
+    rng = np.random.default_rng(seed)
+    idx = rng.integers(0, k, (draws, k))
+    se = float(np.std(_f1(counts[ib][idx])))
+    within = [i for i in range(len(offsets)) if defined[i] and f1[i] >= f1[ib] - se]
+    return offsets[max(within)], offsets[ib], se
+
+
+def choose_boxes(by_boxes: Mapping[str, FormationChoice]) -> Boxes:
+    """The box formation (:data:`fastdet.config.BOXES`) that agrees best with the labels kept
+    aside, by the F1 at its best offset: ``by_boxes`` maps each formation to its
+    :class:`FormationChoice`. Ties, or no F1 at all, keep ``'heat'`` (the pipeline's own)."""
     def rank(b: str) -> tuple[float, bool]:
-        chosen, results = by_boxes[b]
-        f1 = results[chosen].f1
+        choice = by_boxes[b]
+        f1 = choice.results[choice.best].f1
         return (-1.0 if math.isnan(f1) else f1, b == "heat")
 
     best = max(by_boxes, key=rank)
@@ -532,17 +586,17 @@ def choose_boxes(by_boxes: Mapping[str, tuple[float, Mapping[float, Agreement]]]
 
 
 def choose_operating_point(model: Model, footage: Footage, run: LanesRun, folder: Path, offsets: Sequence[float],
-                           formations: Sequence[Boxes] = BOXES, progress: bool = True
-                           ) -> tuple[Boxes, float, dict[str, tuple[float, dict[float, Agreement]]]]:
-    """The box formation and decision offset that agree best with the kept-aside labels: for each
-    of ``formations``, the offset of best F1 (ties: the one nearest 0); of those, the formation
-    :func:`choose_boxes` picks. Returns ``(formation, offset, {formation: (its offset, {offset:
-    Agreement})})`` (each ``seconds``: the whole run's over every clip, every lane at once).
-    ``run`` gets every (formation, offset) lane at once; ``model`` is written to ``folder`` for it
-    to load (and removed after)."""
+                           formations: Sequence[Boxes] = BOXES, progress: bool = True, seed: int = 0
+                           ) -> tuple[Boxes, float, dict[str, FormationChoice]]:
+    """The box formation and decision offset for the model: for each of ``formations``, the
+    offset :func:`strictest_within_one_se` picks from the per-frame agreement with the kept-aside
+    labels (``seed``: its bootstrap's); of those, the formation :func:`choose_boxes` picks.
+    Returns ``(formation, offset, {formation: FormationChoice})`` (each Agreement's ``seconds``:
+    the whole run's over every clip, every lane at once). ``run`` gets every (formation, offset)
+    lane at once; ``model`` is written to ``folder`` for it to load (and removed after)."""
     folder.mkdir(parents=True, exist_ok=True)
     lanes = [(b, float(o)) for b in formations for o in offsets]
-    counts = {k: (0, 0, 0) for k in lanes}
+    counts: dict[tuple[Boxes, float], list[np.ndarray]] = {k: [] for k in lanes}
     secs, frames = 0.0, 0
     path = folder / "model.npz"
     offset(model, 0.0).save(path)
@@ -552,22 +606,16 @@ def choose_operating_point(model: Model, footage: Footage, run: LanesRun, folder
             per_lane, s, n = run(clip, str(path), lanes)
             secs, frames = secs + s, frames + n
             for k in lanes:
-                tp, fp, fn = counts[k]
-                a, b, c = per_lane[k]
-                counts[k] = (tp + a, fp + b, fn + c)
+                counts[k].append(np.asarray(per_lane[k], np.int64).reshape(-1, 3))
     finally:
         path.unlink(missing_ok=True)
 
-    def best(results: dict[float, Agreement]) -> float:
-        def rank(o: float) -> tuple[float, float]:
-            f1 = results[o].f1
-            return (-1.0 if math.isnan(f1) else f1, -abs(o))
-
-        return max(results, key=rank)
-
-    by_boxes: dict[str, tuple[float, dict[float, Agreement]]] = {}
+    by_boxes: dict[str, FormationChoice] = {}
     for b in formations:
-        results = {o: Agreement(*counts[(b, o)], seconds=secs, frames=frames) for bb, o in lanes if bb == b}
-        by_boxes[b] = (best(results), results)
+        per_frame = {o: np.concatenate(counts[(bb, o)]) for bb, o in lanes if bb == b}
+        results = {o: Agreement(*(int(v) for v in c.sum(axis=0)), seconds=secs, frames=frames)
+                   for o, c in per_frame.items()}
+        chosen, best, se = strictest_within_one_se(per_frame, seed)
+        by_boxes[b] = FormationChoice(chosen, results, best, se)
     boxes = choose_boxes(by_boxes)
-    return boxes, by_boxes[boxes][0], by_boxes
+    return boxes, by_boxes[boxes].offset, by_boxes
