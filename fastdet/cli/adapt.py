@@ -22,10 +22,11 @@
   negatives mined with the bundled model, then again with the model fitted, which is fitted
   again); the box regressor is fitted on the camera's labelled vehicles (jittered boxes about
   them and the model's own window boxes on them, :func:`own_window_boxes`) and carried in the
-  model file; the model is then moved by the decision offset, and given the box formation (heat
-  map or windows), of best F1 against the labels of the kept-aside frames, through the ``video``
-  pipeline with that regressor (:mod:`fastdet.train.adapt`), at the horizon a run of each whole
-  video has (:func:`~fastdet.video.run.file_horizon`).
+  model file; the model is then given the box formation (heat map or windows) of best F1 against
+  the labels of the kept-aside frames, and moved by the strictest decision offset within one
+  standard error of that formation's best F1 (:func:`fastdet.train.adapt.strictest_within_one_se`),
+  through the ``video`` pipeline with that regressor (:mod:`fastdet.train.adapt`), at the horizon
+  a run of each whole video has (:func:`~fastdet.video.run.file_horizon`).
   Each kept-aside stretch is decoded once for the three runs over it (:func:`held_stretches`:
   in memory up to ``AdaptConfig.hold_bytes``, the rest in raw files in the work folder, removed
   when the step ends).
