@@ -165,7 +165,8 @@ def test_the_strictest_offset_within_one_standard_error_is_chosen():
     assert chosen == 2.0
     # the same counts on every frame: no spread, the best wins; of equal F1s the strictest
     same = {o: np.array([v[0]] * 4) for o, v in frames.items()}
-    assert adapt.strictest_within_one_se(same) == pytest.approx((0.0, 0.0, 0.0), abs=1e-12)  # F1 0.73 / 0.80 / 0.75 / 0.40
+    # F1 0.73 / 0.80 / 0.75 / 0.40
+    assert adapt.strictest_within_one_se(same) == pytest.approx((0.0, 0.0, 0.0), abs=1e-12)
     tied = {-1.0: np.array([(2, 1, 1)] * 3), 1.0: np.array([(2, 1, 1)] * 3), 3.0: np.array([(0, 0, 4)] * 3)}
     assert adapt.strictest_within_one_se(tied) == pytest.approx((1.0, -1.0, 0.0), abs=1e-12)
     # an offset with nothing at all (no boxes, no targets) is never the choice
