@@ -24,7 +24,7 @@
   them and the model's own window boxes on them, :func:`own_window_boxes`) and carried in the
   model file; the model is then given the box formation (heat map or windows) of best F1 against
   the labels of the kept-aside frames, and moved by the strictest decision offset within one
-  standard error of that formation's best F1 (:func:`fastdet.train.adapt.strictest_within_one_se`),
+  standard error of that formation's best F1 (:func:`fastdet.train.operating_point.strictest_within_one_se`),
   through the ``video`` pipeline with that regressor (:mod:`fastdet.train.adapt`), at the horizon
   a run of each whole video has (:func:`~fastdet.video.run.file_horizon`).
   Each kept-aside stretch is decoded once for the three runs over it (:func:`held_stretches`:
@@ -68,6 +68,8 @@ from ..io.paths import check_paths, is_inside
 from ..labels.picture import AnnotatedPicture
 from ..model import Model, load_model
 from ..train import adapt as _adapt
+from ..train import operating_point as _op
+from ..train.blend import offset
 from ..video.detector import BOXES_KEY
 from ..video.run import file_horizon
 from ._args import fraction, positive_int, teacher_size, video_files
@@ -201,7 +203,7 @@ def _horizon(horizons: Mapping[str, float | None] | None, clip: _adapt.Clip) -> 
 
 
 def holdout_run(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, HeldFrames] | None = None,
-                horizons: Mapping[str, float | None] | None = None) -> _adapt.HoldoutRun:
+                horizons: Mapping[str, float | None] | None = None) -> _op.HoldoutRun:
     """The video pipeline (:func:`fastdet.detect_video`, as ``video`` runs it) over a clip's
     kept-aside stretch with a model file, scored (:func:`fastdet.eval.evaluate`, IoU 0.5) on
     the clip's kept-aside labelled frames. ``frames``: the stretches held
@@ -234,7 +236,7 @@ def holdout_run(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, He
 
 
 def holdout_lanes(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, HeldFrames] | None = None,
-                  horizons: Mapping[str, float | None] | None = None) -> _adapt.LanesRun:
+                  horizons: Mapping[str, float | None] | None = None) -> _op.LanesRun:
     """The video pipeline over a clip's kept-aside stretch for each lane -- a box formation and the
     model file moved by an offset --, the frames read and scored once for all of them
     (:func:`fastdet.video.replay.iter_lane_detections`: each lane's boxes are those of
@@ -301,15 +303,15 @@ def own_window_boxes(model: Model, horizon: float | None) -> Callable[[np.ndarra
     return boxes
 
 
-def _after(model: Model, chosen: float, boxes: Boxes, footage: _adapt.Footage, run: _adapt.HoldoutRun,
+def _after(model: Model, chosen: float, boxes: Boxes, footage: _adapt.Footage, run: _op.HoldoutRun,
            folder: Path) -> dict[str, Any]:
     """The agreement of the model moved by the chosen offset, recording the chosen box formation,
     from a run of the video pipeline with it (its time a frame is what ``video`` takes with the
     model written)."""
     path = folder / f"offset{chosen:+.3f}.npz"
-    _adapt.offset(model, chosen, metadata={BOXES_KEY: boxes}).save(path)
+    offset(model, chosen, metadata={BOXES_KEY: boxes}).save(path)
     try:
-        return _adapt.agreement(footage, run, str(path)).to_dict()
+        return _op.agreement(footage, run, str(path)).to_dict()
     finally:
         path.unlink(missing_ok=True)
 
@@ -466,8 +468,8 @@ def run(args: argparse.Namespace) -> int:
         with held_stretches(footage, held, config, work / "operating-point") as frames:
             kept = _kept(frames, time.perf_counter() - t_read)
             run_holdout = holdout_run(held, frames, horizons)
-            before = _adapt.agreement(footage, run_holdout, None).to_dict()
-            boxes, chosen, by_boxes = _adapt.choose_operating_point(
+            before = _op.agreement(footage, run_holdout, None).to_dict()
+            boxes, chosen, by_boxes = _op.choose_operating_point(
                 model, footage, holdout_lanes(held, frames, horizons), work / "operating-point", config.offsets, BOXES,
                 progress, seed=config.seed)
             formations = {b: {"offset": c.offset, "f1": c.results[c.offset].to_dict()["f1"], "best_offset": c.best,
@@ -499,7 +501,7 @@ def run(args: argparse.Namespace) -> int:
         "agreement": {"before": before, "after": after},
         "config": config.to_dict(),
     }
-    final = _adapt.offset(model, chosen, metadata={"adapt": summary, BOXES_KEY: boxes})
+    final = offset(model, chosen, metadata={"adapt": summary, BOXES_KEY: boxes})
     final.save(out)
     shutil.rmtree(work / "operating-point", ignore_errors=True)
     print(f"frames: {len(train_pics)} trained on ({n_targets} {labelled_by} targets; {counts['positives']} "

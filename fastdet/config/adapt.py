@@ -61,7 +61,7 @@ class AdaptConfig(Config):
     min_score: a teacher vehicle at least this sure is a target, below it an ignore region.
     offsets: the decision offsets (:func:`fastdet.train.blend.offset`, decision units; + is
         stricter) tried on the kept-aside footage; the strictest whose F1 against the teacher is
-        within one standard error of the best wins (:func:`fastdet.train.adapt.strictest_within_one_se`).
+        within one standard error of the best wins (:func:`fastdet.train.operating_point.strictest_within_one_se`).
     C, truncate, truncate_keep, reencode: the training recipe (default: the bundled model's).
     max_per_folder: at most this many crops of each bundled crop folder (``None``: all; for
         quick runs and tests).

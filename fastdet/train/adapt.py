@@ -33,20 +33,19 @@ The steps, each a function here (the command, :mod:`fastdet.cli.adapt`, runs the
 from __future__ import annotations
 
 import hashlib
-import math
 import os
 import sys
 import time
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 from tqdm import tqdm
 
 from .. import signals as _signals
-from ..config import BOXES, Boxes, JitterConfig
+from ..config import JitterConfig
 from ..config.adapt import AdaptConfig
 from ..detect.regressor import BoxRegressor
 from ..errors import DataError
@@ -57,7 +56,6 @@ from ..labels.teacher import read_teacher_clip
 from ..model import Model
 from ..teacher.label import Labelled, teacher_paths, write_teacher_files
 from ..teacher.yolox import TeacherDetector
-from .blend import offset
 from .dataset import CropSet
 from .fit import train
 from .pictures import hard_negative_crops, picture_crops
@@ -447,175 +445,3 @@ def fit_camera_regressor(pictures: Sequence[AnnotatedPicture], bundled: BoxRegre
         "trained_on": "the camera's labelled frames (fastdet adapt)", "fit": report,
         "refine_config_of": "the pipeline's (RefineConfig)"})
     return reg, report
-
-
-@dataclass(frozen=True)
-class Agreement:
-    """Boxes against the labels of the kept-aside frames (IoU 0.5): hits, false alarms, misses."""
-
-    tp: int
-    fp: int
-    fn: int
-    seconds: float
-    frames: int
-
-    @property
-    def precision(self) -> float:
-        return self.tp / (self.tp + self.fp) if self.tp + self.fp else math.nan
-
-    @property
-    def recall(self) -> float:
-        return self.tp / (self.tp + self.fn) if self.tp + self.fn else math.nan
-
-    @property
-    def f1(self) -> float:
-        d = 2 * self.tp + self.fp + self.fn
-        return 2 * self.tp / d if d else math.nan
-
-    @property
-    def ms_per_frame(self) -> float:
-        """The pipeline's wall time per frame (ms) after each stretch's first frame: the steady
-        frame loop, without the start-up (reaching the stretch, the horizon from its first frames);
-        ``adapt`` feeds it the stretch's frames decoded once and held
-        (:func:`fastdet.cli.adapt.held_stretches`), so it holds no decoding either."""
-        return 1000.0 * self.seconds / self.frames if self.frames else math.nan
-
-    def to_dict(self) -> dict[str, Any]:
-        def num(v: float) -> float | None:
-            return None if math.isnan(v) else round(v, 4)
-
-        return {"f1": num(self.f1), "precision": num(self.precision), "recall": num(self.recall),
-                "tp": self.tp, "fp": self.fp, "fn": self.fn, "ms_per_frame": num(self.ms_per_frame)}
-
-
-#: ``run(clip, model file or None for the bundled one) -> (tp, fp, fn, seconds, frames)``:
-#: the video pipeline over the clip's kept-aside stretch, scored against its kept-aside labels
-#: (``seconds`` and ``frames`` from the stretch's first frame out: :attr:`Agreement.ms_per_frame`)
-HoldoutRun = Callable[[Clip, "str | None"], tuple[int, int, int, float, int]]
-
-#: ``run(clip, model file, lanes) -> ({(boxes, offset): counts (K, 3) int64}, seconds, frames read)``:
-#: the video pipeline over the clip's kept-aside stretch for each lane -- a box formation
-#: (:attr:`PipelineConfig.boxes <fastdet.config.PipelineConfig>`) and the model moved by an offset
-#: (:func:`~fastdet.train.blend.offset`); the frames read and scored once for all of them:
-#: :func:`fastdet.video.replay.iter_lane_detections` --, each lane's boxes scored against the
-#: kept-aside labels: ``(tp, fp, fn)`` of each of the clip's K kept-aside labelled frames, in one
-#: frame order for every lane
-LanesRun = Callable[[Clip, str, Sequence[tuple[Boxes, float]]],
-                    tuple[dict[tuple[Boxes, float], np.ndarray], float, int]]
-
-#: bootstrap draws of the kept-aside frames for the standard error of the best offset's F1
-#: (:func:`strictest_within_one_se`)
-BOOTSTRAP_DRAWS = 200
-
-
-def agreement(footage: Footage, run: HoldoutRun, model_path: str | None) -> Agreement:
-    """``run`` over every clip with kept-aside labels, summed."""
-    tp = fp = fn = frames = 0
-    secs = 0.0
-    for clip in footage.clips:
-        if not clip.holdout_frames(footage.every):
-            continue
-        a, b, c, s, n = run(clip, model_path)
-        tp, fp, fn, secs, frames = tp + a, fp + b, fn + c, secs + s, frames + n
-    return Agreement(tp, fp, fn, secs, frames)
-
-
-class FormationChoice(NamedTuple):
-    """One box formation's operating point (:func:`choose_operating_point`): ``offset`` chosen
-    (:func:`strictest_within_one_se`), ``results`` (every offset's :class:`Agreement`), ``best``
-    (the offset of best F1) and ``se`` (the bootstrap standard error of that F1)."""
-
-    offset: float
-    results: dict[float, Agreement]
-    best: float
-    se: float
-
-
-def _f1(counts: np.ndarray) -> np.ndarray:
-    """F1 of ``(..., K, 3)`` per-frame (tp, fp, fn) summed over the frames (0 where undefined)."""
-    tp, fp, fn = np.moveaxis(counts.sum(axis=-2), -1, 0)
-    d = 2 * tp + fp + fn
-    return np.where(d > 0, 2 * tp / np.maximum(d, 1), 0.0)
-
-
-def strictest_within_one_se(per_frame: Mapping[float, np.ndarray], seed: int = 0,
-                            draws: int = BOOTSTRAP_DRAWS) -> tuple[float, float, float]:
-    """``(chosen, best, se)`` of one formation's offsets by the one-standard-error rule (Breiman
-    et al., *Classification and Regression Trees*, 1984; Hastie, Tibshirani and Friedman, *The
-    Elements of Statistical Learning*, 7.10): ``best`` is the offset of best F1 against the
-    kept-aside labels (ties: the one nearest 0), ``se`` the standard error of its F1 over the
-    kept-aside frames (``draws`` bootstrap resamples of the frames, seeded by ``seed``), and
-    ``chosen`` the strictest offset (the largest: the fewest boxes) whose F1 is within ``se`` of
-    the best. On a handful of kept-aside frames the F1s of neighbouring offsets differ by less
-    than their noise; the teacher also boxes far-away traffic that human labels leave out, so
-    the best F1 against it leans to loose offsets (docs/training.md, "The operating point within
-    one standard error"). ``per_frame``: each offset's ``(K, 3)`` per-frame (tp, fp, fn), one
-    frame order."""
-    offsets = sorted(per_frame)
-    if not offsets:
-        raise ValueError("no offsets to choose from")
-    counts = np.stack([np.asarray(per_frame[o], np.int64).reshape(-1, 3) for o in offsets])
-    f1 = _f1(counts)
-    # rank by F1 (an undefined one, no boxes and no targets, lowest), ties nearest 0
-    defined = counts.sum(axis=(1, 2)) > 0
-    rank = [(f1[i] if defined[i] else -1.0, -abs(o)) for i, o in enumerate(offsets)]
-    ib = max(range(len(offsets)), key=lambda i: rank[i])
-    k = counts.shape[1]
-    if not defined[ib] or k < 2:
-        return offsets[ib], offsets[ib], 0.0
-    rng = np.random.default_rng(seed)
-    idx = rng.integers(0, k, (draws, k))
-    se = float(np.std(_f1(counts[ib][idx])))
-    within = [i for i in range(len(offsets)) if defined[i] and f1[i] >= f1[ib] - se]
-    return offsets[max(within)], offsets[ib], se
-
-
-def choose_boxes(by_boxes: Mapping[str, FormationChoice]) -> Boxes:
-    """The box formation (:data:`fastdet.config.BOXES`) that agrees best with the labels kept
-    aside, by the F1 at its best offset: ``by_boxes`` maps each formation to its
-    :class:`FormationChoice`. Ties, or no F1 at all, keep ``'heat'`` (the pipeline's own)."""
-    def rank(b: str) -> tuple[float, bool]:
-        choice = by_boxes[b]
-        f1 = choice.results[choice.best].f1
-        return (-1.0 if math.isnan(f1) else f1, b == "heat")
-
-    best = max(by_boxes, key=rank)
-    if best not in BOXES:
-        raise ValueError(f"unknown box formation {best!r}")
-    return best  # type: ignore[return-value]
-
-
-def choose_operating_point(model: Model, footage: Footage, run: LanesRun, folder: Path, offsets: Sequence[float],
-                           formations: Sequence[Boxes] = BOXES, progress: bool = True, seed: int = 0
-                           ) -> tuple[Boxes, float, dict[str, FormationChoice]]:
-    """The box formation and decision offset for the model: for each of ``formations``, the
-    offset :func:`strictest_within_one_se` picks from the per-frame agreement with the kept-aside
-    labels (``seed``: its bootstrap's); of those, the formation :func:`choose_boxes` picks.
-    Returns ``(formation, offset, {formation: FormationChoice})`` (each Agreement's ``seconds``:
-    the whole run's over every clip, every lane at once). ``run`` gets every (formation, offset)
-    lane at once; ``model`` is written to ``folder`` for it to load (and removed after)."""
-    folder.mkdir(parents=True, exist_ok=True)
-    lanes = [(b, float(o)) for b in formations for o in offsets]
-    counts: dict[tuple[Boxes, float], list[np.ndarray]] = {k: [] for k in lanes}
-    secs, frames = 0.0, 0
-    path = folder / "model.npz"
-    offset(model, 0.0).save(path)
-    try:
-        for clip in tqdm([c for c in footage.clips if c.holdout_frames(footage.every)], desc="operating point",
-                         unit="video", file=sys.stderr, dynamic_ncols=True, disable=not progress):
-            per_lane, s, n = run(clip, str(path), lanes)
-            secs, frames = secs + s, frames + n
-            for k in lanes:
-                counts[k].append(np.asarray(per_lane[k], np.int64).reshape(-1, 3))
-    finally:
-        path.unlink(missing_ok=True)
-
-    by_boxes: dict[str, FormationChoice] = {}
-    for b in formations:
-        per_frame = {o: np.concatenate(counts[(bb, o)]) for bb, o in lanes if bb == b}
-        results = {o: Agreement(*(int(v) for v in c.sum(axis=0)), seconds=secs, frames=frames)
-                   for o, c in per_frame.items()}
-        chosen, best, se = strictest_within_one_se(per_frame, seed)
-        by_boxes[b] = FormationChoice(chosen, results, best, se)
-    boxes = choose_boxes(by_boxes)
-    return boxes, by_boxes[boxes].offset, by_boxes
