@@ -16,7 +16,10 @@ Each is scored with :func:`fastdet.eval.evaluate` (IoU 0.5, no tracking) on the 
 the ensemble labelled: its targets (the data README's rule, ``read_teacher_clip``) count,
 the rest are ignore regions. This is the issue's second, cheaper signal: the ensemble's boxes are
 not ground truth, and adapt trained on other labels (its own teacher's, on frames before the
-stretch). Prints a markdown table, one row a clip (F1, hits / false alarms / misses).
+stretch). The stretch is searched at the horizon a ``video`` run of the whole clip has
+(:func:`fastdet.video.run.file_horizon`; before the fourteenth session, at the one the stretch's own
+first frames gave). Prints a markdown table, one row a clip (F1, hits / false alarms / misses, and
+what adapt chose).
 
     python -m tools.studies.adapt_unlabelled --work W [--clips anmol_highway,tmo_seattle1,...]
 """
@@ -36,7 +39,7 @@ from fastdet.eval import evaluate
 from fastdet.eval.pictures import frames_ground_truth
 from fastdet.labels.teacher import read_teacher_clip
 from fastdet.model import load_model
-from fastdet.video.run import detect_video
+from fastdet.video.run import detect_video, file_horizon
 from tools.studies.markdown import table
 
 #: the unlabelled clips measured in docs/training.md (every clip of ``teacher/``)
@@ -75,13 +78,25 @@ def score(clip: str, model: Path, data: Path) -> str:
     gt, keyframes = kept_aside_truth(clip, data, start)
     plain = model.with_name(model.stem + ".noreg.npz")
     dataclasses.replace(m, regressor=None).save(plain)
+    video = data / "videos" / f"{clip}.mp4"
+    horizon = file_horizon(video)  # where a `video` run of the whole clip searches, not the stretch's own estimate
     cells = []
     for path in (None, plain, model):
-        tables = list(detect_video(data / "videos" / f"{clip}.mp4", model=None if path is None else str(path),
-                                   start=start - 1, frames=total - start + 1, progress=False))
+        tables = list(detect_video(video, model=None if path is None else str(path), start=start - 1,
+                                   frames=total - start + 1, horizon=horizon, progress=False))
         r = evaluate(gt, Detections.concat(tables), keyframes=keyframes, tracking=False)
         cells.append(f"{r.f1:.2f} ({r.tp} / {r.fp} / {r.fn})" if r.tp + r.fp + r.fn else "no box, no target")
-    return f"| {clip} | {len(keyframes)} | " + " | ".join(cells) + " |"
+    return f"| {clip} | {len(keyframes)} | " + " | ".join(cells) + f" | {chosen(m.metadata['adapt'])} |"
+
+
+def chosen(summary: dict) -> str:
+    """What adapt chose: the formation; its best offset, that F1 +- its standard error -> the offset
+    chosen (the strictest within it); older models: the formation and offset."""
+    b = summary.get("boxes", "heat")
+    t = (summary.get("boxes_tried") or {}).get(b, {})
+    if "best_offset" not in t:
+        return f"{b}, {summary.get('offset', 0):g}"
+    return f"{b}; {t['best_offset']:g}, {t['best_f1']:.2f} +- {t['f1_se']:.2f} -> {summary['offset']:g}"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -98,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
             rows.append(score(clip, out, data))
             print(rows[-1], file=sys.stderr, flush=True)
     print(table("| clip | kept-aside teacher frames | bundled model | adapted, bundled regressor | "
-                "adapted, own regressor |", rows))
+                "adapted, own regressor | chosen |", rows))
     return 0
 
 
