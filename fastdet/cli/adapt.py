@@ -527,7 +527,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"offsets tried with {boxes} boxes (F1): "
               + ", ".join(f"{k} {f1(v)}" for k, v in tried.items())
               + f"; best {fb['best_offset']:g} (F1 {f1(fb['best_f1'])} +- {fb['f1_se']:.2f} over the kept-aside "
-              f"frames); chosen {chosen:g}, the strictest within one standard error")
+              f"frames); chosen {chosen:g} by the one-standard-error rule")
     else:
         print("no labelled frame kept aside: the model keeps its own operating point (offset 0)")
     print(f"agreement with the {labelled_by} labels on the kept-aside frames:")

@@ -122,8 +122,10 @@ def strictest_within_one_se(per_frame: Mapping[float, np.ndarray], seed: int = 0
     the best. On a handful of kept-aside frames the F1s of neighbouring offsets differ by less
     than their noise; the teacher also boxes far-away traffic that human labels leave out, so
     the best F1 against it leans to loose offsets (docs/training.md, "The operating point within
-    one standard error"). ``per_frame``: each offset's ``(K, 3)`` per-frame (tp, fp, fn), one
-    frame order."""
+    one standard error"). Where the offsets next to the strictest one give the very same counts
+    on every frame, the frames cannot tell them apart, and the one of them nearest 0 is chosen
+    (a flat run over 3 frames otherwise sends the choice to its strict end for no evidence).
+    ``per_frame``: each offset's ``(K, 3)`` per-frame (tp, fp, fn), one frame order."""
     offsets = sorted(per_frame)
     if not offsets:
         raise ValueError("no offsets to choose from")
@@ -140,7 +142,19 @@ def strictest_within_one_se(per_frame: Mapping[float, np.ndarray], seed: int = 0
     idx = rng.integers(0, k, (draws, k))
     se = float(np.std(_f1(counts[ib][idx])))
     within = [i for i in range(len(offsets)) if defined[i] and f1[i] >= f1[ib] - se]
-    return offsets[max(within)], offsets[ib], se
+    return offsets[_nearest_zero_alike(counts, offsets, max(within))], offsets[ib], se
+
+
+def _nearest_zero_alike(counts: np.ndarray, offsets: Sequence[float], i: int) -> int:
+    """Of the run of neighbouring offsets around ``offsets[i]`` whose boxes agree with the labels
+    exactly as its do (the same counts on every frame), the one nearest 0: across that run the
+    kept-aside frames tell nothing apart, and the model's own calibration stands."""
+    lo = hi = i
+    while lo > 0 and np.array_equal(counts[lo - 1], counts[i]):
+        lo -= 1
+    while hi < len(offsets) - 1 and np.array_equal(counts[hi + 1], counts[i]):
+        hi += 1
+    return min(range(lo, hi + 1), key=lambda j: (abs(offsets[j]), -offsets[j]))
 
 
 def choose_boxes(by_boxes: Mapping[str, FormationChoice]) -> Boxes:

@@ -185,7 +185,7 @@ def test_adapt_writes_a_model_with_its_summary(teacher, data, tmp_path, capsys, 
     assert tried["offset"] == s["offset"] and tried["offset"] >= tried["best_offset"]
     assert s["offsets_f1"][f"{s['offset']:g}"] >= tried["best_f1"] - tried["f1_se"]
     assert s["agreement"]["after"]["f1"] == s["offsets_f1"][f"{s['offset']:g}"]
-    assert "the strictest within one standard error" in text
+    assert "by the one-standard-error rule" in text
     # both box formations tried; the chosen one (at least as good as the other) is recorded in
     # the model file, and the pipeline makes its boxes that way
     assert set(s["boxes_tried"]) == {"heat", "nms"} and model.metadata[BOXES_KEY] == s["boxes"]

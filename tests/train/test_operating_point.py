@@ -19,8 +19,8 @@ def test_the_formation_and_offset_are_chosen_in_one_run(tmp_path):
     fp = adapt.plan_footage([str(a)], AdaptConfig(every=5))
     calls: list[tuple[tuple[str, float], ...]] = []
     # every frame alike (no spread between frames: the standard error is 0, the best F1 wins; of
-    # equal F1s the strictest): heat peaks at offsets 1 and 2 (best: the one nearest 0; chosen: 2);
-    # nms at 2, and higher than heat's
+    # offsets with the very same counts, the one nearest 0): heat peaks at offsets 1 and 2 alike
+    # (chosen: 1); nms at 2, and higher than heat's
     tp = {("heat", -1.0): 2, ("heat", 0.0): 3, ("heat", 1.0): 4, ("heat", 2.0): 4,
           ("nms", -1.0): 1, ("nms", 0.0): 2, ("nms", 1.0): 3, ("nms", 2.0): 5}
 
@@ -35,7 +35,7 @@ def test_the_formation_and_offset_are_chosen_in_one_run(tmp_path):
     assert (boxes, chosen) == ("nms", 2.0)
     assert calls == [tuple((b, o) for b in ("heat", "nms") for o in offsets)]  # one run for every lane
     heat = by_boxes["heat"]
-    assert (heat.offset, heat.best, heat.se) == (2.0, 1.0, 0.0)
+    assert (heat.offset, heat.best, heat.se) == (1.0, 1.0, 0.0)
     assert heat.results[1.0].f1 == 0.8 and heat.results[0.0].to_dict()["f1"] == 0.6
     assert (heat.results[1.0].tp, heat.results[1.0].fp) == (8, 2)  # both frames summed
     assert heat.results[1.0].ms_per_frame == 50
@@ -44,7 +44,7 @@ def test_the_formation_and_offset_are_chosen_in_one_run(tmp_path):
     calls.clear()
     boxes, chosen, by_boxes = operating_point.choose_operating_point(load_model(), fp, run, tmp_path / "op", offsets,
                                                            formations=("heat",), progress=False)
-    assert (boxes, chosen) == ("heat", 2.0) and set(by_boxes) == {"heat"} and len(calls[0]) == 4
+    assert (boxes, chosen) == ("heat", 1.0) and set(by_boxes) == {"heat"} and len(calls[0]) == 4
 
 
 def _bootstrap_se_loop(counts: np.ndarray, seed: int, draws: int) -> float:
@@ -58,6 +58,10 @@ def _bootstrap_se_loop(counts: np.ndarray, seed: int, draws: int) -> float:
             tp, fp, fn = tp + counts[i][0], fp + counts[i][1], fn + counts[i][2]
         f1s.append(2 * tp / (2 * tp + fp + fn) if 2 * tp + fp + fn else 0.0)
     return float(np.std(f1s))
+
+
+def adapt_choice(per):
+    return operating_point.strictest_within_one_se(per)
 
 
 def test_the_strictest_offset_within_one_standard_error_is_chosen():
@@ -77,12 +81,20 @@ def test_the_strictest_offset_within_one_standard_error_is_chosen():
     assert se == pytest.approx(_bootstrap_se_loop(per[-1.0], 3, 150), abs=1e-12) and se > 0
     assert f1[2.0] >= f1[-1.0] - se > f1[4.0]
     assert chosen == 2.0
-    # the same counts on every frame: no spread, the best wins; of equal F1s the strictest
+    # the same counts on every frame: no spread, the best wins
     same = {o: np.array([v[0]] * 4) for o, v in frames.items()}
     # F1 0.73 / 0.80 / 0.75 / 0.40
     assert operating_point.strictest_within_one_se(same) == pytest.approx((0.0, 0.0, 0.0), abs=1e-12)
     tied = {-1.0: np.array([(2, 1, 1)] * 3), 1.0: np.array([(2, 1, 1)] * 3), 3.0: np.array([(0, 0, 4)] * 3)}
     assert operating_point.strictest_within_one_se(tied) == pytest.approx((1.0, -1.0, 0.0), abs=1e-12)
+    # a flat run (the same counts on every frame from -1 to 4, as on 3 frames of a short clip):
+    # the frames tell those offsets nothing apart, so the one nearest 0 stands, not the strict end;
+    # a stricter offset with other counts within the error is still preferred
+    flat = {o: np.array([(1, 1, 3), (0, 0, 2), (1, 2, 1)]) for o in (-1.0, 0.0, 1.0, 2.0, 4.0)}
+    flat[6.0] = np.array([(0, 0, 4), (0, 0, 2), (0, 1, 2)])
+    assert adapt_choice(flat)[0] == 0.0
+    flat[6.0] = np.array([(1, 0, 3), (0, 0, 2), (1, 1, 1)])  # fewer false alarms, the same hits
+    assert adapt_choice(flat)[0] == 6.0
     # an offset with nothing at all (no boxes, no targets) is never the choice
     empty = {0.0: np.array([(1, 1, 1), (2, 0, 1)]), 8.0: np.zeros((2, 3), np.int64)}
     assert operating_point.strictest_within_one_se(empty)[0] == 0.0
