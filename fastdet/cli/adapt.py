@@ -261,13 +261,15 @@ def holdout_lanes(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, 
             for table, dets in zip(tables, by_lane):
                 table.append(dets.with_frames(np.full(len(dets), fno, np.int64)))
         secs = time.perf_counter() - t0
-        gt, keyframes = _gt(pics), np.array([p.frame for p in pics])
+        gt = _gt(pics)
+        keyframes = [p.frame for p in pics]
+        gt_of = {f: gt[gt.frames == f] for f in keyframes}  # each frame's labels, the same for every lane
         out = {}
         for k, table in zip(lanes, tables):
             preds = _predictions(table)
             per_frame = []
             for f in keyframes:  # each frame's counts, for the standard error over the frames
-                res = evaluate(gt[gt.frames == f], preds[preds.frames == f], keyframes=np.array([f]), tracking=False)
+                res = evaluate(gt_of[f], preds[preds.frames == f], keyframes=np.array([f]), tracking=False)
                 per_frame.append((res.tp, res.fp, res.fn))
             out[k] = np.array(per_frame, np.int64).reshape(-1, 3)
         return out, secs, n

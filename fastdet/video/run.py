@@ -38,10 +38,11 @@ def progress_bar(total: int | None, enabled: bool, desc: str) -> tqdm:
                 disable=not (enabled and sys.stderr.isatty()))
 
 
-def _first_frames(path: str | HeldFrames, start: int) -> Iterator[np.ndarray]:
+def _first_frames(path: str | os.PathLike | HeldFrames, start: int) -> Iterator[np.ndarray]:
     """The first HORIZON_FRAMES frames of a file from ``start`` (a reader of their own, quiet:
     the reader of the run itself says what there is to say about the file)."""
-    reader = FrameReader(path, start, HORIZON_FRAMES, notify=lambda _note: None)
+    reader = FrameReader(path if isinstance(path, HeldFrames) else os.fspath(path), start, HORIZON_FRAMES,
+                         notify=lambda _note: None)
     try:
         for _, frame, _ in reader:
             yield frame
@@ -61,7 +62,7 @@ def prime_horizon_from_file(vd: VideoDetector, path: str | os.PathLike | HeldFra
     estimated horizon. Every command that reads a file does this, so ``video``, ``batch`` and
     ``eval --video`` give the same boxes."""
     if _primes(vd.config) and (isinstance(path, HeldFrames) or os.path.isfile(os.fspath(path))):
-        vd.prime_horizon(_first_frames(path if isinstance(path, HeldFrames) else os.fspath(path), start))
+        vd.prime_horizon(_first_frames(path, start))
 
 
 def file_horizon(path: str | os.PathLike | HeldFrames, start: int = 0) -> float | None:
@@ -72,8 +73,7 @@ def file_horizon(path: str | os.PathLike | HeldFrames, start: int = 0) -> float 
     given being any stretch of the file: ``fastdet adapt`` runs the pipeline over a stretch of a
     video as a run of the whole video would, not at a horizon read from the stretch's own first
     frames (8 frames of a short clip can give none where 40 give one)."""
-    return search_horizon(estimate_horizon(_first_frames(path if isinstance(path, HeldFrames) else os.fspath(path),
-                                                         start)))
+    return search_horizon(estimate_horizon(_first_frames(path, start)))
 
 
 def video_detector_for(reader: FrameReader, detector: WindowDetector,

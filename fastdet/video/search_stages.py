@@ -10,7 +10,7 @@ from ..config import MotionGate
 from ..detect import DetectStats
 from .detector import ColumnSearch, MovableHorizon, WindowDetector
 from .guided import SearchPlanner
-from .horizon import HORIZON_FRAMES, TOLERANCE, HorizonEstimator, search_horizon
+from .horizon import HORIZON_FRAMES, TOLERANCE, HorizonEstimator, estimate_horizon, search_horizon
 from .motion import FrameMotion, moving_bands, window_motion
 from .state import FrameState, Stage
 
@@ -40,15 +40,10 @@ class HorizonStage(Stage):
     def prime(self, frames: Iterable[np.ndarray]) -> float | None:
         """Estimate the horizon from ``frames`` (at most HORIZON_FRAMES) now; the bands go there."""
         self.start()
-        est = self.estimator
-        if est is None:
+        if self.estimator is None:
             return self.detector.horizon
-        for i, f in enumerate(frames):
-            if i >= HORIZON_FRAMES or est.done:
-                break
-            est.update(np.asarray(f))
-        self.detector.set_horizon(search_horizon(est.estimate))
         self.estimator = None
+        self.detector.set_horizon(search_horizon(estimate_horizon(np.asarray(f) for f in frames)))
         return self.detector.horizon
 
     def __call__(self, s: FrameState) -> FrameState:
