@@ -22,6 +22,7 @@ first frames gave). Prints a markdown table, one row a clip (F1, hits / false al
 what adapt chose).
 
     python -m tools.studies.adapt_unlabelled --work W [--clips anmol_highway,tmo_seattle1,...]
+        [--adapt-args '--teacher-size 960']
 """
 from __future__ import annotations
 
@@ -47,13 +48,13 @@ CLIPS = ("akin_highway", "anmol_highway", "chanremin_v49", "tmo_seattle1", "driv
          "hadiya_input", "tmo_rainy", "teamlv_rainy", "samyx_nuit")
 
 
-def adapt(clip: str, out: Path, data: Path) -> bool:
-    """Run ``fastdet adapt`` on the clip into ``out`` unless it exists; False when adapt refused
-    (its one line is printed)."""
+def adapt(clip: str, out: Path, data: Path, extra: list[str] | None = None) -> bool:
+    """Run ``fastdet adapt`` on the clip into ``out`` unless it exists, with ``extra`` options
+    appended (e.g. ``--teacher-size 960``); False when adapt refused (its one line is printed)."""
     if out.exists():
         return True
     cmd = [sys.executable, "-m", "fastdet", "adapt", str(data / "videos" / f"{clip}.mp4"),
-           "--teacher", str(data / "teachers" / "yolox_nano.onnx"), "-o", str(out), "--no-progress"]
+           "--teacher", str(data / "teachers" / "yolox_nano.onnx"), "-o", str(out), "--no-progress", *(extra or [])]
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode:
         print(f"{clip}: adapt: {(r.stderr.strip().splitlines() or ['(no message)'])[-1]}", file=sys.stderr)
@@ -103,13 +104,14 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--work", required=True, type=Path, help="folder of the adapted models (made if missing)")
     ap.add_argument("--clips", default=",".join(CLIPS), help="comma-separated clip names of videos/")
+    ap.add_argument("--adapt-args", default="", help="options appended to each adapt run, e.g. '--teacher-size 960'")
     a = ap.parse_args(argv)
     data = data_dir()
     a.work.mkdir(parents=True, exist_ok=True)
     rows = []
     for clip in a.clips.split(","):
         out = a.work / f"{clip}.npz"
-        if adapt(clip, out, data):
+        if adapt(clip, out, data, a.adapt_args.split()):
             rows.append(score(clip, out, data))
             print(rows[-1], file=sys.stderr, flush=True)
     print(table("| clip | kept-aside teacher frames | bundled model | adapted, bundled regressor | "

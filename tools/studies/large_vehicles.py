@@ -21,7 +21,7 @@ at IoU >= 0.5 (``heat map``), a heat-map box but no output box (``tracker``); th
 the side-view component as a component with a heat map of its own, went with the side-view
 component: docs/accuracy.md, "Deleted stages".)
 
-    python -m tools.studies.large_vehicles --windows [--clips A,B] [--scales 3,3.75,...]
+    python -m tools.studies.large_vehicles --windows [--clips A,B] [--scales 3,3.75,...] [--model M.npz]
     NUMBA_NUM_THREADS=1 python -m tools.studies.large_vehicles --cost
     python -m tools.studies.large_vehicles --pipeline [--bands 4:300:720,...] [--clips A,B] [--verbose]
 """
@@ -82,7 +82,7 @@ def frame_truth(gt, fno: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def windows_study(clips: list[AnnotatedClip], scales: tuple[float, ...],
-                  bands: tuple[SearchBand, ...] | None = None) -> None:
+                  bands: tuple[SearchBand, ...] | None = None, model: str | None = None) -> None:
     today = SearchConfig()
     whole = bands is None
     study = replace(today, bands=bands if bands is not None else tuple(SearchBand(s, 0, 720) for s in scales))
@@ -98,7 +98,7 @@ def windows_study(clips: list[AnnotatedClip], scales: tuple[float, ...],
         todays = replace(today, horizon=hz).for_frame(shape)
         # the whole-height bands stay where they are; bands given follow the horizon as the pipeline's do
         search = study if whole else replace(study, horizon=hz)
-        det = Detector(search=search)
+        det = Detector(model, search=search)
         tgeos = [band_geo for band_geo in Detector(search=todays).geometries(shape)]
         tboxes = [(g.band.scale, all_windows(g, det.config)) for g in tgeos]
         f = 720.0 / shape[0]
@@ -255,6 +255,8 @@ def main() -> None:
     ap.add_argument("--horizon", default="auto", help="--pipeline: auto, off or a fraction of the height")
     ap.add_argument("--verbose", action="store_true", help="--pipeline: every large target's fate")
     ap.add_argument("--clips", default=None)
+    ap.add_argument("--model", default=None, help="--windows: main model file (default: the bundled one), "
+                    "e.g. a camera's from fastdet adapt")
     ap.add_argument("--scales", default=None, help="--windows: scales (x 64 px at 1280x720)")
     ap.add_argument("--bands", default=None, help="main bands scale:y0:y1[:x0:x1],... (1280x720 px; "
                     "--pipeline: instead of today's, --windows: instead of the whole-height ones of --scales)")
@@ -265,7 +267,7 @@ def main() -> None:
         clips = [c for c in clips if c.name in want]
     if args.windows:
         scales = tuple(float(s) for s in args.scales.split(",")) if args.scales else STUDY_SCALES
-        windows_study(clips, scales, parse_bands(args.bands) if args.bands else None)
+        windows_study(clips, scales, parse_bands(args.bands) if args.bands else None, args.model)
     if args.pipeline:
         pipeline_study(clips, parse_bands(args.bands) if args.bands else None, args.verbose,
                        None if args.horizon == "off" else "auto" if args.horizon == "auto" else float(args.horizon))
