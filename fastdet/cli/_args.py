@@ -98,13 +98,6 @@ def add_boxes_argument(parser: Options) -> None:
                              "(default: what the model records, fastdet adapt's choice; else heat)")
 
 
-def add_near_argument(parser: Options) -> None:
-    """``--near-search on|off``, shared by ``video``, ``eval``, ``bench`` and ``batch``."""
-    parser.add_argument("--near-search", choices=("on", "off"), default=None,
-                        help="also search for near vehicles with windows of 480-640 px at 1280x720 "
-                             "(default: what the model records, fastdet adapt's choice; else off)")
-
-
 def add_refine_argument(parser: Options) -> None:
     """``--no-refine``, shared by ``video``, ``eval``, ``bench`` and ``batch``."""
     parser.add_argument("--no-refine", action="store_true",
@@ -136,7 +129,6 @@ def pipeline_groups(parser: argparse.ArgumentParser) -> tuple[Options, Options, 
     add_oncoming_arguments(search)
     add_search_argument(advanced)
     add_boxes_argument(advanced)
-    add_near_argument(advanced)
     add_refine_argument(advanced)
     add_camera_arguments(advanced)
     return search, tracking, advanced
@@ -149,8 +141,7 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
     search); ``--full-search``: no guided search; ``--no-refine``: no refinement;
     ``--heat-frames`` / ``--heat-decay`` / ``--heat-threshold``: the main heat map (a bad
     value: :class:`~fastdet.errors.FastdetError`); ``--no-own-vehicle``: the own-vehicle stage off;
-    ``--no-split-neighbours``: the neighbour split off; ``--boxes-from``: the box formation;
-    ``--near-search``: the near search on or off."""
+    ``--no-split-neighbours``: the neighbour split off; ``--boxes-from``: the box formation."""
     d = HeatConfig()
     try:
         heat = HeatConfig(n_frames=getattr(args, "heat_frames", d.n_frames), decay=getattr(args, "heat_decay", d.decay),
@@ -162,7 +153,6 @@ def pipeline_config(args: argparse.Namespace) -> PipelineConfig:
                             else (getattr(args, "oncoming_model", None) or True),
                             traffic=getattr(args, "traffic", "right"), horizon=getattr(args, "horizon", "auto"),
                             heat=heat, boxes=getattr(args, "boxes_from", None),
-                            near={"on": True, "off": False, None: None}[getattr(args, "near_search", None)],
                             own_vehicle=None if getattr(args, "no_own_vehicle", False) else OwnVehicleConfig(),
                             split=None if getattr(args, "no_split_neighbours", False) else NeighbourSplit())
     off = [name for name, flag in (("tracker", "no_track"), ("guided", "full_search"), ("refine", "no_refine"))

@@ -55,7 +55,7 @@ import numpy as np
 
 from .. import _numba
 from .. import signals as _signals
-from ..config import PipelineConfig
+from ..config import BOXES, Boxes, PipelineConfig
 from ..config.adapt import AdaptConfig
 from ..data import data_dir
 from ..detect.regressor import carrying, load_regressor
@@ -70,7 +70,7 @@ from ..model import Model, load_model
 from ..train import adapt as _adapt
 from ..train import operating_point as _op
 from ..train.blend import offset
-from ..video.detector import BOXES_KEY, NEAR_KEY
+from ..video.detector import BOXES_KEY
 from ..video.run import file_horizon
 from ._args import fraction, positive_int, teacher_size, video_files
 
@@ -237,17 +237,16 @@ def holdout_run(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, He
 
 def holdout_lanes(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, HeldFrames] | None = None,
                   horizons: Mapping[str, float | None] | None = None) -> _op.LanesRun:
-    """The video pipeline over a clip's kept-aside stretch for each lane -- a formation
-    (:data:`fastdet.train.operating_point.FORMATIONS`: the box formation, with or without the near
-    search) and the model file moved by an offset --, the frames read and scored once for all of them
+    """The video pipeline over a clip's kept-aside stretch for each lane -- a box formation and the
+    model file moved by an offset --, the frames read and scored once for all of them
     (:func:`fastdet.video.replay.iter_lane_detections`: each lane's boxes are those of
     :func:`holdout_run` with the moved model and that formation), each lane's boxes scored as
     there. ``frames``, ``horizons``: as :func:`holdout_run`'s."""
     from ..eval.metrics import evaluate
     from ..video.replay import iter_lane_detections
 
-    def run(clip: _adapt.Clip, model: str, lanes: Sequence[tuple[str, float]]
-            ) -> tuple[dict[tuple[str, float], np.ndarray], float, int]:
+    def run(clip: _adapt.Clip, model: str, lanes: Sequence[tuple[Boxes, float]]
+            ) -> tuple[dict[tuple[Boxes, float], np.ndarray], float, int]:
         pics = held.get(clip.name, [])
         if not pics:
             return {k: np.zeros((0, 3), np.int64) for k in lanes}, 0.0, 0
@@ -255,9 +254,7 @@ def holdout_lanes(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, 
         config = replace(PipelineConfig(), model=model, horizon=_horizon(horizons, clip))
         tables: list[list[Detections]] = [[] for _ in lanes]
         n = 0
-        replayed = [(*_op.formation(name), o) for name, o in lanes]
-        lane_keys = [(b, o, near) for b, near, o in replayed]
-        for fno, by_lane in iter_lane_detections(_source(clip, frames), lane_keys, config,
+        for fno, by_lane in iter_lane_detections(_source(clip, frames), lanes, config,
                                                  start=clip.holdout_start - 1,
                                                  frames=clip.frames - clip.holdout_start + 1):
             n += 1
@@ -308,20 +305,13 @@ def own_window_boxes(model: Model, horizon: float | None) -> Callable[[np.ndarra
     return boxes
 
 
-def _records(name: str) -> dict[str, Any]:
-    """The model file's records of a formation (:data:`fastdet.train.operating_point.FORMATIONS`):
-    its box formation and whether the near search runs, as ``video`` reads them."""
-    boxes, near = _op.formation(name)
-    return {BOXES_KEY: boxes, NEAR_KEY: near}
-
-
-def _after(model: Model, chosen: float, name: str, footage: _adapt.Footage, run: _op.HoldoutRun,
+def _after(model: Model, chosen: float, boxes: Boxes, footage: _adapt.Footage, run: _op.HoldoutRun,
            folder: Path) -> dict[str, Any]:
-    """The agreement of the model moved by the chosen offset, recording the chosen formation,
+    """The agreement of the model moved by the chosen offset, recording the chosen box formation,
     from a run of the video pipeline with it (its time a frame is what ``video`` takes with the
     model written)."""
     path = folder / f"offset{chosen:+.3f}.npz"
-    offset(model, chosen, metadata=_records(name)).save(path)
+    offset(model, chosen, metadata={BOXES_KEY: boxes}).save(path)
     try:
         return _op.agreement(footage, run, str(path)).to_dict()
     finally:
@@ -470,7 +460,7 @@ def run(args: argparse.Namespace) -> int:
     n_held = sum(len(v) for v in held.values())
     before = after = None
     chosen = 0.0
-    boxes = "heat"
+    boxes: Boxes = "heat"
     tried: dict[str, Any] = {}
     formations: dict[str, Any] = {}
     kept: dict[str, Any] = {}
@@ -482,8 +472,8 @@ def run(args: argparse.Namespace) -> int:
             run_holdout = holdout_run(held, frames, horizons)
             before = _op.agreement(footage, run_holdout, None).to_dict()
             boxes, chosen, by_boxes = _op.choose_operating_point(
-                model, footage, holdout_lanes(held, frames, horizons), work / "operating-point", config.offsets,
-                _op.FORMATIONS, progress, seed=config.seed)
+                model, footage, holdout_lanes(held, frames, horizons), work / "operating-point", config.offsets, BOXES,
+                progress, seed=config.seed)
             formations = {b: {"offset": c.offset, "f1": c.results[c.offset].to_dict()["f1"], "best_offset": c.best,
                               "best_f1": c.results[c.best].to_dict()["f1"], "f1_se": round(c.se, 4)}
                           for b, c in by_boxes.items()}
@@ -509,12 +499,11 @@ def run(args: argparse.Namespace) -> int:
                    "kept_aside_read": footage.holdout_length, "labelled_now": n_now},
         "targets_trained": n_targets, "crops": counts, "regressor_fit": regressor_fit,
         "seconds": {k: round(v, 2) for k, v in secs.items()},
-        "offset": chosen, "offsets_f1": tried, "boxes": boxes, "near": _op.formation(boxes)[1],
-        "boxes_tried": formations, "kept_aside": kept,
+        "offset": chosen, "offsets_f1": tried, "boxes": boxes, "boxes_tried": formations, "kept_aside": kept,
         "agreement": {"before": before, "after": after},
         "config": config.to_dict(),
     }
-    final = offset(model, chosen, metadata={"adapt": summary, **_records(boxes)})
+    final = offset(model, chosen, metadata={"adapt": summary, BOXES_KEY: boxes})
     final.save(out)
     shutil.rmtree(work / "operating-point", ignore_errors=True)
     print(f"frames: {len(train_pics)} trained on ({n_targets} {labelled_by} targets; {counts['positives']} "

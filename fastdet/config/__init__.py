@@ -44,7 +44,6 @@ from .pipeline import BOXES, Boxes, Horizon, PipelineConfig
 from .plausible import PlausibleConfig
 from .refine import JitterConfig, RefineConfig
 from .search import (
-    NEAR_SCALES,
     ONCOMING_SEARCH,
     REFERENCE_HORIZON,
     REFERENCE_SHAPE,
@@ -53,7 +52,6 @@ from .search import (
     SearchConfig,
     Traffic,
     check_traffic,
-    near_bands,
     oncoming_search,
 )
 from .split import NeighbourSplit
@@ -62,13 +60,11 @@ from .track import TrackerConfig
 
 __all__ = ["BoxMode", "CELL", "COCO_VEHICLES", "COLOR_SPACES", "ColorSpace", "Config", "DEFAULT_MODEL_PATH",
            "BOXES", "Boxes", "FeatureConfig", "GuidedSearch", "HeatConfig", "Horizon", "JitterConfig", "MotionGate",
-           "NEAR_SCALES", "NeighbourSplit", "ONCOMING_HEAT", "ONCOMING_MODEL_PATH", "ONCOMING_SEARCH",
-           "OwnVehicleConfig",
+           "NeighbourSplit", "ONCOMING_HEAT", "ONCOMING_MODEL_PATH", "ONCOMING_SEARCH", "OwnVehicleConfig",
            "PICTURE_SEARCH", "PictureBoxes", "PictureSearch",
            "PipelineConfig", "PlausibleConfig", "REFERENCE_HORIZON", "REFERENCE_SHAPE", "REFINE_MODEL_PATH",
            "RefineConfig", "ScoreKind", "SearchBand", "SearchConfig",
-           "TRAFFIC_SIDES", "TeacherConfig", "TrackerConfig", "Traffic", "WINDOW", "check_traffic", "near_bands",
-           "oncoming_search"]
+           "TRAFFIC_SIDES", "TeacherConfig", "TrackerConfig", "Traffic", "WINDOW", "check_traffic", "oncoming_search"]
 
 #: former names, kept for code written against them: ``WIDE_HEAT``, ``WIDE_SEARCH``, ``wide_search``
 _RENAMED = {"WIDE_HEAT": "ONCOMING_HEAT", "WIDE_SEARCH": "ONCOMING_SEARCH", "wide_search": "oncoming_search"}

@@ -78,11 +78,6 @@ class PipelineConfig(Config):
         frame's windows after non-maximum suppression (:mod:`fastdet.video.nmsboxes`; the tracker
         then splits no box); ``None``: what the main model file records (a model ``fastdet adapt``
         made keeps the one that agreed best with its teacher), else ``'heat'``.
-    near: the main model also searches for near vehicles (:func:`~fastdet.config.near_bands`:
-        windows of 480-640 px at 1280x720 over the whole height; in the window boxes a near
-        window gives way to a higher-scored window mostly inside it, :mod:`fastdet.video.nmsboxes`);
-        ``None``: what the main model file records (``fastdet adapt`` keeps it when it agreed
-        better with its teacher), else off.
     heat: the main model's heat map; oncoming_heat: the oncoming model's.
     motion: the motion gate of the oncoming model.
     tracker: the tracker that gives every vehicle an id; ``None``: no tracking (boxes
@@ -107,7 +102,7 @@ class PipelineConfig(Config):
     #: older config's dict still loads, and today's default config keeps its digest
     _RETIRED = MappingProxyType(_retired())
     #: of those, the ones left out of the dict while off (``None``); ``perspective: null`` was written
-    _OMIT_NONE = ("selfcal", "boxes", "near")
+    _OMIT_NONE = ("selfcal", "boxes")
 
     model: str | None = None
     oncoming: str | bool = True
@@ -116,7 +111,6 @@ class PipelineConfig(Config):
     search: SearchConfig = SearchConfig()
     horizon: Horizon = "auto"
     boxes: Boxes | None = None
-    near: bool | None = None
     heat: HeatConfig = HeatConfig()
     oncoming_heat: HeatConfig = ONCOMING_HEAT
     motion: MotionGate = MotionGate()
@@ -140,8 +134,6 @@ class PipelineConfig(Config):
             raise ValueError(f"horizon must be 'auto', a fraction of the frame height in [0, 1] or None, got {h!r}")
         if self.boxes is not None and self.boxes not in BOXES:
             raise ValueError(f"boxes must be one of {', '.join(BOXES)} or None, got {self.boxes!r}")
-        if self.near is not None and not isinstance(self.near, bool):
-            raise TypeError(f"near must be True, False or None, got {self.near!r}")
         for name, cls, optional in (("search", SearchConfig, False), ("heat", HeatConfig, False),
                                     ("oncoming_heat", HeatConfig, False), ("motion", MotionGate, False),
                                     ("tracker", TrackerConfig, True), ("guided", GuidedSearch, True),

@@ -134,8 +134,7 @@ class SearchConfig(Config):
         (``cells_per_step x cell x scale`` rows; the nearest to that shift), so its windows sit
         on the grid they have at the reference horizon: a shift of a few rows would put every
         window somewhere else (docs/accuracy.md). Bands are clipped to the frame; a band the clip
-        leaves lower than its window (``window x scale`` rows) is dropped; a band over the
-        whole height (``y_start <= 0``, ``y_stop >=`` the reference rows) is not moved. A band with slack
+        leaves lower than its window (``window x scale`` rows) is dropped. A band with slack
         gets its slack rows added on its grid and its rows without them as its ``core``.
     slack_threshold: the decision value a window must exceed in a band's slack rows
         (:attr:`SearchBand.slack_above`, placed by
@@ -188,9 +187,7 @@ class SearchConfig(Config):
         bands = []
         for b in self.bands:
             step = self.cells_per_step * cell * b.scale * fy  # rows between window positions
-            # whole steps: the windows stay on the reference's grid; a band over the whole height
-            # (the near search's) stays there: moved, it would only lose rows
-            d = 0.0 if b.y_start <= 0 and b.y_stop >= rh else round(dy / step) * step
+            d = round(dy / step) * step  # whole steps: the windows stay on the reference's grid
             a, z = int(round(b.y_start * fy + d)), int(round(b.y_stop * fy + d))
             core_a, core_z = a, z
             if b.has_slack:  # whole steps more: the windows stay on the grid
@@ -277,21 +274,6 @@ def oncoming_search(traffic: Traffic = "right") -> SearchConfig:
 #: :class:`~fastdet.VideoDetector` narrows it each frame to where the picture moves
 #: (:class:`~fastdet.config.MotionGate`).
 ONCOMING_SEARCH = oncoming_search("right")
-
-#: window widths of the near search, in units of the main model's window (64 px) at the
-#: reference frame: 480, 544 and 640 px of 1280 -- a coach or a truck alongside, a bus just ahead
-#: (docs/training.md, "Near vehicles")
-NEAR_SCALES = (7.5, 8.5, 10.0)
-
-
-def near_bands(scales: tuple[float, ...] = NEAR_SCALES) -> tuple[SearchBand, ...]:
-    """Bands of the main model's near search: windows of ``scales`` x 64 px (at the reference
-    1280x720 frame) over the whole frame height, not moved by the horizon (a near vehicle fills
-    the picture whatever the horizon); the main bands' slack is not theirs. What
-    :attr:`fastdet.config.PipelineConfig.near` adds to the main search."""
-    rows = REFERENCE_SHAPE[0]
-    return tuple(SearchBand(s, 0, rows) for s in scales)
-
 
 #: window widths of the large-vehicle search, in units of the main model's window (64 px) at
 #: the reference frame: 240 .. 448 px of 1280, past the main search's largest (192 px)

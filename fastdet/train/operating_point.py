@@ -1,6 +1,5 @@
-"""The operating point of a camera's model (``python -m fastdet adapt``): the box formation (with
-or without the near search: :data:`FORMATIONS`) and decision offset under which the ``video``
-pipeline agrees best with the labels of the frames kept
+"""The operating point of a camera's model (``python -m fastdet adapt``): the box formation and
+decision offset under which the ``video`` pipeline agrees best with the labels of the frames kept
 aside, chosen over one replay of every lane (:func:`choose_operating_point`), the offset by the
 one-standard-error rule (:func:`strictest_within_one_se`). The runs themselves (the pipeline and
 the scoring) are given by the caller, :mod:`fastdet.cli.adapt`; the model's training is
@@ -62,35 +61,20 @@ class Agreement:
                 "tp": self.tp, "fp": self.fp, "fn": self.fn, "ms_per_frame": num(self.ms_per_frame)}
 
 
-#: the formations adapt tries: each box formation (:data:`fastdet.config.BOXES`) without and with
-#: the near search (:attr:`PipelineConfig.near <fastdet.config.PipelineConfig>`), named
-#: ``'heat'``, ``'nms'``, ``'heat+near'``, ``'nms+near'`` (:func:`formation`)
-NEAR_SUFFIX = "+near"
-FORMATIONS: tuple[str, ...] = tuple(b + s for s in ("", NEAR_SUFFIX) for b in BOXES)
-
-
-def formation(name: str) -> tuple[Boxes, bool]:
-    """``(boxes, near)`` of a formation of :data:`FORMATIONS`; ``ValueError`` for another name."""
-    if name not in FORMATIONS:
-        raise ValueError(f"unknown box formation {name!r}: one of {', '.join(FORMATIONS)}")
-    boxes = name.removesuffix(NEAR_SUFFIX)
-    return boxes, name.endswith(NEAR_SUFFIX)  # type: ignore[return-value]
-
-
 #: ``run(clip, model file or None for the bundled one) -> (tp, fp, fn, seconds, frames)``:
 #: the video pipeline over the clip's kept-aside stretch, scored against its kept-aside labels
 #: (``seconds`` and ``frames`` from the stretch's first frame out: :attr:`Agreement.ms_per_frame`)
 HoldoutRun = Callable[[Clip, "str | None"], tuple[int, int, int, float, int]]
 
-#: ``run(clip, model file, lanes) -> ({(formation, offset): counts (K, 3) int64}, seconds, frames read)``:
-#: the video pipeline over the clip's kept-aside stretch for each lane -- a formation of
-#: :data:`FORMATIONS` (:func:`formation`) and the model moved by an offset
+#: ``run(clip, model file, lanes) -> ({(boxes, offset): counts (K, 3) int64}, seconds, frames read)``:
+#: the video pipeline over the clip's kept-aside stretch for each lane -- a box formation
+#: (:attr:`PipelineConfig.boxes <fastdet.config.PipelineConfig>`) and the model moved by an offset
 #: (:func:`~fastdet.train.blend.offset`); the frames read and scored once for all of them:
 #: :func:`fastdet.video.replay.iter_lane_detections` --, each lane's boxes scored against the
 #: kept-aside labels: ``(tp, fp, fn)`` of each of the clip's K kept-aside labelled frames, in one
 #: frame order for every lane
-LanesRun = Callable[[Clip, str, Sequence[tuple[str, float]]],
-                    tuple[dict[tuple[str, float], np.ndarray], float, int]]
+LanesRun = Callable[[Clip, str, Sequence[tuple[Boxes, float]]],
+                    tuple[dict[tuple[Boxes, float], np.ndarray], float, int]]
 
 #: bootstrap draws of the kept-aside frames for the standard error of the best offset's F1
 #: (:func:`strictest_within_one_se`)
@@ -173,33 +157,33 @@ def _nearest_zero_alike(counts: np.ndarray, offsets: Sequence[float], i: int) ->
     return min(range(lo, hi + 1), key=lambda j: (abs(offsets[j]), -offsets[j]))
 
 
-def choose_boxes(by_boxes: Mapping[str, FormationChoice]) -> str:
-    """The formation (:data:`FORMATIONS`) that agrees best with the labels kept aside, by the F1
-    at its best offset: ``by_boxes`` maps each formation to its :class:`FormationChoice`. Ties,
-    or no F1 at all, keep the one without the near search, then ``'heat'`` (the pipeline's own)."""
-    def rank(name: str) -> tuple[float, bool, bool]:
-        boxes, near = formation(name)
-        choice = by_boxes[name]
+def choose_boxes(by_boxes: Mapping[str, FormationChoice]) -> Boxes:
+    """The box formation (:data:`fastdet.config.BOXES`) that agrees best with the labels kept
+    aside, by the F1 at its best offset: ``by_boxes`` maps each formation to its
+    :class:`FormationChoice`. Ties, or no F1 at all, keep ``'heat'`` (the pipeline's own)."""
+    def rank(b: str) -> tuple[float, bool]:
+        choice = by_boxes[b]
         f1 = choice.results[choice.best].f1
-        return (-1.0 if math.isnan(f1) else f1, not near, boxes == "heat")
+        return (-1.0 if math.isnan(f1) else f1, b == "heat")
 
-    return max(by_boxes, key=rank)
+    best = max(by_boxes, key=rank)
+    if best not in BOXES:
+        raise ValueError(f"unknown box formation {best!r}")
+    return best  # type: ignore[return-value]
 
 
 def choose_operating_point(model: Model, footage: Footage, run: LanesRun, folder: Path, offsets: Sequence[float],
-                           formations: Sequence[str] = FORMATIONS, progress: bool = True, seed: int = 0
-                           ) -> tuple[str, float, dict[str, FormationChoice]]:
-    """The formation (:data:`FORMATIONS`) and decision offset for the model: for each of ``formations``, the
+                           formations: Sequence[Boxes] = BOXES, progress: bool = True, seed: int = 0
+                           ) -> tuple[Boxes, float, dict[str, FormationChoice]]:
+    """The box formation and decision offset for the model: for each of ``formations``, the
     offset :func:`strictest_within_one_se` picks from the per-frame agreement with the kept-aside
     labels (``seed``: its bootstrap's); of those, the formation :func:`choose_boxes` picks.
     Returns ``(formation, offset, {formation: FormationChoice})`` (each Agreement's ``seconds``:
     the whole run's over every clip, every lane at once). ``run`` gets every (formation, offset)
     lane at once; ``model`` is written to ``folder`` for it to load (and removed after)."""
-    for name in formations:
-        formation(name)  # a ValueError before any run for a name that is not one
     folder.mkdir(parents=True, exist_ok=True)
     lanes = [(b, float(o)) for b in formations for o in offsets]
-    counts: dict[tuple[str, float], list[np.ndarray]] = {k: [] for k in lanes}
+    counts: dict[tuple[Boxes, float], list[np.ndarray]] = {k: [] for k in lanes}
     secs, frames = 0.0, 0
     path = folder / "model.npz"
     offset(model, 0.0).save(path)

@@ -4,17 +4,16 @@ optional abilities it uses when a detector has them (:class:`MovableHorizon`,
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import replace
 from typing import Any, Literal, Protocol, runtime_checkable
 
 import numpy as np
 
-from ..config import BOXES, Boxes, PipelineConfig, SearchBand, near_bands, oncoming_search
+from ..config import BOXES, Boxes, PipelineConfig, SearchBand, oncoming_search
 from ..config.models import ONCOMING_MODEL_PATH
 from ..detect import BandGeometry, Detector, DetectStats
 from ..detections import Detections
 from ..errors import ModelError
-from ..model import Model, load_model
+from ..model import Model
 
 
 @runtime_checkable
@@ -100,26 +99,6 @@ def box_formation(config: PipelineConfig, detector: object) -> Boxes:
     return got
 
 
-#: the main model file's metadata key that records whether its camera was adapted with the near
-#: search (:func:`near_search`)
-NEAR_KEY = "video_near"
-
-
-def near_search(config: PipelineConfig, model: Model | None) -> bool:
-    """Whether the pipeline for ``config`` adds the near search to the main model's
-    (:attr:`PipelineConfig.near`): ``config.near`` when set; else what ``model`` records
-    (metadata :data:`NEAR_KEY`: ``fastdet adapt`` writes its choice for the camera); else off.
-    :class:`~fastdet.errors.ModelError` for a record that is not a boolean."""
-    if config.near is not None:
-        return config.near
-    got = model.metadata.get(NEAR_KEY) if isinstance(model, Model) else None
-    if got is None:
-        return False
-    if not isinstance(got, bool):
-        raise ModelError(f"the main model's metadata['{NEAR_KEY}'] must be true or false, got {got!r}")
-    return got
-
-
 def detector_kernels(detector: object) -> tuple[Any, ...]:
     """The numba kernels of ``detector`` (:class:`HasKernels`; none for another detector)."""
     return tuple(detector.kernels) if isinstance(detector, HasKernels) else ()
@@ -129,12 +108,8 @@ def make_detector(config: PipelineConfig | None = None) -> Detector:
     """The video pipeline's :class:`fastdet.Detector` for ``config`` (default
     ``PipelineConfig()``): its main model and search, and its oncoming-traffic model
     searching the side of the view :attr:`PipelineConfig.traffic` puts oncoming cars on
-    (:func:`fastdet.config.oncoming_search`); the main search with the near bands after its own
-    when :func:`near_search` says so. Raises :class:`~fastdet.errors.ModelError` when a
+    (:func:`fastdet.config.oncoming_search`). Raises :class:`~fastdet.errors.ModelError` when a
     model does not load."""
     c = config if config is not None else PipelineConfig()
     oncoming = ONCOMING_MODEL_PATH if c.oncoming is True else (c.oncoming or None)
-    search = c.search
-    if c.near or (c.near is None and near_search(c, load_model(c.model))):
-        search = replace(search, bands=search.bands + near_bands())
-    return Detector(model=c.model, search=search, oncoming=oncoming, oncoming_search=oncoming_search(c.traffic))
+    return Detector(model=c.model, search=c.search, oncoming=oncoming, oncoming_search=oncoming_search(c.traffic))

@@ -11,11 +11,6 @@ IoU above :data:`NMS_IOU` (the picture search's rule, :class:`~fastdet.config.Pi
 when more than :data:`NMS_INSIDE` of its area lies inside one (the rule of DPM's ``nms.m``,
 Felzenszwalb et al.: windows of several sizes on one vehicle, a small one inside a large one,
 have a small IoU).
-Windows of the near search (:attr:`~fastdet.config.PipelineConfig.near`: 480-640 px at
-1280x720) go their own way: suppressed among themselves, they never suppress a main-search window,
-and a near window gives way to a kept main-search window of higher score with more than
-:data:`NMS_INSIDE` of its area inside it (on highway_640 a near window on the roadside, kept by
-the plain rule, swallowed the cars beside it; docs/training.md, "Near vehicles").
 The tracker, the box regressor and the second-box rule (:mod:`fastdet.video.plausible`) then
 run as on the heat map's boxes; the tracker splits no box (a window holds one vehicle).
 Which of the two a camera gets is chosen by ``fastdet adapt`` on frames it kept aside and
@@ -27,9 +22,6 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..boxes import overlap_fraction
-from ..config import NEAR_SCALES
-from ..config.search import REFERENCE_SHAPE
 from ..detections import MAIN_PART, Detections
 from .plausible import duplicates
 from .state import FrameState, Stage
@@ -42,38 +34,16 @@ NMS_IOU = 0.3
 NMS_INSIDE = 0.5
 
 
-def nms_boxes(windows: Detections, max_iou: float = NMS_IOU, max_inside: float = NMS_INSIDE,
-              near_scale: float | None = None) -> Detections:
+def nms_boxes(windows: Detections, max_iou: float = NMS_IOU, max_inside: float = NMS_INSIDE) -> Detections:
     """One box per vehicle of ``windows`` (a frame's positive windows; the main model's, when
     they have a ``part`` column): the windows kept by greedy suppression at ``max_iou`` and
     ``max_inside`` (:func:`~fastdet.video.plausible.duplicates`), boxes ``(N, 4) int32`` and the
-    windows' scores ``(N,) float32``, in the windows' order. ``near_scale``: windows of at least
-    this ``scale`` (frame pixels per model pixel) are the near search's, suppressed apart and
-    giving way to the others (module docstring); ``None``: all windows alike."""
+    windows' scores ``(N,) float32``, in the windows' order."""
     w = windows[windows.part == MAIN_PART] if windows.part is not None else windows
     if len(w) == 0:
         return Detections(np.zeros((0, 4), np.int32), np.zeros(0, np.float32))
-    if near_scale is None or w.scale is None:
-        keep = duplicates(w.boxes, w.scores, max_iou, max_inside)
-    else:
-        near = w.scale >= near_scale
-        keep = np.zeros(len(w), bool)
-        for sel in (~near, near):
-            idx = np.flatnonzero(sel)
-            keep[idx[duplicates(w.boxes[idx], w.scores[idx], max_iou, max_inside)]] = True
-        kept_main, kept_near = np.flatnonzero(keep & ~near), np.flatnonzero(keep & near)
-        if len(kept_main) and len(kept_near):
-            inside = overlap_fraction(w.boxes[kept_main], w.boxes[kept_near]) > max_inside  # (main, near)
-            higher = w.scores[kept_main][:, None] >= w.scores[kept_near][None, :]
-            keep[kept_near[(inside & higher).any(axis=0)]] = False
+    keep = duplicates(w.boxes, w.scores, max_iou, max_inside)
     return Detections(w.boxes[keep].astype(np.int32), w.scores[keep].astype(np.float32))
-
-
-def near_scale(frame_rows: int) -> float:
-    """The smallest window scale of the near search (:data:`~fastdet.config.NEAR_SCALES`) in a
-    frame of ``frame_rows`` rows, less a margin for rounding: the ``near_scale`` of
-    :func:`nms_boxes`."""
-    return min(NEAR_SCALES) * frame_rows / REFERENCE_SHAPE[0] * 0.999
 
 
 class NmsStage(Stage):
@@ -92,5 +62,5 @@ class NmsStage(Stage):
         if s.shape != self.shape:
             self.on_new_size(self.shape is None)
             self.shape = s.shape
-        s.boxes = s.out = nms_boxes(s.windows, near_scale=near_scale(s.shape[0]))
+        s.boxes = s.out = nms_boxes(s.windows)
         return s

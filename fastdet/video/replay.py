@@ -40,9 +40,8 @@ from ..detect import BandGeometry, Detector, DetectStats
 from ..detections import ONCOMING_PART, Detections
 from ..io.held import HeldFrames
 from ..io.reader import FrameReader
-from ..model import Model, load_model
-from .detector import make_detector, near_search
-from .nmsboxes import near_scale
+from ..model import Model
+from .detector import make_detector
 from .ownvehicle import OwnVehicleFollower, OwnVehicleStage
 from .refine import BoxRegressor
 from .run import progress_bar, video_detector_for
@@ -65,18 +64,14 @@ class ReplayDetector:
     oncoming model's windows as fed (they do not depend on the main model).
 
     source: the :class:`~fastdet.Detector` that scored the frames (its bands, thresholds and
-        score kind are used). delta: the offset, decision units (+ is stricter). near: ``False``
-        leaves out the windows of the source's near bands (:func:`~fastdet.config.near_bands`,
-        windows of :func:`~fastdet.video.nmsboxes.near_scale` and up), as a run without the near
-        search has none.
+        score kind are used). delta: the offset, decision units (+ is stricter).
     """
 
     column_search = True
 
-    def __init__(self, source: Detector, delta: float, near: bool = True) -> None:
+    def __init__(self, source: Detector, delta: float) -> None:
         self.source = source
         self.delta = float(delta)
-        self.near = bool(near)
         self._main: list[Band] = []
         self._oncoming = Detections.empty()
 
@@ -123,10 +118,7 @@ class ReplayDetector:
         if columns is not None and len(columns) > len(self._main):
             raise ValueError(f"columns: {len(columns)} entries for {len(self._main)} bands")
         bands: list[Band] = []
-        far = None if self.near else near_scale(frame.shape[0])
         for i, (part, geo, dec) in enumerate(self._main):
-            if far is not None and geo.band.scale >= far:
-                continue  # a near band: its windows are not this lane's (the bands after it are none)
             d = dec - self.delta if self.delta else dec
             spans = columns[i] if columns is not None and i < len(columns) else None
             if spans is not None:
@@ -219,30 +211,23 @@ def iter_offset_detections(path: str | os.PathLike | HeldFrames, offsets: Sequen
         yield fno, dict(zip(offs, tables))
 
 
-def iter_lane_detections(path: str | os.PathLike | HeldFrames,
-                         lanes: Sequence[tuple[Boxes | None, float] | tuple[Boxes | None, float, bool]],
+def iter_lane_detections(path: str | os.PathLike | HeldFrames, lanes: Sequence[tuple[Boxes | None, float]],
                          config: PipelineConfig | None = None, *, start: int = 0, frames: int | None = None,
                          progress: bool = False) -> Iterator[tuple[int, list[Detections]]]:
-    """As :func:`iter_offset_detections`, for lanes that may also differ in their box formation
-    and near search: each lane ``(boxes, offset)`` or ``(boxes, offset, near)`` is ``config``
-    with :attr:`PipelineConfig.boxes <fastdet.config.PipelineConfig>` set to ``boxes``, its main
-    model moved by ``offset`` and :attr:`~fastdet.config.PipelineConfig.near` set to ``near``
-    (two-element lanes: as ``config`` has it). Yields ``(frame, [Detections of each lane, in
-    order])``; the frames are read and scored once for all of them (the near bands too, when a
-    lane has them)."""
+    """As :func:`iter_offset_detections`, for lanes that may also differ in their box formation:
+    each lane ``(boxes, offset)`` is ``config`` with :attr:`PipelineConfig.boxes
+    <fastdet.config.PipelineConfig>` set to ``boxes`` and its main model moved by ``offset``.
+    Yields ``(frame, [Detections of each lane, in order])``; the frames are read and scored once
+    for all of them."""
     config = config if config is not None else PipelineConfig()
-    keys = [(lane[0], float(lane[1]), lane[2] if len(lane) > 2 else None) for lane in lanes]  # type: ignore[misc]
+    keys = [(b, float(o)) for b, o in lanes]
     if not keys or len(set(keys)) != len(keys):
         raise ValueError(f"lanes must be distinct and at least one, got {list(lanes)!r}")
     reader = FrameReader(path, start, frames)
     try:
-        # the front scores the near bands when some lane has them; a lane without leaves them out
-        own_near = near_search(config, load_model(config.model)) if any(n is None for *_, n in keys) else False
-        nears = [own_near if n is None else bool(n) for *_, n in keys]
-        front_config = replace(config, near=any(nears))
-        detector = make_detector(front_config)
+        detector = make_detector(config)
         # in front: every window scored on every frame, with the stages of a full-search run
-        vd = video_detector_for(reader, detector, front_config.without("guided"))
+        vd = video_detector_for(reader, detector, config.without("guided"))
         vd.warmup()
         front: list[Stage] = []
         for st in vd.stages:
@@ -252,10 +237,10 @@ def iter_lane_detections(path: str | os.PathLike | HeldFrames,
                 front.append(st)
         own = vd.stage(OwnVehicleStage)
         assert own is None or isinstance(own, OwnVehicleStage)
-        replays = [ReplayDetector(detector, o, near) for (_, o, _), near in zip(keys, nears)]
+        replays = [ReplayDetector(detector, o) for _, o in keys]
         memo: dict[bytes, np.ndarray] = {}
-        stages = [lane_stages(replace(config, boxes=b, near=near), r, reader.fps, vd.refiner, own, memo)
-                  for (b, _, _), near, r in zip(keys, nears, replays)]
+        stages = [lane_stages(replace(config, boxes=b), r, reader.fps, vd.refiner, own, memo)
+                  for (b, _), r in zip(keys, replays)]
         with progress_bar(reader.expected, progress, os.path.basename(reader.path)) as bar:
             for fno, frame, _ in reader:
                 s = FrameState(frame)

@@ -13,13 +13,13 @@ import pytest
 
 from fastdet.cli import adapt as adapt_cli
 from fastdet.cli.main import main
-from fastdet.config import NEAR_SCALES, PipelineConfig
+from fastdet.config import PipelineConfig
 from fastdet.detect.regressor import carried_regressor, load_regressor
 from fastdet.model import load_model
 from fastdet.teacher.yolox import TeacherBoxes
 from fastdet.video import VideoDetector
 from fastdet.video.box_stages import HeatStage
-from fastdet.video.detector import BOXES_KEY, NEAR_KEY
+from fastdet.video.detector import BOXES_KEY
 from fastdet.video.nmsboxes import NmsStage
 from tests.media import leftovers, write_video
 from tests.teacher.onnx_bytes import FLOAT, write_identity_model
@@ -186,17 +186,13 @@ def test_adapt_writes_a_model_with_its_summary(teacher, data, tmp_path, capsys, 
     assert s["offsets_f1"][f"{s['offset']:g}"] >= tried["best_f1"] - tried["f1_se"]
     assert s["agreement"]["after"]["f1"] == s["offsets_f1"][f"{s['offset']:g}"]
     assert "by the one-standard-error rule" in text
-    # both box formations tried, each without and with the near search; the chosen one (at least
-    # as good as the others) is recorded in the model file, and the pipeline runs that way
-    assert set(s["boxes_tried"]) == {"heat", "nms", "heat+near", "nms+near"}
-    assert model.metadata[BOXES_KEY] + ("+near" if model.metadata[NEAR_KEY] else "") == s["boxes"]
-    assert s["near"] is model.metadata[NEAR_KEY]
+    # both box formations tried; the chosen one (at least as good as the other) is recorded in
+    # the model file, and the pipeline makes its boxes that way
+    assert set(s["boxes_tried"]) == {"heat", "nms"} and model.metadata[BOXES_KEY] == s["boxes"]
     f1s = {b: (-1 if v["best_f1"] is None else v["best_f1"]) for b, v in s["boxes_tried"].items()}
     assert f1s[s["boxes"]] == max(f1s.values()) and "boxes tried (F1 at their best offset)" in text
-    stage = NmsStage if s["boxes"].startswith("nms") else HeatStage
-    vd = VideoDetector(config=PipelineConfig(model=str(out)))
-    assert vd.stage(stage) is not None
-    assert (max(b.scale for b in vd.detector.search.bands) == max(NEAR_SCALES)) is s["near"]
+    stage = NmsStage if s["boxes"] == "nms" else HeatStage
+    assert VideoDetector(config=PipelineConfig(model=str(out))).stage(stage) is not None
     assert model.metadata["training"]["data"]["hard_negatives"] > 0
     # the camera's crops joined the fit once each, of weight 4 (not repeated 4 times)
     assert model.metadata["training"]["data"]["extra_positives"] == s["crops"]["positives"] > 0

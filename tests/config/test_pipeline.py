@@ -89,10 +89,6 @@ def test_the_cli_builds_one_pipeline_config(cmd):
         flags += ["--no-track"]
         want = replace(want, tracker=None)
     assert pipeline_config(parse([*cmd, *flags])) == want
-    for value, near in (("on", True), ("off", False)):
-        for boxes in ("heat", "nms"):
-            got = pipeline_config(parse([*cmd, "--near-search", value, "--boxes-from", boxes]))
-            assert got == PipelineConfig(near=near, boxes=boxes)
 
 
 def test_a_deleted_stage_s_fields_load_when_off_and_keep_the_digest():

@@ -156,18 +156,3 @@ def test_the_deleted_slack_below_a_band_loads_only_off():
     d["bands"] = [{**b, "slack_below": None} for b in d["bands"]]
     assert SearchConfig.from_dict(d) == SearchConfig()
     assert all("slack_below" not in b for b in SearchConfig().to_dict()["bands"])
-
-
-@pytest.mark.parametrize("shape", [(720, 1280), (360, 640), (480, 640), (1920, 1080)])
-@pytest.mark.parametrize("horizon", [None, 0.3, REFERENCE_HORIZON, 0.75])
-def test_near_bands_cover_the_whole_height_wherever_the_horizon_is(shape, horizon):
-    from fastdet.config import NEAR_SCALES, near_bands
-
-    cfg = SearchConfig(bands=SearchConfig().bands + near_bands(), horizon=horizon).for_frame(shape)
-    h = shape[0]
-    got = [b for b in cfg.bands if b.scale >= min(NEAR_SCALES) * h / 720 - 1e-9]
-    assert [round(b.scale * 720 / h, 6) for b in got] == list(NEAR_SCALES)
-    assert all((b.y_start, b.y_stop) == (0, h) for b in got)
-    # the main bands still move with the horizon: a band over part of the height is not pinned
-    moved = SearchConfig(bands=(SearchBand(1.0, 400, 496), SearchBand(7.5, 0, 700)), horizon=0.3).for_frame((720, 1280))
-    assert [b.y_start for b in moved.bands][0] < 400 and len(moved.bands) == 1  # 0..700 moved up: too low, dropped

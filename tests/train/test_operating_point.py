@@ -31,7 +31,7 @@ def test_the_formation_and_offset_are_chosen_in_one_run(tmp_path):
 
     offsets = (2.0, 1.0, 0.0, -1.0)
     boxes, chosen, by_boxes = operating_point.choose_operating_point(load_model(), fp, run, tmp_path / "op", offsets,
-                                                           formations=("heat", "nms"), progress=False)
+                                                           progress=False)
     assert (boxes, chosen) == ("nms", 2.0)
     assert calls == [tuple((b, o) for b in ("heat", "nms") for o in offsets)]  # one run for every lane
     heat = by_boxes["heat"]
@@ -113,25 +113,6 @@ def test_the_box_formation_of_best_f1_at_its_best_offset_is_chosen_ties_keep_the
     assert operating_point.choose_boxes({"heat": result(0, 0), "nms": result(0, 0)}) == "heat"  # no F1 at all
     assert operating_point.choose_boxes({"nms": result(0, 0), "heat": result(0, 0)}) == "heat"  # whatever the order
     assert operating_point.choose_boxes({"heat": result(0, 0), "nms": result(1, 0)}) == "nms"
-
-
-def test_formations_with_the_near_search_are_chosen_only_when_better():
-    def result(tp: int) -> operating_point.FormationChoice:
-        return operating_point.FormationChoice(0.0, {0.0: operating_point.Agreement(tp, 10 - tp, 10 - tp, 0.0, 0)},
-                                               0.0, 0.0)
-
-    assert operating_point.FORMATIONS == ("heat", "nms", "heat+near", "nms+near")
-    assert [operating_point.formation(f) for f in operating_point.FORMATIONS] == [
-        ("heat", False), ("nms", False), ("heat", True), ("nms", True)]
-    with pytest.raises(ValueError, match="unknown box formation"):
-        operating_point.formation("near")
-    tie = {f: result(6) for f in operating_point.FORMATIONS}
-    assert operating_point.choose_boxes(tie) == "heat"
-    assert operating_point.choose_boxes({**tie, "nms+near": result(7)}) == "nms+near"
-    assert operating_point.choose_boxes({**tie, "heat+near": result(7), "nms+near": result(7)}) == "heat+near"
-    assert operating_point.choose_boxes({"heat+near": result(6), "nms": result(6)}) == "nms"  # near only when better
-    with pytest.raises(ValueError, match="unknown box formation"):
-        operating_point.choose_operating_point(load_model(), None, None, None, (0.0,), formations=("wide",))
 
 
 def test_agreement_without_boxes_is_not_a_number():

@@ -66,46 +66,6 @@ def test_nms_boxes_are_the_greedy_loops_of_the_main_windows(w: Detections) -> No
         i in greedy(w.boxes, w.scores, 1.0, NMS_INSIDE) for i in range(len(w))]
 
 
-def greedy_near(w: Detections, near_scale: float) -> list[int]:
-    """The near rule's slow twin: the main-search windows by the greedy loop, the near windows
-    (``scale >= near_scale``) by their own; then each kept near window is dropped when a kept main
-    window of at least its score has more than NMS_INSIDE of its area inside it."""
-    near = [i for i in range(len(w)) if w.scale[i] >= near_scale]
-    main = [i for i in range(len(w)) if w.scale[i] < near_scale]
-    kept_main = [main[k] for k in greedy(w.boxes[main], w.scores[main], NMS_IOU)]
-    kept_near = [near[k] for k in greedy(w.boxes[near], w.scores[near], NMS_IOU)]
-    kept_near = [j for j in kept_near
-                 if not any(w.scores[i] >= w.scores[j] and box_overlap_fraction(w.boxes[i], w.boxes[j]) > NMS_INSIDE
-                            for i in kept_main)]
-    return sorted(kept_main + kept_near)
-
-
-@settings(max_examples=200, deadline=None)
-@given(windows(), st.data())
-def test_near_windows_give_way_to_higher_scored_windows_inside_them(w: Detections, data) -> None:
-    big = np.array(data.draw(st.lists(st.booleans(), min_size=len(w), max_size=len(w))), bool)
-    b = w.boxes.copy()
-    b[big, 2:] = b[big, :2] + 300  # near windows: 300 px, they hold the others
-    scale = np.where(big, 8.0, 1.0).astype(np.float32)
-    x = Detections(b, w.scores, scale=scale)
-    got = nms_boxes(x, near_scale=7.0)
-    np.testing.assert_array_equal(got.boxes, b[greedy_near(x, 7.0)])
-    # without the near rule the same windows are the plain greedy loop's
-    np.testing.assert_array_equal(nms_boxes(x).boxes, b[greedy(b, w.scores, NMS_IOU)])
-
-
-def test_a_near_window_never_drops_a_window_of_the_main_search() -> None:
-    # a 64-px window inside a 400-px near window: the plain rule drops it under a higher-scored
-    # near window, the near rule keeps both; a higher-scored main window inside drops the near one
-    b = np.array([[100, 100, 164, 164], [0, 0, 400, 400]], np.int32)
-    scale = np.array([1.0, 8.0], np.float32)
-    lo = Detections(b, np.array([0.6, 0.9], np.float32), scale=scale)
-    assert nms_boxes(lo).boxes.tolist() == [[0, 0, 400, 400]]
-    assert nms_boxes(lo, near_scale=7.0).boxes.tolist() == b.tolist()
-    hi = Detections(b, np.array([0.9, 0.6], np.float32), scale=scale)
-    assert nms_boxes(hi, near_scale=7.0).boxes.tolist() == [[100, 100, 164, 164]]
-
-
 def test_a_small_window_inside_a_large_one_is_suppressed() -> None:
     # a 64-px window inside a 128-px one: IoU 0.25, under the IoU rule, all of it inside
     b = np.array([[0, 0, 128, 128], [32, 32, 96, 96], [200, 0, 264, 64]], np.int32)
@@ -198,26 +158,3 @@ def test_the_box_formation_is_the_configs_else_the_models_record(tmp_path: Path)
     # None is left out of the dict: the default config keeps its digest
     assert "boxes" not in PipelineConfig().to_dict()
     assert PipelineConfig.from_dict(PipelineConfig(boxes="nms").to_dict()).boxes == "nms"
-
-
-def test_the_near_search_is_the_configs_else_the_models_record(tmp_path: Path) -> None:
-    from fastdet.config import NEAR_SCALES
-    from fastdet.video.detector import NEAR_KEY, make_detector
-
-    model = load_model()
-    near = offset(model, 0.0, metadata={NEAR_KEY: True}).save(tmp_path / "near.npz")
-    bad = offset(model, 0.0, metadata={NEAR_KEY: "yes"}).save(tmp_path / "bad.npz")
-
-    def largest(config: PipelineConfig) -> float:
-        return max(b.scale for b in make_detector(config).search.bands)
-
-    assert largest(PipelineConfig(model=str(near))) == max(NEAR_SCALES)
-    assert largest(PipelineConfig(model=str(near), near=False)) == max(b.scale for b in PipelineConfig().search.bands)
-    assert largest(PipelineConfig()) < min(NEAR_SCALES) and largest(PipelineConfig(near=True)) == max(NEAR_SCALES)
-    with pytest.raises(ModelError, match=NEAR_KEY):
-        make_detector(PipelineConfig(model=str(bad)))
-    assert largest(PipelineConfig(model=str(bad), near=False)) < min(NEAR_SCALES)
-    with pytest.raises(TypeError, match="near must be"):
-        PipelineConfig(near="yes")  # type: ignore[arg-type]
-    assert "near" not in PipelineConfig().to_dict()  # the default config keeps its digest
-    assert PipelineConfig.from_dict(PipelineConfig(near=True).to_dict()).near is True

@@ -101,31 +101,3 @@ def test_lanes_of_either_box_formation_are_those_of_each_formations_own_replay(d
     assert differ > 0
     with pytest.raises(ValueError, match="distinct"):
         next(iter_lane_detections(video, [("nms", 0.0), ("nms", 0.0)]))
-
-
-def test_lanes_with_and_without_the_near_search_are_those_of_real_runs(data, tmp_path):
-    """Lanes ``(boxes, offset, near)``: the front scores the near bands once, a lane without them
-    leaves their windows out; each lane's boxes, scores and ids are those of a real run of
-    detect_video with ``near`` set so. A loose model (offset -8) so that near windows fire."""
-    from fastdet.video.replay import iter_lane_detections
-    from fastdet.video.run import detect_video
-
-    loose = tmp_path / "loose.npz"
-    offset(load_model(), -8.0).save(loose)
-    video = str(data / "videos" / "motorcycle_highway.mp4")
-    config = PipelineConfig(model=str(loose))
-    lanes = [("nms", 0.0, True), ("nms", 0.0, False), ("heat", 1.0, True)]
-    mixed = list(iter_lane_detections(video, lanes, config, start=10, frames=8))
-    differ = 0
-    for i, (b, o, near) in enumerate(lanes):
-        moved = tmp_path / f"m{i}.npz"
-        offset(load_model(), -8.0 + o).save(moved)
-        real = list(detect_video(video, PipelineConfig(model=str(moved), boxes=b, near=near), start=10, frames=8))
-        assert len(real) == len(mixed) == 8
-        for want, (fno, tables) in zip(real, mixed):
-            got = tables[i]
-            assert np.array_equal(got.boxes, want.boxes) and np.allclose(got.scores, want.scores), (fno, lanes[i])
-            assert np.array_equal(got.ids, want.ids), (fno, lanes[i])
-    for _, tables in mixed:
-        differ += not np.array_equal(tables[0].boxes, tables[1].boxes)
-    assert differ > 0  # the near windows gave boxes: the test tells the lanes apart
