@@ -19,6 +19,15 @@ every command inside :func:`handled`; a command then only decides *where* it may
 - A :class:`Stopped` raised where Python cannot propagate it (a ``__del__``, a ctypes callback
   inside the Numba compiler) is not printed as "Exception ignored": the signal is raised again
   and lands in the code that runs next.
+- A :class:`Stopped` is not raised inside locking code: that of ``threading``, ``queue``,
+  ``concurrent.futures`` and ``multiprocessing.synchronize`` (a queue's ``get``, a future's
+  ``result``, the process lock ``numba.get_num_threads`` takes) and any ``__enter__`` or
+  ``__exit__``. Raised there, between a lock's acquire and the ``with`` that releases it, it
+  left the lock held for good, and every later wait for it -- the clean-up's, a worker
+  thread's, the interpreter's exit joining that worker -- never ended. The signal is raised
+  again a few milliseconds later, in the code that runs next. A thread's ``join`` is not put
+  off, and a stop put off for :data:`PUT_OFF_S` (a wait there that does not end) is raised
+  where it lands.
 - A long step that may swallow an exception (third-party code) is followed by
   :func:`check`, which raises :class:`Stopped` when a signal came meanwhile.
 
@@ -67,6 +76,16 @@ _ignored: list[int] = []  # signals ignored while a Stopped was being handled
 #: that hangs -- a write to a dead network disk -- can still be ended; the temporary files are
 #: then removed at exit, fastdet.io.atomic)
 IGNORED_REPEATS = 2
+#: the modules whose locking code a :class:`Stopped` is not raised in (:func:`_in_locking_code`)
+LOCKING_MODULES = frozenset({"threading", "queue", "concurrent.futures._base", "concurrent.futures.thread",
+                             "multiprocessing.synchronize"})
+#: their functions a :class:`Stopped` is raised in all the same: a thread's join, which restores
+#: its lock itself when interrupted (so a clean-up that waits for a hung thread can still be ended)
+_INTERRUPTIBLE = frozenset({("threading", "join"), ("threading", "_wait_for_tstate_lock")})
+#: seconds a stop may be put off while the main thread stays in that code; then it is raised there
+#: anyway (a wait there that does not end must still be stoppable)
+PUT_OFF_S = 0.5
+_put_off_since: float | None = None  # when the stop being put off was first put off
 
 
 class Stopped(KeyboardInterrupt):
@@ -88,19 +107,47 @@ class Stopped(KeyboardInterrupt):
 
 
 def _handler(signum: int, frame: FrameType | None) -> None:
-    global _received
+    global _received, _put_off_since
     first = _received is None
     if first:
         _received = signum
     if _deferring and (first or _patient):
+        _put_off_since = None
         return  # the loop stops after its current frame (a patient block: after its clean-up)
     if not first and _unwinding() and _ignored.count(signum) < IGNORED_REPEATS:
         _ignored.append(signum)
+        _put_off_since = None
         return  # a Stopped is being handled (its clean-up runs): a second one would cut it short
     if _in_hook:
         _raise_again(signum)  # inside the unraisable hook: raised where it can propagate
         return
+    if _in_locking_code(frame):
+        now = time.monotonic()
+        _put_off_since = now if _put_off_since is None else _put_off_since
+        if now - _put_off_since < PUT_OFF_S:
+            _raise_again(signum)  # raised in the code that runs next, once out of the lock's code
+            return
+    _put_off_since = None
     raise Stopped(signum)
+
+
+def _in_locking_code(frame: FrameType | None) -> bool:
+    """``frame`` (where the main thread is as the handler runs) is code of
+    :data:`LOCKING_MODULES` or a context manager's ``__enter__`` / ``__exit__``. An exception
+    raised there at an arbitrary bytecode can fall between a lock's acquire and the ``with`` or
+    ``try`` that releases it -- ``Condition.__enter__`` or ``SemLock.__enter__`` just after the
+    lock's own ``__enter__()`` returned, their ``__exit__`` before it releases,
+    ``_AcquireFutures`` between two futures -- and leave the lock held by a thread that will not
+    release it: the decoder's ``put``, a worker's ``set_result``, a band thread's
+    ``numba.get_num_threads``, the clean-up's own ``get`` and the interpreter's exit (joining
+    that band thread) then wait for it forever (the hang of ``video`` after two Ctrl-C at once,
+    docs/reliability.md)."""
+    if frame is None:
+        return False
+    module, name = frame.f_globals.get("__name__"), frame.f_code.co_name
+    if (module, name) in _INTERRUPTIBLE:
+        return False
+    return module in LOCKING_MODULES or name in ("__enter__", "__exit__")
 
 
 def _unwinding() -> bool:
@@ -138,14 +185,17 @@ def _unraisable(hook: Callable[[Any], object]) -> Callable[[Any], object]:
 def _raise_again(signum: int) -> None:
     """``signum`` marked as arrived again in a moment (from a helper thread, as the C handler
     marks a signal: the handler then runs at the main thread's next bytecode -- not here, inside
-    the hook or a ``__del__``), while this module's handler is still the one set."""
+    the hook, a ``__del__`` or locking code, :func:`_in_locking_code`), while this module's
+    handler is still the one set. The helper is a bare ``_thread`` thread: starting a
+    ``threading.Thread`` takes the ``threading`` module's own locks, which the main thread may
+    hold where the handler interrupted it."""
 
     def later() -> None:
         time.sleep(0.005)
         if _active and signal.getsignal(signum) is _handler:
             _thread.interrupt_main(signum)
 
-    threading.Thread(target=later, name="fastdet-signal-again", daemon=True).start()
+    _thread.start_new_thread(later, ())
 
 
 def received() -> int | None:
@@ -202,14 +252,14 @@ def handled(after: str = "restore") -> Iterator[None]:
     are ignored until the handlers are reset (a stop after the command cannot interrupt the
     clean-up), then ``after="restore"`` restores the previous handlers and ``"ignore"`` leaves
     them ignored (the process is the command: ``python -m fastdet``)."""
-    global _received, _deferring, _patient, _active
+    global _received, _deferring, _patient, _active, _put_off_since
     if threading.current_thread() is not threading.main_thread() or _active:
         yield  # another thread, or inside a handled() block already (a batch run by the CLI)
         return
     if after not in ("restore", "ignore"):
         raise ValueError(f"after must be 'restore' or 'ignore', got {after!r}")
     previous = {s: signal.getsignal(s) for s in STOP_SIGNALS}
-    _received, _deferring, _patient = None, 1, 0  # held while the handlers are being set
+    _received, _deferring, _patient, _put_off_since = None, 1, 0, None  # held while the handlers are being set
     for s in STOP_SIGNALS:
         if previous[s] != signal.SIG_IGN:  # an ignored signal stays ignored (see the docstring)
             signal.signal(s, _handler)
@@ -227,6 +277,7 @@ def handled(after: str = "restore") -> Iterator[None]:
         _active -= 1
         _received, _deferring, _patient = None, 0, 0  # a stop belongs to the command it stopped
         _ignored.clear()
+        _put_off_since = None
 
 
 def reset() -> None:

@@ -8,11 +8,13 @@ file under its final name that looks complete.
 """
 from __future__ import annotations
 
+import _thread
 import json
 import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -328,6 +330,133 @@ def test_a_second_ctrl_c_in_the_frame_loop_leaves_nothing_behind(long_clip, tmp_
     if paths["json"].exists():
         n = paths["json"].read_text().count("\n")
         assert _frames_in_video(paths["video"]) == n
+
+
+def _second_ctrl_c_as_it_is_taken(lock, caller: str, module: str = "threading",
+                                   then: Callable[[], None] = lambda: None) -> threading.Thread:
+    """A thread that holds ``lock`` until the main thread waits for it inside the ``__enter__``
+    of ``module`` (``Condition.__enter__``, called by ``caller``), trips a SIGINT for the main
+    thread there (``_thread.interrupt_main``: unlike a real signal it does not wake that wait),
+    lets the lock go and calls ``then``: the main thread's handler runs just after it took the
+    lock."""
+    held = threading.Event()
+    main = threading.main_thread().ident
+
+    def waiting_for_the_lock() -> bool:
+        f = sys._current_frames().get(main)
+        return (f is not None and f.f_code.co_name == "__enter__" and f.f_globals.get("__name__") == module
+                and f.f_back is not None and f.f_back.f_code.co_name == caller)
+
+    def trap() -> None:
+        with lock:
+            held.set()
+            end = time.monotonic() + 10
+            while not waiting_for_the_lock() and time.monotonic() < end:
+                time.sleep(0.005)
+            time.sleep(0.05)
+            _thread.interrupt_main(signal.SIGINT)
+            time.sleep(0.05)
+        time.sleep(0.05)
+        then()
+
+    t = threading.Thread(target=trap, daemon=True)
+    t.start()
+    held.wait(5)
+    return t
+
+
+def _bytecode_for(seconds: float) -> None:
+    """Python code (not a wait) for ``seconds``: where a signal put off lands."""
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        pass
+
+
+def test_a_second_ctrl_c_as_the_readers_queue_lock_is_taken_leaves_it_free(short_clip):
+    """The frame loop's second Ctrl-C, handled just as the main thread took the lock of the
+    reader's queue inside ``Queue.get`` (in ``Condition.__enter__``, before the ``with`` that
+    releases it): raised in the code after, the lock free, ``close`` ends. Before: raised inside
+    ``__enter__``, the lock held for good, the decoder's ``put`` and ``close``'s own ``get``
+    waiting for it forever -- the hang of two Ctrl-C at once in ``video``."""
+    from fastdet import signals
+    from fastdet.io.reader import FrameReader
+
+    reader = FrameReader(short_clip)
+    it = iter(reader)
+    next(it)  # the decoder thread runs and fills the queue
+    with signals.handled():
+        with pytest.raises(signals.Stopped):
+            with signals.deferred():
+                os.kill(os.getpid(), signal.SIGINT)  # the first Ctrl-C: the loop ends after its frame
+                time.sleep(0.05)
+                trap = _second_ctrl_c_as_it_is_taken(reader._q.mutex, "get")
+                next(it)
+                _bytecode_for(2.0)
+        trap.join(15)
+    free = reader._q.mutex.acquire(timeout=2)
+    if free:
+        reader._q.mutex.release()
+    assert free, "the queue's lock was left held: close() would wait for it forever"
+    t0 = time.monotonic()
+    reader.close()
+    assert time.monotonic() - t0 < 5
+
+
+def test_a_second_ctrl_c_as_a_futures_lock_is_taken_leaves_it_free():
+    """The same while the main thread waits for a future (the frame loop's band and tail
+    threads): the worker's ``set_result`` is not blocked. Before: the future's lock held by the
+    main thread, the worker waiting for it forever, and with it the clean-up (waiting for the
+    next frame's future) or the interpreter's exit (joining the worker)."""
+    from concurrent.futures import Future
+
+    from fastdet import signals
+
+    fut: Future[int] = Future()
+    go = threading.Event()
+    worker = threading.Thread(target=lambda: (go.wait(15), fut.set_result(7)), daemon=True)
+    worker.start()
+    with signals.handled():
+        with pytest.raises(signals.Stopped):
+            with signals.deferred():
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(0.05)
+                trap = _second_ctrl_c_as_it_is_taken(fut._condition, "result", then=go.set)
+                fut.result(timeout=15)
+                _bytecode_for(2.0)
+        trap.join(15)
+    worker.join(5)
+    assert not worker.is_alive(), "the worker's set_result waits for the future's lock held by the main thread"
+
+
+def test_a_second_ctrl_c_as_numbas_process_lock_is_taken_leaves_it_free():
+    """The same in ``numba.get_num_threads``, which the frame loop calls every frame: it takes
+    Numba's process lock (a ``multiprocessing`` RLock, whose ``__enter__`` is Python code).
+    Before: the lock held by the main thread, a band thread's ``get_num_threads`` waiting for it
+    forever and the interpreter's exit joining that thread (the stack of a hang after two Ctrl-C
+    at once in ``video``: the band thread in ``synchronize.py`` ``__enter__``, the main thread in
+    ``concurrent.futures``' exit join)."""
+    import numba
+    from numba.np.ufunc import parallel
+
+    from fastdet import signals
+
+    numba.get_num_threads()  # the lock is made on the first call
+    lock = parallel._backend_init_process_lock
+    if not hasattr(lock, "_semlock"):
+        pytest.skip("Numba uses no process lock here (not a fork start method)")
+    with signals.handled():
+        with pytest.raises(signals.Stopped):
+            with signals.deferred():
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(0.05)
+                trap = _second_ctrl_c_as_it_is_taken(lock, "_launch_threads", "multiprocessing.synchronize")
+                numba.get_num_threads()
+                _bytecode_for(2.0)
+        trap.join(15)
+    held = lock._semlock._is_mine()
+    if held:
+        lock.release()  # let the tests after this one use Numba's threads
+    assert not held, "Numba's process lock was left held: every other thread's get_num_threads would wait forever"
 
 
 def test_an_ignored_signal_stays_ignored_inside_handled():
