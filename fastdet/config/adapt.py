@@ -32,6 +32,11 @@ class AdaptConfig(Config):
         between the videos): the pipeline runs over them three times (the bundled model, every
         offset at once, the offset chosen), a large part of a run's time on long footage
         (docs/benchmarks.md, "Adapting to a camera").
+    holdout_every: the teacher labels every ``holdout_every``-th frame of the kept-aside stretch
+        (from its first): the operating point's evidence. 1: every frame (at most ``holdout_max``;
+        the teacher's cost is small beside the rest), so that on a short clip the choice does not
+        rest on the 4-7 frames every 5th leaves it (docs/training.md, "Every kept-aside frame
+        labelled").
     hold_bytes: the kept-aside frames are decoded once (reaching them decodes every frame
         before them: 41 s into 10 minutes of 1280x720 footage) and held for those three runs
         (:func:`fastdet.io.hold.hold_frames`): in memory while they take at most this many
@@ -72,6 +77,7 @@ class AdaptConfig(Config):
     max_frames: int = 400
     holdout: float = 0.2
     holdout_max: int = 400
+    holdout_every: int = 1
     hold_bytes: int = 1536 * 2**20
     weight: int = 4
     jitter: int = 2
@@ -93,6 +99,7 @@ class AdaptConfig(Config):
         _whole("every", self.every, 1)
         _whole("max_frames", self.max_frames, 2)
         _whole("holdout_max", self.holdout_max, 1)
+        _whole("holdout_every", self.holdout_every, 1)
         _whole("hold_bytes", self.hold_bytes, 0)
         _whole("weight", self.weight, 1)
         _whole("jitter", self.jitter, 0)

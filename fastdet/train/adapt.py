@@ -6,7 +6,7 @@ The steps, each a function here (the command, :mod:`fastdet.cli.adapt`, runs the
    from them (every ``step``-th frame from frame 1, ``step`` = ``every`` or more so that at most
    ``max_frames`` are sampled) and the stretch at the end of each video kept aside for the
    operating point (contiguous: the heat map needs consecutive frames; it is never trained on,
-   and its frames are labelled every ``every``-th frame from its first);
+   and its frames are labelled every ``holdout_every``-th frame from its first: every frame by default);
 2. :func:`label_clips`: the teacher CNN boxes the planned frames of each video; each video's
    labels are written to the work folder (``CLIP-KEY.teacher.txt`` + ``CLIP-KEY.frames``,
    :func:`~fastdet.teacher.label.write_teacher_files`) when the video is done, so a stopped run
@@ -172,7 +172,7 @@ def plan_footage(videos: Sequence[str], config: AdaptConfig) -> Footage:
     for v, name, n in opened:
         kept = min(max(1, round(config.holdout * n)), cap, n - 1) if n > 1 else 0
         clips.append(Clip(v, name, n, n - kept + 1))
-    fp = Footage(tuple(clips), step, config.every, size)
+    fp = Footage(tuple(clips), step, config.holdout_every, size)
     if fp.n_train == 0:
         raise DataError(f"the footage ({total} frames) leaves no frame to train on before the kept-aside "
                         f"{config.holdout:.0%} at the end of each video")

@@ -116,7 +116,7 @@ def test_a_stopped_run_resumes_without_labelling_a_finished_video_again(teacher,
     write_video(footage / "b.mp4", 30)
     out = tmp_path / "cam.npz"
     args = (footage, "--teacher", teacher, "-o", out, "--every", "5")
-    per_clip = 5 + 2  # 1, 6, ..., 21 before the kept-aside stretch (frames 25-30), labelled at 25 and 30
+    per_clip = 5 + 6  # 1, 6, ..., 21 before the kept-aside stretch (frames 25-30), each of which is labelled
 
     # 1. Ctrl-C while the second video is labelled: the first one's labels are kept, nothing else
     first = _Teacher(stop_at=per_clip + 2)
@@ -146,7 +146,7 @@ def test_a_stopped_run_resumes_without_labelling_a_finished_video_again(teacher,
     monkeypatch.setattr(TeacherDetector, "detect", lambda _self, frame: third(frame))
     assert _adapt(*args) == 143
     assert third.calls == 0 and not out.exists()
-    assert "teacher labels of 7 frames read from" in capsys.readouterr().out
+    assert f"teacher labels of {per_clip} frames read from" in capsys.readouterr().out
     assert not leftovers(tmp_path) and not leftovers(tmp_path / ".cam.adapt")
 
 
@@ -167,7 +167,7 @@ def test_adapt_writes_a_model_with_its_summary(teacher, data, tmp_path, capsys, 
     assert "agreement with the teacher labels on the kept-aside frames" in text and f"wrote {out}" in text
     model = load_model(out)  # allow_pickle=False: the format video / image / batch --model read
     s = model.metadata["adapt"]
-    assert s["frames"]["trained"] == 6 and s["frames"]["kept_aside_labelled"] == 2
+    assert s["frames"]["trained"] == 6 and s["frames"]["kept_aside_labelled"] == 8  # every kept-aside frame
     assert s["frames"]["kept_aside_read"] == 8 and s["labelled_by"] == "teacher"
     assert s["offset"] in (0.0, 1.0) and model.metadata["offset"] == s["offset"]
     assert set(s["seconds"]) >= {"label", "crops", "hard_negatives", "train", "regressor", "operating_point", "total"}

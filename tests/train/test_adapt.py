@@ -35,7 +35,7 @@ def test_config_checks_and_step():
     assert c.step(300) == 5 and c.step(1000) == 10 and c.step(1001) == 11
     assert AdaptConfig(offsets=(1, 0, 1)).offsets == (0.0, 1.0)
     for bad in ({"every": 0}, {"holdout": 1.0}, {"holdout": 0}, {"weight": 0}, {"offsets": ()},
-                {"offsets": (math.nan,)}, {"truncate_keep": (0.9, 0.8)}, {"max_frames": 1}):
+                {"offsets": (math.nan,)}, {"truncate_keep": (0.9, 0.8)}, {"max_frames": 1}, {"holdout_every": 0}):
         with pytest.raises(ValueError):
             AdaptConfig(**bad)  # type: ignore[arg-type]
     assert AdaptConfig.from_dict(c.to_dict()) == c
@@ -44,13 +44,17 @@ def test_config_checks_and_step():
 def test_plan_samples_evenly_and_keeps_the_end_of_each_video_aside(tmp_path):
     a = write_video(tmp_path / "a.mp4", 50)
     b = write_video(tmp_path / "b.mp4", 30)
-    fp = adapt.plan_footage([str(a), str(b)], AdaptConfig(every=2, max_frames=20, holdout=0.2))
+    fp = adapt.plan_footage([str(a), str(b)], AdaptConfig(every=2, max_frames=20, holdout=0.2, holdout_every=2))
     assert fp.step == 4 and fp.size == (320, 240)  # 80 frames / 20
     ca, cb = fp.clips
     assert (ca.frames, ca.holdout_start, cb.frames, cb.holdout_start) == (50, 41, 30, 25)
     assert ca.train_frames(fp.step) == list(range(1, 41, 4))
     assert ca.holdout_frames(fp.every) == [41, 43, 45, 47, 49]  # a contiguous stretch, labelled every 2nd
-    assert fp.holdout_length == 10 + 6 and fp.n_train == 10 + 6
+    assert fp.holdout_length == 10 + 6 and fp.n_train == 10 + 6 and fp.n_holdout == 5 + 3
+    # by default every kept-aside frame is labelled, whatever the sampling step
+    every = adapt.plan_footage([str(a), str(b)], AdaptConfig(every=2, max_frames=20, holdout=0.2))
+    assert every.clips[0].holdout_frames(every.every) == list(range(41, 51)) and every.n_holdout == 10 + 6
+    assert every.n_train == fp.n_train
 
 
 def test_plan_refuses_mixed_sizes_and_clashing_names(tmp_path):
@@ -69,7 +73,7 @@ def test_plan_refuses_mixed_sizes_and_clashing_names(tmp_path):
 def test_labels_are_kept_per_clip_and_not_recomputed(tmp_path):
     a = write_video(tmp_path / "a.mp4", 20)
     b = write_video(tmp_path / "b.mp4", 20)
-    fp = adapt.plan_footage([str(a), str(b)], AdaptConfig(every=5, holdout=0.25))
+    fp = adapt.plan_footage([str(a), str(b)], AdaptConfig(every=5, holdout=0.25, holdout_every=5))
     work = tmp_path / "work"
     teacher = CountingTeacher()
     labels, now = adapt.label_clips(fp, teacher, work, progress=False, log=lambda s: None)  # type: ignore[arg-type]
@@ -84,7 +88,7 @@ def test_labels_are_kept_per_clip_and_not_recomputed(tmp_path):
     assert [p.frame for p in train] == [1, 6, 11, 1, 6, 11] and all(len(p.targets) == 1 for p in pics)
     assert {k: [p.frame for p in v] for k, v in held.items()} == {"a": [16], "b": [16]}
     # another plan (other frames) is labelled anew (it replaces the clip's labels)
-    fp2 = adapt.plan_footage([str(a), str(b)], AdaptConfig(every=4, holdout=0.25))
+    fp2 = adapt.plan_footage([str(a), str(b)], AdaptConfig(every=4, holdout=0.25, holdout_every=4))
     third = CountingTeacher()
     adapt.label_clips(fp2, third, work, progress=False, log=lambda s: None)  # type: ignore[arg-type]
     assert third.calls == sum(len(c.planned(fp2.step, fp2.every)) for c in fp2.clips)
