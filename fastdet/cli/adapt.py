@@ -7,7 +7,8 @@
 
 - FOOTAGE: video files, or folders whose video files are all taken, of one camera (one frame
   size). Frames are sampled every N-th frame (more apart when more than M would be sampled);
-  the last ``--holdout`` fraction of each video is kept aside for the operating point.
+  the last ``--holdout`` fraction of each video is kept aside for the operating point, every
+  frame of it labelled (``AdaptConfig.holdout_every``).
 - ``--teacher``: a YOLOX-style ONNX detector labels the sampled frames (its boxes of score
   >= 0.3 of car / bus / truck are targets, lower ones and motorcycles ignore regions). Its
   labels are kept per video in the work folder ``.MYCAM.adapt/`` beside the output, so a
