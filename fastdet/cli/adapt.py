@@ -369,7 +369,7 @@ def _cluster_labelling(args: argparse.Namespace) -> Callable[[float], _adapt.Lab
     def make(min_score: float) -> _adapt.Labeller:
         def label(clips: Sequence[_adapt.Clip], footage: _adapt.Footage
                   ) -> Iterator[tuple[_adapt.Clip, list[Any]]]:
-            tasks = {labelling.LabelTask(os.path.abspath(c.path), tuple(c.planned(footage.step, footage.every)),
+            tasks = {labelling.LabelTask(os.path.abspath(c.path), tuple(c.planned(footage.step, footage.holdout_every)),
                                          teacher, size, min_score): c for c in clips}
             if tasks:
                 print(f"labelling {len(tasks)} video{'s' if len(tasks) != 1 else ''} on the "

@@ -107,12 +107,13 @@ class Clip:
 
 @dataclass(frozen=True)
 class Footage:
-    """The planned footage: ``clips``, the sampling ``step`` (frames), ``every`` (the
-    kept-aside stretch's labelling step) and the frame ``size`` ``(width, height)`` px."""
+    """The planned footage: ``clips``, the sampling ``step`` (frames), ``holdout_every`` (the
+    kept-aside stretch's labelling step, :attr:`AdaptConfig.holdout_every`) and the frame
+    ``size`` ``(width, height)`` px."""
 
     clips: tuple[Clip, ...]
     step: int
-    every: int
+    holdout_every: int
     size: tuple[int, int]
 
     @property
@@ -121,7 +122,7 @@ class Footage:
 
     @property
     def n_holdout(self) -> int:
-        return sum(len(c.holdout_frames(self.every)) for c in self.clips)
+        return sum(len(c.holdout_frames(self.holdout_every)) for c in self.clips)
 
     @property
     def holdout_length(self) -> int:
@@ -200,7 +201,7 @@ def cached_labels(folder: Path, clip: Clip, footage: Footage) -> Path | None:
         listed = [int(line) for line in frames.read_text().split()]
     except (OSError, ValueError):
         return None
-    return boxes if listed == clip.planned(footage.step, footage.every) else None
+    return boxes if listed == clip.planned(footage.step, footage.holdout_every) else None
 
 
 #: labels the clips given, yielding each clip's labels (its planned frames) as it is done, in
@@ -213,7 +214,7 @@ def local_labeller(detector: TeacherDetector, progress: bool = True) -> Labeller
 
     def label(clips: Sequence[Clip], footage: Footage) -> Iterator[tuple[Clip, list[Labelled]]]:
         for clip in clips:
-            want = set(clip.planned(footage.step, footage.every))
+            want = set(clip.planned(footage.step, footage.holdout_every))
             last = max(want)
             labelled: list[Labelled] = []
             bar = tqdm(total=len(want), unit="frame", desc=f"teacher {clip.name}", file=sys.stderr,
@@ -258,7 +259,7 @@ def label_clips(footage: Footage, detector: TeacherDetector, folder: Path, progr
                 todo.append(clip)
                 continue
             out[clip.name] = found
-            log(f"{clip.name}: teacher labels of {len(clip.planned(footage.step, footage.every))} frames "
+            log(f"{clip.name}: teacher labels of {len(clip.planned(footage.step, footage.holdout_every))} frames "
                 f"read from {found.parent}")
         for clip, labelled in label(todo, footage):
             boxes, _ = write_teacher_files(folder, clip.key, labelled)

@@ -86,7 +86,7 @@ def agreement(footage: Footage, run: HoldoutRun, model_path: str | None) -> Agre
     tp = fp = fn = frames = 0
     secs = 0.0
     for clip in footage.clips:
-        if not clip.holdout_frames(footage.every):
+        if not clip.holdout_frames(footage.holdout_every):
             continue
         a, b, c, s, n = run(clip, model_path)
         tp, fp, fn, secs, frames = tp + a, fp + b, fn + c, secs + s, frames + n
@@ -188,7 +188,7 @@ def choose_operating_point(model: Model, footage: Footage, run: LanesRun, folder
     path = folder / "model.npz"
     offset(model, 0.0).save(path)
     try:
-        for clip in tqdm([c for c in footage.clips if c.holdout_frames(footage.every)], desc="operating point",
+        for clip in tqdm([c for c in footage.clips if c.holdout_frames(footage.holdout_every)], desc="operating point",
                          unit="video", file=sys.stderr, dynamic_ncols=True, disable=not progress):
             per_lane, s, n = run(clip, str(path), lanes)
             secs, frames = secs + s, frames + n

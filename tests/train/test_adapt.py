@@ -49,11 +49,11 @@ def test_plan_samples_evenly_and_keeps_the_end_of_each_video_aside(tmp_path):
     ca, cb = fp.clips
     assert (ca.frames, ca.holdout_start, cb.frames, cb.holdout_start) == (50, 41, 30, 25)
     assert ca.train_frames(fp.step) == list(range(1, 41, 4))
-    assert ca.holdout_frames(fp.every) == [41, 43, 45, 47, 49]  # a contiguous stretch, labelled every 2nd
+    assert ca.holdout_frames(fp.holdout_every) == [41, 43, 45, 47, 49]  # a contiguous stretch, labelled every 2nd
     assert fp.holdout_length == 10 + 6 and fp.n_train == 10 + 6 and fp.n_holdout == 5 + 3
     # by default every kept-aside frame is labelled, whatever the sampling step
     every = adapt.plan_footage([str(a), str(b)], AdaptConfig(every=2, max_frames=20, holdout=0.2))
-    assert every.clips[0].holdout_frames(every.every) == list(range(41, 51)) and every.n_holdout == 10 + 6
+    assert every.clips[0].holdout_frames(every.holdout_every) == list(range(41, 51)) and every.n_holdout == 10 + 6
     assert every.n_train == fp.n_train
 
 
@@ -77,7 +77,7 @@ def test_labels_are_kept_per_clip_and_not_recomputed(tmp_path):
     work = tmp_path / "work"
     teacher = CountingTeacher()
     labels, now = adapt.label_clips(fp, teacher, work, progress=False, log=lambda s: None)  # type: ignore[arg-type]
-    planned = [c.planned(fp.step, fp.every) for c in fp.clips]
+    planned = [c.planned(fp.step, fp.holdout_every) for c in fp.clips]
     assert planned[0] == [1, 6, 11, 16] and teacher.calls == now == 8
     again = CountingTeacher()
     labels2, now2 = adapt.label_clips(fp, again, work, progress=False, log=lambda s: None)  # type: ignore[arg-type]
@@ -91,7 +91,7 @@ def test_labels_are_kept_per_clip_and_not_recomputed(tmp_path):
     fp2 = adapt.plan_footage([str(a), str(b)], AdaptConfig(every=4, holdout=0.25, holdout_every=4))
     third = CountingTeacher()
     adapt.label_clips(fp2, third, work, progress=False, log=lambda s: None)  # type: ignore[arg-type]
-    assert third.calls == sum(len(c.planned(fp2.step, fp2.every)) for c in fp2.clips)
+    assert third.calls == sum(len(c.planned(fp2.step, fp2.holdout_every)) for c in fp2.clips)
 
 
 def test_a_still_picture_always_trains(tmp_path):
