@@ -243,7 +243,7 @@ def holdout_lanes(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, 
     (:func:`fastdet.video.replay.iter_lane_detections`: each lane's boxes are those of
     :func:`holdout_run` with the moved model and that formation), each lane's boxes scored as
     there. ``frames``, ``horizons``: as :func:`holdout_run`'s."""
-    from ..eval.metrics import evaluate
+    from ..eval.metrics import frame_counts
     from ..video.replay import iter_lane_detections
 
     def run(clip: _adapt.Clip, model: str, lanes: Sequence[tuple[Boxes, float]]
@@ -263,17 +263,9 @@ def holdout_lanes(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, 
                 table.append(dets.with_frames(np.full(len(dets), fno, np.int64)))
         secs = time.perf_counter() - t0
         gt = _gt(pics)
-        keyframes = [p.frame for p in pics]
-        gt_of = {f: gt[gt.frames == f] for f in keyframes}  # each frame's labels, the same for every lane
-        out = {}
-        for k, table in zip(lanes, tables):
-            preds = _predictions(table)
-            per_frame = []
-            for f in keyframes:  # each frame's counts, for the standard error over the frames
-                res = evaluate(gt_of[f], preds[preds.frames == f], keyframes=np.array([f]), tracking=False)
-                per_frame.append((res.tp, res.fp, res.fn))
-            out[k] = np.array(per_frame, np.int64).reshape(-1, 3)
-        return out, secs, n
+        keyframes = np.array([p.frame for p in pics], np.int64)
+        # each frame's counts, for the standard error over the frames
+        return {k: frame_counts(gt, _predictions(table), keyframes) for k, table in zip(lanes, tables)}, secs, n
 
     return run
 
@@ -369,7 +361,7 @@ def _cluster_labelling(args: argparse.Namespace) -> Callable[[float], _adapt.Lab
     def make(min_score: float) -> _adapt.Labeller:
         def label(clips: Sequence[_adapt.Clip], footage: _adapt.Footage
                   ) -> Iterator[tuple[_adapt.Clip, list[Any]]]:
-            tasks = {labelling.LabelTask(os.path.abspath(c.path), tuple(c.planned(footage.step, footage.holdout_every)),
+            tasks = {labelling.LabelTask(os.path.abspath(c.path), tuple(footage.planned(c)),
                                          teacher, size, min_score): c for c in clips}
             if tasks:
                 print(f"labelling {len(tasks)} video{'s' if len(tasks) != 1 else ''} on the "

@@ -80,7 +80,7 @@ from .hota import hota
 from .matching import average_precision, match_frame, precision_envelope
 
 __all__ = [
-    "EvalResult", "evaluate", "match_frame", "average_precision", "precision_envelope",
+    "EvalResult", "evaluate", "frame_counts", "match_frame", "average_precision", "precision_envelope",
 ]
 
 
@@ -214,6 +214,62 @@ def _check_tables(gt: Detections, preds: Detections) -> None:
             raise ValueError(f"{what} ({table.source}): a table of a clip needs {' and '.join(missing)}")
 
 
+def _match(gt: Detections, preds: Detections, g_groups: dict[int, np.ndarray], p_groups: dict[int, np.ndarray],
+           iou: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(tp, dropped)``, ``(N,) bool`` over the rows of ``preds``: each frame of ``p_groups``
+    matched against its ground truth (:func:`~fastdet.eval.matching.match_frame`: targets and
+    ignore regions by ``gt.targets``); rows on no frame of ``p_groups`` are neither."""
+    consider = gt.targets
+    tp = np.zeros(len(preds), bool)
+    dropped = np.zeros(len(preds), bool)
+    for f, pidx in p_groups.items():
+        gidx = g_groups.get(f, np.zeros(0, np.int64))
+        cons = consider[gidx]
+        t, d, _ = match_frame(
+            preds.boxes[pidx], preds.scores[pidx], gt.boxes[gidx[cons]], gt.boxes[gidx[~cons]], iou
+        )
+        tp[pidx] = t
+        dropped[pidx] = d
+    return tp, dropped
+
+
+def frame_counts(gt: Detections, preds: Detections, keyframes: np.ndarray, iou: float = 0.5) -> np.ndarray:
+    """``(K, 3) int64``: the ``(tp, fp, fn)`` of each of the ``K`` frames of ``keyframes`` (frame
+    numbers, unique, in the order given), matched as :func:`evaluate` matches (IoU ``iou``, a
+    prediction on an ignore region dropped); row ``k`` is what ``evaluate`` counts for that one
+    keyframe. For a standard error over the frames (the operating point of ``fastdet adapt``)
+    in one pass instead of one :func:`evaluate` a frame. Ground truth on a frame not listed:
+    :class:`DataError`, as ``evaluate``."""
+    if not (0.0 < iou <= 1.0):
+        raise ValueError(f"iou threshold must be in (0, 1], got {iou}")
+    _check_tables(gt, preds)
+    frames = np.asarray(keyframes, dtype=np.int64).reshape(-1)
+    if np.unique(frames).size != frames.size or (frames.size and frames.min() < 1):
+        raise ValueError("keyframes must be unique frame numbers >= 1")
+    g_in = np.isin(gt.frames, frames)
+    if not g_in.all():
+        raise DataError(f"{gt.source}: ground truth on frame {int(gt.frames[~g_in][0])}, which is not one of the "
+                        f"keyframes")
+    p_in = np.isin(preds.frames, frames)
+    g_groups = _frame_groups(np.where(g_in, gt.frames, 0))
+    p_groups = _frame_groups(np.where(p_in, preds.frames, 0))
+    g_groups.pop(0, None)
+    p_groups.pop(0, None)
+    _check_budget(gt, preds, g_groups, p_groups, False)
+    tp, dropped = _match(gt, preds, g_groups, p_groups, iou)
+    row = {int(f): k for k, f in enumerate(frames)}
+    out = np.zeros((frames.size, 3), np.int64)
+    targets = gt.targets
+    for f, gidx in g_groups.items():
+        out[row[f], 2] = int(targets[gidx].sum())
+    for f, pidx in p_groups.items():
+        k = row[f]
+        out[k, 0] = int(tp[pidx].sum())
+        out[k, 1] = int((~tp[pidx] & ~dropped[pidx]).sum())
+    out[:, 2] -= out[:, 0]
+    return out
+
+
 def evaluate(
     gt: Detections,
     preds: Detections,
@@ -264,17 +320,7 @@ def evaluate(
         tracking = preds.has_ids
     _check_budget(gt, preds, g_groups, p_groups, bool(tracking))
 
-    n = len(preds)
-    tp = np.zeros(n, bool)
-    dropped = np.zeros(n, bool)
-    for f, pidx in p_groups.items():
-        gidx = g_groups.get(f, np.zeros(0, np.int64))
-        cons = consider[gidx]
-        t, d, _ = match_frame(
-            preds.boxes[pidx], preds.scores[pidx], gt.boxes[gidx[cons]], gt.boxes[gidx[~cons]], iou
-        )
-        tp[pidx] = t
-        dropped[pidx] = d
+    tp, dropped = _match(gt, preds, g_groups, p_groups, iou)
 
     evaluated = p_in & ~dropped
     num_gt = int((consider & g_in).sum())

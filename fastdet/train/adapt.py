@@ -124,6 +124,11 @@ class Footage:
     def n_holdout(self) -> int:
         return sum(len(c.holdout_frames(self.holdout_every)) for c in self.clips)
 
+    def planned(self, clip: Clip) -> list[int]:
+        """Every frame of ``clip`` the teacher labels, in order: its sampled frames (every
+        ``step``-th) then its kept-aside stretch's (every ``holdout_every``-th)."""
+        return clip.planned(self.step, self.holdout_every)
+
     @property
     def holdout_length(self) -> int:
         """Frames in the kept-aside stretches (what each pipeline run reads)."""
@@ -201,7 +206,7 @@ def cached_labels(folder: Path, clip: Clip, footage: Footage) -> Path | None:
         listed = [int(line) for line in frames.read_text().split()]
     except (OSError, ValueError):
         return None
-    return boxes if listed == clip.planned(footage.step, footage.holdout_every) else None
+    return boxes if listed == footage.planned(clip) else None
 
 
 #: labels the clips given, yielding each clip's labels (its planned frames) as it is done, in
@@ -214,7 +219,7 @@ def local_labeller(detector: TeacherDetector, progress: bool = True) -> Labeller
 
     def label(clips: Sequence[Clip], footage: Footage) -> Iterator[tuple[Clip, list[Labelled]]]:
         for clip in clips:
-            want = set(clip.planned(footage.step, footage.holdout_every))
+            want = set(footage.planned(clip))
             last = max(want)
             labelled: list[Labelled] = []
             bar = tqdm(total=len(want), unit="frame", desc=f"teacher {clip.name}", file=sys.stderr,
@@ -259,7 +264,7 @@ def label_clips(footage: Footage, detector: TeacherDetector, folder: Path, progr
                 todo.append(clip)
                 continue
             out[clip.name] = found
-            log(f"{clip.name}: teacher labels of {len(clip.planned(footage.step, footage.holdout_every))} frames "
+            log(f"{clip.name}: teacher labels of {len(footage.planned(clip))} frames "
                 f"read from {found.parent}")
         for clip, labelled in label(todo, footage):
             boxes, _ = write_teacher_files(folder, clip.key, labelled)

@@ -77,7 +77,7 @@ def test_labels_are_kept_per_clip_and_not_recomputed(tmp_path):
     work = tmp_path / "work"
     teacher = CountingTeacher()
     labels, now = adapt.label_clips(fp, teacher, work, progress=False, log=lambda s: None)  # type: ignore[arg-type]
-    planned = [c.planned(fp.step, fp.holdout_every) for c in fp.clips]
+    planned = [fp.planned(c) for c in fp.clips]
     assert planned[0] == [1, 6, 11, 16] and teacher.calls == now == 8
     again = CountingTeacher()
     labels2, now2 = adapt.label_clips(fp, again, work, progress=False, log=lambda s: None)  # type: ignore[arg-type]
@@ -91,7 +91,7 @@ def test_labels_are_kept_per_clip_and_not_recomputed(tmp_path):
     fp2 = adapt.plan_footage([str(a), str(b)], AdaptConfig(every=4, holdout=0.25, holdout_every=4))
     third = CountingTeacher()
     adapt.label_clips(fp2, third, work, progress=False, log=lambda s: None)  # type: ignore[arg-type]
-    assert third.calls == sum(len(c.planned(fp2.step, fp2.holdout_every)) for c in fp2.clips)
+    assert third.calls == sum(len(fp2.planned(c)) for c in fp2.clips)
 
 
 def test_a_still_picture_always_trains(tmp_path):
