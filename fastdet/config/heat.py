@@ -60,8 +60,10 @@ class HeatConfig(Config):
     min_width, min_height: smallest box kept (px of a frame of ``reference_rows`` rows).
     reference_rows: frame height the pixel sizes ``min_width`` / ``min_height`` are meant for
         (720: a car 40 px wide in a 1280x720 frame is 30 px wide at 960x540, 60 px at
-        1920x1080). A :class:`~fastdet.video.heatmap.HeatMap` for frames of ``H`` rows uses
-        :meth:`for_frame`, which scales them by ``H / reference_rows``; ``None``: pixels
+        1920x1080). A :class:`~fastdet.video.heatmap.HeatMap` for frames of ``H`` x ``W`` uses
+        :meth:`for_frame` with their short side, ``min(H, W)``, which scales them by
+        ``min(H, W) / reference_rows`` (as the search scales its windows:
+        :attr:`SearchConfig.reference_shape <fastdet.config.SearchConfig>`); ``None``: pixels
         at every size.
     max_aspect: boxes taller than ``max_aspect * width`` are dropped (no vehicle seen from
         behind or the side is much taller than wide).
@@ -122,8 +124,9 @@ class HeatConfig(Config):
             raise ValueError(f"reference_rows must be an integer >= 1 or None, got {self.reference_rows!r}")
 
     def for_frame(self, frame_rows: int) -> HeatConfig:
-        """This config for frames of ``frame_rows`` rows: ``min_width`` / ``min_height``
-        scaled by ``frame_rows / reference_rows`` (rounded), ``reference_rows`` = ``None``."""
+        """This config for frames whose short side is ``frame_rows`` px (a landscape frame's
+        rows): ``min_width`` / ``min_height`` scaled by ``frame_rows / reference_rows``
+        (rounded), ``reference_rows`` = ``None``."""
         if self.reference_rows is None:
             return self
         f = int(frame_rows) / self.reference_rows

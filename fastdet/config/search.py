@@ -121,13 +121,16 @@ class SearchConfig(Config):
     cells_per_step: window stride in HOG cells (of the scaled band).
     threshold: a window is positive when its decision value exceeds this.
     reference_shape: ``(H, W)`` of the frames the bands are written for. A frame of another
-        size gets the bands rescaled so they cover the same part of the picture: rows and
-        window scales by ``H / reference H``, columns by ``W / reference W``
-        (:meth:`for_frame`). ``None``: the bands are used as given, in pixels.
+        size gets the bands rescaled (:meth:`for_frame`): columns by ``W / reference W``, window
+        scales and rows by the ratio of the short sides, ``min(H, W) / min(reference H, W)``
+        (a landscape frame: ``H / reference H``; a phone filming upright, whose lens gives a
+        vehicle the size it has in the same frames held sideways: ``W / reference H``), the rows
+        placed about the horizon (below). ``None``: the bands are used as given, in pixels.
     reference_horizon: the horizon row of those frames, a fraction of their height.
     horizon: the horizon row of the frames searched, a fraction of their height (0 = top),
         or ``None`` for "where the reference frames have it". :meth:`for_frame` moves every
-        band by ``(horizon - reference_horizon) x H`` rows after rescaling, so each window
+        band after rescaling so that its rows lie about ``horizon x H`` as the reference's lie
+        about theirs (a landscape frame: by ``(horizon - reference_horizon) x H``), so each window
         size is searched at the same distance from the horizon, where cars of that size are
         (a car's size and how far below the horizon it stands both scale with 1 / its
         distance, whatever the lens). Each band moves by a whole number of its window steps
@@ -178,8 +181,15 @@ class SearchConfig(Config):
         if not moved and not slack and (self.reference_shape is None or (h, w) == tuple(self.reference_shape)):
             return self
         rh, rw = self.reference_shape if self.reference_shape is not None else (h, w)
-        fy, fx = h / rh, w / rw
-        dy = (self.horizon - self.reference_horizon) * h if self.horizon is not None and moved else 0.0
+        # sizes -- window scales, rows about the horizon -- go with the frame's short side: the rows
+        # of the reference-shaped frame of that short side (a landscape frame: its own height; a
+        # phone held upright: the rows its frames have held sideways, the same lens)
+        hs = min(h, w) * rh / min(rh, rw)
+        fy, fx = hs / rh, w / rw
+        # the horizon's row less the row the rescaled bands have it at (a landscape frame at the
+        # reference horizon: 0)
+        hz = self.horizon if moved and self.horizon is not None else self.reference_horizon
+        dy = (hz - self.reference_horizon) * h + self.reference_horizon * (h - hs)
 
         def col(v: int | None) -> int | None:
             return None if v is None else min(int(round(v * fx)), w)
@@ -192,7 +202,7 @@ class SearchConfig(Config):
             core_a, core_z = a, z
             if b.has_slack:  # whole steps more: the windows stay on the grid
                 # the nearest number of steps (a band whose step is more than twice its slack gets none)
-                up = round((b.slack_above or 0.0) * h / step) * step
+                up = round((b.slack_above or 0.0) * hs / step) * step
                 a = int(round(b.y_start * fy + d - up))
             y0, y1 = max(a, 0), min(z, h)
             if y1 > y0 and ((y0, y1) == (a, z) or y1 - y0 >= window * b.scale * fy):

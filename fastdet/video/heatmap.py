@@ -70,7 +70,7 @@ class HeatMap:
 
     shape: frame shape ``(H, W)`` or ``(H, W, C)``.
     config: :class:`~fastdet.config.HeatConfig` (default ``HeatConfig()``); kept as
-        ``config.for_frame(H)``, its box sizes in this frame's pixels.
+        ``config.for_frame(min(H, W))``, its box sizes in this frame's pixels.
     score_kind: ``'decision'`` or ``'probability'``, picks the default score range.
 
     After each :meth:`update`: ``heat`` (grid, float64, normalised), ``mask`` (bool grid),
@@ -86,7 +86,7 @@ class HeatMap:
         if len(shape) < 2 or int(shape[0]) < 1 or int(shape[1]) < 1:
             raise ValueError(f"shape must be (H, W[, C]) with H, W >= 1, got {shape!r}")
         self.frame_shape = (int(shape[0]), int(shape[1]))
-        self.config = self.config.for_frame(self.frame_shape[0])  # sizes in this frame's pixels
+        self.config = self.config.for_frame(min(self.frame_shape))  # sizes in this frame's pixels
         c = int(self.config.cell)
         self.grid_shape = (-(-self.frame_shape[0] // c), -(-self.frame_shape[1] // c))
         self.score_kind = score_kind

@@ -135,7 +135,7 @@ def test_for_frame_rescales_rows_columns_and_scales():
     wide = cfg.for_frame((720, 2560))
     assert wide.bands == (SearchBand(1.0, 400, 496), SearchBand(2.0, 380, 700, 200, 2400))
     short = SearchConfig(bands=(SearchBand(1.0, 600, 720, 0, 1280),), reference_shape=(700, 1280))
-    assert short.for_frame((700, 640)).bands == (SearchBand(1.0, 600, 700, 0, 640),)
+    assert short.for_frame((700, 960)).bands == (SearchBand(1.0, 600, 700, 0, 960),)
 
 
 def test_wide_search_bands_hold_whole_cells():

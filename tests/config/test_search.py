@@ -156,3 +156,32 @@ def test_the_deleted_slack_below_a_band_loads_only_off():
     d["bands"] = [{**b, "slack_below": None} for b in d["bands"]]
     assert SearchConfig.from_dict(d) == SearchConfig()
     assert all("slack_below" not in b for b in SearchConfig().to_dict()["bands"])
+
+
+@pytest.mark.parametrize("landscape", [(720, 1280), (1080, 1920), (360, 640), (480, 640), (720, 1436)])
+@pytest.mark.parametrize("horizon", [None, 0.45, 0.62])
+def test_an_upright_phones_frames_are_searched_with_the_windows_of_its_frames_held_sideways(landscape, horizon):
+    """A frame taller than wide (a phone filming upright: the same lens as its landscape frames)
+    gets the windows of the landscape frame with its short side, each band at the same distance
+    below the horizon (to a window step); landscape frames keep ``H / 720``."""
+    h, w = landscape
+    portrait = (w, h)
+    cfg = replace(SearchConfig(), horizon=horizon)
+    side, up = cfg.for_frame(landscape).bands, cfg.for_frame(portrait).bands
+    f = h / 720
+    assert [b.scale for b in side] == [pytest.approx(b.scale * f) for b in cfg.bands]
+    hz = REFERENCE_HORIZON if horizon is None else horizon
+    kept = {b.scale: b for b in up}
+    for ref, b in zip(cfg.bands, side):
+        step = 16 * b.scale
+        if b.y_start <= 0 or b.core is None or b.scale not in kept:
+            continue  # clipped at the top in either frame, or the 48-px band (no core)
+        want = ((ref.y_start - REFERENCE_HORIZON * 720) * f, (ref.y_stop - REFERENCE_HORIZON * 720) * f)
+        # both frames: the band's rows about the horizon as the reference's, to half a window
+        # step (each band moves by whole steps)
+        for band, rows in ((b, h), (kept[b.scale], w)):
+            got = (band.core[0] - hz * rows, band.core[1] - hz * rows)
+            assert abs(got[0] - want[0]) <= step / 2 + 1 and abs(got[1] - want[1]) <= step / 2 + 1, (band, want)
+    assert {b.scale for b in side} <= set(kept)  # every window size of the landscape frame, no other
+    assert set(kept) <= {b.scale for b in side}
+    assert all(x.x_start is None and x.x_stop is None for x in up)
