@@ -6,11 +6,12 @@ regressor is read from the model the check loads) and what the outputs are calle
 from __future__ import annotations
 
 import os
+from dataclasses import replace
 from pathlib import Path
 
 from ..config import PipelineConfig
 from ..config.batch import Settings, file_sha256
-from ..video.detector import make_detector
+from ..video.detector import make_detector, recorded_oncoming
 from ..video.refine import carried_regressor_for, regressor_for
 
 __all__ = ["MANIFEST_NAME", "SUFFIXES", "Settings", "checked_settings", "max_name_length", "file_sha256",
@@ -35,10 +36,17 @@ def checked_settings(pipeline: PipelineConfig | None = None, video: bool = False
     models loaded as a worker will, once, before any work: :class:`~fastdet.errors.ModelError`
     (one line) for a missing file, a file that is not a model or a wide model that is not one.
     A main model that carries its camera's box regressor (``fastdet adapt``'s; no regressor
-    file named) is refined with it: the settings name no regressor file of their own."""
+    file named) is refined with it: the settings name no regressor file of their own. A main
+    model that records no oncoming model beside it (``fastdet adapt``'s:
+    :func:`~fastdet.video.detector.recorded_oncoming`) runs without the bundled one, as in
+    ``video``."""
     p = pipeline if pipeline is not None else PipelineConfig()
     settings = Settings.create(p, video=video, json=json)  # a missing file: one line, in its words
     detector = make_detector(settings.pipeline)
+    if p.oncoming is True and detector.oncoming_model is not None and not recorded_oncoming(detector.model):
+        p = replace(p, oncoming=False)
+        settings = Settings.create(p, video=video, json=json)
+        detector = make_detector(settings.pipeline)
     if p.refine is None:
         return settings
     carried = carried_regressor_for(detector.model, p.refine_model, name=settings.pipeline.model)

@@ -71,7 +71,7 @@ from ..model import Model, load_model
 from ..train import adapt as _adapt
 from ..train import operating_point as _op
 from ..train.blend import offset
-from ..video.detector import BOXES_KEY
+from ..video.detector import BOXES_KEY, ONCOMING_KEY
 from ..video.run import file_horizon
 from ._args import fraction, positive_int, teacher_size, video_files
 
@@ -436,6 +436,9 @@ def run(args: argparse.Namespace) -> int:
                                                    log=lambda s: print(s, flush=True))
     secs["hard_negatives"] += fit_secs["hard_negatives"]
     secs["train"] = fit_secs["train"]
+    # every model file written from here on runs without the bundled oncoming model: the camera's
+    # own model finds that traffic (docs/training.md, "The oncoming model beside an adapted model")
+    model = replace(model, metadata={**model.metadata, ONCOMING_KEY: False})
     _signals.check()
     t = time.perf_counter()
     # the camera's horizon, as a `video` run of each file has it: the regressor's own boxes and the

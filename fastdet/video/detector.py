@@ -4,6 +4,7 @@ optional abilities it uses when a detector has them (:class:`MovableHorizon`,
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any, Literal, Protocol, runtime_checkable
 
 import numpy as np
@@ -13,7 +14,7 @@ from ..config.models import ONCOMING_MODEL_PATH
 from ..detect import BandGeometry, Detector, DetectStats
 from ..detections import Detections
 from ..errors import ModelError
-from ..model import Model
+from ..model import Model, load_model
 
 
 @runtime_checkable
@@ -99,6 +100,23 @@ def box_formation(config: PipelineConfig, detector: object) -> Boxes:
     return got
 
 
+#: the main model file's metadata key that records whether the bundled oncoming-traffic model runs
+#: beside it (:func:`make_detector`): ``fastdet adapt`` writes ``False``, as the camera's own model
+#: finds that traffic itself (docs/training.md, "The oncoming model beside an adapted model")
+ONCOMING_KEY = "video_oncoming"
+
+
+def recorded_oncoming(model: Model) -> bool:
+    """Whether the bundled oncoming model runs beside ``model`` when the pipeline's
+    :attr:`PipelineConfig.oncoming` is ``True`` (the default): what ``model`` records
+    (:data:`ONCOMING_KEY`), else ``True``. :class:`~fastdet.errors.ModelError` for a record that
+    is not ``True`` or ``False``."""
+    got = model.metadata.get(ONCOMING_KEY, True)
+    if not isinstance(got, bool):
+        raise ModelError(f"the main model's metadata['{ONCOMING_KEY}'] must be true or false, got {got!r}")
+    return got
+
+
 def detector_kernels(detector: object) -> tuple[Any, ...]:
     """The numba kernels of ``detector`` (:class:`HasKernels`; none for another detector)."""
     return tuple(detector.kernels) if isinstance(detector, HasKernels) else ()
@@ -108,8 +126,13 @@ def make_detector(config: PipelineConfig | None = None) -> Detector:
     """The video pipeline's :class:`fastdet.Detector` for ``config`` (default
     ``PipelineConfig()``): its main model and search, and its oncoming-traffic model
     searching the side of the view :attr:`PipelineConfig.traffic` puts oncoming cars on
-    (:func:`fastdet.config.oncoming_search`). Raises :class:`~fastdet.errors.ModelError` when a
-    model does not load."""
+    (:func:`fastdet.config.oncoming_search`); with ``oncoming=True`` (the bundled one), none
+    when the main model records so (:func:`recorded_oncoming`: an adapted camera's). Raises
+    :class:`~fastdet.errors.ModelError` when a model does not load."""
     c = config if config is not None else PipelineConfig()
-    oncoming = ONCOMING_MODEL_PATH if c.oncoming is True else (c.oncoming or None)
+    oncoming: str | Path | None
+    if c.oncoming is True:
+        oncoming = ONCOMING_MODEL_PATH if recorded_oncoming(load_model(c.model)) else None
+    else:
+        oncoming = c.oncoming or None
     return Detector(model=c.model, search=c.search, oncoming=oncoming, oncoming_search=oncoming_search(c.traffic))

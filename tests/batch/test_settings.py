@@ -30,3 +30,17 @@ def test_checked_settings_load_the_models_and_refuse_a_file_that_is_not_one(tmp_
         checked_settings(PipelineConfig(model=str(tmp_path / "none.npz")))
     with pytest.raises(ModelError):
         checked_settings(PipelineConfig(refine_model=str(bad)))
+
+
+def test_checked_settings_leave_out_the_oncoming_model_a_main_model_records_no_need_for(tmp_path: Path) -> None:
+    from fastdet.config import ONCOMING_MODEL_PATH
+    from fastdet.model import load_model
+    from fastdet.train.blend import offset
+    from fastdet.video.detector import ONCOMING_KEY
+
+    own = offset(load_model(), 0.0, metadata={ONCOMING_KEY: False}).save(tmp_path / "own.npz")
+    got = checked_settings(PipelineConfig(model=str(own)))
+    assert got.pipeline.oncoming is False and got.pipeline.model == str(own.resolve())
+    named = checked_settings(PipelineConfig(model=str(own), oncoming=str(ONCOMING_MODEL_PATH)))
+    assert named.pipeline.oncoming == str(ONCOMING_MODEL_PATH.resolve())  # a named one still runs
+    assert checked_settings().pipeline.oncoming == str(ONCOMING_MODEL_PATH.resolve())

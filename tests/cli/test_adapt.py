@@ -19,7 +19,7 @@ from fastdet.model import load_model
 from fastdet.teacher.yolox import TeacherBoxes
 from fastdet.video import VideoDetector
 from fastdet.video.box_stages import HeatStage
-from fastdet.video.detector import BOXES_KEY
+from fastdet.video.detector import BOXES_KEY, ONCOMING_KEY, make_detector
 from fastdet.video.nmsboxes import NmsStage
 from tests.media import leftovers, write_video
 from tests.teacher.onnx_bytes import FLOAT, write_identity_model
@@ -189,6 +189,9 @@ def test_adapt_writes_a_model_with_its_summary(teacher, data, tmp_path, capsys, 
     # both box formations tried; the chosen one (at least as good as the other) is recorded in
     # the model file, and the pipeline makes its boxes that way
     assert set(s["boxes_tried"]) == {"heat", "nms"} and model.metadata[BOXES_KEY] == s["boxes"]
+    # no bundled oncoming model beside the camera's own (chosen and written that way)
+    assert model.metadata[ONCOMING_KEY] is False
+    assert make_detector(PipelineConfig(model=str(out))).oncoming_model is None
     f1s = {b: (-1 if v["best_f1"] is None else v["best_f1"]) for b, v in s["boxes_tried"].items()}
     assert f1s[s["boxes"]] == max(f1s.values()) and "boxes tried (F1 at their best offset)" in text
     stage = NmsStage if s["boxes"] == "nms" else HeatStage

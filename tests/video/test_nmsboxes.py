@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fastdet.config import PipelineConfig
+from fastdet.config import ONCOMING_MODEL_PATH, PipelineConfig
 from fastdet.detections import MAIN_PART, ONCOMING_PART, Detections
 from fastdet.errors import ModelError
 from fastdet.io.reader import FrameReader
@@ -158,3 +158,21 @@ def test_the_box_formation_is_the_configs_else_the_models_record(tmp_path: Path)
     # None is left out of the dict: the default config keeps its digest
     assert "boxes" not in PipelineConfig().to_dict()
     assert PipelineConfig.from_dict(PipelineConfig(boxes="nms").to_dict()).boxes == "nms"
+
+
+def test_the_oncoming_model_runs_unless_the_main_model_records_otherwise(tmp_path: Path) -> None:
+    from fastdet.video.detector import ONCOMING_KEY, make_detector
+
+    model = load_model()
+    own = offset(model, 0.0, metadata={ONCOMING_KEY: False}).save(tmp_path / "own.npz")
+    bad = offset(model, 0.0, metadata={ONCOMING_KEY: "no"}).save(tmp_path / "bad.npz")
+    assert make_detector(PipelineConfig()).oncoming_model is not None
+    assert make_detector(PipelineConfig(model=str(own))).oncoming_model is None
+    assert VideoDetector(config=PipelineConfig(model=str(own))).detector.oncoming_model is None
+    # a named oncoming model runs whatever the record says; --no-oncoming leaves it out either way
+    named = make_detector(PipelineConfig(model=str(own), oncoming=str(ONCOMING_MODEL_PATH)))
+    assert named.oncoming_model is not None
+    assert make_detector(PipelineConfig(oncoming=False)).oncoming_model is None
+    with pytest.raises(ModelError, match=ONCOMING_KEY):
+        make_detector(PipelineConfig(model=str(bad)))
+    assert make_detector(PipelineConfig(model=str(bad), oncoming=False)).oncoming_model is None
