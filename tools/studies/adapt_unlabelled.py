@@ -48,12 +48,25 @@ CLIPS = ("akin_highway", "anmol_highway", "chanremin_v49", "tmo_seattle1", "driv
          "hadiya_input", "tmo_rainy", "teamlv_rainy", "samyx_nuit")
 
 
+def clip_video(clip: str, data: Path) -> Path:
+    """The clip's video in ``data/videos`` (``CLIP.mp4``, else the one file named ``CLIP.*``:
+    ``ebuarip_640.avi``)."""
+    mp4 = data / "videos" / f"{clip}.mp4"
+    if mp4.exists():
+        return mp4
+    videos = (".avi", ".mov", ".mkv", ".m4v")
+    found = sorted(p for p in (data / "videos").glob(f"{clip}.*") if p.suffix.lower() in videos)
+    if not found:
+        raise SystemExit(f"{clip}: no video of that name in {data / 'videos'}")
+    return found[0]
+
+
 def adapt(clip: str, out: Path, data: Path, extra: list[str] | None = None) -> bool:
     """Run ``fastdet adapt`` on the clip into ``out`` unless it exists, with ``extra`` options
     appended (e.g. ``--teacher-size 960``); False when adapt refused (its one line is printed)."""
     if out.exists():
         return True
-    cmd = [sys.executable, "-m", "fastdet", "adapt", str(data / "videos" / f"{clip}.mp4"),
+    cmd = [sys.executable, "-m", "fastdet", "adapt", str(clip_video(clip, data)),
            "--teacher", str(data / "teachers" / "yolox_nano.onnx"), "-o", str(out), "--no-progress", *(extra or [])]
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode:
@@ -65,7 +78,7 @@ def adapt(clip: str, out: Path, data: Path, extra: list[str] | None = None) -> b
 def kept_aside_truth(clip: str, data: Path, start: int) -> tuple[Detections, np.ndarray]:
     """The ensemble's boxes of the clip's frames from ``start`` on (targets, and ignore regions with
     ``consider`` False) and those frames."""
-    video = data / "videos" / f"{clip}.mp4"
+    video = clip_video(clip, data)
     pics = [p for p in read_teacher_clip(data / "teacher" / f"{clip}.teacher.txt", video=video,
                                          camera=clip, source="teacher") if p.frame >= start]
     return frames_ground_truth(pics, source="teacher ensemble"), np.array([p.frame for p in pics], np.int64)
@@ -79,7 +92,7 @@ def score(clip: str, model: Path, data: Path) -> str:
     gt, keyframes = kept_aside_truth(clip, data, start)
     plain = model.with_name(model.stem + ".noreg.npz")
     dataclasses.replace(m, regressor=None).save(plain)
-    video = data / "videos" / f"{clip}.mp4"
+    video = clip_video(clip, data)
     horizon = file_horizon(video)  # where a `video` run of the whole clip searches, not the stretch's own estimate
     cells = []
     for path in (None, plain, model):

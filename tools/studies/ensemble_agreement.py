@@ -15,7 +15,7 @@ from fastdet.data import data_dir
 from fastdet.detections import Detections
 from fastdet.eval import evaluate
 from fastdet.video.run import detect_video
-from tools.studies.adapt_unlabelled import kept_aside_truth
+from tools.studies.adapt_unlabelled import clip_video, kept_aside_truth
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -26,7 +26,7 @@ def main(argv: list[str] | None = None) -> int:
     data = data_dir()
     for clip in a.clips.split(","):
         gt, keyframes = kept_aside_truth(clip, data, 1)
-        tables = list(detect_video(data / "videos" / f"{clip}.mp4", model=a.model, progress=False))
+        tables = list(detect_video(clip_video(clip, data), model=a.model, progress=False))
         r = evaluate(gt, Detections.concat(tables), keyframes=keyframes, tracking=False)
         print(f"| {clip} | {r.f1:.2f} ({r.tp} / {r.fp} / {r.fn}) |", flush=True)
     return 0
