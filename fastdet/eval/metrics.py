@@ -214,6 +214,28 @@ def _check_tables(gt: Detections, preds: Detections) -> None:
             raise ValueError(f"{what} ({table.source}): a table of a clip needs {' and '.join(missing)}")
 
 
+def _on_keyframes(gt: Detections, preds: Detections, scored: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(g_in, p_in)``: the rows of ``gt`` and ``preds`` on the frames ``scored``;
+    :class:`DataError` for ground truth on another frame (a keyframe file that does not list
+    every labelled frame)."""
+    g_in = np.isin(gt.frames, scored)
+    if not g_in.all():
+        f = int(gt.frames[~g_in][0])
+        raise DataError(f"{gt.source}: ground truth on frame {f}, which is not one of the keyframes")
+    return g_in, np.isin(preds.frames, scored)
+
+
+def _scored_groups(gt: Detections, preds: Detections, g_in: np.ndarray, p_in: np.ndarray
+                   ) -> tuple[dict[int, np.ndarray], dict[int, np.ndarray]]:
+    """frame number -> row indices of ``gt`` and of ``preds`` (:func:`_frame_groups`), of the rows
+    ``g_in`` / ``p_in`` only."""
+    g_groups = _frame_groups(np.where(g_in, gt.frames, 0))
+    p_groups = _frame_groups(np.where(p_in, preds.frames, 0))
+    g_groups.pop(0, None)
+    p_groups.pop(0, None)
+    return g_groups, p_groups
+
+
 def _match(gt: Detections, preds: Detections, g_groups: dict[int, np.ndarray], p_groups: dict[int, np.ndarray],
            iou: float) -> tuple[np.ndarray, np.ndarray]:
     """``(tp, dropped)``, ``(N,) bool`` over the rows of ``preds``: each frame of ``p_groups``
@@ -246,15 +268,7 @@ def frame_counts(gt: Detections, preds: Detections, keyframes: np.ndarray, iou: 
     frames = np.asarray(keyframes, dtype=np.int64).reshape(-1)
     if np.unique(frames).size != frames.size or (frames.size and frames.min() < 1):
         raise ValueError("keyframes must be unique frame numbers >= 1")
-    g_in = np.isin(gt.frames, frames)
-    if not g_in.all():
-        raise DataError(f"{gt.source}: ground truth on frame {int(gt.frames[~g_in][0])}, which is not one of the "
-                        f"keyframes")
-    p_in = np.isin(preds.frames, frames)
-    g_groups = _frame_groups(np.where(g_in, gt.frames, 0))
-    p_groups = _frame_groups(np.where(p_in, preds.frames, 0))
-    g_groups.pop(0, None)
-    p_groups.pop(0, None)
+    g_groups, p_groups = _scored_groups(gt, preds, *_on_keyframes(gt, preds, frames))
     _check_budget(gt, preds, g_groups, p_groups, False)
     tp, dropped = _match(gt, preds, g_groups, p_groups, iou)
     row = {int(f): k for k, f in enumerate(frames)}
@@ -299,11 +313,7 @@ def evaluate(
         scored = np.unique(np.asarray(keyframes, dtype=np.int64).reshape(-1))
         if scored.size == 0 or scored[0] < 1:
             raise ValueError("keyframes must be frame numbers >= 1, at least one")
-        g_in = np.isin(gt.frames, scored)
-        if not g_in.all():
-            f = int(gt.frames[~g_in][0])
-            raise DataError(f"{gt.source}: ground truth on frame {f}, which is not one of the keyframes")
-        p_in = np.isin(preds.frames, scored)
+        g_in, p_in = _on_keyframes(gt, preds, scored)
         F = int(scored.size)
     else:
         F = gt.num_frames if num_frames is None else int(num_frames)
@@ -312,10 +322,7 @@ def evaluate(
         g_in = gt.frames <= F
         p_in = preds.frames <= F
     num_outside = int((~p_in).sum())
-    g_groups = _frame_groups(np.where(g_in, gt.frames, 0))
-    p_groups = _frame_groups(np.where(p_in, preds.frames, 0))
-    g_groups.pop(0, None)
-    p_groups.pop(0, None)
+    g_groups, p_groups = _scored_groups(gt, preds, g_in, p_in)
     if tracking is None:
         tracking = preds.has_ids
     _check_budget(gt, preds, g_groups, p_groups, bool(tracking))
