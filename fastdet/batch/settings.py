@@ -11,7 +11,7 @@ from pathlib import Path
 
 from ..config import PipelineConfig
 from ..config.batch import Settings, file_sha256
-from ..video.detector import make_detector, recorded_oncoming
+from ..video.detector import make_detector
 from ..video.refine import carried_regressor_for, regressor_for
 
 __all__ = ["MANIFEST_NAME", "SUFFIXES", "Settings", "checked_settings", "max_name_length", "file_sha256",
@@ -38,15 +38,15 @@ def checked_settings(pipeline: PipelineConfig | None = None, video: bool = False
     A main model that carries its camera's box regressor (``fastdet adapt``'s; no regressor
     file named) is refined with it: the settings name no regressor file of their own. A main
     model that records no oncoming model beside it (``fastdet adapt``'s:
-    :func:`~fastdet.video.detector.recorded_oncoming`) runs without the bundled one, as in
+    :func:`~fastdet.video.detector.make_detector`) runs without the bundled one, as in
     ``video``."""
     p = pipeline if pipeline is not None else PipelineConfig()
     settings = Settings.create(p, video=video, json=json)  # a missing file: one line, in its words
-    detector = make_detector(settings.pipeline)
-    if p.oncoming is True and detector.oncoming_model is not None and not recorded_oncoming(detector.model):
+    # the bundled oncoming model as `True`, so that the main model's record decides, as in `video`
+    detector = make_detector(replace(settings.pipeline, oncoming=True) if p.oncoming is True else settings.pipeline)
+    if p.oncoming is True and detector.oncoming_model is None:
         p = replace(p, oncoming=False)
         settings = Settings.create(p, video=video, json=json)
-        detector = make_detector(settings.pipeline)
     if p.refine is None:
         return settings
     carried = carried_regressor_for(detector.model, p.refine_model, name=settings.pipeline.model)
