@@ -38,6 +38,7 @@ from fastdet.data import data_dir
 from fastdet.detections import Detections
 from fastdet.eval import evaluate
 from fastdet.eval.pictures import frames_ground_truth
+from fastdet.labels.mot import find_video
 from fastdet.labels.teacher import read_teacher_clip
 from fastdet.model import load_model
 from fastdet.video.run import detect_video, file_horizon
@@ -51,16 +52,9 @@ CLIPS = ("akin_highway", "anmol_highway", "chanremin_v49", "tmo_seattle1", "driv
 
 
 def clip_video(clip: str, data: Path) -> Path:
-    """The clip's video in ``data/videos`` (``CLIP.mp4``, else the one file named ``CLIP.*``:
-    ``ebuarip_640.avi``)."""
-    mp4 = data / "videos" / f"{clip}.mp4"
-    if mp4.exists():
-        return mp4
-    videos = (".avi", ".mov", ".mkv", ".m4v")
-    found = sorted(p for p in (data / "videos").glob(f"{clip}.*") if p.suffix.lower() in videos)
-    if not found:
-        raise SystemExit(f"{clip}: no video of that name in {data / 'videos'}")
-    return found[0]
+    """The clip's video, ``data/videos/CLIP.*`` of any video suffix (``ebuarip_640.avi``), as the
+    teacher reader finds it beside the clip's labels (:func:`fastdet.labels.mot.find_video`)."""
+    return find_video(data / "teacher" / f"{clip}.teacher.txt", clip)
 
 
 def adapt(clip: str, out: Path, data: Path, extra: list[str] | None = None) -> bool:
