@@ -12,10 +12,10 @@ from fastdet.errors import DataError
 from fastdet.eval.metrics import evaluate, frame_counts
 
 
-def _per_frame_evaluate(gt: Detections, preds: Detections, keyframes: np.ndarray) -> np.ndarray:
+def _per_frame_evaluate(gt: Detections, preds: Detections, keyframes: np.ndarray, iou: float = 0.5) -> np.ndarray:
     rows = []
     for f in keyframes:
-        r = evaluate(gt[gt.frames == f], preds[preds.frames == f], keyframes=np.array([f]), tracking=False)
+        r = evaluate(gt[gt.frames == f], preds[preds.frames == f], iou=iou, keyframes=np.array([f]), tracking=False)
         rows.append((r.tp, r.fp, r.fn))
     return np.array(rows, np.int64).reshape(-1, 3)
 
@@ -39,11 +39,7 @@ def test_frame_counts_are_one_evaluate_a_frame(gt, preds, order, iou):
     g, p = _table(gt, scores=False), _table(preds, scores=True)
     keyframes = np.array(order, np.int64)  # frames 6 and 7 of the predictions are not keyframes
     got = frame_counts(g, p, keyframes, iou=iou)
-    rows = []
-    for f in keyframes:
-        r = evaluate(g[g.frames == f], p[p.frames == f], iou=iou, keyframes=np.array([f]), tracking=False)
-        rows.append((r.tp, r.fp, r.fn))
-    np.testing.assert_array_equal(got, np.array(rows, np.int64).reshape(-1, 3))
+    np.testing.assert_array_equal(got, _per_frame_evaluate(g, p, keyframes, iou))
     total = evaluate(g, p, iou=iou, keyframes=keyframes, tracking=False)
     assert tuple(got.sum(axis=0)) == (total.tp, total.fp, total.fn)
 
