@@ -267,9 +267,9 @@ class VideoSink:
                 self.tmp.unlink(missing_ok=True)
             if discard:
                 return None
-            if isinstance(self.error, DataError):
-                raise self.error
-            raise RuntimeError(f"video writer thread failed: {self.error!r}")  # not reached
+            # only a stall (_stalled) gives the thread up, and it sets a WriteError
+            assert isinstance(self.error, DataError), f"encoder given up on without a WriteError: {self.error!r}"
+            raise self.error
         self._writer.release()
         if not self.frames or discard or self.error is not None:
             self.tmp.unlink(missing_ok=True)
