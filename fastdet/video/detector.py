@@ -3,18 +3,18 @@ optional abilities it uses when a detector has them (:class:`MovableHorizon`,
 :class:`ColumnSearch`), and the pipeline's own detector (:func:`make_detector`)."""
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, Literal, Protocol, runtime_checkable
 
 import numpy as np
 
 from ..config import BOXES, Boxes, PipelineConfig, SearchBand, oncoming_search
-from ..config.models import ONCOMING_MODEL_PATH
+from ..config.models import DEFAULT_MODEL_PATH, ONCOMING_MODEL_PATH
 from ..detect import BandGeometry, Detector, DetectStats
 from ..detections import Detections
 from ..errors import ModelError
-from ..model import Model, load_model
+from ..model import Model, read_npz
 
 
 @runtime_checkable
@@ -106,12 +106,12 @@ def box_formation(config: PipelineConfig, detector: object) -> Boxes:
 ONCOMING_KEY = "video_oncoming"
 
 
-def recorded_oncoming(model: Model) -> bool:
-    """Whether the bundled oncoming model runs beside ``model`` when the pipeline's
-    :attr:`PipelineConfig.oncoming` is ``True`` (the default): what ``model`` records
-    (:data:`ONCOMING_KEY`), else ``True``. :class:`~fastdet.errors.ModelError` for a record that
-    is not ``True`` or ``False``."""
-    got = model.metadata.get(ONCOMING_KEY, True)
+def recorded_oncoming(metadata: Mapping[str, Any]) -> bool:
+    """Whether the bundled oncoming model runs beside the main model whose file's ``metadata``
+    this is, when the pipeline's :attr:`PipelineConfig.oncoming` is ``True`` (the default): what
+    the model records (:data:`ONCOMING_KEY`), else ``True``. :class:`~fastdet.errors.ModelError`
+    for a record that is not ``True`` or ``False``."""
+    got = metadata.get(ONCOMING_KEY, True)
     if not isinstance(got, bool):
         raise ModelError(f"the main model's metadata['{ONCOMING_KEY}'] must be true or false, got {got!r}")
     return got
@@ -132,7 +132,9 @@ def make_detector(config: PipelineConfig | None = None) -> Detector:
     c = config if config is not None else PipelineConfig()
     oncoming: str | Path | None
     if c.oncoming is True:
-        oncoming = ONCOMING_MODEL_PATH if recorded_oncoming(load_model(c.model)) else None
+        # the record alone (the metadata array): the Detector loads and checks the model, once
+        _, meta = read_npz(Path(c.model) if c.model is not None else DEFAULT_MODEL_PATH, ("metadata",))
+        oncoming = ONCOMING_MODEL_PATH if recorded_oncoming(meta) else None
     else:
         oncoming = c.oncoming or None
     return Detector(model=c.model, search=c.search, oncoming=oncoming, oncoming_search=oncoming_search(c.traffic))
