@@ -21,8 +21,12 @@ stretch). The stretch is searched at the horizon a ``video`` run of the whole cl
 first frames gave). Prints a markdown table, one row a clip (F1, hits / false alarms / misses, and
 what adapt chose).
 
+With ``--teacher-column`` a last column scores the teacher itself (``teachers/yolox_nano.onnx`` at
+640 px, its boxes of score >= 0.3 as adapt reads its labels) on the same frames against the same
+ensemble boxes: the reference of issue 32's goal on these clips (the teacher's own F1 minus 0.03).
+
     python -m tools.studies.adapt_unlabelled --work W [--clips anmol_highway,tmo_seattle1,...]
-        [--adapt-args '--teacher-size 960']
+        [--adapt-args '--teacher-size 960'] [--teacher-column]
 """
 from __future__ import annotations
 
@@ -30,6 +34,7 @@ import argparse
 import dataclasses
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -39,10 +44,12 @@ from fastdet.detections import Detections
 from fastdet.eval import evaluate
 from fastdet.eval.pictures import frames_ground_truth
 from fastdet.labels.mot import find_video
-from fastdet.labels.teacher import read_teacher_clip
+from fastdet.labels.teacher import MIN_SCORE, read_teacher_clip
 from fastdet.model import load_model
+from fastdet.teacher import TeacherDetector
 from fastdet.video.run import detect_video, file_horizon
 from tools.studies.markdown import table
+from tools.studies.teacher_f1 import teacher_results
 
 #: every clip of ``teacher/`` (the 17 unlabelled cameras); docs/training.md's tables name the ones
 #: they measured (a clip whose kept-aside stretch the ensemble labels no vehicle on scores nothing)
@@ -80,8 +87,10 @@ def kept_aside_truth(clip: str, data: Path, start: int) -> tuple[Detections, np.
     return frames_ground_truth(pics, source="teacher ensemble"), np.array([p.frame for p in pics], np.int64)
 
 
-def score(clip: str, model: Path, data: Path) -> str:
-    """One table row: the three models on the clip's kept-aside stretch."""
+def score(clip: str, model: Path, data: Path, teacher: TeacherDetector | None = None) -> str:
+    """One table row: the three models on the clip's kept-aside stretch, and with ``teacher`` the
+    teacher itself there (its boxes of score >= 0.3, as adapt reads them: the reference of issue
+    32's goal, the teacher's own F1 minus 0.03)."""
     m = load_model(model)
     footage = m.metadata["adapt"]["footage"][0]
     start, total = int(footage["kept_aside_from"]), int(footage["frames"])
@@ -95,6 +104,10 @@ def score(clip: str, model: Path, data: Path) -> str:
         tables = list(detect_video(video, model=None if path is None else str(path), start=start - 1,
                                    frames=total - start + 1, horizon=horizon, progress=False))
         r = evaluate(gt, Detections.concat(tables), keyframes=keyframes, tracking=False)
+        cells.append(f"{r.f1:.2f} ({r.tp} / {r.fp} / {r.fn})" if r.tp + r.fp + r.fn else "no box, no target")
+    if teacher is not None:
+        with tempfile.TemporaryDirectory() as tmp:
+            r = teacher_results(clip, video, gt, keyframes, teacher, [MIN_SCORE], Path(tmp))[MIN_SCORE]
         cells.append(f"{r.f1:.2f} ({r.tp} / {r.fp} / {r.fn})" if r.tp + r.fp + r.fn else "no box, no target")
     return f"| {clip} | {len(keyframes)} | " + " | ".join(cells) + f" | {chosen(m.metadata['adapt'])} |"
 
@@ -114,17 +127,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--work", required=True, type=Path, help="folder of the adapted models (made if missing)")
     ap.add_argument("--clips", default=",".join(CLIPS), help="comma-separated clip names of videos/")
     ap.add_argument("--adapt-args", default="", help="options appended to each adapt run, e.g. '--teacher-size 960'")
+    ap.add_argument("--teacher-column", action="store_true",
+                    help="also score the teacher itself (teachers/yolox_nano.onnx at 640 px) on each stretch")
     a = ap.parse_args(argv)
     data = data_dir()
+    teacher = TeacherDetector(str(data / "teachers" / "yolox_nano.onnx")) if a.teacher_column else None
     a.work.mkdir(parents=True, exist_ok=True)
     rows = []
     for clip in a.clips.split(","):
         out = a.work / f"{clip}.npz"
         if adapt(clip, out, data, a.adapt_args.split()):
-            rows.append(score(clip, out, data))
+            rows.append(score(clip, out, data, teacher))
             print(rows[-1], file=sys.stderr, flush=True)
+    own = "teacher 640 px, score >= 0.3 | " if teacher else ""
     print(table("| clip | kept-aside teacher frames | bundled model | adapted, bundled regressor | "
-                "adapted, own regressor | chosen |", rows))
+                f"adapted, own regressor | {own}chosen |", rows))
     return 0
 
 

@@ -33,28 +33,35 @@ from fastdet.teacher import TeacherDetector
 from fastdet.teacher.label import write_teacher_files
 
 
-def teacher_rows(clip: AnnotatedClip, detector: TeacherDetector, min_scores: Sequence[float],
-                 work: Path) -> dict[float, EvalResult]:
-    """The teacher's boxes on ``clip``'s scored frames (its keyframes, else every frame), scored
-    against the human boxes at each of ``min_scores`` (``work``: a folder for the label files)."""
-    keys = clip.keyframes()
-    wanted = None if keys is None else {int(k) for k in keys}
+def teacher_results(name: str, video: str | Path, gt: Detections, frames: np.ndarray | None,
+                    detector: TeacherDetector, min_scores: Sequence[float], work: Path) -> dict[float, EvalResult]:
+    """The teacher's boxes on ``frames`` of ``video`` (1-based numbers; ``None``: every frame),
+    read back as ``adapt`` reads its labels at each of ``min_scores`` and scored against ``gt``
+    on those frames (``work``: a folder for the label files, ``name`` their clip name)."""
+    wanted = None if frames is None else {int(k) for k in frames}
     labelled = []
-    with FrameReader(str(clip.video), notify=lambda _: None) as reader:
+    with FrameReader(str(video), notify=lambda _: None) as reader:
         for number, frame, _ in reader:
             if wanted is None or number in wanted:
                 labelled.append((number, detector.detect(frame)))
     work.mkdir(parents=True, exist_ok=True)
-    boxes_path, _ = write_teacher_files(work, clip.name, labelled)
+    boxes_path, _ = write_teacher_files(work, name, labelled)
     out = {}
     for m in min_scores:
-        pictures = read_teacher_clip(boxes_path, min_score=m, video=clip.video)
+        pictures = read_teacher_clip(boxes_path, min_score=m, video=video)
         tables = [Detections(p.targets.astype(np.int32), np.ones(len(p.targets), np.float32),
                              frames=np.full(len(p.targets), p.frame, np.int64)) for p in pictures if len(p.targets)]
         preds = (Detections.concat(tables) if tables else
                  Detections(np.zeros((0, 4), np.int32), np.zeros(0, np.float32), frames=np.zeros(0, np.int64)))
-        out[m] = evaluate(clip.gt(), preds, keyframes=keys)
+        out[m] = evaluate(gt, preds, keyframes=frames, tracking=False)
     return out
+
+
+def teacher_rows(clip: AnnotatedClip, detector: TeacherDetector, min_scores: Sequence[float],
+                 work: Path) -> dict[float, EvalResult]:
+    """:func:`teacher_results` on ``clip``'s scored frames (its keyframes, else every frame)
+    against its human boxes."""
+    return teacher_results(clip.name, clip.video, clip.gt(), clip.keyframes(), detector, min_scores, work)
 
 
 def main(argv: list[str] | None = None) -> int:
