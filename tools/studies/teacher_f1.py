@@ -27,6 +27,7 @@ from fastdet.data import data_dir
 from fastdet.detections import Detections
 from fastdet.eval import EvalResult, evaluate
 from fastdet.eval.clips import AnnotatedClip, annotated_clips
+from fastdet.eval.pictures import frames_ground_truth
 from fastdet.io.reader import FrameReader
 from fastdet.labels.teacher import read_teacher_clip
 from fastdet.teacher import TeacherDetector
@@ -48,11 +49,9 @@ def teacher_results(name: str, video: str | Path, gt: Detections, frames: np.nda
     boxes_path, _ = write_teacher_files(work, name, labelled)
     out = {}
     for m in min_scores:
-        pictures = read_teacher_clip(boxes_path, min_score=m, video=video)
-        tables = [Detections(p.targets.astype(np.int32), np.ones(len(p.targets), np.float32),
-                             frames=np.full(len(p.targets), p.frame, np.int64)) for p in pictures if len(p.targets)]
-        preds = (Detections.concat(tables) if tables else
-                 Detections(np.zeros((0, 4), np.int32), np.zeros(0, np.float32), frames=np.zeros(0, np.int64)))
+        labels = frames_ground_truth(read_teacher_clip(boxes_path, min_score=m, video=video))
+        t = labels[labels.targets]  # the targets as predictions (a scored table: each box 1)
+        preds = Detections(t.boxes.astype(np.int32), np.ones(len(t), np.float32), frames=t.frames)
         out[m] = evaluate(gt, preds, keyframes=frames, tracking=False)
     return out
 
