@@ -41,7 +41,7 @@ import numpy as np
 
 from fastdet.data import data_dir
 from fastdet.detections import Detections
-from fastdet.eval import evaluate
+from fastdet.eval import EvalResult, evaluate
 from fastdet.eval.pictures import frames_ground_truth
 from fastdet.labels.mot import find_video
 from fastdet.labels.teacher import MIN_SCORE, read_teacher_clip
@@ -103,13 +103,16 @@ def score(clip: str, model: Path, data: Path, teacher: TeacherDetector | None = 
     for path in (None, plain, model):
         tables = list(detect_video(video, model=None if path is None else str(path), start=start - 1,
                                    frames=total - start + 1, horizon=horizon, progress=False))
-        r = evaluate(gt, Detections.concat(tables), keyframes=keyframes, tracking=False)
-        cells.append(f"{r.f1:.2f} ({r.tp} / {r.fp} / {r.fn})" if r.tp + r.fp + r.fn else "no box, no target")
+        cells.append(_cell(evaluate(gt, Detections.concat(tables), keyframes=keyframes, tracking=False)))
     if teacher is not None:
         with tempfile.TemporaryDirectory() as tmp:
-            r = teacher_results(clip, video, gt, keyframes, teacher, [MIN_SCORE], Path(tmp))[MIN_SCORE]
-        cells.append(f"{r.f1:.2f} ({r.tp} / {r.fp} / {r.fn})" if r.tp + r.fp + r.fn else "no box, no target")
+            cells.append(_cell(teacher_results(clip, video, gt, keyframes, teacher, [MIN_SCORE], Path(tmp))[MIN_SCORE]))
     return f"| {clip} | {len(keyframes)} | " + " | ".join(cells) + f" | {chosen(m.metadata['adapt'])} |"
+
+
+def _cell(r: EvalResult) -> str:
+    """A table cell: F1 (hits / false alarms / misses)."""
+    return f"{r.f1:.2f} ({r.tp} / {r.fp} / {r.fn})" if r.tp + r.fp + r.fn else "no box, no target"
 
 
 def chosen(summary: dict) -> str:
