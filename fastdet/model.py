@@ -21,7 +21,11 @@ A model made for one camera (``fastdet adapt``) also carries the box regressor f
 camera: its arrays as ``regressor_coef``, ``regressor_intercept``, ``regressor_mean``,
 ``regressor_scale`` and its metadata under ``metadata["regressor"]``, as a regressor file of its
 own holds them (:mod:`fastdet.detect.regressor`); the video pipeline then refines boxes with it
-(:func:`fastdet.video.refine.regressor_for`).
+(:func:`fastdet.video.refine.regressor_for`). It may also carry a side-view component
+(:attr:`Model.side`): a second linear model of wide windows (64x32) for the vehicles seen side-on
+that a square window does not fit, its arrays as ``side_coef``, ``side_intercept``, ``side_mean``,
+``side_scale`` and its feature config, classifier and metadata under ``metadata["side"]``; a
+:class:`fastdet.Detector` searches with it beside the main model.
 """
 from __future__ import annotations
 
@@ -48,6 +52,9 @@ _ARRAYS = ("coef", "intercept", "mean", "scale", "metadata")
 #: the arrays of a carried box regressor (:attr:`Model.regressor`) in a model file, by their
 #: names in a regressor file
 CARRIED = {k: f"regressor_{k}" for k in ("coef", "intercept", "mean", "scale")}
+#: the arrays of a carried side-view component (:attr:`Model.side`) in a model file, by their
+#: names in a model file of its own
+SIDE_ARRAYS = {k: f"side_{k}" for k in ("coef", "intercept", "mean", "scale")}
 #: the largest ``metadata`` array (JSON bytes) a model or regressor file may declare (the
 #: bundled ones hold 1-3 KB)
 MAX_METADATA_BYTES = 16 * 2**20
@@ -72,6 +79,10 @@ class Model:
     regressor: the box regressor this model's camera uses, as its file holds it: ``(arrays,
         metadata)`` (:meth:`fastdet.detect.regressor.BoxRegressor.contents`; ``None``: none, the
         pipeline's own). Kept as plain arrays here: the regressor's code lives a layer above.
+    side: the camera's side-view component (``fastdet adapt``): a model of wide windows
+        (``config.window_height`` < ``config.window``) of the same classifier, searched by
+        :class:`fastdet.Detector` at the main model's bands beside it (its windows tagged
+        ``FIRST_COMPONENT_PART``); ``None``: none. It carries nothing itself.
     """
 
     config: FeatureConfig
@@ -82,8 +93,17 @@ class Model:
     classifier: Literal["linearsvc", "logreg"] = "linearsvc"
     metadata: dict[str, Any] = field(default_factory=dict)
     regressor: tuple[dict[str, np.ndarray], dict[str, Any]] | None = None
+    side: Model | None = None
 
     def __post_init__(self) -> None:
+        if self.side is not None:
+            if not isinstance(self.side, Model) or self.side.side is not None or self.side.regressor is not None:
+                raise ModelError("a side-view component must be a Model that carries nothing itself")
+            if self.side.config.window_height is None:
+                raise ModelError("a side-view component must be a wide-window model (its windows are square)")
+            if self.side.classifier != self.classifier:
+                raise ModelError(f"the side-view component is a {self.side.classifier} model, the main model a "
+                                 f"{self.classifier} one: their scores would not compare")
         if self.regressor is not None and (set(self.regressor[0]) != set(CARRIED)
                                            or not isinstance(self.regressor[1], dict)):
             raise ModelError(f"a carried box regressor needs the arrays {sorted(CARRIED)} and a metadata dict")
@@ -165,6 +185,12 @@ class Model:
         if self.regressor is not None:
             arrays.update({CARRIED[k]: v for k, v in self.regressor[0].items()})
             meta["regressor"] = self.regressor[1]
+        meta.pop("side", None)
+        if self.side is not None:
+            sd = self.side
+            arrays.update({SIDE_ARRAYS["coef"]: sd.coef, SIDE_ARRAYS["intercept"]: np.float64(sd.intercept),
+                           SIDE_ARRAYS["mean"]: sd.mean, SIDE_ARRAYS["scale"]: sd.scale})
+            meta["side"] = {**sd.metadata, "feature_config": sd.config.to_dict(), "classifier": sd.classifier}
         return write_npz(path, arrays, meta)
 
 
@@ -326,9 +352,30 @@ def load_model(path: str | os.PathLike | None = None, expected_config: FeatureCo
             raise ModelError(f"{path}: metadata 'regressor' must be a JSON object, got {meta['regressor']!r:.60}")
         carried, _ = read_npz(path, (*CARRIED.values(), "metadata"), "model")
         regressor = ({k: carried[v] for k, v in CARRIED.items()}, meta["regressor"])
+    side = _load_side(path, meta) if "side" in meta else None
     try:
         return Model(config=config, coef=arrays["coef"], intercept=float(arrays["intercept"]),
                      mean=arrays["mean"], scale=arrays["scale"],
-                     classifier=meta.get("classifier", "linearsvc"), metadata=meta, regressor=regressor)
+                     classifier=meta.get("classifier", "linearsvc"), metadata=meta, regressor=regressor, side=side)
     except ModelError as exc:
         raise ModelError(f"{path}: {exc}") from None
+
+
+def _load_side(path: Path, meta: dict[str, Any]) -> Model:
+    """The side-view component a model file carries (:data:`SIDE_ARRAYS`, ``metadata["side"]``)."""
+    sm = meta["side"]
+    if not isinstance(sm, dict):
+        raise ModelError(f"{path}: metadata 'side' must be a JSON object, got {sm!r:.60}")
+    try:
+        config = FeatureConfig.from_dict(sm["feature_config"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ModelError(f"{path}: bad feature configuration of the side-view component: {exc}") from None
+    arrays, _ = read_npz(path, (*SIDE_ARRAYS.values(), "metadata"), "model")
+    if arrays[SIDE_ARRAYS["intercept"]].shape != ():
+        raise ModelError(f"{path}: '{SIDE_ARRAYS['intercept']}' must be a scalar")
+    try:
+        return Model(config=config, coef=arrays[SIDE_ARRAYS["coef"]], intercept=float(arrays[SIDE_ARRAYS["intercept"]]),
+                     mean=arrays[SIDE_ARRAYS["mean"]], scale=arrays[SIDE_ARRAYS["scale"]],
+                     classifier=sm.get("classifier", "linearsvc"), metadata=sm)
+    except ModelError as exc:
+        raise ModelError(f"{path}: side-view component: {exc}") from None

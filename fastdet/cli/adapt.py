@@ -42,6 +42,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import shutil
 import sys
@@ -70,7 +71,8 @@ from ..labels.picture import AnnotatedPicture
 from ..model import Model, load_model
 from ..train import adapt as _adapt
 from ..train import operating_point as _op
-from ..train.blend import offset
+from ..train import side as _side
+from ..train.blend import offset, side_offset
 from ..video.detector import BOXES_KEY, ONCOMING_KEY
 from ..video.run import file_horizon
 from ._args import fraction, positive_int, teacher_size, video_files
@@ -246,8 +248,7 @@ def holdout_lanes(held: dict[str, list[AnnotatedPicture]], frames: Mapping[str, 
     from ..eval.metrics import frame_counts
     from ..video.replay import iter_lane_detections
 
-    def run(clip: _adapt.Clip, model: str, lanes: Sequence[tuple[Boxes, float]]
-            ) -> tuple[dict[tuple[Boxes, float], np.ndarray], float, int]:
+    def run(clip: _adapt.Clip, model: str, lanes: Sequence[_op.Lane]) -> tuple[dict[_op.Lane, np.ndarray], float, int]:
         pics = held.get(clip.name, [])
         if not pics:
             return {k: np.zeros((0, 3), np.int64) for k in lanes}, 0.0, 0
@@ -333,6 +334,44 @@ def _fmt(a: dict[str, Any] | None) -> str:
 
     return (f"F1 {n(a['f1'])} (P {n(a['precision'])}, R {n(a['recall'])}; {a['tp']} hits, {a['fp']} false, "
             f"{a['fn']} missed), {n(a['ms_per_frame'])} ms a frame")
+
+
+def _finite(v: float) -> float | None:
+    """``v``, or ``None`` for +inf (the side-view component left out), for the JSON summary."""
+    return None if v == math.inf else v
+
+
+def use_side(boxes: Boxes, by_boxes: Mapping[str, _op.FormationChoice], side: _op.FormationChoice) -> bool:
+    """Whether the model keeps its side-view component: its offset chosen (:func:`choose_side_offset
+    <fastdet.train.operating_point.choose_side_offset>`) is not "left out", and the window boxes with
+    it agree with the kept-aside labels at least as well as the formation chosen without it
+    (``boxes``, at its best offset): the component's windows go to the window boxes only."""
+    if side.offset == math.inf:
+        return False
+    if boxes == "nms":
+        return True
+    mine = side.results[side.offset].f1
+    theirs = by_boxes[boxes].results[by_boxes[boxes].best].f1
+    return not math.isnan(mine) and (math.isnan(theirs) or mine > theirs)
+
+
+def side_line(summary: Mapping[str, Any], config: AdaptConfig) -> str:
+    """The summary's line on the side-view component."""
+    fit = summary["fit"]
+    if "positives" not in fit:
+        return (f"side-view component: none ({fit['vehicles']} labelled vehicles of {config.side_aspect:g}:1 and "
+                f"wider to fit it on, fewer than {config.side_min_vehicles})")
+    head = (f"side-view component: fitted on {fit['vehicles']} vehicles ({fit['positives']} positive, "
+            f"{fit['negatives']} background, {fit['hard_negatives']} hard negative crops)")
+    if "offsets_f1" not in summary:
+        return head + "; left out (no window boxes to join)"
+
+    def f1(v: float | None) -> str:
+        return "-" if v is None else f"{v:.2f}"
+
+    tried = ", ".join(f"{'left out' if k == 'inf' else k} {f1(v)}" for k, v in summary["offsets_f1"].items())
+    got = "left out" if summary["offset"] is None else f"offset {summary['offset']:g}"
+    return head + f"; with window boxes, offsets tried (F1): {tried}; chosen: {got}"
 
 
 def _cluster_labelling(args: argparse.Namespace) -> Callable[[float], _adapt.Labeller] | None:
@@ -451,6 +490,11 @@ def run(args: argparse.Namespace) -> int:
         model = carrying(model, regressor)  # every model file written from here on carries it
     secs["regressor"] = time.perf_counter() - t
     _signals.check()
+    t = time.perf_counter()
+    side, side_fit = _side.fit_side_model(
+        train_pics, model, replace(PipelineConfig().search, horizon=horizons[footage.clips[0].name]), config, progress)
+    secs["side"] = time.perf_counter() - t
+    _signals.check()
 
     t = time.perf_counter()
     n_held = sum(len(v) for v in held.values())
@@ -460,6 +504,7 @@ def run(args: argparse.Namespace) -> int:
     tried: dict[str, Any] = {}
     formations: dict[str, Any] = {}
     kept: dict[str, Any] = {}
+    side_summary: dict[str, Any] = {"fit": side_fit, "offset": None}
     if n_held:
         _warm_up(footage.clips[0].path)
         t_read = time.perf_counter()
@@ -475,8 +520,19 @@ def run(args: argparse.Namespace) -> int:
                           for b, c in by_boxes.items()}
             results = by_boxes[boxes].results
             tried = {f"{o:g}": r.to_dict()["f1"] for o, r in results.items()}
+            r = results[chosen]
+            if side is not None and "nms" in by_boxes:
+                sc = _op.choose_side_offset(replace(model, side=side), footage, holdout_lanes(held, frames, horizons),
+                                            work / "operating-point", "nms", by_boxes["nms"].offset,
+                                            config.side_offsets, progress, seed=config.seed)
+                side_summary.update({"offsets_f1": {f"{o:g}": a.to_dict()["f1"] for o, a in sc.results.items()},
+                                     "best_offset": _finite(sc.best), "f1_se": round(sc.se, 4)})
+                if use_side(boxes, by_boxes, sc):
+                    boxes, chosen = "nms", by_boxes["nms"].offset
+                    model = side_offset(replace(model, side=side), sc.offset)
+                    side_summary["offset"] = sc.offset
+                    r = sc.results[sc.offset]
             after = _after(model, chosen, boxes, footage, run_holdout, work / "operating-point")
-        r = results[chosen]
         if (after["tp"], after["fp"], after["fn"]) != (r.tp, r.fp, r.fn):
             print(f"note: at offset {chosen:g} the pipeline run found {after['tp']} / {after['fp']} / {after['fn']} "
                   f"(hits / false / missed), the replay of the offsets {r.tp} / {r.fp} / {r.fn}", flush=True)
@@ -495,7 +551,8 @@ def run(args: argparse.Namespace) -> int:
                    "kept_aside_read": footage.holdout_length, "labelled_now": n_now},
         "targets_trained": n_targets, "crops": counts, "regressor_fit": regressor_fit,
         "seconds": {k: round(v, 2) for k, v in secs.items()},
-        "offset": chosen, "offsets_f1": tried, "boxes": boxes, "boxes_tried": formations, "kept_aside": kept,
+        "offset": chosen, "offsets_f1": tried, "boxes": boxes, "boxes_tried": formations, "side": side_summary,
+        "kept_aside": kept,
         "agreement": {"before": before, "after": after},
         "config": config.to_dict(),
     }
@@ -526,8 +583,10 @@ def run(args: argparse.Namespace) -> int:
               + ", ".join(f"{k} {f1(v)}" for k, v in tried.items())
               + f"; best {fb['best_offset']:g} (F1 {f1(fb['best_f1'])} +- {fb['f1_se']:.2f} over the kept-aside "
               f"frames); chosen {chosen:g} by the one-standard-error rule")
+        print(side_line(side_summary, config))
     else:
-        print("no labelled frame kept aside: the model keeps its own operating point (offset 0)")
+        print("no labelled frame kept aside: the model keeps its own operating point (offset 0)"
+              + ("" if side is None else "; the side-view component is left out (nothing to choose its offset on)"))
     print(f"agreement with the {labelled_by} labels on the kept-aside frames:")
     print(f"  before (bundled model): {_fmt(before)}")
     print(f"  after  ({out.name}): {_fmt(after)}")

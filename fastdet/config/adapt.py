@@ -13,6 +13,11 @@ from ._base import Config
 DEFAULT_OFFSETS: tuple[float, ...] = (-1.0, 0.0, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0)
 
 
+#: the side-view component's decision offsets tried (decision units; + is stricter): its
+#: logistic regression's probability 0.5 to 0.998
+DEFAULT_SIDE_OFFSETS: tuple[float, ...] = (0.0, 1.0, 2.0, 3.0, 4.0, 6.0)
+
+
 def _whole(name: str, v: object, low: int) -> None:
     if isinstance(v, bool) or not isinstance(v, int) or v < low:
         raise ValueError(f"{name} must be a whole number >= {low}, got {v!r}")
@@ -63,6 +68,15 @@ class AdaptConfig(Config):
         paired with the labelled vehicle it overlaps at IoU >= 0.3), each of these counted this
         many times; 0: the jittered boxes only (docs/training.md, "The regressor learns from the
         model's own boxes").
+    side_aspect: a labelled vehicle at least this many times as wide as tall (and 32 px wide) is a
+        positive of the camera's side-view component (:mod:`fastdet.train.side`).
+    side_min_vehicles: the fewest such vehicles the component is fitted on (fewer: none).
+    side_jitter, side_negatives, side_hard: its crops: jittered copies of each positive, random
+        background windows a frame, hard negatives a frame (one round).
+    side_C: its logistic regression's inverse penalty.
+    side_offsets: its decision offsets tried on the kept-aside footage with the chosen box
+        formation and offset; leaving it out is tried too, and the rule of ``offsets`` picks
+        (:func:`fastdet.train.operating_point.choose_side_offset`).
     min_score: a teacher vehicle at least this sure is a target, below it an ignore region.
     offsets: the decision offsets (:func:`fastdet.train.blend.offset`, decision units; + is
         stricter) tried on the kept-aside footage; the strictest whose F1 against the teacher is
@@ -86,6 +100,13 @@ class AdaptConfig(Config):
     mining_rounds: int = 2
     mining_frames: int = 120
     own_box_weight: int = 4
+    side_aspect: float = 1.4
+    side_min_vehicles: int = 20
+    side_jitter: int = 3
+    side_negatives: int = 30
+    side_hard: int = 30
+    side_C: float = 0.01
+    side_offsets: tuple[float, ...] = DEFAULT_SIDE_OFFSETS
     min_score: float = 0.3
     offsets: tuple[float, ...] = DEFAULT_OFFSETS
     C: float = 0.0218
@@ -108,6 +129,19 @@ class AdaptConfig(Config):
         _whole("mining_rounds", self.mining_rounds, 1)
         _whole("mining_frames", self.mining_frames, 1)
         _whole("own_box_weight", self.own_box_weight, 0)
+        _whole("side_min_vehicles", self.side_min_vehicles, 1)
+        _whole("side_jitter", self.side_jitter, 0)
+        _whole("side_negatives", self.side_negatives, 0)
+        _whole("side_hard", self.side_hard, 0)
+        if not (isinstance(self.side_aspect, (int, float)) and math.isfinite(self.side_aspect)
+                and self.side_aspect > 0):
+            raise ValueError(f"side_aspect must be > 0, got {self.side_aspect!r}")
+        if not (isinstance(self.side_C, (int, float)) and math.isfinite(self.side_C) and self.side_C > 0):
+            raise ValueError(f"side_C must be > 0, got {self.side_C!r}")
+        if not self.side_offsets or not all(isinstance(o, (int, float)) and math.isfinite(o)
+                                            for o in self.side_offsets):
+            raise ValueError(f"side_offsets must be finite numbers, at least one, got {self.side_offsets!r}")
+        object.__setattr__(self, "side_offsets", tuple(sorted({float(o) for o in self.side_offsets})))
         if self.max_per_folder is not None:
             _whole("max_per_folder", self.max_per_folder, 1)
         if not (isinstance(self.holdout, (int, float)) and 0 < self.holdout < 1):

@@ -77,9 +77,10 @@ class Detector:
         ``None`` keeps the searches' own. Change it later with :meth:`set_horizon`.
     components: more whole-vehicle models, each with its own search: ``(model, search)``
         pairs. Their windows are tagged ``FIRST_COMPONENT_PART + i``; the guided search plans
-        their bands as the main model's (``columns``). The video pipeline makes none (its
-        side-view and small-vehicle components were deleted); :func:`fastdet.train.windows.false_window_scores`
-        scores several models on the same windows with them. All models must give the same
+        their bands as the main model's (``columns``). A main model that carries a side-view
+        component (:attr:`Model.side <fastdet.model.Model.side>`, ``fastdet adapt``) adds it as the
+        first, with ``search``; :func:`fastdet.train.windows.false_window_scores` scores several
+        models on the same windows with them. All models must give the same
         kind of score (:attr:`Model.score_kind <fastdet.model.Model.score_kind>`).
     wide, wide_search: the former names of ``oncoming`` and ``oncoming_search``; deprecated
         (a :class:`DeprecationWarning`), they will be removed.
@@ -128,6 +129,8 @@ class Detector:
                                         oncoming_search if oncoming_search is not None else ONCOMING_SEARCH))
             self.parts.append(ONCOMING_PART)
         self.components: list[Model] = []
+        if self.model.side is not None:  # the camera's side-view component: the main model's search
+            components = [(self.model.side, self.search), *components]
         for i, (comp, comp_search) in enumerate(components):
             m = comp if isinstance(comp, Model) else load_model(comp)
             self._check_kind(m, comp, f"component {i + 1}")

@@ -12,11 +12,14 @@ in (:meth:`fastdet.model.Model.folded`). So
   heat map's score range) moves up by that constant in decision units, with no setting changed;
 - :func:`rate_offset` finds the constant at which a model lets through as many of some windows
   (e.g. the false windows of annotated frames, :func:`fastdet.train.windows.frame_windows`) as
-  a reference model does at its own threshold.
+  a reference model does at its own threshold;
+- :func:`side_offset` moves a model's side-view component alone (or drops it).
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -63,7 +66,19 @@ def offset(model: Model, delta: float, metadata: dict[str, Any] | None = None) -
     meta.update(metadata or {})
     meta["offset"] = float(meta.get("offset", 0.0)) + float(delta)
     return Model(config=model.config, coef=model.coef, intercept=model.intercept - float(delta), mean=model.mean,
-                 scale=model.scale, classifier=model.classifier, metadata=meta, regressor=model.regressor)
+                 scale=model.scale, classifier=model.classifier, metadata=meta, regressor=model.regressor,
+                 side=model.side)
+
+
+def side_offset(model: Model, delta: float) -> Model:
+    """``model`` with its side-view component (:attr:`Model.side`) moved by ``delta`` as
+    :func:`offset` moves a model (+ is stricter); ``delta`` +inf: without the component (no
+    window of it is positive). ``ValueError`` when the model carries none."""
+    if model.side is None:
+        raise ValueError("side_offset: the model carries no side-view component")
+    if delta == math.inf:
+        return replace(model, side=None)
+    return replace(model, side=offset(model.side, delta))
 
 
 def rate_offset(scores: np.ndarray, reference: np.ndarray, threshold: float = 0.0) -> float:

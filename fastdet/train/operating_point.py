@@ -66,15 +66,18 @@ class Agreement:
 #: (``seconds`` and ``frames`` from the stretch's first frame out: :attr:`Agreement.ms_per_frame`)
 HoldoutRun = Callable[[Clip, "str | None"], tuple[int, int, int, float, int]]
 
-#: ``run(clip, model file, lanes) -> ({(boxes, offset): counts (K, 3) int64}, seconds, frames read)``:
+#: one lane of a :data:`LanesRun`: ``(boxes, offset)``, or ``(boxes, offset, side offset)`` for a
+#: model carrying a side-view component (+inf: without it; :func:`~fastdet.train.blend.side_offset`)
+Lane = tuple[Boxes, float] | tuple[Boxes, float, float]
+
+#: ``run(clip, model file, lanes) -> ({lane: counts (K, 3) int64}, seconds, frames read)``:
 #: the video pipeline over the clip's kept-aside stretch for each lane -- a box formation
 #: (:attr:`PipelineConfig.boxes <fastdet.config.PipelineConfig>`) and the model moved by an offset
 #: (:func:`~fastdet.train.blend.offset`); the frames read and scored once for all of them:
 #: :func:`fastdet.video.replay.iter_lane_detections` --, each lane's boxes scored against the
 #: kept-aside labels: ``(tp, fp, fn)`` of each of the clip's K kept-aside labelled frames, in one
 #: frame order for every lane
-LanesRun = Callable[[Clip, str, Sequence[tuple[Boxes, float]]],
-                    tuple[dict[tuple[Boxes, float], np.ndarray], float, int]]
+LanesRun = Callable[[Clip, str, Sequence[Lane]], tuple[dict[Lane, np.ndarray], float, int]]
 
 #: bootstrap draws of the kept-aside frames for the standard error of the best offset's F1
 #: (:func:`strictest_within_one_se`)
@@ -172,6 +175,28 @@ def choose_boxes(by_boxes: Mapping[str, FormationChoice]) -> Boxes:
     return best  # type: ignore[return-value]
 
 
+def lane_counts(model: Model, footage: Footage, run: LanesRun, folder: Path, lanes: Sequence[Lane], desc: str,
+                progress: bool = True) -> tuple[dict[Lane, np.ndarray], float, int]:
+    """``run`` over every clip with kept-aside labels for every lane at once: ``({lane: per-frame
+    (tp, fp, fn) (K, 3) over all the clips}, seconds, frames read)``; ``model`` is written to
+    ``folder`` for it to load (and removed after)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    parts: dict[Lane, list[np.ndarray]] = {k: [] for k in lanes}
+    secs, frames = 0.0, 0
+    path = folder / "model.npz"
+    offset(model, 0.0).save(path)
+    try:
+        for clip in tqdm([c for c in footage.clips if c.holdout_frames(footage.holdout_every)], desc=desc,
+                         unit="video", file=sys.stderr, dynamic_ncols=True, disable=not progress):
+            per_lane, s, n = run(clip, str(path), lanes)
+            secs, frames = secs + s, frames + n
+            for k in lanes:
+                parts[k].append(np.asarray(per_lane[k], np.int64).reshape(-1, 3))
+    finally:
+        path.unlink(missing_ok=True)
+    return {k: np.concatenate(v) if v else np.zeros((0, 3), np.int64) for k, v in parts.items()}, secs, frames
+
+
 def choose_operating_point(model: Model, footage: Footage, run: LanesRun, folder: Path, offsets: Sequence[float],
                            formations: Sequence[Boxes] = BOXES, progress: bool = True, seed: int = 0
                            ) -> tuple[Boxes, float, dict[str, FormationChoice]]:
@@ -181,28 +206,38 @@ def choose_operating_point(model: Model, footage: Footage, run: LanesRun, folder
     Returns ``(formation, offset, {formation: FormationChoice})`` (each Agreement's ``seconds``:
     the whole run's over every clip, every lane at once). ``run`` gets every (formation, offset)
     lane at once; ``model`` is written to ``folder`` for it to load (and removed after)."""
-    folder.mkdir(parents=True, exist_ok=True)
-    lanes = [(b, float(o)) for b in formations for o in offsets]
-    counts: dict[tuple[Boxes, float], list[np.ndarray]] = {k: [] for k in lanes}
-    secs, frames = 0.0, 0
-    path = folder / "model.npz"
-    offset(model, 0.0).save(path)
-    try:
-        for clip in tqdm([c for c in footage.clips if c.holdout_frames(footage.holdout_every)], desc="operating point",
-                         unit="video", file=sys.stderr, dynamic_ncols=True, disable=not progress):
-            per_lane, s, n = run(clip, str(path), lanes)
-            secs, frames = secs + s, frames + n
-            for k in lanes:
-                counts[k].append(np.asarray(per_lane[k], np.int64).reshape(-1, 3))
-    finally:
-        path.unlink(missing_ok=True)
-
+    lanes: list[Lane] = [(b, float(o)) for b in formations for o in offsets]
+    counts, secs, frames = lane_counts(model, footage, run, folder, lanes, "operating point", progress)
     by_boxes: dict[str, FormationChoice] = {}
     for b in formations:
-        per_frame = {o: np.concatenate(counts[(bb, o)]) for bb, o in lanes if bb == b}
+        per_frame = {lane[1]: counts[lane] for lane in lanes if lane[0] == b}
         results = {o: Agreement(*(int(v) for v in c.sum(axis=0)), seconds=secs, frames=frames)
                    for o, c in per_frame.items()}
         chosen, best, se = strictest_within_one_se(per_frame, seed)
         by_boxes[b] = FormationChoice(chosen, results, best, se)
     boxes = choose_boxes(by_boxes)
     return boxes, by_boxes[boxes].offset, by_boxes
+
+
+def choose_side_offset(model: Model, footage: Footage, run: LanesRun, folder: Path, boxes: Boxes, main_offset: float,
+                       side_offsets: Sequence[float], progress: bool = True, seed: int = 0) -> FormationChoice:
+    """The decision offset of ``model``'s side-view component (:attr:`Model.side`), or none
+    (``math.inf``: the component left out), with the box formation ``boxes`` and the main model
+    moved by ``main_offset`` (both chosen before, :func:`choose_operating_point`): of
+    ``side_offsets`` and leaving it out, the strictest whose F1 against the kept-aside labels is
+    within one standard error of the best (:func:`strictest_within_one_se`; leaving it out is the
+    strictest of all), and leaving it out wherever an offset's boxes agree with the labels
+    exactly as those without it do (the component would cost time for nothing). Returns the
+    choice as a :class:`FormationChoice` over those offsets."""
+    if model.side is None:
+        raise ValueError("choose_side_offset: the model carries no side-view component")
+    keys = [*sorted({float(o) for o in side_offsets}), math.inf]
+    lanes: list[Lane] = [(boxes, float(main_offset), k) for k in keys]
+    counts, secs, frames = lane_counts(model, footage, run, folder, lanes, "side-view offset", progress)
+    per_frame = {lane[2]: counts[lane] for lane in lanes}  # type: ignore[misc]
+    results = {k: Agreement(*(int(v) for v in c.sum(axis=0)), seconds=secs, frames=frames)
+               for k, c in per_frame.items()}
+    chosen, best, se = strictest_within_one_se(per_frame, seed)
+    if np.array_equal(per_frame[chosen], per_frame[math.inf]):
+        chosen = math.inf
+    return FormationChoice(chosen, results, best, se)

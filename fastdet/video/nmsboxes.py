@@ -5,10 +5,11 @@ The heat map sums the windows of recent frames and boxes each blob: it asks a ve
 several frames of evidence and gives a weak window classifier's scattered windows one box.
 A model fitted to one camera (``fastdet adapt``) has windows that sit on the vehicles, and
 there the blobs lose them: neighbours side by side merge into one blob, and a blob's outline
-is not its vehicle's box. So the windows themselves are the boxes: the main model's positive
-windows of the frame, greedily by score, a window dropped when it overlaps one already kept by
-IoU above :data:`NMS_IOU` (the picture search's rule, :class:`~fastdet.config.PictureSearch`) or
-when more than :data:`NMS_INSIDE` of its area lies inside one (the rule of DPM's ``nms.m``,
+is not its vehicle's box. So the windows themselves are the boxes: the positive windows of the
+main model and of the camera's side-view component (:attr:`fastdet.model.Model.side`) in the
+frame, greedily by score, a window dropped when it overlaps one already kept by IoU above
+:data:`NMS_IOU` (the picture search's rule, :class:`~fastdet.config.PictureSearch`) or when
+more than :data:`NMS_INSIDE` of its area lies inside one (the rule of DPM's ``nms.m``,
 Felzenszwalb et al.: windows of several sizes on one vehicle, a small one inside a large one,
 have a small IoU).
 The tracker, the box regressor and the second-box rule (:mod:`fastdet.video.plausible`) then
@@ -22,7 +23,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..detections import MAIN_PART, Detections
+from ..detections import Detections
 from .plausible import duplicates
 from .state import FrameState, Stage
 
@@ -35,11 +36,12 @@ NMS_INSIDE = 0.5
 
 
 def nms_boxes(windows: Detections, max_iou: float = NMS_IOU, max_inside: float = NMS_INSIDE) -> Detections:
-    """One box per vehicle of ``windows`` (a frame's positive windows; the main model's, when
-    they have a ``part`` column): the windows kept by greedy suppression at ``max_iou`` and
+    """One box per vehicle of ``windows`` (a frame's positive windows; those of the main model and
+    its components -- a camera's side-view one --, not the oncoming model's, when they have a
+    ``part`` column): the windows kept by greedy suppression at ``max_iou`` and
     ``max_inside`` (:func:`~fastdet.video.plausible.duplicates`), boxes ``(N, 4) int32`` and the
     windows' scores ``(N,) float32``, in the windows' order."""
-    w = windows[windows.part == MAIN_PART] if windows.part is not None else windows
+    w = windows[~windows.is_oncoming] if windows.part is not None else windows
     if len(w) == 0:
         return Detections(np.zeros((0, 4), np.int32), np.zeros(0, np.float32))
     keep = duplicates(w.boxes, w.scores, max_iou, max_inside)
@@ -47,7 +49,8 @@ def nms_boxes(windows: Detections, max_iou: float = NMS_IOU, max_inside: float =
 
 
 class NmsStage(Stage):
-    """The main model's boxes of a frame: its positive windows after non-maximum suppression
+    """The boxes of a frame: the positive windows of the main model (and its side-view component)
+    after non-maximum suppression
     (:func:`nms_boxes`), in the heat map's place (module docstring). No heat map: nothing of
     one frame is carried to the next. A frame of another size calls ``on_new_size(first)``
     as :class:`~fastdet.video.box_stages.HeatStage` does (``first``: the first frame)."""

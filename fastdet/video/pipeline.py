@@ -23,6 +23,7 @@ import time
 import weakref
 from collections.abc import Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor, wait
+from typing import Any
 
 import numba
 import numpy as np
@@ -115,6 +116,15 @@ def run_frames(vd: VideoDetector, frames: Iterable[tuple[int, np.ndarray, float]
             ahead[3].wait()
 
 
+def _given_components(detector: object) -> list[Any]:
+    """The components of ``detector`` besides the side-view one its main model carries."""
+    comps = list(getattr(detector, "components", None) or [])
+    model = getattr(detector, "model", None)
+    if comps and isinstance(model, Model) and model.side is not None and comps[0] is model.side:
+        comps = comps[1:]
+    return comps
+
+
 class VideoDetector:
     """Vehicle boxes for a stream of frames: a detector's positive windows of each frame, a
     heat map over recent frames for one box per vehicle, a tracker for its id.
@@ -159,9 +169,10 @@ class VideoDetector:
                             f"oncoming_model (a WindowDetector), got {type(detector).__name__}")
         if config is not None and not isinstance(config, PipelineConfig):
             raise TypeError(f"config must be a PipelineConfig, got {type(config).__name__}")
-        if detector is not None and getattr(detector, "components", None):
-            raise ValueError("the video pipeline runs the main model and the oncoming model only: its heat map "
-                             "would drop the windows of a Detector's components=; pass a Detector without them")
+        if detector is not None and _given_components(detector):
+            raise ValueError("the video pipeline runs the main model (and the side-view component it carries) and "
+                             "the oncoming model only: its heat map would drop the windows of a Detector's "
+                             "components=; pass a Detector without them")
         self.config = config if config is not None else PipelineConfig()
         self._detector = detector
         self.fps = fps

@@ -37,7 +37,7 @@ import numpy as np
 
 from ..config import Boxes, FeatureConfig, PipelineConfig, RefineConfig, SearchBand
 from ..detect import BandGeometry, Detector, DetectStats
-from ..detections import ONCOMING_PART, Detections
+from ..detections import MAIN_PART, ONCOMING_PART, Detections
 from ..io.held import HeldFrames
 from ..io.reader import FrameReader
 from ..model import Model
@@ -65,13 +65,16 @@ class ReplayDetector:
 
     source: the :class:`~fastdet.Detector` that scored the frames (its bands, thresholds and
         score kind are used). delta: the offset, decision units (+ is stricter).
+    component_delta: the offset of the components' windows (a camera's side-view component,
+        :func:`fastdet.train.blend.side_offset`); +inf: none of them.
     """
 
     column_search = True
 
-    def __init__(self, source: Detector, delta: float) -> None:
+    def __init__(self, source: Detector, delta: float, component_delta: float = 0.0) -> None:
         self.source = source
         self.delta = float(delta)
+        self.component_delta = float(component_delta)
         self._main: list[Band] = []
         self._oncoming = Detections.empty()
 
@@ -119,7 +122,8 @@ class ReplayDetector:
             raise ValueError(f"columns: {len(columns)} entries for {len(self._main)} bands")
         bands: list[Band] = []
         for i, (part, geo, dec) in enumerate(self._main):
-            d = dec - self.delta if self.delta else dec
+            delta = self.delta if part == MAIN_PART else self.component_delta
+            d = dec - delta if delta else dec
             spans = columns[i] if columns is not None and i < len(columns) else None
             if spans is not None:
                 d2 = np.full_like(d, -np.inf)
@@ -211,16 +215,22 @@ def iter_offset_detections(path: str | os.PathLike | HeldFrames, offsets: Sequen
         yield fno, dict(zip(offs, tables))
 
 
-def iter_lane_detections(path: str | os.PathLike | HeldFrames, lanes: Sequence[tuple[Boxes | None, float]],
+#: one lane of :func:`iter_lane_detections`: ``(boxes, offset)`` or ``(boxes, offset, component offset)``
+Lane = tuple[Boxes | None, float] | tuple[Boxes | None, float, float]
+
+
+def iter_lane_detections(path: str | os.PathLike | HeldFrames, lanes: Sequence[Lane],
                          config: PipelineConfig | None = None, *, start: int = 0, frames: int | None = None,
                          progress: bool = False) -> Iterator[tuple[int, list[Detections]]]:
     """As :func:`iter_offset_detections`, for lanes that may also differ in their box formation:
     each lane ``(boxes, offset)`` is ``config`` with :attr:`PipelineConfig.boxes
-    <fastdet.config.PipelineConfig>` set to ``boxes`` and its main model moved by ``offset``.
+    <fastdet.config.PipelineConfig>` set to ``boxes`` and its main model moved by ``offset``;
+    a third entry moves the main model's side-view component
+    (:func:`~fastdet.train.blend.side_offset`: +inf, without it) by that much (default 0).
     Yields ``(frame, [Detections of each lane, in order])``; the frames are read and scored once
     for all of them."""
     config = config if config is not None else PipelineConfig()
-    keys = [(b, float(o)) for b, o in lanes]
+    keys = [(lane[0], float(lane[1]), float(lane[2]) if len(lane) > 2 else 0.0) for lane in lanes]
     if not keys or len(set(keys)) != len(keys):
         raise ValueError(f"lanes must be distinct and at least one, got {list(lanes)!r}")
     reader = FrameReader(path, start, frames)
@@ -237,10 +247,10 @@ def iter_lane_detections(path: str | os.PathLike | HeldFrames, lanes: Sequence[t
                 front.append(st)
         own = vd.stage(OwnVehicleStage)
         assert own is None or isinstance(own, OwnVehicleStage)
-        replays = [ReplayDetector(detector, o) for _, o in keys]
+        replays = [ReplayDetector(detector, o, c) for _, o, c in keys]
         memo: dict[bytes, np.ndarray] = {}
         stages = [lane_stages(replace(config, boxes=b), r, reader.fps, vd.refiner, own, memo)
-                  for (b, _), r in zip(keys, replays)]
+                  for (b, _, _), r in zip(keys, replays)]
         with progress_bar(reader.expected, progress, os.path.basename(reader.path)) as bar:
             for fno, frame, _ in reader:
                 s = FrameState(frame)

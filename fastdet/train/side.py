@@ -1,0 +1,172 @@
+"""A camera's side-view component (``python -m fastdet adapt``): a linear model of wide windows
+(64x32) for the vehicles a square window does not fit -- cars seen side-on or obliquely in
+crossing and turning traffic, buses and trucks alongside --, fitted on the camera's own
+labelled frames alone and carried in its model file (:attr:`fastdet.model.Model.side`).
+
+On most cameras measured, most of the adapted square model's misses were such vehicles (wider
+than 1.4:1; docs/training.md, "A side-view component for the camera"). The component learns
+them from the camera's wide targets:
+
+- positives: every target at least :attr:`~fastdet.config.adapt.AdaptConfig.side_aspect` as wide
+  as tall and :data:`MIN_WIDTH` px wide, cut at the window's aspect with jittered copies
+  (:func:`~fastdet.train.keyframes.positive_crops`), and their mirror images;
+- negatives: random 2:1 windows of the background (touching no labelled box), then one round of
+  hard negatives: the windows the first fit fires on that touch no labelled box, at the bands
+  the video pipeline searches (:func:`hard_negatives`), on at most ``mining_frames`` of the
+  frames, spread evenly;
+- a logistic regression on the main model's features of that window, the two classes weighted
+  equally (the negatives outnumber the positives many times).
+
+Its decision offset -- or leaving it out -- is chosen on the frames kept aside
+(:func:`fastdet.train.operating_point.choose_side_offset`).
+"""
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from ..boxes import intersection
+from ..config import FeatureConfig, SearchConfig
+from ..config.adapt import AdaptConfig
+from ..detect import Detector
+from ..detections import FIRST_COMPONENT_PART
+from ..labels.load import load_pictures
+from ..labels.picture import AnnotatedPicture
+from ..model import Model
+from .adapt import spread
+from .dataset import CropSet
+from .fit import features_in_chunks, fit_classifier
+from .keyframes import aspect_of, background_crops, positive_crops, window_crops
+from .pictures import as_frame
+
+#: the side-view window's height, in pixels at scale 1 (its width is the main model's window)
+WINDOW_HEIGHT = 32
+#: a target narrower than this (pixels) is not a side-view positive: scaled up to 64 px it is a blur
+MIN_WIDTH = 32.0
+
+
+def side_config(main: FeatureConfig) -> FeatureConfig:
+    """The component's features: the main model's at a window ``main.window`` wide and
+    :data:`WINDOW_HEIGHT` tall."""
+    return replace(main, window_height=WINDOW_HEIGHT)
+
+
+def wide_targets(targets: np.ndarray, aspect: float) -> np.ndarray:
+    """``(N, 4)`` boxes of ``targets`` at least ``aspect`` as wide as tall and :data:`MIN_WIDTH` wide."""
+    t = np.asarray(targets, np.float64).reshape(-1, 4)
+    return t[(aspect_of(t) >= aspect) & (t[:, 2] - t[:, 0] >= MIN_WIDTH)]
+
+
+def count_wide(pictures: Sequence[AnnotatedPicture], aspect: float) -> int:
+    """How many side-view positives ``pictures`` hold (:func:`wide_targets`)."""
+    return sum(len(wide_targets(p.targets, aspect)) for p in pictures)
+
+
+def _frames(pictures: Sequence[AnnotatedPicture], desc: str, progress: bool
+            ) -> Iterator[tuple[AnnotatedPicture, np.ndarray]]:
+    bar = tqdm(total=len(pictures), unit="frame", desc=desc, file=sys.stderr, dynamic_ncols=True,
+               disable=not progress)
+    try:
+        for item in load_pictures(pictures):
+            yield item
+            bar.update(1)
+    finally:
+        bar.close()
+
+
+def side_crops(pictures: Sequence[AnnotatedPicture], config: FeatureConfig, adapt: AdaptConfig,
+               progress: bool = True) -> CropSet:
+    """The component's first crops, ``(N, 32, 64, 3) uint8`` (module docstring): positives
+    (``adapt.side_jitter`` jittered copies each, then every positive mirrored) and
+    ``adapt.side_negatives`` background windows a complete picture."""
+    pos: list[np.ndarray] = []
+    neg: list[np.ndarray] = []
+    rng = np.random.default_rng(adapt.seed)
+    for pic, image in _frames(pictures, "side-view crops", progress):
+        f = as_frame(pic, image)
+        s = int(rng.integers(2**31))
+        wide = wide_targets(pic.targets, adapt.side_aspect)
+        if len(wide):
+            p = positive_crops([replace(f, targets=wide)], config.win_w, config.win_h, jitter=adapt.side_jitter,
+                               seed=s)
+            pos += [p, p[:, :, ::-1]]
+        if pic.complete and adapt.side_negatives:
+            neg.append(background_crops([f], config.win_w, config.win_h, adapt.side_negatives, seed=s))
+    empty = np.zeros((0, config.win_h, config.win_w, 3), np.uint8)
+    p_img = np.concatenate(pos) if pos else empty
+    n_img = np.concatenate(neg) if neg else empty
+    images = np.concatenate([p_img, n_img])
+    n = len(images)
+    labels = np.r_[np.ones(len(p_img), np.int64), np.zeros(len(n_img), np.int64)]
+    return CropSet(images, labels, np.full(n, "side", dtype=object), np.arange(n, dtype=np.int64))
+
+
+def _fit(crops: CropSet, config: FeatureConfig, adapt: AdaptConfig, metadata: dict[str, Any]) -> Model:
+    """Logistic regression on ``crops``, the classes weighted equally (each class's weights sum to
+    half the rows)."""
+    x = features_in_chunks(crops.images, config, progress=False)
+    y = crops.labels
+    n_pos = int(y.sum())
+    w = np.where(y == 1, len(y) / (2.0 * n_pos), len(y) / (2.0 * (len(y) - n_pos)))
+    scaler, clf = fit_classifier(x, y, "logreg", adapt.side_C, adapt.seed, in_place=True, sample_weight=w)
+    return Model(config=config, coef=clf.coef_.ravel(), intercept=float(clf.intercept_[0]), mean=scaler.mean_,
+                 scale=scaler.scale_, classifier="logreg", metadata=metadata)
+
+
+def hard_negatives(model: Model, search: SearchConfig, pictures: Sequence[AnnotatedPicture], per_picture: int,
+                   frames: Iterable[tuple[AnnotatedPicture, np.ndarray]] | None = None) -> CropSet:
+    """``(N, 32, 64, 3) uint8`` crops: on each picture, the ``per_picture`` highest-scoring
+    positive windows of ``model``'s side-view component at ``search`` (a video's bands, as the
+    pipeline searches them) that touch no labelled box (target or ignore region). ``frames``:
+    the pictures with their pixels, when already decoded."""
+    assert model.side is not None
+    detector = Detector(model, search)
+    cfg = model.side.config
+    crops: list[np.ndarray] = []
+    for pic, image in (frames if frames is not None else load_pictures(pictures)):
+        w = detector.detect(image)
+        w = w[w.part == FIRST_COMPONENT_PART]
+        boxes = np.concatenate([np.reshape(pic.targets, (-1, 4)), np.reshape(pic.ignores, (-1, 4))])
+        clear = ~np.any(intersection(w.boxes.astype(np.float64), boxes) > 0, axis=1) if len(boxes) else \
+            np.ones(len(w), bool)
+        w = w[clear]
+        top = np.argsort(-w.scores, kind="stable")[:per_picture]
+        crops.append(window_crops([as_frame(pic, image)], [w.boxes[top]], cfg.win_w, cfg.win_h))
+    images = np.concatenate(crops) if crops else np.zeros((0, cfg.win_h, cfg.win_w, 3), np.uint8)
+    n = len(images)
+    return CropSet(images, np.zeros(n, np.int64), np.full(n, "side", dtype=object), np.arange(n, dtype=np.int64))
+
+
+def fit_side_model(pictures: Sequence[AnnotatedPicture], main: Model, search: SearchConfig, adapt: AdaptConfig,
+                   progress: bool = True) -> tuple[Model | None, dict[str, Any]]:
+    """The camera's side-view component from its labelled ``pictures`` (module docstring), of the
+    features of ``main`` (a logistic-regression model) at the wide window, its hard negatives
+    mined at ``search`` (the video's bands at the camera's horizon); with its report
+    (``vehicles``: side-view targets, ``positives`` / ``negatives`` / ``hard_negatives``: crops,
+    ``seconds``). ``(None, report)`` when the pictures hold fewer than
+    ``adapt.side_min_vehicles`` side-view targets (or ``main`` is not a logistic regression):
+    nothing to learn the view from."""
+    t0 = time.perf_counter()
+    vehicles = count_wide(pictures, adapt.side_aspect)
+    report: dict[str, Any] = {"vehicles": vehicles}
+    if vehicles < adapt.side_min_vehicles or main.classifier != "logreg":
+        return None, report
+    config = side_config(main.config)
+    crops = side_crops(pictures, config, adapt, progress)
+    report.update(positives=int(crops.labels.sum()), negatives=int((crops.labels == 0).sum()))
+    meta = {"trained_on": "the camera's labelled frames (fastdet adapt): its side-view targets", "fit": report}
+    model = _fit(crops, config, adapt, meta)
+    mined = spread([p for p in pictures if p.complete], adapt.mining_frames)
+    hard = hard_negatives(replace(main, side=model), search, mined, adapt.side_hard,
+                          _frames(mined, "side-view hard negatives", progress))
+    report["hard_negatives"] = len(hard)
+    if len(hard):
+        model = _fit(CropSet.concat(crops, hard), config, adapt, meta)
+    report["seconds"] = round(time.perf_counter() - t0, 2)
+    return model, report
