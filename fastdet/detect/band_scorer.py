@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -73,66 +74,106 @@ class _Scorer:
             self._thresholds[key] = thr
         return thr
 
+    @property
+    def feature_key(self) -> tuple:
+        """What a band's pixels, HOG block map and spatial-bin map depend on besides the band: two
+        scorers of equal keys share them on a band (:func:`group_band_scores`); the colour
+        histogram weights and the window height are each scorer's own."""
+        c = self.config
+        return (c.window, c.orientations, c.pixels_per_cell, c.cells_per_block, tuple(c.hog_channels),
+                c.color_space, c.spatial_size, spatial_factor(c) if c.spatial_size else 1)
+
     def band_scores(self, frame: np.ndarray, geo: BandGeometry, timings: dict[str, float] | None,
                     serial: bool = False, spans: Sequence[tuple[int, int]] | None = None,
                     padded: PaddedFrame | None = None) -> np.ndarray:
         """Decision values of the band's windows (``spans``: only the window columns
         ``j0 <= j < j1`` of each ``(j0, j1)``, the others -inf; see :meth:`Detector.detect`;
         ``padded``: the frame's :func:`~fastdet.detect.bands.pad_frame`, if made)."""
-        cfg = self.config
-        if spans is not None and not any(min(j1, geo.nx) > max(j0, 0) for j0, j1 in spans):
-            return np.full((geo.ny, geo.nx), -np.inf)  # nothing to score: not even the resize
-        t0 = time.perf_counter()
-        img = convert_color(scaled_band(frame, geo, padded), cfg.color_space)
-        t1 = time.perf_counter()
-        t_hog = t_score = 0.0
-        if spans is None:
-            out = np.empty((geo.ny, geo.nx), np.float64)
-            t_hog, t_score = self._image_scores(img, geo.step, out, serial)
-        else:
-            # Every window of a span, scored on a column slice of the scaled band that runs one
-            # window step (>= 1 cell) past it on each side where the band goes on: HOG zeroes the
-            # gradients of an image's first and last columns, so a window touching the slice's
-            # edge would see other values than in the whole band. The slice starts on the
-            # window grid, so its windows are the band's own; the margin ones are dropped.
-            out = np.full((geo.ny, geo.nx), -np.inf)
-            px = geo.step * cfg.pixels_per_cell  # window step in scaled-band pixels
-            for j0, j1 in spans:
-                j0, j1 = max(int(j0), 0), min(int(j1), geo.nx)
-                if j0 >= j1 or not geo.ny:
-                    continue
-                a = (j0 - 1) * px if j0 > 0 else 0
-                b = min(img.shape[1], (j1 - 1) * px + cfg.win_w + px)
-                sub = np.ascontiguousarray(img[:, a:b])
-                part = np.empty((geo.ny, (b - a - cfg.win_w) // px + 1), np.float64)
-                th, ts = self._image_scores(sub, geo.step, part, serial)
-                t_hog, t_score = t_hog + th, t_score + ts
-                out[:, j0:j1] = part[:, j0 - a // px: j1 - a // px]
-        if timings is not None:
-            timings["resize_colour"] = timings.get("resize_colour", 0.0) + (t1 - t0)
-            timings["hog"] = timings.get("hog", 0.0) + t_hog
-            timings["score"] = timings.get("score", 0.0) + t_score
-        return out
+        return group_band_scores(frame, [(self, geo)], timings, serial, spans, padded)[0]
 
-    def _image_scores(self, img: np.ndarray, step: int, out: np.ndarray, serial: bool) -> tuple[float, float]:
-        """Decision values of the windows of a scaled, colour-converted band image (``step``
-        cells apart) into ``out (ny, nx)``; returns the seconds of HOG and of scoring."""
-        cfg = self.config
-        t1 = time.perf_counter()
-        blocks = hog_channels(img, cfg.orientations, cfg.pixels_per_cell, cfg.cells_per_block,
-                              channels=list(cfg.hog_channels), exact=False)
-        t2 = time.perf_counter()
-        if out.size:
-            rows = blocks.reshape(blocks.shape[0], -1)
-            if cfg.spatial_size:
-                f = spatial_factor(cfg)
-                sp = spatial_map(img, f).astype(np.float64)
-                sp = sp.reshape(sp.shape[0], -1)
-            else:
-                f, sp = 1, None
-            cell = cfg.pixels_per_cell
-            integ = hist_weight_integral(img, self.hist_table, cell) if self.hist_table is not None else None
-            dense_scores(rows, self.w_hog, self.k, out, step=step, cell=cell, win_h=cfg.win_h, win_w=cfg.win_w,
-                         bias=self.bias, spat_rows=sp, w_sp=self.w_sp if cfg.spatial_size else None, sp_off=f,
-                         integ=integ, hist_step=cell, parallel=not serial)
+
+def image_key(geo: BandGeometry) -> BandGeometry:
+    """The band's scaled pixels as :func:`~fastdet.detect.bands.scaled_band` cuts them, whatever
+    the window height: the geometry without its window rows (``ny``)."""
+    return replace(geo, ny=0)
+
+
+def group_band_scores(frame: np.ndarray, members: Sequence[tuple[_Scorer, BandGeometry]],
+                      timings: dict[str, float] | None, serial: bool = False,
+                      spans: Sequence[tuple[int, int]] | None = None,
+                      padded: PaddedFrame | None = None) -> list[np.ndarray]:
+    """Decision values ``(geo.ny, geo.nx) float64`` of the windows of one band for each member
+    ``(scorer, geometry)``: scorers of one :attr:`~_Scorer.feature_key` on geometries of one
+    :func:`image_key` (a main model and its side-view component on the same search band), so
+    the band is cut, resized, colour-converted and its HOG block map and spatial-bin map made
+    once for all of them; each scores its windows with its own weights. The values are those
+    each scorer gives the band alone (the same arithmetic). ``spans``: as
+    :meth:`_Scorer.band_scores`, for every member."""
+    lead, geo = members[0]
+    if any(sc.feature_key != lead.feature_key or image_key(g) != image_key(geo) for sc, g in members[1:]):
+        raise ValueError("group_band_scores: the members must share the band's pixels and features")
+    cfg = lead.config
+    if spans is not None and not any(min(j1, geo.nx) > max(j0, 0) for j0, j1 in spans):
+        return [np.full((g.ny, g.nx), -np.inf) for _, g in members]  # nothing to score: not even the resize
+    t0 = time.perf_counter()
+    img = convert_color(scaled_band(frame, geo, padded), cfg.color_space)
+    t1 = time.perf_counter()
+    t_hog = t_score = 0.0
+    if spans is None:
+        outs = [np.empty((g.ny, g.nx), np.float64) for _, g in members]
+        t_hog, t_score = _image_scores(img, geo.step, members, outs, serial)
+    else:
+        # Every window of a span, scored on a column slice of the scaled band that runs one
+        # window step (>= 1 cell) past it on each side where the band goes on: HOG zeroes the
+        # gradients of an image's first and last columns, so a window touching the slice's
+        # edge would see other values than in the whole band. The slice starts on the
+        # window grid, so its windows are the band's own; the margin ones are dropped.
+        outs = [np.full((g.ny, g.nx), -np.inf) for _, g in members]
+        px = geo.step * cfg.pixels_per_cell  # window step in scaled-band pixels
+        for j0, j1 in spans:
+            j0, j1 = max(int(j0), 0), min(int(j1), geo.nx)
+            if j0 >= j1 or not any(g.ny for _, g in members):
+                continue
+            a = (j0 - 1) * px if j0 > 0 else 0
+            b = min(img.shape[1], (j1 - 1) * px + cfg.win_w + px)
+            sub = np.ascontiguousarray(img[:, a:b])
+            parts = [np.empty((g.ny, (b - a - cfg.win_w) // px + 1), np.float64) for _, g in members]
+            th, ts = _image_scores(sub, geo.step, members, parts, serial)
+            t_hog, t_score = t_hog + th, t_score + ts
+            for out, part in zip(outs, parts):
+                out[:, j0:j1] = part[:, j0 - a // px: j1 - a // px]
+    if timings is not None:
+        timings["resize_colour"] = timings.get("resize_colour", 0.0) + (t1 - t0)
+        timings["hog"] = timings.get("hog", 0.0) + t_hog
+        timings["score"] = timings.get("score", 0.0) + t_score
+    return outs
+
+
+def _image_scores(img: np.ndarray, step: int, members: Sequence[tuple[_Scorer, BandGeometry]],
+                  outs: Sequence[np.ndarray], serial: bool) -> tuple[float, float]:
+    """Decision values of the windows of a scaled, colour-converted band image (``step`` cells
+    apart) into each member's ``out (ny, nx)``; returns the seconds of HOG and of scoring."""
+    cfg = members[0][0].config
+    t1 = time.perf_counter()
+    blocks = hog_channels(img, cfg.orientations, cfg.pixels_per_cell, cfg.cells_per_block,
+                          channels=list(cfg.hog_channels), exact=False)
+    t2 = time.perf_counter()
+    if not any(out.size for out in outs):
         return t2 - t1, time.perf_counter() - t2
+    rows = blocks.reshape(blocks.shape[0], -1)
+    cell = cfg.pixels_per_cell
+    if cfg.spatial_size:
+        f = spatial_factor(cfg)
+        sp = spatial_map(img, f).astype(np.float64)
+        sp = sp.reshape(sp.shape[0], -1)
+    else:
+        f, sp = 1, None
+    for (sc, _), out in zip(members, outs):
+        if not out.size:
+            continue
+        c = sc.config
+        integ = hist_weight_integral(img, sc.hist_table, cell) if sc.hist_table is not None else None
+        dense_scores(rows, sc.w_hog, sc.k, out, step=step, cell=cell, win_h=c.win_h, win_w=c.win_w,
+                     bias=sc.bias, spat_rows=sp, w_sp=sc.w_sp if c.spatial_size else None, sp_off=f,
+                     integ=integ, hist_step=cell, parallel=not serial)
+    return t2 - t1, time.perf_counter() - t2

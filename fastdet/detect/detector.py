@@ -37,7 +37,7 @@ from ..errors import ModelError
 from ..features import _hog_kernels
 from ..model import Model, load_model
 from . import _score_kernels
-from .band_scorer import _Scorer
+from .band_scorer import _Scorer, group_band_scores, image_key
 from .bands import BandGeometry, band_geometry, pad_frame, window_boxes
 
 #: the numba kernels :meth:`Detector.detect` runs (each in the signatures its module lists)
@@ -209,9 +209,25 @@ class Detector:
         t0 = time.perf_counter()
         padded = pad_frame(frame, [g for i, (_, g) in enumerate(geos) if self._needs_pixels(g, spans[i])])
         timings["resize_colour"] = timings.get("resize_colour", 0.0) + (time.perf_counter() - t0)
-        if n_threads < 2 or len(geos) < 2:
-            return [self._scorer_of[p].band_scores(frame, g, timings, spans=sp, padded=padded)
-                    for (p, g), sp in zip(geos, spans)]
+        # one job per band image: the bands of several models with the same pixels, features and
+        # columns to score (a main model's and its side-view component's) share it
+        groups: dict[tuple[Any, ...], list[int]] = {}
+        for i, (p, g) in enumerate(geos):
+            given = spans[i]
+            sp = None if given is None else tuple((int(a), int(b)) for a, b in given)
+            groups.setdefault((image_key(g), self._scorer_of[p].feature_key, sp), []).append(i)
+        jobs = list(groups.values())
+        results: list[Any] = [None] * len(geos)
+
+        def score(job: list[int], t: dict[str, float], serial: bool) -> None:
+            members = [(self._scorer_of[geos[i][0]], geos[i][1]) for i in job]
+            for i, dec in zip(job, group_band_scores(frame, members, t, serial, spans[job[0]], padded)):
+                results[i] = dec
+
+        if n_threads < 2 or len(jobs) < 2:
+            for job in jobs:
+                score(job, timings, False)
+            return results
         helpers = n_threads - 1  # the calling thread takes jobs too
         with self._pool_lock:
             if self._pool is None or self._pool_size != helpers:
@@ -221,15 +237,15 @@ class Detector:
                 self._pool_size = helpers
             pool = self._pool
 
-        def work(i):
-            g, sp = geos[i][1], spans[i]
+        def work(job: list[int]) -> int:
+            g, sp = geos[job[0]][1], spans[job[0]]
             cols = g.nx if sp is None else sum(max(0, min(j1, g.nx) - max(j0, 0)) for j0, j1 in sp)
-            return g.scaled_h * cols
+            return g.scaled_h * cols * len(job)
 
         # biggest jobs first, so the last one to finish is a small one; every thread takes the
         # next job when it is done with one
-        order = sorted(range(len(geos)), key=lambda i: -work(i))
-        results: list = [None] * len(geos)
+        order = sorted(range(len(jobs)), key=lambda k: -work(jobs[k]))
+        times: list[dict[str, float]] = [{} for _ in jobs]
         lock = threading.Lock()
         nxt = [0]
 
@@ -239,23 +255,18 @@ class Detector:
                     with lock:
                         if nxt[0] >= len(order):
                             return
-                        i = order[nxt[0]]
+                        k = order[nxt[0]]
                         nxt[0] += 1
-                    t: dict[str, float] = {}
-                    p, g = geos[i]
-                    results[i] = (self._scorer_of[p].band_scores(frame, g, t, serial=True, spans=spans[i],
-                                                              padded=padded), t)
+                    score(jobs[k], times[k], True)
 
         futures = [pool.submit(run) for _ in range(helpers)]
         run()
         for f in futures:
             f.result()
-        out = []
-        for dec, t in results:
-            for k, v in t.items():
-                timings[k] = timings.get(k, 0.0) + v
-            out.append(dec)
-        return out
+        for t in times:
+            for key, v in t.items():
+                timings[key] = timings.get(key, 0.0) + v
+        return results
 
     @staticmethod
     def _needs_pixels(geo: BandGeometry, spans: Sequence[tuple[int, int]] | None) -> bool:
@@ -282,6 +293,24 @@ class Detector:
         (:attr:`main_parts`), in the order :meth:`detect`'s ``columns`` refer to them."""
         return [(p, g) for p in self.main_parts for g in self._scorer_of[p].geometries(frame_shape)]
 
+    def band_columns(self, columns: Sequence[Sequence[tuple[int, int]] | None] | None,
+                     frame_shape: tuple[int, int]) -> list[Sequence[tuple[int, int]] | None] | None:
+        """``columns`` (as :meth:`detect` takes them) with one entry per band of
+        :meth:`main_geometries`: those given; then each component band not given takes the entry
+        of the main model's band with the same pixels and windows across (its twin: a side-view
+        component searches the main model's bands), so a guided search that plans the main
+        model's bands plans the component's alike; any other band ``None`` (all its windows)."""
+        if columns is None:
+            return None
+        geos = self.main_geometries(frame_shape)
+        out: list[Sequence[tuple[int, int]] | None] = list(columns) + [None] * (len(geos) - len(columns))
+        twin = {image_key(g): j for j, (p, g) in enumerate(geos[:len(columns)]) if p == MAIN_PART}
+        for j in range(len(columns), len(geos)):
+            t = twin.get(image_key(geos[j][1]))
+            if t is not None:
+                out[j] = columns[t]
+        return out
+
     def detect(self, frame: np.ndarray, rgb: bool = False,
                oncoming_bands: Sequence[SearchBand] | None = None, stats: DetectStats | None = None,
                columns: Sequence[Sequence[tuple[int, int]] | None] | None = None) -> Detections:
@@ -294,11 +323,11 @@ class Detector:
         stats: a :class:`DetectStats` to record stage times and every band's decision values
             into (optional).
         columns: which windows of the main model's and the components' bands to score, one
-            entry per band of :meth:`main_geometries` (missing entries: ``None``): ``None`` for all, else a sequence
-            of window-column ranges ``(j0, j1)``, ``j0 <= j < j1``. Each scored window's
-            decision value is the one the whole band gives it (to rounding, ~1e-15): the band
-            is cut and resized as a whole, HOG runs on a slice of it with a window step of
-            margin. Windows not scored are negative (-inf in ``stats``).
+            entry per band of :meth:`main_geometries` (missing entries: :meth:`band_columns`):
+            ``None`` for all, else a sequence of window-column ranges ``(j0, j1)``,
+            ``j0 <= j < j1``. Each scored window's decision value is the one the whole band
+            gives it (to rounding, ~1e-15): the band is cut and resized as a whole, HOG runs on
+            a slice of it with a window step of margin. Windows not scored are negative (-inf in ``stats``).
             :class:`fastdet.VideoDetector` searches near the tracked vehicles this way
             between full scans (:class:`fastdet.config.GuidedSearch`).
         Returns :class:`~fastdet.detections.Detections` with columns ``boxes (N, 4) int32``
@@ -318,6 +347,7 @@ class Detector:
         geos = self.main_geometries(frame.shape[:2])
         if columns is not None and len(columns) > len(geos):
             raise ValueError(f"columns: {len(columns)} entries for {len(geos)} bands")
+        columns = self.band_columns(columns, frame.shape[:2])
         if self.oncoming_model is not None:
             sc = self._scorer_of[ONCOMING_PART]
             if oncoming_bands is None:

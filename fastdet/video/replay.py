@@ -120,6 +120,7 @@ class ReplayDetector:
         bands' values."""
         if columns is not None and len(columns) > len(self._main):
             raise ValueError(f"columns: {len(columns)} entries for {len(self._main)} bands")
+        columns = self.source.band_columns(columns, frame.shape[:2])
         bands: list[Band] = []
         for i, (part, geo, dec) in enumerate(self._main):
             delta = self.delta if part == MAIN_PART else self.component_delta
