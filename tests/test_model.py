@@ -264,3 +264,122 @@ def test_absurd_intercept_and_folded_weights_are_refused(tmp_path):
     coef[0], scale[0] = 1e6, 1e-9
     with pytest.raises(ModelError, match="'coef' / 'scale' reaches"):
         load_model(_rewrite(tmp_path, coef=coef, scale=scale))
+
+
+# ---- a camera's side-view component carried in the model file (Model.side) --------------
+
+SIDE_CFG = FeatureConfig(color_space="LUV", hog_channels=(0,), orientations=6, spatial_size=8, hist_bins=8,
+                         window_height=32)
+
+
+def _side(seed=1, classifier="linearsvc", **kw):
+    rng = np.random.default_rng(seed)
+    n = SIDE_CFG.n_features
+    return Model(SIDE_CFG, rng.normal(size=n), -0.7, rng.normal(size=n) * 10, rng.uniform(0.5, 3, n),
+                 classifier=classifier, metadata={"fit": {"vehicles": 21}, "note": "side"}, **kw)
+
+
+def _with_side(seed=0):
+    from dataclasses import replace
+    return replace(_model(seed), side=_side(seed + 1))
+
+
+def test_a_side_view_component_round_trips(tmp_path):
+    """Every array, the config, the classifier and the metadata of the component come back; the
+    main model's too; a second save of the loaded model gives the same component again."""
+    m = _with_side()
+    back = load_model(m.save(tmp_path / "m.npz"))
+    assert back.side is not None and back.regressor is None and back.side.side is None
+    for a, b in ((back, m), (back.side, m.side)):
+        assert a.config == b.config and a.classifier == b.classifier and a.intercept == b.intercept
+        for name in ("coef", "mean", "scale"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    assert back.side.config == SIDE_CFG and back.side.config.win_h == 32
+    assert back.side.metadata["fit"] == {"vehicles": 21} and back.side.metadata["note"] == "side"
+    assert back.metadata["training"]["note"] == "test"
+    crops = np.random.default_rng(3).integers(0, 256, (4, 32, 64, 3), dtype=np.uint8)
+    np.testing.assert_array_equal(back.side.decision_function(crops), m.side.decision_function(crops))
+    again = load_model(back.save(tmp_path / "again.npz"))
+    assert again.side is not None and again.side.metadata == back.side.metadata
+    np.testing.assert_array_equal(again.side.coef, m.side.coef)
+    assert again.side.intercept == m.side.intercept
+
+
+def test_a_model_without_its_side_component_saves_none(tmp_path):
+    """A loaded model's metadata holds the component's record; the model without the component
+    (side=None) writes neither it nor its arrays."""
+    import zipfile
+    from dataclasses import replace
+
+    back = load_model(_with_side().save(tmp_path / "m.npz"))
+    assert "side" in back.metadata
+    p = replace(back, side=None).save(tmp_path / "plain.npz")
+    with zipfile.ZipFile(p) as zf:
+        assert not any(n.startswith("side_") for n in zf.namelist())
+    plain = load_model(p)
+    assert plain.side is None and "side" not in plain.metadata
+
+
+def test_side_view_components_that_cannot_be_are_refused():
+    from dataclasses import replace
+
+    main = _model()
+    with pytest.raises(ModelError, match="wide-window"):
+        replace(main, side=_model(1))  # square windows
+    with pytest.raises(ModelError, match="carries nothing"):
+        replace(main, side=replace(_side(), side=_side(2)))  # a component of its own
+    reg = ({k: np.zeros(2) for k in ("coef", "intercept", "mean", "scale")}, {"note": "reg"})
+    with pytest.raises(ModelError, match="carries nothing"):
+        replace(main, side=_side(regressor=reg))
+    with pytest.raises(ModelError, match="carries nothing"):
+        replace(main, side="side.npz")  # type: ignore[arg-type]
+    with pytest.raises(ModelError, match="logreg model, the main model a linearsvc"):
+        replace(main, side=_side(classifier="logreg"))
+    assert replace(main, side=_side()).side is not None
+
+
+_GOOD = object()
+
+
+def _side_file(tmp_path, side_meta=_GOOD, **arrays):
+    """A model file with a side-view component whose metadata / arrays are overridden."""
+    m, s = _model(), _side()
+    meta = {"format_version": FORMAT_VERSION, "feature_config": CFG.to_dict(), "classifier": "linearsvc",
+            "side": {"feature_config": SIDE_CFG.to_dict(), "classifier": "linearsvc"} if side_meta is _GOOD
+            else side_meta}
+    out = dict(coef=m.coef, intercept=np.float64(0.1), mean=m.mean, scale=m.scale, side_coef=s.coef,
+               side_intercept=np.float64(s.intercept), side_mean=s.mean, side_scale=s.scale)
+    out.update(arrays)
+    out["metadata"] = np.frombuffer(json.dumps(meta).encode(), np.uint8)
+    p = tmp_path / "m.npz"
+    np.savez(p, **{k: v for k, v in out.items() if v is not None})
+    return p
+
+
+@pytest.mark.parametrize("bad", [["a"], "side", 3, None])
+def test_side_metadata_that_is_not_an_object_is_a_model_error(tmp_path, bad):
+    with pytest.raises(ModelError, match="metadata 'side' must be a JSON object"):
+        load_model(_side_file(tmp_path, side_meta=bad))
+
+
+@pytest.mark.parametrize("side_meta, arrays, msg", [
+    ({}, {}, "bad feature configuration of the side-view component"),
+    ({"feature_config": {"color_space": "XYZ"}}, {}, "bad feature configuration of the side-view component"),
+    (_GOOD, {"side_scale": None}, "missing array.*side_scale"),
+    (_GOOD, {"side_intercept": np.zeros(2)}, "'side_intercept' must be a scalar"),
+    (_GOOD, {"side_coef": np.zeros(5)}, "side-view component: feature config mismatch"),
+    (_GOOD, {"side_intercept": np.float64(np.nan)}, "side_intercept"),
+    ({"feature_config": CFG.to_dict(), "classifier": "linearsvc"}, {"side_coef": _model().coef,
+     "side_mean": _model().mean, "side_scale": _model().scale}, "side-view component must be a wide-window"),
+    ({"feature_config": SIDE_CFG.to_dict(), "classifier": "logreg"}, {}, "logreg model, the main model a linearsvc"),
+])
+def test_a_broken_side_component_is_a_model_error(tmp_path, side_meta, arrays, msg):
+    with pytest.raises(ModelError, match=msg):
+        load_model(_side_file(tmp_path, side_meta=side_meta, **arrays))
+
+
+def test_a_side_file_loads(tmp_path):
+    """The file _side_file writes without overrides loads: the cases above fail for their own reason."""
+    m = load_model(_side_file(tmp_path))
+    assert m.side is not None and m.side.config == SIDE_CFG
+    np.testing.assert_array_equal(m.side.coef, _side().coef)

@@ -355,12 +355,11 @@ def use_side(boxes: Boxes, by_boxes: Mapping[str, _op.FormationChoice], side: _o
     return not math.isnan(mine) and (math.isnan(theirs) or mine > theirs)
 
 
-def side_line(summary: Mapping[str, Any], config: AdaptConfig) -> str:
+def side_line(summary: Mapping[str, Any]) -> str:
     """The summary's line on the side-view component."""
     fit = summary["fit"]
     if "positives" not in fit:
-        return (f"side-view component: none ({fit['vehicles']} labelled vehicles of {config.side_aspect:g}:1 and "
-                f"wider to fit it on, fewer than {config.side_min_vehicles})")
+        return f"side-view component: none ({fit['skipped']})"
     head = (f"side-view component: fitted on {fit['vehicles']} vehicles ({fit['positives']} positive, "
             f"{fit['negatives']} background, {fit['hard_negatives']} hard negative crops)")
     if "offsets_f1" not in summary:
@@ -583,7 +582,7 @@ def run(args: argparse.Namespace) -> int:
               + ", ".join(f"{k} {f1(v)}" for k, v in tried.items())
               + f"; best {fb['best_offset']:g} (F1 {f1(fb['best_f1'])} +- {fb['f1_se']:.2f} over the kept-aside "
               f"frames); chosen {chosen:g} by the one-standard-error rule")
-        print(side_line(side_summary, config))
+        print(side_line(side_summary))
     else:
         print("no labelled frame kept aside: the model keeps its own operating point (offset 0)"
               + ("" if side is None else "; the side-view component is left out (nothing to choose its offset on)"))

@@ -133,11 +133,10 @@ class AdaptConfig(Config):
         _whole("side_jitter", self.side_jitter, 0)
         _whole("side_negatives", self.side_negatives, 0)
         _whole("side_hard", self.side_hard, 0)
-        if not (isinstance(self.side_aspect, (int, float)) and math.isfinite(self.side_aspect)
-                and self.side_aspect > 0):
-            raise ValueError(f"side_aspect must be > 0, got {self.side_aspect!r}")
-        if not (isinstance(self.side_C, (int, float)) and math.isfinite(self.side_C) and self.side_C > 0):
-            raise ValueError(f"side_C must be > 0, got {self.side_C!r}")
+        for name in ("side_aspect", "side_C"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a number > 0, got {v!r}")
         if not self.side_offsets or not all(isinstance(o, (int, float)) and math.isfinite(o)
                                             for o in self.side_offsets):
             raise ValueError(f"side_offsets must be finite numbers, at least one, got {self.side_offsets!r}")

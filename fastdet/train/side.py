@@ -150,13 +150,16 @@ def fit_side_model(pictures: Sequence[AnnotatedPicture], main: Model, search: Se
     mined at ``search`` (the video's bands at the camera's horizon); with its report
     (``vehicles``: side-view targets, ``positives`` / ``negatives`` / ``hard_negatives``: crops,
     ``seconds``). ``(None, report)`` when the pictures hold fewer than
-    ``adapt.side_min_vehicles`` side-view targets (or ``main`` is not a logistic regression):
-    nothing to learn the view from."""
+    ``adapt.side_min_vehicles`` side-view targets (nothing to learn the view from) or ``main`` is
+    not a logistic regression (the scores would not compare); the report's ``skipped`` says which."""
     t0 = time.perf_counter()
     vehicles = count_wide(pictures, adapt.side_aspect)
     report: dict[str, Any] = {"vehicles": vehicles}
-    if vehicles < adapt.side_min_vehicles or main.classifier != "logreg":
-        return None, report
+    if main.classifier != "logreg":
+        return None, {**report, "skipped": f"the main model is a {main.classifier} model, not a logistic regression"}
+    if vehicles < adapt.side_min_vehicles:
+        return None, {**report, "skipped": f"{vehicles} labelled vehicles of {adapt.side_aspect:g}:1 and wider to "
+                                           f"fit it on, fewer than {adapt.side_min_vehicles}"}
     config = side_config(main.config)
     crops = side_crops(pictures, config, adapt, progress)
     report.update(positives=int(crops.labels.sum()), negatives=int((crops.labels == 0).sum()))

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -154,13 +154,18 @@ def dense_detector(model: Model, frame_shape: tuple[int, int], components: Seque
                    **search: Any) -> Any:
     """A :class:`fastdet.Detector` of ``model`` (and ``components``: more models scored on the
     same windows, :func:`false_window_scores`) with :func:`dense_search` for frames of
-    ``frame_shape``, each model's for its own window (``search``: its keyword arguments)."""
+    ``frame_shape``, each model's for its own window (``search``: its keyword arguments). The
+    models' own windows only: a side-view component a model carries (:attr:`Model.side
+    <fastdet.model.Model.side>`) is not searched."""
     from ..detect import Detector
 
     def dense(m: Model) -> SearchConfig:
         return dense_search(frame_shape, m.config.win_w, cell=m.config.pixels_per_cell, **search)
 
-    return Detector(model, dense(model), components=[(c, dense(c)) for c in components])
+    def own(m: Model) -> Model:
+        return replace(m, side=None) if m.side is not None else m
+
+    return Detector(own(model), dense(model), components=[(own(c), dense(c)) for c in components])
 
 
 def score_frames(model: Model, frames: Sequence[AnnotatedFrame], iou_min: float = 0.5,

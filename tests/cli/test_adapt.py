@@ -3,6 +3,8 @@ summary, a stopped run that resumes without labelling a finished video again, st
 and every bad input ending in one line before any work."""
 from __future__ import annotations
 
+import dataclasses
+import math
 import os
 import re
 import signal
@@ -160,6 +162,8 @@ def test_adapt_writes_a_model_with_its_summary(teacher, data, tmp_path, capsys, 
     from fastdet.train import adapt as train_adapt
 
     monkeypatch.setattr(train_adapt, "MIN_REGRESSOR_VEHICLES", 2)
+    config = adapt_cli._config  # the side-view component fitted on the clip's few wide vehicles
+    monkeypatch.setattr(adapt_cli, "_config", lambda args: dataclasses.replace(config(args), side_min_vehicles=1))
     out = tmp_path / "tv.npz"
     assert _adapt(data / "videos" / "test_video.mp4", "--teacher", teacher, "-o", out, "--max-frames", "10",
                   "--max-per-folder", "20", "--offsets", "0", "1") == 0
@@ -184,7 +188,8 @@ def test_adapt_writes_a_model_with_its_summary(teacher, data, tmp_path, capsys, 
     tried = s["boxes_tried"][s["boxes"]]
     assert tried["offset"] == s["offset"] and tried["offset"] >= tried["best_offset"]
     assert s["offsets_f1"][f"{s['offset']:g}"] >= tried["best_f1"] - tried["f1_se"]
-    assert s["agreement"]["after"]["f1"] == s["offsets_f1"][f"{s['offset']:g}"]
+    if s["side"]["offset"] is None:
+        assert s["agreement"]["after"]["f1"] == s["offsets_f1"][f"{s['offset']:g}"]
     assert "by the one-standard-error rule" in text
     # both box formations tried; the chosen one (at least as good as the other) is recorded in
     # the model file, and the pipeline makes its boxes that way
@@ -193,7 +198,17 @@ def test_adapt_writes_a_model_with_its_summary(teacher, data, tmp_path, capsys, 
     assert model.metadata[ONCOMING_KEY] is False
     assert make_detector(PipelineConfig(model=str(out))).oncoming_model is None
     f1s = {b: (-1 if v["best_f1"] is None else v["best_f1"]) for b, v in s["boxes_tried"].items()}
-    assert f1s[s["boxes"]] == max(f1s.values()) and "boxes tried (F1 at their best offset)" in text
+    assert "boxes tried (F1 at their best offset)" in text
+    # the side-view component: fitted, its offsets (and leaving it out) tried with the window boxes
+    side = s["side"]
+    assert side["fit"]["vehicles"] >= 1 and side["fit"]["positives"] > 0 and "side-view component: fitted" in text
+    assert set(side["offsets_f1"]) == {"0", "1", "2", "3", "4", "6", "inf"}
+    if side["offset"] is None:  # left out: the formation of best F1 without it
+        assert model.side is None and f1s[s["boxes"]] == max(f1s.values()) and "chosen: left out" in text
+    else:  # kept: window boxes, at the F1 the replay gave them
+        assert model.side is not None and model.side.config.window_height == 32 and s["boxes"] == "nms"
+        assert s["agreement"]["after"]["f1"] == side["offsets_f1"][f"{side['offset']:g}"]
+        assert len(make_detector(PipelineConfig(model=str(out))).components) == 1
     stage = NmsStage if s["boxes"] == "nms" else HeatStage
     assert VideoDetector(config=PipelineConfig(model=str(out))).stage(stage) is not None
     assert model.metadata["training"]["data"]["hard_negatives"] > 0
@@ -230,3 +245,36 @@ def test_the_models_own_boxes_are_the_video_pipelines_window_boxes(data):
         found += len(got)
     reader.close()
     assert found > 0
+
+
+def _choice(results: dict[float, tuple[int, int, int]], chosen: float):
+    from fastdet.train.operating_point import Agreement, FormationChoice
+
+    res = {o: Agreement(*c, seconds=1.0, frames=10) for o, c in results.items()}
+    best = max(res, key=lambda o: res[o].f1)
+    return FormationChoice(chosen, res, best, 0.01)
+
+
+def test_the_side_component_is_kept_only_where_the_window_boxes_with_it_agree_best():
+    heat = _choice({0.0: (8, 2, 2)}, 0.0)  # F1 0.80
+    nms = _choice({0.0: (6, 4, 4)}, 0.0)  # F1 0.60
+    left_out = _choice({0.0: (9, 1, 1), math.inf: (6, 4, 4)}, math.inf)
+    assert not adapt_cli.use_side("nms", {"heat": heat, "nms": nms}, left_out)
+    better = _choice({2.0: (9, 1, 1), math.inf: (6, 4, 4)}, 2.0)  # F1 0.90 with it
+    assert adapt_cli.use_side("nms", {"heat": heat, "nms": nms}, better)
+    assert adapt_cli.use_side("heat", {"heat": heat, "nms": nms}, better)  # beats the heat map's 0.80
+    worse = _choice({2.0: (7, 3, 3), math.inf: (6, 4, 4)}, 2.0)  # F1 0.70: below the heat map
+    assert adapt_cli.use_side("nms", {"heat": heat, "nms": nms}, worse)
+    assert not adapt_cli.use_side("heat", {"heat": heat, "nms": nms}, worse)
+
+
+def test_the_side_components_summary_line_says_what_was_chosen():
+    none = {"fit": {"vehicles": 3, "skipped": "3 labelled vehicles of 1.4:1 and wider to fit it on, fewer than 20"},
+            "offset": None}
+    assert adapt_cli.side_line(none) == ("side-view component: none (3 labelled vehicles of 1.4:1 and wider to fit "
+                                         "it on, fewer than 20)")
+    fit = {"vehicles": 30, "positives": 480, "negatives": 900, "hard_negatives": 120}
+    no_nms = adapt_cli.side_line({"fit": fit, "offset": None})
+    assert no_nms.startswith("side-view component: fitted on 30 vehicles (480 positive") and "left out" in no_nms
+    line = adapt_cli.side_line({"fit": fit, "offset": 3.0, "offsets_f1": {"0": 0.5, "3": 0.61, "inf": 0.55}})
+    assert "0 0.50, 3 0.61, left out 0.55; chosen: offset 3" in line

@@ -92,3 +92,53 @@ def test_rate_offset_edges():
         rate_offset(np.zeros(0), np.zeros(0))
     with pytest.raises(ValueError):
         rate_offset(np.array([np.nan]), np.zeros(1))
+
+
+def _with_side(seed: int):
+    """A main model of SMALL features carrying a side-view component (64x32 windows of them)."""
+    from dataclasses import replace
+
+    side = _model(seed + 1, replace(SMALL, window_height=32))
+    return replace(_model(seed), side=side)
+
+
+def test_side_offset_moves_the_side_component_alone_and_inf_drops_it(tmp_path):
+    import math
+
+    from fastdet.train.blend import side_offset
+
+    m = _with_side(0)
+    xs = np.random.default_rng(1).normal(size=(6, m.side.config.n_features)) * 3
+    xm = np.random.default_rng(2).normal(size=(6, SMALL.n_features)) * 3
+    for delta in (-1.5, 0.0, 2.0):
+        moved = side_offset(m, delta)
+        assert moved.side is not None and moved.side.config == m.side.config
+        assert moved.side.intercept == pytest.approx(m.side.intercept - delta)
+        np.testing.assert_allclose(moved.side.decision_from_features(xs), m.side.decision_from_features(xs) - delta,
+                                   rtol=1e-12, atol=1e-12)
+        np.testing.assert_array_equal(moved.side.coef, m.side.coef)
+        # the main model as it was
+        assert moved.intercept == m.intercept and moved.metadata == m.metadata
+        np.testing.assert_array_equal(moved.decision_from_features(xm), m.decision_from_features(xm))
+        assert moved.side.metadata["offset"] == pytest.approx(delta)
+    assert side_offset(side_offset(m, 1.0), 0.5).side.metadata["offset"] == pytest.approx(1.5)
+    dropped = side_offset(m, math.inf)
+    assert dropped.side is None and dropped.intercept == m.intercept
+    np.testing.assert_array_equal(dropped.coef, m.coef)
+    for bad in (math.nan, -math.inf):
+        with pytest.raises(ValueError):
+            side_offset(m, bad)
+    with pytest.raises(ValueError, match="no side-view component"):
+        side_offset(_model(0), 1.0)
+    with pytest.raises(ValueError, match="no side-view component"):
+        side_offset(dropped, math.inf)
+    # it survives a file
+    back = load_model(side_offset(m, 2.0).save(tmp_path / "m.npz"))
+    assert back.side is not None and back.side.intercept == pytest.approx(m.side.intercept - 2.0)
+
+
+def test_offset_moves_the_main_model_and_keeps_its_side_component():
+    m = _with_side(3)
+    moved = offset(m, 1.25)
+    assert moved.side is m.side
+    assert moved.intercept == pytest.approx(m.intercept - 1.25)

@@ -118,3 +118,88 @@ def test_the_box_formation_of_best_f1_at_its_best_offset_is_chosen_ties_keep_the
 def test_agreement_without_boxes_is_not_a_number():
     a = operating_point.Agreement(0, 0, 0, 0.0, 0)
     assert math.isnan(a.f1) and a.to_dict()["f1"] is None and a.to_dict()["ms_per_frame"] is None
+
+
+# ---- the side-view component's offset (choose_side_offset) --------------------------------
+
+
+def _carrying_side():
+    """The bundled model carrying a (random) side-view component."""
+    from dataclasses import replace
+
+    from fastdet.model import Model
+    from fastdet.train.side import side_config
+
+    main = load_model()
+    cfg = side_config(main.config)
+    rng = np.random.default_rng(0)
+    n = cfg.n_features
+    side = Model(cfg, rng.normal(size=n) * 0.01, -1.0, np.zeros(n), np.ones(n), classifier="logreg")
+    return replace(main, side=side)
+
+
+def _side_choice(tmp_path, per_frame, side_offsets=(2.0, 0.0)):
+    """choose_side_offset over a fake run that gives each side offset ``per_frame[offset]``
+    (``(K, 3)``, the same for every lane's formation and main offset); also the lanes it got."""
+    a = write_video(tmp_path / "a.mp4", 20)
+    fp = adapt.plan_footage([str(a)], AdaptConfig(every=5))
+    model = _carrying_side()
+    calls = []
+
+    def run(clip, model_path, lanes):
+        back = load_model(model_path)
+        assert back.side is not None and back.side.intercept == model.side.intercept  # the component, unmoved
+        calls.append(tuple(lanes))
+        return {lane: np.asarray(per_frame[lane[2]]) for lane in lanes}, 0.5, 10
+
+    choice = operating_point.choose_side_offset(model, fp, run, tmp_path / "op", "nms", 1.5, side_offsets,
+                                                progress=False, seed=0)
+    assert calls == [tuple(("nms", 1.5, k) for k in (*sorted(side_offsets), math.inf))]  # one run, every lane
+    assert set(choice.results) == {*side_offsets, math.inf}
+    assert not list((tmp_path / "op").iterdir())
+    return choice
+
+
+def test_the_side_component_is_left_out_when_it_is_not_clearly_better(tmp_path):
+    """Left out (inf, the strictest) when its F1 is within one standard error of the best."""
+    per = {0.0: [(4, 2, 0), (1, 2, 2), (3, 0, 1), (0, 1, 3)],  # the best F1, spread over the frames
+           2.0: [(3, 2, 1), (1, 1, 2), (3, 0, 1), (0, 1, 3)],
+           math.inf: [(3, 1, 1), (1, 1, 2), (2, 0, 2), (0, 1, 3)]}
+    f1 = {k: operating_point._f1(np.array(v)[None])[0] for k, v in per.items()}
+    choice = _side_choice(tmp_path, per)
+    assert choice.best == 0.0 and choice.se > 0
+    assert f1[0.0] > f1[math.inf] >= f1[0.0] - choice.se  # a worse F1, but within the error
+    assert choice.offset == math.inf
+    assert choice.results[math.inf].tp == 6 and choice.results[0.0].f1 == pytest.approx(f1[0.0])
+
+
+def test_the_side_components_offset_is_chosen_when_it_is_clearly_better(tmp_path):
+    per = {0.0: [(4, 3, 1)] * 3, 2.0: [(4, 1, 1)] * 3, 4.0: [(3, 1, 2)] * 3, math.inf: [(1, 0, 4)] * 3}
+    choice = _side_choice(tmp_path, per, side_offsets=(0.0, 2.0, 4.0))
+    assert (choice.offset, choice.best, choice.se) == (2.0, 2.0, 0.0)
+    # the strictest offset within the error of the best: 4 when it is as good as 2 (other frames)
+    per[4.0] = [(5, 1, 0), (4, 1, 1), (3, 1, 2)]
+    assert _side_choice(tmp_path, per, side_offsets=(0.0, 2.0, 4.0)).offset == 4.0
+
+
+def test_the_side_component_is_left_out_when_its_boxes_agree_as_those_without_it(tmp_path):
+    """The rule alone would pick the offset nearest 0 of a run of offsets with the very same
+    counts on every frame (the strict end included); where that run reaches 'left out', the
+    component costs time for nothing and is left out."""
+    same = [(3, 1, 1), (2, 0, 1), (1, 1, 0)]
+    per = {0.0: [(3, 4, 1), (2, 3, 1), (1, 2, 0)], 2.0: same, 4.0: same, math.inf: same}
+    assert operating_point.strictest_within_one_se({k: np.array(v) for k, v in per.items()})[0] == 2.0
+    choice = _side_choice(tmp_path, per, side_offsets=(0.0, 2.0, 4.0))
+    assert choice.offset == math.inf and choice.best == 2.0
+
+
+def test_a_model_without_a_side_component_has_no_side_offset(tmp_path):
+    a = write_video(tmp_path / "a.mp4", 20)
+    fp = adapt.plan_footage([str(a)], AdaptConfig(every=5))
+
+    def run(clip, model_path, lanes):
+        raise AssertionError("not run")
+
+    with pytest.raises(ValueError, match="no side-view component"):
+        operating_point.choose_side_offset(load_model(), fp, run, tmp_path / "op", "nms", 0.0, (0.0,),
+                                           progress=False)

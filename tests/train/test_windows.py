@@ -133,6 +133,17 @@ def test_false_window_scores_of_two_models_on_the_same_windows(data):
     np.testing.assert_allclose(np.sort(1 / (1 + np.exp(-s[0]))), np.sort(fw.false), rtol=1e-5, atol=1e-6)
     with pytest.raises(ValueError):
         false_window_scores([], frames)
+    # a side-view component a model carries is not searched: its own windows only
+    from dataclasses import replace
+
+    from fastdet.model import Model
+    from fastdet.train.side import side_config
+
+    cfg = side_config(model.config)
+    side = Model(cfg, np.zeros(cfg.n_features), 5.0, np.zeros(cfg.n_features), np.ones(cfg.n_features),
+                 classifier="logreg")
+    np.testing.assert_array_equal(false_window_scores([replace(model, side=side), model], frames, cells_per_step=2),
+                                  np.stack([s[0], s[0]]))
     with pytest.raises(ValueError, match="near_iou"):
         frame_windows(det, frames[0], near_iou=0.6)
     # the near windows, likewise: those frame_windows finds with near_iou

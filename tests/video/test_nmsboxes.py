@@ -3,6 +3,7 @@
 formation (config, the model's record, the heat map by default)."""
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fastdet.config import ONCOMING_MODEL_PATH, PipelineConfig
-from fastdet.detections import MAIN_PART, ONCOMING_PART, Detections
+from fastdet.detections import FIRST_COMPONENT_PART, MAIN_PART, ONCOMING_PART, Detections
 from fastdet.errors import ModelError
 from fastdet.io.reader import FrameReader
 from fastdet.model import load_model
@@ -176,3 +177,97 @@ def test_the_oncoming_model_runs_unless_the_main_model_records_otherwise(tmp_pat
     with pytest.raises(ModelError, match=ONCOMING_KEY):
         make_detector(PipelineConfig(model=str(bad)))
     assert make_detector(PipelineConfig(model=str(bad), oncoming=False)).oncoming_model is None
+
+
+@st.composite
+def component_windows(draw: st.DrawFn) -> Detections:
+    """Windows of the main model, the oncoming model and components (a side-view one: 2:1)."""
+    n = draw(st.integers(0, 40))
+    xy = draw(st.lists(st.tuples(st.integers(0, 200), st.integers(0, 120)), min_size=n, max_size=n))
+    size = draw(st.lists(st.sampled_from([48, 64, 96, 128]), min_size=n, max_size=n))
+    scores = draw(st.lists(st.sampled_from([0.55, 0.6, 0.7, 0.8, 0.9, 0.99]), min_size=n, max_size=n))
+    part = draw(st.lists(st.sampled_from([MAIN_PART, ONCOMING_PART, FIRST_COMPONENT_PART, FIRST_COMPONENT_PART + 1]),
+                         min_size=n, max_size=n))
+    b = np.array([[x, y, x + s, y + (s // 2 if p >= FIRST_COMPONENT_PART else s)]
+                  for (x, y), s, p in zip(xy, size, part)], np.int32).reshape(-1, 4)
+    return Detections(b, np.array(scores, np.float32), part=np.array(part, np.int8))
+
+
+@settings(max_examples=200, deadline=None)
+@given(component_windows())
+def test_nms_boxes_keep_the_components_windows_and_drop_the_oncoming_ones(w: Detections) -> None:
+    """The main model's and the components' windows compete in one suppression; the oncoming
+    model's take no part."""
+    got = nms_boxes(w)
+    kept = np.flatnonzero(w.part != ONCOMING_PART)
+    want = kept[greedy(w.boxes[kept], w.scores[kept], NMS_IOU)]
+    np.testing.assert_array_equal(got.boxes, w.boxes[want])
+    np.testing.assert_array_equal(got.scores, w.scores[want])
+
+
+def test_a_side_window_is_a_box_and_competes_with_the_main_windows() -> None:
+    b = np.array([[0, 0, 128, 64],  # side-view window alone: kept
+                  [300, 0, 364, 64],  # main window
+                  [302, 0, 366, 32],  # side-view window on it, scored lower: inside it by all its area
+                  [500, 0, 628, 64],  # oncoming window alone: dropped
+                  [700, 0, 764, 64],  # main window ...
+                  [690, 0, 818, 64]],  # ... under a better side-view window: IoU 0.5
+                 np.int32)
+    s = np.array([0.7, 0.9, 0.8, 0.95, 0.6, 0.8], np.float32)
+    part = np.array([FIRST_COMPONENT_PART, MAIN_PART, FIRST_COMPONENT_PART, ONCOMING_PART, MAIN_PART,
+                     FIRST_COMPONENT_PART], np.int8)
+    got = nms_boxes(Detections(b, s, part=part))
+    np.testing.assert_array_equal(got.boxes, b[[0, 1, 5]])
+    np.testing.assert_array_equal(got.scores, s[[0, 1, 5]])
+    assert len(nms_boxes(Detections(b[[3]], s[[3]], part=part[[3]]))) == 0
+
+
+def _carrying_side(frame: np.ndarray, positive: float = 0.005):
+    """The bundled model carrying a random side-view component, standardised on windows of
+    ``frame`` and letting about ``positive`` of them through."""
+    import cv2
+
+    from fastdet.features import extract_features
+    from fastdet.model import Model
+    from fastdet.train.side import side_config
+
+    main = load_model()
+    cfg = side_config(main.config)
+    rng = np.random.default_rng(0)
+    h, w = frame.shape[:2]
+    ys, xs, hs = rng.integers(h // 2, h - 40, 300), rng.integers(0, w - 80, 300), rng.choice([16, 24, 32], 300)
+    crops = np.stack([cv2.resize(frame[y:y + s, x:x + 2 * s], (cfg.win_w, cfg.win_h)) for y, x, s in zip(ys, xs, hs)])
+    x = extract_features(crops, cfg)
+    mean, scale = x.mean(axis=0), x.std(axis=0) + 1e-3
+    coef = rng.normal(size=cfg.n_features) * 3 / np.sqrt(cfg.n_features)
+    dec = ((x - mean) / scale) @ coef
+    side = Model(cfg, coef, -float(np.quantile(dec, 1 - positive)), mean, scale, classifier=main.classifier)
+    return replace(main, side=side)
+
+
+def test_the_pipelines_nms_boxes_take_the_side_components_windows(data: Path, tmp_path: Path) -> None:
+    """A model file carrying a side-view component: the pipeline searches with it, and its nms
+    boxes are the suppression of the main model's and the component's windows, some of them the
+    component's; a Detector of it is accepted, one with other components is not."""
+    from fastdet.detect import Detector
+
+    frames = _frames(data, 6)
+    model = _carrying_side(frames[0])
+    path = offset(model, 0.0).save(tmp_path / "side.npz")
+    bare = VideoDetector(config=PipelineConfig(model=str(path), boxes="nms", oncoming=False, plausible=None).without(
+        "tracker", "refine", "guided"))
+    assert bare.detector.components[0].config.window_height == 32  # type: ignore[attr-defined]
+    n_side = 0
+    for f in frames:
+        out = bare.update(f)
+        w = bare.debug.windows
+        assert (w.part == FIRST_COMPONENT_PART).any()
+        want = nms_boxes(w)
+        np.testing.assert_array_equal(out.boxes, want.boxes)
+        np.testing.assert_array_equal(out.scores, want.scores)
+        side = w[w.part == FIRST_COMPONENT_PART]
+        n_side += sum(any(np.array_equal(b, s) for s in side.boxes) for b in out.boxes)
+    assert n_side > 0
+    VideoDetector(Detector(model), PipelineConfig(oncoming=False))
+    with pytest.raises(ValueError, match="components"):
+        VideoDetector(Detector(model, components=[(model.side, Detector(model).search)]), PipelineConfig())

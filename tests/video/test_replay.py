@@ -2,6 +2,7 @@
 pipeline gives with the model moved by it (the frame's windows, and a clip's boxes and ids)."""
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -101,3 +102,91 @@ def test_lanes_of_either_box_formation_are_those_of_each_formations_own_replay(d
     assert differ > 0
     with pytest.raises(ValueError, match="distinct"):
         next(iter_lane_detections(video, [("nms", 0.0), ("nms", 0.0)]))
+
+
+# ---- a model carrying a side-view component: its own offset, or none ----------------------
+
+SIDE_OFFSETS = (0.0, 2.0, math.inf)
+
+
+def _carrying_side(frame, positive=0.005):
+    """The bundled model carrying a random side-view component (64x32 windows of its features),
+    standardised on windows of ``frame`` and letting about ``positive`` of them through."""
+    import cv2
+
+    from fastdet.features import extract_features
+    from fastdet.model import Model
+    from fastdet.train.side import side_config
+
+    main = load_model()
+    cfg = side_config(main.config)
+    rng = np.random.default_rng(0)
+    h, w = frame.shape[:2]
+    ys, xs, hs = rng.integers(h // 2, h - 40, 300), rng.integers(0, w - 80, 300), rng.choice([16, 24, 32], 300)
+    crops = np.stack([cv2.resize(frame[y:y + s, x:x + 2 * s], (cfg.win_w, cfg.win_h)) for y, x, s in zip(ys, xs, hs)])
+    x = extract_features(crops, cfg)
+    mean, scale = x.mean(axis=0), x.std(axis=0) + 1e-3
+    coef = rng.normal(size=cfg.n_features) * 3 / np.sqrt(cfg.n_features)
+    dec = ((x - mean) / scale) @ coef
+    side = Model(cfg, coef, -float(np.quantile(dec, 1 - positive)), mean, scale, classifier=main.classifier)
+    return replace(main, side=side)
+
+
+@pytest.mark.parametrize("delta, side_delta", [(0.0, 0.0), (0.0, 2.0), (1.0, -1.0), (0.0, math.inf)])
+def test_a_frames_windows_are_those_of_the_side_component_moved(frame, delta, side_delta):
+    """ReplayDetector(source, delta, component_delta): the main model moved by delta, its side-view
+    component by component_delta (inf: without it), window for window, the guided search's
+    columns of the main bands (which the side bands follow) included."""
+    from fastdet.detections import FIRST_COMPONENT_PART
+    from fastdet.train.blend import side_offset
+
+    model = _carrying_side(frame)
+    src = Detector(model)
+    stats = DetectStats()
+    whole = src.detect(frame, stats=stats)
+    assert (whole.part == FIRST_COMPONENT_PART).sum() > 3
+    moved = Detector(offset(side_offset(model, side_delta), delta))
+    replay = ReplayDetector(src, delta, side_delta)
+    replay.feed(stats.bands, Detections.empty())
+    n = len(src.geometries(frame.shape[:2], 0))
+    for columns in (None, [[(0, 6), (20, 31)]] * n, [None, [(3, 9)]] + [[]] * (n - 2)):
+        want = moved.detect(frame, columns=columns)
+        got = replay.detect(frame, columns=columns)
+        assert _same(got, want), (delta, side_delta, columns)
+    if side_delta == math.inf:
+        assert not (replay.detect(frame).part == FIRST_COMPONENT_PART).any()
+
+
+@pytest.mark.slow
+def test_each_side_offsets_boxes_and_ids_are_those_of_its_own_run(data, tmp_path):
+    """Lanes ("nms", 0, s) of a model carrying a side-view component: each lane's boxes, scores and
+    ids of every frame equal a pipeline run of the model with its component moved by s (inf:
+    without it), and the side offsets' boxes differ."""
+    from fastdet.train.blend import side_offset
+    from fastdet.video.replay import iter_lane_detections
+
+    video = str(data / "videos" / "test_small1.mp4")
+    with FrameReader(video, 20, 1) as r:
+        model = _carrying_side(next(iter(r))[1])
+    base = tmp_path / "base.npz"
+    offset(model, 0.0).save(base)
+    lanes = [("nms", 0.0, s) for s in SIDE_OFFSETS]
+    replayed = list(iter_lane_detections(video, lanes, replace(PipelineConfig(), model=str(base)), start=20,
+                                         frames=20))
+    assert [f for f, _ in replayed] == list(range(21, 41))
+    totals = {}
+    for k, s in enumerate(SIDE_OFFSETS):
+        path = tmp_path / f"s{s:+g}.npz"
+        side_offset(model, s).save(path)
+        assert (load_model(path).side is None) == (s == math.inf)
+        real = list(iter_video_detections(video, replace(PipelineConfig(), model=str(path), boxes="nms"),
+                                          start=20, frames=20, progress=False))
+        assert [f for f, _ in real] == [f for f, _ in replayed]
+        for (fno, want), (_, got) in zip(real, replayed):
+            got = got[k]
+            assert len(got) == len(want) and np.array_equal(got.boxes, want.boxes), (s, fno)
+            assert np.array_equal(got.scores, want.scores) and np.array_equal(got.ids, want.ids), (s, fno)
+        totals[s] = sum(len(d) for _, d in real)
+    assert totals[0.0] > totals[2.0] > totals[math.inf], totals  # the side offsets give other boxes
+    with pytest.raises(ValueError, match="distinct"):  # (boxes, offset) is (boxes, offset, 0)
+        next(iter_lane_detections(video, [("nms", 0.0), ("nms", 0.0, 0.0)], replace(PipelineConfig(), model=str(base))))
