@@ -12,6 +12,7 @@ without a trained model or with windows recorded once.
 - :class:`ReplayDetector`: windows recorded earlier, one frame per call (``tools/``).
 - :class:`RecordingDetector`: passes through to a real detector and keeps every result, or
   replays a recorded list (``tools/``).
+- :func:`model_carrying_side`: the bundled model with a random side-view component.
 
 Used by ``tests/`` and ``tools/`` (run from the repository root: ``tests`` is importable).
 """
@@ -187,3 +188,29 @@ class RecordingDetector:
 
     def set_horizon(self, horizon) -> None:
         self.det.set_horizon(horizon)
+
+
+def model_carrying_side(frame: np.ndarray, positive: float = 0.005) -> Any:
+    """The bundled model carrying a random side-view component (64x32 windows of its features,
+    :attr:`fastdet.model.Model.side`), standardised on windows of ``frame`` and letting about
+    ``positive`` of them through: a component that fires somewhere, without a fit."""
+    from dataclasses import replace
+
+    import cv2
+
+    from fastdet.features import extract_features
+    from fastdet.model import Model, load_model
+    from fastdet.train.side import side_config
+
+    main = load_model()
+    cfg = side_config(main.config)
+    rng = np.random.default_rng(0)
+    h, w = frame.shape[:2]
+    ys, xs, hs = rng.integers(h // 2, h - 40, 300), rng.integers(0, w - 80, 300), rng.choice([16, 24, 32], 300)
+    crops = np.stack([cv2.resize(frame[y:y + s, x:x + 2 * s], (cfg.win_w, cfg.win_h)) for y, x, s in zip(ys, xs, hs)])
+    x = extract_features(crops, cfg)
+    mean, scale = x.mean(axis=0), x.std(axis=0) + 1e-3
+    coef = rng.normal(size=cfg.n_features) * 3 / np.sqrt(cfg.n_features)
+    dec = ((x - mean) / scale) @ coef
+    side = Model(cfg, coef, -float(np.quantile(dec, 1 - positive)), mean, scale, classifier=main.classifier)
+    return replace(main, side=side)

@@ -306,8 +306,10 @@ def split_pictures(footage: Footage, pictures: Sequence[AnnotatedPicture]
     return train_pics, held
 
 
-def _ticking(pictures: Sequence[AnnotatedPicture], desc: str, progress: bool
-             ) -> Iterator[tuple[AnnotatedPicture, np.ndarray]]:
+def ticking(pictures: Sequence[AnnotatedPicture], desc: str, progress: bool
+            ) -> Iterator[tuple[AnnotatedPicture, np.ndarray]]:
+    """Every picture with its pixels (:func:`~fastdet.labels.load.load_pictures`), a progress
+    bar ``desc`` ticking a frame each (shown with ``progress``)."""
     bar = tqdm(total=len(pictures), unit="frame", desc=desc, file=sys.stderr, dynamic_ncols=True,
                disable=not progress)
     try:
@@ -327,7 +329,7 @@ def camera_crops(pictures: Sequence[AnnotatedPicture], bundled: Model, config: A
     t0 = time.perf_counter()
     base = picture_crops(pictures, bundled.config, jitter=config.jitter,
                          negatives_per_picture=config.negatives_per_picture, seed=config.seed,
-                         frames=_ticking(pictures, "crops", progress))
+                         frames=ticking(pictures, "crops", progress))
     t1 = time.perf_counter()
     hard = mine_hard_negatives(pictures, bundled, config, 1, progress)
     t2 = time.perf_counter()
@@ -355,7 +357,7 @@ def mine_hard_negatives(pictures: Sequence[AnnotatedPicture], model: Model, conf
         return None
     desc = "hard negatives" if round_ == 1 else f"hard negatives (round {round_})"
     return hard_negative_crops(model, pictures, per_picture=config.hard_per_picture, min_score=0.0,
-                               seed=config.seed + round_ - 1, frames=_ticking(pictures, desc, progress),
+                               seed=config.seed + round_ - 1, frames=ticking(pictures, desc, progress),
                                cells_per_step=2, steps=2, threshold=0.0)
 
 
@@ -432,7 +434,7 @@ def fit_camera_regressor(pictures: Sequence[AnnotatedPicture], bundled: BoxRegre
         return None, {"groups": vehicles}
     jitter = JitterConfig()
     frames, own, group = [], [], 0
-    for pic, image in _ticking(pictures, "box regressor", progress):
+    for pic, image in ticking(pictures, "box regressor", progress):
         t = usable(pic.targets)
         if len(t):
             groups = np.arange(group, group + len(t))

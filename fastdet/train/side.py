@@ -22,14 +22,12 @@ Its decision offset -- or leaving it out -- is chosen on the frames kept aside
 """
 from __future__ import annotations
 
-import sys
 import time
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import replace
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
 from ..boxes import intersection
 from ..config import FeatureConfig, SearchConfig
@@ -39,7 +37,7 @@ from ..detections import FIRST_COMPONENT_PART
 from ..labels.load import load_pictures
 from ..labels.picture import AnnotatedPicture
 from ..model import Model
-from .adapt import spread
+from .adapt import spread, ticking
 from .dataset import CropSet
 from .fit import features_in_chunks, fit_classifier
 from .keyframes import aspect_of, background_crops, positive_crops, window_crops
@@ -68,18 +66,6 @@ def count_wide(pictures: Sequence[AnnotatedPicture], aspect: float) -> int:
     return sum(len(wide_targets(p.targets, aspect)) for p in pictures)
 
 
-def _frames(pictures: Sequence[AnnotatedPicture], desc: str, progress: bool
-            ) -> Iterator[tuple[AnnotatedPicture, np.ndarray]]:
-    bar = tqdm(total=len(pictures), unit="frame", desc=desc, file=sys.stderr, dynamic_ncols=True,
-               disable=not progress)
-    try:
-        for item in load_pictures(pictures):
-            yield item
-            bar.update(1)
-    finally:
-        bar.close()
-
-
 def side_crops(pictures: Sequence[AnnotatedPicture], config: FeatureConfig, adapt: AdaptConfig,
                progress: bool = True) -> CropSet:
     """The component's first crops, ``(N, 32, 64, 3) uint8`` (module docstring): positives
@@ -88,7 +74,7 @@ def side_crops(pictures: Sequence[AnnotatedPicture], config: FeatureConfig, adap
     pos: list[np.ndarray] = []
     neg: list[np.ndarray] = []
     rng = np.random.default_rng(adapt.seed)
-    for pic, image in _frames(pictures, "side-view crops", progress):
+    for pic, image in ticking(pictures, "side-view crops", progress):
         f = as_frame(pic, image)
         s = int(rng.integers(2**31))
         wide = wide_targets(pic.targets, adapt.side_aspect)
@@ -167,7 +153,7 @@ def fit_side_model(pictures: Sequence[AnnotatedPicture], main: Model, search: Se
     model = _fit(crops, config, adapt, meta)
     mined = spread([p for p in pictures if p.complete], adapt.mining_frames)
     hard = hard_negatives(replace(main, side=model), search, mined, adapt.side_hard,
-                          _frames(mined, "side-view hard negatives", progress))
+                          ticking(mined, "side-view hard negatives", progress))
     report["hard_negatives"] = len(hard)
     if len(hard):
         model = _fit(CropSet.concat(crops, hard), config, adapt, meta)

@@ -3,7 +3,6 @@
 formation (config, the model's record, the heat map by default)."""
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +21,7 @@ from fastdet.video.box_stages import HeatStage, TrackStage
 from fastdet.video.detector import BOXES_KEY, box_formation
 from fastdet.video.nmsboxes import NMS_INSIDE, NMS_IOU, NmsStage, nms_boxes
 from fastdet.video.plausible import DENSE_DUPLICATES, duplicates
+from tests.fakes import model_carrying_side
 from tests.reference import box_iou, box_overlap_fraction
 
 
@@ -222,29 +222,6 @@ def test_a_side_window_is_a_box_and_competes_with_the_main_windows() -> None:
     assert len(nms_boxes(Detections(b[[3]], s[[3]], part=part[[3]]))) == 0
 
 
-def _carrying_side(frame: np.ndarray, positive: float = 0.005):
-    """The bundled model carrying a random side-view component, standardised on windows of
-    ``frame`` and letting about ``positive`` of them through."""
-    import cv2
-
-    from fastdet.features import extract_features
-    from fastdet.model import Model
-    from fastdet.train.side import side_config
-
-    main = load_model()
-    cfg = side_config(main.config)
-    rng = np.random.default_rng(0)
-    h, w = frame.shape[:2]
-    ys, xs, hs = rng.integers(h // 2, h - 40, 300), rng.integers(0, w - 80, 300), rng.choice([16, 24, 32], 300)
-    crops = np.stack([cv2.resize(frame[y:y + s, x:x + 2 * s], (cfg.win_w, cfg.win_h)) for y, x, s in zip(ys, xs, hs)])
-    x = extract_features(crops, cfg)
-    mean, scale = x.mean(axis=0), x.std(axis=0) + 1e-3
-    coef = rng.normal(size=cfg.n_features) * 3 / np.sqrt(cfg.n_features)
-    dec = ((x - mean) / scale) @ coef
-    side = Model(cfg, coef, -float(np.quantile(dec, 1 - positive)), mean, scale, classifier=main.classifier)
-    return replace(main, side=side)
-
-
 def test_the_pipelines_nms_boxes_take_the_side_components_windows(data: Path, tmp_path: Path) -> None:
     """A model file carrying a side-view component: the pipeline searches with it, and its nms
     boxes are the suppression of the main model's and the component's windows, some of them the
@@ -252,7 +229,7 @@ def test_the_pipelines_nms_boxes_take_the_side_components_windows(data: Path, tm
     from fastdet.detect import Detector
 
     frames = _frames(data, 6)
-    model = _carrying_side(frames[0])
+    model = model_carrying_side(frames[0])
     path = offset(model, 0.0).save(tmp_path / "side.npz")
     bare = VideoDetector(config=PipelineConfig(model=str(path), boxes="nms", oncoming=False, plausible=None).without(
         "tracker", "refine", "guided"))

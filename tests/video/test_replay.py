@@ -16,6 +16,7 @@ from fastdet.model import load_model
 from fastdet.train.blend import offset
 from fastdet.video.replay import ReplayDetector, iter_offset_detections
 from fastdet.video.run import iter_video_detections
+from tests.fakes import model_carrying_side
 
 OFFSETS = (-1.0, 0.0, 3.0)
 
@@ -109,29 +110,6 @@ def test_lanes_of_either_box_formation_are_those_of_each_formations_own_replay(d
 SIDE_OFFSETS = (0.0, 2.0, math.inf)
 
 
-def _carrying_side(frame, positive=0.005):
-    """The bundled model carrying a random side-view component (64x32 windows of its features),
-    standardised on windows of ``frame`` and letting about ``positive`` of them through."""
-    import cv2
-
-    from fastdet.features import extract_features
-    from fastdet.model import Model
-    from fastdet.train.side import side_config
-
-    main = load_model()
-    cfg = side_config(main.config)
-    rng = np.random.default_rng(0)
-    h, w = frame.shape[:2]
-    ys, xs, hs = rng.integers(h // 2, h - 40, 300), rng.integers(0, w - 80, 300), rng.choice([16, 24, 32], 300)
-    crops = np.stack([cv2.resize(frame[y:y + s, x:x + 2 * s], (cfg.win_w, cfg.win_h)) for y, x, s in zip(ys, xs, hs)])
-    x = extract_features(crops, cfg)
-    mean, scale = x.mean(axis=0), x.std(axis=0) + 1e-3
-    coef = rng.normal(size=cfg.n_features) * 3 / np.sqrt(cfg.n_features)
-    dec = ((x - mean) / scale) @ coef
-    side = Model(cfg, coef, -float(np.quantile(dec, 1 - positive)), mean, scale, classifier=main.classifier)
-    return replace(main, side=side)
-
-
 @pytest.mark.parametrize("delta, side_delta", [(0.0, 0.0), (0.0, 2.0), (1.0, -1.0), (0.0, math.inf)])
 def test_a_frames_windows_are_those_of_the_side_component_moved(frame, delta, side_delta):
     """ReplayDetector(source, delta, component_delta): the main model moved by delta, its side-view
@@ -140,7 +118,7 @@ def test_a_frames_windows_are_those_of_the_side_component_moved(frame, delta, si
     from fastdet.detections import FIRST_COMPONENT_PART
     from fastdet.train.blend import side_offset
 
-    model = _carrying_side(frame)
+    model = model_carrying_side(frame)
     src = Detector(model)
     stats = DetectStats()
     whole = src.detect(frame, stats=stats)
@@ -167,7 +145,7 @@ def test_each_side_offsets_boxes_and_ids_are_those_of_its_own_run(data, tmp_path
 
     video = str(data / "videos" / "test_small1.mp4")
     with FrameReader(video, 20, 1) as r:
-        model = _carrying_side(next(iter(r))[1])
+        model = model_carrying_side(next(iter(r))[1])
     base = tmp_path / "base.npz"
     offset(model, 0.0).save(base)
     lanes = [("nms", 0.0, s) for s in SIDE_OFFSETS]
