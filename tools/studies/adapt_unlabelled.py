@@ -117,12 +117,16 @@ def _cell(r: EvalResult) -> str:
 
 def chosen(summary: dict) -> str:
     """What adapt chose: the formation; its best offset, that F1 +- its standard error -> the offset
-    chosen (the strictest within it); older models: the formation and offset."""
+    chosen (the strictest within it); then the side-view component's offset or "left out" where one
+    was fitted; older models: the formation and offset."""
     b = summary.get("boxes", "heat")
     t = (summary.get("boxes_tried") or {}).get(b, {})
     if "best_offset" not in t:
         return f"{b}, {summary.get('offset', 0):g}"
-    return f"{b}; {t['best_offset']:g}, {t['best_f1']:.2f} +- {t['f1_se']:.2f} -> {summary['offset']:g}"
+    side = summary.get("side") or {}
+    kept = "" if "offsets_f1" not in side else (
+        "; side-view left out" if side.get("offset") is None else f"; side-view {side['offset']:g}")
+    return f"{b}; {t['best_offset']:g}, {t['best_f1']:.2f} +- {t['f1_se']:.2f} -> {summary['offset']:g}{kept}"
 
 
 def main(argv: list[str] | None = None) -> int:

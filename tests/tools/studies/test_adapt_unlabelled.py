@@ -29,5 +29,9 @@ def test_the_chosen_column_reads_the_summary():
         "nms": {"best_offset": 2.0, "best_f1": 0.6789, "f1_se": 0.0234, "offset": 4.0, "f1": 0.66},
         "heat": {"best_offset": 0.0, "best_f1": 0.5, "f1_se": 0.05, "offset": 1.0, "f1": 0.49}}}
     assert chosen(new) == "nms; 2, 0.68 +- 0.02 -> 4"
+    assert chosen({**new, "side": {"fit": {"vehicles": 3}, "offset": None}}) == "nms; 2, 0.68 +- 0.02 -> 4"
+    tried = {"fit": {"vehicles": 40}, "offsets_f1": {"0": 0.5, "inf": 0.6}}
+    assert chosen({**new, "side": {**tried, "offset": None}}) == "nms; 2, 0.68 +- 0.02 -> 4; side-view left out"
+    assert chosen({**new, "side": {**tried, "offset": 3.0}}) == "nms; 2, 0.68 +- 0.02 -> 4; side-view 3"
     assert chosen({"boxes": "heat", "offset": -1.0, "boxes_tried": {"heat": {"offset": -1.0, "f1": 0.4}}}) == "heat, -1"
     assert chosen({"offset": 0.0}) == "heat, 0"
