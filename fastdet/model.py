@@ -32,7 +32,7 @@ from __future__ import annotations
 import json
 import os
 import zipfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -99,8 +99,12 @@ class Model:
         if self.side is not None:
             if not isinstance(self.side, Model) or self.side.side is not None or self.side.regressor is not None:
                 raise ModelError("a side-view component must be a Model that carries nothing itself")
-            if self.side.config.window_height is None:
-                raise ModelError("a side-view component must be a wide-window model (its windows are square)")
+            sc, mc = self.side.config, self.config
+            if sc.window_height is None or sc.window_height >= sc.window:
+                raise ModelError("a side-view component must be a wide-window model (wider than tall)")
+            if replace(sc, window_height=None) != replace(mc, window_height=None):
+                raise ModelError("a side-view component must have the main model's features (at a wider window): "
+                                 "it scores the main model's band images and HOG")
             if self.side.classifier != self.classifier:
                 raise ModelError(f"the side-view component is a {self.side.classifier} model, the main model a "
                                  f"{self.classifier} one: their scores would not compare")

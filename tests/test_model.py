@@ -335,6 +335,10 @@ def test_side_view_components_that_cannot_be_are_refused():
         replace(main, side="side.npz")  # type: ignore[arg-type]
     with pytest.raises(ModelError, match="logreg model, the main model a linearsvc"):
         replace(main, side=_side(classifier="logreg"))
+    other = replace(SIDE_CFG, orientations=9)  # other features: it could not share the band's HOG
+    n = other.n_features
+    with pytest.raises(ModelError, match="main model's features"):
+        replace(main, side=Model(other, np.zeros(n), 0.0, np.zeros(n), np.ones(n)))
     assert replace(main, side=_side()).side is not None
 
 

@@ -28,7 +28,11 @@
   standard error of that formation's best F1 (:func:`fastdet.train.operating_point.strictest_within_one_se`),
   through the ``video`` pipeline with that regressor (:mod:`fastdet.train.adapt`), at the horizon
   a run of each whole video has (:func:`~fastdet.video.run.file_horizon`).
-  Each kept-aside stretch is decoded once for the three runs over it (:func:`held_stretches`:
+  A side-view component (:mod:`fastdet.train.side`) is fitted on the camera's wide vehicles and
+  kept, moved by the offset chosen for it, only where the kept-aside frames say so
+  (:func:`fastdet.train.operating_point.choose_side_offset`, :func:`~fastdet.train.operating_point.use_side`;
+  the summary's ``side``).
+  Each kept-aside stretch is decoded once for the runs over it (:func:`held_stretches`:
   in memory up to ``AdaptConfig.hold_bytes``, the rest in raw files in the work folder, removed
   when the step ends).
 - Writes ONE model file (``video / image / batch --model`` take it), its metadata holding the
@@ -341,20 +345,6 @@ def _finite(v: float) -> float | None:
     return None if v == math.inf else v
 
 
-def use_side(boxes: Boxes, by_boxes: Mapping[str, _op.FormationChoice], side: _op.FormationChoice) -> bool:
-    """Whether the model keeps its side-view component: its offset chosen (:func:`choose_side_offset
-    <fastdet.train.operating_point.choose_side_offset>`) is not "left out", and the window boxes with
-    it agree with the kept-aside labels at least as well as the formation chosen without it
-    (``boxes``, at its best offset): the component's windows go to the window boxes only."""
-    if side.offset == math.inf:
-        return False
-    if boxes == "nms":
-        return True
-    mine = side.results[side.offset].f1
-    theirs = by_boxes[boxes].results[by_boxes[boxes].best].f1
-    return not math.isnan(mine) and (math.isnan(theirs) or mine > theirs)
-
-
 def side_line(summary: Mapping[str, Any]) -> str:
     """The summary's line on the side-view component."""
     fit = summary["fit"]
@@ -490,8 +480,12 @@ def run(args: argparse.Namespace) -> int:
     secs["regressor"] = time.perf_counter() - t
     _signals.check()
     t = time.perf_counter()
-    side, side_fit = _side.fit_side_model(
-        train_pics, model, replace(PipelineConfig().search, horizon=horizons[footage.clips[0].name]), config, progress)
+    side: Model | None = None
+    side_fit: dict[str, Any] = {"skipped": "no labelled frame kept aside to choose it on"}
+    if any(held.values()):
+        side, side_fit = _side.fit_side_model(
+            train_pics, model, replace(PipelineConfig().search, horizon=horizons[footage.clips[0].name]), config,
+            progress)
     secs["side"] = time.perf_counter() - t
     _signals.check()
 
@@ -526,11 +520,12 @@ def run(args: argparse.Namespace) -> int:
                                             config.side_offsets, progress, seed=config.seed)
                 side_summary.update({"offsets_f1": {f"{o:g}": a.to_dict()["f1"] for o, a in sc.results.items()},
                                      "best_offset": _finite(sc.best), "f1_se": round(sc.se, 4)})
-                if use_side(boxes, by_boxes, sc):
+                if _op.use_side(boxes, by_boxes, sc):
                     boxes, chosen = "nms", by_boxes["nms"].offset
                     model = side_offset(replace(model, side=side), sc.offset)
                     side_summary["offset"] = sc.offset
                     r = sc.results[sc.offset]
+                    tried = {f"{o:g}": a.to_dict()["f1"] for o, a in by_boxes["nms"].results.items()}
             after = _after(model, chosen, boxes, footage, run_holdout, work / "operating-point")
         if (after["tp"], after["fp"], after["fn"]) != (r.tp, r.fp, r.fn):
             print(f"note: at offset {chosen:g} the pipeline run found {after['tp']} / {after['fp']} / {after['fn']} "
@@ -584,8 +579,8 @@ def run(args: argparse.Namespace) -> int:
               f"frames); chosen {chosen:g} by the one-standard-error rule")
         print(side_line(side_summary))
     else:
-        print("no labelled frame kept aside: the model keeps its own operating point (offset 0)"
-              + ("" if side is None else "; the side-view component is left out (nothing to choose its offset on)"))
+        print("no labelled frame kept aside: the model keeps its own operating point (offset 0) and fits no "
+              "side-view component")
     print(f"agreement with the {labelled_by} labels on the kept-aside frames:")
     print(f"  before (bundled model): {_fmt(before)}")
     print(f"  after  ({out.name}): {_fmt(after)}")

@@ -34,8 +34,8 @@ class AdaptConfig(Config):
     holdout: the fraction of each video, at its end, kept aside for the operating point
         (contiguous: the pipeline's heat map needs consecutive frames); never trained on.
     holdout_max: at most this many frames kept aside over all the footage (split evenly
-        between the videos): the pipeline runs over them three times (the bundled model, every
-        offset at once, the offset chosen), a large part of a run's time on long footage
+        between the videos): the pipeline runs over them three or four times (the bundled model, every
+        offset at once, the side-view component's offsets at once, the offset chosen), a large part of a run's time on long footage
         (docs/benchmarks.md, "Adapting to a camera").
     holdout_every: the teacher labels every ``holdout_every``-th frame of the kept-aside stretch
         (from its first): the operating point's evidence. 1: every frame (at most ``holdout_max``;
@@ -43,7 +43,7 @@ class AdaptConfig(Config):
         rest on the 4-7 frames every 5th leaves it (docs/training.md, "Every kept-aside frame
         labelled").
     hold_bytes: the kept-aside frames are decoded once (reaching them decodes every frame
-        before them: 41 s into 10 minutes of 1280x720 footage) and held for those three runs
+        before them: 41 s into 10 minutes of 1280x720 footage) and held for those runs
         (:func:`fastdet.io.hold.hold_frames`): in memory while they take at most this many
         bytes over all the videos (400 frames of 1280x720, the default cap, are 1.1 GB), the
         rest in raw files in the work folder (400 of 1920x1080: 2.5 GB), removed when the step

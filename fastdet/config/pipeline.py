@@ -75,8 +75,9 @@ class PipelineConfig(Config):
         fraction of the frame height in [0, 1], ``None`` leaves the bands where they are written.
     boxes: how one box per vehicle is made of the main model's positive windows: ``'heat'``, the
         heat map over recent frames (:attr:`heat`, a box per blob, the split); ``'nms'``, each
-        frame's windows after non-maximum suppression (:mod:`fastdet.video.nmsboxes`; the tracker
-        then splits no box); ``None``: what the main model file records (a model ``fastdet adapt``
+        frame's windows -- and those of the side-view component an adapted model may carry --
+        after non-maximum suppression (:mod:`fastdet.video.nmsboxes`; the tracker then splits no
+        box); ``None``: what the main model file records (a model ``fastdet adapt``
         made keeps the one that agreed best with its teacher), else ``'heat'``.
     heat: the main model's heat map; oncoming_heat: the oncoming model's.
     motion: the motion gate of the oncoming model.

@@ -79,7 +79,8 @@ class Detector:
         pairs. Their windows are tagged ``FIRST_COMPONENT_PART + i``; the guided search plans
         their bands as the main model's (``columns``). A main model that carries a side-view
         component (:attr:`Model.side <fastdet.model.Model.side>`, ``fastdet adapt``) adds it as the
-        first, with ``search``; :func:`fastdet.train.windows.false_window_scores` scores several
+        first, with ``search`` (those given follow it: the first of them is part
+        ``FIRST_COMPONENT_PART + 1``); :func:`fastdet.train.windows.false_window_scores` scores several
         models on the same windows with them. All models must give the same
         kind of score (:attr:`Model.score_kind <fastdet.model.Model.score_kind>`).
     wide, wide_search: the former names of ``oncoming`` and ``oncoming_search``; deprecated
@@ -188,7 +189,7 @@ class Detector:
     def band_scores(self, frame: np.ndarray, geo: BandGeometry, timings: dict[str, float] | None = None,
                     part: int = 0) -> np.ndarray:
         """Decision values of every window position of one band: ``(geo.ny, geo.nx) float64``
-        (``part`` 0: the main model, 1: the oncoming model)."""
+        (``part`` 0: the main model, 1: the oncoming model, ``FIRST_COMPONENT_PART + i``: component ``i``)."""
         return self._scorer_of[part].band_scores(frame, geo, timings)
 
     def _all_band_scores(self, frame: np.ndarray, geos: list, timings: dict[str, float],
@@ -298,14 +299,18 @@ class Detector:
         """``columns`` (as :meth:`detect` takes them) with one entry per band of
         :meth:`main_geometries`: those given; then each component band not given takes the entry
         of the main model's band with the same pixels and windows across (its twin: a side-view
-        component searches the main model's bands), so a guided search that plans the main
-        model's bands plans the component's alike; any other band ``None`` (all its windows)."""
+        component searches the main model's bands, with its features), so a guided search that
+        plans the main model's bands plans the component's alike; any other band ``None`` (all its
+        windows)."""
         if columns is None:
             return None
         geos = self.main_geometries(frame_shape)
         out: list[Sequence[tuple[int, int]] | None] = list(columns) + [None] * (len(geos) - len(columns))
+        main_features = self._scorer_of[MAIN_PART].feature_key
         twin = {image_key(g): j for j, (p, g) in enumerate(geos[:len(columns)]) if p == MAIN_PART}
         for j in range(len(columns), len(geos)):
+            if self._scorer_of[geos[j][0]].feature_key != main_features:
+                continue  # another cell or window width: the main band's columns are other pixels
             t = twin.get(image_key(geos[j][1]))
             if t is not None:
                 out[j] = columns[t]

@@ -241,3 +241,18 @@ def choose_side_offset(model: Model, footage: Footage, run: LanesRun, folder: Pa
     if np.array_equal(per_frame[chosen], per_frame[math.inf]):
         chosen = math.inf
     return FormationChoice(chosen, results, best, se)
+
+
+def use_side(boxes: Boxes, by_boxes: Mapping[str, FormationChoice], side: FormationChoice) -> bool:
+    """Whether the model keeps its side-view component: the offset :func:`choose_side_offset` chose
+    (``side``) is not "left out" (+inf), and either the formation chosen without it (``boxes``) is
+    the window boxes, or the window boxes with it agree with the kept-aside labels better (a
+    higher F1, at the component's chosen offset) than that formation at its best offset: the
+    component's windows go to the window boxes only, so a heat-map camera switches for a gain."""
+    if side.offset == math.inf:
+        return False
+    if boxes == "nms":
+        return True
+    mine = side.results[side.offset].f1
+    theirs = by_boxes[boxes].results[by_boxes[boxes].best].f1
+    return not math.isnan(mine) and (math.isnan(theirs) or mine > theirs)

@@ -3,9 +3,8 @@
 crossing and turning traffic, buses and trucks alongside --, fitted on the camera's own
 labelled frames alone and carried in its model file (:attr:`fastdet.model.Model.side`).
 
-On most cameras measured, most of the adapted square model's misses were such vehicles (wider
-than 1.4:1; docs/training.md, "A side-view component for the camera"). The component learns
-them from the camera's wide targets:
+The component learns them from the camera's wide targets (what it scored: docs/training.md, "A
+side-view component for the camera"):
 
 - positives: every target at least :attr:`~fastdet.config.adapt.AdaptConfig.side_aspect` as wide
   as tall and :data:`MIN_WIDTH` px wide, cut at the window's aspect with jittered copies
@@ -13,7 +12,7 @@ them from the camera's wide targets:
 - negatives: random 2:1 windows of the background (touching no labelled box), then one round of
   hard negatives: the windows the first fit fires on that touch no labelled box, at the bands
   the video pipeline searches (:func:`hard_negatives`), on at most ``mining_frames`` of the
-  frames, spread evenly;
+  frames (the main model's later mining rounds' setting), spread evenly;
 - a logistic regression on the main model's features of that window, the two classes weighted
   equally (the negatives outnumber the positives many times).
 
@@ -99,6 +98,8 @@ def _fit(crops: CropSet, config: FeatureConfig, adapt: AdaptConfig, metadata: di
     x = features_in_chunks(crops.images, config, progress=False)
     y = crops.labels
     n_pos = int(y.sum())
+    if not 0 < n_pos < len(y):
+        raise ValueError("side-view fit: both positive and negative crops are needed")
     w = np.where(y == 1, len(y) / (2.0 * n_pos), len(y) / (2.0 * (len(y) - n_pos)))
     scaler, clf = fit_classifier(x, y, "logreg", adapt.side_C, adapt.seed, in_place=True, sample_weight=w)
     return Model(config=config, coef=clf.coef_.ravel(), intercept=float(clf.intercept_[0]), mean=scaler.mean_,
@@ -148,6 +149,9 @@ def fit_side_model(pictures: Sequence[AnnotatedPicture], main: Model, search: Se
                                            f"fit it on, fewer than {adapt.side_min_vehicles}"}
     config = side_config(main.config)
     crops = side_crops(pictures, config, adapt, progress)
+    if not (crops.labels == 0).any():
+        return None, {**report, "skipped": "no background to learn from (every labelled frame is partial, or "
+                                           "side_negatives is 0)"}
     report.update(positives=int(crops.labels.sum()), negatives=int((crops.labels == 0).sum()))
     meta = {"trained_on": "the camera's labelled frames (fastdet adapt): its side-view targets", "fit": report}
     model = _fit(crops, config, adapt, meta)

@@ -153,8 +153,9 @@ class RefineStage(Stage):
 
 
 class ObserveStage(Stage):
-    """Tell the search planner what this frame found: its main-model windows, the live
-    tracks and whether a confirmed vehicle's track was lost."""
+    """Tell the search planner what this frame found: its windows of the main model (and of a
+    side-view component it carries; not the oncoming model's), the live tracks and whether a
+    confirmed vehicle's track was lost."""
 
     name = "observe"
 

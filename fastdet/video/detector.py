@@ -4,6 +4,7 @@ optional abilities it uses when a detector has them (:class:`MovableHorizon`,
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Literal, Protocol, runtime_checkable
 
@@ -127,7 +128,9 @@ def make_detector(config: PipelineConfig | None = None) -> Detector:
     ``PipelineConfig()``): its main model and search, and its oncoming-traffic model
     searching the side of the view :attr:`PipelineConfig.traffic` puts oncoming cars on
     (:func:`fastdet.config.oncoming_search`); with ``oncoming=True`` (the bundled one), none
-    when the main model records so (:func:`recorded_oncoming`: an adapted camera's). Raises
+    when the main model records so (:func:`recorded_oncoming`: an adapted camera's). A main model
+    carrying a side-view component searches with it when the boxes are the window boxes
+    (:func:`box_formation`), not for the heat map, which takes the main model's windows only. Raises
     :class:`~fastdet.errors.ModelError` when a model does not load."""
     c = config if config is not None else PipelineConfig()
     oncoming: str | Path | None
@@ -137,4 +140,10 @@ def make_detector(config: PipelineConfig | None = None) -> Detector:
         oncoming = ONCOMING_MODEL_PATH if recorded_oncoming(meta) else None
     else:
         oncoming = c.oncoming or None
-    return Detector(model=c.model, search=c.search, oncoming=oncoming, oncoming_search=oncoming_search(c.traffic))
+    detector = Detector(model=c.model, search=c.search, oncoming=oncoming, oncoming_search=oncoming_search(c.traffic))
+    if detector.model.side is not None and box_formation(c, detector) == "heat":
+        # the heat map takes the main model's windows only: the side-view component, chosen for the
+        # window boxes, would be searched for nothing
+        detector = Detector(model=replace(detector.model, side=None), search=c.search, oncoming=oncoming,
+                            oncoming_search=oncoming_search(c.traffic))
+    return detector

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 from collections import OrderedDict
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -64,6 +65,10 @@ class PictureDetector:
                  refine_model: BoxRegressor | str | os.PathLike[str] | None = None,
                  verifier: BoxVerifier | str | os.PathLike[str] | None = None) -> None:
         self.model = model if isinstance(model, Model) else load_model(model)
+        if self.model.side is not None:
+            # a camera's side-view component is chosen for its video's window boxes; the picture
+            # search, its verifier and regressor are fitted on square windows: it is not searched here
+            self.model = replace(self.model, side=None)
         self.config = config if config is not None else PictureSearch()
         if not isinstance(self.config, PictureSearch):
             raise TypeError(f"config must be a PictureSearch, got {type(self.config).__name__}")

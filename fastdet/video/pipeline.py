@@ -171,8 +171,8 @@ class VideoDetector:
             raise TypeError(f"config must be a PipelineConfig, got {type(config).__name__}")
         if detector is not None and _given_components(detector):
             raise ValueError("the video pipeline runs the main model (and the side-view component it carries) and "
-                             "the oncoming model only: its heat map would drop the windows of a Detector's "
-                             "components=; pass a Detector without them")
+                             "the oncoming model only, not a Detector's components=: pass a Detector without them "
+                             "(a component of the main model's features can ride in the model file: Model.side)")
         self.config = config if config is not None else PipelineConfig()
         self._detector = detector
         self.fps = fps

@@ -236,7 +236,10 @@ def iter_lane_detections(path: str | os.PathLike | HeldFrames, lanes: Sequence[L
         raise ValueError(f"lanes must be distinct and at least one, got {list(lanes)!r}")
     reader = FrameReader(path, start, frames)
     try:
-        detector = make_detector(config)
+        # a side-view component is searched whenever a lane makes window boxes (make_detector leaves
+        # it out for the heat map alone)
+        window_lanes = any(b == "nms" or (b is None and config.boxes == "nms") for b, _, _ in keys)
+        detector = make_detector(replace(config, boxes="nms") if window_lanes else config)
         # in front: every window scored on every frame, with the stages of a full-search run
         vd = video_detector_for(reader, detector, config.without("guided"))
         vd.warmup()

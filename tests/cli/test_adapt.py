@@ -4,7 +4,6 @@ and every bad input ending in one line before any work."""
 from __future__ import annotations
 
 import dataclasses
-import math
 import os
 import re
 import signal
@@ -245,27 +244,6 @@ def test_the_models_own_boxes_are_the_video_pipelines_window_boxes(data):
         found += len(got)
     reader.close()
     assert found > 0
-
-
-def _choice(results: dict[float, tuple[int, int, int]], chosen: float):
-    from fastdet.train.operating_point import Agreement, FormationChoice
-
-    res = {o: Agreement(*c, seconds=1.0, frames=10) for o, c in results.items()}
-    best = max(res, key=lambda o: res[o].f1)
-    return FormationChoice(chosen, res, best, 0.01)
-
-
-def test_the_side_component_is_kept_only_where_the_window_boxes_with_it_agree_best():
-    heat = _choice({0.0: (8, 2, 2)}, 0.0)  # F1 0.80
-    nms = _choice({0.0: (6, 4, 4)}, 0.0)  # F1 0.60
-    left_out = _choice({0.0: (9, 1, 1), math.inf: (6, 4, 4)}, math.inf)
-    assert not adapt_cli.use_side("nms", {"heat": heat, "nms": nms}, left_out)
-    better = _choice({2.0: (9, 1, 1), math.inf: (6, 4, 4)}, 2.0)  # F1 0.90 with it
-    assert adapt_cli.use_side("nms", {"heat": heat, "nms": nms}, better)
-    assert adapt_cli.use_side("heat", {"heat": heat, "nms": nms}, better)  # beats the heat map's 0.80
-    worse = _choice({2.0: (7, 3, 3), math.inf: (6, 4, 4)}, 2.0)  # F1 0.70: below the heat map
-    assert adapt_cli.use_side("nms", {"heat": heat, "nms": nms}, worse)
-    assert not adapt_cli.use_side("heat", {"heat": heat, "nms": nms}, worse)
 
 
 def test_the_side_components_summary_line_says_what_was_chosen():

@@ -11,6 +11,7 @@ import pytest
 from fastdet.config.adapt import AdaptConfig
 from fastdet.model import load_model
 from fastdet.train import adapt, operating_point
+from fastdet.train.operating_point import Agreement, FormationChoice, use_side
 from tests.media import write_video
 
 
@@ -203,3 +204,22 @@ def test_a_model_without_a_side_component_has_no_side_offset(tmp_path):
     with pytest.raises(ValueError, match="no side-view component"):
         operating_point.choose_side_offset(load_model(), fp, run, tmp_path / "op", "nms", 0.0, (0.0,),
                                            progress=False)
+
+
+def _choice(results: dict[float, tuple[int, int, int]], chosen: float):
+    res = {o: Agreement(*c, seconds=1.0, frames=10) for o, c in results.items()}
+    best = max(res, key=lambda o: res[o].f1)
+    return FormationChoice(chosen, res, best, 0.01)
+
+
+def test_the_side_component_is_kept_only_where_the_window_boxes_with_it_agree_best():
+    heat = _choice({0.0: (8, 2, 2)}, 0.0)  # F1 0.80
+    nms = _choice({0.0: (6, 4, 4)}, 0.0)  # F1 0.60
+    left_out = _choice({0.0: (9, 1, 1), math.inf: (6, 4, 4)}, math.inf)
+    assert not use_side("nms", {"heat": heat, "nms": nms}, left_out)
+    better = _choice({2.0: (9, 1, 1), math.inf: (6, 4, 4)}, 2.0)  # F1 0.90 with it
+    assert use_side("nms", {"heat": heat, "nms": nms}, better)
+    assert use_side("heat", {"heat": heat, "nms": nms}, better)  # beats the heat map's 0.80
+    worse = _choice({2.0: (7, 3, 3), math.inf: (6, 4, 4)}, 2.0)  # F1 0.70: below the heat map
+    assert use_side("nms", {"heat": heat, "nms": nms}, worse)
+    assert not use_side("heat", {"heat": heat, "nms": nms}, worse)

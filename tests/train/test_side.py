@@ -166,3 +166,16 @@ def test_adapt_config_side_settings_are_kept_sorted_and_round_trip():
     assert AdaptConfig.from_dict(c.to_dict()) == c
     d = AdaptConfig()
     assert (d.side_aspect, d.side_min_vehicles, d.side_offsets) == (1.4, 20, (0.0, 1.0, 2.0, 3.0, 4.0, 6.0))
+
+
+def test_no_background_no_side_view_component(pictures):
+    """Pictures whose labels are partial give no background crops: nothing to tell a side-on
+    vehicle from, so no component (one line of why), not a division by zero."""
+    partial = [replace(p, complete=False) for p in pictures]
+    model, report = side.fit_side_model(partial, load_model(), SearchConfig(), AdaptConfig(side_min_vehicles=1),
+                                        progress=False)
+    assert model is None and "no background" in report["skipped"]
+    model, report = side.fit_side_model(pictures, load_model(), SearchConfig(),
+                                        AdaptConfig(side_min_vehicles=1, side_negatives=0), progress=False)
+    assert model is None and "no background" in report["skipped"]
+
