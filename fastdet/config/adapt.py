@@ -34,9 +34,9 @@ class AdaptConfig(Config):
     holdout: the fraction of each video, at its end, kept aside for the operating point
         (contiguous: the pipeline's heat map needs consecutive frames); never trained on.
     holdout_max: at most this many frames kept aside over all the footage (split evenly
-        between the videos): the pipeline runs over them three or four times (the bundled model, every
-        offset at once, the side-view component's offsets at once, the offset chosen), a large part of a run's time on long footage
-        (docs/benchmarks.md, "Adapting to a camera").
+        between the videos): the pipeline runs over them three or four times (the bundled model,
+        every offset at once, the side-view component's offsets at once, the offset chosen), a
+        large part of a run's time on long footage (docs/benchmarks.md, "Adapting to a camera").
     holdout_every: the teacher labels every ``holdout_every``-th frame of the kept-aside stretch
         (from its first): the operating point's evidence. 1: every frame (at most ``holdout_max``;
         the teacher's cost is small beside the rest), so that on a short clip the choice does not
