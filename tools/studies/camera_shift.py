@@ -43,7 +43,7 @@ import numpy as np
 from fastdet.config import REFERENCE_HORIZON, HeatConfig, PipelineConfig, SearchBand
 from fastdet.data import data_dir
 from fastdet.detect import Detector
-from fastdet.detections import Detections
+from fastdet.detections import ONCOMING_PART, Detections
 from fastdet.eval import evaluate
 from fastdet.eval.sizes import WIDTH_EDGES, recall_by_width
 from fastdet.eval.variants import Variant, standard_variants, transform_gt
@@ -234,9 +234,9 @@ def main(argv: list[str] | None = None) -> int:
         extra = tuple(SearchBand(float(f[0]), *(int(v) for v in f[1:])) for f in (b.split(",") for b in args.band))
         sc = det.scorers[0]
         sc.search = replace(sc.search, bands=tuple(sc.search.bands) + extra)
-    if args.wide_columns and len(det.scorers) > 1:
+    if args.wide_columns and ONCOMING_PART in det.parts:
         a, b = (int(v) for v in args.wide_columns.split(","))
-        sc = det.scorers[1]
+        sc = det.scorers[det.parts.index(ONCOMING_PART)]
         sc.search = replace(sc.search, bands=tuple(
             replace(bd, x_start=a + int((b - a) % (8 * bd.scale)) if a else 0,
                     x_stop=b if a else int(b // (8 * bd.scale) * (8 * bd.scale))) for bd in sc.search.bands))
