@@ -206,6 +206,17 @@ def test_band_columns_give_the_side_bands_their_twins_columns(frame, carried):
     other = Detector(components=[(ONCOMING_MODEL_PATH, SearchConfig(bands=(SearchBand(1.5, 380, 520),)))])
     k = len(other.search.bands)
     assert other.band_columns([[(0, 3)]] * k, shape) == [[(0, 3)]] * k + [None]
+    # a component on the main search but of other features (here other orientations: equal
+    # band images, another HOG) is no twin either: searched in full
+    from dataclasses import replace as dc_replace
+
+    from fastdet.model import Model
+
+    cfg = dc_replace(carried.side.config, orientations=6)
+    nf = cfg.n_features
+    odd = Model(cfg, np.zeros(nf), 0.0, np.zeros(nf), np.ones(nf), classifier=carried.classifier)
+    mixed = Detector(dc_replace(carried, side=None), det.search, components=[(odd, det.search)])
+    assert mixed.band_columns(main_cols, shape) == main_cols + [None] * n
 
     # detect: columns of the main bands only (the side bands take them too), or some side bands' own
     _, full = _bands(det, frame, 2)
