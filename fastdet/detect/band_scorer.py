@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
@@ -53,12 +53,29 @@ class _Scorer:
         # row_thresholds of the bands met so far, by (band geometry, threshold, slack threshold):
         # a band's rows and thresholds are the same on every frame of a video
         self._thresholds: dict[tuple[BandGeometry, float, float | None], np.ndarray | float] = {}
+        # geometries() of the frame sizes and searches met so far
+        self._geometries: dict[tuple[tuple[int, ...], SearchConfig], tuple[BandGeometry, ...]] = {}
 
     def geometries(self, frame_shape: tuple[int, int]) -> list[BandGeometry]:
-        search = self.search.for_frame(frame_shape, self.config.win_w, self.config.pixels_per_cell)
-        return [band_geometry(b, frame_shape, self.config, search.cells_per_step, search.border, search.border_mode,
-                              search.shrink)
-                for b in search.bands]
+        """The geometry of every band of the search on a frame of ``frame_shape = (H, W)``, worked
+        out once per frame size and search (the same on every frame of a video; a frame asks for
+        them several times)."""
+        key = (tuple(int(v) for v in frame_shape[:2]), self.search)
+        cache = True
+        try:
+            geos = self._geometries.get(key)
+        except TypeError:  # a search of unhashable parts (a study's own): worked out every time
+            cache, geos = False, None
+        if geos is None:
+            search = self.search.for_frame(frame_shape, self.config.win_w, self.config.pixels_per_cell)
+            geos = tuple(band_geometry(b, frame_shape, self.config, search.cells_per_step, search.border,
+                                       search.border_mode, search.shrink)
+                         for b in search.bands)
+            if cache:
+                if len(self._geometries) >= _MAX_CACHED_BANDS:  # searches given per frame
+                    self._geometries.clear()
+                self._geometries[key] = geos
+        return list(geos)
 
     def row_thresholds(self, geo: BandGeometry) -> np.ndarray | float:
         """:func:`~fastdet.detect.geometry.row_thresholds` of the band ``geo`` under this
@@ -92,10 +109,11 @@ class _Scorer:
         return group_band_scores(frame, [(self, geo)], timings, serial, spans, padded)[0]
 
 
-def image_key(geo: BandGeometry) -> BandGeometry:
+def image_key(geo: BandGeometry) -> tuple[Any, ...]:
     """The band's scaled pixels as :func:`~fastdet.detect.bands.scaled_band` cuts them, whatever
-    the window height: the geometry without its window rows (``ny``)."""
-    return replace(geo, ny=0)
+    the window height: the geometry's fields but its window rows (``ny``)."""
+    return (geo.band, geo.x0, geo.y0, geo.x1, geo.y1, geo.scaled_w, geo.scaled_h, geo.nx, geo.step, geo.pad_left,
+            geo.pad_right, geo.border_mode, geo.shrink)
 
 
 def group_band_scores(frame: np.ndarray, members: Sequence[tuple[_Scorer, BandGeometry]],
