@@ -90,6 +90,8 @@ def run(args: argparse.Namespace) -> int:
     if args.gt is not None:
         gt = read_gt(args.gt)
     det = Detector(args.model, oncoming=args.oncoming_model)
+    if det.model.side is not None:  # the main model's windows are mined, not a side-view component's
+        det = Detector(replace(det.model, side=None), oncoming=det.oncoming_model)
     if args.threshold is not None:
         for sc in det.scorers:
             sc.search = replace(sc.search, threshold=args.threshold)
