@@ -521,6 +521,8 @@ def run(args: argparse.Namespace) -> int:
                 side_summary.update({"offsets_f1": {f"{o:g}": a.to_dict()["f1"] for o, a in sc.results.items()},
                                      "best_offset": _finite(sc.best), "f1_se": round(sc.se, 4)})
                 if _op.use_side(boxes, by_boxes, sc):
+                    if boxes != "nms":
+                        side_summary["instead_of"] = boxes  # the formation chosen without it
                     boxes, chosen = "nms", by_boxes["nms"].offset
                     model = side_offset(replace(model, side=side), sc.offset)
                     side_summary["offset"] = sc.offset
@@ -571,7 +573,9 @@ def run(args: argparse.Namespace) -> int:
 
         print("boxes tried (F1 at their best offset): "
               + ", ".join(f"{b} {f1(v['best_f1'])} (offset {v['best_offset']:g})" for b, v in formations.items())
-              + f"; chosen {boxes}")
+              + f"; chosen {boxes}"
+              + (f" (with the side-view component, instead of {side_summary['instead_of']})"
+                 if "instead_of" in side_summary else ""))
         fb = formations[boxes]
         print(f"offsets tried with {boxes} boxes (F1): "
               + ", ".join(f"{k} {f1(v)}" for k, v in tried.items())

@@ -205,6 +205,7 @@ def test_adapt_writes_a_model_with_its_summary(teacher, data, tmp_path, capsys, 
     if side["offset"] is None:  # left out: the formation of best F1 without it
         assert model.side is None and f1s[s["boxes"]] == max(f1s.values()) and "chosen: left out" in text
     else:  # kept: window boxes, at the F1 the replay gave them
+        assert ("instead_of" not in side) or f"(with the side-view component, instead of {side['instead_of']})" in text
         assert model.side is not None and model.side.config.window_height == 32 and s["boxes"] == "nms"
         assert s["agreement"]["after"]["f1"] == side["offsets_f1"][f"{side['offset']:g}"]
         assert len(make_detector(PipelineConfig(model=str(out))).components) == 1
