@@ -89,9 +89,8 @@ def run(args: argparse.Namespace) -> int:
     gt = None
     if args.gt is not None:
         gt = read_gt(args.gt)
-    det = Detector(args.model, oncoming=args.oncoming_model)
-    if det.model.side is not None:  # the main model's windows are mined, not a side-view component's
-        det = Detector(replace(det.model, side=None), oncoming=det.oncoming_model)
+    # the main model's windows are mined (or the oncoming one's), never a side-view component's
+    det = Detector(args.model, oncoming=args.oncoming_model, side=False)
     if args.threshold is not None:
         for sc in det.scorers:
             sc.search = replace(sc.search, threshold=args.threshold)

@@ -80,7 +80,8 @@ class Detector:
         their bands as the main model's (``columns``). A main model that carries a side-view
         component (:attr:`Model.side <fastdet.model.Model.side>`, ``fastdet adapt``) adds it as the
         first, with ``search`` (those given follow it: the first of them is part
-        ``FIRST_COMPONENT_PART + 1``); :func:`fastdet.train.windows.false_window_scores` scores several
+        ``FIRST_COMPONENT_PART + 1``); ``side=False`` leaves it out (the main model's own windows
+        only). :func:`fastdet.train.windows.false_window_scores` scores several
         models on the same windows with them. All models must give the same
         kind of score (:attr:`Model.score_kind <fastdet.model.Model.score_kind>`).
     wide, wide_search: the former names of ``oncoming`` and ``oncoming_search``; deprecated
@@ -99,7 +100,7 @@ class Detector:
     def __init__(self, model: Model | str | os.PathLike | None = None, search: SearchConfig | None = None,
                  oncoming: Model | str | os.PathLike | None = None, oncoming_search: SearchConfig | None = None,
                  horizon: float | None = None,
-                 components: Sequence[tuple[Model | str | os.PathLike, SearchConfig]] = (), *,
+                 components: Sequence[tuple[Model | str | os.PathLike, SearchConfig]] = (), *, side: bool = True,
                  wide: Model | str | os.PathLike | None = None, wide_search: SearchConfig | None = None):
         if wide is not None or wide_search is not None:
             if oncoming is not None or oncoming_search is not None:
@@ -130,7 +131,7 @@ class Detector:
                                         oncoming_search if oncoming_search is not None else ONCOMING_SEARCH))
             self.parts.append(ONCOMING_PART)
         self.components: list[Model] = []
-        if self.model.side is not None:  # the camera's side-view component: the main model's search
+        if side and self.model.side is not None:  # the camera's side-view component: the main model's search
             components = [(self.model.side, self.search), *components]
         for i, (comp, comp_search) in enumerate(components):
             m = comp if isinstance(comp, Model) else load_model(comp)

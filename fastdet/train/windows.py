@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -162,10 +162,7 @@ def dense_detector(model: Model, frame_shape: tuple[int, int], components: Seque
     def dense(m: Model) -> SearchConfig:
         return dense_search(frame_shape, m.config.win_w, cell=m.config.pixels_per_cell, **search)
 
-    def own(m: Model) -> Model:
-        return replace(m, side=None) if m.side is not None else m
-
-    return Detector(own(model), dense(model), components=[(own(c), dense(c)) for c in components])
+    return Detector(model, dense(model), components=[(c, dense(c)) for c in components], side=False)
 
 
 def score_frames(model: Model, frames: Sequence[AnnotatedFrame], iou_min: float = 0.5,

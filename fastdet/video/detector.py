@@ -4,7 +4,6 @@ optional abilities it uses when a detector has them (:class:`MovableHorizon`,
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import replace
 from pathlib import Path
 from typing import Any, Literal, Protocol, runtime_checkable
 
@@ -90,10 +89,15 @@ def box_formation(config: PipelineConfig, detector: object) -> Boxes:
     ``config.boxes`` when set; else what ``detector``'s main model records (its ``model``'s
     metadata :data:`BOXES_KEY`: ``fastdet adapt`` writes the formation it chose for the
     camera); else ``'heat'``. :class:`~fastdet.errors.ModelError` for a record that is not one."""
+    model = getattr(detector, "model", None)
+    return recorded_formation(config, model.metadata if isinstance(model, Model) else {})
+
+
+def recorded_formation(config: PipelineConfig, metadata: Mapping[str, Any]) -> Boxes:
+    """:func:`box_formation` for the main model whose file's ``metadata`` this is."""
     if config.boxes is not None:
         return config.boxes
-    model = getattr(detector, "model", None)
-    got = model.metadata.get(BOXES_KEY) if isinstance(model, Model) else None
+    got = metadata.get(BOXES_KEY)
     if got is None:
         return "heat"
     if got not in BOXES:
@@ -133,17 +137,14 @@ def make_detector(config: PipelineConfig | None = None) -> Detector:
     (:func:`box_formation`), not for the heat map, which takes the main model's windows only. Raises
     :class:`~fastdet.errors.ModelError` when a model does not load."""
     c = config if config is not None else PipelineConfig()
+    # the records alone (the metadata array): the Detector loads and checks the model, once
+    _, meta = read_npz(Path(c.model) if c.model is not None else DEFAULT_MODEL_PATH, ("metadata",))
     oncoming: str | Path | None
     if c.oncoming is True:
-        # the record alone (the metadata array): the Detector loads and checks the model, once
-        _, meta = read_npz(Path(c.model) if c.model is not None else DEFAULT_MODEL_PATH, ("metadata",))
         oncoming = ONCOMING_MODEL_PATH if recorded_oncoming(meta) else None
     else:
         oncoming = c.oncoming or None
-    detector = Detector(model=c.model, search=c.search, oncoming=oncoming, oncoming_search=oncoming_search(c.traffic))
-    if detector.model.side is not None and box_formation(c, detector) == "heat":
-        # the heat map takes the main model's windows only: the side-view component, chosen for the
-        # window boxes, would be searched for nothing
-        detector = Detector(model=replace(detector.model, side=None), search=c.search, oncoming=oncoming,
-                            oncoming_search=oncoming_search(c.traffic))
-    return detector
+    # the heat map takes the main model's windows only: a side-view component, chosen for the
+    # window boxes, would be searched for nothing
+    return Detector(model=c.model, search=c.search, oncoming=oncoming, oncoming_search=oncoming_search(c.traffic),
+                    side=recorded_formation(c, meta) == "nms")

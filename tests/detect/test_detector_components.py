@@ -232,3 +232,18 @@ def test_band_columns_give_the_side_bands_their_twins_columns(frame, carried):
             assert p == (MAIN_PART if b < n else FIRST_COMPONENT_PART)
     with pytest.raises(ValueError, match="entries"):
         det.detect(frame, columns=[None] * (2 * n + 1))
+
+
+def test_side_false_leaves_the_carried_component_out(frame, carried):
+    """Detector(side=False): the main model's own windows, as a Detector on the model without
+    its component gives them; the components given still join."""
+    from dataclasses import replace
+
+    alone = Detector(carried, side=False)
+    assert alone.components == [] and alone.parts == [MAIN_PART]
+    want = Detector(replace(carried, side=None)).detect(frame)
+    got = alone.detect(frame)
+    np.testing.assert_array_equal(got.boxes, want.boxes)
+    np.testing.assert_array_equal(got.scores, want.scores)
+    given = Detector(carried, components=[(carried.side, SearchConfig())], side=False)
+    assert given.parts == [MAIN_PART, FIRST_COMPONENT_PART]
