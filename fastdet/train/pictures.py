@@ -32,7 +32,9 @@ def as_frame(pic: AnnotatedPicture, image: np.ndarray) -> AnnotatedFrame:
     return AnnotatedFrame(pic.camera, pic.frame or 0, image, pic.targets, pic.ignores)
 
 
-def _crop_set(images: list[np.ndarray], label: int, groups: list[str], win_h: int, win_w: int) -> CropSet:
+def crop_set(images: list[np.ndarray], label: int, groups: list[str], win_h: int, win_w: int) -> CropSet:
+    """One :class:`CropSet` of ``images`` (arrays ``(k, win_h, win_w, 3) uint8`` to join, maybe
+    none), every crop of ``label``, tagged with ``groups`` (one a crop), in that order."""
     imgs = np.concatenate(images) if images else np.zeros((0, win_h, win_w, 3), np.uint8)
     n = len(imgs)
     return CropSet(imgs, np.full(n, label, np.int64), np.array(groups, dtype=object).reshape(n),
@@ -63,8 +65,8 @@ def picture_crops(pictures: Sequence[AnnotatedPicture], config: FeatureConfig, j
             gneg += [pic.camera] * len(n)
         if tick is not None:
             tick()
-    return CropSet.concat(_crop_set(pos, 1, gpos, config.win_h, config.win_w),
-                          _crop_set(neg, 0, gneg, config.win_h, config.win_w))
+    return CropSet.concat(crop_set(pos, 1, gpos, config.win_h, config.win_w),
+                          crop_set(neg, 0, gneg, config.win_h, config.win_w))
 
 
 def hard_negative_crops(model: Model, pictures: Sequence[AnnotatedPicture], per_picture: int = 20,
@@ -97,7 +99,7 @@ def hard_negative_crops(model: Model, pictures: Sequence[AnnotatedPicture], per_
         score_frames(model, [as_frame(pic, image)], on_frame=keep, **search)
         if tick is not None:
             tick()
-    return _crop_set(crops, 0, groups, win_h, win_w)
+    return crop_set(crops, 0, groups, win_h, win_w)
 
 
 @dataclass(frozen=True)

@@ -40,7 +40,7 @@ from .adapt import spread, ticking
 from .dataset import CropSet
 from .fit import features_in_chunks, fit_classifier
 from .keyframes import aspect_of, background_crops, positive_crops, window_crops
-from .pictures import as_frame
+from .pictures import as_frame, crop_set
 
 #: the side-view window's height, in pixels at scale 1 (its width is the main model's window)
 WINDOW_HEIGHT = 32
@@ -72,6 +72,8 @@ def side_crops(pictures: Sequence[AnnotatedPicture], config: FeatureConfig, adap
     ``adapt.side_negatives`` background windows a complete picture."""
     pos: list[np.ndarray] = []
     neg: list[np.ndarray] = []
+    gpos: list[str] = []
+    gneg: list[str] = []
     rng = np.random.default_rng(adapt.seed)
     for pic, image in ticking(pictures, "side-view crops", progress):
         f = as_frame(pic, image)
@@ -81,15 +83,13 @@ def side_crops(pictures: Sequence[AnnotatedPicture], config: FeatureConfig, adap
             p = positive_crops([replace(f, targets=wide)], config.win_w, config.win_h, jitter=adapt.side_jitter,
                                seed=s)
             pos += [p, p[:, :, ::-1]]
+            gpos += [pic.camera] * (2 * len(p))
         if pic.complete and adapt.side_negatives:
-            neg.append(background_crops([f], config.win_w, config.win_h, adapt.side_negatives, seed=s))
-    empty = np.zeros((0, config.win_h, config.win_w, 3), np.uint8)
-    p_img = np.concatenate(pos) if pos else empty
-    n_img = np.concatenate(neg) if neg else empty
-    images = np.concatenate([p_img, n_img])
-    n = len(images)
-    labels = np.r_[np.ones(len(p_img), np.int64), np.zeros(len(n_img), np.int64)]
-    return CropSet(images, labels, np.full(n, "side", dtype=object), np.arange(n, dtype=np.int64))
+            n = background_crops([f], config.win_w, config.win_h, adapt.side_negatives, seed=s)
+            neg.append(n)
+            gneg += [pic.camera] * len(n)
+    return CropSet.concat(crop_set(pos, 1, gpos, config.win_h, config.win_w),
+                          crop_set(neg, 0, gneg, config.win_h, config.win_w))
 
 
 def _fit(crops: CropSet, config: FeatureConfig, adapt: AdaptConfig, metadata: dict[str, Any]) -> Model:
@@ -116,18 +116,19 @@ def hard_negatives(model: Model, search: SearchConfig, pictures: Sequence[Annota
     detector = Detector(model, search)
     cfg = model.side.config
     crops: list[np.ndarray] = []
+    groups: list[str] = []
     for pic, image in (frames if frames is not None else load_pictures(pictures)):
+        f = as_frame(pic, image)
         w = detector.detect(image)
         w = w[w.part == FIRST_COMPONENT_PART]
-        boxes = np.concatenate([np.reshape(pic.targets, (-1, 4)), np.reshape(pic.ignores, (-1, 4))])
-        clear = ~np.any(intersection(w.boxes.astype(np.float64), boxes) > 0, axis=1) if len(boxes) else \
-            np.ones(len(w), bool)
-        w = w[clear]
+        boxes = f.boxes  # targets and ignore regions
+        if len(boxes):
+            w = w[~np.any(intersection(w.boxes.astype(np.float64), boxes) > 0, axis=1)]
         top = np.argsort(-w.scores, kind="stable")[:per_picture]
-        crops.append(window_crops([as_frame(pic, image)], [w.boxes[top]], cfg.win_w, cfg.win_h))
-    images = np.concatenate(crops) if crops else np.zeros((0, cfg.win_h, cfg.win_w, 3), np.uint8)
-    n = len(images)
-    return CropSet(images, np.zeros(n, np.int64), np.full(n, "side", dtype=object), np.arange(n, dtype=np.int64))
+        c = window_crops([f], [w.boxes[top]], cfg.win_w, cfg.win_h)
+        crops.append(c)
+        groups += [pic.camera] * len(c)
+    return crop_set(crops, 0, groups, cfg.win_h, cfg.win_w)
 
 
 def fit_side_model(pictures: Sequence[AnnotatedPicture], main: Model, search: SearchConfig, adapt: AdaptConfig,
