@@ -511,9 +511,7 @@ def run(args: argparse.Namespace) -> int:
             formations = {b: {"offset": c.offset, "f1": c.results[c.offset].to_dict()["f1"], "best_offset": c.best,
                               "best_f1": c.results[c.best].to_dict()["f1"], "f1_se": round(c.se, 4)}
                           for b, c in by_boxes.items()}
-            results = by_boxes[boxes].results
-            tried = {f"{o:g}": r.to_dict()["f1"] for o, r in results.items()}
-            r = results[chosen]
+            r = by_boxes[boxes].results[chosen]
             if side is not None and "nms" in by_boxes:
                 sc = _op.choose_side_offset(replace(model, side=side), footage, holdout_lanes(held, frames, horizons),
                                             work / "operating-point", "nms", by_boxes["nms"].offset,
@@ -527,7 +525,7 @@ def run(args: argparse.Namespace) -> int:
                     model = side_offset(replace(model, side=side), sc.offset)
                     side_summary["offset"] = sc.offset
                     r = sc.results[sc.offset]
-                    tried = {f"{o:g}": a.to_dict()["f1"] for o, a in by_boxes["nms"].results.items()}
+            tried = {f"{o:g}": a.to_dict()["f1"] for o, a in by_boxes[boxes].results.items()}  # the formation kept
             after = _after(model, chosen, boxes, footage, run_holdout, work / "operating-point")
         if (after["tp"], after["fp"], after["fn"]) != (r.tp, r.fp, r.fn):
             print(f"note: at offset {chosen:g} the pipeline run found {after['tp']} / {after['fp']} / {after['fn']} "
