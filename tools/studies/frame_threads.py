@@ -12,8 +12,8 @@ role its Python name gives it:
 - ``band pool``: the detector's helper threads (``fastdet-band``), the other share of the bands;
 - ``decode``: :class:`~fastdet.io.reader.FrameReader`'s thread;
 - ``beside``: the thread that runs a frame's last stages beside the next frame (``fastdet-tail``);
-- ``other``: threads without a Python name: the video decoder's own (FFmpeg's frame threads)
-  and OpenMP's workers.
+- ``other``: threads without a Python name: OpenCV's own worker pool (``cv2.setNumThreads(1)``
+  leaves it empty) and OpenMP's workers.
 
 ``band phase`` is the wall time a frame spends in the detector's band scoring
 (:meth:`fastdet.detect.Detector._all_band_scores`), the part the band threads share; ``cores
