@@ -53,7 +53,7 @@ import sys
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -402,6 +402,117 @@ def _cluster_labelling(args: argparse.Namespace) -> Callable[[float], _adapt.Lab
     return make
 
 
+@dataclass(frozen=True)
+class OperatingPoint:
+    """What ``adapt`` chose on the kept-aside frames: the model to write (with the side-view
+    component and its offset when kept), its box formation and decision offset, and what the
+    summary records of the choice (each field as the summary's entry of the same name)."""
+
+    model: Model
+    boxes: Boxes
+    offset: float
+    offsets_f1: dict[str, Any]  # F1 of each offset tried, with the formation kept
+    formations: dict[str, Any]  # the summary's ``boxes_tried``
+    side: dict[str, Any]
+    kept: dict[str, Any]
+    before: dict[str, Any] | None  # agreement of the bundled model
+    after: dict[str, Any] | None  # agreement of the model written
+
+
+def operating_point(model: Model, side: Model | None, side_fit: dict[str, Any], footage: _adapt.Footage,
+                    held: dict[str, list[AnnotatedPicture]], horizons: dict[str, float | None],
+                    config: AdaptConfig, work: Path, progress: bool) -> OperatingPoint:
+    """The box formation, the decision offset and the side-view component's offset (or none),
+    chosen by replaying the kept-aside frames (``held``); with no labelled frame kept aside the
+    model keeps its own operating point (heat map, offset 0) and no component."""
+    n_held = sum(len(v) for v in held.values())
+    before = after = None
+    chosen = 0.0
+    boxes: Boxes = "heat"
+    tried: dict[str, Any] = {}
+    formations: dict[str, Any] = {}
+    kept: dict[str, Any] = {}
+    side_summary: dict[str, Any] = {"fit": side_fit, "offset": None}
+    if not n_held:
+        return OperatingPoint(model, boxes, chosen, tried, formations, side_summary, kept, before, after)
+    _warm_up(footage.clips[0].path)
+    t_read = time.perf_counter()
+    with held_stretches(footage, held, config, work / "operating-point") as frames:
+        kept = _kept(frames, time.perf_counter() - t_read)
+        run_holdout = holdout_run(held, frames, horizons)
+        before = _op.agreement(footage, run_holdout, None).to_dict()
+        boxes, chosen, by_boxes = _op.choose_operating_point(
+            model, footage, holdout_lanes(held, frames, horizons), work / "operating-point", config.offsets, BOXES,
+            progress, seed=config.seed)
+        formations = {b: {"offset": c.offset, "f1": c.results[c.offset].to_dict()["f1"], "best_offset": c.best,
+                          "best_f1": c.results[c.best].to_dict()["f1"], "f1_se": round(c.se, 4)}
+                      for b, c in by_boxes.items()}
+        r = by_boxes[boxes].results[chosen]
+        if side is not None and "nms" in by_boxes:
+            sc = _op.choose_side_offset(replace(model, side=side), footage, holdout_lanes(held, frames, horizons),
+                                        work / "operating-point", "nms", by_boxes["nms"].offset,
+                                        config.side_offsets, progress, seed=config.seed)
+            side_summary.update({"offsets_f1": {f"{o:g}": a.to_dict()["f1"] for o, a in sc.results.items()},
+                                 "best_offset": _finite(sc.best), "f1_se": round(sc.se, 4)})
+            if _op.use_side(boxes, by_boxes, sc):
+                if boxes != "nms":
+                    side_summary["instead_of"] = boxes  # the formation chosen without it
+                boxes, chosen = "nms", by_boxes["nms"].offset
+                model = side_offset(replace(model, side=side), sc.offset)
+                side_summary["offset"] = sc.offset
+                r = sc.results[sc.offset]
+        tried = {f"{o:g}": a.to_dict()["f1"] for o, a in by_boxes[boxes].results.items()}  # the formation kept
+        after = _after(model, chosen, boxes, footage, run_holdout, work / "operating-point")
+    if (after["tp"], after["fp"], after["fn"]) != (r.tp, r.fp, r.fn):
+        print(f"note: at offset {chosen:g} the pipeline run found {after['tp']} / {after['fp']} / {after['fn']} "
+              f"(hits / false / missed), the replay of the offsets {r.tp} / {r.fp} / {r.fn}", flush=True)
+    return OperatingPoint(model, boxes, chosen, tried, formations, side_summary, kept, before, after)
+
+
+def print_report(summary: Mapping[str, Any], secs: Mapping[str, float], own_regressor: bool, out: Path,
+                 work: Path) -> None:
+    """The lines ``adapt`` ends with, read from the ``summary`` it writes into the model file
+    (``secs``: the seconds of each step, unrounded; ``own_regressor``: the camera's box regressor
+    was fitted)."""
+    frames, counts, fit = summary["frames"], summary["crops"], summary["regressor_fit"]
+    labelled_by, n_held = summary["labelled_by"], frames["kept_aside_labelled"]
+    print(f"frames: {frames['trained']} trained on ({summary['targets_trained']} {labelled_by} targets; "
+          f"{counts['positives']} positive, {counts['negatives']} background, {counts['hard_negatives']} hard "
+          f"negative crops x weight {summary['config']['weight']}), {n_held} kept-aside frames scored")
+    if own_regressor:
+        print(f"box regressor: fitted on {fit['samples']} boxes about {fit['groups']} "
+              f"labelled vehicles (jittered, and {fit['own_boxes']} of the model's own x "
+              f"{summary['config']['own_box_weight']}); a box's IoU with its vehicle {fit['input_mean_iou']:.2f} -> "
+              f"{fit['output_mean_iou']:.2f} after one step (mean, cross-validated)")
+    else:
+        print(f"box regressor: the bundled one (only {fit['groups']} labelled vehicles to fit the "
+              f"camera's own on, fewer than {_adapt.MIN_REGRESSOR_VEHICLES})")
+    print("seconds: " + ", ".join(f"{k} {v:.1f}" for k, v in secs.items()))
+    if n_held:
+        def f1(v: float | None) -> str:
+            return "-" if v is None else f"{v:.2f}"
+
+        formations, boxes, side_summary = summary["boxes_tried"], summary["boxes"], summary["side"]
+        print("boxes tried (F1 at their best offset): "
+              + ", ".join(f"{b} {f1(v['best_f1'])} (offset {v['best_offset']:g})" for b, v in formations.items())
+              + f"; chosen {boxes}"
+              + (f" (with the side-view component, instead of {side_summary['instead_of']})"
+                 if "instead_of" in side_summary else ""))
+        fb = formations[boxes]
+        print(f"offsets tried with {boxes} boxes (F1): "
+              + ", ".join(f"{k} {f1(v)}" for k, v in summary["offsets_f1"].items())
+              + f"; best {fb['best_offset']:g} (F1 {f1(fb['best_f1'])} +- {fb['f1_se']:.2f} over the kept-aside "
+              f"frames); chosen {summary['offset']:g} by the one-standard-error rule")
+        print(side_line(side_summary))
+    else:
+        print("no labelled frame kept aside: the model keeps its own operating point (offset 0) and fits no "
+              "side-view component")
+    print(f"agreement with the {labelled_by} labels on the kept-aside frames:")
+    print(f"  before (bundled model): {_fmt(summary['agreement']['before'])}")
+    print(f"  after  ({out.name}): {_fmt(summary['agreement']['after'])}")
+    print(f"wrote {out} (its metadata['adapt'] holds this summary; labels kept in {work})", flush=True)
+
+
 def run(args: argparse.Namespace) -> int:
     """The ``adapt`` subcommand."""
     t_start = time.perf_counter()
@@ -491,45 +602,8 @@ def run(args: argparse.Namespace) -> int:
 
     t = time.perf_counter()
     n_held = sum(len(v) for v in held.values())
-    before = after = None
-    chosen = 0.0
-    boxes: Boxes = "heat"
-    tried: dict[str, Any] = {}
-    formations: dict[str, Any] = {}
-    kept: dict[str, Any] = {}
-    side_summary: dict[str, Any] = {"fit": side_fit, "offset": None}
-    if n_held:
-        _warm_up(footage.clips[0].path)
-        t_read = time.perf_counter()
-        with held_stretches(footage, held, config, work / "operating-point") as frames:
-            kept = _kept(frames, time.perf_counter() - t_read)
-            run_holdout = holdout_run(held, frames, horizons)
-            before = _op.agreement(footage, run_holdout, None).to_dict()
-            boxes, chosen, by_boxes = _op.choose_operating_point(
-                model, footage, holdout_lanes(held, frames, horizons), work / "operating-point", config.offsets, BOXES,
-                progress, seed=config.seed)
-            formations = {b: {"offset": c.offset, "f1": c.results[c.offset].to_dict()["f1"], "best_offset": c.best,
-                              "best_f1": c.results[c.best].to_dict()["f1"], "f1_se": round(c.se, 4)}
-                          for b, c in by_boxes.items()}
-            r = by_boxes[boxes].results[chosen]
-            if side is not None and "nms" in by_boxes:
-                sc = _op.choose_side_offset(replace(model, side=side), footage, holdout_lanes(held, frames, horizons),
-                                            work / "operating-point", "nms", by_boxes["nms"].offset,
-                                            config.side_offsets, progress, seed=config.seed)
-                side_summary.update({"offsets_f1": {f"{o:g}": a.to_dict()["f1"] for o, a in sc.results.items()},
-                                     "best_offset": _finite(sc.best), "f1_se": round(sc.se, 4)})
-                if _op.use_side(boxes, by_boxes, sc):
-                    if boxes != "nms":
-                        side_summary["instead_of"] = boxes  # the formation chosen without it
-                    boxes, chosen = "nms", by_boxes["nms"].offset
-                    model = side_offset(replace(model, side=side), sc.offset)
-                    side_summary["offset"] = sc.offset
-                    r = sc.results[sc.offset]
-            tried = {f"{o:g}": a.to_dict()["f1"] for o, a in by_boxes[boxes].results.items()}  # the formation kept
-            after = _after(model, chosen, boxes, footage, run_holdout, work / "operating-point")
-        if (after["tp"], after["fp"], after["fn"]) != (r.tp, r.fp, r.fn):
-            print(f"note: at offset {chosen:g} the pipeline run found {after['tp']} / {after['fp']} / {after['fn']} "
-                  f"(hits / false / missed), the replay of the offsets {r.tp} / {r.fp} / {r.fn}", flush=True)
+    op = operating_point(model, side, side_fit, footage, held, horizons, config, work, progress)
+    model = op.model
     secs["operating_point"] = time.perf_counter() - t
     secs["total"] = time.perf_counter() - t_start
     _signals.check()
@@ -545,46 +619,13 @@ def run(args: argparse.Namespace) -> int:
                    "kept_aside_read": footage.holdout_length, "labelled_now": n_now},
         "targets_trained": n_targets, "crops": counts, "regressor_fit": regressor_fit,
         "seconds": {k: round(v, 2) for k, v in secs.items()},
-        "offset": chosen, "offsets_f1": tried, "boxes": boxes, "boxes_tried": formations, "side": side_summary,
-        "kept_aside": kept,
-        "agreement": {"before": before, "after": after},
+        "offset": op.offset, "offsets_f1": op.offsets_f1, "boxes": op.boxes, "boxes_tried": op.formations,
+        "side": op.side, "kept_aside": op.kept,
+        "agreement": {"before": op.before, "after": op.after},
         "config": config.to_dict(),
     }
-    final = offset(model, chosen, metadata={"adapt": summary, BOXES_KEY: boxes})
+    final = offset(model, op.offset, metadata={"adapt": summary, BOXES_KEY: op.boxes})
     final.save(out)
     shutil.rmtree(work / "operating-point", ignore_errors=True)
-    print(f"frames: {len(train_pics)} trained on ({n_targets} {labelled_by} targets; {counts['positives']} "
-          f"positive, {counts['negatives']} background, {counts['hard_negatives']} hard negative crops x "
-          f"weight {config.weight}), {n_held} kept-aside frames scored")
-    if regressor is not None:
-        print(f"box regressor: fitted on {regressor_fit['samples']} boxes about {regressor_fit['groups']} "
-              f"labelled vehicles (jittered, and {regressor_fit['own_boxes']} of the model's own x "
-              f"{config.own_box_weight}); a box's IoU with its vehicle {regressor_fit['input_mean_iou']:.2f} -> "
-              f"{regressor_fit['output_mean_iou']:.2f} after one step (mean, cross-validated)")
-    else:
-        print(f"box regressor: the bundled one (only {regressor_fit['groups']} labelled vehicles to fit the "
-              f"camera's own on, fewer than {_adapt.MIN_REGRESSOR_VEHICLES})")
-    print("seconds: " + ", ".join(f"{k} {v:.1f}" for k, v in secs.items()))
-    if n_held:
-        def f1(v: float | None) -> str:
-            return "-" if v is None else f"{v:.2f}"
-
-        print("boxes tried (F1 at their best offset): "
-              + ", ".join(f"{b} {f1(v['best_f1'])} (offset {v['best_offset']:g})" for b, v in formations.items())
-              + f"; chosen {boxes}"
-              + (f" (with the side-view component, instead of {side_summary['instead_of']})"
-                 if "instead_of" in side_summary else ""))
-        fb = formations[boxes]
-        print(f"offsets tried with {boxes} boxes (F1): "
-              + ", ".join(f"{k} {f1(v)}" for k, v in tried.items())
-              + f"; best {fb['best_offset']:g} (F1 {f1(fb['best_f1'])} +- {fb['f1_se']:.2f} over the kept-aside "
-              f"frames); chosen {chosen:g} by the one-standard-error rule")
-        print(side_line(side_summary))
-    else:
-        print("no labelled frame kept aside: the model keeps its own operating point (offset 0) and fits no "
-              "side-view component")
-    print(f"agreement with the {labelled_by} labels on the kept-aside frames:")
-    print(f"  before (bundled model): {_fmt(before)}")
-    print(f"  after  ({out.name}): {_fmt(after)}")
-    print(f"wrote {out} (its metadata['adapt'] holds this summary; labels kept in {work})", flush=True)
+    print_report(summary, secs, regressor is not None, out, work)
     return 0
