@@ -61,7 +61,7 @@ import numpy as np
 
 from .. import _numba
 from .. import signals as _signals
-from ..config import BOXES, Boxes, PipelineConfig
+from ..config import BOXES, REFERENCE_HORIZON, Boxes, PipelineConfig
 from ..config.adapt import AdaptConfig
 from ..data import data_dir
 from ..detect.regressor import carrying, load_regressor
@@ -77,7 +77,8 @@ from ..train import adapt as _adapt
 from ..train import operating_point as _op
 from ..train import side as _side
 from ..train.blend import offset, side_offset
-from ..video.detector import BOXES_KEY, ONCOMING_KEY
+from ..video.detector import BOXES_KEY, HORIZON_KEY, ONCOMING_KEY
+from ..video.horizon import MIN_BOXES, horizon_from_boxes
 from ..video.run import file_horizon
 from ._args import fraction, positive_int, teacher_size, video_files
 
@@ -402,6 +403,73 @@ def _cluster_labelling(args: argparse.Namespace) -> Callable[[float], _adapt.Lab
     return make
 
 
+#: the camera's horizon from its labelled vehicles is tried only this far (a fraction of the frame
+#: height) from the flow's: nearer, the bands would barely move
+HORIZON_GAP = 0.05
+
+
+def choose_horizon(model: Model, footage: _adapt.Footage, pictures: Sequence[AnnotatedPicture],
+                   held: dict[str, list[AnnotatedPicture]], horizons: dict[str, float | None],
+                   config: AdaptConfig, work: Path, progress: bool) -> tuple[dict[str, Any], float | None]:
+    """The camera's horizon: the one its labelled vehicles' boxes imply (``pictures``: every
+    labelled frame, the kept-aside ones too: a short footage's training frames hold too few
+    vehicles for a line; :func:`~fastdet.video.horizon.horizon_from_boxes`) or the one the flow of the first video
+    gives (``horizons``: :func:`~fastdet.video.run.file_horizon` of each clip, what a ``video``
+    run estimates). The kept-aside frames are replayed with ``model`` at each
+    (:func:`~fastdet.train.operating_point.choose_operating_point`: every formation and offset),
+    and the boxes' horizon is kept only when the F1 of its choice is above the flow's by more
+    than one standard error of it: the flow's is the default, as a ``video`` run has it. Tried only
+    when the two are at least :data:`HORIZON_GAP` of the height apart and frames were kept aside.
+    Returns the summary's ``horizon`` entry and the horizon to record (``None``: the flow's)."""
+    flow = horizons[footage.clips[0].name]
+    height = footage.size[1]
+    boxes = [p.targets for p in pictures if len(p.targets)]
+    from_boxes = horizon_from_boxes(np.concatenate(boxes), height) if boxes else None
+    summary: dict[str, Any] = {"flow": flow, "boxes": from_boxes, "chosen": "flow"}
+    at_flow = REFERENCE_HORIZON if flow is None else flow
+    if from_boxes is None:
+        summary["skipped"] = (f"fewer than {MIN_BOXES} labelled vehicles with their bottom edge in the frame, "
+                              f"or no line through them")
+    elif abs(from_boxes - at_flow) < HORIZON_GAP:
+        summary["skipped"] = f"within {HORIZON_GAP:g} of the height of the flow's"
+    elif not any(held.values()):
+        summary["skipped"] = "no labelled frame kept aside to choose it on"
+    if "skipped" in summary:
+        return summary, None
+    assert from_boxes is not None
+    folder = work / "horizon"
+    results: dict[str, tuple[float, float]] = {}
+    with held_stretches(footage, held, config, folder) as frames:
+        for name, value in (("flow", flow), ("boxes", from_boxes)):
+            at = {k: value for k in horizons}
+            formation, _, by_boxes = _op.choose_operating_point(
+                model, footage, holdout_lanes(held, frames, at), folder, config.offsets, BOXES, progress,
+                seed=config.seed)
+            c = by_boxes[formation]
+            results[name] = (c.results[c.offset].to_dict()["f1"] or 0.0, c.se)
+    shutil.rmtree(folder, ignore_errors=True)
+    summary["f1"] = {k: round(v[0], 4) for k, v in results.items()}
+    summary["f1_se"] = round(results["boxes"][1], 4)
+    if results["boxes"][0] - results["boxes"][1] > results["flow"][0]:
+        summary["chosen"] = "boxes"
+        return summary, from_boxes
+    return summary, None
+
+
+def horizon_line(summary: Mapping[str, Any]) -> str:
+    """The printout's line of the camera's horizon choice (the summary's ``horizon`` entry)."""
+    def at(v: float | None) -> str:
+        return "the reference" if v is None else f"{v:.3f}"
+
+    flow, boxes = summary["flow"], summary["boxes"]
+    head = f"horizon: the flow's {at(flow)}, the labelled vehicles' " + ("none" if boxes is None else at(boxes))
+    if "skipped" in summary:
+        return f"{head}; kept the flow's ({summary['skipped']})"
+    f1 = summary["f1"]
+    return (f"{head}; F1 on the kept-aside frames {f1['flow']:.2f} / {f1['boxes']:.2f} (+- {summary['f1_se']:.2f}); "
+            + ("chosen: the labelled vehicles'" if summary["chosen"] == "boxes" else "chosen: the flow's"))
+
+
 @dataclass(frozen=True)
 class OperatingPoint:
     """What ``adapt`` chose on the kept-aside frames: the model to write (with the side-view
@@ -421,10 +489,13 @@ class OperatingPoint:
 
 def operating_point(model: Model, side: Model | None, side_fit: dict[str, Any], footage: _adapt.Footage,
                     held: dict[str, list[AnnotatedPicture]], horizons: dict[str, float | None],
-                    config: AdaptConfig, work: Path, progress: bool) -> OperatingPoint:
+                    flow_horizons: dict[str, float | None], config: AdaptConfig, work: Path,
+                    progress: bool) -> OperatingPoint:
     """The box formation, the decision offset and the side-view component's offset (or none),
-    chosen by replaying the kept-aside frames (``held``); with no labelled frame kept aside the
-    model keeps its own operating point (heat map, offset 0) and no component."""
+    chosen by replaying the kept-aside frames (``held``) at the camera's ``horizons``; with no
+    labelled frame kept aside the model keeps its own operating point (heat map, offset 0) and no
+    component. The bundled model's agreement (``before``) is that of a ``video`` run, at the
+    flow's horizons."""
     n_held = sum(len(v) for v in held.values())
     before = after = None
     chosen = 0.0
@@ -440,7 +511,7 @@ def operating_point(model: Model, side: Model | None, side_fit: dict[str, Any], 
     with held_stretches(footage, held, config, work / "operating-point") as frames:
         kept = _kept(frames, time.perf_counter() - t_read)
         run_holdout = holdout_run(held, frames, horizons)
-        before = _op.agreement(footage, run_holdout, None).to_dict()
+        before = _op.agreement(footage, holdout_run(held, frames, flow_horizons), None).to_dict()
         boxes, chosen, by_boxes = _op.choose_operating_point(
             model, footage, holdout_lanes(held, frames, horizons), work / "operating-point", config.offsets, BOXES,
             progress, seed=config.seed)
@@ -488,6 +559,7 @@ def print_report(summary: Mapping[str, Any], secs: Mapping[str, float], own_regr
         print(f"box regressor: the bundled one (only {fit['groups']} labelled vehicles to fit the "
               f"camera's own on, fewer than {_adapt.MIN_REGRESSOR_VEHICLES})")
     print("seconds: " + ", ".join(f"{k} {v:.1f}" for k, v in secs.items()))
+    print(horizon_line(summary["horizon"]))
     if n_held:
         def f1(v: float | None) -> str:
             return "-" if v is None else f"{v:.2f}"
@@ -580,9 +652,18 @@ def run(args: argparse.Namespace) -> int:
     model = replace(model, metadata={**model.metadata, ONCOMING_KEY: False})
     _signals.check()
     t = time.perf_counter()
-    # the camera's horizon, as a `video` run of each file has it: the regressor's own boxes and the
-    # kept-aside runs search there, not at one read from a stretch's own first frames
-    horizons = {c.name: file_horizon(c.path) for c in footage.clips if c is footage.clips[0] or held.get(c.name)}
+    # the camera's horizon, as a `video` run of each file has it (the flow's), or the one its labelled
+    # vehicles imply where the kept-aside frames say so: the regressor's own boxes, the side-view
+    # component's negatives and the kept-aside runs search there, not at one read from a stretch's own
+    # first frames
+    flow_horizons = {c.name: file_horizon(c.path) for c in footage.clips
+                     if c is footage.clips[0] or held.get(c.name)}
+    horizon_summary, camera_hz = choose_horizon(model, footage, pictures, held, flow_horizons, config, work,
+                                                progress)
+    horizons = flow_horizons if camera_hz is None else dict.fromkeys(flow_horizons, camera_hz)
+    secs["horizon"] = time.perf_counter() - t
+    _signals.check()
+    t = time.perf_counter()
     regressor, regressor_fit = _adapt.fit_camera_regressor(
         train_pics, load_regressor(), config, progress,
         own_boxes=own_window_boxes(model, horizons[footage.clips[0].name]))
@@ -602,7 +683,7 @@ def run(args: argparse.Namespace) -> int:
 
     t = time.perf_counter()
     n_held = sum(len(v) for v in held.values())
-    op = operating_point(model, side, side_fit, footage, held, horizons, config, work, progress)
+    op = operating_point(model, side, side_fit, footage, held, horizons, flow_horizons, config, work, progress)
     model = op.model
     secs["operating_point"] = time.perf_counter() - t
     secs["total"] = time.perf_counter() - t_start
@@ -612,7 +693,7 @@ def run(args: argparse.Namespace) -> int:
         "command": "python -m fastdet adapt " + " ".join(sys.argv[2:]),
         "footage": [{"video": os.path.abspath(c.path), "frames": c.frames, "kept_aside_from": c.holdout_start}
                     for c in footage.clips],
-        "frame_size": [w, h], "labelled_by": labelled_by, "horizons": horizons,
+        "frame_size": [w, h], "labelled_by": labelled_by, "horizons": flow_horizons, "horizon": horizon_summary,
         "teacher": None if args.teacher is None else {"model": os.path.abspath(args.teacher),
                                                       "size": args.teacher_size},
         "frames": {"step": footage.step, "trained": len(train_pics), "kept_aside_labelled": n_held,
@@ -624,7 +705,10 @@ def run(args: argparse.Namespace) -> int:
         "agreement": {"before": op.before, "after": op.after},
         "config": config.to_dict(),
     }
-    final = offset(model, op.offset, metadata={"adapt": summary, BOXES_KEY: op.boxes})
+    records: dict[str, Any] = {"adapt": summary, BOXES_KEY: op.boxes}
+    if camera_hz is not None:
+        records[HORIZON_KEY] = camera_hz
+    final = offset(model, op.offset, metadata=records)
     final.save(out)
     shutil.rmtree(work / "operating-point", ignore_errors=True)
     print_report(summary, secs, regressor is not None, out, work)

@@ -71,8 +71,10 @@ class PipelineConfig(Config):
         which decides where the oncoming model searches (:func:`~fastdet.config.oncoming_search`).
     search: the main model's search bands (:class:`SearchConfig`).
     horizon: where the search bands go: ``'auto'`` estimates the horizon from the optical flow
-        of the first seconds (:mod:`fastdet.video.horizon`), a number is the horizon row as a
-        fraction of the frame height in [0, 1], ``None`` leaves the bands where they are written.
+        of the first seconds (:mod:`fastdet.video.horizon`), unless the main model records its
+        camera's horizon (``fastdet adapt``: :func:`~fastdet.video.detector.camera_horizon`); a
+        number is the horizon row as a fraction of the frame height in [0, 1], ``None`` leaves
+        the bands where they are written.
     boxes: how one box per vehicle is made of the main model's positive windows: ``'heat'``, the
         heat map over recent frames (:attr:`heat`, a box per blob, the split); ``'nms'``, each
         frame's windows -- and those of the side-view component an adapted model may carry --

@@ -9,7 +9,7 @@ from typing import Any, Literal, Protocol, runtime_checkable
 
 import numpy as np
 
-from ..config import BOXES, Boxes, PipelineConfig, SearchBand, oncoming_search
+from ..config import BOXES, Boxes, Horizon, PipelineConfig, SearchBand, oncoming_search
 from ..config.models import DEFAULT_MODEL_PATH, ONCOMING_MODEL_PATH
 from ..detect import BandGeometry, Detector, DetectStats
 from ..detections import Detections
@@ -103,6 +103,30 @@ def recorded_formation(config: PipelineConfig, metadata: Mapping[str, Any]) -> B
     if got not in BOXES:
         raise ModelError(f"the main model's metadata['{BOXES_KEY}'] must be one of {', '.join(BOXES)}, got {got!r}")
     return got
+
+
+#: the main model file's metadata key that records the horizon of the camera the model was adapted
+#: to (a fraction of the frame height), where ``fastdet adapt`` found its labelled vehicles' boxes
+#: put it better than the flow of the video does (:func:`camera_horizon`)
+HORIZON_KEY = "video_horizon"
+
+
+def camera_horizon(config: PipelineConfig, detector: object) -> Horizon:
+    """Where the pipeline for ``config`` puts the search bands (:attr:`PipelineConfig.horizon`):
+    ``config.horizon`` unless it is ``'auto'`` and ``detector``'s main model records its camera's
+    horizon (its ``model``'s metadata :data:`HORIZON_KEY`, written by ``fastdet adapt``): then
+    that number, for every video, not one estimated from each video's flow.
+    :class:`~fastdet.errors.ModelError` for a record that is not a fraction of the height."""
+    if config.horizon != "auto":
+        return config.horizon
+    model = getattr(detector, "model", None)
+    got = model.metadata.get(HORIZON_KEY) if isinstance(model, Model) else None
+    if got is None:
+        return "auto"
+    if isinstance(got, bool) or not isinstance(got, (int, float)) or not 0.0 < got < 1.0:
+        raise ModelError(f"the main model's metadata['{HORIZON_KEY}'] must be a fraction of the frame height "
+                         f"in (0, 1), got {got!r}")
+    return float(got)
 
 
 #: the main model file's metadata key that records whether the bundled oncoming-traffic model runs

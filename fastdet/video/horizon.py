@@ -273,3 +273,44 @@ def search_horizon(estimate: float | None, reference: float = REFERENCE_HORIZON,
     if estimate is None or abs(estimate - reference) <= tolerance:
         return None
     return float(estimate)
+
+
+#: fewest boxes (bottom edge inside the frame) :func:`horizon_from_boxes` fits a line through
+MIN_BOXES = 20
+#: most boxes it fits (Theil-Sen takes every pair: a fixed sample of a long footage's boxes)
+MAX_BOXES = 2000
+
+
+def horizon_from_boxes(boxes: np.ndarray, height: int, min_boxes: int = MIN_BOXES) -> float | None:
+    """The horizon the vehicles' boxes of one camera imply, a fraction of the frame height, or
+    ``None``.
+
+    On a level road a vehicle's width in the picture grows in proportion to how far below the
+    horizon its bottom edge stands (its distance shrinks both), so the boxes' bottom rows ``yb``
+    lie about a line ``yb = horizon x height + k x width`` with ``k > 0``; the horizon is its
+    intercept. The line is fitted by Theil-Sen (``scipy.stats.theilslopes``: the median of the
+    pairwise slopes), which shrugs off the boxes of vehicles wider or narrower than most and
+    mislabelled ones. Unlike the flow's focus of expansion (:class:`HorizonEstimator`) it does not
+    need the camera to look along its motion (a side window's view).
+
+    boxes: ``(N, 4)`` x1, y1, x2, y2 in pixels of frames ``height`` rows tall. Boxes whose bottom
+    edge is at the frame's last row are left out (cut by the frame: their bottom row is not the
+    vehicle's), and at most :data:`MAX_BOXES` of the rest are used (an evenly spaced sample).
+    ``None`` with fewer than ``min_boxes`` left, a line that does not rise with the width, or an
+    intercept outside the frame.
+    """
+    from scipy.stats import theilslopes
+
+    b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    b = b[b[:, 3] < height - 1]
+    if len(b) < max(min_boxes, 2):
+        return None
+    if len(b) > MAX_BOXES:
+        b = b[np.linspace(0, len(b) - 1, MAX_BOXES).round().astype(np.int64)]
+    width = b[:, 2] - b[:, 0]
+    if np.ptp(width) <= 0:
+        return None
+    slope, intercept, _, _ = theilslopes(b[:, 3], width, method="joint")
+    if not slope > 0 or not 0.0 < intercept < height:
+        return None
+    return float(intercept / height)

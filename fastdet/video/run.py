@@ -20,7 +20,7 @@ from ..detections import Detections
 from ..errors import FastdetError
 from ..io.held import HeldFrames
 from ..io.reader import FrameReader
-from .detector import WindowDetector, make_detector
+from .detector import WindowDetector, camera_horizon, make_detector
 from .horizon import HORIZON_FRAMES, estimate_horizon, search_horizon
 from .offline import offline_pass
 from .pipeline import VideoDetector, run_frames
@@ -50,9 +50,10 @@ def _first_frames(path: str | os.PathLike | HeldFrames, start: int) -> Iterator[
         reader.close()
 
 
-def _primes(config: PipelineConfig) -> bool:
-    """Whether a file's first seconds are read ahead: for the horizon (``'auto'``)."""
-    return config.horizon == "auto"
+def _primes(vd: VideoDetector) -> bool:
+    """Whether a file's first seconds are read ahead: for the horizon (``'auto'``, and no horizon
+    the main model records for its camera: :func:`~fastdet.video.detector.camera_horizon`)."""
+    return camera_horizon(vd.config, vd.detector) == "auto"
 
 
 def prime_horizon_from_file(vd: VideoDetector, path: str | os.PathLike | HeldFrames, start: int = 0) -> None:
@@ -61,7 +62,7 @@ def prime_horizon_from_file(vd: VideoDetector, path: str | os.PathLike | HeldFra
     (:meth:`VideoDetector.prime_horizon`), so every frame, the first ones too, is searched at the
     estimated horizon. Every command that reads a file does this, so ``video``, ``batch`` and
     ``eval --video`` give the same boxes."""
-    if _primes(vd.config) and (isinstance(path, HeldFrames) or os.path.isfile(os.fspath(path))):
+    if _primes(vd) and (isinstance(path, HeldFrames) or os.path.isfile(os.fspath(path))):
         vd.prime_horizon(_first_frames(path, start))
 
 
@@ -86,9 +87,10 @@ def video_detector_for(reader: FrameReader, detector: WindowDetector,
     :meth:`FrameReader.peek <fastdet.io.reader.FrameReader.peek>`, when they fit in
     :data:`PRIME_BUFFER_BYTES` and the run reads at least that many)."""
     config = config if config is not None else PipelineConfig()
-    check_frame(detector, reader.first_frame, reader.path, horizon=config.horizon, more=reader.colour_sample)
+    check_frame(detector, reader.first_frame, reader.path, horizon=camera_horizon(config, detector),
+                more=reader.colour_sample)
     vd = VideoDetector(detector, config, fps=reader.fps)
-    if (_primes(vd.config) and reader.kind == "file" and os.path.isfile(reader.path)
+    if (_primes(vd) and reader.kind == "file" and os.path.isfile(reader.path)
             and (reader.limit is None or reader.limit >= HORIZON_FRAMES)
             and HORIZON_FRAMES * reader.first_frame.nbytes <= PRIME_BUFFER_BYTES):
         # the run's own reader decodes the first seconds ahead and yields them again: the

@@ -48,7 +48,7 @@ from .box_stages import (
     TrackStage,
     WeakStage,
 )
-from .detector import ColumnSearch, MovableHorizon, WindowDetector, box_formation
+from .detector import ColumnSearch, MovableHorizon, WindowDetector, box_formation, camera_horizon
 from .guided import SearchPlanner
 from .nmsboxes import NmsStage
 from .ownvehicle import OwnVehicleStage
@@ -91,8 +91,9 @@ def build_stages(config: PipelineConfig, detector: WindowDetector, fps: float | 
                  regressor: BoxRegressor | None) -> list[Stage]:
     """The stages for ``config`` and ``detector``, in the order they run (this module's docstring)."""
     stages: list[Stage] = []
-    if config.horizon is not None and isinstance(detector, MovableHorizon):
-        stages.append(HorizonStage(detector, config.horizon))
+    horizon = camera_horizon(config, detector)
+    if horizon is not None and isinstance(detector, MovableHorizon):
+        stages.append(HorizonStage(detector, horizon))
     planner = planner_for(config, detector)
     if planner is not None:
         stages.append(PlanStage(detector, planner))  # type: ignore[arg-type]

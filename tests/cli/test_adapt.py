@@ -20,7 +20,7 @@ from fastdet.model import load_model
 from fastdet.teacher.yolox import TeacherBoxes
 from fastdet.video import VideoDetector
 from fastdet.video.box_stages import HeatStage
-from fastdet.video.detector import BOXES_KEY, ONCOMING_KEY, make_detector
+from fastdet.video.detector import BOXES_KEY, HORIZON_KEY, ONCOMING_KEY, make_detector
 from fastdet.video.nmsboxes import NmsStage
 from tests.media import leftovers, write_video
 from tests.teacher.onnx_bytes import FLOAT, write_identity_model
@@ -190,6 +190,12 @@ def test_adapt_writes_a_model_with_its_summary(teacher, data, tmp_path, capsys, 
     if s["side"]["offset"] is None:
         assert s["agreement"]["after"]["f1"] == s["offsets_f1"][f"{s['offset']:g}"]
     assert "by the one-standard-error rule" in text
+    # the camera's horizon: the flow's and the one its labelled vehicles imply; the number recorded
+    # only where the latter was chosen
+    hz = s["horizon"]
+    assert hz["chosen"] in ("flow", "boxes") and "horizon" in s["seconds"] and "horizon: the flow's" in text
+    assert (model.metadata.get(HORIZON_KEY) == hz["boxes"]) if hz["chosen"] == "boxes" else (
+        HORIZON_KEY not in model.metadata)
     # both box formations tried; the chosen one (at least as good as the other) is recorded in
     # the model file, and the pipeline makes its boxes that way
     assert set(s["boxes_tried"]) == {"heat", "nms"} and model.metadata[BOXES_KEY] == s["boxes"]
@@ -257,3 +263,65 @@ def test_the_side_components_summary_line_says_what_was_chosen():
     assert no_nms.startswith("side-view component: fitted on 30 vehicles (480 positive") and "left out" in no_nms
     line = adapt_cli.side_line({"fit": fit, "offset": 3.0, "offsets_f1": {"0": 0.5, "3": 0.61, "inf": 0.55}})
     assert "0 0.50, 3 0.61, left out 0.55; chosen: offset 3" in line
+
+
+def test_the_horizon_line_says_what_was_chosen():
+    skipped = {"flow": 0.48, "boxes": None, "chosen": "flow", "skipped": "too few"}
+    assert adapt_cli.horizon_line(skipped) == ("horizon: the flow's 0.480, the labelled vehicles' none; kept the "
+                                               "flow's (too few)")
+    chosen = {"flow": None, "boxes": 0.5604, "chosen": "boxes", "f1": {"flow": 0.05, "boxes": 0.41}, "f1_se": 0.05}
+    assert adapt_cli.horizon_line(chosen) == ("horizon: the flow's the reference, the labelled vehicles' 0.560; F1 on "
+                                              "the kept-aside frames 0.05 / 0.41 (+- 0.05); chosen: the labelled "
+                                              "vehicles'")
+
+
+@pytest.mark.parametrize("f1_flow, f1_boxes, se, chosen", [(0.30, 0.41, 0.05, "boxes"), (0.37, 0.41, 0.05, "flow"),
+                                                           (0.45, 0.41, 0.01, "flow")])
+def test_the_boxes_horizon_is_kept_only_above_the_flows_by_more_than_an_error(
+        f1_flow, f1_boxes, se, chosen, tmp_path, monkeypatch):
+    """choose_horizon replays the kept-aside frames at both horizons (here a stand-in for the
+    replay: an F1 per horizon) and keeps the labelled vehicles' only when its F1 less its standard
+    error is above the flow's; near the flow's, or without kept-aside frames, it is not tried."""
+    from contextlib import contextmanager
+
+    from fastdet.labels.picture import AnnotatedPicture
+    from fastdet.train import adapt as train_adapt
+    from fastdet.train.operating_point import Agreement, FormationChoice
+
+    boxes = _horizon_boxes(0.55)
+    pictures = [AnnotatedPicture("teacher", "c", f"{i}", Path("c.mp4"), 1280, 720, targets=boxes[i::5], frame=i + 1)
+                for i in range(5)]
+    footage = train_adapt.Footage((train_adapt.Clip("c.mp4", "c", 100, 81),), 5, 1, (1280, 720))
+    asked = []
+
+    def replay(model, footage_, run, folder, offsets, formations, progress, seed):
+        asked.append(run)
+        f1 = f1_flow if run == 0.40 else f1_boxes  # the flow's, else the boxes'
+        tp = round(100 * f1)  # F1 = 2 tp / (2 tp + fp + fn) = tp / 100 with fp = fn = 100 - tp
+        agreement = Agreement(tp, 100 - tp, 100 - tp, 1.0, 10)
+        return "nms", 0.0, {"nms": FormationChoice(0.0, {0.0: agreement}, 0.0, se)}
+
+    @contextmanager
+    def held_frames(*a, **k):
+        yield {}
+
+    monkeypatch.setattr(adapt_cli._op, "choose_operating_point", replay)
+    monkeypatch.setattr(adapt_cli, "held_stretches", held_frames)
+    monkeypatch.setattr(adapt_cli, "holdout_lanes", lambda held, frames, at: next(iter(at.values())))
+    held = {"c": pictures[:1]}
+    config = adapt_cli.AdaptConfig()
+    summary, hz = adapt_cli.choose_horizon(None, footage, pictures, held, {"c": 0.40}, config, tmp_path, False)
+    assert asked == [0.40, pytest.approx(0.55, abs=0.01)] and summary["chosen"] == chosen
+    assert summary["boxes"] == pytest.approx(0.55, abs=0.01) and summary["f1_se"] == se
+    assert summary["f1"] == {"flow": f1_flow, "boxes": f1_boxes}
+    assert hz == (summary["boxes"] if chosen == "boxes" else None)
+    near, hz = adapt_cli.choose_horizon(None, footage, pictures, held, {"c": 0.53}, config, tmp_path, False)
+    assert hz is None and "within 0.05" in near["skipped"] and len(asked) == 2
+    none, hz = adapt_cli.choose_horizon(None, footage, pictures, {"c": []}, {"c": 0.40}, config, tmp_path, False)
+    assert hz is None and "no labelled frame kept aside" in none["skipped"] and len(asked) == 2
+
+
+def _horizon_boxes(horizon: float) -> np.ndarray:
+    from tests.video.test_horizon import _perspective_boxes
+
+    return _perspective_boxes(200, horizon, 720)

@@ -327,3 +327,99 @@ def test_file_horizon_is_where_a_run_from_there_searches(data, clip, start):
         vd = VideoDetector(fixed, PipelineConfig(horizon=got))
         vd.update(np.zeros({"test_small1": (720, 1280, 3), "boston_street": (450, 800, 3)}[clip], np.uint8))
         assert fixed.horizon == got
+
+
+# --------------------------------------------------------------------------------------
+# the horizon a camera's labelled vehicles imply (adapt's choice against the flow's)
+# --------------------------------------------------------------------------------------
+def _perspective_boxes(n: int, horizon: float, height: int, k: float = 0.8, seed: int = 0,
+                       outliers: int = 0) -> np.ndarray:
+    """Boxes of vehicles on a level road seen by a camera whose horizon is at ``horizon``: the
+    bottom row ``horizon x height + k x width`` (+- 2 px), ``outliers`` of them anywhere."""
+    rng = np.random.default_rng(seed)
+    w = rng.uniform(20, 300, n)
+    yb = horizon * height + k * w + rng.normal(0, 2, n)
+    yb[:outliers] = rng.uniform(0, height - 2, outliers)
+    x1 = rng.uniform(0, 900, n)
+    return np.c_[x1, yb - 0.8 * w, x1 + w, np.minimum(yb, height - 2)]
+
+
+@pytest.mark.parametrize("horizon", [0.35, 0.5, 0.62])
+def test_horizon_from_boxes_finds_the_line_through_the_bottoms(horizon):
+    from fastdet.video.horizon import horizon_from_boxes
+
+    assert horizon_from_boxes(_perspective_boxes(300, horizon, 720, outliers=45), 720) == pytest.approx(
+        horizon, abs=0.01)
+    # boxes cut by the frame's bottom edge are left out: a pile of them at the last row moves nothing
+    boxes = _perspective_boxes(300, horizon, 720)
+    cut = np.c_[np.zeros(200), np.full(200, 500.0), np.linspace(400, 1200, 200), np.full(200, 720.0)]
+    assert horizon_from_boxes(np.r_[boxes, cut], 720) == pytest.approx(horizon_from_boxes(boxes, 720))
+
+
+def test_horizon_from_boxes_says_none_without_a_line():
+    from fastdet.video.horizon import MIN_BOXES, horizon_from_boxes
+
+    assert horizon_from_boxes(_perspective_boxes(MIN_BOXES - 1, 0.5, 720), 720) is None
+    assert horizon_from_boxes(np.zeros((0, 4)), 720) is None
+    rising = _perspective_boxes(100, 0.5, 720, k=-0.5)  # nearer vehicles higher up: no level road
+    assert horizon_from_boxes(rising, 720) is None
+    same = np.tile([[0.0, 300.0, 50.0, 400.0]], (50, 1))  # one width: no slope
+    assert horizon_from_boxes(same, 720) is None
+    above = _perspective_boxes(100, -0.2, 720)  # a line meeting width 0 above the frame
+    assert horizon_from_boxes(above[above[:, 3] > 0], 720) is None
+
+
+def test_horizon_from_boxes_samples_a_long_footage():
+    from fastdet.video import horizon as hz
+
+    boxes = _perspective_boxes(3 * hz.MAX_BOXES, 0.55, 720, outliers=300)
+    assert hz.horizon_from_boxes(boxes, 720) == pytest.approx(0.55, abs=0.01)
+
+
+def test_horizon_from_boxes_on_the_shared_cameras(data):
+    """The ensemble's boxes of two cameras: tmo_seattle1 looks along the road, and its boxes put
+    the horizon within 0.03 of where the flow does; hadiya_input8 looks out of a side window,
+    where the flow's focus of expansion is 0.2 of the height above the road (docs/geometry.md)
+    and the boxes put the horizon at the road's far end, more than 0.15 lower."""
+    from fastdet.labels.teacher import read_teacher_clip
+    from fastdet.video.horizon import horizon_from_boxes
+    from fastdet.video.run import file_horizon
+
+    for name, near in (("tmo_seattle1", True), ("hadiya_input8", False)):
+        video = data / "videos" / f"{name}.mp4"
+        pics = read_teacher_clip(data / "teacher" / f"{name}.teacher.txt", min_score=0.3, video=video)
+        boxes = np.concatenate([p.targets for p in pics if len(p.targets)])
+        height = int(cv2.VideoCapture(str(video)).get(cv2.CAP_PROP_FRAME_HEIGHT))
+        got, flow = horizon_from_boxes(boxes, height), file_horizon(video)
+        assert got is not None and flow is not None
+        assert (abs(got - flow) < 0.03) if near else (got - flow > 0.15), (name, got, flow)
+
+
+def test_a_recorded_camera_horizon_places_the_bands(tmp_path):
+    """A main model that records its camera's horizon (``fastdet adapt``) puts the bands there for
+    every video, without reading the first seconds ahead; a horizon the config gives wins; a bad
+    record is the model's error."""
+    from fastdet.errors import ModelError
+    from fastdet.model import load_model
+    from fastdet.train.blend import offset
+    from fastdet.video import VideoDetector, make_detector
+    from fastdet.video.detector import HORIZON_KEY, camera_horizon
+
+    model = load_model()
+    at = offset(model, 0.0, metadata={HORIZON_KEY: 0.45}).save(tmp_path / "at.npz")
+    bad = offset(model, 0.0, metadata={HORIZON_KEY: 1.5}).save(tmp_path / "bad.npz")
+    frames = _zoom_frames(24, 150)  # the flow says 150 / 360
+    det = make_detector(PipelineConfig(model=str(at)))
+    assert camera_horizon(PipelineConfig(), det) == 0.45
+    vd = VideoDetector(det, PipelineConfig(model=str(at)))
+    assert vd.prime_horizon(frames) == pytest.approx(0.45)  # not the flow's
+    vd.update(frames[0])
+    assert det.horizon == pytest.approx(0.45)
+    given = make_detector(PipelineConfig(model=str(at)))
+    VideoDetector(given, PipelineConfig(model=str(at), horizon=0.5)).update(frames[0])
+    assert given.horizon == pytest.approx(0.5)
+    assert camera_horizon(PipelineConfig(horizon=None), det) is None
+    assert camera_horizon(PipelineConfig(), make_detector()) == "auto"  # no record
+    assert camera_horizon(PipelineConfig(), object()) == "auto"  # a detector without a model
+    with pytest.raises(ModelError, match=HORIZON_KEY):
+        camera_horizon(PipelineConfig(), make_detector(PipelineConfig(model=str(bad))))

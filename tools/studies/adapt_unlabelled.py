@@ -17,9 +17,9 @@ the ensemble labelled: its targets (the data README's rule, ``read_teacher_clip`
 the rest are ignore regions. This is the issue's second, cheaper signal: the ensemble's boxes are
 not ground truth, and adapt trained on other labels (its own teacher's, on frames before the
 stretch). The stretch is searched at the horizon a ``video`` run of the whole clip has
-(:func:`fastdet.video.run.file_horizon`; before the fourteenth session, at the one the stretch's own
-first frames gave). Prints a markdown table, one row a clip (F1, hits / false alarms / misses, and
-what adapt chose).
+(:func:`fastdet.video.run.file_horizon`, or the camera's horizon an adapted model records; before
+the fourteenth session, at the one the stretch's own first frames gave). Prints a markdown table,
+one row a clip (F1, hits / false alarms / misses, and what adapt chose).
 
 With ``--teacher-column`` a last column scores the teacher itself (``teachers/yolox_nano.onnx`` at
 640 px, its boxes of score >= 0.3 as adapt reads its labels) on the same frames against the same
@@ -47,6 +47,7 @@ from fastdet.labels.mot import find_video
 from fastdet.labels.teacher import MIN_SCORE, read_teacher_clip
 from fastdet.model import load_model
 from fastdet.teacher import TeacherDetector
+from fastdet.video.detector import HORIZON_KEY
 from fastdet.video.run import detect_video, file_horizon
 from tools.studies.markdown import table
 from tools.studies.teacher_f1 import teacher_results
@@ -98,9 +99,12 @@ def score(clip: str, model: Path, data: Path, teacher: TeacherDetector | None = 
     plain = model.with_name(model.stem + ".noreg.npz")
     dataclasses.replace(m, regressor=None).save(plain)
     video = clip_video(clip, data)
-    horizon = file_horizon(video)  # where a `video` run of the whole clip searches, not the stretch's own estimate
+    # where a `video` run of the whole clip searches, not the stretch's own estimate: the flow's,
+    # or the camera's horizon the adapted model records
+    flow = file_horizon(video)
     cells = []
     for path in (None, plain, model):
+        horizon = flow if path is None else m.metadata.get(HORIZON_KEY, flow)
         tables = list(detect_video(video, model=None if path is None else str(path), start=start - 1,
                                    frames=total - start + 1, horizon=horizon, progress=False))
         cells.append(_cell(evaluate(gt, Detections.concat(tables), keyframes=keyframes, tracking=False)))
