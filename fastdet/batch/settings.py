@@ -11,7 +11,7 @@ from pathlib import Path
 
 from ..config import PipelineConfig
 from ..config.batch import Settings, file_sha256
-from ..video.detector import make_detector
+from ..video.detector import camera_horizon, make_detector
 from ..video.refine import carried_regressor_for, regressor_for
 
 __all__ = ["MANIFEST_NAME", "SUFFIXES", "Settings", "checked_settings", "max_name_length", "file_sha256",
@@ -39,11 +39,12 @@ def checked_settings(pipeline: PipelineConfig | None = None, video: bool = False
     file named) is refined with it: the settings name no regressor file of their own. A main
     model that records no oncoming model beside it (``fastdet adapt``'s:
     :func:`~fastdet.video.detector.make_detector`) runs without the bundled one, as in
-    ``video``."""
+    ``video``; a record of its camera's horizon that is not one is refused here too."""
     p = pipeline if pipeline is not None else PipelineConfig()
     settings = Settings.create(p, video=video, json=json)  # a missing file: one line, in its words
     # the bundled oncoming model as `True`, so that the main model's record decides, as in `video`
     detector = make_detector(replace(settings.pipeline, oncoming=True) if p.oncoming is True else settings.pipeline)
+    camera_horizon(p, detector)  # a bad record of the camera's horizon: one line now, not a failure per video
     if p.oncoming is True and detector.oncoming_model is None:
         p = replace(p, oncoming=False)
         settings = Settings.create(p, video=video, json=json)

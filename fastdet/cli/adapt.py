@@ -411,26 +411,29 @@ HORIZON_GAP = 0.05
 def choose_horizon(model: Model, footage: _adapt.Footage, pictures: Sequence[AnnotatedPicture],
                    held: dict[str, list[AnnotatedPicture]], horizons: dict[str, float | None],
                    config: AdaptConfig, work: Path, progress: bool) -> tuple[dict[str, Any], float | None]:
-    """The camera's horizon: the one its labelled vehicles' boxes imply (``pictures``: every
-    labelled frame, the kept-aside ones too: a short footage's training frames hold too few
-    vehicles for a line; :func:`~fastdet.video.horizon.horizon_from_boxes`) or the one the flow of the first video
-    gives (``horizons``: :func:`~fastdet.video.run.file_horizon` of each clip, what a ``video``
-    run estimates). The kept-aside frames are replayed with ``model`` at each
-    (:func:`~fastdet.train.operating_point.choose_operating_point`: every formation and offset),
-    and the boxes' horizon is kept only when the F1 of its choice is above the flow's by more
-    than one standard error of it: the flow's is the default, as a ``video`` run has it. Tried only
-    when the two are at least :data:`HORIZON_GAP` of the height apart and frames were kept aside.
-    Returns the summary's ``horizon`` entry and the horizon to record (``None``: the flow's)."""
+    """The camera's horizon: the one its labelled vehicles' boxes imply
+    (:func:`~fastdet.video.horizon.horizon_from_boxes` over ``pictures``' frames of the footage's
+    videos, the kept-aside ones too: a short footage's training frames hold too few vehicles for a
+    line; stills and other videos' frames are other cameras) or the ones the flow gives
+    (``horizons``: :func:`~fastdet.video.run.file_horizon` of each video, what a ``video`` run
+    estimates). The kept-aside frames are replayed with ``model`` at the flow's horizons and at the
+    vehicles' one (:func:`~fastdet.train.operating_point.choose_operating_point`: every formation
+    and offset), and the vehicles' horizon is kept only when the best F1 of the formation chosen
+    there is above the flow's by more than its standard error: the flow's is the default, as a
+    ``video`` run has it. Tried only when it is at least :data:`HORIZON_GAP` of the height from
+    some video's flow horizon and frames were kept aside. Returns the summary's ``horizon`` entry
+    (``flow``: the first video's) and the horizon to record (``None``: the flow's)."""
     flow = horizons[footage.clips[0].name]
     height = footage.size[1]
-    boxes = [p.targets for p in pictures if len(p.targets)]
+    videos = {os.path.realpath(c.path) for c in footage.clips}
+    boxes = [p.targets for p in pictures
+             if len(p.targets) and p.frame is not None and os.path.realpath(p.path) in videos]
     from_boxes = horizon_from_boxes(np.concatenate(boxes), height) if boxes else None
     summary: dict[str, Any] = {"flow": flow, "boxes": from_boxes, "chosen": "flow"}
-    at_flow = REFERENCE_HORIZON if flow is None else flow
     if from_boxes is None:
         summary["skipped"] = (f"fewer than {MIN_BOXES} labelled vehicles with their bottom edge in the frame, "
                               f"or no line through them")
-    elif abs(from_boxes - at_flow) < HORIZON_GAP:
+    elif all(abs(from_boxes - (REFERENCE_HORIZON if f is None else f)) < HORIZON_GAP for f in horizons.values()):
         summary["skipped"] = f"within {HORIZON_GAP:g} of the height of the flow's"
     elif not any(held.values()):
         summary["skipped"] = "no labelled frame kept aside to choose it on"
@@ -440,13 +443,12 @@ def choose_horizon(model: Model, footage: _adapt.Footage, pictures: Sequence[Ann
     folder = work / "horizon"
     results: dict[str, tuple[float, float]] = {}
     with held_stretches(footage, held, config, folder) as frames:
-        for name, value in (("flow", flow), ("boxes", from_boxes)):
-            at = {k: value for k in horizons}
+        for name, at in (("flow", horizons), ("boxes", dict.fromkeys(horizons, from_boxes))):
             formation, _, by_boxes = _op.choose_operating_point(
                 model, footage, holdout_lanes(held, frames, at), folder, config.offsets, BOXES, progress,
                 seed=config.seed)
             c = by_boxes[formation]
-            results[name] = (c.results[c.offset].to_dict()["f1"] or 0.0, c.se)
+            results[name] = (c.results[c.best].to_dict()["f1"] or 0.0, c.se)
     shutil.rmtree(folder, ignore_errors=True)
     summary["f1"] = {k: round(v[0], 4) for k, v in results.items()}
     summary["f1_se"] = round(results["boxes"][1], 4)

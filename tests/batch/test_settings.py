@@ -44,3 +44,19 @@ def test_checked_settings_leave_out_the_oncoming_model_a_main_model_records_no_n
     named = checked_settings(PipelineConfig(model=str(own), oncoming=str(ONCOMING_MODEL_PATH)))
     assert named.pipeline.oncoming == str(ONCOMING_MODEL_PATH.resolve())  # a named one still runs
     assert checked_settings().pipeline.oncoming == str(ONCOMING_MODEL_PATH.resolve())
+
+
+def test_checked_settings_refuse_a_bad_record_of_the_cameras_horizon(tmp_path: Path) -> None:
+    """A main model whose record of its camera's horizon is not a fraction of the height is refused
+    before any work (one line), not once per video; a good record passes, and a horizon given in
+    the settings is not checked against it."""
+    from fastdet.model import load_model
+    from fastdet.train.blend import offset
+    from fastdet.video.detector import HORIZON_KEY
+
+    bad = offset(load_model(), 0.0, metadata={HORIZON_KEY: "low"}).save(tmp_path / "bad.npz")
+    good = offset(load_model(), 0.0, metadata={HORIZON_KEY: 0.5}).save(tmp_path / "good.npz")
+    with pytest.raises(ModelError, match=HORIZON_KEY):
+        checked_settings(PipelineConfig(model=str(bad)))
+    assert checked_settings(PipelineConfig(model=str(good))).pipeline.model == str(good.resolve())
+    assert checked_settings(PipelineConfig(model=str(bad), horizon=0.5)).pipeline.horizon == 0.5

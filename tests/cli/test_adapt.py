@@ -279,27 +279,36 @@ def test_the_horizon_line_says_what_was_chosen():
                                                            (0.45, 0.41, 0.01, "flow")])
 def test_the_boxes_horizon_is_kept_only_above_the_flows_by_more_than_an_error(
         f1_flow, f1_boxes, se, chosen, tmp_path, monkeypatch):
-    """choose_horizon replays the kept-aside frames at both horizons (here a stand-in for the
-    replay: an F1 per horizon) and keeps the labelled vehicles' only when its F1 less its standard
-    error is above the flow's; near the flow's, or without kept-aside frames, it is not tried."""
+    """choose_horizon replays the kept-aside frames at the flow's horizons (each video its own) and
+    at the labelled vehicles' (here a stand-in for the replay: an F1 per horizon) and keeps the
+    vehicles' only when its F1 less its standard error is above the flow's; near every video's
+    flow horizon (the reference's where the flow gave none), or without kept-aside frames, it is
+    not tried. The line is fitted on the footage's frames only: a still of another camera is left
+    out."""
     from contextlib import contextmanager
 
     from fastdet.labels.picture import AnnotatedPicture
     from fastdet.train import adapt as train_adapt
     from fastdet.train.operating_point import Agreement, FormationChoice
 
-    boxes = _horizon_boxes(0.55)
-    pictures = [AnnotatedPicture("teacher", "c", f"{i}", Path("c.mp4"), 1280, 720, targets=boxes[i::5], frame=i + 1)
-                for i in range(5)]
-    footage = train_adapt.Footage((train_adapt.Clip("c.mp4", "c", 100, 81),), 5, 1, (1280, 720))
-    asked = []
+    def frames(video: str, horizon: float, n: int = 5) -> list[AnnotatedPicture]:
+        boxes = _horizon_boxes(horizon)
+        return [AnnotatedPicture("teacher", "c", f"{i}", Path(video), 1280, 720, targets=boxes[i::n], frame=i + 1)
+                for i in range(n)]
+
+    pictures = frames("c1.mp4", 0.55) + frames("c2.mp4", 0.55)
+    still = AnnotatedPicture("user", "other", "s", Path("s.png"), 1280, 720, targets=_horizon_boxes(0.2))
+    clips = (train_adapt.Clip("c1.mp4", "c1", 100, 81), train_adapt.Clip("c2.mp4", "c2", 100, 81))
+    footage = train_adapt.Footage(clips, 5, 1, (1280, 720))
+    asked: list[dict] = []
 
     def replay(model, footage_, run, folder, offsets, formations, progress, seed):
         asked.append(run)
-        f1 = f1_flow if run == 0.40 else f1_boxes  # the flow's, else the boxes'
+        f1 = f1_flow if run["c1"] == 0.40 else f1_boxes  # the flow's, else the vehicles'
         tp = round(100 * f1)  # F1 = 2 tp / (2 tp + fp + fn) = tp / 100 with fp = fn = 100 - tp
         agreement = Agreement(tp, 100 - tp, 100 - tp, 1.0, 10)
-        return "nms", 0.0, {"nms": FormationChoice(0.0, {0.0: agreement}, 0.0, se)}
+        return "nms", 1.0, {"nms": FormationChoice(1.0, {0.0: agreement, 1.0: Agreement(0, 1, 1, 1.0, 10)},
+                                                   0.0, se)}
 
     @contextmanager
     def held_frames(*a, **k):
@@ -307,18 +316,23 @@ def test_the_boxes_horizon_is_kept_only_above_the_flows_by_more_than_an_error(
 
     monkeypatch.setattr(adapt_cli._op, "choose_operating_point", replay)
     monkeypatch.setattr(adapt_cli, "held_stretches", held_frames)
-    monkeypatch.setattr(adapt_cli, "holdout_lanes", lambda held, frames, at: next(iter(at.values())))
-    held = {"c": pictures[:1]}
+    monkeypatch.setattr(adapt_cli, "holdout_lanes", lambda held, frames, at: dict(at))
+    held = {"c1": pictures[:1], "c2": []}
     config = adapt_cli.AdaptConfig()
-    summary, hz = adapt_cli.choose_horizon(None, footage, pictures, held, {"c": 0.40}, config, tmp_path, False)
-    assert asked == [0.40, pytest.approx(0.55, abs=0.01)] and summary["chosen"] == chosen
+    flows = {"c1": 0.40, "c2": 0.53}
+    summary, hz = adapt_cli.choose_horizon(None, footage, pictures + [still], held, flows, config, tmp_path, False)
+    assert asked[0] == flows and asked[1] == {"c1": pytest.approx(0.55, abs=0.01), "c2": pytest.approx(0.55, abs=0.01)}
+    assert summary["chosen"] == chosen and summary["flow"] == 0.40
     assert summary["boxes"] == pytest.approx(0.55, abs=0.01) and summary["f1_se"] == se
-    assert summary["f1"] == {"flow": f1_flow, "boxes": f1_boxes}
+    assert summary["f1"] == {"flow": f1_flow, "boxes": f1_boxes}  # at the best offset, the one of the error
     assert hz == (summary["boxes"] if chosen == "boxes" else None)
-    near, hz = adapt_cli.choose_horizon(None, footage, pictures, held, {"c": 0.53}, config, tmp_path, False)
-    assert hz is None and "within 0.05" in near["skipped"] and len(asked) == 2
-    none, hz = adapt_cli.choose_horizon(None, footage, pictures, {"c": []}, {"c": 0.40}, config, tmp_path, False)
-    assert hz is None and "no labelled frame kept aside" in none["skipped"] and len(asked) == 2
+    for near in ({"c1": 0.53, "c2": 0.52}, {"c1": None, "c2": 0.56}):  # None: the reference, 0.585
+        s, hz = adapt_cli.choose_horizon(None, footage, pictures, held, near, config, tmp_path, False)
+        assert hz is None and "within 0.05" in s["skipped"] and len(asked) == 2
+    s, hz = adapt_cli.choose_horizon(None, footage, pictures, {"c1": [], "c2": []}, flows, config, tmp_path, False)
+    assert hz is None and "no labelled frame kept aside" in s["skipped"] and len(asked) == 2
+    s, hz = adapt_cli.choose_horizon(None, footage, [still], held, flows, config, tmp_path, False)
+    assert hz is None and s["boxes"] is None and "fewer than" in s["skipped"]
 
 
 def _horizon_boxes(horizon: float) -> np.ndarray:
