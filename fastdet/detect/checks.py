@@ -140,10 +140,12 @@ def _horizon_fits(detector: Any, shape: tuple[int, int], horizon: float) -> bool
     return True
 
 
-def check_horizon(detector: Any, shape: tuple[int, ...], horizon: Any, source: str) -> None:
+def check_horizon(detector: Any, shape: tuple[int, ...], horizon: Any, source: str,
+                  given_as: str = "--horizon") -> None:
     """``DataError`` when a fixed ``horizon`` (a fraction of the frame height) leaves some
-    model of ``detector`` no search band in frames of ``shape``; the message gives the
-    horizons that do. ``'auto'`` / ``None`` and detectors without ``scorers`` pass."""
+    model of ``detector`` no search band in frames of ``shape``; the message names the horizon
+    as ``given_as`` says it came and gives the horizons that do. ``'auto'`` / ``None`` and
+    detectors without ``scorers`` pass."""
     if isinstance(horizon, bool) or not isinstance(horizon, (int, float)) or not hasattr(detector, "scorers"):
         return
     h, w = int(shape[0]), int(shape[1])
@@ -154,15 +156,15 @@ def check_horizon(detector: Any, shape: tuple[int, ...], horizon: Any, source: s
     ok = [k / 200 for k in range(200) if _horizon_fits(detector, (h, w), k / 200)]
     room = (f"the search bands need it between {min(ok):g} and {max(ok):g} of the height" if ok
             else "no horizon leaves room for them")
-    raise DataError(f"{source}: --horizon {horizon:g} leaves no room for a search band below it in "
+    raise DataError(f"{source}: {given_as} {horizon:g} leaves no room for a search band below it in "
                     f"{w}x{h} frames; {room}")
 
 
 def check_frame(detector: Any, frame: np.ndarray, source: str, horizon: Any = None,
-                more: Callable[[], Iterable[np.ndarray]] | None = None) -> None:
+                more: Callable[[], Iterable[np.ndarray]] | None = None, horizon_given_as: str = "--horizon") -> None:
     """The checks on a first frame: size (:func:`check_frame_size`), colour (``more``: the
     video's further frames, :func:`check_colour`), and a fixed ``horizon`` that leaves room
-    for the search bands (:func:`check_horizon`)."""
+    for the search bands (:func:`check_horizon`; ``horizon_given_as``: where it came from)."""
     check_frame_size(detector, frame.shape, source)
     check_colour(detector, frame, source, more)
-    check_horizon(detector, frame.shape, horizon, source)
+    check_horizon(detector, frame.shape, horizon, source, horizon_given_as)

@@ -87,8 +87,11 @@ def video_detector_for(reader: FrameReader, detector: WindowDetector,
     :meth:`FrameReader.peek <fastdet.io.reader.FrameReader.peek>`, when they fit in
     :data:`PRIME_BUFFER_BYTES` and the run reads at least that many)."""
     config = config if config is not None else PipelineConfig()
-    check_frame(detector, reader.first_frame, reader.path, horizon=camera_horizon(config, detector),
-                more=reader.colour_sample)
+    horizon = camera_horizon(config, detector)
+    given_as = ("--horizon" if horizon == config.horizon
+                else "the camera's horizon the main model records (--horizon F or off to search elsewhere)")
+    check_frame(detector, reader.first_frame, reader.path, horizon=horizon, more=reader.colour_sample,
+                horizon_given_as=given_as)
     vd = VideoDetector(detector, config, fps=reader.fps)
     if (_primes(vd) and reader.kind == "file" and os.path.isfile(reader.path)
             and (reader.limit is None or reader.limit >= HORIZON_FRAMES)

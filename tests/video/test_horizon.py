@@ -423,3 +423,24 @@ def test_a_recorded_camera_horizon_places_the_bands(tmp_path):
     assert camera_horizon(PipelineConfig(), object()) == "auto"  # a detector without a model
     with pytest.raises(ModelError, match=HORIZON_KEY):
         camera_horizon(PipelineConfig(), make_detector(PipelineConfig(model=str(bad))))
+
+
+def test_a_recorded_horizon_that_leaves_no_room_is_refused_in_its_words(data, tmp_path):
+    """A recorded camera horizon with no room for a band below it in this video's frames is one
+    line naming the model's record (and how to search elsewhere), not ``--horizon``, which the
+    user did not give; the same horizon given as ``--horizon`` is named so."""
+    from fastdet.errors import DataError
+    from fastdet.io.reader import FrameReader
+    from fastdet.model import load_model
+    from fastdet.train.blend import offset
+    from fastdet.video import make_detector, video_detector_for
+    from fastdet.video.detector import HORIZON_KEY
+
+    low = offset(load_model(), 0.0, metadata={HORIZON_KEY: 0.98}).save(tmp_path / "low.npz")
+    path = data / "videos" / "test_small1.mp4"
+    with FrameReader(path, 0, 10, notify=lambda _n: None) as r:
+        with pytest.raises(DataError, match="the camera's horizon the main model records .*leaves no room"):
+            video_detector_for(r, make_detector(PipelineConfig(model=str(low))), PipelineConfig(model=str(low)))
+    with FrameReader(path, 0, 10, notify=lambda _n: None) as r:
+        with pytest.raises(DataError, match="--horizon 0.98 leaves no room"):
+            video_detector_for(r, make_detector(), PipelineConfig(horizon=0.98))
