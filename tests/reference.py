@@ -130,9 +130,9 @@ def sklearn_pair(model: Model) -> tuple[StandardScaler, LinearSVC]:
     return scaler, clf
 
 
-def _hog(channel: np.ndarray, config: FeatureConfig, vector: bool, orientations: int) -> np.ndarray:
+def _hog(channel: np.ndarray, config: FeatureConfig, vector: bool) -> np.ndarray:
     p, c = config.pixels_per_cell, config.cells_per_block
-    return sk_hog(channel, orientations=orientations, pixels_per_cell=(p, p), cells_per_block=(c, c),
+    return sk_hog(channel, orientations=config.orientations, pixels_per_cell=(p, p), cells_per_block=(c, c),
                   block_norm="L2-Hys", transform_sqrt=False, feature_vector=vector)
 
 
@@ -150,8 +150,7 @@ def _color_features(window: np.ndarray, config: FeatureConfig) -> np.ndarray:
 def crop_features(crop_bgr: np.ndarray, config: FeatureConfig) -> np.ndarray:
     """The feature vector of one BGR crop (window-sized), the plain way (HOG of the crop itself)."""
     img = convert_color(crop_bgr, config.color_space)
-    hog = np.concatenate([_hog(img[:, :, c], config, True, o)
-                          for c, o in zip(config.hog_channels, config.channel_orientations)])
+    hog = np.concatenate([_hog(img[:, :, c], config, True) for c in config.hog_channels])
     return np.concatenate([hog, _color_features(img, config)])
 
 
@@ -159,7 +158,7 @@ def band_window_features(frame: np.ndarray, geo: BandGeometry,
                          config: FeatureConfig) -> Iterator[tuple[int, int, np.ndarray]]:
     """Yield ``(row, col, features)`` for every window of the band, one window at a time."""
     img = convert_color(scaled_band(frame, geo), config.color_space)
-    hogs = [_hog(img[:, :, c], config, False, o) for c, o in zip(config.hog_channels, config.channel_orientations)]
+    hogs = [_hog(img[:, :, c], config, False) for c in config.hog_channels]
     bx, by, cell = config.blocks_x, config.blocks_y, config.pixels_per_cell
     for i in range(geo.ny):
         for j in range(geo.nx):

@@ -80,8 +80,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     feat = p.add_argument_group("features")
     feat.add_argument("--color-space", choices=COLOR_SPACES, default=None, help="colour space")
     feat.add_argument("--orientations", type=positive_int, default=None, metavar="N", help="HOG orientation bins")
-    feat.add_argument("--chroma-orientations", type=positive_int, default=None, metavar="N",
-                      help="HOG orientation bins of channels 1 and 2 (default: --orientations)")
     feat.add_argument("--spatial-size", type=nonneg_int, default=None, metavar="N", help="spatial-bin side (0: none)")
     feat.add_argument("--hist-bins", type=nonneg_int, default=None, metavar="N", help="colour histogram bins (0: none)")
     feat.add_argument("--hog-channels", default=None, metavar="LIST", help="e.g. 0,1,2 or ALL")
@@ -99,7 +97,6 @@ def feature_config_from_args(args: argparse.Namespace) -> FeatureConfig:
     cfg = FeatureConfig()
     changes: dict[str, Any] = {}
     for flag, value, top in (("--orientations", args.orientations, MAX_ORIENTATIONS),
-                             ("--chroma-orientations", args.chroma_orientations, MAX_ORIENTATIONS),
                              ("--spatial-size", args.spatial_size, cfg.window),
                              ("--hist-bins", args.hist_bins, MAX_HIST_BINS)):
         if value is not None and value > top:
@@ -108,8 +105,6 @@ def feature_config_from_args(args: argparse.Namespace) -> FeatureConfig:
         changes["color_space"] = args.color_space
     if args.orientations is not None:
         changes["orientations"] = args.orientations
-    if args.chroma_orientations is not None:
-        changes["chroma_orientations"] = args.chroma_orientations
     if args.spatial_size is not None:
         changes["spatial_size"] = args.spatial_size
     if args.hist_bins is not None:

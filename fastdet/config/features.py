@@ -28,9 +28,6 @@ class FeatureConfig(Config):
     hog_channels: channels of that colour space to take HOG of, e.g. ``(0, 1, 2)``.
     orientations, pixels_per_cell, cells_per_block: HOG parameters (square cells/blocks,
         L2-Hys block norm, as ``skimage.feature.hog``).
-    chroma_orientations: orientation bins of the HOG of channels 1 and 2 (the chroma of
-        YCrCb, YUV and LUV), whose gradients are weaker and coarser than the luma's;
-        ``None`` = ``orientations``, as channel 0.
     spatial_size: side of the spatial-bin image (window resized to it with
         ``cv2.INTER_LINEAR``), 0 to leave the spatial features out.
     hist_bins: bins per channel of the colour histogram over [0, 256), 0 to leave it out.
@@ -49,7 +46,6 @@ class FeatureConfig(Config):
     hist_bins: int = 32
     window: int = 64
     window_height: int | None = None
-    chroma_orientations: int | None = None
 
     def __post_init__(self) -> None:
         if self.color_space not in COLOR_SPACES:
@@ -65,10 +61,6 @@ class FeatureConfig(Config):
         object.__setattr__(self, "hog_channels", chans)
         if self.orientations < 1:
             raise ValueError("orientations must be >= 1")
-        if self.chroma_orientations is not None and self.chroma_orientations < 1:
-            raise ValueError("chroma_orientations must be >= 1")
-        if self.chroma_orientations == self.orientations:
-            object.__setattr__(self, "chroma_orientations", None)
         if self.pixels_per_cell < 1 or self.cells_per_block < 1:
             raise ValueError("pixels_per_cell and cells_per_block must be >= 1")
         if not 1 <= self.window <= MAX_WINDOW or (self.window_height is not None
@@ -87,7 +79,7 @@ class FeatureConfig(Config):
             raise ValueError("window (and window_height) must be multiples of window // spatial_size")
         if self.hist_bins and 256 % self.hist_bins:
             raise ValueError("hist_bins must divide 256")
-        per_pixel = self.cells_per_block ** 2 * max(self.channel_orientations) / self.pixels_per_cell ** 2
+        per_pixel = self.block_len / self.pixels_per_cell ** 2
         if per_pixel > MAX_BLOCK_VALUES_PER_PIXEL:
             raise ValueError(f"cells_per_block**2 * orientations / pixels_per_cell**2 is {per_pixel:g}: a search "
                              f"band's HOG block map would hold that many values per pixel and channel "
@@ -132,32 +124,13 @@ class FeatureConfig(Config):
         return (self.win_h // f, self.win_w // f)
 
     @property
-    def channel_orientations(self) -> tuple[int, ...]:
-        """Orientation bins of each HOG channel, in ``hog_channels`` order."""
-        chroma = self.orientations if self.chroma_orientations is None else self.chroma_orientations
-        return tuple(self.orientations if c == 0 else chroma for c in self.hog_channels)
-
-    @property
-    def hog_groups(self) -> tuple[tuple[tuple[int, ...], int], ...]:
-        """``((channels, orientations), ...)``: runs of consecutive HOG channels of equal
-        orientation bins, in ``hog_channels`` order (one HOG call each)."""
-        groups: list[tuple[list[int], int]] = []
-        for c, o in zip(self.hog_channels, self.channel_orientations):
-            if groups and groups[-1][1] == o:
-                groups[-1][0].append(c)
-            else:
-                groups.append(([c], o))
-        return tuple((tuple(cs), o) for cs, o in groups)
-
-    @property
     def block_len(self) -> int:
-        """Values at one block position over every HOG channel: the sum of
-        ``cells_per_block**2 * orientations`` of each channel."""
-        return sum(self.cells_per_block ** 2 * o for o in self.channel_orientations)
+        """Values in one block of one channel: ``cells_per_block**2 * orientations``."""
+        return self.cells_per_block ** 2 * self.orientations
 
     @property
     def n_hog(self) -> int:
-        return self.blocks_x * self.blocks_y * self.block_len
+        return len(self.hog_channels) * self.blocks_x * self.blocks_y * self.block_len
 
     @property
     def n_spatial(self) -> int:
@@ -172,8 +145,7 @@ class FeatureConfig(Config):
     def n_features(self) -> int:
         return self.n_hog + self.n_spatial + self.n_hist
 
-    # square windows and one orientation count: the same dict as before the fields existed
-    _OMIT_NONE = ("window_height", "chroma_orientations")
+    _OMIT_NONE = ("window_height",)  # square windows: the same dict as before the field existed
 
 
 #: side of the default (square) window in pixels, and of its HOG cells: the units the

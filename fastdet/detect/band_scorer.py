@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from ..config import FeatureConfig, SearchConfig
+from ..config import SearchConfig
 from ..features import (
     convert_color,
     hist_bin_shift,
@@ -37,16 +37,12 @@ class _Scorer:
             raise ValueError(f"spatial_size {cfg.spatial_size} needs windows on a grid of "
                              f"{spatial_factor(cfg)} px; cells are {cfg.pixels_per_cell} px")
         w, b = model.folded()
-        bx, by, cpb = cfg.blocks_x, cfg.blocks_y, cfg.cells_per_block
-        self.k = cfg.block_len
-        # feature order (channel, block row, block col, ...) → rows of blocks, all channels (a
-        # channel's block cpb*cpb*o values, its own o)
-        parts, pos = [], 0
-        for o in cfg.channel_orientations:
-            n = by * bx * cpb * cpb * o
-            parts.append(w[pos: pos + n].reshape(by, bx, cpb * cpb * o))
-            pos += n
-        self.w_hog = np.ascontiguousarray(np.concatenate(parts, axis=2).reshape(by, bx * self.k))
+        nch, bx, by = len(cfg.hog_channels), cfg.blocks_x, cfg.blocks_y
+        cpb, o = cfg.cells_per_block, cfg.orientations
+        self.k = nch * cpb * cpb * o
+        # feature order (channel, block row, block col, ...) → rows of blocks, all channels
+        self.w_hog = np.ascontiguousarray(
+            w[: cfg.n_hog].reshape(nch, by, bx, cpb, cpb, o).transpose(1, 2, 0, 3, 4, 5).reshape(by, bx * self.k))
         pos = cfg.n_hog
         sh, sw = cfg.spatial_shape
         self.w_sp = np.ascontiguousarray(w[pos: pos + cfg.n_spatial].reshape(sh, 3 * sw)) if sh else np.zeros((0, 0))
@@ -101,7 +97,7 @@ class _Scorer:
         scorers of equal keys share them on a band (:func:`group_band_scores`); the colour
         histogram weights and the window height are each scorer's own."""
         c = self.config
-        return (c.window, c.channel_orientations, c.pixels_per_cell, c.cells_per_block, tuple(c.hog_channels),
+        return (c.window, c.orientations, c.pixels_per_cell, c.cells_per_block, tuple(c.hog_channels),
                 c.color_space, c.spatial_size, spatial_factor(c) if c.spatial_size else 1)
 
     def band_scores(self, frame: np.ndarray, geo: BandGeometry, timings: dict[str, float] | None,
@@ -177,10 +173,12 @@ def _image_scores(img: np.ndarray, step: int, members: Sequence[tuple[_Scorer, B
     apart) into each member's ``out (ny, nx)``; returns the seconds of HOG and of scoring."""
     cfg = members[0][0].config
     t1 = time.perf_counter()
-    rows = band_blocks(img, cfg)
+    blocks = hog_channels(img, cfg.orientations, cfg.pixels_per_cell, cfg.cells_per_block,
+                          channels=list(cfg.hog_channels), exact=False)
     t2 = time.perf_counter()
     if not any(out.size for out in outs):
         return t2 - t1, time.perf_counter() - t2
+    rows = blocks.reshape(blocks.shape[0], -1)
     cell = cfg.pixels_per_cell
     if cfg.spatial_size:
         f = spatial_factor(cfg)
@@ -197,17 +195,3 @@ def _image_scores(img: np.ndarray, step: int, members: Sequence[tuple[_Scorer, B
                      bias=sc.bias, spat_rows=sp, w_sp=sc.w_sp if c.spatial_size else None, sp_off=f,
                      integ=integ, hist_step=cell, parallel=not serial)
     return t2 - t1, time.perf_counter() - t2
-
-
-def band_blocks(img: np.ndarray, cfg: FeatureConfig) -> np.ndarray:
-    """The HOG block map of a colour-converted band image ``(H, W, 3) uint8`` as rows of
-    blocks: ``(n_blocks_row, n_blocks_col * cfg.block_len) float64``, each block position's
-    values channel after channel (each channel its own orientation bins: one HOG call per
-    :attr:`~fastdet.config.FeatureConfig.hog_groups` run, joined along the block)."""
-    groups = cfg.hog_groups
-    maps = [hog_channels(img, o, cfg.pixels_per_cell, cfg.cells_per_block, channels=list(chans), exact=False)
-            for chans, o in groups]
-    if len(maps) == 1:
-        return maps[0].reshape(maps[0].shape[0], -1)
-    nbr, nbc = maps[0].shape[:2]
-    return np.concatenate([m.reshape(nbr, nbc, -1) for m in maps], axis=2).reshape(nbr, -1)

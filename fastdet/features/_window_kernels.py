@@ -27,19 +27,18 @@ def color_hist_batch(images, shift, nbins, out):
 
 
 @njit(**EXACT)
-def hog_to_features(hog, out, col0):
-    """Copy per-crop block maps into feature rows from column ``col0`` on, channel-major.
+def hog_to_features(hog, out):
+    """Copy per-crop block maps into feature rows, channel-major.
 
     hog: (N, br, bc, nch, blk) float64, blk = cells_per_block**2 * orientations;
-    out: (N, >= col0 + nch*br*bc*blk) float64:
-    out[i, col0 + ((c*br + r)*bc + q)*blk + t] = hog[i, r, q, c, t].
+    out: (N, >= nch*br*bc*blk) float64: out[i, ((c*br + r)*bc + q)*blk + t] = hog[i, r, q, c, t].
     """
     n, br, bc, nch, blk = hog.shape
     for i in range(n):
         for c in range(nch):
             for r in range(br):
                 for q in range(bc):
-                    base = col0 + ((c * br + r) * bc + q) * blk
+                    base = ((c * br + r) * bc + q) * blk
                     for t in range(blk):
                         out[i, base + t] = hog[i, r, q, c, t]
 
@@ -79,7 +78,7 @@ def spatial_batch(images, factor, out, col0):
 #: calls (C-contiguous arrays, Python ints as int64), so a call finds its machine code
 SIGNATURES: dict[str, tuple[str, ...]] = {
     "color_hist_batch": ("uint8[:, :, :, ::1], int64, int64, float64[:, ::1]",),
-    "hog_to_features": ("float64[:, :, :, :, ::1], float64[:, ::1], int64",),
+    "hog_to_features": ("float64[:, :, :, :, ::1], float64[:, ::1]",),
     "spatial_batch": ("uint8[:, :, :, ::1], int64, float64[:, ::1], int64",),
 }
 #: CPU seconds to compile each, reference machine (docs/benchmarks.md)

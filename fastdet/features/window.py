@@ -3,7 +3,7 @@
 The feature vector of one ``win_h x win_w`` crop (default 64x64) in the colour space of a
 :class:`~fastdet.config.FeatureConfig`, concatenated in this order:
 
-1. HOG, channel after channel, each as ``skimage.feature.hog(crop[..., c], orientations_c,
+1. HOG, channel after channel, each as ``skimage.feature.hog(crop[..., c], orientations,
    (ppc, ppc), (cpb, cpb), 'L2-Hys', feature_vector=True)``;
 2. spatial bins: ``cv2.resize(crop, (w, h), interpolation=cv2.INTER_LINEAR).ravel()`` with
    ``(h, w) = config.spatial_shape`` (row, column, channel order), as float;
@@ -131,12 +131,9 @@ def extract_features(crops: np.ndarray, config: FeatureConfig | None = None) -> 
             part, rows = conv[s:e], out[s:e]
             # 1. HOG: (n, br, bc, nch, cpb, cpb, o) -> channel-major feature order, a chunk small
             #    enough that the kernel's output is still in cache when it is reordered
-            col = 0
-            for chans, o in config.hog_groups:  # channels of equal orientation bins, one call
-                hog = hog_channels_batch(part, o, config.pixels_per_cell, config.cells_per_block,
-                                         channels=list(chans), threads=1)
-                hog_to_features(hog.reshape(hog.shape[:4] + (-1,)), rows, col)
-                col += hog[0].size
+            hog = hog_channels_batch(part, config.orientations, config.pixels_per_cell,
+                                     config.cells_per_block, channels=list(config.hog_channels), threads=1)
+            hog_to_features(hog.reshape(hog.shape[:4] + (-1,)), rows)
             # 2. spatial bins (the same pixels as spatial_map / cv2.resize; tested)
             if config.spatial_size:
                 spatial_batch(part, sp_factor, rows, sp_pos)

@@ -25,8 +25,6 @@ FEATURE_CONFIGS = [
     FeatureConfig(color_space="HLS", hog_channels=(2, 0), spatial_size=0, hist_bins=0, cells_per_block=3),
     FeatureConfig(window_height=24, spatial_size=32),
     FeatureConfig(window=48, pixels_per_cell=8, spatial_size=16, hist_bins=64),
-    FeatureConfig(chroma_orientations=8),
-    FeatureConfig(color_space="LUV", hog_channels=(2, 0), orientations=9, chroma_orientations=12),
 ]
 
 
@@ -44,15 +42,8 @@ def test_feature_sizes_are_those_of_the_reference_features(cfg):
 
 def test_feature_config_by_hand():
     cfg = FeatureConfig()  # 64x64, 8-px cells, 2x2 blocks, 16 orientations, 3 channels, 32x32, 32 bins
-    assert (cfg.win_w, cfg.win_h, cfg.blocks_x, cfg.blocks_y, cfg.block_len) == (64, 64, 7, 7, 3 * 64)
+    assert (cfg.win_w, cfg.win_h, cfg.blocks_x, cfg.blocks_y, cfg.block_len) == (64, 64, 7, 7, 64)
     assert cfg.n_features == 3 * 7 * 7 * 64 + 3 * 32 * 32 + 3 * 32
-    assert cfg.channel_orientations == (16, 16, 16) and cfg.hog_groups == (((0, 1, 2), 16),)
-    chroma = FeatureConfig(chroma_orientations=8)  # blocks of 64 + 32 + 32 values
-    assert chroma.channel_orientations == (16, 8, 8) and chroma.hog_groups == (((0,), 16), ((1, 2), 8))
-    assert chroma.block_len == 128 and chroma.n_features == 7 * 7 * 128 + 3 * 32 * 32 + 3 * 32
-    assert FeatureConfig(hog_channels=(1, 0, 2), chroma_orientations=8).hog_groups == (((1,), 8), ((0,), 16),
-                                                                                      ((2,), 8))
-    assert FeatureConfig(chroma_orientations=16).chroma_orientations is None  # as channel 0's: no field
     wide = FeatureConfig(window_height=24)
     assert (wide.win_w, wide.win_h, wide.blocks_y, wide.spatial_shape) == (64, 24, 2, (12, 32))
     assert FeatureConfig(window_height=64).window_height is None  # square: same as no height
@@ -67,7 +58,6 @@ def test_feature_config_by_hand():
     (dict(hog_channels=(1, 1)), "hog_channels"),
     (dict(hog_channels="some"), "hog_channels"),
     (dict(orientations=0), "orientations"),
-    (dict(chroma_orientations=0), "chroma_orientations"),
     (dict(pixels_per_cell=0), "pixels_per_cell"),
     (dict(cells_per_block=0), "cells_per_block"),
     (dict(pixels_per_cell=12), "multiples of pixels_per_cell"),
@@ -99,9 +89,6 @@ def test_square_feature_config_dict_has_no_window_height():
     """Model files written before wide windows existed hold no window_height: same dict."""
     assert "window_height" not in FeatureConfig().to_dict()
     assert FeatureConfig(window_height=24).to_dict()["window_height"] == 24
-    # ... nor chroma_orientations: the bundled models' digests stay
-    assert "chroma_orientations" not in FeatureConfig().to_dict()
-    assert FeatureConfig(chroma_orientations=8).to_dict()["chroma_orientations"] == 8
 
 
 @pytest.mark.parametrize("cfg", [FeatureConfig(), SearchBand(1.0, 400, 500), SearchConfig(), ONCOMING_SEARCH,
