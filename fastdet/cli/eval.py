@@ -28,7 +28,7 @@ from ..io.keyframes import keyframes_for, keyframes_path, read_keyframes
 from ..io.motfiles import read_gt, read_predictions
 from ..io.paths import bundled_models, check_paths, is_inside
 from ..io.reader import check_source
-from ..video.detector import camera_horizon, make_detector
+from ..video.detector import main_model_records, recorded_horizon
 from ..video.run import iter_video_detections
 from ._args import add_horizon_argument, pipeline_config, pipeline_groups
 
@@ -274,7 +274,7 @@ def _run_all(args: argparse.Namespace) -> int:
         config = pipeline_config(args)
         settings.update(model=args.model or "bundled", oncoming=args.oncoming_model or not args.no_oncoming,
                         traffic=config.traffic, refine=config.refine is not None, track=config.tracker is not None,
-                        offline=args.offline, horizon=camera_horizon(config, make_detector(config)),
+                        offline=args.offline, horizon=recorded_horizon(config.horizon, main_model_records(config)),
                         full_search=config.guided is None,
                         split=config.split is not None)
     pictures = _score_picture_sets(picture_sets, args) if picture_sets else []

@@ -113,20 +113,34 @@ HORIZON_KEY = "video_horizon"
 
 def camera_horizon(config: PipelineConfig, detector: object) -> Horizon:
     """Where the pipeline for ``config`` puts the search bands (:attr:`PipelineConfig.horizon`):
-    ``config.horizon`` unless it is ``'auto'`` and ``detector``'s main model records its camera's
-    horizon (its ``model``'s metadata :data:`HORIZON_KEY`, written by ``fastdet adapt``): then
-    that number, for every video, not one estimated from each video's flow.
-    :class:`~fastdet.errors.ModelError` for a record that is not a fraction of the height."""
-    if config.horizon != "auto":
-        return config.horizon
+    :func:`recorded_horizon` of ``detector``'s main model (its ``model``'s metadata; a detector
+    without one records nothing). :class:`~fastdet.errors.ModelError` for a bad record."""
     model = getattr(detector, "model", None)
-    got = model.metadata.get(HORIZON_KEY) if isinstance(model, Model) else None
+    return recorded_horizon(config.horizon, model.metadata if isinstance(model, Model) else {})
+
+
+def recorded_horizon(horizon: Horizon, metadata: Mapping[str, Any]) -> Horizon:
+    """Where the bands go for the pipeline's ``horizon`` setting (:attr:`PipelineConfig.horizon`)
+    with a main model whose file's ``metadata`` this is: ``horizon`` unless it is ``'auto'`` and
+    the model records its camera's horizon (:data:`HORIZON_KEY`, written by ``fastdet adapt``):
+    then that number, for every video, not one estimated from each video's flow.
+    :class:`~fastdet.errors.ModelError` for a record that is not a fraction of the height."""
+    if horizon != "auto":
+        return horizon
+    got = metadata.get(HORIZON_KEY)
     if got is None:
         return "auto"
     if isinstance(got, bool) or not isinstance(got, (int, float)) or not 0.0 < got < 1.0:
         raise ModelError(f"the main model's metadata['{HORIZON_KEY}'] must be a fraction of the frame height "
                          f"in (0, 1), got {got!r}")
     return float(got)
+
+
+def main_model_records(config: PipelineConfig) -> dict[str, Any]:
+    """The metadata of ``config``'s main model file (the bundled one when none is given), read
+    alone: the arrays are not loaded. :class:`~fastdet.errors.ModelError` when it does not read."""
+    _, meta = read_npz(Path(config.model) if config.model is not None else DEFAULT_MODEL_PATH, ("metadata",))
+    return meta
 
 
 #: the main model file's metadata key that records whether the bundled oncoming-traffic model runs
@@ -161,8 +175,7 @@ def make_detector(config: PipelineConfig | None = None) -> Detector:
     (:func:`box_formation`), not for the heat map, which takes the main model's windows only. Raises
     :class:`~fastdet.errors.ModelError` when a model does not load."""
     c = config if config is not None else PipelineConfig()
-    # the records alone (the metadata array): the Detector loads and checks the model, once
-    _, meta = read_npz(Path(c.model) if c.model is not None else DEFAULT_MODEL_PATH, ("metadata",))
+    meta = main_model_records(c)  # the records alone: the Detector loads and checks the model, once
     oncoming: str | Path | None
     if c.oncoming is True:
         oncoming = ONCOMING_MODEL_PATH if recorded_oncoming(meta) else None

@@ -423,6 +423,18 @@ def test_a_recorded_camera_horizon_places_the_bands(tmp_path):
     assert camera_horizon(PipelineConfig(), object()) == "auto"  # a detector without a model
     with pytest.raises(ModelError, match=HORIZON_KEY):
         camera_horizon(PipelineConfig(), make_detector(PipelineConfig(model=str(bad))))
+    # the same from the file's records alone (eval's report, batch's check): no detector built
+    from fastdet.video.detector import main_model_records, recorded_horizon
+
+    assert recorded_horizon("auto", main_model_records(PipelineConfig(model=str(at)))) == 0.45
+    assert recorded_horizon(0.5, main_model_records(PipelineConfig(model=str(at)))) == 0.5
+    assert recorded_horizon("auto", main_model_records(PipelineConfig())) == "auto"
+    assert recorded_horizon(None, {HORIZON_KEY: 0.45}) is None
+    for record in (1.5, 0.0, True, "0.4"):
+        with pytest.raises(ModelError, match=HORIZON_KEY):
+            recorded_horizon("auto", {HORIZON_KEY: record})
+    with pytest.raises(ModelError):
+        main_model_records(PipelineConfig(model=str(tmp_path / "missing.npz")))
 
 
 def test_a_recorded_horizon_that_leaves_no_room_is_refused_in_its_words(data, tmp_path):

@@ -47,7 +47,7 @@ from fastdet.labels.mot import find_video
 from fastdet.labels.teacher import MIN_SCORE, read_teacher_clip
 from fastdet.model import load_model
 from fastdet.teacher import TeacherDetector
-from fastdet.video.detector import HORIZON_KEY
+from fastdet.video.detector import recorded_horizon
 from fastdet.video.run import detect_video, file_horizon
 from tools.studies.markdown import table
 from tools.studies.teacher_f1 import teacher_results
@@ -102,9 +102,10 @@ def score(clip: str, model: Path, data: Path, teacher: TeacherDetector | None = 
     # where a `video` run of the whole clip searches, not the stretch's own estimate: the flow's,
     # or the camera's horizon the adapted model records
     flow = file_horizon(video)
+    recorded = recorded_horizon("auto", m.metadata)  # a bad record: the one line a `video` run gives
     cells = []
     for path in (None, plain, model):
-        horizon = flow if path is None else m.metadata.get(HORIZON_KEY, flow)
+        horizon = flow if path is None or recorded == "auto" else recorded
         tables = list(detect_video(video, model=None if path is None else str(path), start=start - 1,
                                    frames=total - start + 1, horizon=horizon, progress=False))
         cells.append(_cell(evaluate(gt, Detections.concat(tables), keyframes=keyframes, tracking=False)))
