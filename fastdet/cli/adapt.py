@@ -52,7 +52,7 @@ import shutil
 import sys
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -199,6 +199,15 @@ def held_stretches(footage: _adapt.Footage, held: Mapping[str, list[AnnotatedPic
     finally:
         for frames in out.values():
             frames.close()
+
+
+@contextmanager
+def _read_held(footage: _adapt.Footage, held: Mapping[str, list[AnnotatedPicture]], config: AdaptConfig,
+               folder: Path) -> Iterator[tuple[dict[str, HeldFrames], float]]:
+    """:func:`held_stretches`, with the seconds their reading took (the summary's ``kept_aside``)."""
+    t = time.perf_counter()
+    with held_stretches(footage, held, config, folder) as frames:
+        yield frames, time.perf_counter() - t
 
 
 def _source(clip: _adapt.Clip, frames: Mapping[str, HeldFrames] | None) -> str | HeldFrames:
@@ -410,7 +419,8 @@ HORIZON_GAP = 0.05
 
 def choose_horizon(model: Model, footage: _adapt.Footage, pictures: Sequence[AnnotatedPicture],
                    held: dict[str, list[AnnotatedPicture]], horizons: dict[str, float | None],
-                   config: AdaptConfig, work: Path, progress: bool) -> tuple[dict[str, Any], float | None]:
+                   config: AdaptConfig, work: Path, progress: bool,
+                   frames: Mapping[str, HeldFrames] | None = None) -> tuple[dict[str, Any], float | None]:
     """The camera's horizon: the one its labelled vehicles' boxes imply
     (:func:`~fastdet.video.horizon.horizon_from_boxes` over ``pictures``' frames of the footage's
     videos, the kept-aside ones too: a short footage's training frames hold too few vehicles for a
@@ -421,8 +431,10 @@ def choose_horizon(model: Model, footage: _adapt.Footage, pictures: Sequence[Ann
     and offset), and the vehicles' horizon is kept only when the best F1 of the formation chosen
     there is above the flow's by more than its standard error: the flow's is the default, as a
     ``video`` run has it. Tried only when it is at least :data:`HORIZON_GAP` of the height from
-    some video's flow horizon and frames were kept aside. Returns the summary's ``horizon`` entry
-    (``flow``: the first video's) and the horizon to record (``None``: the flow's)."""
+    some video's flow horizon and frames were kept aside. ``frames``: the stretches held
+    (:func:`held_stretches`, read once for this and the operating point); ``None``: read here.
+    Returns the summary's ``horizon`` entry (``flow``: the first video's) and the horizon to record
+    (``None``: the flow's)."""
     flow = horizons[footage.clips[0].name]
     height = footage.size[1]
     videos = {os.path.realpath(c.path) for c in footage.clips}
@@ -442,10 +454,10 @@ def choose_horizon(model: Model, footage: _adapt.Footage, pictures: Sequence[Ann
     assert from_boxes is not None
     folder = work / "horizon"
     results: dict[str, tuple[float, float]] = {}
-    with held_stretches(footage, held, config, folder) as frames:
+    with held_stretches(footage, held, config, folder) if frames is None else nullcontext(frames) as held_frames:
         for name, at in (("flow", horizons), ("boxes", dict.fromkeys(horizons, from_boxes))):
             formation, _, by_boxes = _op.choose_operating_point(
-                model, footage, holdout_lanes(held, frames, at), folder, config.offsets, BOXES, progress,
+                model, footage, holdout_lanes(held, held_frames, at), folder, config.offsets, BOXES, progress,
                 seed=config.seed)
             c = by_boxes[formation]
             results[name] = (c.results[c.best].to_dict()["f1"] or 0.0, c.se)
@@ -492,12 +504,13 @@ class OperatingPoint:
 def operating_point(model: Model, side: Model | None, side_fit: dict[str, Any], footage: _adapt.Footage,
                     held: dict[str, list[AnnotatedPicture]], horizons: dict[str, float | None],
                     flow_horizons: dict[str, float | None], config: AdaptConfig, work: Path,
-                    progress: bool) -> OperatingPoint:
+                    progress: bool, frames: tuple[Mapping[str, HeldFrames], float] | None = None) -> OperatingPoint:
     """The box formation, the decision offset and the side-view component's offset (or none),
     chosen by replaying the kept-aside frames (``held``) at the camera's ``horizons``; with no
     labelled frame kept aside the model keeps its own operating point (heat map, offset 0) and no
     component. The bundled model's agreement (``before``) is that of a ``video`` run, at the
-    flow's horizons."""
+    flow's horizons. ``frames``: the stretches held (:func:`held_stretches`) and the seconds their
+    reading took; ``None``: read here."""
     n_held = sum(len(v) for v in held.values())
     before = after = None
     chosen = 0.0
@@ -509,20 +522,20 @@ def operating_point(model: Model, side: Model | None, side_fit: dict[str, Any], 
     if not n_held:
         return OperatingPoint(model, boxes, chosen, tried, formations, side_summary, kept, before, after)
     _warm_up(footage.clips[0].path)
-    t_read = time.perf_counter()
-    with held_stretches(footage, held, config, work / "operating-point") as frames:
-        kept = _kept(frames, time.perf_counter() - t_read)
-        run_holdout = holdout_run(held, frames, horizons)
-        before = _op.agreement(footage, holdout_run(held, frames, flow_horizons), None).to_dict()
+    with nullcontext(frames) if frames is not None else _read_held(footage, held, config,
+                                                                  work / "operating-point") as (held_frames, secs):
+        kept = _kept(held_frames, secs)
+        run_holdout = holdout_run(held, held_frames, horizons)
+        before = _op.agreement(footage, holdout_run(held, held_frames, flow_horizons), None).to_dict()
         boxes, chosen, by_boxes = _op.choose_operating_point(
-            model, footage, holdout_lanes(held, frames, horizons), work / "operating-point", config.offsets, BOXES,
+            model, footage, holdout_lanes(held, held_frames, horizons), work / "operating-point", config.offsets, BOXES,
             progress, seed=config.seed)
         formations = {b: {"offset": c.offset, "f1": c.results[c.offset].to_dict()["f1"], "best_offset": c.best,
                           "best_f1": c.results[c.best].to_dict()["f1"], "f1_se": round(c.se, 4)}
                       for b, c in by_boxes.items()}
         r = by_boxes[boxes].results[chosen]
         if side is not None and "nms" in by_boxes:
-            sc = _op.choose_side_offset(replace(model, side=side), footage, holdout_lanes(held, frames, horizons),
+            sc = _op.choose_side_offset(replace(model, side=side), footage, holdout_lanes(held, held_frames, horizons),
                                         work / "operating-point", "nms", by_boxes["nms"].offset,
                                         config.side_offsets, progress, seed=config.seed)
             side_summary.update({"offsets_f1": {f"{o:g}": a.to_dict()["f1"] for o, a in sc.results.items()},
@@ -660,34 +673,38 @@ def run(args: argparse.Namespace) -> int:
     # first frames
     flow_horizons = {c.name: file_horizon(c.path) for c in footage.clips
                      if c is footage.clips[0] or held.get(c.name)}
-    horizon_summary, camera_hz = choose_horizon(model, footage, pictures, held, flow_horizons, config, work,
-                                                progress)
-    horizons = flow_horizons if camera_hz is None else dict.fromkeys(flow_horizons, camera_hz)
-    secs["horizon"] = time.perf_counter() - t
-    _signals.check()
-    t = time.perf_counter()
-    regressor, regressor_fit = _adapt.fit_camera_regressor(
-        train_pics, load_regressor(), config, progress,
-        own_boxes=own_window_boxes(model, horizons[footage.clips[0].name]))
-    if regressor is not None:
-        model = carrying(model, regressor)  # every model file written from here on carries it
-    secs["regressor"] = time.perf_counter() - t
-    _signals.check()
-    t = time.perf_counter()
-    side: Model | None = None
-    side_fit: dict[str, Any] = {"skipped": "no labelled frame kept aside to choose it on"}
-    if any(held.values()):
-        side, side_fit = _side.fit_side_model(
-            train_pics, model, replace(PipelineConfig().search, horizon=horizons[footage.clips[0].name]), config,
-            progress)
-    secs["side"] = time.perf_counter() - t
-    _signals.check()
+    # each kept-aside stretch read once, for the horizon's replays and the operating point's (held in
+    # memory, or in files, through the two fits between them)
+    with _read_held(footage, held, config, work / "operating-point") as (frames, read_secs):
+        horizon_summary, camera_hz = choose_horizon(model, footage, pictures, held, flow_horizons, config, work,
+                                                    progress, frames=frames)
+        horizons = flow_horizons if camera_hz is None else dict.fromkeys(flow_horizons, camera_hz)
+        secs["horizon"] = time.perf_counter() - t - read_secs  # the reading: the operating point's, as it reads them
+        _signals.check()
+        t = time.perf_counter()
+        regressor, regressor_fit = _adapt.fit_camera_regressor(
+            train_pics, load_regressor(), config, progress,
+            own_boxes=own_window_boxes(model, horizons[footage.clips[0].name]))
+        if regressor is not None:
+            model = carrying(model, regressor)  # every model file written from here on carries it
+        secs["regressor"] = time.perf_counter() - t
+        _signals.check()
+        t = time.perf_counter()
+        side: Model | None = None
+        side_fit: dict[str, Any] = {"skipped": "no labelled frame kept aside to choose it on"}
+        if any(held.values()):
+            side, side_fit = _side.fit_side_model(
+                train_pics, model, replace(PipelineConfig().search, horizon=horizons[footage.clips[0].name]), config,
+                progress)
+        secs["side"] = time.perf_counter() - t
+        _signals.check()
 
-    t = time.perf_counter()
-    n_held = sum(len(v) for v in held.values())
-    op = operating_point(model, side, side_fit, footage, held, horizons, flow_horizons, config, work, progress)
-    model = op.model
-    secs["operating_point"] = time.perf_counter() - t
+        t = time.perf_counter()
+        n_held = sum(len(v) for v in held.values())
+        op = operating_point(model, side, side_fit, footage, held, horizons, flow_horizons, config, work, progress,
+                             frames=(frames, read_secs))
+        model = op.model
+        secs["operating_point"] = time.perf_counter() - t + read_secs
     secs["total"] = time.perf_counter() - t_start
     _signals.check()
 

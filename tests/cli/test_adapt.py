@@ -333,6 +333,15 @@ def test_the_boxes_horizon_is_kept_only_above_the_flows_by_more_than_an_error(
     assert hz is None and "no labelled frame kept aside" in s["skipped"] and len(asked) == 2
     s, hz = adapt_cli.choose_horizon(None, footage, [still], held, flows, config, tmp_path, False)
     assert hz is None and s["boxes"] is None and "fewer than" in s["skipped"]
+    # the stretches adapt read once for this and the operating point: not read again
+    @contextmanager
+    def read_again(*a, **k):
+        raise AssertionError("the kept-aside stretches read a second time")
+        yield {}
+
+    monkeypatch.setattr(adapt_cli, "held_stretches", read_again)
+    s, hz = adapt_cli.choose_horizon(None, footage, pictures, held, flows, config, tmp_path, False, frames={})
+    assert s["chosen"] == chosen and len(asked) == 4
 
 
 def _horizon_boxes(horizon: float) -> np.ndarray:
