@@ -10,10 +10,15 @@ role its Python name gives it:
 
 - ``main``: the thread that runs the frame loop, the detector's share of the bands among them;
 - ``band pool``: the detector's helper threads (``fastdet-band``), the other share of the bands;
-- ``decode``: :class:`~fastdet.io.reader.FrameReader`'s thread;
+- ``decode``: :class:`~fastdet.io.reader.FrameReader`'s thread and FFmpeg's decoding workers
+  (threads named ``av:...`` by the system; they do most of the decoding);
 - ``beside``: the thread that runs a frame's last stages beside the next frame (``fastdet-tail``);
 - ``other``: threads without a Python name: OpenCV's own worker pool (``cv2.setNumThreads(1)``
-  leaves it empty) and OpenMP's workers.
+  leaves it empty) and OpenMP's workers;
+- ``ended``: threads that ended between the two readings (their last reading is gone): the
+  process's CPU time (``time.process_time``) less that of the threads alive at the end. The
+  window ends :data:`~fastdet.io.reader.QUEUE_SIZE` frames before the reader's last one, so the
+  decoding threads, which end with the file, are still alive; the role should be about 0.
 
 ``band phase`` is the wall time a frame spends in the detector's band scoring
 (:meth:`fastdet.detect.Detector._all_band_scores`), the part the band threads share; ``cores
@@ -36,10 +41,10 @@ import numba
 
 from fastdet.config import PipelineConfig
 from fastdet.data import data_dir
-from fastdet.io.reader import FrameReader
+from fastdet.io.reader import QUEUE_SIZE, FrameReader
 from fastdet.video import make_detector, run_frames, video_detector_for
 
-ROLES = ("main", "band pool", "decode", "beside", "other")
+ROLES = ("main", "band pool", "decode", "beside", "other", "ended")
 
 
 def thread_cpu() -> dict[int, float]:
@@ -58,12 +63,13 @@ def thread_cpu() -> dict[int, float]:
     return out
 
 
-def role_of(name: str | None, is_main: bool) -> str:
-    """The role (:data:`ROLES`) of a thread by its Python name (``None``: none)."""
+def role_of(name: str | None, is_main: bool, comm: str | None = None) -> str:
+    """The role (:data:`ROLES`) of a thread by its Python name (``None``: none) or, for a thread
+    without one, its system name ``comm`` (FFmpeg names its workers ``av:...``)."""
     if is_main:
         return "main"
     if name is None:
-        return "other"
+        return "decode" if comm is not None and comm.startswith("av:") else "other"
     for prefix, role in (("fastdet-band", "band pool"), ("fastdet-decode", "decode"), ("fastdet-tail", "beside")):
         if name.startswith(prefix):
             return role
@@ -75,14 +81,32 @@ def thread_names() -> dict[int, str]:
     return {t.native_id: t.name for t in threading.enumerate() if t.native_id is not None}
 
 
-def cpu_by_role(before: dict[int, float], after: dict[int, float], names: dict[int, str]) -> dict[str, float]:
+def thread_comms() -> dict[int, str]:
+    """The system name (``/proc/self/task/TID/comm``) of each live thread, by its native id."""
+    out: dict[int, str] = {}
+    for name in os.listdir("/proc/self/task"):
+        try:
+            with open(f"/proc/self/task/{name}/comm") as f:
+                out[int(name)] = f.read().strip()
+        except OSError:  # the thread ended meanwhile
+            continue
+    return out
+
+
+def cpu_by_role(before: dict[int, float], after: dict[int, float], names: dict[int, str],
+                process: float | None = None, comms: dict[int, str] | None = None) -> dict[str, float]:
     """CPU seconds each role spent between two :func:`thread_cpu` readings, the threads named by
     ``names`` (:func:`thread_names` at the second reading). A thread that started in between
-    counts from zero; one that ended is lost (its last reading is gone)."""
+    counts from zero; one that ended has no last reading: ``process``, the process's CPU seconds
+    between the readings, gives the ``ended`` role what the live threads do not account for
+    (0 without it). ``comms``: :func:`thread_comms` at the second reading."""
     main = threading.main_thread().native_id
+    comms = comms or {}
     out = dict.fromkeys(ROLES, 0.0)
     for tid, cpu in after.items():
-        out[role_of(names.get(tid), tid == main)] += max(cpu - before.get(tid, 0.0), 0.0)
+        out[role_of(names.get(tid), tid == main, comms.get(tid))] += max(cpu - before.get(tid, 0.0), 0.0)
+    if process is not None:
+        out["ended"] = max(process - sum(out.values()), 0.0)
     return out
 
 
@@ -114,7 +138,8 @@ def _timed(fn: Callable[..., Any], total: list[float]) -> Callable[..., Any]:
 def measure(video: str | os.PathLike, config: PipelineConfig, threads: int, frames: int,
             skip: int = 10) -> FrameThreads:
     """The pipeline over the first ``frames`` frames of ``video`` with ``threads`` Numba threads,
-    measured from the ``skip``-th frame to the ``skip``-th from the end."""
+    measured from the ``skip``-th frame to the ``skip + QUEUE_SIZE``-th from the end (the reader
+    decodes that far ahead, and its threads end with the file)."""
     before_threads = numba.get_num_threads()
     numba.set_num_threads(threads)
     try:
@@ -127,25 +152,27 @@ def measure(video: str | os.PathLike, config: PipelineConfig, threads: int, fram
         # read between the skip-th frame and the skip-th from the end, every thread alive (the
         # decoding threads end with the file, and their CPU time with them)
         last = reader.expected if reader.expected is not None else frames
-        marks: list[tuple[float, float, dict[int, float], dict[int, str]]] = []
+        end = skip + QUEUE_SIZE
+        marks: list[tuple[float, float, float, dict[int, float], dict[int, str], dict[int, str]]] = []
         try:
-            if last < 2 * skip + 1:
-                raise ValueError(f"{video}: {last} frames, fewer than the {2 * skip + 1} the measurement needs")
+            if last < skip + end + 1:
+                raise ValueError(f"{video}: {last} frames, fewer than the {skip + end + 1} the measurement needs")
             vd.warmup()
             for i, _ in enumerate(run_frames(vd, reader)):
-                if i == skip or i == last - skip:
-                    marks.append((time.perf_counter(), band_s[0], thread_cpu(), thread_names()))
+                if i == skip or i == last - end:
+                    marks.append((time.perf_counter(), band_s[0], time.process_time(), thread_cpu(), thread_names(),
+                                  thread_comms()))
         finally:
             reader.close()
             vd.close()
     finally:
         numba.set_num_threads(before_threads)
     if len(marks) < 2:
-        raise ValueError(f"{video}: decoding ended before frame {last - skip}")
-    (t0, b0, cpu0, _), (t1, b1, cpu1, names) = marks
-    n = last - 2 * skip
+        raise ValueError(f"{video}: decoding ended before frame {last - end}")
+    (t0, b0, p0, cpu0, _, _), (t1, b1, p1, cpu1, names, comms) = marks
+    n = last - end - skip
     wall = t1 - t0
-    roles = cpu_by_role(cpu0, cpu1, names)
+    roles = cpu_by_role(cpu0, cpu1, names, process=p1 - p0, comms=comms)
     return FrameThreads(threads, n, wall / n * 1e3, (b1 - b0) / n * 1e3, {k: v / n * 1e3 for k, v in roles.items()})
 
 
