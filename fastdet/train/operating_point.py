@@ -50,7 +50,7 @@ class Agreement:
         """The pipeline's wall time per frame (ms) after each stretch's first frame: the steady
         frame loop, without the start-up (reaching the stretch, the horizon from its first frames);
         ``adapt`` feeds it the stretch's frames decoded once and held
-        (:func:`fastdet.cli.adapt.held_stretches`), so it holds no decoding either."""
+        (:func:`fastdet.cli.kept_aside.held_stretches`), so it holds no decoding either."""
         return 1000.0 * self.seconds / self.frames if self.frames else math.nan
 
     def to_dict(self) -> dict[str, Any]:

@@ -1,4 +1,4 @@
-"""``adapt``'s operating point reads each kept-aside stretch once (cli.adapt.held_stretches):
+"""``adapt``'s operating point reads each kept-aside stretch once (cli.kept_aside.held_stretches):
 in memory under ``AdaptConfig.hold_bytes``, the rest in raw files of the work folder, a clip
 whose file cannot be written read from its video again (a note); nothing left behind, a stop
 included."""
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from fastdet.cli.adapt import _source, held_stretches
+from fastdet.cli.kept_aside import _source, held_stretches
 from fastdet.config.adapt import AdaptConfig
 from fastdet.train.adapt import plan_footage
 from tests.media import leftovers, write_video
