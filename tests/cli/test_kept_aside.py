@@ -1,4 +1,4 @@
-"""``adapt``'s operating point reads each kept-aside stretch once (cli.kept_aside.held_stretches):
+"""``adapt``'s kept-aside frames (``fastdet.cli.kept_aside``): each stretch read once (held_stretches):
 in memory under ``AdaptConfig.hold_bytes``, the rest in raw files of the work folder, a clip
 whose file cannot be written read from its video again (a note); nothing left behind, a stop
 included."""
