@@ -390,7 +390,7 @@ def run(args: argparse.Namespace) -> int:
         t = time.perf_counter()
         n_held = sum(len(v) for v in held.values())
         op = operating_point(model, side, side_fit, footage, held, horizons, flow_horizons, config, work, progress,
-                             frames=(frames, read_secs))
+                             frames, read_secs)
         model = op.model
         secs["operating_point"] = time.perf_counter() - t + read_secs
     secs["total"] = time.perf_counter() - t_start

@@ -15,7 +15,7 @@ import os
 import shutil
 import time
 from collections.abc import Iterator, Mapping, Sequence
-from contextlib import contextmanager, nullcontext
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -57,7 +57,7 @@ def _predictions(tables: list[Detections]) -> Detections:
 def held_stretches(footage: _adapt.Footage, held: Mapping[str, list[AnnotatedPicture]], config: AdaptConfig,
                    folder: Path) -> Iterator[dict[str, HeldFrames]]:
     """Each clip's kept-aside stretch (of a clip with labelled frames there) decoded once and
-    held for the operating point's runs (:func:`fastdet.io.hold.hold_frames`), ``{clip name:
+    held for the horizon's and the operating point's runs (:func:`fastdet.io.hold.hold_frames`), ``{clip name:
     HeldFrames}``: the stretch's frames, at least :data:`~fastdet.video.horizon.HORIZON_FRAMES`
     (what a run reads ahead for the horizon), in memory while they fit in
     ``config.hold_bytes`` over all clips, else in a raw file in ``folder``. A clip whose file
@@ -91,7 +91,7 @@ def held_stretches(footage: _adapt.Footage, held: Mapping[str, list[AnnotatedPic
 
 @contextmanager
 def read_held(footage: _adapt.Footage, held: Mapping[str, list[AnnotatedPicture]], config: AdaptConfig,
-               folder: Path) -> Iterator[tuple[dict[str, HeldFrames], float]]:
+              folder: Path) -> Iterator[tuple[dict[str, HeldFrames], float]]:
     """:func:`held_stretches`, with the seconds their reading took (the summary's ``kept_aside``)."""
     t = time.perf_counter()
     with held_stretches(footage, held, config, folder) as frames:
@@ -221,7 +221,7 @@ HORIZON_GAP = 0.05
 def choose_horizon(model: Model, footage: _adapt.Footage, pictures: Sequence[AnnotatedPicture],
                    held: dict[str, list[AnnotatedPicture]], horizons: dict[str, float | None],
                    config: AdaptConfig, work: Path, progress: bool,
-                   frames: Mapping[str, HeldFrames] | None = None) -> tuple[dict[str, Any], float | None]:
+                   frames: Mapping[str, HeldFrames]) -> tuple[dict[str, Any], float | None]:
     """The camera's horizon: the one its labelled vehicles' boxes imply
     (:func:`~fastdet.video.horizon.horizon_from_boxes` over ``pictures``' frames of the footage's
     videos, the kept-aside ones too: a short footage's training frames hold too few vehicles for a
@@ -233,7 +233,7 @@ def choose_horizon(model: Model, footage: _adapt.Footage, pictures: Sequence[Ann
     there is above the flow's by more than its standard error: the flow's is the default, as a
     ``video`` run has it. Tried only when it is at least :data:`HORIZON_GAP` of the height from
     some video's flow horizon and frames were kept aside. ``frames``: the stretches held
-    (:func:`held_stretches`, read once for this and the operating point); ``None``: read here.
+    (:func:`held_stretches`, read once for this and the operating point).
     Returns the summary's ``horizon`` entry (``flow``: the first video's) and the horizon to record
     (``None``: the flow's)."""
     flow = horizons[footage.clips[0].name]
@@ -255,13 +255,11 @@ def choose_horizon(model: Model, footage: _adapt.Footage, pictures: Sequence[Ann
     assert from_boxes is not None
     folder = work / "horizon"
     results: dict[str, tuple[float, float]] = {}
-    with held_stretches(footage, held, config, folder) if frames is None else nullcontext(frames) as held_frames:
-        for name, at in (("flow", horizons), ("boxes", dict.fromkeys(horizons, from_boxes))):
-            formation, _, by_boxes = _op.choose_operating_point(
-                model, footage, holdout_lanes(held, held_frames, at), folder, config.offsets, BOXES, progress,
-                seed=config.seed)
-            c = by_boxes[formation]
-            results[name] = (c.results[c.best].to_dict()["f1"] or 0.0, c.se)
+    for name, at in (("flow", horizons), ("boxes", dict.fromkeys(horizons, from_boxes))):
+        formation, _, by_boxes = _op.choose_operating_point(
+            model, footage, holdout_lanes(held, frames, at), folder, config.offsets, BOXES, progress, seed=config.seed)
+        c = by_boxes[formation]
+        results[name] = (c.results[c.best].to_dict()["f1"] or 0.0, c.se)
     shutil.rmtree(folder, ignore_errors=True)
     summary["f1"] = {k: round(v[0], 4) for k, v in results.items()}
     summary["f1_se"] = round(results["boxes"][1], 4)
@@ -291,13 +289,13 @@ class OperatingPoint:
 def operating_point(model: Model, side: Model | None, side_fit: dict[str, Any], footage: _adapt.Footage,
                     held: dict[str, list[AnnotatedPicture]], horizons: dict[str, float | None],
                     flow_horizons: dict[str, float | None], config: AdaptConfig, work: Path,
-                    progress: bool, frames: tuple[Mapping[str, HeldFrames], float] | None = None) -> OperatingPoint:
+                    progress: bool, frames: Mapping[str, HeldFrames], read_seconds: float) -> OperatingPoint:
     """The box formation, the decision offset and the side-view component's offset (or none),
     chosen by replaying the kept-aside frames (``held``) at the camera's ``horizons``; with no
     labelled frame kept aside the model keeps its own operating point (heat map, offset 0) and no
     component. The bundled model's agreement (``before``) is that of a ``video`` run, at the
-    flow's horizons. ``frames``: the stretches held (:func:`held_stretches`) and the seconds their
-    reading took; ``None``: read here."""
+    flow's horizons. ``frames``: the stretches held (:func:`held_stretches`); ``read_seconds``: what
+    their reading took."""
     n_held = sum(len(v) for v in held.values())
     before = after = None
     chosen = 0.0
@@ -309,33 +307,31 @@ def operating_point(model: Model, side: Model | None, side_fit: dict[str, Any], 
     if not n_held:
         return OperatingPoint(model, boxes, chosen, tried, formations, side_summary, kept, before, after)
     _warm_up(footage.clips[0].path)
-    with nullcontext(frames) if frames is not None else read_held(footage, held, config,
-                                                                  work / "operating-point") as (held_frames, secs):
-        kept = _kept(held_frames, secs)
-        run_holdout = holdout_run(held, held_frames, horizons)
-        before = _op.agreement(footage, holdout_run(held, held_frames, flow_horizons), None).to_dict()
-        boxes, chosen, by_boxes = _op.choose_operating_point(
-            model, footage, holdout_lanes(held, held_frames, horizons), work / "operating-point", config.offsets, BOXES,
-            progress, seed=config.seed)
-        formations = {b: {"offset": c.offset, "f1": c.results[c.offset].to_dict()["f1"], "best_offset": c.best,
-                          "best_f1": c.results[c.best].to_dict()["f1"], "f1_se": round(c.se, 4)}
-                      for b, c in by_boxes.items()}
-        r = by_boxes[boxes].results[chosen]
-        if side is not None and "nms" in by_boxes:
-            sc = _op.choose_side_offset(replace(model, side=side), footage, holdout_lanes(held, held_frames, horizons),
-                                        work / "operating-point", "nms", by_boxes["nms"].offset,
-                                        config.side_offsets, progress, seed=config.seed)
-            side_summary.update({"offsets_f1": {f"{o:g}": a.to_dict()["f1"] for o, a in sc.results.items()},
-                                 "best_offset": _finite(sc.best), "f1_se": round(sc.se, 4)})
-            if _op.use_side(boxes, by_boxes, sc):
-                if boxes != "nms":
-                    side_summary["instead_of"] = boxes  # the formation chosen without it
-                boxes, chosen = "nms", by_boxes["nms"].offset
-                model = side_offset(replace(model, side=side), sc.offset)
-                side_summary["offset"] = sc.offset
-                r = sc.results[sc.offset]
-        tried = {f"{o:g}": a.to_dict()["f1"] for o, a in by_boxes[boxes].results.items()}  # the formation kept
-        after = _after(model, chosen, boxes, footage, run_holdout, work / "operating-point")
+    kept = _kept(frames, read_seconds)
+    run_holdout = holdout_run(held, frames, horizons)
+    before = _op.agreement(footage, holdout_run(held, frames, flow_horizons), None).to_dict()
+    boxes, chosen, by_boxes = _op.choose_operating_point(
+        model, footage, holdout_lanes(held, frames, horizons), work / "operating-point", config.offsets, BOXES,
+        progress, seed=config.seed)
+    formations = {b: {"offset": c.offset, "f1": c.results[c.offset].to_dict()["f1"], "best_offset": c.best,
+                      "best_f1": c.results[c.best].to_dict()["f1"], "f1_se": round(c.se, 4)}
+                  for b, c in by_boxes.items()}
+    r = by_boxes[boxes].results[chosen]
+    if side is not None and "nms" in by_boxes:
+        sc = _op.choose_side_offset(replace(model, side=side), footage, holdout_lanes(held, frames, horizons),
+                                    work / "operating-point", "nms", by_boxes["nms"].offset,
+                                    config.side_offsets, progress, seed=config.seed)
+        side_summary.update({"offsets_f1": {f"{o:g}": a.to_dict()["f1"] for o, a in sc.results.items()},
+                             "best_offset": _finite(sc.best), "f1_se": round(sc.se, 4)})
+        if _op.use_side(boxes, by_boxes, sc):
+            if boxes != "nms":
+                side_summary["instead_of"] = boxes  # the formation chosen without it
+            boxes, chosen = "nms", by_boxes["nms"].offset
+            model = side_offset(replace(model, side=side), sc.offset)
+            side_summary["offset"] = sc.offset
+            r = sc.results[sc.offset]
+    tried = {f"{o:g}": a.to_dict()["f1"] for o, a in by_boxes[boxes].results.items()}  # the formation kept
+    after = _after(model, chosen, boxes, footage, run_holdout, work / "operating-point")
     if (after["tp"], after["fp"], after["fn"]) != (r.tp, r.fp, r.fn):
         print(f"note: at offset {chosen:g} the pipeline run found {after['tp']} / {after['fp']} / {after['fn']} "
               f"(hits / false / missed), the replay of the offsets {r.tp} / {r.fp} / {r.fn}", flush=True)

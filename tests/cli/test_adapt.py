@@ -311,28 +311,23 @@ def test_the_boxes_horizon_is_kept_only_above_the_flows_by_more_than_an_error(
         return "nms", 1.0, {"nms": FormationChoice(1.0, {0.0: agreement, 1.0: Agreement(0, 1, 1, 1.0, 10)},
                                                    0.0, se)}
 
-    @contextmanager
-    def held_frames(*a, **k):
-        yield {}
-
     monkeypatch.setattr(kept_aside._op, "choose_operating_point", replay)
-    monkeypatch.setattr(kept_aside, "held_stretches", held_frames)
     monkeypatch.setattr(kept_aside, "holdout_lanes", lambda held, frames, at: dict(at))
     held = {"c1": pictures[:1], "c2": []}
     config = kept_aside.AdaptConfig()
     flows = {"c1": 0.40, "c2": 0.53}
-    summary, hz = kept_aside.choose_horizon(None, footage, pictures + [still], held, flows, config, tmp_path, False)
+    summary, hz = kept_aside.choose_horizon(None, footage, pictures + [still], held, flows, config, tmp_path, False, {})
     assert asked[0] == flows and asked[1] == {"c1": pytest.approx(0.55, abs=0.01), "c2": pytest.approx(0.55, abs=0.01)}
     assert summary["chosen"] == chosen and summary["flow"] == 0.40
     assert summary["boxes"] == pytest.approx(0.55, abs=0.01) and summary["f1_se"] == se
     assert summary["f1"] == {"flow": f1_flow, "boxes": f1_boxes}  # at the best offset, the one of the error
     assert hz == (summary["boxes"] if chosen == "boxes" else None)
     for near in ({"c1": 0.53, "c2": 0.52}, {"c1": None, "c2": 0.56}):  # None: the reference, 0.585
-        s, hz = kept_aside.choose_horizon(None, footage, pictures, held, near, config, tmp_path, False)
+        s, hz = kept_aside.choose_horizon(None, footage, pictures, held, near, config, tmp_path, False, {})
         assert hz is None and "within 0.05" in s["skipped"] and len(asked) == 2
-    s, hz = kept_aside.choose_horizon(None, footage, pictures, {"c1": [], "c2": []}, flows, config, tmp_path, False)
+    s, hz = kept_aside.choose_horizon(None, footage, pictures, {"c1": [], "c2": []}, flows, config, tmp_path, False, {})
     assert hz is None and "no labelled frame kept aside" in s["skipped"] and len(asked) == 2
-    s, hz = kept_aside.choose_horizon(None, footage, [still], held, flows, config, tmp_path, False)
+    s, hz = kept_aside.choose_horizon(None, footage, [still], held, flows, config, tmp_path, False, {})
     assert hz is None and s["boxes"] is None and "fewer than" in s["skipped"]
     # the stretches adapt read once for this and the operating point: not read again
     @contextmanager
@@ -341,7 +336,7 @@ def test_the_boxes_horizon_is_kept_only_above_the_flows_by_more_than_an_error(
         yield {}
 
     monkeypatch.setattr(kept_aside, "held_stretches", read_again)
-    s, hz = kept_aside.choose_horizon(None, footage, pictures, held, flows, config, tmp_path, False, frames={})
+    s, hz = kept_aside.choose_horizon(None, footage, pictures, held, flows, config, tmp_path, False, {})
     assert s["chosen"] == chosen and len(asked) == 4
 
 
