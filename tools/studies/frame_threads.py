@@ -149,8 +149,9 @@ def measure(video: str | os.PathLike, config: PipelineConfig, threads: int, fram
         detector._all_band_scores = _timed(detector._all_band_scores, band_s)  # type: ignore[method-assign]
         reader = FrameReader(video, 0, frames)
         vd = video_detector_for(reader, detector, config)
-        # read between the skip-th frame and the skip-th from the end, every thread alive (the
-        # decoding threads end with the file, and their CPU time with them)
+        # read between the skip-th frame and the (skip + QUEUE_SIZE)-th from the end, every thread
+        # alive: the reader decodes QUEUE_SIZE frames ahead, and its threads end with the file
+        # (their CPU time with them)
         last = reader.expected if reader.expected is not None else frames
         end = skip + QUEUE_SIZE
         marks: list[tuple[float, float, float, dict[int, float], dict[int, str], dict[int, str]]] = []
