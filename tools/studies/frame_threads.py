@@ -47,20 +47,31 @@ from fastdet.video import make_detector, run_frames, video_detector_for
 ROLES = ("main", "band pool", "decode", "beside", "other", "ended")
 
 
-def thread_cpu() -> dict[int, float]:
-    """CPU seconds (user + system) of each live thread of this process, by its native id, from
-    ``/proc/self/task`` (Linux). ``OSError`` where there is no such folder."""
+def thread_stats() -> tuple[dict[int, float], dict[int, str]]:
+    """``(CPU seconds, system name)`` of each live thread of this process, by its native id, in
+    one pass over ``/proc/self/task`` (Linux): user + system time from ``TID/stat``, the name
+    from ``TID/comm`` (FFmpeg names its workers ``av:...``). ``OSError`` where there is no such
+    folder."""
     tick = os.sysconf("SC_CLK_TCK")
-    out: dict[int, float] = {}
+    cpu: dict[int, float] = {}
+    comms: dict[int, str] = {}
     for name in os.listdir("/proc/self/task"):
         try:
             with open(f"/proc/self/task/{name}/stat") as f:
                 stat = f.read()
+            with open(f"/proc/self/task/{name}/comm") as f:
+                comm = f.read().strip()
         except OSError:  # the thread ended meanwhile
             continue
         fields = stat.rsplit(")", 1)[1].split()  # after the command name, which may hold spaces
-        out[int(name)] = (int(fields[11]) + int(fields[12])) / tick  # utime, stime
-    return out
+        cpu[int(name)] = (int(fields[11]) + int(fields[12])) / tick  # utime, stime
+        comms[int(name)] = comm
+    return cpu, comms
+
+
+def thread_cpu() -> dict[int, float]:
+    """CPU seconds (user + system) of each live thread, by its native id (:func:`thread_stats`)."""
+    return thread_stats()[0]
 
 
 def role_of(name: str | None, is_main: bool, comm: str | None = None) -> str:
@@ -81,25 +92,13 @@ def thread_names() -> dict[int, str]:
     return {t.native_id: t.name for t in threading.enumerate() if t.native_id is not None}
 
 
-def thread_comms() -> dict[int, str]:
-    """The system name (``/proc/self/task/TID/comm``) of each live thread, by its native id."""
-    out: dict[int, str] = {}
-    for name in os.listdir("/proc/self/task"):
-        try:
-            with open(f"/proc/self/task/{name}/comm") as f:
-                out[int(name)] = f.read().strip()
-        except OSError:  # the thread ended meanwhile
-            continue
-    return out
-
-
 def cpu_by_role(before: dict[int, float], after: dict[int, float], names: dict[int, str],
                 process: float | None = None, comms: dict[int, str] | None = None) -> dict[str, float]:
     """CPU seconds each role spent between two :func:`thread_cpu` readings, the threads named by
     ``names`` (:func:`thread_names` at the second reading). A thread that started in between
     counts from zero; one that ended has no last reading: ``process``, the process's CPU seconds
     between the readings, gives the ``ended`` role what the live threads do not account for
-    (0 without it). ``comms``: :func:`thread_comms` at the second reading."""
+    (0 without it). ``comms``: the system names of :func:`thread_stats` at the second reading."""
     main = threading.main_thread().native_id
     comms = comms or {}
     out = dict.fromkeys(ROLES, 0.0)
@@ -161,8 +160,8 @@ def measure(video: str | os.PathLike, config: PipelineConfig, threads: int, fram
             vd.warmup()
             for i, _ in enumerate(run_frames(vd, reader)):
                 if i == skip or i == last - end:
-                    marks.append((time.perf_counter(), band_s[0], time.process_time(), thread_cpu(), thread_names(),
-                                  thread_comms()))
+                    marks.append((time.perf_counter(), band_s[0], time.process_time(), *thread_stats(),
+                                  thread_names()))
         finally:
             reader.close()
             vd.close()
@@ -170,7 +169,7 @@ def measure(video: str | os.PathLike, config: PipelineConfig, threads: int, fram
         numba.set_num_threads(before_threads)
     if len(marks) < 2:
         raise ValueError(f"{video}: decoding ended before frame {last - end}")
-    (t0, b0, p0, cpu0, _, _), (t1, b1, p1, cpu1, names, comms) = marks
+    (t0, b0, p0, cpu0, _, _), (t1, b1, p1, cpu1, comms, names) = marks
     n = last - end - skip
     wall = t1 - t0
     roles = cpu_by_role(cpu0, cpu1, names, process=p1 - p0, comms=comms)
