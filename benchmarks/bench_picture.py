@@ -80,7 +80,7 @@ def _measure_second_stage(rounds: int) -> dict[str, dict[str, float]]:
 
     frames = [cv2.imread(str(p)) for p in sorted((data_dir() / "test_images").glob("*.jpg"))]
     det = PictureDetector()
-    found = [det.boxes_from_windows(det.windows(f), f.shape)[0] for f in frames]
+    found = [det.boxes_from_windows(det.windows(f)) for f in frames]
     # the video's refinement: the boxes VideoDetector hands to refine() on test_video's frames
     cap = cv2.VideoCapture(str(data_dir() / "videos" / "test_video.mp4"))
     vd, calls = VideoDetector(), []

@@ -122,8 +122,7 @@ class Detections:
         - a vehicle box in a single picture -- :func:`fastdet.detect_picture`, ``python -m
           fastdet image`` -- scores the box verifier's decision value (above its threshold,
           about -6; :mod:`fastdet.detect.verifier`); without the verifier
-          (``PictureSearch(verify=False)``), the kept window's decision value, or with
-          ``--merge heat`` the blob's peak heat (above ``single_frame_threshold``, 8);
+          (``PictureSearch(verify=False)``), the kept window's decision value;
         - a window -- :meth:`fastdet.Detector.detect` -- scores the model's own value: the
           probability of "vehicle" (0.5 to 1) for a logistic-regression model (the bundled
           models), the decision value (> 0) for a LinearSVC one

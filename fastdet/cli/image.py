@@ -10,13 +10,11 @@ Outputs:
 - ``--boxes OUT.csv``: a header line ``image,x1,y1,x2,y2,score``, then one line a box; ``image``
   is the file name relative to the folder given (or the file name as given for a file);
   pixels, ``x2, y2`` exclusive; score: the box verifier's decision value, higher is more
-  certain (:mod:`fastdet.detect.verifier`; ``--merge heat``, which has no verifier: the blob's
-  peak heat).
+  certain (:mod:`fastdet.detect.verifier`; with ``--no-refine``, the window's).
 - ``-o OUT_DIR``: the annotated pictures, under the same relative names (the folder is made; a
   file given with an absolute path or ``..`` goes there under its base name).
 - The single-file form of earlier versions, ``image IN.jpg -o OUT.jpg`` (one input file and an
-  ``-o`` with an extension that is not an existing folder), writes that one annotated picture; ``--heat`` (only there)
-  also writes the heat map as ``OUT.heat.jpg``.
+  ``-o`` with an extension that is not an existing folder), writes that one annotated picture.
 
 ``--windows`` also draws the positive windows, coloured by scale.
 
@@ -37,7 +35,6 @@ import argparse
 import io
 import os
 import sys
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -68,26 +65,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "IN.jpg -o OUT.jpg with one input file: that one annotated picture")
     parser.add_argument("--windows", action="store_true",
                         help="also draw the positive windows, coloured by search scale")
-    parser.add_argument("--heat", action="store_true",
-                        help="single-file form only: also write the heat map as OUT.heat.jpg")
     parser.add_argument("--model", metavar="MODEL.npz", help="model file (default: the bundled model)")
-    d = PictureSearch()
-    parser.add_argument("--threshold", type=float, default=None, metavar="T",
-                        help=f"--merge heat: heat a pixel needs to be part of a vehicle (default "
-                             f"PictureSearch.heat_threshold = {d.heat_threshold})")
-    parser.add_argument("--merge", choices=("nms", "heat"), default=d.boxes,
-                        help=f"how windows become boxes: non-maximum suppression or a single-frame heat map "
-                             f"(default PictureSearch.boxes = {d.boxes})")
     parser.add_argument("--no-refine", action="store_true",
                         help="the first stage alone: no box refinement and no verifier (windows above "
-                             "decision value 2 after NMS, or the heat map's blobs, as found)")
+                             "decision value 2 after NMS, as found)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-
-
-def heat_path(output: str | os.PathLike) -> Path:
-    """Where ``--heat`` writes: ``OUT.heat.EXT`` beside ``OUT.EXT``."""
-    p = Path(output)
-    return p.with_name(f"{p.stem}.heat{p.suffix}")
 
 
 def collect(inputs: list[str]) -> list[tuple[str, Path]]:
@@ -139,18 +121,14 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
     legacy = _legacy(args)
     if args.boxes is None and args.output is None:
         raise FastdetError("give --boxes OUT.csv and/or -o OUT_DIR")
-    if args.heat and (not legacy or args.merge != "heat"):
-        raise FastdetError("--heat only applies to the single-file form IN.jpg -o OUT.jpg with --merge heat")
     pictures = collect(list(args.inputs))
     out_dir = None if legacy or args.output is None else Path(args.output)
-    hout = heat_path(args.output) if legacy and args.heat else None
     check_paths([*(("PATH", str(p)) for _, p in pictures), ("--model", args.model), *bundled_models()],
-                [("--boxes", args.boxes, "box"), ("-o", args.output if legacy else None, "image"),
-                 ("--heat", hout, "image")])
-    for p in (Path(args.output) if legacy else None, hout):
-        if p is not None and not cv2.haveImageWriter(str(p)):
-            raise DataError(f"{p}: cannot write an image there (extension {p.suffix or '(none)'!r} "
-                            f"not supported? use .jpg or .png)")
+                [("--boxes", args.boxes, "box"), ("-o", args.output if legacy else None, "image")])
+    if legacy and not cv2.haveImageWriter(str(args.output)):
+        p = Path(args.output)
+        raise DataError(f"{p}: cannot write an image there (extension {p.suffix or '(none)'!r} "
+                        f"not supported? use .jpg or .png)")
     if out_dir is not None:
         if out_dir.exists() and not out_dir.is_dir():
             raise DataError(f"-o {out_dir}: is a file; give a folder for the annotated pictures")
@@ -170,12 +148,7 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
         for name, _ in pictures:
             if os.path.realpath(out_dir / out_name(name)) in inputs:
                 raise DataError(f"-o {out_dir}: would overwrite the input {name}; give another folder")
-    try:
-        base = FIRST_STAGE_ONLY if args.no_refine else PictureSearch()
-        config = replace(base, boxes=args.merge, verify=base.verify and args.merge == "nms",
-                         **({} if args.threshold is None else {"heat_threshold": args.threshold}))
-    except ValueError as exc:
-        raise FastdetError(f"--threshold: {exc}") from None
+    config = FIRST_STAGE_ONLY if args.no_refine else PictureSearch()
     first = read_image(pictures[0][1]) if len(pictures) == 1 else None  # one picture: its errors are errors
     if detector is None:
         detector = PictureDetector(args.model, config)
@@ -208,8 +181,7 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
                 skipped.append(name)
                 bar.update(1)
                 continue
-            boxes, hm = detector.boxes_from_windows(windows, img.shape)
-            boxes = detector.second_stage(img, boxes)
+            boxes = detector.second_stage(img, detector.boxes_from_windows(windows))
             n_boxes += len(boxes)
             for b, s in zip(boxes.boxes, boxes.scores):
                 csv.write(f"{name},{int(b[0])},{int(b[1])},{int(b[2])},{int(b[3])},{float(s):.4f}\n")
@@ -221,11 +193,6 @@ def run(args: argparse.Namespace, detector: Any = None) -> int:
                 draw.draw_boxes(ann, boxes.boxes, boxes.scores, thickness=3)
                 out.parent.mkdir(parents=True, exist_ok=True)
                 write_image(out, ann)
-                if hout is not None and hm is not None:
-                    vmax = max(2.0 * hm.config.threshold, float(hm.heat.max()))
-                    himg = draw.grid_to_frame(draw.heat_image(hm.heat, vmax=vmax), hm.config.cell, img.shape)
-                    draw.draw_boxes(himg, boxes.boxes, None, thickness=2)
-                    write_image(hout, himg)
             bar.update(1)
             signals.check()
     finally:

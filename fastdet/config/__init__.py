@@ -39,7 +39,7 @@ from .models import (
 )
 from .motion import MotionGate
 from .ownvehicle import OwnVehicleConfig
-from .picture import PICTURE_SEARCH, PictureBoxes, PictureSearch
+from .picture import PICTURE_SEARCH, PictureSearch
 from .pipeline import BOXES, Boxes, Horizon, PipelineConfig
 from .plausible import PlausibleConfig
 from .refine import JitterConfig, RefineConfig
@@ -61,7 +61,7 @@ from .track import TrackerConfig
 __all__ = ["BoxMode", "CELL", "COCO_VEHICLES", "COLOR_SPACES", "ColorSpace", "Config", "DEFAULT_MODEL_PATH",
            "BOXES", "Boxes", "FeatureConfig", "GuidedSearch", "HeatConfig", "Horizon", "JitterConfig", "MotionGate",
            "NeighbourSplit", "ONCOMING_HEAT", "ONCOMING_MODEL_PATH", "ONCOMING_SEARCH", "OwnVehicleConfig",
-           "PICTURE_SEARCH", "PictureBoxes", "PictureSearch",
+           "PICTURE_SEARCH", "PictureSearch",
            "PipelineConfig", "PlausibleConfig", "REFERENCE_HORIZON", "REFERENCE_SHAPE", "REFINE_MODEL_PATH",
            "RefineConfig", "ScoreKind", "SearchBand", "SearchConfig",
            "TRAFFIC_SIDES", "TeacherConfig", "TrackerConfig", "Traffic", "WINDOW", "check_traffic", "oncoming_search"]

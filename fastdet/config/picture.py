@@ -6,10 +6,9 @@ cars of that size stand below a dashcam's horizon; a photo from any other camera
 place. A picture search covers the **whole picture at every scale**: window sizes from
 ``min_width`` x the picture's width up to ``max_height`` x its height, ``steps`` sizes per
 octave, every band spanning every row and column, windows ``cells_per_step`` HOG cells apart.
-Positive windows (decision value above ``threshold``) become boxes by a single-frame heat map
-(``boxes='heat'``, :class:`~fastdet.config.HeatConfig` ``single_frame(heat_threshold)``) or by
-greedy non-maximum suppression of the windows (``boxes='nms'``: the best window first, every
-window overlapping a kept one at IoU above ``nms_iou`` dropped).
+Positive windows (decision value above ``threshold``) become boxes by greedy non-maximum
+suppression (the best window first, every window overlapping a kept one at IoU above
+``nms_iou`` dropped).
 
 Then each box is refined by the video's box regressor (``refine``) and looked at again by the
 box verifier (``verify``, :mod:`fastdet.detect.verifier`), which keeps the boxes it scores above
@@ -18,8 +17,9 @@ decision value 0 and whose second stage removes most of their false alarms.
 
 Defaults chosen by measurement (docs/benchmarks.md, "Single pictures"; docs/accuracy.md,
 "Labelled picture sets" and "The picture search's second stage"): 2 sizes an octave, 2 cells a
-step (the 50 ms budget at 1280x720), NMS at IoU 0.3 (the heat map merges the windows of
-neighbouring cars and of clutter into large blobs on pictures of other cameras), windows above
+step (the 50 ms budget at 1280x720), NMS at IoU 0.3 (a single-frame heat map, deleted, merged
+the windows of neighbouring cars and of clutter into large blobs on pictures of other cameras and
+scored lower on every labelled picture set), windows above
 decision value 0 with the refinement and the verifier (without the verifier, decision value 2
 had the best F1 on dawn_fog: ``PictureSearch(verify=False, nms_min_score=2)``).
 """
@@ -27,14 +27,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
 
 from ._base import Config
 from .refine import RefineConfig
 from .search import SearchBand, SearchConfig
-
-#: how positive windows become boxes on one picture
-PictureBoxes = Literal["heat", "nms"]
 
 
 @dataclass(frozen=True)
@@ -47,17 +43,13 @@ class PictureSearch(Config):
     steps: window sizes per octave (each size ``2 ** (1 / steps)`` x the one before).
     cells_per_step: window stride in HOG cells of the scaled band (1 or 2; 2 is 2-4x cheaper).
     threshold: a window is positive when its decision value exceeds this.
-    boxes: ``'heat'`` (a single-frame heat map, one box per blob) or ``'nms'`` (the positive
-        windows after non-maximum suppression, each scored by its decision value).
-    heat_threshold: the heat a pixel needs to be part of a vehicle (``boxes='heat'``;
-        :attr:`HeatConfig.threshold <fastdet.config.HeatConfig>`).
-    nms_iou: two windows overlapping at more than this IoU see the same vehicle (``'nms'``).
-    nms_min_score: decision value a window needs to become a box (``'nms'``; at least ``threshold``).
+    nms_iou: two windows overlapping at more than this IoU see the same vehicle.
+    nms_min_score: decision value a window needs to become a box (at least ``threshold``).
     refine: how the learned box regressor moves each box onto its vehicle
         (:class:`~fastdet.config.RefineConfig`, the video's; :mod:`fastdet.video.refine`);
-        ``None``: the boxes are the windows (or blobs) as found.
+        ``None``: the boxes are the windows as found.
     verify: the box verifier (:mod:`fastdet.detect.verifier`) takes a second look at each
-        (refined) box and keeps those it scores above its threshold, scored by its decision
+        refined box and keeps those it scores above its threshold, scored by its decision
         value; ``False``: every box the first stage found, scored by its window's decision value.
     """
 
@@ -66,16 +58,12 @@ class PictureSearch(Config):
     steps: int = 2
     cells_per_step: int = 2
     threshold: float = 0.0
-    boxes: PictureBoxes = "nms"
-    heat_threshold: float = 8.0
     nms_iou: float = 0.3
     nms_min_score: float = 0.0
     refine: RefineConfig | None = RefineConfig()
     verify: bool = True
 
     def __post_init__(self) -> None:
-        if self.verify and self.boxes != "nms":
-            raise ValueError("verify takes the NMS boxes' decision values: give boxes='nms' or verify=False")
         if self.verify and self.refine is None:
             raise ValueError("verify looks at refined boxes (it was fitted on them): give refine or verify=False")
         if not 0 < self.min_width <= 1:
@@ -89,10 +77,6 @@ class PictureSearch(Config):
             raise ValueError(f"cells_per_step must be >= 1, got {self.cells_per_step!r}")
         if not math.isfinite(self.threshold):
             raise ValueError(f"threshold must be a finite number, got {self.threshold!r}")
-        if self.boxes not in ("heat", "nms"):
-            raise ValueError(f"boxes must be 'heat' or 'nms', got {self.boxes!r}")
-        if not self.heat_threshold > 0:
-            raise ValueError(f"heat_threshold must be > 0, got {self.heat_threshold!r}")
         if not 0 < self.nms_iou < 1:
             raise ValueError(f"nms_iou must be in (0, 1), got {self.nms_iou!r}")
         if not math.isfinite(self.nms_min_score):

@@ -3,11 +3,11 @@ and :func:`detect_picture`.
 
 The whole picture is searched at every scale (:class:`~fastdet.config.PictureSearch`: window
 sizes from 1/32 of the width up to the picture's height), and the positive windows become
-one box per vehicle by a single-frame heat map (:class:`~fastdet.video.heatmap.HeatMap`,
-``n_frames=1``) or by non-maximum suppression of the windows (``PictureSearch.boxes``). Then
-the video's learned box regressor (:mod:`fastdet.video.refine`, ``PictureSearch.refine``) moves
-each box onto its vehicle: a square window on a car wider than tall reaches IoU 0.5 with it only
-when the car is at most twice as wide as tall, and the regressor fits the box to the car.
+one box per vehicle by non-maximum suppression. Then the video's learned box regressor
+(:mod:`fastdet.video.refine`, ``PictureSearch.refine``) moves each box onto its vehicle: a square
+window on a car wider than tall reaches IoU 0.5 with it only when the car is at most twice as wide
+as tall, and the regressor fits the box to the car; the box verifier
+(:mod:`fastdet.detect.verifier`, ``PictureSearch.verify``) keeps the boxes it is sure of.
 ``python -m fastdet image`` runs exactly this, so the command and the call give the same boxes.
 """
 from __future__ import annotations
@@ -19,13 +19,11 @@ from typing import Any
 
 import numpy as np
 
-from ..config import HeatConfig, PictureSearch
+from ..config import PictureSearch
 from ..detect import Detector
 from ..detect.verifier import BoxVerifier, load_verifier
 from ..detections import Detections
 from ..model import Model, load_model
-from .heatmap import KERNELS as HEAT_KERNELS
-from .heatmap import HeatMap
 from .plausible import duplicates
 from .refine import KERNELS as REFINE_KERNELS
 from .refine import BoxRegressor, refine, regressor_for
@@ -55,7 +53,7 @@ class PictureDetector:
         ``None``: the bundled one), used when ``config.verify`` is set.
 
     :meth:`detect` returns one box per vehicle: :meth:`windows`, the positive windows,
-    :meth:`boxes_from_windows`, one box per vehicle as found, then :meth:`second_stage`
+    :meth:`boxes_from_windows`, one box per vehicle as found (NMS), then :meth:`second_stage`
     (:meth:`refine`, then :meth:`verify`). One :class:`fastdet.Detector` is kept per picture
     size (the last few sizes).
     """
@@ -79,7 +77,6 @@ class PictureDetector:
         self.verifier: BoxVerifier | None = None
         if self.config.verify:
             self.verifier = verifier if isinstance(verifier, BoxVerifier) else load_verifier(verifier)
-        self.heat_config = HeatConfig().single_frame(self.config.heat_threshold)
         self.score_kind = self.model.score_kind
         self._detectors: OrderedDict[tuple[int, int], Detector] = OrderedDict()
 
@@ -87,7 +84,7 @@ class PictureDetector:
     def kernels(self) -> tuple[Any, ...]:
         """Every numba kernel :meth:`detect` runs (to compile them all at once)."""
         second = self.regressor is not None or self.verifier is not None
-        return (*Detector.kernels, *HEAT_KERNELS, *(REFINE_KERNELS if second else ()))
+        return (*Detector.kernels, *(REFINE_KERNELS if second else ()))
 
     def detector(self, shape: tuple[int, ...]) -> Detector:
         """The :class:`fastdet.Detector` that searches pictures of ``shape = (H, W[, C])``
@@ -110,18 +107,15 @@ class PictureDetector:
         boxes ``(N, 4) int32`` px, scores in the model's kind (probability or decision value)."""
         return self.detector(np.shape(image)).detect(image, rgb=rgb)
 
-    def boxes_from_windows(self, windows: Detections, shape: tuple[int, ...]) -> tuple[Detections, HeatMap | None]:
-        """One box per vehicle from a picture's positive ``windows`` (``shape``: the
-        picture's): ``(boxes, heat map or None)``. Heat: scores are each blob's peak heat;
-        NMS: each kept window's decision value."""
-        if self.config.boxes == "heat":
-            hm = HeatMap(shape, self.heat_config, score_kind=self.score_kind)
-            return hm.update(windows), hm
+    def boxes_from_windows(self, windows: Detections) -> Detections:
+        """One box per vehicle from a picture's positive ``windows``: those above
+        ``config.nms_min_score`` after non-maximum suppression at ``config.nms_iou``, each scored
+        by its decision value."""
         dec = _decision(windows.scores, self.score_kind)
         strong = windows[dec > self.config.nms_min_score]
         dec = dec[dec > self.config.nms_min_score]
         keep = duplicates(strong.boxes, dec, self.config.nms_iou)
-        return Detections(strong.boxes[keep].astype(np.int32), dec[keep].astype(np.float32)), None
+        return Detections(strong.boxes[keep].astype(np.int32), dec[keep].astype(np.float32))
 
     def refine(self, image: np.ndarray, boxes: Detections, rgb: bool = False) -> Detections:
         """``boxes`` of ``image`` (``(H, W, 3) uint8``, BGR or RGB with ``rgb``) moved onto
@@ -153,15 +147,14 @@ class PictureDetector:
     def detect(self, image: np.ndarray, rgb: bool = False) -> Detections:
         """One box per vehicle in ``image`` (``(H, W, 3) uint8``, BGR or RGB with ``rgb``):
         :class:`~fastdet.detections.Detections` with ``boxes (N, 4) int32`` x1, y1, x2, y2
-        (exclusive) px and ``scores (N,) float32`` (peak heat, or decision value with
-        ``boxes='nms'``; the verifier's decision value when ``config.verify``)."""
-        found = self.boxes_from_windows(self.windows(image, rgb), np.shape(image))[0]
+        (exclusive) px and ``scores (N,) float32`` (the window's decision value; the verifier's
+        decision value when ``config.verify``)."""
+        found = self.boxes_from_windows(self.windows(image, rgb))
         return self.second_stage(image, found, rgb)
 
     def warmup(self) -> None:
         """Compile (or load) the kernels and run them once on a small picture."""
         Detector(self.model, self.config.search((128, 128))).warmup()
-        HeatMap((8, 8), self.heat_config).warmup()
         if self.regressor is not None or self.verifier is not None:
             self.second_stage(np.zeros((64, 64, 3), np.uint8), Detections(np.array([[8, 8, 56, 56]], np.int32),
                                                                           np.ones(1, np.float32)))

@@ -179,7 +179,7 @@ def test_detect_picture_gives_the_boxes_and_scores_of_the_reference_crops(data, 
 
     pics = _pictures(data)
     det = PictureDetector()
-    found = [det.boxes_from_windows(det.windows(p), p.shape)[0] for p in pics]
+    found = [det.boxes_from_windows(det.windows(p)) for p in pics]
     assert sum(len(f) for f in found) > 50  # enough boxes to mean something
     new = [det.second_stage(p, f) for p, f in zip(pics, found)]
     # the features themselves: bit for bit

@@ -27,8 +27,8 @@ def test_bands_cover_every_row_at_every_scale():
     assert PictureSearch.from_dict(ps.to_dict()) == ps
 
 
-@pytest.mark.parametrize("bad", [{"min_width": 0}, {"steps": 0}, {"boxes": "mean"}, {"nms_iou": 1.0},
-                                 {"heat_threshold": 0}, {"max_height": 1.5}])
+@pytest.mark.parametrize("bad", [{"min_width": 0}, {"steps": 0}, {"nms_iou": 1.0}, {"nms_min_score": math.nan},
+                                 {"max_height": 1.5}])
 def test_bad_settings(bad):
     with pytest.raises(ValueError):
         PictureSearch(**bad)
@@ -61,7 +61,7 @@ def test_the_boxes_found_are_refined_by_the_video_regressor(test_images):
 
     img = cv2.imread(str(test_images[0]))
     pd = PictureDetector(config=PictureSearch(verify=False))
-    found = pd.boxes_from_windows(pd.windows(img), img.shape)[0]
+    found = pd.boxes_from_windows(pd.windows(img))
     assert len(found) > 0
     want = refine(img, found, load_regressor(), PictureSearch().refine)
     got = pd.detect(img)
@@ -86,7 +86,7 @@ def test_refined_boxes_match_more_annotated_vehicles(data):
     hits = {"found": 0, "refined": 0}
     for pic in pics:
         img = pic.load()
-        found = pd.boxes_from_windows(pd.windows(img), img.shape)[0]
+        found = pd.boxes_from_windows(pd.windows(img))
         for name, d in (("found", found), ("refined", pd.refine(img, found))):
             hit, _, _ = match_frame(np.asarray(d.boxes, np.float64), np.asarray(d.scores, np.float64),
                                     pic.targets, pic.ignores, 0.5)
@@ -111,9 +111,6 @@ def test_the_verifier_keeps_the_refined_boxes_it_scores_above_its_threshold(test
     got = pd.detect(img)
     assert got.boxes.tolist() == refined.boxes[keep].tolist()
     np.testing.assert_allclose(got.scores, dv[keep], rtol=1e-5)
-    assert PictureSearch(boxes="heat", verify=False).verify is False
-    with pytest.raises(ValueError, match="verify takes the NMS boxes"):
-        PictureSearch(boxes="heat")
 
 
 def test_no_refine_is_the_first_stage_alone(test_images, tmp_path):
@@ -126,7 +123,7 @@ def test_no_refine_is_the_first_stage_alone(test_images, tmp_path):
     img = cv2.imread(str(test_images[0]))
     want = PictureDetector(config=FIRST_STAGE_ONLY).detect(img)
     pd = PictureDetector(config=FIRST_STAGE_ONLY)
-    assert want.boxes.tolist() == pd.boxes_from_windows(pd.windows(img), img.shape)[0].boxes.tolist()
+    assert want.boxes.tolist() == pd.boxes_from_windows(pd.windows(img)).boxes.tolist()
     assert (want.scores > 2).all()
     csv = tmp_path / "b.csv"
     assert cli.main(["image", str(test_images[0]), "--boxes", str(csv), "--no-refine", "--no-progress"]) == 0

@@ -54,7 +54,7 @@ def operating_point(model, held) -> tuple[object, dict]:
     f1 = {}
     for s in SCORES:
         det.config = PictureSearch(nms_min_score=s, verify=False)
-        preds = [det.boxes_from_windows(w, img.shape)[0] for w, (_, img) in zip(windows, frames)]
+        preds = [det.boxes_from_windows(w) for w in windows]
         f1[str(s)] = round(score_source("held-out teacher frames", held, preds).f1, 4)
     best = max(SCORES, key=lambda s: f1[str(s)])
     delta = best - PictureSearch().nms_min_score
