@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import shlex
-import subprocess
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -27,6 +26,7 @@ from fastdet.detections import Detections
 from fastdet.eval import EvalResult, evaluate
 from fastdet.eval.clips import AnnotatedClip, annotated_clips
 from fastdet.video.run import detect_video
+from tools.studies.adapt_unlabelled import run_adapt
 
 #: the human-labelled clips of issue 32
 CLIPS = ("highway_640", "boston_street", "motorcycle_highway")
@@ -49,16 +49,9 @@ class SeedScore:
 
 
 def adapt_clip(clip: AnnotatedClip, seed: int, out: Path, data: Path, extra: Sequence[str] = ()) -> str | None:
-    """Run ``fastdet adapt`` on ``clip``'s video at ``seed`` into ``out`` unless it exists;
-    ``None`` when the model is there, else adapt's last line of error."""
-    if out.exists():
-        return None
-    cmd = [sys.executable, "-m", "fastdet", "adapt", str(clip.video), "--teacher",
-           str(data / "teachers" / "yolox_nano.onnx"), "-o", str(out), "--seed", str(seed), "--no-progress", *extra]
-    r = subprocess.run(cmd, capture_output=True, text=True)
-    if r.returncode:
-        return (r.stderr.strip().splitlines() or ["(no message)"])[-1]
-    return None
+    """:func:`~tools.studies.adapt_unlabelled.run_adapt` on ``clip``'s video at ``seed``: ``None``
+    when the model is there, else adapt's last line of error."""
+    return run_adapt(clip.video, out, data, ["--seed", str(seed), *extra])
 
 
 def human_score(clip: AnnotatedClip, model: Path) -> EvalResult:

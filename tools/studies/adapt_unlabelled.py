@@ -35,6 +35,7 @@ import dataclasses
 import subprocess
 import sys
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -65,16 +66,26 @@ def clip_video(clip: str, data: Path) -> Path:
     return find_video(data / "teacher" / f"{clip}.teacher.txt", clip)
 
 
-def adapt(clip: str, out: Path, data: Path, extra: list[str] | None = None) -> bool:
-    """Run ``fastdet adapt`` on the clip into ``out`` unless it exists, with ``extra`` options
-    appended (e.g. ``--teacher-size 960``); False when adapt refused (its one line is printed)."""
+def run_adapt(video: Path, out: Path, data: Path, extra: Sequence[str] = ()) -> str | None:
+    """Run ``python -m fastdet adapt VIDEO --teacher DATA/teachers/yolox_nano.onnx -o OUT`` with
+    ``extra`` options appended, unless ``out`` exists; ``None`` when the model is there, else
+    adapt's last line of error."""
     if out.exists():
-        return True
-    cmd = [sys.executable, "-m", "fastdet", "adapt", str(clip_video(clip, data)),
-           "--teacher", str(data / "teachers" / "yolox_nano.onnx"), "-o", str(out), "--no-progress", *(extra or [])]
+        return None
+    cmd = [sys.executable, "-m", "fastdet", "adapt", str(video),
+           "--teacher", str(data / "teachers" / "yolox_nano.onnx"), "-o", str(out), "--no-progress", *extra]
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode:
-        print(f"{clip}: adapt: {(r.stderr.strip().splitlines() or ['(no message)'])[-1]}", file=sys.stderr)
+        return (r.stderr.strip().splitlines() or ["(no message)"])[-1]
+    return None
+
+
+def adapt(clip: str, out: Path, data: Path, extra: list[str] | None = None) -> bool:
+    """:func:`run_adapt` on the clip's video (``extra`` e.g. ``--teacher-size 960``); False when
+    adapt refused (its one line is printed)."""
+    err = run_adapt(clip_video(clip, data), out, data, extra or [])
+    if err is not None:
+        print(f"{clip}: adapt: {err}", file=sys.stderr)
         return False
     return True
 
